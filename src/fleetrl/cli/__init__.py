@@ -1,0 +1,1 @@
+"""The ``fleetrl`` command line."""

@@ -1,0 +1,1 @@
+"""Launching runs: processes, run directories, metrics files, plots and the live view."""
