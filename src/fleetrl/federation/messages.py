@@ -1,0 +1,296 @@
+"""Wire format of federation messages: a versioned msgpack envelope with raw float32 tensors; never pickle.
+
+An envelope is one msgpack map with exactly these keys (see docs/protocol.md):
+
+``version`` (int, :data:`VERSION`), ``type`` (str, one of :data:`MESSAGE_TYPES`), ``run_id`` (str), ``sender``
+(str), ``round`` (int ≥ 1), ``metrics`` (map str → finite number, small), ``origin`` (str or nil: whose
+parameters a ``transfer`` carries), ``finished`` (list of str: workers that leave W with this message),
+``contributors`` (list of str: whose gradients an ``average`` combines), ``tensors`` (list of ``[name,
+shape]``) and ``data`` (bin: the tensors concatenated in that order as little-endian float32).
+
+:func:`decode` validates all of it and raises :class:`MessageRejected` with a :class:`Reason` for anything
+wrong; it never raises anything else, whatever the bytes.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Collection, Mapping, Sequence
+from dataclasses import dataclass, field
+from enum import StrEnum
+from typing import Any
+
+import msgpack
+import numpy as np
+
+VERSION = 1
+"""Envelope version; a receiver rejects any other."""
+
+Layout = Sequence[tuple[str, tuple[int, ...]]]
+"""Names and shapes of the tensors of a message, in order (the actor's ``actor_layout()``)."""
+
+MESSAGE_TYPES: Mapping[str, bool] = {
+    "gradient": True,  # worker → chief: the last actor gradient of the round (Algorithm 2, line 25)
+    "parameters": True,  # worker → chief: the actor parameters of a mature worker (Algorithm 2, line 8)
+    "average": True,  # chief → workers: the aggregated gradient (Algorithm 1, line 13)
+    "transfer": True,  # chief → workers: a mature worker's parameters (Algorithm 1, line 8)
+    "done": False,  # chief → workers: the run is over (W empty, or M rounds)
+}
+"""Known message types, each mapped to whether it carries the layout's tensors."""
+
+MAX_METRICS = 32
+"""Most metrics one message may carry."""
+MAX_NAME = 64
+"""Longest metric name or id accepted."""
+HEADER_ALLOWANCE = 64 * 1024
+"""Bytes allowed beyond the tensors' own size by :func:`default_max_bytes`."""
+_MAX_ROUND = 2**31 - 1
+_KEYS = frozenset(
+    {
+        "version",
+        "type",
+        "run_id",
+        "sender",
+        "round",
+        "metrics",
+        "origin",
+        "finished",
+        "contributors",
+        "tensors",
+        "data",
+    }
+)
+
+
+class Reason(StrEnum):
+    """Why a message was rejected (by the decoder, or by the chief or worker that received it)."""
+
+    OVERSIZED = "oversized"
+    NOT_MSGPACK = "not msgpack"
+    MALFORMED = "malformed envelope"
+    WRONG_VERSION = "wrong version"
+    UNKNOWN_TYPE = "unknown type"
+    WRONG_RUN_ID = "wrong run id"
+    UNKNOWN_SENDER = "unknown sender"
+    BAD_ROUND = "bad round"
+    BAD_METRICS = "bad metrics"
+    LAYOUT_MISMATCH = "tensor names/shapes do not match the layout"
+    NOT_FINITE = "NaN or Inf"
+    # Raised by the receivers, not the decoder:
+    TOPIC_MISMATCH = "sender does not match topic"
+    UNEXPECTED_TYPE = "type not expected from this sender"
+    STALE_ROUND = "stale round"
+    FUTURE_ROUND = "future round"
+    DUPLICATE = "duplicate (sender, round)"
+    NOT_IN_W = "sender no longer in W"
+    RUN_OVER = "run is over"
+
+
+class MessageRejected(Exception):
+    """A received message failed validation; ``reason`` says which rule, ``detail`` says what was seen."""
+
+    def __init__(self, reason: Reason, detail: str = "") -> None:
+        """:param reason: the rule that failed.  :param detail: what was wrong, for the log."""
+        super().__init__(f"{reason.value}: {detail}" if detail else reason.value)
+        self.reason = reason
+        self.detail = detail
+
+
+@dataclass(frozen=True)
+class Message:
+    """One federation message, decoded (or to be encoded).
+
+    :param type: one of :data:`MESSAGE_TYPES`.
+    :param run_id: the run it belongs to.
+    :param sender: ``chief`` or a worker id.
+    :param round: the round (episode) number, from 1.
+    :param flat: the tensors as one flat float32 vector in layout order, or None for types without tensors.
+    :param metrics: small named numbers (score, losses...) for logs.
+    :param origin: for ``transfer``: the worker whose parameters are carried.
+    :param finished: workers that leave W with this message (``transfer``).
+    :param contributors: workers whose gradients were combined (``average``).
+    :param version: envelope version.
+    """
+
+    type: str
+    run_id: str
+    sender: str
+    round: int
+    flat: np.ndarray | None = None
+    metrics: Mapping[str, float] = field(default_factory=dict)
+    origin: str | None = None
+    finished: tuple[str, ...] = ()
+    contributors: tuple[str, ...] = ()
+    version: int = VERSION
+
+    def tensors(self, layout: Layout) -> dict[str, np.ndarray]:
+        """The flat vector split into named, shaped views following ``layout``."""
+        if self.flat is None:
+            return {}
+        out: dict[str, np.ndarray] = {}
+        start = 0
+        for name, shape in layout:
+            size = math.prod(shape)
+            out[name] = self.flat[start : start + size].reshape(shape)
+            start += size
+        return out
+
+
+def layout_size(layout: Layout) -> int:
+    """Number of float32 elements described by ``layout``."""
+    return sum(math.prod(shape) for _, shape in layout)
+
+
+def default_max_bytes(layout: Layout) -> int:
+    """Size cap for messages of ``layout``: the tensors' bytes plus :data:`HEADER_ALLOWANCE`."""
+    return 4 * layout_size(layout) + HEADER_ALLOWANCE
+
+
+def envelope(message: Message, *, layout: Layout) -> dict[str, Any]:
+    """The msgpack map :func:`encode` packs (exposed so tests can build malformed variants)."""
+    if message.type not in MESSAGE_TYPES:
+        raise ValueError(f"unknown message type {message.type!r} (choose {', '.join(MESSAGE_TYPES)})")
+    if MESSAGE_TYPES[message.type]:
+        if message.flat is None:
+            raise ValueError(f"a {message.type!r} message needs tensors")
+        flat = np.ascontiguousarray(message.flat, dtype="<f4").reshape(-1)
+        if flat.size != layout_size(layout):
+            raise ValueError(f"{flat.size} values do not fit the layout ({layout_size(layout)})")
+        tensors = [[name, list(shape)] for name, shape in layout]
+        data = flat.tobytes()
+    else:
+        tensors, data = [], b""
+    return {
+        "version": message.version,
+        "type": message.type,
+        "run_id": message.run_id,
+        "sender": message.sender,
+        "round": message.round,
+        "metrics": {str(k): float(v) for k, v in message.metrics.items()},
+        "origin": message.origin,
+        "finished": list(message.finished),
+        "contributors": list(message.contributors),
+        "tensors": tensors,
+        "data": data,
+    }
+
+
+def encode(message: Message, *, layout: Layout) -> bytes:
+    """Serialise ``message`` (msgpack envelope, tensors as little-endian float32 following ``layout``).
+
+    :raises ValueError: unknown type, tensors missing or not fitting ``layout``, or non-finite values — a
+        sender must not put on the wire what every receiver would reject.
+    """
+    env = envelope(message, layout=layout)
+    if env["data"] and not np.isfinite(np.frombuffer(env["data"], dtype="<f4")).all():
+        raise ValueError(f"refusing to send a {message.type!r} message with NaN or Inf values")
+    if not all(math.isfinite(v) for v in env["metrics"].values()):
+        raise ValueError("refusing to send non-finite metrics")
+    return bytes(msgpack.packb(env, use_bin_type=True))
+
+
+def decode(
+    payload: bytes,
+    *,
+    run_id: str,
+    known_senders: Collection[str],
+    layout: Layout,
+    max_bytes: int | None = None,
+) -> Message:
+    """Parse and validate one message; raise :class:`MessageRejected` (only) if anything is wrong.
+
+    :param payload: the bytes received.
+    :param run_id: the receiver's run; other runs' messages are rejected.
+    :param known_senders: senders the receiver accepts (the chief: all workers of the run; a worker:
+        ``chief``).
+    :param layout: tensor names and shapes every tensor-carrying message must match exactly.
+    :param max_bytes: size cap; default :func:`default_max_bytes` of ``layout``.
+    """
+    cap = default_max_bytes(layout) if max_bytes is None else max_bytes
+    if not isinstance(payload, bytes | bytearray | memoryview):
+        raise MessageRejected(Reason.NOT_MSGPACK, f"payload is {type(payload).__name__}, not bytes")
+    if len(payload) > cap:
+        raise MessageRejected(Reason.OVERSIZED, f"{len(payload)} bytes > cap {cap}")
+    try:
+        env = msgpack.unpackb(bytes(payload), raw=False, use_list=True, strict_map_key=True, max_bin_len=cap)
+    except Exception as exc:  # msgpack raises many types (ExtraData, FormatError, ValueError, Unicode...)
+        raise MessageRejected(Reason.NOT_MSGPACK, type(exc).__name__) from None
+    if not isinstance(env, dict):
+        raise MessageRejected(Reason.MALFORMED, f"top level is {type(env).__name__}, not a map")
+    if env.get("version") != VERSION or isinstance(env.get("version"), bool):
+        raise MessageRejected(Reason.WRONG_VERSION, f"{_short(env.get('version'))} (expected {VERSION})")
+    if set(env) != _KEYS:
+        raise MessageRejected(
+            Reason.MALFORMED, f"keys {sorted(map(str, env))[:20]} (expected {sorted(_KEYS)})"
+        )
+    mtype = env["type"]
+    if not isinstance(mtype, str) or mtype not in MESSAGE_TYPES:
+        raise MessageRejected(Reason.UNKNOWN_TYPE, _short(mtype))
+    if env["run_id"] != run_id:
+        raise MessageRejected(Reason.WRONG_RUN_ID, _short(env["run_id"]))
+    sender = env["sender"]
+    if not isinstance(sender, str) or sender not in known_senders:
+        raise MessageRejected(Reason.UNKNOWN_SENDER, _short(sender))
+    rnd = env["round"]
+    if not isinstance(rnd, int) or isinstance(rnd, bool) or not 1 <= rnd <= _MAX_ROUND:
+        raise MessageRejected(Reason.BAD_ROUND, _short(rnd))
+    metrics = _metrics(env["metrics"])
+    origin = env["origin"]
+    if origin is not None and not isinstance(origin, str):
+        raise MessageRejected(Reason.MALFORMED, "origin is not a string")
+    flat = _tensors(env["tensors"], env["data"], layout if MESSAGE_TYPES[mtype] else ())
+    return Message(
+        type=mtype,
+        run_id=run_id,
+        sender=sender,
+        round=rnd,
+        flat=flat if MESSAGE_TYPES[mtype] else None,
+        metrics=metrics,
+        origin=origin,
+        finished=_names(env["finished"], "finished"),
+        contributors=_names(env["contributors"], "contributors"),
+    )
+
+
+def _short(value: object) -> str:
+    """A bounded, recursion-free description of a decoded value for a rejection detail."""
+    if isinstance(value, str | bytes | int | float | bool) or value is None:
+        return repr(value)[:MAX_NAME]
+    return f"<{type(value).__name__}>"
+
+
+def _names(value: object, what: str) -> tuple[str, ...]:
+    if not isinstance(value, list) or len(value) > 4096 or not all(isinstance(v, str) for v in value):
+        raise MessageRejected(Reason.MALFORMED, f"{what} is not a list of strings")
+    return tuple(value)
+
+
+def _metrics(value: object) -> dict[str, float]:
+    if not isinstance(value, dict) or len(value) > MAX_METRICS:
+        raise MessageRejected(Reason.BAD_METRICS, f"not a map of at most {MAX_METRICS} entries")
+    out: dict[str, float] = {}
+    for key, val in value.items():
+        if not isinstance(key, str) or len(key) > MAX_NAME:
+            raise MessageRejected(Reason.BAD_METRICS, f"bad name {_short(key)}")
+        if not isinstance(val, int | float) or isinstance(val, bool) or not math.isfinite(val):
+            raise MessageRejected(Reason.BAD_METRICS, f"{key}={_short(val)}")
+        out[key] = float(val)
+    return out
+
+
+def _tensors(tensors: object, data: object, layout: Layout) -> np.ndarray:
+    expected = [[name, list(shape)] for name, shape in layout]
+    if tensors != expected:
+        raise MessageRejected(
+            Reason.LAYOUT_MISMATCH,
+            f"got {_short(tensors)} of {len(tensors) if isinstance(tensors, list) else '?'} entries",
+        )
+    if not isinstance(data, bytes) or len(data) != 4 * layout_size(layout):
+        size = len(data) if isinstance(data, bytes) else type(data).__name__
+        raise MessageRejected(
+            Reason.LAYOUT_MISMATCH, f"data has {size} bytes, layout needs {4 * layout_size(layout)}"
+        )
+    flat = np.frombuffer(data, dtype="<f4").astype(np.float32)
+    if not np.isfinite(flat).all():
+        raise MessageRejected(Reason.NOT_FINITE, f"{int((~np.isfinite(flat)).sum())} non-finite values")
+    return flat
