@@ -1,0 +1,102 @@
+"""CartPole units: Gymnasium CartPole-v1 physics with per-unit pole length, masses and force magnitude.
+
+The equations, constants, initial-state distribution and Euler integrator are those of
+``gymnasium.envs.classic_control.CartPoleEnv`` (CartPole-v1); each unit scales ``length``, ``masscart``,
+``masspole`` and ``force_mag`` by its own factors drawn uniformly from [0.9, 1.1].
+"""
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from fleetrl.devices.variation import CARTPOLE_FAMILY, scaled, unit_generator
+
+X_LIMIT = 2.4
+"""cart position beyond which an episode ends (m)"""
+THETA_LIMIT = 12.0 * 2.0 * math.pi / 360.0
+"""pole angle beyond which an episode ends (rad)"""
+
+
+@dataclass(frozen=True)
+class CartPoleParams:
+    """Physical constants of one CartPole unit (CartPole-v1 defaults)."""
+
+    gravity: float = 9.8
+    masscart: float = 1.0
+    masspole: float = 0.1
+    length: float = 0.5
+    """half the pole's length (m), as in Gymnasium"""
+    force_mag: float = 10.0
+    tau: float = 0.02
+    """seconds per step"""
+
+
+CARTPOLE_NOMINAL = CartPoleParams()
+
+
+def cartpole_unit_params(fleet_seed: int, unit: int, relative: float = 0.10) -> CartPoleParams:
+    """The parameters of CartPole unit ``unit`` of fleet ``fleet_seed`` (each deviates by up to ±10 %)."""
+    rng = unit_generator(fleet_seed, unit, CARTPOLE_FAMILY)
+    n = CARTPOLE_NOMINAL
+    return CartPoleParams(
+        gravity=n.gravity,
+        masscart=scaled(rng, n.masscart, relative),
+        masspole=scaled(rng, n.masspole, relative),
+        length=scaled(rng, n.length, relative),
+        force_mag=scaled(rng, n.force_mag, relative),
+        tau=n.tau,
+    )
+
+
+class CartPoleDevice:
+    """One CartPole unit; observation [x, x_dot, theta, theta_dot] (float32)."""
+
+    def __init__(self, params: CartPoleParams | None = None) -> None:
+        self.params = params or CARTPOLE_NOMINAL
+        self._state = [0.0, 0.0, 0.0, 0.0]
+        self._obs = np.zeros(4, dtype=np.float32)
+
+    @classmethod
+    def from_fleet(cls, unit: int, fleet_seed: int) -> "CartPoleDevice":
+        """Unit ``unit`` of the fleet ``fleet_seed``."""
+        return cls(cartpole_unit_params(fleet_seed, unit))
+
+    @property
+    def state(self) -> np.ndarray:
+        """A copy of the state [x, x_dot, theta, theta_dot] in float64."""
+        return np.array(self._state, dtype=np.float64)
+
+    def reset(self, seed: int | None = None) -> np.ndarray:
+        """Start state uniform in ±0.05 on every component, as CartPole-v1."""
+        rng = np.random.default_rng(seed)
+        self._state = [float(v) for v in rng.uniform(-0.05, 0.05, size=4)]
+        self._obs[:] = self._state
+        return self._obs
+
+    def step(self, action: int) -> np.ndarray:
+        """Push left (0) or right (1) for one step of ``tau`` seconds (explicit Euler, as CartPole-v1)."""
+        if action != 0 and action != 1:
+            raise ValueError(f"action {action!r} is out of range (choose 0: push left, or 1: push right)")
+        p = self.params
+        x, x_dot, theta, theta_dot = self._state
+        force = p.force_mag if action == 1 else -p.force_mag
+        cos_t = math.cos(theta)
+        sin_t = math.sin(theta)
+        total_mass = p.masspole + p.masscart
+        pole_mass_length = p.masspole * p.length
+        temp = (force + pole_mass_length * theta_dot**2 * sin_t) / total_mass
+        theta_acc = (p.gravity * sin_t - cos_t * temp) / (
+            p.length * (4.0 / 3.0 - p.masspole * cos_t**2 / total_mass)
+        )
+        x_acc = temp - pole_mass_length * theta_acc * cos_t / total_mass
+        x += p.tau * x_dot
+        x_dot += p.tau * x_acc
+        theta += p.tau * theta_dot
+        theta_dot += p.tau * theta_acc
+        self._state = [x, x_dot, theta, theta_dot]
+        self._obs[:] = self._state
+        return self._obs
+
+    def close(self) -> None:
+        """Nothing to release."""

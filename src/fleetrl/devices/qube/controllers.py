@@ -1,0 +1,209 @@
+"""The device-side controllers of the rig: Quanser's balance law and an energy swing-up.
+
+They run on the sensor pipeline's readings (never the true state) and use nominal parameters, as a
+controller on a real unit would. ``device_reset`` runs them in one compiled loop: swing up from hanging,
+catch, settle, and report when the pendulum is ready for the agent. The gains were tuned on 200 simulated
+units (docs/devices.md, "Device-side reset").
+"""
+
+import math
+
+import numpy as np
+from numba import njit
+
+from fleetrl.devices.qube.dynamics import (
+    P_H,
+    P_NSUB,
+    S_ALPHA,
+    S_ALPHA_VEL,
+    S_THETA,
+    S_THETA_VEL,
+    control_period,
+    wrap_angle,
+)
+from fleetrl.devices.qube.params import NOMINAL, QubeParams
+
+BALANCE_GAINS = (-2.0, 35.0, -1.5, 3.0)
+"""Quanser's K for V = −K·x, x = [theta, alpha, theta_dot, alpha_dot]"""
+
+# indices into the controller constants (see controller_constants)
+(
+    K_THETA,
+    K_ALPHA,
+    K_THETA_DOT,
+    K_ALPHA_DOT,
+    G_MU,
+    G_TARGET_AMPLITUDE,
+    G_ENERGY_CEILING,
+    G_J_PIVOT,
+    G_HALF_MGL,
+    G_ARM_P,
+    G_ARM_D,
+    G_SWING_VMAX,
+    G_CATCH,
+    G_DROP,
+    G_RECENTRE,
+    G_SETTLE_ALPHA,
+    G_SETTLE_ALPHA_DOT,
+    G_SETTLE_THETA,
+    G_SETTLE_THETA_DOT,
+) = range(19)
+
+
+def controller_constants(
+    params: QubeParams = NOMINAL,
+    *,
+    mu: float = 1000.0,
+    target_amplitude_deg: float = 230.0,
+    energy_ceiling: float = 1.2,
+    arm_p: float = 6.0,
+    arm_d: float = 0.2,
+    swing_max_volts: float = 8.0,
+    catch_deg: float = 20.0,
+    drop_deg: float = 30.0,
+    recentre: float = 0.5,
+    settle_alpha_deg: float = 3.0,
+    settle_alpha_dot: float = 1.5,
+    settle_theta_deg: float = 20.0,
+    settle_theta_dot: float = 1.5,
+) -> np.ndarray:
+    """Pack the controllers' constants (from the *nominal* model, as on a real unit).
+
+    :param mu: swing-up pumping voltage per joule still missing (V/J)
+    :param target_amplitude_deg: the swing amplitude (from hanging) the pumping aims at; past 180° so the
+        pendulum goes over the top instead of creeping towards it
+    :param energy_ceiling: stop pumping while the pendulum's energy exceeds this multiple of mp·g·Lp
+    :param arm_p: volts per radian pulling the arm back to centre during swing-up (limits arm travel)
+    :param arm_d: volts per rad/s damping the arm during swing-up
+    :param swing_max_volts: voltage limit of the swing-up
+    :param catch_deg: hand over from swing-up to balance inside this distance from upright
+    :param drop_deg: fall back to swing-up beyond this distance from upright
+    :param recentre: after a catch the balance law holds the arm where it caught the pendulum and walks
+        that set-point back to centre at this rate (rad/s)
+    :param settle_alpha_deg: hand-off window on |alpha| (and likewise the other ``settle_*`` windows, on
+        |alpha_dot| in rad/s, |theta| in degrees, |theta_dot| in rad/s)
+    """
+    rad = math.pi / 180.0
+    upright_energy = params.mp * params.g * params.Lp
+    return np.array(
+        [
+            *BALANCE_GAINS,
+            mu,
+            target_amplitude_deg * rad,
+            energy_ceiling * upright_energy,
+            params.Jp + 0.25 * params.mp * params.Lp**2,
+            0.5 * params.mp * params.g * params.Lp,
+            arm_p,
+            arm_d,
+            swing_max_volts,
+            catch_deg * rad,
+            drop_deg * rad,
+            recentre,
+            settle_alpha_deg * rad,
+            settle_alpha_dot,
+            settle_theta_deg * rad,
+            settle_theta_dot,
+        ],
+        dtype=np.float64,
+    )
+
+
+@njit(cache=True, inline="always")
+def balance_volts(theta: float, alpha: float, theta_dot: float, alpha_dot: float, k: np.ndarray) -> float:
+    """Quanser's balance law V = −K·x (alpha measured from upright)."""
+    return -(
+        k[K_THETA] * theta + k[K_ALPHA] * alpha + k[K_THETA_DOT] * theta_dot + k[K_ALPHA_DOT] * alpha_dot
+    )
+
+
+@njit(cache=True, inline="always")
+def swing_up_volts(
+    theta: float, alpha: float, theta_dot: float, alpha_dot: float, amplitude: float, k: np.ndarray
+) -> float:
+    """Energy swing-up.
+
+    Pumps with a voltage against sign(α̇·cos α_d) (α_d from hanging), sized by the energy still missing
+    judged at the last turning point ``amplitude`` (there the pendulum's energy is all potential, so the
+    arm's motion cannot fool the estimate); coasts while E = ½·J·α̇² + ½·mp·g·Lp·(1 − cos α_d) is above the
+    ceiling; a spring-damper keeps the arm near centre.
+    """
+    cos_d = -math.cos(alpha)
+    direction = alpha_dot * cos_d
+    sign = 1.0 if direction > 0.0 else (-1.0 if direction < 0.0 else 0.0)
+    missing = k[G_HALF_MGL] * (math.cos(amplitude) - math.cos(k[G_TARGET_AMPLITUDE]))
+    pump = min(max(k[G_MU] * missing, 0.0), k[G_SWING_VMAX])
+    energy = 0.5 * k[G_J_PIVOT] * alpha_dot * alpha_dot + k[G_HALF_MGL] * (1.0 - cos_d)
+    if energy > k[G_ENERGY_CEILING]:
+        pump = 0.0
+    volts = -sign * pump - k[G_ARM_P] * theta - k[G_ARM_D] * theta_dot
+    return min(max(volts, -k[G_SWING_VMAX]), k[G_SWING_VMAX])
+
+
+@njit(cache=True)
+def device_reset(
+    x: np.ndarray,
+    c: np.ndarray,
+    sensor: np.ndarray,
+    settings: np.ndarray,
+    k: np.ndarray,
+    max_periods: int,
+    settle_periods: int,
+) -> tuple[int, float]:
+    """Swing up, catch and settle; return the periods used (−1 if not settled within ``max_periods``)
+    and the largest |arm angle| reading seen (rad).
+
+    Settled means every reading stays inside its ``settle_*`` window for ``settle_periods`` periods in a row
+    while the balance law is in charge.
+    """
+    balancing = False
+    inside = 0
+    travel = 0.0
+    reference = 0.0  # arm set-point of the balance law: the catch angle, walked back to centre
+    walk = k[G_RECENTRE] * settings[P_H] * settings[P_NSUB]
+    amplitude = abs(wrap_angle(sensor[S_ALPHA] - math.pi))
+    last_alpha_dot = 0.0
+    for period in range(max_periods):
+        theta = sensor[S_THETA]
+        alpha = wrap_angle(sensor[S_ALPHA])
+        theta_dot = sensor[S_THETA_VEL]
+        alpha_dot = sensor[S_ALPHA_VEL]
+        travel = max(travel, abs(theta))
+        if balancing and abs(alpha) > k[G_DROP]:
+            balancing = False
+        elif not balancing and abs(alpha) < k[G_CATCH]:
+            balancing = True
+            reference = theta
+        if balancing:
+            reference = min(max(0.0, reference - walk), reference + walk)
+            volts = balance_volts(theta - reference, alpha, theta_dot, alpha_dot, k)
+            calm = (
+                abs(alpha) <= k[G_SETTLE_ALPHA]
+                and abs(alpha_dot) <= k[G_SETTLE_ALPHA_DOT]
+                and abs(theta) <= k[G_SETTLE_THETA]
+                and abs(theta_dot) <= k[G_SETTLE_THETA_DOT]
+            )
+            inside = inside + 1 if calm else 0
+            if inside >= settle_periods:
+                return period, travel
+        else:
+            inside = 0
+            if alpha_dot * last_alpha_dot <= 0.0:  # a turning point
+                amplitude = abs(wrap_angle(alpha - math.pi))
+            volts = swing_up_volts(theta, alpha, theta_dot, alpha_dot, amplitude, k)
+        last_alpha_dot = alpha_dot
+        control_period(x, c, sensor, settings, volts)
+    return -1, travel
+
+
+@njit(cache=True)
+def run_balance(
+    x: np.ndarray, c: np.ndarray, sensor: np.ndarray, settings: np.ndarray, k: np.ndarray, n_periods: int
+) -> float:
+    """Run the balance law for ``n_periods``; return the largest |alpha| reading seen (rad)."""
+    worst = 0.0
+    for _ in range(n_periods):
+        alpha = wrap_angle(sensor[S_ALPHA])
+        worst = max(worst, abs(alpha))
+        volts = balance_volts(sensor[S_THETA], alpha, sensor[S_THETA_VEL], sensor[S_ALPHA_VEL], k)
+        control_period(x, c, sensor, settings, volts)
+    return max(worst, abs(wrap_angle(sensor[S_ALPHA])))

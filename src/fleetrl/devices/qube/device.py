@@ -1,0 +1,167 @@
+"""One simulated QUBE-Servo 2 unit: physics, sensor pipeline, actions and the device-side reset."""
+
+import math
+
+import numpy as np
+
+from fleetrl.devices.qube.controllers import controller_constants, device_reset, run_balance
+from fleetrl.devices.qube.dynamics import (
+    N_SENSOR,
+    S_ALPHA,
+    S_APPLIED,
+    S_THETA,
+    agent_step,
+    pipeline_settings,
+    sense_at_rest,
+    write_observation,
+)
+from fleetrl.devices.qube.params import ACTION_POWERS, POWER_TO_VOLTS, QubeConfig, QubeParams
+from fleetrl.devices.variation import QubeVariation, qube_unit_params
+
+ACTION_VOLTS = tuple(p * POWER_TO_VOLTS for p in ACTION_POWERS)
+"""volts of action index 0, 1, 2 (−1.44, 0, +1.44 V)"""
+RESET_PERTURBATION = (math.radians(3.0), 0.2)
+"""a reset starts hanging, off by up to ±3° and ±0.2 rad/s (uniform, from the reset seed)"""
+SETTLE_SECONDS = 0.2
+"""the readings must stay inside the hand-off windows this long before the agent gets the pendulum"""
+
+
+class DeviceResetError(RuntimeError):
+    """The device-side swing-up did not settle the pendulum in time."""
+
+
+class QubeDevice:
+    """A QUBE unit as the agent's side sees it: a command in, encoder readings and velocity estimates out.
+
+    :param params: the unit's physical parameters (see ``from_fleet`` for a unit of a seeded fleet)
+    :param config: how the unit is simulated and sensed
+    """
+
+    def __init__(self, params: QubeParams, config: QubeConfig | None = None) -> None:
+        self.params = params
+        self.config = config or QubeConfig()
+        cfg = self.config
+        self._coefficients = params.coefficients()
+        self._state = np.zeros(4, dtype=np.float64)
+        self._sensor = np.zeros(N_SENSOR, dtype=np.float64)
+        self._obs = np.zeros(4, dtype=np.float32)
+        filter_cutoff = cfg.velocity_cutoff if cfg.velocity_estimate == "filter" else None
+        self._agent_settings = pipeline_settings(
+            cfg.control_period,
+            cfg.max_substep,
+            quantise=cfg.quantise,
+            velocity_filter=filter_cutoff,
+            delay=cfg.actuation_delay,
+            max_volts=cfg.max_volts,
+        )
+        # the device's own controllers always read velocities through Quanser's filter
+        self._device_settings = pipeline_settings(
+            cfg.device_period,
+            cfg.max_substep,
+            quantise=cfg.quantise,
+            velocity_filter=cfg.velocity_cutoff,
+            delay=cfg.actuation_delay,
+            max_volts=cfg.max_volts,
+        )
+        self._controllers = controller_constants()
+        self.last_reset_seconds = math.nan
+        """simulated seconds the last device-side reset took (swing-up, catch, settle)"""
+        self.last_reset_arm_travel = math.nan
+        """largest |arm angle| reading (rad) during the last reset"""
+
+    @classmethod
+    def from_fleet(
+        cls,
+        unit: int,
+        fleet_seed: int,
+        config: QubeConfig | None = None,
+        variation: QubeVariation | None = None,
+    ) -> "QubeDevice":
+        """Unit ``unit`` of the fleet ``fleet_seed`` (parameters drawn deterministically)."""
+        return cls(qube_unit_params(fleet_seed, unit, variation), config)
+
+    @property
+    def state(self) -> np.ndarray:
+        """A copy of the true state [theta, alpha, theta_dot, alpha_dot] (the agent never sees this)."""
+        return self._state.copy()
+
+    @property
+    def readings(self) -> tuple[float, float]:
+        """The encoder readings (arm, pendulum), pendulum unwrapped, offsets included (rad)."""
+        return float(self._sensor[S_THETA]), float(self._sensor[S_ALPHA])
+
+    @property
+    def applied_volts(self) -> float:
+        """The voltage that acted during the last period."""
+        return float(self._sensor[S_APPLIED])
+
+    def set_state(self, state: np.ndarray) -> np.ndarray:
+        """Place the unit at ``state``, sensors at rest (velocities 0, 0 V held); return the observation."""
+        self._state[:] = np.asarray(state, dtype=np.float64)
+        sense_at_rest(self._state, self._coefficients, self._sensor, self.config.quantise)
+        write_observation(self._sensor, self._obs)
+        return self._obs
+
+    def reset(self, seed: int | None = None) -> np.ndarray:
+        """Device-side reset like the rig: from a (seeded) hanging start, swing up, catch, settle.
+
+        Returns the first observation of an episode (a buffer the device reuses: copy it to keep it).
+        Raises DeviceResetError if the pendulum has not settled within ``config.reset_timeout``.
+        """
+        rng = np.random.default_rng(seed)
+        angle, rate = RESET_PERTURBATION
+        self.set_state(np.array([0.0, math.pi + rng.uniform(-angle, angle), 0.0, rng.uniform(-rate, rate)]))
+        period = self.config.device_period
+        periods, travel = device_reset(
+            self._state,
+            self._coefficients,
+            self._sensor,
+            self._device_settings,
+            self._controllers,
+            math.ceil(self.config.reset_timeout / period),
+            max(1, round(SETTLE_SECONDS / period)),
+        )
+        if periods < 0:
+            raise DeviceResetError(
+                f"swing-up did not settle within {self.config.reset_timeout} s "
+                f"(parameters {self.params}); raise reset_timeout or check the damping range"
+            )
+        self.last_reset_seconds = periods * period
+        self.last_reset_arm_travel = travel
+        write_observation(self._sensor, self._obs)
+        return self._obs
+
+    def step_volts(self, volts: float) -> np.ndarray:
+        """One control period with ``volts`` commanded; returns the observation buffer."""
+        agent_step(self._state, self._coefficients, self._sensor, self._agent_settings, volts, self._obs)
+        return self._obs
+
+    def step(self, action: int) -> np.ndarray:
+        """One control period with action index 0, 1 or 2 (power −60, 0, +60); returns the observation."""
+        if not 0 <= action <= 2:
+            raise ValueError(f"action {action!r} is out of range (choose 0, 1 or 2: power -60, 0, +60)")
+        agent_step(
+            self._state,
+            self._coefficients,
+            self._sensor,
+            self._agent_settings,
+            ACTION_VOLTS[action],
+            self._obs,
+        )
+        return self._obs
+
+    def balance(self, n_periods: int) -> float:
+        """Run Quanser's balance law at the agent's control period; return the largest |alpha| reading."""
+        return float(
+            run_balance(
+                self._state,
+                self._coefficients,
+                self._sensor,
+                self._agent_settings,
+                self._controllers,
+                n_periods,
+            )
+        )
+
+    def close(self) -> None:
+        """Nothing to release for a simulated unit."""

@@ -1,0 +1,46 @@
+"""``fleetrl/CartPoleUnit-v0``: CartPole-v1 on one unit of a fleet whose units differ by up to ±10 %.
+
+Observation, actions, reward (+1 every step, the terminating one included) and termination
+(|x| > 2.4 or |theta| > 12°) are CartPole-v1's; the 500-step cap is gymnasium's TimeLimit from the
+registration.
+"""
+
+import gymnasium
+import numpy as np
+
+from fleetrl.devices.cartpole import THETA_LIMIT, X_LIMIT, CartPoleDevice
+from fleetrl.devices.variation import check_unit
+from fleetrl.envs.link_env import LinkEnv
+from fleetrl.link.base import DeviceLink
+from fleetrl.link.inprocess import InProcessLink
+
+
+class CartPoleUnitEnv(LinkEnv):
+    """CartPole-v1 on unit ``unit`` of fleet ``fleet_seed``.
+
+    :param unit: index of the unit in the fleet (non-negative)
+    :param fleet_seed: seed of the fleet; (fleet_seed, unit) fixes the unit's parameters
+    :param link: reach the device through this link instead of simulating it in-process
+    :param render_mode: only None is supported
+    """
+
+    def __init__(
+        self,
+        unit: int = 0,
+        fleet_seed: int = 0,
+        *,
+        link: DeviceLink | None = None,
+        render_mode: str | None = None,
+    ) -> None:
+        self.unit, self.fleet_seed = check_unit(unit, fleet_seed)
+        if render_mode is not None:
+            raise ValueError(f"render_mode {render_mode!r} is not supported (use None)")
+        super().__init__(link or InProcessLink(CartPoleDevice.from_fleet(self.unit, self.fleet_seed)), 2)
+        big = np.finfo(np.float32).max  # CartPole-v1's bounds
+        high = np.array([X_LIMIT * 2, big, THETA_LIMIT * 2, big], dtype=np.float32)
+        self.observation_space = gymnasium.spaces.Box(-high, high, dtype=np.float32)
+        self.action_space = gymnasium.spaces.Discrete(2)
+
+    def judge(self, obs: np.ndarray) -> tuple[float, bool]:
+        """CartPole-v1: +1 every step; terminate when the cart or the pole leaves its band."""
+        return 1.0, not (abs(float(obs[0])) <= X_LIMIT and abs(float(obs[2])) <= THETA_LIMIT)

@@ -1,0 +1,65 @@
+"""What both cyber environments share: a device link, seeded resets, action checking."""
+
+from collections.abc import Mapping
+from typing import Any
+
+import gymnasium
+import numpy as np
+
+from fleetrl.link.base import DeviceLink
+
+
+def action_index(action: object, n_actions: int) -> int:
+    """``action`` as a plain int in [0, n_actions), or a ValueError that says what is allowed."""
+    if isinstance(action, int | np.integer) and not isinstance(action, bool):
+        index = int(action)
+    elif isinstance(action, np.ndarray) and action.size == 1 and np.issubdtype(action.dtype, np.integer):
+        index = int(action.reshape(()))
+    else:
+        index = -1
+    if not 0 <= index < n_actions:
+        raise ValueError(f"action {action!r} is out of range (choose an integer 0 to {n_actions - 1})")
+    return index
+
+
+class LinkEnv(gymnasium.Env[np.ndarray, np.int64]):
+    """A Gymnasium env whose device sits behind a ``DeviceLink``; subclasses judge each observation."""
+
+    metadata: dict[str, Any] = {"render_modes": []}  # noqa: RUF012 (gymnasium's convention)
+
+    def __init__(self, link: DeviceLink, n_actions: int) -> None:
+        self._link = link
+        self._n_actions = n_actions
+        self._link_step = link.step
+
+    @property
+    def link(self) -> DeviceLink:
+        """The link this env reaches its device through."""
+        return self._link
+
+    def judge(self, obs: np.ndarray) -> tuple[float, bool]:
+        """Reward and termination for an observation; subclasses define the task."""
+        raise NotImplementedError
+
+    def reset(
+        self, *, seed: int | None = None, options: dict[str, Any] | None = None
+    ) -> tuple[np.ndarray, dict[str, Any]]:
+        """Seed (if given) and reset the device; the device's seed is drawn from the env's generator."""
+        super().reset(seed=seed)
+        device_seed = int(self.np_random.integers(0, 2**63 - 1))
+        return self._link.reset(device_seed).copy(), {}
+
+    def step(self, action: object) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
+        """Send the action, judge the new observation. Truncation is left to gymnasium's TimeLimit."""
+        index = action if type(action) is int and 0 <= action < self._n_actions else None
+        obs, extra = self._link_step(action_index(action, self._n_actions) if index is None else index)
+        reward, terminated = self.judge(obs)
+        return obs.copy(), reward, terminated, False, _info(extra)
+
+    def close(self) -> None:
+        """Close the link."""
+        self._link.close()
+
+
+def _info(extra: Mapping[str, float]) -> dict[str, Any]:
+    return dict(extra) if extra else {}

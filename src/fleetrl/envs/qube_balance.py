@@ -1,0 +1,68 @@
+"""``fleetrl/QubeBalance-v0``: balance an (already swung-up) QUBE-Servo 2 pendulum, as in the paper.
+
+Observation (float32): [pendulum angle, pendulum velocity, motor angle, motor velocity] — encoder readings
+(pendulum angle wrapped to [−π, π), 0 = upright) and their velocity estimates. Actions: index 0, 1, 2 =
+motor power −60, 0, +60 (≈ −1.44, 0, +1.44 V; positive power accelerates the arm in +θ). Reward +1 per step
+while |pendulum angle| ≤ 7.5°; a failing step (beyond 7.5°, or the arm beyond ±π/2) gets 0 and terminates.
+The 2500-step cap is a truncation added by ``gymnasium.make`` (TimeLimit, registration.QUBE_EPISODE_CAP);
+an env built directly has no cap. Each reset runs the device-side swing-up and settle.
+"""
+
+import math
+
+import gymnasium
+import numpy as np
+
+from fleetrl.devices.qube.device import QubeDevice
+from fleetrl.devices.qube.params import qube_config
+from fleetrl.devices.variation import check_unit
+from fleetrl.envs.link_env import LinkEnv
+from fleetrl.link.base import DeviceLink
+from fleetrl.link.inprocess import InProcessLink
+
+PENDULUM_LIMIT = math.radians(7.5)
+"""the paper's success band on the pendulum angle"""
+ARM_LIMIT = math.pi / 2.0
+"""the rig's arm protection limit"""
+VELOCITY_BOUND = 500.0
+"""observation-space bound on the velocity estimates (rad/s); the arm's no-load speed at the ±10 V
+amplifier limit is about 240 rad/s"""
+
+
+class QubeBalanceEnv(LinkEnv):
+    """Balance one QUBE unit of a seeded fleet.
+
+    :param unit: index of the unit in the fleet (non-negative)
+    :param fleet_seed: seed of the fleet; (fleet_seed, unit) fixes the unit's parameters
+    :param link: reach the device through this link instead of simulating it in-process
+    :param render_mode: only None is supported
+    :param options: ``QubeConfig`` fields for the in-process simulation, e.g. ``control_period=0.006``,
+        ``quantise=True``, ``velocity_estimate="difference"``, ``actuation_delay=True``
+    """
+
+    def __init__(
+        self,
+        unit: int = 0,
+        fleet_seed: int = 0,
+        *,
+        link: DeviceLink | None = None,
+        render_mode: str | None = None,
+        **options: object,
+    ) -> None:
+        self.unit, self.fleet_seed = check_unit(unit, fleet_seed)
+        if render_mode is not None:
+            raise ValueError(f"render_mode {render_mode!r} is not supported (use None)")
+        if link is None:
+            link = InProcessLink(QubeDevice.from_fleet(self.unit, self.fleet_seed, qube_config(**options)))
+        elif options:
+            raise ValueError(f"options {sorted(options)} configure the in-process simulation; not with link=")
+        super().__init__(link, n_actions=3)
+        high = np.array([math.pi, VELOCITY_BOUND, 2.0 * math.pi, VELOCITY_BOUND], dtype=np.float32)
+        self.observation_space = gymnasium.spaces.Box(-high, high, dtype=np.float32)
+        self.action_space = gymnasium.spaces.Discrete(3)
+
+    def judge(self, obs: np.ndarray) -> tuple[float, bool]:
+        """+1 while the pendulum is within 7.5° and the arm within ±π/2; otherwise 0 and terminate."""
+        if abs(float(obs[0])) <= PENDULUM_LIMIT and abs(float(obs[2])) <= ARM_LIMIT:
+            return 1.0, False
+        return 0.0, True

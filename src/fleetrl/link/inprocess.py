@@ -1,0 +1,27 @@
+"""A link to a device object living in the same process (the simulated fleet's default)."""
+
+from collections.abc import Mapping
+
+import numpy as np
+
+from fleetrl.link.base import NO_INFO, Device
+
+
+class InProcessLink:
+    """Wraps a device object; adds nothing on the hot path (one attribute lookup and a call)."""
+
+    def __init__(self, device: Device) -> None:
+        self.device = device
+        self._step = device.step
+
+    def reset(self, seed: int | None = None) -> np.ndarray:
+        """Reset the device with ``seed``; return its first observation."""
+        return self.device.reset(seed)
+
+    def step(self, action: int) -> tuple[np.ndarray, Mapping[str, float]]:
+        """Step the device; the in-process link has no extras to report."""
+        return self._step(action), NO_INFO
+
+    def close(self) -> None:
+        """Close the device."""
+        self.device.close()
