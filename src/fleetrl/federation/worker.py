@@ -1,0 +1,285 @@
+"""The worker of Algorithm 2 (lines 7–31) on top of a learner: play a round, send, wait for the chief, apply.
+
+Each round the worker calls ``learner.play_round()`` (the episode and, unless learning is complete, the K PPO
+optimisations). It then sends the actor's last gradient — or, once the completion criterion holds, its actor
+parameters — to the chief, and waits for the chief's answer for that round:
+
+* ``average``: the averaged gradient goes through the actor's optimiser (``apply_actor_gradient``, line 31);
+* ``transfer`` listing this worker in ``finished``: the chief acknowledged its parameters; the worker is
+  finished and stops (it has left W; what the chief forwarded — its own parameters or a lower id's — is in the
+  record);
+* ``transfer`` not listing it: it replaces its actor parameters with the received ones (line 29) and keeps
+  learning;
+* ``done``: the run is over.
+
+The worker also stops after round M. Every round produces a :class:`RoundRecord` through ``on_record``.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Protocol
+
+import numpy as np
+
+from fleetrl.federation.messages import Layout, Message, MessageRejected, decode, encode
+from fleetrl.federation.topics import (
+    CHIEF_ID,
+    OFFLINE,
+    ONLINE,
+    chief_topic,
+    status_topic,
+    validate_id,
+    validate_worker_id,
+    worker_topic,
+)
+from fleetrl.transport.base import Transport, Will
+
+log = logging.getLogger(__name__)
+
+
+class ActorAgent(Protocol):
+    """What the worker needs from the agent (``fleetrl.agent.ppo.PPOAgent`` provides it)."""
+
+    def actor_layout(self) -> list[tuple[str, tuple[int, ...]]]:
+        """Names and shapes of the actor's parameters, in flat order."""
+        ...
+
+    def actor_gradient(self) -> np.ndarray:
+        """The actor's last gradient of the round, flat float32."""
+        ...
+
+    def apply_actor_gradient(self, flat: np.ndarray) -> None:
+        """Update the actor with ``flat`` through its optimiser."""
+        ...
+
+    def actor_parameters(self) -> np.ndarray:
+        """The actor's parameters, flat float32."""
+        ...
+
+    def set_actor_parameters(self, flat: np.ndarray) -> None:
+        """Replace the actor's parameters."""
+        ...
+
+
+class RoundOutcome(Protocol):
+    """What one ``play_round`` reports (``fleetrl.agent.learner.RoundResult`` provides it)."""
+
+    @property
+    def score(self) -> float: ...
+    @property
+    def steps(self) -> int: ...
+    @property
+    def wma(self) -> float: ...
+    @property
+    def completed(self) -> bool: ...
+    @property
+    def actor_loss(self) -> float: ...
+    @property
+    def critic_loss(self) -> float: ...
+    @property
+    def entropy(self) -> float: ...
+
+
+class RoundPlayer(Protocol):
+    """What the worker needs from the learner (``fleetrl.agent.learner.Learner`` provides it)."""
+
+    @property
+    def agent(self) -> ActorAgent:
+        """The agent whose actor is federated."""
+        ...
+
+    def play_round(self) -> RoundOutcome:
+        """Play one episode and, unless learning is complete, optimise (Algorithm 2, lines 2–24)."""
+        ...
+
+
+@dataclass(frozen=True)
+class RoundRecord:
+    """One round of one worker, for metrics files and the live view.
+
+    ``event`` is ``gradient`` (sent a gradient, applied the average), ``transfer_out`` (sent its parameters,
+    which the chief forwarded; finished), ``finished`` (sent its parameters, but a lower worker id's were
+    forwarded in the same round; finished), ``transfer_in from K`` (replaced its actor with worker K's) or
+    ``run ended`` (the chief ended the run while it waited).
+    """
+
+    worker_id: str
+    round: int
+    score: float
+    wma: float
+    steps: int
+    actor_loss: float
+    critic_loss: float
+    entropy: float
+    event: str
+    peer: str | None = None
+    """the other worker of a transfer (``transfer_in``: the origin; ``finished``: the one forwarded)"""
+
+
+@dataclass(frozen=True)
+class WorkerSummary:
+    """How a worker's run ended."""
+
+    worker_id: str
+    rounds: int
+    finished: bool
+    """True if it left W by sending its parameters."""
+    reason: str
+
+
+class FederatedWorker:
+    """Algorithm 2 for one worker, talking to the chief only through ``transport``.
+
+    :param learner: plays rounds; its ``agent`` exposes the actor (see :class:`RoundPlayer`).
+    :param transport: an unconnected transport; :meth:`run` connects it (with an ``offline`` last will) and
+        closes it.
+    :param run_id: the run.
+    :param worker_id: this worker's id (a topic level; not ``chief``).
+    :param max_rounds: M.
+    :param on_record: called with every :class:`RoundRecord`.
+    :param reply_timeout: seconds to wait for the chief (at start, and each round); None waits forever.
+    """
+
+    def __init__(
+        self,
+        learner: RoundPlayer,
+        transport: Transport,
+        *,
+        run_id: str,
+        worker_id: str,
+        max_rounds: int,
+        on_record: Callable[[RoundRecord], None] | None = None,
+        reply_timeout: float | None = 600.0,
+    ) -> None:
+        """Prepare the worker; nothing is sent before :meth:`run`."""
+        self.learner = learner
+        self.transport = transport
+        self.run_id = validate_id(run_id, "run id")
+        self.worker_id = validate_worker_id(worker_id)
+        self.max_rounds = max_rounds
+        self.on_record = on_record
+        self.reply_timeout = reply_timeout
+        self.layout: Layout = list(learner.agent.actor_layout())
+        self._chief_topic = chief_topic(run_id)
+        self._chief_status = status_topic(run_id, CHIEF_ID)
+        self._own_status = status_topic(run_id, worker_id)
+
+    def run(self) -> WorkerSummary:
+        """Connect, wait for the chief, play rounds until finished, M rounds, or the chief's ``done``;
+        close."""
+        client_id = f"fleetrl-{self.run_id}-worker-{self.worker_id}"
+        self.transport.connect(client_id, will=Will(self._own_status, OFFLINE))
+        try:
+            self.transport.subscribe(self._chief_topic)
+            self.transport.subscribe(self._chief_status)
+            self.transport.publish(self._own_status, ONLINE, retain=True)
+            self._wait_for_chief()
+            summary = self._rounds()
+            self.transport.publish(self._own_status, OFFLINE, retain=True)
+        finally:
+            self.transport.close()
+        log.info("worker %s: %s after %d rounds", self.worker_id, summary.reason, summary.rounds)
+        return summary
+
+    def _rounds(self) -> WorkerSummary:
+        agent = self.learner.agent
+        for rnd in range(1, self.max_rounds + 1):
+            result = self.learner.play_round()  # lines 2-24
+            completed = bool(result.completed)
+            kind = "parameters" if completed else "gradient"
+            flat = agent.actor_parameters() if completed else agent.actor_gradient()  # line 8 / line 25
+            metrics = {"score": float(result.score), "wma": float(result.wma), "steps": float(result.steps)}
+            message = Message(kind, self.run_id, self.worker_id, rnd, flat=flat, metrics=_finite(metrics))
+            self.transport.publish(
+                worker_topic(self.run_id, self.worker_id), encode(message, layout=self.layout)
+            )
+            reply = self._wait_for_reply(rnd)  # line 27
+            event, peer, leave = self._apply(reply, completed, agent)  # lines 28-31
+            self._record(rnd, result, event, peer)
+            if leave:
+                return WorkerSummary(self.worker_id, rnd, finished=reply.type == "transfer", reason=event)
+        return WorkerSummary(
+            self.worker_id, self.max_rounds, finished=False, reason=f"reached M={self.max_rounds}"
+        )
+
+    def _apply(self, reply: Message, completed: bool, agent: ActorAgent) -> tuple[str, str | None, bool]:
+        """Act on the chief's answer; return (event, peer, whether this worker stops)."""
+        if reply.type == "done":
+            return "run ended", None, True
+        if reply.type == "transfer" and self.worker_id in reply.finished:
+            if reply.origin == self.worker_id:
+                return "transfer_out", None, True
+            return "finished", reply.origin, True
+        if reply.flat is None:
+            raise AssertionError("decode guarantees tensors for average and transfer")
+        if reply.type == "transfer":
+            agent.set_actor_parameters(reply.flat)  # line 29
+            return f"transfer_in from {reply.origin}", reply.origin, False
+        if completed:  # the chief averaged although we sent parameters: a protocol bug, not a data problem
+            raise RuntimeError(f"worker {self.worker_id}: chief answered round {reply.round} with an average")
+        agent.apply_actor_gradient(reply.flat)  # line 31
+        return "gradient", None, False
+
+    def _wait_for_chief(self) -> None:
+        deadline = None if self.reply_timeout is None else time.monotonic() + self.reply_timeout
+        while True:
+            received = self.transport.receive(_remaining(deadline))
+            if received is None:
+                raise TimeoutError(f"worker {self.worker_id}: chief of run {self.run_id!r} not online")
+            if received.topic == self._chief_status and received.payload == ONLINE:
+                return
+
+    def _wait_for_reply(self, rnd: int) -> Message:
+        deadline = None if self.reply_timeout is None else time.monotonic() + self.reply_timeout
+        while True:
+            received = self.transport.receive(_remaining(deadline))
+            if received is None:
+                raise TimeoutError(f"worker {self.worker_id}: no answer from the chief for round {rnd}")
+            if received.topic == self._chief_status:
+                if received.payload == OFFLINE:
+                    log.warning(
+                        "worker %s: the chief went offline; still waiting for round %d", self.worker_id, rnd
+                    )
+                continue
+            try:
+                reply = decode(
+                    received.payload, run_id=self.run_id, known_senders=(CHIEF_ID,), layout=self.layout
+                )
+            except MessageRejected as exc:
+                log.warning("worker %s: rejected a chief message: %s", self.worker_id, exc)
+                continue
+            if reply.type == "done" or reply.round == rnd:
+                return reply
+            log.debug(
+                "worker %s: ignoring %s for round %d (waiting for %d)",
+                self.worker_id,
+                reply.type,
+                reply.round,
+                rnd,
+            )
+
+    def _record(self, rnd: int, result: RoundOutcome, event: str, peer: str | None) -> None:
+        record = RoundRecord(
+            self.worker_id, rnd, float(result.score), float(result.wma), int(result.steps),
+            float(result.actor_loss), float(result.critic_loss), float(result.entropy), event, peer,
+        )  # fmt: skip
+        log.info(
+            "worker %s round %d: score %g wma %.1f steps %d actor %.4g critic %.4g entropy %.3f: %s",
+            self.worker_id, rnd, record.score, record.wma, record.steps,
+            record.actor_loss, record.critic_loss, record.entropy, event,
+        )  # fmt: skip
+        if self.on_record is not None:
+            self.on_record(record)
+
+
+def _remaining(deadline: float | None) -> float | None:
+    return None if deadline is None else max(0.0, deadline - time.monotonic())
+
+
+def _finite(metrics: dict[str, float]) -> dict[str, float]:
+    return {k: v for k, v in metrics.items() if math.isfinite(v)}

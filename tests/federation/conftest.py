@@ -1,0 +1,179 @@
+"""Shared helpers for federation tests: a small deterministic fake learner and a threaded federated run."""
+
+from __future__ import annotations
+
+import threading
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+import pytest
+
+from fleetrl.federation.chief import Chief, ChiefEvent
+from fleetrl.federation.runner import ChiefSummary, run_chief
+from fleetrl.federation.worker import FederatedWorker, RoundRecord, WorkerSummary
+from fleetrl.transport.base import Transport
+
+FAKE_LAYOUT: list[tuple[str, tuple[int, ...]]] = [("trunk.weight", (4, 3)), ("head.bias", (3,))]
+
+
+@dataclass(frozen=True)
+class FakeResult:
+    """Same fields as fleetrl.agent.learner.RoundResult that the worker reads."""
+
+    score: float
+    steps: int
+    wma: float
+    completed: bool
+    actor_loss: float
+    critic_loss: float
+    entropy: float
+
+
+class FakeAgent:
+    """A 'policy' of 15 floats pulled towards a per-worker target; SGD with lr 0.1 on received gradients."""
+
+    def __init__(self, seed: int) -> None:
+        rng = np.random.default_rng(seed)
+        self.params = rng.normal(size=15).astype(np.float32)
+        self.target = rng.normal(size=15).astype(np.float32)
+        self.noise = rng
+        self.last_gradient = np.zeros(15, np.float32)
+
+    def actor_layout(self) -> list[tuple[str, tuple[int, ...]]]:
+        return list(FAKE_LAYOUT)
+
+    def actor_gradient(self) -> np.ndarray:
+        return self.last_gradient.copy()
+
+    def apply_actor_gradient(self, flat: np.ndarray) -> None:
+        self.params = (self.params - np.float32(0.1) * flat).astype(np.float32)
+
+    def actor_parameters(self) -> np.ndarray:
+        return self.params.copy()
+
+    def set_actor_parameters(self, flat: np.ndarray) -> None:
+        self.params = np.array(flat, dtype=np.float32)
+
+
+class FakeLearner:
+    """Plays 'rounds': the score depends on the parameters, so averages and transfers show in the scores.
+
+    :param complete_at: the round at which the completion criterion holds (None: never).
+    :param pause: seconds each round takes (to give concurrent tests time to interfere).
+    """
+
+    def __init__(self, seed: int, complete_at: int | None = None, pause: float = 0.0) -> None:
+        self.agent = FakeAgent(seed)
+        self.pause = pause
+        self.complete_at = complete_at
+        self.rounds = 0
+        self.scores: list[float] = []
+
+    def play_round(self) -> FakeResult:
+        time.sleep(self.pause)
+        self.rounds += 1
+        distance = float(np.linalg.norm(self.agent.params - self.agent.target))
+        score = round(1000.0 / (1.0 + distance), 6)
+        self.scores.append(score)
+        completed = self.complete_at is not None and self.rounds >= self.complete_at
+        if not completed:
+            step = self.agent.params - self.agent.target + 0.01 * self.agent.noise.normal(size=15)
+            self.agent.last_gradient = step.astype(np.float32)
+        wma = float(np.mean(self.scores[-10:]))
+        return FakeResult(score, self.rounds, wma, completed, distance, 0.5 * distance, 1.0)
+
+
+@dataclass
+class FleetResult:
+    """What a threaded federated run produced."""
+
+    records: dict[str, list[RoundRecord]]
+    workers: dict[str, WorkerSummary]
+    chief: ChiefSummary
+    events: list[ChiefEvent]
+
+    def scores(self) -> dict[str, list[float]]:
+        return {w: [r.score for r in rs] for w, rs in self.records.items()}
+
+
+FleetRunner = Callable[..., FleetResult]
+
+
+def run_fleet(
+    make_transport: Callable[[], Transport],
+    learners: dict[str, FakeLearner] | dict[str, object],
+    *,
+    run_id: str = "test-run",
+    max_rounds: int = 10,
+    timeout: float = 60.0,
+) -> FleetResult:
+    """Chief and workers as threads, each with its own transport from ``make_transport``."""
+    layout = learners[next(iter(learners))].agent.actor_layout()  # type: ignore[attr-defined]
+    chief = Chief(run_id=run_id, workers=list(learners), layout=layout, max_rounds=max_rounds)
+    events: list[ChiefEvent] = []
+    records: dict[str, list[RoundRecord]] = {w: [] for w in learners}
+    summaries: dict[str, WorkerSummary] = {}
+    outcome: dict[str, ChiefSummary] = {}
+    errors: list[BaseException] = []
+
+    def guard(fn: Callable[[], None]) -> Callable[[], None]:
+        def body() -> None:
+            try:
+                fn()
+            except BaseException as exc:
+                errors.append(exc)
+
+        return body
+
+    def chief_main() -> None:
+        outcome["chief"] = run_chief(chief, make_transport(), on_event=events.append, idle_timeout=timeout)
+
+    def worker_main(worker_id: str) -> Callable[[], None]:
+        def main() -> None:
+            worker = FederatedWorker(
+                learners[worker_id],
+                make_transport(),
+                run_id=run_id,
+                worker_id=worker_id,
+                max_rounds=max_rounds,
+                on_record=records[worker_id].append,
+                reply_timeout=timeout,
+            )
+            summaries[worker_id] = worker.run()
+
+        return main
+
+    threads = [threading.Thread(target=guard(chief_main), name="chief")]
+    threads += [threading.Thread(target=guard(worker_main(w)), name=f"worker-{w}") for w in learners]
+    for thread in threads:
+        thread.start()
+    for thread in threads:
+        thread.join(timeout + 5)
+    assert not errors, errors
+    assert not any(t.is_alive() for t in threads), "a role hung"
+    return FleetResult(records, summaries, outcome["chief"], events)
+
+
+def make_fake_fleet(pause: float = 0.0) -> dict[str, FakeLearner]:
+    """Three workers: 2 completes at round 4 (transfer to 1 and 3), 1 at round 7 (transfer to 3), 3 never."""
+    return {"1": FakeLearner(11, 7, pause), "2": FakeLearner(12, 4, pause), "3": FakeLearner(13, None, pause)}
+
+
+@pytest.fixture
+def fleet_runner() -> FleetRunner:
+    """The threaded federated-run helper: ``fleet_runner(make_transport, learners, max_rounds=...)``."""
+    return run_fleet
+
+
+@pytest.fixture
+def fake_fleet() -> Callable[..., dict[str, FakeLearner]]:
+    """Factory of the three-worker fake fleet (fresh learners each call)."""
+    return make_fake_fleet
+
+
+@pytest.fixture
+def fake_learner() -> type[FakeLearner]:
+    """The fake learner class."""
+    return FakeLearner
