@@ -16,7 +16,7 @@ from fleetrl.devices.qube.dynamics import (
     write_observation,
 )
 from fleetrl.devices.qube.params import ACTION_POWERS, POWER_TO_VOLTS, QubeConfig, QubeParams
-from fleetrl.devices.variation import QubeVariation, qube_unit_params
+from fleetrl.devices.qube.units import QubeVariation, qube_unit_params
 
 ACTION_VOLTS = tuple(p * POWER_TO_VOLTS for p in ACTION_POWERS)
 """volts of action index 0, 1, 2 (−1.44, 0, +1.44 V)"""
