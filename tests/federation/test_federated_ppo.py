@@ -20,6 +20,8 @@ from fleetrl.transport.broker import EmbeddedBroker, find_mosquitto
 from fleetrl.transport.local import LocalBus
 from fleetrl.transport.mqtt import MqttTransport
 
+pytestmark = pytest.mark.mqtt
+
 ROUNDS = 8
 Runner = Callable[..., Any]
 
@@ -51,6 +53,3 @@ def test_federated_ppo_is_identical_over_local_bus_and_mqtt(fleet_runner: Runner
             lambda: MqttTransport(broker.url), ppo_fleet(), run_id="ppo-mqtt", max_rounds=ROUNDS
         )
     assert outcome(remote) == outcome(local)
-
-
-pytestmark = pytest.mark.mqtt

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import os
 import signal
+import socket
 import subprocess
 import sys
 import time
@@ -65,6 +66,10 @@ def test_publish_subscribe_round_trip(broker: EmbeddedBroker) -> None:
     a, b = client(broker.url, "rt-a"), client(broker.url, "rt-b")
     try:
         assert isinstance(a, Transport)
+        for end in (a, b):  # Nagle would stall every QoS 1 round trip by 40+ ms
+            sock = end._client.socket() if end._client else None
+            assert isinstance(sock, socket.socket)
+            assert sock.getsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY) != 0
         b.subscribe("rt/+/x")
         time.sleep(0.2)  # SUBACK before another client's publish
         payload = bytes(range(256)) * 600  # ~150 KB, the size of a real gradient
