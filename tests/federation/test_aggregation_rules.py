@@ -19,7 +19,11 @@ def test_mean_of_hand_computed_arrays() -> None:
 
 
 def test_mean_of_three_workers() -> None:
-    gradients = [np.array([1.0, -2.0, 0.5], np.float32), np.array([4.0, 2.0, 0.5], np.float32), np.zeros(3, np.float32)]
+    gradients = [
+        np.array([1.0, -2.0, 0.5], np.float32),
+        np.array([4.0, 2.0, 0.5], np.float32),
+        np.zeros(3, np.float32),
+    ]
     np.testing.assert_allclose(mean(gradients), [5 / 3, 0.0, 1 / 3], rtol=1e-6)
 
 

@@ -55,10 +55,15 @@ def test_average_against_hand_computed_values() -> None:
     steps = feed(c, *ROUND1)
     assert [s.outgoing for s in steps[:2]] == [(), ()]
     (reply,) = out(steps)
-    assert (reply.type, reply.round, reply.sender, reply.contributors) == ("average", 1, "chief", ("1", "2", "3"))
+    assert (reply.type, reply.round, reply.sender, reply.contributors) == (
+        "average",
+        1,
+        "chief",
+        ("1", "2", "3"),
+    )
     np.testing.assert_allclose(reply.flat, [3.0, 5.0])
     assert c.round == 2 and c.members == ("1", "2", "3")
-    closed = [e for e in steps[-1].events if e.kind == "averaged"][0]
+    closed = next(e for e in steps[-1].events if e.kind == "averaged")
     assert closed.averaged == ("1", "2", "3") and "averaged 1,2,3 (mean)" in str(closed)
 
 

@@ -27,7 +27,9 @@ FLAT = np.arange(9, dtype=np.float32) / 7
 
 
 def gradient(**changes: Any) -> Message:
-    fields: dict[str, Any] = dict(type="gradient", run_id="r1", sender="2", round=5, flat=FLAT, metrics={"score": 3})
+    fields: dict[str, Any] = dict(
+        type="gradient", run_id="r1", sender="2", round=5, flat=FLAT, metrics={"score": 3}
+    )
     fields.update(changes)
     return Message(**fields)
 
@@ -71,7 +73,10 @@ def test_chief_messages_round_trip() -> None:
     msg = decode(encode(transfer, layout=LAYOUT), run_id="r1", known_senders=("chief",), layout=LAYOUT)
     assert (msg.origin, msg.finished) == ("2", ("2", "3"))
     done = decode(
-        encode(Message("done", "r1", "chief", 9), layout=LAYOUT), run_id="r1", known_senders=("chief",), layout=LAYOUT
+        encode(Message("done", "r1", "chief", 9), layout=LAYOUT),
+        run_id="r1",
+        known_senders=("chief",),
+        layout=LAYOUT,
     )
     assert done.type == "done" and done.flat is None
 
