@@ -10,7 +10,7 @@ from fleetrl.devices.qube import NOMINAL, QubeConfig, QubeDevice
 from fleetrl.devices.qube.units import QubeVariation, qube_unit_params
 
 FLEET = range(10)
-SWING_UP_BOUND_S = 5.0  # measured: at most 1.94 s over 200 units (10 fleet seeds x 20 units)
+SWING_UP_BOUND_S = 5.0  # measured: at most 1.85 s over 200 units (10 fleet seeds x 20 units)
 ARM_TRAVEL_BOUND = math.radians(150)
 
 

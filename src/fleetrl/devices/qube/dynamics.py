@@ -16,7 +16,7 @@ allocation-free so the env pays one compiled call per step.
 import math
 
 import numpy as np
-from numba import njit
+from numba import njit, prange
 
 # indices into QubeParams.coefficients()
 C_M11, C_QUARTER, C_HALF, C_M22, C_GRAV, C_KM, C_RM, C_DR, C_DP, C_THETA_OFF, C_ALPHA_OFF = range(11)
@@ -165,13 +165,14 @@ def agent_step(
     write_observation(sensor, obs)
 
 
-@njit(cache=True)
+@njit(cache=True, parallel=True)
 def physics_batch(
     states: np.ndarray, coefficients: np.ndarray, volts: np.ndarray, n_periods: int, n_sub: int, h: float
 ) -> None:
     """Raw physics for many units: each row of ``states`` advances ``n_periods`` control periods of
-    ``n_sub`` RK4 steps at its own constant voltage and its own row of ``coefficients``."""
-    for i in range(states.shape[0]):
+    ``n_sub`` RK4 steps at its own constant voltage and its own row of ``coefficients``. Units are spread
+    over numba's threads (``numba.set_num_threads``)."""
+    for i in prange(states.shape[0]):
         x = states[i]
         c = coefficients[i]
         v = volts[i]
