@@ -73,7 +73,7 @@ def main() -> None:
         f"{env['steps_per_s']:,.0f} steps/s excluding resets; {env['steps_per_s_with_resets']:,.0f} steps/s "
         f"including {env['episodes']:.0f} device-side resets ({env['ms_per_reset']:.2f} ms each)"
     )
-    for threads in sorted({1, numba.config.NUMBA_NUM_THREADS}):
+    for threads in sorted({1, numba.config.NUMBA_NUM_THREADS}):  # type: ignore[attr-defined]
         numba.set_num_threads(threads)
         batch = batched_physics(256, n_periods)
         print(
