@@ -1,0 +1,45 @@
+"""Running a saved policy greedily on one unit."""
+
+from pathlib import Path
+
+import gymnasium
+import torch
+
+from fleetrl.agent.ppo import PPOAgent
+from fleetrl.envs.catalog import get_env_spec
+
+
+def evaluate_model(
+    model: Path, env: str, unit: int, fleet_seed: int, episodes: int, seed: int = 0
+) -> list[float]:
+    """Scores of ``episodes`` greedy episodes of the saved policy on ``unit``.
+
+    :raises FileNotFoundError: no such model file
+    :raises ValueError: the file is not a fleetrl model, or it was made for another env's shapes
+    """
+    if episodes < 1:
+        raise ValueError(f"--episodes must be at least 1, got {episodes}")
+    if not Path(model).is_file():
+        raise FileNotFoundError(f"no model file at {model}")
+    torch.set_num_threads(1)
+    spec = get_env_spec(env)
+    agent = PPOAgent.load(model)
+    gym_env = gymnasium.make(spec.gym_id, unit=unit, fleet_seed=fleet_seed)
+    obs_shape = gym_env.observation_space.shape
+    n_actions = int(gym_env.action_space.n)  # type: ignore[attr-defined]
+    if (agent.obs_dim, agent.n_actions) != (obs_shape[0] if obs_shape else -1, n_actions):
+        raise ValueError(
+            f"{model} is a policy for {agent.obs_dim} observations and {agent.n_actions} actions; "
+            f"env {env!r} has {obs_shape} and {n_actions}"
+        )
+    scores = []
+    for episode in range(episodes):
+        obs, _ = gym_env.reset(seed=seed + episode)
+        score, done = 0.0, False
+        while not done:
+            obs, reward, terminated, truncated, _ = gym_env.step(agent.act_greedy(obs))
+            score += float(reward)
+            done = terminated or truncated
+        scores.append(score)
+    gym_env.close()
+    return scores

@@ -1,0 +1,26 @@
+"""Building a worker's learner (env + PPO agent + completion criterion) from its spec."""
+
+import dataclasses
+
+import gymnasium
+import torch
+
+from fleetrl.agent.config import get_preset
+from fleetrl.agent.criterion import CompletionCriterion
+from fleetrl.agent.learner import Learner
+from fleetrl.agent.ppo import PPOAgent
+from fleetrl.envs.catalog import get_env_spec
+from fleetrl.runs.spec import WorkerSpec
+
+
+def make_learner(spec: WorkerSpec) -> Learner:
+    """The learner for one worker: its unit's env, a seeded agent with the preset (and overrides)."""
+    torch.set_num_threads(1)
+    env_spec = get_env_spec(spec.env)
+    config = dataclasses.replace(get_preset(spec.preset), **spec.overrides)
+    env = gymnasium.make(env_spec.gym_id, unit=spec.unit, fleet_seed=spec.fleet_seed)
+    obs_dim = int(env.observation_space.shape[0])  # type: ignore[index]
+    n_actions = int(env.action_space.n)  # type: ignore[attr-defined]
+    agent = PPOAgent(obs_dim, n_actions, config, seed=spec.worker_seed)
+    criterion = CompletionCriterion(env_spec.completion_threshold)
+    return Learner(env, agent, criterion, seed=spec.worker_seed)

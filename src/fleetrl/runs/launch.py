@@ -1,0 +1,234 @@
+"""Launching a training run: individual (each unit alone) or federated (chief + workers over a transport).
+
+=============  ===============================  =============================================
+mode           workers                          chief
+=============  ===============================  =============================================
+individual     one process each                 none
+federated      one process each (``mqtt``)      a thread of this process, on the same broker
+federated      threads of this process          a thread, on the in-process bus (``local``)
+=============  ===============================  =============================================
+
+Every worker reports its rounds as :class:`~fleetrl.runs.records.RoundRecord` objects; this process
+owns the run directory and the live view.
+"""
+
+import dataclasses
+import logging
+import sys
+import threading
+import uuid
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
+from pathlib import Path
+from typing import Any
+
+import gymnasium
+
+from fleetrl.agent.config import get_preset
+from fleetrl.agent.ppo import PPOAgent
+from fleetrl.envs.catalog import get_env_spec
+from fleetrl.federation.chief import Chief, ChiefEvent
+from fleetrl.federation.runner import ChiefSummary, run_chief
+from fleetrl.runs.fleet import Fleet, ThreadFleet, follow
+from fleetrl.runs.live import LiveView
+from fleetrl.runs.processes import ProcessFleet
+from fleetrl.runs.roles import Emit
+from fleetrl.runs.roles import train_federated as train_federated_worker
+from fleetrl.runs.rundir import RunRecorder, write_json_atomic
+from fleetrl.runs.settings import RunSettings
+from fleetrl.runs.spec import WorkerSpec
+from fleetrl.transport.base import Transport
+
+log = logging.getLogger(__name__)
+
+DEMO_MAX_ROUNDS = 1000
+CHIEF_IDLE_TIMEOUT = 600.0
+
+
+def demo_settings(out: Path, seed: int = 0) -> RunSettings:
+    """The main job: a simulated 3-unit QUBE fleet trained federated through an embedded MQTT broker."""
+    return RunSettings(
+        mode="federated",
+        env="qube",
+        units=3,
+        preset="standard",
+        seed=seed,
+        max_rounds=DEMO_MAX_ROUNDS,
+        out=out,
+    )
+
+
+def worker_specs(settings: RunSettings) -> dict[int, WorkerSpec]:
+    """One spec per worker; worker K trains unit K of the fleet."""
+    return {
+        k: WorkerSpec(
+            worker=k,
+            unit=k,
+            env=settings.env,
+            preset=settings.preset,
+            seed=settings.seed,
+            fleet_seed=settings.fleet_seed,
+            max_rounds=settings.max_rounds,
+            out=str(settings.out),
+            overrides=dict(settings.overrides),
+        )
+        for k in range(settings.units)
+    }
+
+
+def actor_layout(settings: RunSettings) -> list[tuple[str, tuple[int, ...]]]:
+    """Names and shapes of the actor's parameters for this env and preset (the chief validates with it)."""
+    env = gymnasium.make(get_env_spec(settings.env).gym_id)
+    obs_dim = int(env.observation_space.shape[0])  # type: ignore[index]
+    n_actions = int(env.action_space.n)  # type: ignore[attr-defined]
+    env.close()
+    config = dataclasses.replace(get_preset(settings.preset), **settings.overrides)
+    return PPOAgent(obs_dim, n_actions, config, seed=0).actor_layout()
+
+
+def train(settings: RunSettings) -> dict[str, Any]:
+    """Run the whole training and return summary.json's content."""
+    settings.validate()
+    specs = worker_specs(settings)
+    recorder = RunRecorder(Path(settings.out), settings.to_config(), sorted(specs))
+    title = f"fleetrl {settings.mode} · {settings.env} × {settings.units} · preset {settings.preset}"
+    threshold = get_env_spec(settings.env).completion_threshold
+    try:
+        with (
+            run_logging(recorder.out / "logs" / "run.log", quiet=settings.live),
+            LiveView(title, threshold, enabled=settings.live) as view,
+        ):
+            if settings.mode == "individual":
+                commands = {k: worker_command(s) for k, s in specs.items()}
+                follow(ProcessFleet(commands, recorder.out / "logs"), recorder, view)
+            else:
+                train_federated(settings, specs, recorder, view)
+    finally:
+        summary = recorder.finish()
+    return summary
+
+
+@contextmanager
+def run_logging(path: Path, quiet: bool) -> Iterator[None]:
+    """Log everything of this process to ``path``; with ``quiet``, only warnings reach the terminal."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    root = logging.getLogger()
+    handler = logging.FileHandler(path)
+    handler.setFormatter(logging.Formatter("%(asctime)s %(threadName)s %(name)s %(levelname)s %(message)s"))
+    handler.setLevel(logging.INFO)
+    saved = [(h, h.level) for h in root.handlers]
+    if quiet:
+        for console, _ in saved:
+            console.setLevel(max(console.level, logging.WARNING))
+    previous_level = root.level
+    root.setLevel(min(root.level or logging.INFO, logging.INFO))
+    root.addHandler(handler)
+    try:
+        yield
+    finally:
+        root.removeHandler(handler)
+        handler.close()
+        root.setLevel(previous_level)
+        for console, level in saved:
+            console.setLevel(level)
+
+
+def worker_command(spec: WorkerSpec, *extra: str) -> list[str]:
+    """argv of a worker process."""
+    return [sys.executable, "-m", "fleetrl.runs.worker_main", spec.to_json(), *extra]
+
+
+def train_federated(
+    settings: RunSettings, specs: dict[int, WorkerSpec], recorder: RunRecorder, view: LiveView
+) -> None:
+    """Chief in a thread of this process; workers as processes (MQTT) or threads (local bus)."""
+    run_id = f"run-{uuid.uuid4().hex[:8]}"
+    chief = Chief(
+        run_id=run_id,
+        workers=[str(k) for k in specs],
+        layout=actor_layout(settings),
+        max_rounds=settings.max_rounds,
+    )
+    recorder.extra["run_id"] = run_id
+    chief_log = (recorder.out / "logs").resolve()
+    chief_log.mkdir(parents=True, exist_ok=True)
+    with open(chief_log / "chief.log", "w") as log_file, broker_url(settings) as url:
+        recorder.extra["broker"] = url or "in-process bus"
+        make_transport, fleet_for = transports(settings, url, specs, run_id)
+
+        def on_event(event: ChiefEvent) -> None:
+            log_file.write(f"{event}\n")
+            log_file.flush()
+
+        outcome: dict[str, ChiefSummary | BaseException] = {}
+
+        def chief_body() -> None:
+            try:
+                outcome["chief"] = run_chief(
+                    chief, make_transport(), on_event=on_event, idle_timeout=CHIEF_IDLE_TIMEOUT
+                )
+            except BaseException as err:  # reported in summary.json, never lost in a thread
+                log.error("chief failed: %s", err)
+                outcome["chief"] = err
+
+        chief_thread = threading.Thread(target=chief_body, name="chief", daemon=True)
+        chief_thread.start()
+        follow(fleet_for(), recorder, view)
+        chief_thread.join(timeout=10)
+    result = outcome.get("chief")
+    if isinstance(result, ChiefSummary):
+        recorder.extra["chief"] = {
+            "rounds": result.rounds,
+            "end_reason": result.end_reason,
+            "transfers": [{"round": r, "from": origin, "to": list(to)} for r, origin, to in result.transfers],
+            "rejections": {str(k): v for k, v in result.rejections.items()},
+        }
+    else:
+        recorder.extra["chief"] = {"error": str(result) if result else "did not finish"}
+    write_json_atomic(recorder.out / "chief.json", recorder.extra["chief"])
+
+
+@contextmanager
+def broker_url(settings: RunSettings) -> Iterator[str | None]:
+    """The broker to use: the given one, an embedded one for the run's lifetime, or none (local bus)."""
+    if settings.transport == "local":
+        yield None
+    elif settings.broker:
+        yield settings.broker
+    else:
+        from fleetrl.transport.broker import EmbeddedBroker
+
+        with EmbeddedBroker() as broker:
+            log.info("embedded %s broker at %s", broker.kind, broker.url)
+            yield broker.url
+
+
+def transports(
+    settings: RunSettings, url: str | None, specs: dict[int, WorkerSpec], run_id: str
+) -> tuple[Callable[[], Transport], Callable[[], Fleet]]:
+    """(a factory of the chief's transport, a starter of the workers) for the run's transport."""
+    if url is None:
+        from fleetrl.transport.local import LocalBus
+
+        bus = LocalBus()
+        bodies = {k: federated_thread(spec, bus.client, run_id) for k, spec in specs.items()}
+        return bus.client, lambda: ThreadFleet(bodies)
+
+    from fleetrl.transport.mqtt import MqttTransport
+
+    def process_fleet() -> Fleet:
+        commands = {k: worker_command(s, "--broker", url, "--run-id", run_id) for k, s in specs.items()}
+        return ProcessFleet(commands, Path(settings.out) / "logs")
+
+    return (lambda: MqttTransport(url)), process_fleet
+
+
+def federated_thread(
+    spec: WorkerSpec, make_transport: Callable[[], Transport], run_id: str
+) -> Callable[[Emit], None]:
+    """The body of a worker thread on the in-process bus."""
+
+    def body(emit: Emit) -> None:
+        train_federated_worker(spec, make_transport(), run_id, emit, reply_timeout=CHIEF_IDLE_TIMEOUT)
+
+    return body

@@ -1,0 +1,65 @@
+"""One row of a run's metrics: what one worker did in one round."""
+
+import json
+import math
+from dataclasses import asdict, dataclass, fields
+from typing import Any
+
+CSV_COLUMNS = (
+    "round",
+    "worker",
+    "score",
+    "wma",
+    "actor_loss",
+    "critic_loss",
+    "entropy",
+    "steps",
+    "wall_time",
+    "event",
+)
+
+
+@dataclass
+class RoundRecord:
+    """A worker's round: the episode's score, the learning statistics, and what federation did.
+
+    ``event`` is empty for a plain round, ``gradient`` for a gradient-sharing round, ``completed`` when the
+    worker's criterion holds, ``transfer_out`` / ``transfer_in:<from>`` for model transfers.
+    """
+
+    round: int
+    worker: int
+    score: float
+    wma: float
+    actor_loss: float
+    critic_loss: float
+    entropy: float
+    steps: int
+    wall_time: float
+    event: str = ""
+
+    def to_json(self) -> str:
+        """One line of JSON (non-finite floats become null)."""
+        return json.dumps({k: _finite_or_none(v) for k, v in asdict(self).items()})
+
+    @classmethod
+    def from_json(cls, line: str) -> "RoundRecord":
+        """Parse a line written by :meth:`to_json`; raises ValueError on anything else."""
+        data = json.loads(line)
+        if not isinstance(data, dict):
+            raise ValueError("a round record must be a JSON object")
+        names = {f.name for f in fields(cls)}
+        if set(data) != names:
+            raise ValueError(f"round record fields {sorted(data)} != {sorted(names)}")
+        values: dict[str, Any] = {k: (math.nan if v is None else v) for k, v in data.items()}
+        return cls(**values)
+
+    def csv_row(self) -> list[object]:
+        """Values in :data:`CSV_COLUMNS` order."""
+        return [getattr(self, name) for name in CSV_COLUMNS]
+
+
+def _finite_or_none(value: object) -> object:
+    if isinstance(value, float) and not math.isfinite(value):
+        return None
+    return value

@@ -1,0 +1,107 @@
+"""What one worker does in a run, in individual or federated mode, wherever it runs (process or thread).
+
+Both modes report every round as a :class:`~fleetrl.runs.records.RoundRecord` through ``emit`` and save the
+worker's model when they end, however they end.
+"""
+
+import logging
+import time
+from collections.abc import Callable
+from pathlib import Path
+
+from fleetrl.agent.learner import Learner, RoundResult
+from fleetrl.federation import worker as federation_worker
+from fleetrl.federation.worker import FederatedWorker, WorkerSummary
+from fleetrl.runs.factory import make_learner
+from fleetrl.runs.records import RoundRecord
+from fleetrl.runs.rundir import model_path
+from fleetrl.runs.spec import WorkerSpec
+from fleetrl.transport.base import Transport
+
+log = logging.getLogger(__name__)
+
+Emit = Callable[[RoundRecord], None]
+
+
+def individual_record(worker: int, result: RoundResult, started: float) -> RoundRecord:
+    """The metrics row of an individual-mode round."""
+    return RoundRecord(
+        round=result.round,
+        worker=worker,
+        score=result.score,
+        wma=result.wma,
+        actor_loss=result.actor_loss,
+        critic_loss=result.critic_loss,
+        entropy=result.entropy,
+        steps=result.steps,
+        wall_time=round(time.monotonic() - started, 4),
+        event="completed" if result.completed else "",
+    )
+
+
+def federated_event(record: federation_worker.RoundRecord) -> str:
+    """The metrics ``event`` for a federated round (``+``-joined; ``completed`` marks the criterion)."""
+    if record.event == "transfer_out":
+        return "completed+transfer_out"
+    if record.event == "finished":
+        return f"completed+finished:{record.peer}"
+    if record.event.startswith("transfer_in"):
+        return f"transfer_in:{record.peer}"
+    return record.event.replace(" ", "_")
+
+
+def federated_record(worker: int, record: federation_worker.RoundRecord, started: float) -> RoundRecord:
+    """The metrics row of a federated round."""
+    return RoundRecord(
+        round=record.round,
+        worker=worker,
+        score=record.score,
+        wma=record.wma,
+        actor_loss=record.actor_loss,
+        critic_loss=record.critic_loss,
+        entropy=record.entropy,
+        steps=record.steps,
+        wall_time=round(time.monotonic() - started, 4),
+        event=federated_event(record),
+    )
+
+
+def train_alone(spec: WorkerSpec, emit: Emit, learner: Learner | None = None) -> None:
+    """Individual mode: play rounds until the criterion holds or M rounds pass; save the model."""
+    learner = learner or make_learner(spec)
+    started = time.monotonic()
+    try:
+        for _ in range(spec.max_rounds):
+            result = learner.play_round()
+            emit(individual_record(spec.worker, result, started))
+            if result.completed:
+                break
+    finally:
+        learner.agent.save(model_path(Path(spec.out), spec.worker))
+
+
+def train_federated(
+    spec: WorkerSpec,
+    transport: Transport,
+    run_id: str,
+    emit: Emit,
+    *,
+    reply_timeout: float | None = 600.0,
+    learner: Learner | None = None,
+) -> WorkerSummary:
+    """Federated mode (Algorithm 2): one worker of run ``run_id`` over ``transport``; save the model."""
+    learner = learner or make_learner(spec)
+    started = time.monotonic()
+    worker = FederatedWorker(
+        learner,
+        transport,
+        run_id=run_id,
+        worker_id=str(spec.worker),
+        max_rounds=spec.max_rounds,
+        on_record=lambda record: emit(federated_record(spec.worker, record, started)),
+        reply_timeout=reply_timeout,
+    )
+    try:
+        return worker.run()
+    finally:
+        learner.agent.save(model_path(Path(spec.out), spec.worker))

@@ -1,0 +1,141 @@
+"""A run directory: config.json, metrics.csv, TensorBoard events, models/, summary.json and the plot.
+
+Files are written as the run goes (every metrics row is flushed), so an interrupted run leaves a valid,
+partial directory; :meth:`RunRecorder.finish` writes the summary and the plot.
+"""
+
+import csv
+import json
+import math
+import os
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from torch.utils.tensorboard import SummaryWriter
+
+from fleetrl.runs.records import CSV_COLUMNS, RoundRecord
+
+
+@dataclass
+class WorkerProgress:
+    """What the run knows of one worker so far (feeds the live view and summary.json)."""
+
+    round: int = 0
+    score: float = math.nan
+    wma: float = math.nan
+    completed_at_round: int | None = None
+    state: str = "starting"
+    events: list[str] = field(default_factory=list)
+
+
+def model_path(out: Path, worker: int) -> Path:
+    """Where worker ``worker``'s actor-critic is saved."""
+    return out / "models" / f"worker-{worker}.safetensors"
+
+
+def write_json_atomic(path: Path, data: Any) -> None:
+    """Write JSON through a temporary file and a rename, so a reader never sees half a file."""
+    tmp = path.with_suffix(path.suffix + ".tmp")
+    tmp.write_text(json.dumps(data, indent=2, sort_keys=True) + "\n")
+    os.replace(tmp, path)
+
+
+class RunRecorder:
+    """Receives round records from every worker and keeps the run directory up to date.
+
+    :param out: the run directory (created if missing; an existing metrics.csv is refused so no run
+        silently overwrites another)
+    :param config: every setting of the run, written to config.json
+    :param workers: the worker ids taking part
+    """
+
+    def __init__(self, out: Path, config: dict[str, Any], workers: list[int]) -> None:
+        self.out = Path(out)
+        if (self.out / "metrics.csv").exists():
+            raise FileExistsError(f"{self.out} already holds a run (metrics.csv); choose another --out")
+        (self.out / "models").mkdir(parents=True, exist_ok=True)
+        self.config = config
+        self.started = time.monotonic()
+        self.progress = {w: WorkerProgress() for w in workers}
+        self.records: list[RoundRecord] = []
+        self.interrupted = False
+        self.extra: dict[str, Any] = {}
+        """more entries for summary.json (e.g. the chief's account of a federated run)"""
+        write_json_atomic(self.out / "config.json", config)
+        self._csv_file = (self.out / "metrics.csv").open("w", newline="")
+        self._csv = csv.writer(self._csv_file)
+        self._csv.writerow(CSV_COLUMNS)
+        self._csv_file.flush()
+        self._tb = SummaryWriter(log_dir=str(self.out / "tensorboard"))
+
+    def elapsed(self) -> float:
+        """Seconds since the run started."""
+        return time.monotonic() - self.started
+
+    def add(self, record: RoundRecord) -> None:
+        """Append one record to metrics.csv and TensorBoard and update the worker's progress."""
+        self.records.append(record)
+        self._csv.writerow(record.csv_row())
+        self._csv_file.flush()
+        tag = f"worker_{record.worker}"
+        self._tb.add_scalar(f"rollout/score/{tag}", record.score, record.round)
+        self._tb.add_scalar(f"rollout/wma/{tag}", record.wma, record.round)
+        for name in ("actor_loss", "critic_loss", "entropy"):
+            value = getattr(record, name)
+            if math.isfinite(value):
+                self._tb.add_scalar(f"train/{name}/{tag}", value, record.round)
+        progress = self.progress.setdefault(record.worker, WorkerProgress())
+        progress.round, progress.score, progress.wma = record.round, record.score, record.wma
+        progress.state = "learning"
+        if record.event:
+            progress.events.append(f"{record.round}:{record.event}")
+            if "completed" in record.event.split("+") and progress.completed_at_round is None:
+                progress.completed_at_round = record.round
+                progress.state = "completed"
+
+    def set_state(self, worker: int, state: str) -> None:
+        """Mark a worker's state for the live view (e.g. ``finished``, ``failed``, ``offline``)."""
+        self.progress.setdefault(worker, WorkerProgress()).state = state
+
+    def summary(self) -> dict[str, Any]:
+        """The run's outcome in the shape of summary.json."""
+        rounds = max((r.round for r in self.records), default=0)
+        return {
+            "mode": self.config.get("mode"),
+            "env": self.config.get("env"),
+            "preset": self.config.get("preset"),
+            "seed": self.config.get("seed"),
+            "rounds": rounds,
+            "wall_seconds": round(self.elapsed(), 3),
+            "interrupted": self.interrupted,
+            "workers": {
+                str(w): {
+                    "completed_at_round": p.completed_at_round,
+                    "final_wma": None if math.isnan(p.wma) else p.wma,
+                    "state": p.state,
+                    "events": p.events,
+                }
+                for w, p in sorted(self.progress.items())
+            },
+            **self.extra,
+        }
+
+    def finish(self) -> dict[str, Any]:
+        """Close the files, write summary.json and the plot; returns the summary."""
+        self._csv_file.close()
+        self._tb.close()
+        summary = self.summary()
+        write_json_atomic(self.out / "summary.json", summary)
+        from fleetrl.runs.plots import plot_run  # matplotlib loads only when a run ends
+
+        plot_run(self.records, self.out / "scores.png", title=_plot_title(self.config))
+        return summary
+
+
+def _plot_title(config: dict[str, Any]) -> str:
+    return (
+        f"{config.get('env')} · {config.get('mode')} · preset {config.get('preset')} · "
+        f"seed {config.get('seed')} · {config.get('units')} units"
+    )

@@ -1,0 +1,81 @@
+"""The settings of a training run, as the command line gives them."""
+
+import platform
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any
+
+from fleetrl.envs.catalog import get_env_spec
+
+MODES = ("individual", "federated")
+TRANSPORTS = ("mqtt", "local")
+
+
+@dataclass
+class RunSettings:
+    """One training run of a simulated fleet."""
+
+    mode: str
+    """``individual`` (each unit alone, the paper's Fig. 5a) or ``federated`` (Algorithms 1 and 2)"""
+    env: str
+    """``qube`` or ``cartpole``"""
+    units: int
+    """how many units (one worker each)"""
+    preset: str
+    """PPO preset: ``paper`` (Table 1) or ``standard``"""
+    seed: int
+    """fixes the learning: network initialisation, action sampling, window starts"""
+    max_rounds: int
+    """the paper's M: the most rounds (episodes) per worker"""
+    out: Path
+    """the run directory"""
+    fleet_seed: int = 0
+    """fixes the fleet: with the unit index it draws each unit's dynamics"""
+    transport: str = "mqtt"
+    """federated: ``mqtt`` (a real broker, workers in processes) or ``local`` (in-process bus, threads)"""
+    broker: str | None = None
+    """federated mode: ``mqtt://[user:pass@]host:port`` of an existing broker; none starts an embedded one"""
+    overrides: dict[str, Any] = field(default_factory=dict)
+    """PPO config fields that replace the preset's"""
+    live: bool = True
+    """show the live terminal view"""
+
+    def validate(self) -> None:
+        """Raise ValueError with a clear message for any setting that cannot work."""
+        get_env_spec(self.env)
+        if self.mode not in MODES:
+            raise ValueError(f"unknown mode {self.mode!r} (choose {' or '.join(MODES)})")
+        if self.transport not in TRANSPORTS:
+            raise ValueError(f"unknown transport {self.transport!r} (choose {' or '.join(TRANSPORTS)})")
+        if self.units < 1:
+            raise ValueError(f"--units must be at least 1, got {self.units}")
+        if self.max_rounds < 1:
+            raise ValueError(f"--max-rounds must be at least 1, got {self.max_rounds}")
+        if self.seed < 0 or self.fleet_seed < 0:
+            raise ValueError("seeds must be non-negative integers")
+        self.ppo_config()
+
+    def ppo_config(self) -> dict[str, Any]:
+        """The preset's PPO settings with the overrides applied (unknown names are refused)."""
+        from fleetrl.agent.config import get_preset
+
+        ppo = asdict(get_preset(self.preset))
+        unknown = set(self.overrides) - set(ppo)
+        if unknown:
+            raise ValueError(f"unknown PPO setting(s) {sorted(unknown)} (known: {', '.join(sorted(ppo))})")
+        ppo.update(self.overrides)
+        return ppo
+
+    def to_config(self) -> dict[str, Any]:
+        """Everything that defines the run, for config.json (including the resolved PPO config)."""
+        import torch
+
+        config = asdict(self)
+        config["out"] = str(self.out)
+        config["ppo"] = self.ppo_config()
+        spec = get_env_spec(self.env)
+        config["env_id"] = spec.gym_id
+        config["completion_threshold"] = spec.completion_threshold
+        config["episode_cap"] = spec.episode_cap
+        config["versions"] = {"python": platform.python_version(), "torch": torch.__version__}
+        return config

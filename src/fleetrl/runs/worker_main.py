@@ -1,0 +1,49 @@
+"""Entry point of one worker process of a run launched by ``fleetrl train``.
+
+``python -m fleetrl.runs.worker_main SPEC_JSON`` trains alone (individual mode);
+``python -m fleetrl.runs.worker_main SPEC_JSON --broker URL --run-id R`` joins a federated run.
+It prints one JSON round record per line on stdout (the launcher reads them) and logs to stderr. SIGINT
+stops it after saving its model.
+"""
+
+import argparse
+import logging
+import sys
+
+from fleetrl.runs.records import RoundRecord
+from fleetrl.runs.roles import train_alone, train_federated
+from fleetrl.runs.spec import WorkerSpec
+
+
+def print_record(record: RoundRecord) -> None:
+    """Hand a round to the launcher: one JSON line on stdout."""
+    print(record.to_json(), flush=True)
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Run one worker; returns the process exit code."""
+    parser = argparse.ArgumentParser(prog="python -m fleetrl.runs.worker_main")
+    parser.add_argument("spec", help="the worker's WorkerSpec as JSON")
+    parser.add_argument("--broker", default=None, help="federated mode: the broker URL")
+    parser.add_argument("--run-id", default=None, help="federated mode: the run id")
+    parser.add_argument("--reply-timeout", type=float, default=600.0)
+    args = parser.parse_args(argv)
+    logging.basicConfig(level=logging.INFO, format="%(asctime)s %(name)s %(levelname)s %(message)s")
+    spec = WorkerSpec.from_json(args.spec)
+    try:
+        if args.broker is None:
+            train_alone(spec, print_record)
+        else:
+            from fleetrl.transport.mqtt import MqttTransport
+
+            train_federated(
+                spec, MqttTransport(args.broker), args.run_id, print_record, reply_timeout=args.reply_timeout
+            )
+    except KeyboardInterrupt:
+        logging.getLogger(__name__).info("interrupted; the model was saved")
+        return 130
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
