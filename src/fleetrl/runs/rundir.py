@@ -89,7 +89,7 @@ class RunRecorder:
         progress = self.progress.setdefault(record.worker, WorkerProgress())
         progress.round, progress.score, progress.wma = record.round, record.score, record.wma
         progress.state = "learning"
-        if record.event:
+        if record.event and record.event != "gradient":  # plain gradient rounds are in metrics.csv
             progress.events.append(f"{record.round}:{record.event}")
             if "completed" in record.event.split("+") and progress.completed_at_round is None:
                 progress.completed_at_round = record.round
