@@ -1,0 +1,80 @@
+"""Start one simulated device bridge per unit, for ``fleetrl train … --device-link mqtt``.
+
+The bridges run as daemon threads of the calling process, each with its own MQTT connection (a Raspberry Pi
+hosting several units). Threads, not processes: a lockstep bridge spends its time waiting on the network and
+one compiled physics call per step, so the GIL costs little, and a run needs no extra process management.
+For process isolation run ``fleetrl device --unit K …`` per unit instead; the workers cannot tell.
+
+    with start_bridges(url, run_id, "qube", range(3), fleet_seed=0) as bridges:
+        env = QubeBalanceEnv(unit, fleet_seed, link=open_mqtt_link(url, run_id, unit))
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable
+from types import TracebackType
+
+from fleetrl.link.bridge import WATCHDOG_SECONDS, DeviceBridge
+from fleetrl.link.driver import simulated_driver
+
+
+class BridgeFleet:
+    """The running bridges of a fleet; :meth:`close` (or leaving ``with``) stops them all."""
+
+    def __init__(self, bridges: list[DeviceBridge]) -> None:
+        self.bridges = bridges
+
+    def close(self) -> None:
+        """Stop every bridge (motor off, ``offline`` announced, disconnected)."""
+        for bridge in self.bridges:
+            bridge.close()
+
+    def __enter__(self) -> BridgeFleet:
+        """The fleet itself."""
+        return self
+
+    def __exit__(
+        self, exc_type: type[BaseException] | None, exc: BaseException | None, tb: TracebackType | None
+    ) -> None:
+        """Close; see :meth:`close`."""
+        self.close()
+
+
+def start_bridges(
+    url: str,
+    run_id: str,
+    env: str,
+    units: Iterable[int],
+    fleet_seed: int = 0,
+    *,
+    realtime: bool = False,
+    period: float | None = None,
+    watchdog: float = WATCHDOG_SECONDS,
+) -> BridgeFleet:
+    """Serve each of ``units`` (of fleet ``fleet_seed``, type ``env``) from a bridge thread on ``url``.
+
+    Returns once every bridge has announced ``online``, so links opened afterwards find them.
+
+    :param url: broker URL (``mqtt://host:port``)
+    :param run_id: the run whose device topics to serve
+    :param env: ``qube`` or ``cartpole``
+    :param units: unit indices
+    :param fleet_seed: seed of the fleet's per-unit dynamics (must match the workers' envs)
+    :param realtime: real-time mode instead of lockstep
+    :param period: control period in seconds (QUBE only; default 6 ms)
+    :param watchdog: seconds without a command before a bridge switches its motor off
+    """
+    from fleetrl.transport.mqtt import MqttTransport
+
+    bridges: list[DeviceBridge] = []
+    try:
+        for unit in units:
+            driver = simulated_driver(env, unit, fleet_seed, period=period, realtime=realtime)
+            bridge = DeviceBridge(
+                MqttTransport(url), driver, run_id, unit, realtime=realtime, watchdog=watchdog
+            )
+            bridges.append(bridge.start())
+    except BaseException:
+        BridgeFleet(bridges).close()
+        raise
+    return BridgeFleet(bridges)
