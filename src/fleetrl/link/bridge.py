@@ -309,7 +309,14 @@ class DeviceBridge:
             self.motor_on = False
             self._flags |= FLAG_WATCHDOG
             self.stats.watchdog_trips += 1
-            log.warning("unit %d watchdog: no command for %.0f ms; motor off", self.unit, 1e3 * self.watchdog)
+            # in lockstep no simulated time passes between commands, and every pause between episodes
+            # trips it: worth a warning only when the unit really runs on
+            log.log(
+                logging.WARNING if self.realtime else logging.DEBUG,
+                "unit %d watchdog: no command for %.0f ms; motor off",
+                self.unit,
+                1e3 * self.watchdog,
+            )
 
     def _poll_timeout(self) -> float:
         if not self.motor_on:
