@@ -1,0 +1,68 @@
+"""The paper's losses as pure functions of tensors: GAE (Eq. 2), critic loss (Eq. 3), L^CLIP (Eq. 6)."""
+
+from __future__ import annotations
+
+import torch
+
+
+def td_targets(
+    rewards: torch.Tensor, next_values: torch.Tensor, terminated: torch.Tensor, gamma: float
+) -> torch.Tensor:
+    """V^target(s_t) = r_{t+1} + γ·V(s_{t+1}) (Eq. 3), with no bootstrap where s_{t+1} is terminal.
+
+    A time-limit truncation is not terminal, so it bootstraps from V(s_{t+1}) like any other step.
+    """
+    return rewards + gamma * (1.0 - terminated) * next_values
+
+
+def gae(
+    rewards: torch.Tensor,
+    values: torch.Tensor,
+    next_values: torch.Tensor,
+    terminated: torch.Tensor,
+    episode_end: torch.Tensor,
+    gamma: float,
+    gae_lambda: float,
+) -> torch.Tensor:
+    """Generalised advantage estimates Â_t over one chronological run of transitions (Eq. 2).
+
+    δ_t = r_{t+1} + γ·V(s_{t+1})·(1 − terminated_t) − V(s_t) and Â_t = δ_t + (γλ)·Â_{t+1}, the sum
+    running to the end of the given run (the U-window in the paper) and stopping at the end of an
+    episode (``episode_end``: terminated or truncated), since the memory holds several episodes.
+    All inputs are 1-D of equal length; the result is detached from the graph.
+    """
+    with torch.no_grad():
+        deltas = td_targets(rewards, next_values, terminated, gamma) - values
+        advantages = torch.zeros_like(deltas)
+        running = torch.zeros((), dtype=deltas.dtype)
+        for t in range(deltas.shape[0] - 1, -1, -1):
+            running = deltas[t] + gamma * gae_lambda * (1.0 - episode_end[t]) * running
+            advantages[t] = running
+    return advantages
+
+
+def critic_loss(values: torch.Tensor, targets: torch.Tensor, kind: str = "abs") -> torch.Tensor:
+    """L^V(μ) = Ê[|V^target(s_t) − V_μ(s_t)|] (Eq. 3), or Ê[½(V^target − V)²] for ``kind='mse'``.
+
+    ``targets`` carry no gradient (semi-gradient TD).
+    """
+    error = targets.detach() - values
+    if kind == "abs":
+        return error.abs().mean()
+    if kind == "mse":
+        return 0.5 * (error**2).mean()
+    raise ValueError(f"unknown critic loss {kind!r} (choose abs or mse)")
+
+
+def clipped_surrogate(
+    log_probs: torch.Tensor, old_log_probs: torch.Tensor, advantages: torch.Tensor, clip_eps: float
+) -> torch.Tensor:
+    """L^CLIP(θ) = Ê[min(R_t·Â_t, clip(R_t, 1 − ε, 1 + ε)·Â_t)] (Eq. 6), R_t = π_θ / π_θold (to maximise).
+
+    Eq. 6 as printed puts Â_t outside the min; the min must hold the two products (Schulman et al.
+    2017), otherwise the clip does nothing for negative advantages, so this is the original form.
+    """
+    ratio = torch.exp(log_probs - old_log_probs.detach())
+    unclipped = ratio * advantages
+    clipped = torch.clamp(ratio, 1.0 - clip_eps, 1.0 + clip_eps) * advantages
+    return torch.min(unclipped, clipped).mean()

@@ -1,0 +1,142 @@
+"""Trajectory memory (the last N transitions, across episodes) and its contiguous-window sampler."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+
+@dataclass(frozen=True)
+class Transitions:
+    """A chronological run of transitions ⟨s_t, a_t, r_{t+1}, s_{t+1}⟩ (Algorithm 2, line 5), oldest first."""
+
+    obs: np.ndarray
+    """s_t, float32 (n, obs_dim)"""
+    actions: np.ndarray
+    """a_t, int64 (n,)"""
+    rewards: np.ndarray
+    """r_{t+1}, float32 (n,)"""
+    next_obs: np.ndarray
+    """s_{t+1}, float32 (n, obs_dim); for the last step of an episode, the final observation"""
+    terminated: np.ndarray
+    """float32 (n,): 1 where s_{t+1} is terminal (no bootstrap from V(s_{t+1}))"""
+    episode_end: np.ndarray
+    """float32 (n,): 1 where the episode ended at this step (terminated or truncated): GAE stops here"""
+    behaviour_log_probs: np.ndarray
+    """float32 (n,): log π(a_t|s_t) under the policy that acted (filled in by the agent, see
+    :meth:`TrajectoryMemory.unscored`)"""
+
+    def __len__(self) -> int:
+        return int(self.actions.shape[0])
+
+    def slice(self, start: int, stop: int) -> Transitions:
+        """Transitions ``start`` (inclusive) to ``stop`` (exclusive)."""
+        return Transitions(
+            self.obs[start:stop],
+            self.actions[start:stop],
+            self.rewards[start:stop],
+            self.next_obs[start:stop],
+            self.terminated[start:stop],
+            self.episode_end[start:stop],
+            self.behaviour_log_probs[start:stop],
+        )
+
+
+class TrajectoryMemory:
+    """Ring buffer of the last ``capacity`` transitions (Table 1: 200); it is not cleared between rounds.
+
+    :param capacity: number of transitions kept
+    :param obs_dim: length of an observation
+    """
+
+    def __init__(self, capacity: int, obs_dim: int) -> None:
+        if capacity < 1:
+            raise ValueError(f"capacity must be >= 1, got {capacity}")
+        self.capacity = capacity
+        self._obs = np.zeros((capacity, obs_dim), dtype=np.float32)
+        self._next_obs = np.zeros((capacity, obs_dim), dtype=np.float32)
+        self._actions = np.zeros(capacity, dtype=np.int64)
+        self._rewards = np.zeros(capacity, dtype=np.float32)
+        self._terminated = np.zeros(capacity, dtype=np.float32)
+        self._episode_end = np.zeros(capacity, dtype=np.float32)
+        self._log_probs = np.zeros(capacity, dtype=np.float32)
+        self._scored = np.zeros(capacity, dtype=bool)
+        self._next = 0
+        self._size = 0
+
+    def __len__(self) -> int:
+        return self._size
+
+    def add(
+        self,
+        obs: np.ndarray,
+        action: int,
+        reward: float,
+        next_obs: np.ndarray,
+        terminated: bool,
+        truncated: bool,
+    ) -> None:
+        """Store one transition, overwriting the oldest when full."""
+        i = self._next
+        self._obs[i] = obs
+        self._actions[i] = action
+        self._rewards[i] = reward
+        self._next_obs[i] = next_obs
+        self._terminated[i] = 1.0 if terminated else 0.0
+        self._episode_end[i] = 1.0 if (terminated or truncated) else 0.0
+        self._scored[i] = False
+        self._next = (i + 1) % self.capacity
+        self._size = min(self._size + 1, self.capacity)
+
+    def clear(self) -> None:
+        """Forget every transition."""
+        self._next = 0
+        self._size = 0
+
+    def transitions(self) -> Transitions:
+        """All stored transitions in chronological order (a copy)."""
+        if self._size < self.capacity:
+            order = np.arange(self._size)
+        else:
+            order = (np.arange(self.capacity) + self._next) % self.capacity
+        return Transitions(
+            self._obs[order],
+            self._actions[order],
+            self._rewards[order],
+            self._next_obs[order],
+            self._terminated[order],
+            self._episode_end[order],
+            self._log_probs[order],
+        )
+
+    def unscored(self) -> np.ndarray:
+        """Slots of transitions whose behaviour log-probability is not yet recorded.
+
+        The policy only changes between episodes (update, received gradient or parameters), so the agent
+        scores these with the current policy right before it changes, which is the policy that acted.
+        """
+        return np.flatnonzero(~self._scored[: self._size])
+
+    def score(self, slots: np.ndarray, log_probs: np.ndarray) -> None:
+        """Record behaviour log-probabilities for ``slots`` (from :meth:`unscored`)."""
+        self._log_probs[slots] = log_probs
+        self._scored[slots] = True
+
+    def slots(self, slots: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Observations and actions stored at ``slots``."""
+        return self._obs[slots], self._actions[slots]
+
+
+def sample_window(n: int, size: int, rng: np.random.Generator) -> tuple[int, int]:
+    """Bounds ``(start, stop)`` of a contiguous window of ``size`` among ``n`` chronological transitions.
+
+    The start is uniform over every position where a full window fits (Figure 3: t_0 at random, the
+    following tuples contiguous); with fewer than ``size`` transitions the window is all of them.
+    """
+    if n < 1:
+        raise ValueError("cannot sample a window from an empty trajectory memory")
+    if n <= size:
+        return 0, n
+    start = int(rng.integers(0, n - size + 1))
+    return start, start + size

@@ -1,0 +1,70 @@
+"""Trajectory memory (ring buffer, chronological order) and the contiguous window sampler."""
+
+import numpy as np
+import pytest
+
+from fleetrl.agent.memory import TrajectoryMemory, sample_window
+
+
+def fill(memory: TrajectoryMemory, n: int) -> None:
+    for i in range(n):
+        obs = np.full(2, i, dtype=np.float32)
+        memory.add(obs, i % 3, float(i), obs + 1, terminated=(i % 7 == 6), truncated=(i % 11 == 10))
+
+
+def test_memory_keeps_last_capacity_in_order() -> None:
+    memory = TrajectoryMemory(5, obs_dim=2)
+    fill(memory, 12)
+    data = memory.transitions()
+    assert len(memory) == 5 and len(data) == 5
+    assert data.rewards.tolist() == [7.0, 8.0, 9.0, 10.0, 11.0]
+    assert data.obs[:, 0].tolist() == [7.0, 8.0, 9.0, 10.0, 11.0]
+    assert data.next_obs[:, 0].tolist() == [8.0, 9.0, 10.0, 11.0, 12.0]
+    assert data.actions.tolist() == [1, 2, 0, 1, 2]
+    assert data.terminated.tolist() == [0.0, 0.0, 0.0, 0.0, 0.0]
+    assert data.episode_end.tolist() == [0.0, 0.0, 0.0, 1.0, 0.0]  # 10: truncated
+
+
+def test_memory_partial_fill_and_terminal_flags() -> None:
+    memory = TrajectoryMemory(200, obs_dim=2)
+    fill(memory, 8)
+    data = memory.transitions()
+    assert data.rewards.tolist() == list(map(float, range(8)))
+    assert data.terminated[6] == 1.0 and data.episode_end[6] == 1.0
+    assert data.slice(2, 4).rewards.tolist() == [2.0, 3.0]
+
+
+def test_unscored_slots_follow_new_transitions() -> None:
+    memory = TrajectoryMemory(4, obs_dim=2)
+    fill(memory, 3)
+    slots = memory.unscored()
+    assert slots.tolist() == [0, 1, 2]
+    memory.score(slots, np.array([-0.1, -0.2, -0.3], dtype=np.float32))
+    assert memory.unscored().size == 0
+    fill(memory, 2)  # wraps: slot 3 and then slot 0 are overwritten
+    assert memory.unscored().tolist() == [0, 3]
+    assert np.allclose(memory.transitions().behaviour_log_probs[:2], [-0.2, -0.3])
+
+
+def test_window_is_contiguous_full_length_and_covers_all_starts() -> None:
+    rng = np.random.default_rng(0)
+    starts = set()
+    for _ in range(3000):
+        start, stop = sample_window(200, 64, rng)
+        assert stop - start == 64 and start >= 0 and stop <= 200
+        starts.add(start)
+    assert starts == set(range(0, 200 - 64 + 1))
+
+
+def test_window_smaller_memory_takes_everything() -> None:
+    rng = np.random.default_rng(0)
+    assert sample_window(20, 64, rng) == (0, 20)
+    assert sample_window(64, 64, rng) == (0, 64)
+    with pytest.raises(ValueError, match="empty"):
+        sample_window(0, 64, rng)
+
+
+def test_window_starts_are_seeded() -> None:
+    a = [sample_window(200, 64, np.random.default_rng(3)) for _ in range(5)]
+    b = [sample_window(200, 64, np.random.default_rng(3)) for _ in range(5)]
+    assert a == b
