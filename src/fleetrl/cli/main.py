@@ -8,7 +8,7 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
-from fleetrl.cli import roles
+from fleetrl.cli import device_command, roles
 from fleetrl.cli.parsing import parse_overrides
 
 
@@ -77,6 +77,7 @@ def build_parser() -> argparse.ArgumentParser:
     homogeneity.add_argument("--out", type=Path, default=None, help="directory for the CSV matrices")
     homogeneity.set_defaults(handler=cmd_homogeneity)
     roles.register(sub)
+    device_command.register(sub)
     return parser
 
 
