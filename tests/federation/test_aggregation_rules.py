@@ -30,8 +30,8 @@ def test_mean_of_three_workers() -> None:
 def test_registry_by_name() -> None:
     assert "mean" in aggregator_names()
     assert get_aggregator("mean") is mean
-    with pytest.raises(ValueError, match=r"unknown aggregator 'median' \(choose .*mean"):
-        get_aggregator("median")
+    with pytest.raises(ValueError, match=r"unknown aggregator 'mode' \(choose .*mean"):
+        get_aggregator("mode")
 
 
 def test_a_rule_registers_once() -> None:

@@ -215,7 +215,7 @@ def test_outgoing_messages_are_valid_on_the_wire() -> None:
         ({"workers": ["chief"]}, "reserved"),
         ({"workers": ["a/b"]}, "bad worker id"),
         ({"max_rounds": 0}, "max_rounds"),
-        ({"aggregator": "median"}, "unknown aggregator"),
+        ({"aggregator": "mode"}, "unknown aggregator"),
     ],
 )
 def test_bad_configuration_is_refused(kwargs: dict[str, Any], match: str) -> None:

@@ -2,29 +2,45 @@
 
 A rule takes the workers' flat float32 gradients in the fixed order of their sorted worker ids and returns one
 flat float32 vector. It must be deterministic for a given input order, so a run gives the same numbers
-whatever order the messages arrived in. Robust rules (clipping, median, trimmed mean — issue 7) register
-themselves with :func:`register_aggregator`.
+whatever order the messages arrived in. Robust rules against faulty or poisoned workers (issue 7):
+
+* ``median`` — coordinate-wise median;
+* ``trimmed_mean[:β]`` — per coordinate, drop the ⌊β·n⌋ largest and smallest values, average the rest
+  (β default 0.2);
+* ``clipped_mean[:C]`` — scale every gradient whose L2 norm exceeds C down to norm C, then average (C default:
+  the median of the received norms, so one huge gradient cannot dominate and nothing needs tuning).
+
+A rule name may carry one numeric parameter after a colon (``trimmed_mean:0.1``), for rules registered with a
+``parameter``.
 """
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Callable, Sequence
+from typing import Any
 
 import numpy as np
 
 Aggregator = Callable[[Sequence[np.ndarray]], np.ndarray]
 """A rule: gradients (same shape, float32, in sorted-worker order) → aggregate (float32)."""
 
-_REGISTRY: dict[str, Aggregator] = {}
+_REGISTRY: dict[str, tuple[Callable[..., np.ndarray], str | None]] = {}
 
 
-def register_aggregator(name: str) -> Callable[[Aggregator], Aggregator]:
-    """Decorator registering an aggregation rule under ``name``."""
+def register_aggregator(
+    name: str, *, parameter: str | None = None
+) -> Callable[[Callable[..., np.ndarray]], Callable[..., np.ndarray]]:
+    """Decorator registering an aggregation rule under ``name``.
 
-    def add(rule: Aggregator) -> Aggregator:
+    :param name: the rule's name (``--aggregation NAME``).
+    :param parameter: the keyword argument that ``NAME:VALUE`` sets, if the rule takes one.
+    """
+
+    def add(rule: Callable[..., np.ndarray]) -> Callable[..., np.ndarray]:
         if name in _REGISTRY:
             raise ValueError(f"aggregator {name!r} is already registered")
-        _REGISTRY[name] = rule
+        _REGISTRY[name] = (rule, parameter)
         return rule
 
     return add
@@ -35,12 +51,24 @@ def aggregator_names() -> list[str]:
     return sorted(_REGISTRY)
 
 
-def get_aggregator(name: str) -> Aggregator:
-    """The rule registered as ``name``; ValueError naming the choices if there is none."""
+def get_aggregator(spec: str) -> Aggregator:
+    """The rule named by ``spec`` (``name`` or ``name:value``); ValueError naming the choices otherwise."""
+    name, _, value = spec.partition(":")
     try:
-        return _REGISTRY[name]
+        rule, parameter = _REGISTRY[name]
     except KeyError:
         raise ValueError(f"unknown aggregator {name!r} (choose {', '.join(aggregator_names())})") from None
+    if not value:
+        return rule
+    if parameter is None:
+        raise ValueError(f"aggregator {name!r} takes no parameter (got {spec!r})")
+    try:
+        number = float(value)
+    except ValueError:
+        raise ValueError(f"bad {parameter} {value!r} for aggregator {name!r}: not a number") from None
+    bound: Any = functools.partial(rule, **{parameter: number})
+    rule(_PROBE, **{parameter: number})  # check the value now, not in the middle of a run
+    return bound
 
 
 def _stack(gradients: Sequence[np.ndarray]) -> np.ndarray:
@@ -49,7 +77,46 @@ def _stack(gradients: Sequence[np.ndarray]) -> np.ndarray:
     return np.stack([np.asarray(g, dtype=np.float32) for g in gradients])
 
 
+_PROBE = [np.zeros(1, np.float32)] * 3
+
+
 @register_aggregator("mean")
 def mean(gradients: Sequence[np.ndarray]) -> np.ndarray:
     """Element-wise arithmetic mean (accumulated in float64, returned as float32): the paper's average ḡ."""
     return np.asarray(np.mean(_stack(gradients), axis=0, dtype=np.float64), dtype=np.float32)
+
+
+@register_aggregator("median")
+def median(gradients: Sequence[np.ndarray]) -> np.ndarray:
+    """Coordinate-wise median (the mean of the two middle values for an even count), float32."""
+    return np.asarray(np.median(_stack(gradients).astype(np.float64), axis=0), dtype=np.float32)
+
+
+@register_aggregator("trimmed_mean", parameter="trim")
+def trimmed_mean(gradients: Sequence[np.ndarray], trim: float = 0.2) -> np.ndarray:
+    """Per coordinate, drop the ⌊trim·n⌋ smallest and largest values and average the rest (float64 inside).
+
+    :param trim: fraction cut at each end, in [0, 0.5); at least one value per coordinate always remains.
+    """
+    if not 0.0 <= trim < 0.5:
+        raise ValueError(f"trim must be in [0, 0.5), got {trim}")
+    ordered = np.sort(_stack(gradients).astype(np.float64), axis=0)
+    cut = int(np.floor(trim * len(ordered)))
+    kept = ordered[cut : len(ordered) - cut]
+    return np.asarray(kept.mean(axis=0), dtype=np.float32)
+
+
+@register_aggregator("clipped_mean", parameter="max_norm")
+def clipped_mean(gradients: Sequence[np.ndarray], max_norm: float | None = None) -> np.ndarray:
+    """Mean after scaling each gradient down to L2 norm ``max_norm`` if it is longer (norm clipping).
+
+    :param max_norm: the clip C > 0; None clips to the median of the received gradients' norms.
+    """
+    stacked = _stack(gradients).astype(np.float64)
+    norms = np.linalg.norm(stacked.reshape(len(stacked), -1), axis=1)
+    limit = float(np.median(norms)) if max_norm is None else float(max_norm)
+    if not limit >= 0.0 or (max_norm is not None and limit == 0.0):
+        raise ValueError(f"max_norm must be > 0, got {max_norm}")
+    scale = np.where(norms > limit, limit / np.where(norms > 0, norms, 1.0), 1.0)
+    clipped = stacked * scale.reshape((-1,) + (1,) * (stacked.ndim - 1))
+    return np.asarray(clipped.mean(axis=0), dtype=np.float32)
