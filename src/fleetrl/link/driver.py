@@ -152,11 +152,11 @@ class SimulatedDriver:
         self.periods += 1
 
     def home(self, seed: int | None) -> np.ndarray:
-        """The device's own reset (QUBE: swing-up and settle, simulated instantly); the clock restarts."""
+        """The device's own reset (QUBE: swing-up and settle, simulated instantly). In lockstep the
+        simulated clock restarts at 0; in real time the clock runs on and the period count catches up."""
         self._obs[:] = self.device.reset(seed)
         self.volts = 0.0
-        self.periods = 0
-        self._origin = time.perf_counter()
+        self.periods = math.floor(self.time() / self.spec.control_period) if self.realtime else 0
         return self._obs
 
     def close(self) -> None:
