@@ -7,6 +7,7 @@ started and its URL printed (the one line this command prints).
 from __future__ import annotations
 
 import argparse
+import signal
 from typing import Any
 
 
@@ -27,16 +28,25 @@ def register(subparsers: Any) -> None:
     p.add_argument(
         "--watchdog-ms", type=float, default=100.0, help="motor off after this long without a command"
     )
+    p.add_argument(
+        "--rt-priority",
+        type=int,
+        default=10,
+        help="with --realtime: SCHED_FIFO priority of the bridge process (needs root/CAP_SYS_NICE; 0: none)",
+    )
     p.set_defaults(handler=cmd_device)
 
 
 def cmd_device(args: argparse.Namespace) -> int:
-    """Run the bridge until interrupted; the motor is off and ``offline`` announced when it returns."""
-    from fleetrl.link.bridge import DeviceBridge
+    """Run the bridge until interrupted (Ctrl-C or SIGTERM); the motor is off and ``offline`` announced
+    when it returns."""
+    from fleetrl.link.bridge import DeviceBridge, request_realtime_priority
     from fleetrl.link.driver import simulated_driver
     from fleetrl.transport.broker import EmbeddedBroker
     from fleetrl.transport.mqtt import MqttTransport
 
+    if args.realtime and args.rt_priority > 0:
+        request_realtime_priority(args.rt_priority)
     period = None if args.period_ms is None else args.period_ms / 1e3
     driver = simulated_driver(args.env, args.unit, args.fleet_seed, period=period, realtime=args.realtime)
     broker = None
@@ -53,6 +63,7 @@ def cmd_device(args: argparse.Namespace) -> int:
         realtime=args.realtime,
         watchdog=args.watchdog_ms / 1e3,
     )
+    signal.signal(signal.SIGTERM, lambda *_: bridge.stop())  # a service manager's stop: motor off, offline
     try:
         bridge.serve()
     finally:
