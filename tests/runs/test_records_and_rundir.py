@@ -29,7 +29,9 @@ def test_record_rejects_lines_that_are_not_records(line: str) -> None:
 
 def test_recorder_writes_metrics_summary_and_plot(tmp_path) -> None:
     out = tmp_path / "run"
-    recorder = RunRecorder(out, {"mode": "individual", "env": "cartpole", "preset": "standard", "seed": 4}, [0, 1])
+    recorder = RunRecorder(
+        out, {"mode": "individual", "env": "cartpole", "preset": "standard", "seed": 4}, [0, 1]
+    )
     recorder.add(make_record(0, 1, 10.0))
     recorder.add(make_record(1, 1, 20.0))
     recorder.add(make_record(0, 2, 500.0, "completed"))
