@@ -1,99 +1,54 @@
-"""The chief of Algorithm 1 as a pure state machine: messages in → messages out, no sockets, no clocks.
+"""The chief of Algorithm 1 as a pure state machine: messages, statuses and time in → messages and events out.
 
-Round semantics (docs/protocol.md has the full rules):
+No sockets and no clocks: every input that depends on time takes ``now`` (seconds, any monotonic origin), so
+deadlines are tested without a broker. Round semantics (docs/protocol.md has the full rules):
 
-* The chief keeps W, the workers still learning, and the open round i (from 1). It accepts from each worker in
-  W exactly one ``gradient`` or ``parameters`` message for round i, keyed by (sender, round): a second one is
-  a rejected duplicate, a message for an earlier round is stale, for a later round is from the future, from a
-  worker no longer in W is rejected — none of them changes anything.
+* The chief keeps W, the workers still learning, and the open round i (from 1). It accepts from each worker
+  exactly one ``gradient`` or ``parameters`` message for round i, keyed by (sender, round): a second one is a
+  rejected duplicate, a message for a later round is from the future, from a worker that transferred is
+  rejected — none of them changes anything.
 * Round i closes when every worker in W has answered. Answers are read in sorted worker-id order, never
   arrival order, so the same inputs give bit-identical outputs on any transport.
 * If no answer carries parameters: the gradients are combined by the aggregator (the paper's mean) and one
   ``average`` message is broadcast (Algorithm 1, lines 11–13).
 * If one or more answers carry parameters (lines 6–9): the parameters of the lowest worker id among them are
-  broadcast in one ``transfer`` message whose ``finished`` lists every worker that sent parameters; all of
-  those leave W. The remaining workers replace their actor parameters; their gradients of that round are
-  discarded (the paper's else-branch is not taken). The finished workers read the same message as their
-  acknowledgement and exit.
-* The run ends after the round in which W becomes empty, or after round M; a ``done`` message is then
-  broadcast.
+  broadcast in one ``transfer`` whose ``finished`` lists every worker that sent parameters; all of those leave
+  W. The others replace their actor parameters; their gradients of that round are discarded.
+* The run ends after the round in which W becomes empty, or after round M; ``done`` is then broadcast.
+
+Reliability (issue 7):
+
+* Dropout: a worker whose live status turns ``offline`` (its last will, or a goodbye) leaves W; with a
+  ``round_timeout``, a worker silent past the deadline leaves W when too few answered to make the quorum.
+* Stragglers: with ``quorum`` q < 1, at the deadline the round closes with the answers so far if at least
+  ⌈q·|W|⌉ members answered; the others stay in W and their late messages are stale.
+* Rejoin: a dropped worker that comes back online (or sends a message for the open round) re-enters W; a
+  worker coming online gets a ``welcome`` with the open round and the last transferred parameters θ*, if any.
+* Idempotent resends: a message for a closed round makes the chief send its last answer again (at most once
+  per worker per ``resend_holdoff`` seconds, and not within that time of the original).
 
 Every decision is returned as a :class:`ChiefEvent`, whose ``str()`` is a log line for people.
 """
 
 from __future__ import annotations
 
+import math
 from collections import Counter
 from collections.abc import Iterable
-from dataclasses import dataclass, field
 
 import numpy as np
 
 from fleetrl.federation.aggregation import Aggregator, get_aggregator
+from fleetrl.federation.events import ChiefEvent, ChiefStep
 from fleetrl.federation.messages import Layout, Message, MessageRejected, Reason, decode
+from fleetrl.federation.signing import FleetKey, parse_status
 from fleetrl.federation.topics import CHIEF_ID, sorted_workers, validate_id, validate_worker_id
 
+__all__ = ["Chief", "ChiefEvent", "ChiefStep"]
+
 _FROM_WORKERS = ("gradient", "parameters")
-
-
-@dataclass(frozen=True)
-class ChiefEvent:
-    """One decision of the chief.
-
-    :param kind: ``rejected``, ``accepted``, ``averaged``, ``transfer`` or ``run_ended``.
-    :param round: the chief's open round when it happened (the closed round for ``averaged``/``transfer``).
-    :param sender: who sent the message concerned (``rejected``/``accepted``), if known.
-    :param reason: why a message was rejected.
-    :param detail: free text (rejection detail, or why the run ended).
-    :param answered: workers whose answers closed the round.
-    :param averaged: workers whose gradients entered the aggregate.
-    :param dropped: workers that left W this round.
-    :param origin: the worker whose parameters were transferred.
-    :param remaining: W after the round.
-    :param scores: the ``score`` metric each answer carried, if any.
-    """
-
-    kind: str
-    round: int
-    sender: str | None = None
-    reason: Reason | None = None
-    detail: str = ""
-    answered: tuple[str, ...] = ()
-    averaged: tuple[str, ...] = ()
-    dropped: tuple[str, ...] = ()
-    origin: str | None = None
-    remaining: tuple[str, ...] = ()
-    scores: dict[str, float] = field(default_factory=dict)
-
-    def __str__(self) -> str:
-        """One human-readable line."""
-        ids = ",".join
-        if self.kind == "rejected":
-            reason = self.reason.value if self.reason else "?"
-            return f"round {self.round}: rejected message from {self.sender or '?'}: {reason} ({self.detail})"
-        if self.kind == "accepted":
-            return f"round {self.round}: {self.detail} from {self.sender}"
-        scores = " ".join(f"{k}={v:g}" for k, v in self.scores.items())
-        if self.kind == "averaged":
-            return (
-                f"round {self.round}: answered {ids(self.answered)}; "
-                f"averaged {ids(self.averaged)} ({self.detail}); W={{{ids(self.remaining)}}} scores {scores}"
-            )
-        if self.kind == "transfer":
-            return (
-                f"round {self.round}: answered {ids(self.answered)}; "
-                f"transfer parameters of {self.origin} to {ids(self.remaining) or 'nobody'}; "
-                f"dropped {ids(self.dropped)}; W={{{ids(self.remaining)}}} scores {scores}"
-            )
-        return f"round {self.round}: run ended: {self.detail}"
-
-
-@dataclass(frozen=True)
-class ChiefStep:
-    """What the chief does after one input: messages to broadcast (in order) and events to log."""
-
-    outgoing: tuple[Message, ...] = ()
-    events: tuple[ChiefEvent, ...] = ()
+DEADLINE_DROP = "no message within the round deadline"
+OFFLINE_DROP = "went offline"
 
 
 class Chief:
@@ -103,8 +58,14 @@ class Chief:
     :param workers: the initial W (worker ids).
     :param layout: the actor's tensor layout every gradient or parameter message must match.
     :param max_rounds: M, the last round.
-    :param aggregator: name of a registered aggregation rule (see :mod:`fleetrl.federation.aggregation`).
+    :param aggregator: a registered aggregation rule, ``name`` or ``name:value`` (see
+        :mod:`fleetrl.federation.aggregation`).
     :param max_bytes: message size cap; default from the layout.
+    :param quorum: fraction of W whose answers close a round at its deadline (needs ``round_timeout`` if < 1).
+    :param round_timeout: seconds a round may stay open before the deadline rules apply; None waits forever
+        (the paper's fully synchronous rule).
+    :param resend_holdoff: least seconds between two re-sends of the last answer to one worker.
+    :param key: the fleet key; if given, only messages and statuses signed with it are accepted.
     """
 
     def __init__(
@@ -116,6 +77,10 @@ class Chief:
         max_rounds: int,
         aggregator: str = "mean",
         max_bytes: int | None = None,
+        quorum: float = 1.0,
+        round_timeout: float | None = None,
+        resend_holdoff: float = 1.0,
+        key: FleetKey | None = None,
     ) -> None:
         """Create the chief with W = ``workers`` and round 1 open."""
         self.run_id = validate_id(run_id, "run id")
@@ -124,19 +89,39 @@ class Chief:
             raise ValueError("a run needs at least one worker")
         if max_rounds < 1:
             raise ValueError(f"max_rounds must be >= 1, got {max_rounds}")
+        if not 0.0 < quorum <= 1.0:
+            raise ValueError(f"quorum must be in (0, 1], got {quorum}")
+        if round_timeout is not None and not round_timeout > 0:
+            raise ValueError(f"round_timeout must be > 0 seconds, got {round_timeout}")
+        if quorum < 1.0 and round_timeout is None:
+            raise ValueError("a quorum below 1 needs a round timeout (--round-timeout)")
         self.layout = list(layout)
         self.max_rounds = max_rounds
         self.aggregator_name = aggregator
         self._aggregate: Aggregator = get_aggregator(aggregator)
         self.max_bytes = max_bytes
+        self.quorum = quorum
+        self.round_timeout = round_timeout
+        self.resend_holdoff = resend_holdoff
+        self.key = key
         self._members: set[str] = set(self.all_workers)
+        self._left: set[str] = set()  # sent parameters: out of W for good
         self._round = 1
+        self._opened_at: float | None = None
         self._pending: dict[str, Message] = {}
         self._end_reason: str | None = None
+        self._last_answer: tuple[Message, ...] = ()
+        self._answer_sent: dict[str, float] = {}  # worker → when the last answer was (re)sent for it
+        self._incarnation: dict[str, int] = {}
+        self._model: Message | None = None  # the last transfer: θ* for rejoining workers
         self.rejections: Counter[Reason] = Counter()
         """How many messages were rejected, by reason."""
         self.transfers: list[tuple[int, str, tuple[str, ...]]] = []
         """(round, origin, recipients) of every model transfer."""
+        self.dropouts: list[tuple[int, str, str]] = []
+        """(round, worker, reason) of every worker that left W without transferring."""
+        self.rejoins: list[tuple[int, str]] = []
+        """(round, worker) of every dropped worker that re-entered W."""
 
     @property
     def round(self) -> int:
@@ -163,11 +148,20 @@ class Chief:
         """Why the run ended (``W is empty`` or ``reached M rounds``), or None while it runs."""
         return self._end_reason
 
-    def receive_bytes(self, payload: bytes, *, topic_worker: str | None = None) -> ChiefStep:
+    def next_deadline(self) -> float | None:
+        """When :meth:`tick` may next change something (the open round's deadline), or None."""
+        if self.round_timeout is None or self.finished or self._opened_at is None:
+            return None
+        return self._opened_at + self.round_timeout
+
+    def receive_bytes(
+        self, payload: bytes, *, topic_worker: str | None = None, now: float = 0.0
+    ) -> ChiefStep:
         """Decode and handle one payload; any defect becomes a ``rejected`` event, never an exception.
 
         :param payload: bytes received on a worker topic.
         :param topic_worker: the worker id of the topic it arrived on; the envelope's sender must match it.
+        :param now: the current time in seconds.
         """
         try:
             message = decode(
@@ -176,42 +170,100 @@ class Chief:
                 known_senders=self.all_workers,
                 layout=self.layout,
                 max_bytes=self.max_bytes,
+                key=self.key,
             )
         except MessageRejected as exc:
             return self._reject(topic_worker, exc.reason, exc.detail)
         if topic_worker is not None and message.sender != topic_worker:
             return self._reject(topic_worker, Reason.TOPIC_MISMATCH, f"envelope says {message.sender!r}")
-        return self.receive(message)
+        return self.receive(message, now=now)
 
-    def receive(self, message: Message) -> ChiefStep:
+    def receive(self, message: Message, *, now: float = 0.0) -> ChiefStep:
         """Handle one decoded message from a worker (Algorithm 1, lines 2–5; closes the round when
         complete)."""
-        sender = message.sender
-        if self.finished:
-            return self._reject(sender, Reason.RUN_OVER, f"round {message.round}")
+        self._start_clock(now)
+        sender, rnd = message.sender, message.round
         if message.type not in _FROM_WORKERS:
             return self._reject(sender, Reason.UNEXPECTED_TYPE, message.type)
-        if sender not in self._members:
-            known = sender in self.all_workers
-            return self._reject(
-                sender, Reason.NOT_IN_W if known else Reason.UNKNOWN_SENDER, f"round {message.round}"
-            )
-        if message.round < self._round:
-            return self._reject(
-                sender, Reason.STALE_ROUND, f"round {message.round} < open round {self._round}"
-            )
-        if message.round > self._round:
-            return self._reject(
-                sender, Reason.FUTURE_ROUND, f"round {message.round} > open round {self._round}"
-            )
+        if sender not in self.all_workers:
+            return self._reject(sender, Reason.UNKNOWN_SENDER, f"round {rnd}")
+        closed = self._round - 1 if not self.finished else self._round
+        if rnd <= closed:  # a resend after a lost answer, or a straggler: answer again, change nothing
+            reason = Reason.RUN_OVER if self.finished else Reason.STALE_ROUND
+            step = self._reject(sender, reason, f"round {rnd} <= last closed round {closed}")
+            return step + self._resend(sender, now)
+        if self.finished:
+            return self._reject(sender, Reason.RUN_OVER, f"round {rnd}")
+        if sender in self._left:
+            return self._reject(sender, Reason.NOT_IN_W, f"round {rnd}")
+        if rnd > self._round:
+            return self._reject(sender, Reason.FUTURE_ROUND, f"round {rnd} > open round {self._round}")
         if sender in self._pending:
-            return self._reject(sender, Reason.DUPLICATE, f"{message.type} for round {message.round}")
+            return self._reject(sender, Reason.DUPLICATE, f"{message.type} for round {rnd}")
+        step = self._rejoin(sender, f"sent {message.type} for round {rnd}")
         self._pending[sender] = message
-        accepted = ChiefEvent("accepted", self._round, sender=sender, detail=message.type)
+        step += ChiefStep(events=(ChiefEvent("accepted", self._round, sender=sender, detail=message.type),))
         if self._members.issubset(self._pending):
-            step = self._close_round()
-            return ChiefStep(step.outgoing, (accepted, *step.events))
-        return ChiefStep(events=(accepted,))
+            step += self._close_round(now)
+        return step
+
+    def status(self, worker: str, payload: bytes, *, retained: bool = False, now: float = 0.0) -> ChiefStep:
+        """Handle a status payload of ``worker`` (its ``online``, its ``offline`` goodbye or last will).
+
+        A live ``offline`` drops the worker from W; a live ``online`` of a dropped worker brings it back; any
+        ``online`` is answered with a ``welcome``. Retained statuses (replayed by the broker on subscribe)
+        never change W.
+        """
+        self._start_clock(now)
+        if worker not in self.all_workers:
+            return self._reject(worker, Reason.UNKNOWN_SENDER, "status")
+        try:
+            status = parse_status(payload, run_id=self.run_id, node=worker, key=self.key)
+        except MessageRejected as exc:
+            return self._reject(worker, exc.reason, exc.detail)
+        if self.finished or worker in self._left:
+            return ChiefStep()
+        known = self._incarnation.get(worker)
+        inc = status.incarnation
+        if inc is not None and known is not None and inc < known:  # an old status played again
+            return self._reject(worker, Reason.REPLAYED, f"{status.state} of incarnation {inc} < {known}")
+        if inc is not None:
+            self._incarnation[worker] = inc
+        if status.state == "offline":
+            if retained or worker not in self._members:
+                return ChiefStep()
+            return self._drop([worker], OFFLINE_DROP) + self._maybe_close(now)
+        step = ChiefStep() if retained else self._rejoin(worker, "came back online")
+        model = self._model
+        welcome = Message(
+            "welcome", self.run_id, CHIEF_ID, self._round,
+            flat=model.flat if model else None, origin=model.origin if model else None,
+        )  # fmt: skip
+        detail = f"of round {self._round}" + (f" with θ* of {welcome.origin}" if welcome.origin else "")
+        return step + ChiefStep(
+            (welcome,), (ChiefEvent("welcome", self._round, sender=worker, detail=detail),)
+        )
+
+    def tick(self, now: float) -> ChiefStep:
+        """Apply the round deadline at time ``now`` (nothing happens before it, or without ``round_timeout``).
+
+        At the deadline, if nobody answered, the chief keeps waiting (it may be cut off from everyone). If at
+        least ⌈quorum·|W|⌉ members answered, the round closes with them and the others stay in W as
+        stragglers. Otherwise the silent members leave W and the round closes with the answers it has.
+        """
+        self._start_clock(now)
+        deadline = self.next_deadline()
+        if deadline is None or now < deadline or not self._pending:
+            return ChiefStep()
+        answered_members = self._members & set(self._pending)
+        silent = self._members - answered_members
+        if len(answered_members) >= math.ceil(self.quorum * len(self._members) - 1e-9):
+            return self._close_round(now)
+        return self._drop(sorted_workers(silent), DEADLINE_DROP) + self._close_round(now)
+
+    def _start_clock(self, now: float) -> None:
+        if self._opened_at is None:
+            self._opened_at = now
 
     def _reject(self, sender: str | None, reason: Reason, detail: str) -> ChiefStep:
         self.rejections[reason] += 1
@@ -219,9 +271,46 @@ class Chief:
             events=(ChiefEvent("rejected", self._round, sender=sender, reason=reason, detail=detail),)
         )
 
-    def _close_round(self) -> ChiefStep:
+    def _resend(self, worker: str, now: float) -> ChiefStep:
+        last = self._answer_sent.get(worker)
+        if not self._last_answer or last is None or now < last + self.resend_holdoff:
+            return ChiefStep()
+        self._answer_sent[worker] = now
+        detail = f"answer of round {self._last_answer[0].round}"
+        return ChiefStep(
+            self._last_answer, (ChiefEvent("resent", self._round, sender=worker, detail=detail),)
+        )
+
+    def _drop(self, workers: Iterable[str], reason: str) -> ChiefStep:
+        events = []
+        for worker in workers:
+            self._members.discard(worker)
+            self.dropouts.append((self._round, worker, reason))
+            events.append(
+                ChiefEvent("dropped", self._round, sender=worker, detail=reason, remaining=self.members)
+            )
+        return ChiefStep(events=tuple(events))
+
+    def _rejoin(self, worker: str, why: str) -> ChiefStep:
+        if worker in self._members or worker in self._left:
+            return ChiefStep()
+        self._members.add(worker)
+        self.rejoins.append((self._round, worker))
+        return ChiefStep(
+            events=(ChiefEvent("rejoined", self._round, sender=worker, detail=why, remaining=self.members),)
+        )
+
+    def _maybe_close(self, now: float) -> ChiefStep:
+        if not self._pending and not self._members:
+            return self._end("every worker dropped out")
+        if self._pending and self._members.issubset(self._pending):
+            return self._close_round(now)
+        return ChiefStep()
+
+    def _close_round(self, now: float) -> ChiefStep:
         rnd = self._round
         answered = tuple(sorted_workers(self._pending))
+        late = tuple(sorted_workers(self._members - set(answered)))
         scores = {
             w: self._pending[w].metrics["score"] for w in answered if "score" in self._pending[w].metrics
         }
@@ -229,39 +318,44 @@ class Chief:
         if completed:
             origin = completed[0]
             self._members.difference_update(completed)
+            self._left.update(completed)
             remaining = self.members
             reply = Message(
                 "transfer", self.run_id, CHIEF_ID, rnd, flat=self._pending[origin].flat, origin=origin,
                 finished=completed,
             )  # fmt: skip
+            self._model = reply
             self.transfers.append((rnd, origin, remaining))
             event = ChiefEvent(
-                "transfer",
-                rnd,
-                answered=answered,
-                dropped=completed,
-                origin=origin,
-                remaining=remaining,
-                scores=scores,
-            )
+                "transfer", rnd, answered=answered, dropped=completed, origin=origin,
+                remaining=remaining, scores=scores, late=late,
+            )  # fmt: skip
         else:
             flats = [self._require_flat(self._pending[w]) for w in answered]
             average = self._aggregate(flats)
             reply = Message("average", self.run_id, CHIEF_ID, rnd, flat=average, contributors=answered)
             event = ChiefEvent(
                 "averaged", rnd, answered=answered, averaged=answered, detail=self.aggregator_name,
-                remaining=self.members, scores=scores,
+                remaining=self.members, scores=scores, late=late,
             )  # fmt: skip
-        outgoing: list[Message] = [reply]
-        events: list[ChiefEvent] = [event]
         self._pending = {}
+        self._last_answer = (reply,)
+        self._answer_sent = dict.fromkeys(self.all_workers, now)
+        step = ChiefStep((reply,), (event,))
         if not self._members or rnd >= self.max_rounds:
-            self._end_reason = "W is empty" if not self._members else f"reached M={self.max_rounds} rounds"
-            outgoing.append(Message("done", self.run_id, CHIEF_ID, rnd))
-            events.append(ChiefEvent("run_ended", rnd, detail=self._end_reason, remaining=self.members))
-        else:
-            self._round = rnd + 1
-        return ChiefStep(tuple(outgoing), tuple(events))
+            return step + self._end(
+                "W is empty" if not self._members else f"reached M={self.max_rounds} rounds"
+            )
+        self._round = rnd + 1
+        self._opened_at = now
+        return step
+
+    def _end(self, reason: str) -> ChiefStep:
+        self._end_reason = reason
+        done = Message("done", self.run_id, CHIEF_ID, self._round)
+        self._last_answer = (*self._last_answer, done)
+        event = ChiefEvent("run_ended", self._round, detail=reason, remaining=self.members)
+        return ChiefStep((done,), (event,))
 
     @staticmethod
     def _require_flat(message: Message) -> np.ndarray:

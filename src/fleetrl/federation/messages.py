@@ -18,10 +18,13 @@ import math
 from collections.abc import Collection, Mapping, Sequence
 from dataclasses import dataclass, field
 from enum import StrEnum
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import msgpack
 import numpy as np
+
+if TYPE_CHECKING:
+    from fleetrl.federation.signing import FleetKey
 
 VERSION = 1
 """Envelope version; a receiver rejects any other."""
@@ -35,8 +38,11 @@ MESSAGE_TYPES: Mapping[str, bool] = {
     "average": True,  # chief → workers: the aggregated gradient (Algorithm 1, line 13)
     "transfer": True,  # chief → workers: a mature worker's parameters (Algorithm 1, line 8)
     "done": False,  # chief → workers: the run is over (W empty, or M rounds)
+    "welcome": False,  # chief → workers: round i is open; the last transferred θ* if there was a transfer
 }
-"""Known message types, each mapped to whether it carries the layout's tensors."""
+"""Known message types, each mapped to whether it must carry the layout's tensors."""
+OPTIONAL_TENSORS = frozenset({"welcome"})
+"""Types that carry either no tensors or the whole layout."""
 
 MAX_METRICS = 32
 """Most metrics one message may carry."""
@@ -44,6 +50,8 @@ MAX_NAME = 64
 """Longest metric name or id accepted."""
 HEADER_ALLOWANCE = 64 * 1024
 """Bytes allowed beyond the tensors' own size by :func:`default_max_bytes`."""
+SIGNATURE_OVERHEAD = 36
+"""Bytes a signature adds (magic + HMAC-SHA256, see :mod:`fleetrl.federation.signing`)."""
 _MAX_ROUND = 2**31 - 1
 _KEYS = frozenset(
     {
@@ -76,6 +84,8 @@ class Reason(StrEnum):
     BAD_METRICS = "bad metrics"
     LAYOUT_MISMATCH = "tensor names/shapes do not match the layout"
     NOT_FINITE = "NaN or Inf"
+    UNSIGNED = "unsigned"
+    BAD_SIGNATURE = "bad signature"
     # Raised by the receivers, not the decoder:
     TOPIC_MISMATCH = "sender does not match topic"
     UNEXPECTED_TYPE = "type not expected from this sender"
@@ -84,6 +94,7 @@ class Reason(StrEnum):
     DUPLICATE = "duplicate (sender, round)"
     NOT_IN_W = "sender no longer in W"
     RUN_OVER = "run is over"
+    REPLAYED = "replayed status"
 
 
 class MessageRejected(Exception):
@@ -150,7 +161,7 @@ def envelope(message: Message, *, layout: Layout) -> dict[str, Any]:
     """The msgpack map :func:`encode` packs (exposed so tests can build malformed variants)."""
     if message.type not in MESSAGE_TYPES:
         raise ValueError(f"unknown message type {message.type!r} (choose {', '.join(MESSAGE_TYPES)})")
-    if MESSAGE_TYPES[message.type]:
+    if MESSAGE_TYPES[message.type] or (message.type in OPTIONAL_TENSORS and message.flat is not None):
         if message.flat is None:
             raise ValueError(f"a {message.type!r} message needs tensors")
         flat = np.ascontiguousarray(message.flat, dtype="<f4").reshape(-1)
@@ -175,8 +186,10 @@ def envelope(message: Message, *, layout: Layout) -> dict[str, Any]:
     }
 
 
-def encode(message: Message, *, layout: Layout) -> bytes:
+def encode(message: Message, *, layout: Layout, key: FleetKey | None = None) -> bytes:
     """Serialise ``message`` (msgpack envelope, tensors as little-endian float32 following ``layout``).
+
+    With ``key`` the envelope is signed (see :mod:`fleetrl.federation.signing`).
 
     :raises ValueError: unknown type, tensors missing or not fitting ``layout``, or non-finite values — a
         sender must not put on the wire what every receiver would reject.
@@ -186,7 +199,8 @@ def encode(message: Message, *, layout: Layout) -> bytes:
         raise ValueError(f"refusing to send a {message.type!r} message with NaN or Inf values")
     if not all(math.isfinite(v) for v in env["metrics"].values()):
         raise ValueError("refusing to send non-finite metrics")
-    return bytes(msgpack.packb(env, use_bin_type=True))
+    packed = bytes(msgpack.packb(env, use_bin_type=True))
+    return packed if key is None else key.sign(packed)
 
 
 def decode(
@@ -196,6 +210,7 @@ def decode(
     known_senders: Collection[str],
     layout: Layout,
     max_bytes: int | None = None,
+    key: FleetKey | None = None,
 ) -> Message:
     """Parse and validate one message; raise :class:`MessageRejected` (only) if anything is wrong.
 
@@ -204,13 +219,19 @@ def decode(
     :param known_senders: senders the receiver accepts (the chief: all workers of the run; a worker:
         ``chief``).
     :param layout: tensor names and shapes every tensor-carrying message must match exactly.
-    :param max_bytes: size cap; default :func:`default_max_bytes` of ``layout``.
+    :param max_bytes: size cap; default :func:`default_max_bytes` of ``layout`` (plus the signature's bytes
+        with ``key``).
+    :param key: the fleet key: the payload must be signed with it (checked before anything is parsed).
     """
     cap = default_max_bytes(layout) if max_bytes is None else max_bytes
+    if key is not None:
+        cap += SIGNATURE_OVERHEAD
     if not isinstance(payload, bytes | bytearray | memoryview):
         raise MessageRejected(Reason.NOT_MSGPACK, f"payload is {type(payload).__name__}, not bytes")
     if len(payload) > cap:
         raise MessageRejected(Reason.OVERSIZED, f"{len(payload)} bytes > cap {cap}")
+    if key is not None:
+        payload = key.open(bytes(payload))
     try:
         env = msgpack.unpackb(bytes(payload), raw=False, use_list=True, strict_map_key=True, max_bin_len=cap)
     except Exception as exc:  # msgpack raises many types (ExtraData, FormatError, ValueError, Unicode...)
@@ -238,13 +259,14 @@ def decode(
     origin = env["origin"]
     if origin is not None and not isinstance(origin, str):
         raise MessageRejected(Reason.MALFORMED, "origin is not a string")
-    flat = _tensors(env["tensors"], env["data"], layout if MESSAGE_TYPES[mtype] else ())
+    carries = MESSAGE_TYPES[mtype] or (mtype in OPTIONAL_TENSORS and env["tensors"] != [])
+    flat = _tensors(env["tensors"], env["data"], layout if carries else ())
     return Message(
         type=mtype,
         run_id=run_id,
         sender=sender,
         round=rnd,
-        flat=flat if MESSAGE_TYPES[mtype] else None,
+        flat=flat if carries else None,
         metrics=metrics,
         origin=origin,
         finished=_names(env["finished"], "finished"),

@@ -3,12 +3,14 @@
 from __future__ import annotations
 
 import logging
+import time
 from collections import Counter
 from collections.abc import Callable
 from dataclasses import dataclass
 
-from fleetrl.federation.chief import Chief, ChiefEvent
+from fleetrl.federation.chief import Chief, ChiefEvent, ChiefStep
 from fleetrl.federation.messages import Reason, encode
+from fleetrl.federation.signing import status_payload
 from fleetrl.federation.topics import (
     CHIEF_ID,
     OFFLINE,
@@ -36,6 +38,10 @@ class ChiefSummary:
     """(round, origin, recipients) of every model transfer"""
     rejections: dict[Reason, int]
     """rejected messages, by reason"""
+    dropouts: tuple[tuple[int, str, str], ...] = ()
+    """(round, worker, reason) of every worker that left W without transferring"""
+    rejoins: tuple[tuple[int, str], ...] = ()
+    """(round, worker) of every dropped worker that came back"""
 
 
 def run_chief(
@@ -44,13 +50,14 @@ def run_chief(
     *,
     on_event: Callable[[ChiefEvent], None] | None = None,
     idle_timeout: float | None = None,
+    clock: Callable[[], float] = time.monotonic,
 ) -> ChiefSummary:
     """Serve one run: connect, announce the chief online, answer every round until the chief ends the run.
 
-    Workers wait for the chief's retained ``online`` status before their first round, so start this first (or
-    at any time: workers block until it is online). Worker topics and payloads are given to the state machine
-    as they come; what it returns is published, QoS 1, on the chief topic. Status changes of workers are
-    logged (dropout handling is issue 7's).
+    Workers wait for the chief's ``welcome`` (sent when it sees their ``online`` status) before their first
+    round, so the start order does not matter. Worker topics, worker statuses and the passing of time (the
+    round deadline) are given to the state machine as they come; what it returns is published, QoS 1, on the
+    chief topic, signed if the chief has a fleet key.
 
     :param chief: the state machine (its run id, W and M define the run).
     :param transport: an unconnected transport; it is connected with an ``offline`` last will and closed at
@@ -58,16 +65,30 @@ def run_chief(
     :param on_event: called with every :class:`ChiefEvent` (also logged: rounds at INFO, rejections at
         WARNING).
     :param idle_timeout: raise TimeoutError when nothing arrives for this many seconds (None: wait forever).
+    :param clock: the time source handed to the state machine (seconds).
     """
     run_id = chief.run_id
     own_status = status_topic(run_id, CHIEF_ID)
     out_topic = chief_topic(run_id)
-    transport.connect(f"fleetrl-{run_id}-chief", will=Will(own_status, OFFLINE))
+    incarnation = time.time_ns()
+
+    def status(state: bytes) -> bytes:
+        return status_payload(state, run_id=run_id, node=CHIEF_ID, incarnation=incarnation, key=chief.key)
+
+    def publish(step: ChiefStep) -> None:
+        for message in step.outgoing:
+            transport.publish(out_topic, encode(message, layout=chief.layout, key=chief.key))
+        for event in step.events:
+            _log_event(event)
+            if on_event is not None:
+                on_event(event)
+
+    transport.connect(f"fleetrl-{run_id}-chief", will=Will(own_status, status(OFFLINE)))
     try:
         transport.subscribe(worker_filter(run_id))
         transport.subscribe(status_filter(run_id))
         # after subscribing: workers may send once they see it
-        transport.publish(own_status, ONLINE, retain=True)
+        transport.publish(own_status, status(ONLINE), retain=True)
         members = ",".join(chief.members)
         log.info(
             "chief of run %s online: W={%s}, M=%d, %s",
@@ -76,27 +97,34 @@ def run_chief(
             chief.max_rounds,
             chief.aggregator_name,
         )
+        last_input = clock()
         while not chief.finished:
-            received = transport.receive(idle_timeout)
+            now = clock()
+            deadline = chief.next_deadline()
+            waits = [] if idle_timeout is None else [last_input + idle_timeout - now]
+            if deadline is not None:
+                waits.append(deadline - now + 0.001)
+            received = transport.receive(max(0.0, min(waits)) if waits else None)
+            now = clock()
             if received is None:
-                waiting = sorted(set(chief.members) - set(chief.answered))
-                raise TimeoutError(
-                    f"chief: nothing for {idle_timeout} s in round {chief.round}; waiting for {waiting}"
-                )
+                publish(chief.tick(now))
+                if idle_timeout is not None and now - last_input >= idle_timeout:
+                    waiting = sorted(set(chief.members) - set(chief.answered))
+                    raise TimeoutError(
+                        f"chief: nothing for {idle_timeout} s in round {chief.round}; waiting for {waiting}"
+                    )
+                continue
+            last_input = now
             worker = worker_of_topic(run_id, received.topic)
-            if worker is None:
+            if worker is not None:
+                publish(chief.receive_bytes(received.payload, topic_worker=worker, now=now))
+            else:
                 node = node_of_status_topic(run_id, received.topic)
                 if node is not None and node != CHIEF_ID:
                     log.info("chief: node %s is %s", node, received.payload[:16].decode("ascii", "replace"))
-                continue
-            step = chief.receive_bytes(received.payload, topic_worker=worker)
-            for message in step.outgoing:
-                transport.publish(out_topic, encode(message, layout=chief.layout))
-            for event in step.events:
-                _log_event(event)
-                if on_event is not None:
-                    on_event(event)
-        transport.publish(own_status, OFFLINE, retain=True)
+                    publish(chief.status(node, received.payload, retained=received.retained, now=now))
+            publish(chief.tick(now))
+        transport.publish(own_status, status(OFFLINE), retain=True)
     finally:
         transport.close()
     return ChiefSummary(
@@ -104,11 +132,13 @@ def run_chief(
         end_reason=chief.end_reason or "?",
         transfers=tuple(chief.transfers),
         rejections=dict(Counter(chief.rejections)),
+        dropouts=tuple(chief.dropouts),
+        rejoins=tuple(chief.rejoins),
     )
 
 
 def _log_event(event: ChiefEvent) -> None:
-    if event.kind == "rejected":
+    if event.kind in ("rejected", "dropped"):
         log.warning("chief: %s", event)
     elif event.kind == "accepted":
         log.debug("chief: %s", event)

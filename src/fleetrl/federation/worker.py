@@ -13,6 +13,13 @@ parameters — to the chief, and waits for the chief's answer for that round:
 * ``done``: the run is over.
 
 The worker also stops after round M. Every round produces a :class:`RoundRecord` through ``on_record``.
+
+Reliability (issue 7): the worker starts (or, restarted with the same id, rejoins) at the round named by the
+chief's ``welcome``, taking the last transferred parameters if it carries them. It re-sends its round's
+message (and, before the welcome, its ``online`` status) every ``resend_interval`` seconds without an
+answer, so a message lost to a broker restart is repaired; the chief answers a resend for a closed round
+with its answer again. A worker that falls behind (a straggler under a quorum) applies every later answer it
+finds queued and continues at the chief's round.
 """
 
 from __future__ import annotations
@@ -27,6 +34,7 @@ from typing import Protocol
 import numpy as np
 
 from fleetrl.federation.messages import Layout, Message, MessageRejected, decode, encode
+from fleetrl.federation.signing import FleetKey, status_payload
 from fleetrl.federation.topics import (
     CHIEF_ID,
     OFFLINE,
@@ -104,7 +112,8 @@ class RoundRecord:
 
     ``event`` is ``gradient`` (sent a gradient, applied the average), ``transfer_out`` (sent its parameters,
     which the chief forwarded; finished), ``finished`` (sent its parameters, but a lower worker id's were
-    forwarded in the same round; finished), ``transfer_in from K`` (replaced its actor with worker K's) or
+    forwarded in the same round; finished), ``transfer_in from K`` (replaced its actor with worker K's),
+    ``late`` (its message missed the round, which the chief closed without it; the average was applied) or
     ``run ended`` (the chief ended the run while it waited).
     """
 
@@ -143,6 +152,9 @@ class FederatedWorker:
     :param max_rounds: M.
     :param on_record: called with every :class:`RoundRecord`.
     :param reply_timeout: seconds to wait for the chief (at start, and each round); None waits forever.
+    :param resend_interval: seconds without an answer after which the round's message (or, before the
+        welcome, the ``online`` status) is sent again; None never re-sends.
+    :param key: the fleet key: sign what is sent, accept only what is signed with it.
     """
 
     def __init__(
@@ -155,6 +167,8 @@ class FederatedWorker:
         max_rounds: int,
         on_record: Callable[[RoundRecord], None] | None = None,
         reply_timeout: float | None = 600.0,
+        resend_interval: float | None = 5.0,
+        key: FleetKey | None = None,
     ) -> None:
         """Prepare the worker; nothing is sent before :meth:`run`."""
         self.learner = learner
@@ -164,45 +178,62 @@ class FederatedWorker:
         self.max_rounds = max_rounds
         self.on_record = on_record
         self.reply_timeout = reply_timeout
+        self.resend_interval = resend_interval
+        self.key = key
+        self.incarnation = time.time_ns()
+        """This process's incarnation: newer than any earlier process with the same worker id."""
         self.layout: Layout = list(learner.agent.actor_layout())
         self._chief_topic = chief_topic(run_id)
         self._chief_status = status_topic(run_id, CHIEF_ID)
         self._own_status = status_topic(run_id, worker_id)
 
     def run(self) -> WorkerSummary:
-        """Connect, wait for the chief, play rounds until finished, M rounds, or the chief's ``done``;
-        close."""
+        """Connect, wait for the chief's welcome, play rounds until finished, M rounds, or ``done``; close."""
         client_id = f"fleetrl-{self.run_id}-worker-{self.worker_id}"
-        self.transport.connect(client_id, will=Will(self._own_status, OFFLINE))
+        self.transport.connect(client_id, will=Will(self._own_status, self._status(OFFLINE)))
         try:
             self.transport.subscribe(self._chief_topic)
             self.transport.subscribe(self._chief_status)
-            self.transport.publish(self._own_status, ONLINE, retain=True)
-            self._wait_for_chief()
-            summary = self._rounds()
-            self.transport.publish(self._own_status, OFFLINE, retain=True)
+            self.transport.publish(self._own_status, self._status(ONLINE), retain=True)
+            welcome = self._wait_for(lambda m: m.type in ("welcome", "done"), "the chief's welcome", None)
+            summary = self._rounds(welcome)
+            self.transport.publish(self._own_status, self._status(OFFLINE), retain=True)
         finally:
             self.transport.close()
         log.info("worker %s: %s after %d rounds", self.worker_id, summary.reason, summary.rounds)
         return summary
 
-    def _rounds(self) -> WorkerSummary:
+    def _status(self, state: bytes) -> bytes:
+        return status_payload(
+            state, run_id=self.run_id, node=self.worker_id, incarnation=self.incarnation, key=self.key
+        )
+
+    def _rounds(self, welcome: Message) -> WorkerSummary:
         agent = self.learner.agent
-        for rnd in range(1, self.max_rounds + 1):
+        if welcome.type == "done":
+            return WorkerSummary(self.worker_id, 0, finished=False, reason="run ended")
+        if welcome.flat is not None:  # rejoining after a transfer: start from θ*
+            agent.set_actor_parameters(welcome.flat)
+        log.info("worker %s: welcomed at round %d (θ* of %s)", self.worker_id, welcome.round, welcome.origin)
+        rnd = welcome.round
+        while rnd <= self.max_rounds:
             result = self.learner.play_round()  # lines 2-24
             completed = bool(result.completed)
             kind = "parameters" if completed else "gradient"
             flat = agent.actor_parameters() if completed else agent.actor_gradient()  # line 8 / line 25
             metrics = {"score": float(result.score), "wma": float(result.wma), "steps": float(result.steps)}
             message = Message(kind, self.run_id, self.worker_id, rnd, flat=flat, metrics=_finite(metrics))
-            self.transport.publish(
-                worker_topic(self.run_id, self.worker_id), encode(message, layout=self.layout)
-            )
-            reply = self._wait_for_reply(rnd)  # line 27
+            payload = encode(message, layout=self.layout, key=self.key)
+            topic = worker_topic(self.run_id, self.worker_id)
+            self.transport.publish(topic, payload)
+            reply = self._wait_for(_answer_for(rnd), f"the chief's answer for round {rnd}", (topic, payload))
             event, peer, leave = self._apply(reply, completed, agent)  # lines 28-31
             self._record(rnd, result, event, peer)
             if leave:
                 return WorkerSummary(self.worker_id, rnd, finished=reply.type == "transfer", reason=event)
+            rnd, stop = self._catch_up(reply.round, agent)
+            if stop is not None:
+                return WorkerSummary(self.worker_id, rnd - 1, finished=False, reason=stop)
         return WorkerSummary(
             self.worker_id, self.max_rounds, finished=False, reason=f"reached M={self.max_rounds}"
         )
@@ -220,48 +251,75 @@ class FederatedWorker:
         if reply.type == "transfer":
             agent.set_actor_parameters(reply.flat)  # line 29
             return f"transfer_in from {reply.origin}", reply.origin, False
-        if completed:  # the chief averaged although we sent parameters: a protocol bug, not a data problem
+        if self.worker_id not in reply.contributors:  # the round closed without us (straggler, or resend)
+            if not completed:
+                agent.apply_actor_gradient(reply.flat)  # the fleet's update all the same
+            return "late", None, False
+        if completed:  # the chief averaged our parameters: a protocol bug, not a data problem
             raise RuntimeError(f"worker {self.worker_id}: chief answered round {reply.round} with an average")
         agent.apply_actor_gradient(reply.flat)  # line 31
         return "gradient", None, False
 
-    def _wait_for_chief(self) -> None:
-        deadline = None if self.reply_timeout is None else time.monotonic() + self.reply_timeout
-        while True:
-            received = self.transport.receive(_remaining(deadline))
-            if received is None:
-                raise TimeoutError(f"worker {self.worker_id}: chief of run {self.run_id!r} not online")
-            if received.topic == self._chief_status and received.payload == ONLINE:
-                return
-
-    def _wait_for_reply(self, rnd: int) -> Message:
-        deadline = None if self.reply_timeout is None else time.monotonic() + self.reply_timeout
-        while True:
-            received = self.transport.receive(_remaining(deadline))
-            if received is None:
-                raise TimeoutError(f"worker {self.worker_id}: no answer from the chief for round {rnd}")
-            if received.topic == self._chief_status:
-                if received.payload == OFFLINE:
-                    log.warning(
-                        "worker %s: the chief went offline; still waiting for round %d", self.worker_id, rnd
-                    )
+    def _catch_up(self, last: int, agent: ActorAgent) -> tuple[int, str | None]:
+        """Apply answers of later rounds already queued (the chief moved on without us); return (the next
+        round to play, why to stop or None)."""
+        while (received := self.transport.receive(0)) is not None:
+            message = self._decode(received.topic, received.payload)
+            if (
+                message is None
+                or message.type == "welcome"
+                or (message.type != "done" and message.round <= last)
+            ):
                 continue
-            try:
-                reply = decode(
-                    received.payload, run_id=self.run_id, known_senders=(CHIEF_ID,), layout=self.layout
-                )
-            except MessageRejected as exc:
-                log.warning("worker %s: rejected a chief message: %s", self.worker_id, exc)
-                continue
-            if reply.type == "done" or reply.round == rnd:
-                return reply
-            log.debug(
-                "worker %s: ignoring %s for round %d (waiting for %d)",
-                self.worker_id,
-                reply.type,
-                reply.round,
-                rnd,
+            if message.type == "done":
+                return message.round + 1, "run ended"
+            if message.flat is not None and message.type == "transfer":
+                agent.set_actor_parameters(message.flat)
+            elif message.flat is not None:
+                agent.apply_actor_gradient(message.flat)
+            log.info(
+                "worker %s: caught up with the %s of round %d", self.worker_id, message.type, message.round
             )
+            last = message.round
+        return last + 1, None
+
+    def _decode(self, topic: str, payload: bytes) -> Message | None:
+        if topic == self._chief_status:
+            if payload.startswith(OFFLINE):
+                log.warning("worker %s: the chief went offline; waiting", self.worker_id)
+            return None
+        try:
+            return decode(
+                payload, run_id=self.run_id, known_senders=(CHIEF_ID,), layout=self.layout, key=self.key
+            )
+        except MessageRejected as exc:
+            log.warning("worker %s: rejected a chief message: %s", self.worker_id, exc)
+            return None
+
+    def _wait_for(
+        self, wanted: Callable[[Message], bool], what: str, resend: tuple[str, bytes] | None
+    ) -> Message:
+        """The first chief message ``wanted`` accepts; re-send ``resend`` (topic, payload) — or, if None, the
+        ``online`` status — every ``resend_interval`` s; TimeoutError after ``reply_timeout`` s."""
+        deadline = None if self.reply_timeout is None else time.monotonic() + self.reply_timeout
+        topic, payload = resend or (self._own_status, self._status(ONLINE))
+        next_send = None if self.resend_interval is None else time.monotonic() + self.resend_interval
+        while True:
+            received = self.transport.receive(_remaining(_earliest(deadline, next_send)))
+            if received is None:
+                now = time.monotonic()
+                if deadline is not None and now >= deadline:
+                    raise TimeoutError(f"worker {self.worker_id}: no {what} from run {self.run_id!r}")
+                if next_send is not None and now >= next_send:
+                    log.info("worker %s: nothing yet; re-sending while waiting for %s", self.worker_id, what)
+                    self.transport.publish(topic, payload, retain=resend is None)
+                    next_send = now + (self.resend_interval or 0.0)
+                continue
+            message = self._decode(received.topic, received.payload)
+            if message is not None and wanted(message):
+                return message
+            if message is not None:
+                log.debug("worker %s: ignoring %s of round %d", self.worker_id, message.type, message.round)
 
     def _record(self, rnd: int, result: RoundOutcome, event: str, peer: str | None) -> None:
         record = RoundRecord(
@@ -275,6 +333,15 @@ class FederatedWorker:
         )  # fmt: skip
         if self.on_record is not None:
             self.on_record(record)
+
+
+def _answer_for(rnd: int) -> Callable[[Message], bool]:
+    """Accepts the chief's answer for round ``rnd`` or a later one (we missed ours), or ``done``."""
+    return lambda m: m.type == "done" or (m.type != "welcome" and m.round >= rnd)
+
+
+def _earliest(a: float | None, b: float | None) -> float | None:
+    return b if a is None else a if b is None else min(a, b)
 
 
 def _remaining(deadline: float | None) -> float | None:

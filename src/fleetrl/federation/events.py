@@ -1,0 +1,80 @@
+"""What the chief decides, as data: :class:`ChiefEvent` (a log line for people) and :class:`ChiefStep`."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+from fleetrl.federation.messages import Message, Reason
+
+
+@dataclass(frozen=True)
+class ChiefEvent:
+    """One decision of the chief.
+
+    :param kind: ``rejected``, ``accepted``, ``averaged``, ``transfer``, ``run_ended``, ``dropped``
+        (a worker left W: offline or silent past the deadline), ``rejoined`` (a dropped worker is back in W),
+        ``welcome`` (the open round was announced to a worker coming online) or ``resent`` (the last answer
+        was sent again for a worker that re-sent a closed round).
+    :param round: the chief's open round when it happened (the closed round for ``averaged``/``transfer``).
+    :param sender: who sent the message concerned, or the worker dropped, rejoined or welcomed.
+    :param reason: why a message was rejected.
+    :param detail: free text (rejection detail, why a worker was dropped, why the run ended).
+    :param answered: workers whose answers closed the round.
+    :param averaged: workers whose gradients entered the aggregate.
+    :param dropped: workers that left W this round.
+    :param origin: the worker whose parameters were transferred.
+    :param remaining: W after the round.
+    :param scores: the ``score`` metric each answer carried, if any.
+    :param late: workers still in W that had not answered when a deadline closed the round (stragglers).
+    """
+
+    kind: str
+    round: int
+    sender: str | None = None
+    reason: Reason | None = None
+    detail: str = ""
+    answered: tuple[str, ...] = ()
+    averaged: tuple[str, ...] = ()
+    dropped: tuple[str, ...] = ()
+    origin: str | None = None
+    remaining: tuple[str, ...] = ()
+    scores: dict[str, float] = field(default_factory=dict)
+    late: tuple[str, ...] = ()
+
+    def __str__(self) -> str:
+        """One human-readable line."""
+        ids = ",".join
+        if self.kind == "rejected":
+            reason = self.reason.value if self.reason else "?"
+            return f"round {self.round}: rejected message from {self.sender or '?'}: {reason} ({self.detail})"
+        if self.kind in ("accepted", "resent", "welcome"):
+            return f"round {self.round}: {self.kind} {self.detail} for {self.sender}".replace("  ", " ")
+        if self.kind in ("dropped", "rejoined"):
+            w = ids(self.remaining)
+            return f"round {self.round}: worker {self.sender} {self.kind}: {self.detail}; W={{{w}}}"
+        scores = " ".join(f"{k}={v:g}" for k, v in self.scores.items())
+        late = f"; late {ids(self.late)}" if self.late else ""
+        if self.kind == "averaged":
+            return (
+                f"round {self.round}: answered {ids(self.answered)}{late}; "
+                f"averaged {ids(self.averaged)} ({self.detail}); W={{{ids(self.remaining)}}} scores {scores}"
+            )
+        if self.kind == "transfer":
+            return (
+                f"round {self.round}: answered {ids(self.answered)}{late}; "
+                f"transfer parameters of {self.origin} to {ids(self.remaining) or 'nobody'}; "
+                f"dropped {ids(self.dropped)}; W={{{ids(self.remaining)}}} scores {scores}"
+            )
+        return f"round {self.round}: run ended: {self.detail}"
+
+
+@dataclass(frozen=True)
+class ChiefStep:
+    """What the chief does after one input: messages to broadcast (in order) and events to log."""
+
+    outgoing: tuple[Message, ...] = ()
+    events: tuple[ChiefEvent, ...] = ()
+
+    def __add__(self, other: ChiefStep) -> ChiefStep:
+        """Both steps, this one first."""
+        return ChiefStep(self.outgoing + other.outgoing, self.events + other.events)
