@@ -32,9 +32,12 @@ from fleetrl.transport.mqtt import MqttTransport
 RUN_ID = "bench"
 
 
-def serve_bridge(url: str, env: str, realtime: bool, stop: Any, ticks: Any) -> None:
-    """Child process: serve unit 0 until ``stop`` is set; report real-time tick times on ``ticks``."""
-    if realtime:
+def serve_bridge(url: str, env: str, realtime: bool, stop: Any, ticks: Any, rt_all: bool) -> None:
+    """Child process: serve unit 0 until ``stop`` is set; report real-time tick times on ``ticks``.
+
+    A real-time bridge always asks for SCHED_FIFO (as ``fleetrl device --realtime`` does); a lockstep one
+    only with ``rt_all``."""
+    if realtime or rt_all:
         request_realtime_priority()
     bridge = DeviceBridge(
         MqttTransport(url), simulated_driver(env, 0, 0, realtime=realtime), RUN_ID, 0, realtime=realtime
@@ -48,11 +51,16 @@ def serve_bridge(url: str, env: str, realtime: bool, stop: Any, ticks: Any) -> N
 class BridgeProcess:
     """A bridge in a child process, as a context manager."""
 
+    rt_all = False
+    """also give lockstep bridges real-time priority (``--rt``)"""
+
     def __init__(self, url: str, env: str = "qube", realtime: bool = False) -> None:
         ctx = mp.get_context("spawn")
         self._stop = ctx.Event()
         self._ticks: Any = ctx.Queue()
-        self._proc = ctx.Process(target=serve_bridge, args=(url, env, realtime, self._stop, self._ticks))
+        self._proc = ctx.Process(
+            target=serve_bridge, args=(url, env, realtime, self._stop, self._ticks, self.rt_all)
+        )
         self.ticks: list[float] = []
 
     def __enter__(self) -> BridgeProcess:
@@ -137,11 +145,16 @@ def main() -> None:
     """Run every figure on each available broker and print them."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="tiny budgets (smoke run)")
+    parser.add_argument(
+        "--rt", action="store_true", help="SCHED_FIFO for this (worker) process and every bridge, as on a rig"
+    )
     args = parser.parse_args()
+    if args.rt:
+        BridgeProcess.rt_all = request_realtime_priority()
     n, seconds = (300, 0.5) if args.quick else (3000, 2.0)
     brokers = (["mosquitto"] if find_mosquitto() else []) + ["amqtt"]
     for kind in brokers:
-        with EmbeddedBroker(kind) as broker:  # type: ignore[arg-type]
+        with EmbeddedBroker(kind) as broker:
             rt = round_trip(broker.url, n)
             print(
                 f"[{kind}] control-step round trip over {n} steps: p50 {rt['p50_us']:.0f} µs, "
