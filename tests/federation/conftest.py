@@ -6,6 +6,7 @@ import threading
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 import pytest
@@ -93,6 +94,7 @@ class FleetResult:
     workers: dict[str, WorkerSummary]
     chief: ChiefSummary
     events: list[ChiefEvent]
+    state: Chief
 
     def scores(self) -> dict[str, list[float]]:
         return {w: [r.score for r in rs] for w, rs in self.records.items()}
@@ -108,10 +110,24 @@ def run_fleet(
     run_id: str = "test-run",
     max_rounds: int = 10,
     timeout: float = 60.0,
+    role_transport: Callable[[str], Transport] | None = None,
+    chief_kwargs: dict[str, Any] | None = None,
+    worker_kwargs: dict[str, Any] | None = None,
+    on_chief: Callable[[Chief], None] | None = None,
 ) -> FleetResult:
-    """Chief and workers as threads, each with its own transport from ``make_transport``."""
+    """Chief and workers as threads, each with its own transport from ``make_transport`` (or from
+    ``role_transport(role)``, role ``chief`` or the worker id); extra keyword arguments for the Chief and
+    FederatedWorker; ``on_chief`` sees the chief's state machine before it starts."""
     layout = learners[next(iter(learners))].agent.actor_layout()  # type: ignore[attr-defined]
-    chief = Chief(run_id=run_id, workers=list(learners), layout=layout, max_rounds=max_rounds)
+    chief = Chief(
+        run_id=run_id, workers=list(learners), layout=layout, max_rounds=max_rounds, **(chief_kwargs or {})
+    )
+    if on_chief is not None:
+        on_chief(chief)
+
+    def transport(role: str) -> Transport:
+        return role_transport(role) if role_transport is not None else make_transport()
+
     events: list[ChiefEvent] = []
     records: dict[str, list[RoundRecord]] = {w: [] for w in learners}
     summaries: dict[str, WorkerSummary] = {}
@@ -128,18 +144,19 @@ def run_fleet(
         return body
 
     def chief_main() -> None:
-        outcome["chief"] = run_chief(chief, make_transport(), on_event=events.append, idle_timeout=timeout)
+        outcome["chief"] = run_chief(chief, transport("chief"), on_event=events.append, idle_timeout=timeout)
 
     def worker_main(worker_id: str) -> Callable[[], None]:
         def main() -> None:
             worker = FederatedWorker(
                 learners[worker_id],
-                make_transport(),
+                transport(worker_id),
                 run_id=run_id,
                 worker_id=worker_id,
                 max_rounds=max_rounds,
                 on_record=records[worker_id].append,
                 reply_timeout=timeout,
+                **(worker_kwargs or {}),
             )
             summaries[worker_id] = worker.run()
 
@@ -153,7 +170,7 @@ def run_fleet(
         thread.join(timeout + 5)
     assert not errors, errors
     assert not any(t.is_alive() for t in threads), "a role hung"
-    return FleetResult(records, summaries, outcome["chief"], events)
+    return FleetResult(records, summaries, outcome["chief"], events, chief)
 
 
 def make_fake_fleet(pause: float = 0.0) -> dict[str, FakeLearner]:

@@ -79,12 +79,18 @@ class _Backend(Protocol):
 class _Mosquitto:
     """mosquitto as a child process with a generated config."""
 
-    def __init__(self, binary: str) -> None:
+    def __init__(self, binary: str, config: Path | None = None) -> None:
         self.binary = binary
+        self.config = config
         self._dir: tempfile.TemporaryDirectory[str] | None = None
         self._proc: subprocess.Popen[bytes] | None = None
 
     def start(self, port: int) -> None:
+        if self.config is not None:  # a secure config (fleetrl secure-config) names its own listener
+            self._proc = subprocess.Popen(
+                [self.binary, "-c", str(self.config)], stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL
+            )
+            return
         self._dir = tempfile.TemporaryDirectory(prefix="fleetrl-mosquitto-")
         os.chmod(self._dir.name, 0o755)  # mosquitto started as root drops to its own user
         config = Path(self._dir.name) / "mosquitto.conf"
@@ -107,8 +113,12 @@ class _Mosquitto:
 
     def stop(self) -> None:
         if self._proc is not None:
-            self._proc.kill()
-            self._proc.wait(timeout=10)
+            self._proc.terminate()  # SIGTERM: a persistent broker saves its sessions
+            try:
+                self._proc.wait(timeout=5)
+            except subprocess.TimeoutExpired:
+                self._proc.kill()
+                self._proc.wait(timeout=10)
             self._proc = None
         if self._dir is not None:
             self._dir.cleanup()
@@ -173,10 +183,18 @@ class EmbeddedBroker:
         ``amqtt``.
     :param port: the port to listen on; default a free one.
     :param ready_timeout: seconds to wait for the first CONNACK.
+    :param config: a mosquitto config to use instead of the generated one (e.g. ``fleetrl secure-config``'s);
+        ``port`` must then be its listener's port. Readiness is then a TCP connect (the listener may want a
+        login or TLS).
     """
 
     def __init__(
-        self, prefer: Preference = "auto", *, port: int | None = None, ready_timeout: float = 15.0
+        self,
+        prefer: Preference = "auto",
+        *,
+        port: int | None = None,
+        ready_timeout: float = 15.0,
+        config: Path | None = None,
     ) -> None:
         """Choose the backend; nothing starts before :meth:`start` (or ``with``)."""
         if prefer not in ("auto", "mosquitto", "amqtt"):
@@ -187,7 +205,10 @@ class EmbeddedBroker:
                 "mosquitto not found on PATH or in /usr/sbin (install it, or use prefer='amqtt')"
             )
         self.kind: Literal["mosquitto", "amqtt"] = "mosquitto" if binary else "amqtt"
-        self._backend: _Backend = _Mosquitto(binary) if binary else _Amqtt()
+        if config is not None and (binary is None or port is None):
+            raise ValueError("a mosquitto config needs mosquitto and its listener's port")
+        self._backend: _Backend = _Mosquitto(binary, config) if binary else _Amqtt()
+        self._config = config
         self.host = "127.0.0.1"
         self.port = port or 0
         self._ready_timeout = ready_timeout
@@ -208,7 +229,7 @@ class EmbeddedBroker:
         started = time.monotonic()
         try:
             self._backend.start(self.port)
-            while not mqtt_ready(self.host, self.port):
+            while not self._ready():
                 if isinstance(self._backend, _Mosquitto) and not self._backend.alive():
                     raise RuntimeError(f"mosquitto exited at start (port {self.port} taken?)")
                 if time.monotonic() - started > self._ready_timeout:
@@ -225,6 +246,15 @@ class EmbeddedBroker:
             1e3 * (time.monotonic() - started),
         )
         return self
+
+    def _ready(self) -> bool:
+        if self._config is None:
+            return mqtt_ready(self.host, self.port)
+        try:
+            socket.create_connection((self.host, self.port), timeout=1.0).close()
+            return True
+        except OSError:
+            return False
 
     def close(self) -> None:
         """Stop the broker (kill the mosquitto process, or shut amqtt down)."""

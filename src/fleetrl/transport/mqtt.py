@@ -2,7 +2,9 @@
 
 TCP_NODELAY is set on the socket in ``on_connect`` (without it QoS 1 round trips stall 44–88 ms on Nagle; see
 docs/protocol.md). paho's network thread reconnects with exponential backoff; subscriptions are renewed on
-every connect and QoS 1 messages published while disconnected are sent after reconnecting.
+every connect and QoS 1 messages published while disconnected are sent after reconnecting. Sessions are
+persistent by default (``clean_session`` False with the roles' fixed client ids), so a broker that keeps
+sessions queues QoS 1 messages for a client while it is away.
 """
 
 from __future__ import annotations
@@ -75,6 +77,10 @@ class MqttTransport:
     :param ca_file: CA certificate file for ``mqtts`` (None: the system's CAs).
     :param keepalive: MQTT keep-alive in seconds; the broker publishes the will after 1.5× this of silence.
     :param reconnect_delay: (min, max) seconds of exponential reconnect backoff.
+    :param clean_session: False (default) asks the broker to keep the session (subscriptions, queued QoS 1
+        messages) across disconnects; True starts afresh on every connect.
+    :param cert_file: client certificate for ``mqtts`` (optional; with ``key_file``).
+    :param key_file: the client certificate's private key.
     """
 
     def __init__(
@@ -84,12 +90,18 @@ class MqttTransport:
         ca_file: str | None = None,
         keepalive: int = 30,
         reconnect_delay: tuple[int, int] = (1, 30),
+        clean_session: bool = False,
+        cert_file: str | None = None,
+        key_file: str | None = None,
     ) -> None:
         """Prepare a client for the broker at ``url``; nothing is sent before :meth:`connect`."""
         self.address = BrokerAddress.parse(url)
         self._ca_file = ca_file
         self._keepalive = keepalive
         self._reconnect_delay = reconnect_delay
+        self._clean_session = clean_session
+        self._cert_file = cert_file
+        self._key_file = key_file
         self._queue: queue.Queue[Received] = queue.Queue()
         self._filters: dict[str, int] = {}
         self._lock = threading.Lock()
@@ -99,13 +111,23 @@ class MqttTransport:
         self._client: paho.Client | None = None
 
     def connect(self, client_id: str, *, will: Will | None = None, timeout: float = 10.0) -> None:
-        """Connect as ``client_id`` (clean session) and start the network thread; ConnectionError on
-        failure."""
-        client = paho.Client(CallbackAPIVersion.VERSION2, client_id=client_id, protocol=paho.MQTTv311)
+        """Connect as ``client_id`` and start the network thread; ConnectionError on failure (a refused login
+        included)."""
+        client = paho.Client(
+            CallbackAPIVersion.VERSION2,
+            client_id=client_id,
+            protocol=paho.MQTTv311,
+            clean_session=self._clean_session,
+        )
         if self.address.username is not None:
             client.username_pw_set(self.address.username, self.address.password)
         if self.address.tls:
-            client.tls_set(ca_certs=self._ca_file, cert_reqs=ssl.CERT_REQUIRED)
+            client.tls_set(
+                ca_certs=self._ca_file,
+                certfile=self._cert_file,
+                keyfile=self._key_file,
+                cert_reqs=ssl.CERT_REQUIRED,
+            )
         if will is not None:
             client.will_set(will.topic, will.payload, qos=will.qos, retain=will.retain)
         client.reconnect_delay_set(*self._reconnect_delay)
