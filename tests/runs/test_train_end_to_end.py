@@ -104,3 +104,10 @@ def test_evaluate_refuses_bad_models(
     assert main(["evaluate", str(model), "--env", env, "--episodes", "1"]) == 2
     err = capsys.readouterr().err
     assert message in err and "Traceback" not in err
+
+
+@pytest.mark.mqtt
+def test_devices_behind_mqtt_bridges_give_the_same_scores(local_run: Path, tmp_path: Path) -> None:
+    summary = train(tmp_path / "run", "--mode", "federated", "--transport", "local", "--device-link", "mqtt")
+    assert summary["broker"].startswith("mqtt://127.0.0.1:")
+    assert scores(tmp_path / "run") == scores(local_run)

@@ -51,6 +51,11 @@ def build_parser() -> argparse.ArgumentParser:
     train.add_argument(
         "--broker", default=None, help="mqtt://[user:pass@]host:port; default: embedded broker"
     )
+    train.add_argument(
+        "--device-link",
+        default="inprocess",
+        help="inprocess (default) or mqtt: each unit served by a device bridge over the broker",
+    )
     train.set_defaults(handler=cmd_train)
 
     demo = sub.add_parser("demo", help="the main job: a 3-unit federated QUBE run on an embedded broker")
@@ -96,6 +101,7 @@ def run_settings(args: argparse.Namespace, mode: str) -> Any:
         fleet_seed=args.fleet_seed,
         transport=getattr(args, "transport", "mqtt"),
         broker=getattr(args, "broker", None),
+        device_link=getattr(args, "device_link", "inprocess"),
         overrides=parse_overrides(args.overrides),
         live=not args.no_live,
     )

@@ -10,6 +10,7 @@ from fleetrl.agent.criterion import CompletionCriterion
 from fleetrl.agent.learner import Learner
 from fleetrl.agent.ppo import PPOAgent
 from fleetrl.envs.catalog import get_env_spec
+from fleetrl.link.mqtt import open_mqtt_link
 from fleetrl.runs.spec import WorkerSpec
 
 
@@ -18,7 +19,11 @@ def make_learner(spec: WorkerSpec) -> Learner:
     torch.set_num_threads(1)
     env_spec = get_env_spec(spec.env)
     config = dataclasses.replace(get_preset(spec.preset), **spec.overrides)
-    env = gymnasium.make(env_spec.gym_id, unit=spec.unit, fleet_seed=spec.fleet_seed)
+    if spec.device_url is None:
+        env = gymnasium.make(env_spec.gym_id, unit=spec.unit, fleet_seed=spec.fleet_seed)
+    else:
+        link = open_mqtt_link(spec.device_url, spec.device_run_id, spec.unit)
+        env = gymnasium.make(env_spec.gym_id, unit=spec.unit, fleet_seed=spec.fleet_seed, link=link)
     obs_dim = int(env.observation_space.shape[0])  # type: ignore[index]
     n_actions = int(env.action_space.n)  # type: ignore[attr-defined]
     agent = PPOAgent(obs_dim, n_actions, config, seed=spec.worker_seed)

@@ -27,7 +27,7 @@ import gymnasium
 from fleetrl.agent.config import get_preset
 from fleetrl.agent.ppo import PPOAgent
 from fleetrl.envs.catalog import get_env_spec
-from fleetrl.federation.chief import Chief, ChiefEvent
+from fleetrl.federation.chief import Chief
 from fleetrl.federation.runner import ChiefSummary, run_chief
 from fleetrl.runs.fleet import Fleet, ThreadFleet, follow
 from fleetrl.runs.live import LiveView
@@ -58,7 +58,7 @@ def demo_settings(out: Path, seed: int = 0) -> RunSettings:
     )
 
 
-def worker_specs(settings: RunSettings) -> dict[int, WorkerSpec]:
+def worker_specs(settings: RunSettings, device_url: str | None, run_id: str) -> dict[int, WorkerSpec]:
     """One spec per worker; worker K trains unit K of the fleet."""
     return {
         k: WorkerSpec(
@@ -71,6 +71,8 @@ def worker_specs(settings: RunSettings) -> dict[int, WorkerSpec]:
             max_rounds=settings.max_rounds,
             out=str(settings.out),
             overrides=dict(settings.overrides),
+            device_url=device_url,
+            device_run_id=run_id,
         )
         for k in range(settings.units)
     }
@@ -89,23 +91,44 @@ def actor_layout(settings: RunSettings) -> list[tuple[str, tuple[int, ...]]]:
 def train(settings: RunSettings) -> dict[str, Any]:
     """Run the whole training and return summary.json's content."""
     settings.validate()
-    specs = worker_specs(settings)
-    recorder = RunRecorder(Path(settings.out), settings.to_config(), sorted(specs))
+    run_id = f"run-{uuid.uuid4().hex[:8]}"
+    recorder = RunRecorder(Path(settings.out), settings.to_config(), list(range(settings.units)))
+    recorder.extra["run_id"] = run_id
     title = f"fleetrl {settings.mode} · {settings.env} × {settings.units} · preset {settings.preset}"
     threshold = get_env_spec(settings.env).completion_threshold
     try:
         with (
             run_logging(recorder.out / "logs" / "run.log", quiet=settings.live),
+            broker_url(settings) as url,
+            device_bridges(settings, url, run_id),
             LiveView(title, threshold, enabled=settings.live) as view,
         ):
+            device_url = url if settings.device_link == "mqtt" else None
+            specs = worker_specs(settings, device_url, run_id)
+            if url is not None:
+                recorder.extra["broker"] = url
             if settings.mode == "individual":
                 commands = {k: worker_command(s) for k, s in specs.items()}
                 follow(ProcessFleet(commands, recorder.out / "logs"), recorder, view)
             else:
-                train_federated(settings, specs, recorder, view)
+                fed_url = url if settings.transport == "mqtt" else None
+                train_federated(settings, specs, run_id, fed_url, recorder, view)
     finally:
         summary = recorder.finish()
     return summary
+
+
+@contextmanager
+def device_bridges(settings: RunSettings, url: str | None, run_id: str) -> Iterator[None]:
+    """One device bridge per unit (threads of this process) when workers reach their devices over MQTT."""
+    if settings.device_link != "mqtt":
+        yield
+        return
+    from fleetrl.link.fleet import start_bridges
+
+    assert url is not None, "a device link over MQTT needs a broker"
+    with start_bridges(url, run_id, settings.env, range(settings.units), settings.fleet_seed):
+        yield
 
 
 @contextmanager
@@ -139,33 +162,31 @@ def worker_command(spec: WorkerSpec, *extra: str) -> list[str]:
 
 
 def train_federated(
-    settings: RunSettings, specs: dict[int, WorkerSpec], recorder: RunRecorder, view: LiveView
+    settings: RunSettings,
+    specs: dict[int, WorkerSpec],
+    run_id: str,
+    url: str | None,
+    recorder: RunRecorder,
+    view: LiveView,
 ) -> None:
-    """Chief in a thread of this process; workers as processes (MQTT) or threads (local bus)."""
-    run_id = f"run-{uuid.uuid4().hex[:8]}"
+    """Chief in a thread of this process; workers as processes (MQTT at ``url``) or threads (local bus)."""
     chief = Chief(
         run_id=run_id,
         workers=[str(k) for k in specs],
         layout=actor_layout(settings),
         max_rounds=settings.max_rounds,
     )
-    recorder.extra["run_id"] = run_id
-    chief_log = (recorder.out / "logs").resolve()
-    chief_log.mkdir(parents=True, exist_ok=True)
-    with open(chief_log / "chief.log", "w") as log_file, broker_url(settings) as url:
-        recorder.extra["broker"] = url or "in-process bus"
-        make_transport, fleet_for = transports(settings, url, specs, run_id)
-
-        def on_event(event: ChiefEvent) -> None:
-            log_file.write(f"{event}\n")
-            log_file.flush()
-
-        outcome: dict[str, ChiefSummary | BaseException] = {}
+    make_transport, fleet_for = transports(settings, url, specs, run_id)
+    outcome: dict[str, ChiefSummary | BaseException] = {}
+    with open(recorder.out / "logs" / "chief.log", "w") as log_file:
 
         def chief_body() -> None:
             try:
                 outcome["chief"] = run_chief(
-                    chief, make_transport(), on_event=on_event, idle_timeout=CHIEF_IDLE_TIMEOUT
+                    chief,
+                    make_transport(),
+                    on_event=lambda event: print(event, file=log_file, flush=True),
+                    idle_timeout=CHIEF_IDLE_TIMEOUT,
                 )
             except BaseException as err:  # reported in summary.json, never lost in a thread
                 log.error("chief failed: %s", err)
@@ -190,8 +211,8 @@ def train_federated(
 
 @contextmanager
 def broker_url(settings: RunSettings) -> Iterator[str | None]:
-    """The broker to use: the given one, an embedded one for the run's lifetime, or none (local bus)."""
-    if settings.transport == "local":
+    """The broker to use: the given one, an embedded one for the run's lifetime, or none (nothing MQTT)."""
+    if not settings.needs_broker:
         yield None
     elif settings.broker:
         yield settings.broker

@@ -9,6 +9,7 @@ from fleetrl.envs.catalog import get_env_spec
 
 MODES = ("individual", "federated")
 TRANSPORTS = ("mqtt", "local")
+DEVICE_LINKS = ("inprocess", "mqtt")
 
 
 @dataclass
@@ -35,6 +36,8 @@ class RunSettings:
     """federated: ``mqtt`` (a real broker, workers in processes) or ``local`` (in-process bus, threads)"""
     broker: str | None = None
     """federated mode: ``mqtt://[user:pass@]host:port`` of an existing broker; none starts an embedded one"""
+    device_link: str = "inprocess"
+    """how workers reach their devices: ``inprocess`` or ``mqtt`` (one device bridge per unit)"""
     overrides: dict[str, Any] = field(default_factory=dict)
     """PPO config fields that replace the preset's"""
     live: bool = True
@@ -47,6 +50,8 @@ class RunSettings:
             raise ValueError(f"unknown mode {self.mode!r} (choose {' or '.join(MODES)})")
         if self.transport not in TRANSPORTS:
             raise ValueError(f"unknown transport {self.transport!r} (choose {' or '.join(TRANSPORTS)})")
+        if self.device_link not in DEVICE_LINKS:
+            raise ValueError(f"unknown device link {self.device_link!r} (choose {' or '.join(DEVICE_LINKS)})")
         if self.units < 1:
             raise ValueError(f"--units must be at least 1, got {self.units}")
         if self.max_rounds < 1:
@@ -65,6 +70,12 @@ class RunSettings:
             raise ValueError(f"unknown PPO setting(s) {sorted(unknown)} (known: {', '.join(sorted(ppo))})")
         ppo.update(self.overrides)
         return ppo
+
+    @property
+    def needs_broker(self) -> bool:
+        """Whether any part of the run talks MQTT."""
+        federated_mqtt = self.mode == "federated" and self.transport == "mqtt"
+        return federated_mqtt or self.device_link == "mqtt"
 
     def to_config(self) -> dict[str, Any]:
         """Everything that defines the run, for config.json (including the resolved PPO config)."""

@@ -29,6 +29,10 @@ class WorkerSpec:
     """the run directory"""
     overrides: dict[str, Any] = field(default_factory=dict)
     """PPO config fields that replace the preset's"""
+    device_url: str | None = None
+    """broker of the unit's device bridge; None: the device is simulated in-process"""
+    device_run_id: str = "default"
+    """run id under which the device bridge serves the unit's topics"""
 
     def to_json(self) -> str:
         """Serialise for a child process's command line."""
