@@ -83,13 +83,24 @@ def test_quorum_not_met_drops_the_silent_ones() -> None:
     assert c.members == ("1", "2") and [d[1] for d in c.dropouts] == ["3", "4"]
 
 
-def test_last_will_drops_a_worker_and_closes_a_round_waiting_only_for_it() -> None:
-    c = make()
+def test_last_will_drops_a_worker_after_its_grace_and_closes_a_round_waiting_only_for_it() -> None:
+    c = make(dropout_grace=3.0)
     send(c, grad("1", 1, [1, 1]))
     send(c, grad("2", 1, [3, 3]))
-    step = c.status("3", b"offline")
+    assert c.status("3", b"offline", now=10.0) == ChiefStep() and c.next_deadline() == 13.0
+    assert c.tick(12.9) == ChiefStep() and "3" in c.members
+    step = c.tick(13.0)
     assert kinds(step) == ["dropped", "averaged"] and c.members == ("1", "2")
-    assert "went offline" in str(step.events[0])
+    assert "went offline" in str(step.events[0]) and c.dropouts == [(1, "3", "went offline")]
+
+
+def test_a_worker_back_within_its_grace_is_not_dropped() -> None:
+    """A broker that shuts down publishes the wills of clients that are alive and will reconnect."""
+    c = make(dropout_grace=3.0)
+    send(c, grad("1", 1, [1, 1]), now=0)
+    c.status("2", b"offline", now=0.5)
+    send(c, grad("2", 1, [3, 3]), now=2.0)  # reconnected and re-sent
+    assert c.tick(10.0) == ChiefStep() and c.members == ("1", "2", "3") and c.dropouts == []
 
 
 def test_retained_offline_never_drops() -> None:
@@ -98,7 +109,7 @@ def test_retained_offline_never_drops() -> None:
 
 
 def test_rejoin_gets_the_open_round_and_the_last_transferred_parameters() -> None:
-    c = make()
+    c = make(dropout_grace=0.0)
     send(c, grad("1", 1, [1, 1]))
     send(c, grad("2", 1, [7, 8], kind="parameters"))
     c.status("3", status("3", b"offline", 1))  # worker 3 dies in round 1

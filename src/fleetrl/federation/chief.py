@@ -18,7 +18,9 @@ deadlines are tested without a broker. Round semantics (docs/protocol.md has the
 
 Reliability (issue 7):
 
-* Dropout: a worker whose live status turns ``offline`` (its last will, or a goodbye) leaves W; with a
+* Dropout: a worker whose live status turns ``offline`` (its last will, or a goodbye) leaves W unless it
+  comes back (a message, or ``online``) within ``dropout_grace`` seconds — a broker that shuts down publishes
+  the wills of clients that only lose their connection; with a
   ``round_timeout``, a worker silent past the deadline leaves W when too few answered to make the quorum.
 * Stragglers: with ``quorum`` q < 1, at the deadline the round closes with the answers so far if at least
   ⌈q·|W|⌉ members answered; the others stay in W and their late messages are stale.
@@ -65,6 +67,7 @@ class Chief:
     :param round_timeout: seconds a round may stay open before the deadline rules apply; None waits forever
         (the paper's fully synchronous rule).
     :param resend_holdoff: least seconds between two re-sends of the last answer to one worker.
+    :param dropout_grace: seconds an ``offline`` worker has to come back before it leaves W (0: at once).
     :param key: the fleet key; if given, only messages and statuses signed with it are accepted.
     """
 
@@ -80,6 +83,7 @@ class Chief:
         quorum: float = 1.0,
         round_timeout: float | None = None,
         resend_holdoff: float = 1.0,
+        dropout_grace: float = 3.0,
         key: FleetKey | None = None,
     ) -> None:
         """Create the chief with W = ``workers`` and round 1 open."""
@@ -103,6 +107,8 @@ class Chief:
         self.quorum = quorum
         self.round_timeout = round_timeout
         self.resend_holdoff = resend_holdoff
+        self.dropout_grace = dropout_grace
+        self._suspects: dict[str, float] = {}  # went offline → leaves W at this time unless it comes back
         self.key = key
         self._members: set[str] = set(self.all_workers)
         self._left: set[str] = set()  # sent parameters: out of W for good
@@ -149,10 +155,13 @@ class Chief:
         return self._end_reason
 
     def next_deadline(self) -> float | None:
-        """When :meth:`tick` may next change something (the open round's deadline), or None."""
-        if self.round_timeout is None or self.finished or self._opened_at is None:
+        """When :meth:`tick` may next change something (a round deadline, a grace running out), or None."""
+        if self.finished:
             return None
-        return self._opened_at + self.round_timeout
+        times = list(self._suspects.values())
+        if self.round_timeout is not None and self._opened_at is not None:
+            times.append(self._opened_at + self.round_timeout)
+        return min(times, default=None)
 
     def receive_bytes(
         self, payload: bytes, *, topic_worker: str | None = None, now: float = 0.0
@@ -201,6 +210,7 @@ class Chief:
         if sender in self._pending:
             return self._reject(sender, Reason.DUPLICATE, f"{message.type} for round {rnd}")
         step = self._rejoin(sender, f"sent {message.type} for round {rnd}")
+        self._suspects.pop(sender, None)
         self._pending[sender] = message
         step += ChiefStep(events=(ChiefEvent("accepted", self._round, sender=sender, detail=message.type),))
         if self._members.issubset(self._pending):
@@ -232,7 +242,8 @@ class Chief:
         if status.state == "offline":
             if retained or worker not in self._members:
                 return ChiefStep()
-            return self._drop([worker], OFFLINE_DROP) + self._maybe_close(now)
+            self._suspects[worker] = now + self.dropout_grace
+            return self.tick(now)
         step = ChiefStep() if retained else self._rejoin(worker, "came back online")
         model = self._model
         welcome = Message(
@@ -245,21 +256,28 @@ class Chief:
         )
 
     def tick(self, now: float) -> ChiefStep:
-        """Apply the round deadline at time ``now`` (nothing happens before it, or without ``round_timeout``).
+        """Apply the deadlines at time ``now``: offline workers whose grace ran out leave W; then the round
+        deadline (nothing happens before it, or without ``round_timeout``).
 
         At the deadline, if nobody answered, the chief keeps waiting (it may be cut off from everyone). If at
         least ⌈quorum·|W|⌉ members answered, the round closes with them and the others stay in W as
         stragglers. Otherwise the silent members leave W and the round closes with the answers it has.
         """
         self._start_clock(now)
-        deadline = self.next_deadline()
-        if deadline is None or now < deadline or not self._pending:
-            return ChiefStep()
+        step = ChiefStep()
+        gone = sorted_workers(w for w, t in self._suspects.items() if t <= now)
+        for worker in gone:
+            del self._suspects[worker]
+        if gone:
+            step = self._drop([w for w in gone if w in self._members], OFFLINE_DROP) + self._maybe_close(now)
+        timeout, opened = self.round_timeout, self._opened_at
+        if self.finished or timeout is None or opened is None or now < opened + timeout or not self._pending:
+            return step
         answered_members = self._members & set(self._pending)
         silent = self._members - answered_members
         if len(answered_members) >= math.ceil(self.quorum * len(self._members) - 1e-9):
-            return self._close_round(now)
-        return self._drop(sorted_workers(silent), DEADLINE_DROP) + self._close_round(now)
+            return step + self._close_round(now)
+        return step + self._drop(sorted_workers(silent), DEADLINE_DROP) + self._close_round(now)
 
     def _start_clock(self, now: float) -> None:
         if self._opened_at is None:
@@ -292,6 +310,7 @@ class Chief:
         return ChiefStep(events=tuple(events))
 
     def _rejoin(self, worker: str, why: str) -> ChiefStep:
+        self._suspects.pop(worker, None)
         if worker in self._members or worker in self._left:
             return ChiefStep()
         self._members.add(worker)

@@ -88,7 +88,7 @@ def run_chief(
         transport.subscribe(worker_filter(run_id))
         transport.subscribe(status_filter(run_id))
         # after subscribing: workers may send once they see it
-        transport.publish(own_status, status(ONLINE), retain=True)
+        transport.announce(own_status, status(ONLINE))
         members = ",".join(chief.members)
         log.info(
             "chief of run %s online: W={%s}, M=%d, %s",

@@ -194,7 +194,7 @@ class FederatedWorker:
         try:
             self.transport.subscribe(self._chief_topic)
             self.transport.subscribe(self._chief_status)
-            self.transport.publish(self._own_status, self._status(ONLINE), retain=True)
+            self.transport.announce(self._own_status, self._status(ONLINE))
             welcome = self._wait_for(lambda m: m.type in ("welcome", "done"), "the chief's welcome", None)
             summary = self._rounds(welcome)
             self.transport.publish(self._own_status, self._status(OFFLINE), retain=True)

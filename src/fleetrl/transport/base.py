@@ -56,6 +56,11 @@ class Transport(Protocol):
         """The next queued message, waiting at most ``timeout`` seconds (None: forever); None on timeout."""
         ...
 
+    def announce(self, topic: str, payload: bytes) -> None:
+        """Publish ``payload`` retained on ``topic`` now and again after every reconnect (a node's ``online``
+        status, so the others learn it is back after a broker restart)."""
+        ...
+
     def close(self) -> None:
         """Disconnect cleanly after sending what was published (the will is not published)."""
         ...

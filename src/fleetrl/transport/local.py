@@ -88,6 +88,10 @@ class LocalTransport:
             raise ConnectionError("publish before connect")
         self._bus.publish(topic, payload, retain=retain)
 
+    def announce(self, topic: str, payload: bytes) -> None:
+        """Publish retained (the bus never drops a client, so there is no reconnect to repeat it after)."""
+        self.publish(topic, payload, retain=True)
+
     def subscribe(self, topic_filter: str, *, qos: int = 1) -> None:
         """Receive messages matching ``topic_filter``; retained ones are delivered at once."""
         if self._client_id is None:

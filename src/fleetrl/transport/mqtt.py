@@ -104,6 +104,7 @@ class MqttTransport:
         self._key_file = key_file
         self._queue: queue.Queue[Received] = queue.Queue()
         self._filters: dict[str, int] = {}
+        self._announced: dict[str, bytes] = {}
         self._lock = threading.Lock()
         self._connected = threading.Event()
         self._refused: str | None = None
@@ -150,8 +151,14 @@ class MqttTransport:
             raise ConnectionError(f"publish to {topic} failed: {paho.error_string(info.rc)}")
         if qos > 0:
             with self._lock:
-                self._unacked = [i for i in self._unacked if not i.is_published()]
+                self._unacked = [i for i in self._unacked if not _settled(i)]
                 self._unacked.append(info)
+
+    def announce(self, topic: str, payload: bytes) -> None:
+        """Publish retained now and after every reconnect (once subscriptions are renewed)."""
+        with self._lock:
+            self._announced[topic] = payload
+        self.publish(topic, payload, retain=True)
 
     def subscribe(self, topic_filter: str, *, qos: int = 1) -> None:
         """Subscribe now and again after every reconnect."""
@@ -206,8 +213,11 @@ class MqttTransport:
             sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
         with self._lock:
             filters = list(self._filters.items())
+            announced = list(self._announced.items())
         for topic_filter, qos in filters:
             client.subscribe(topic_filter, qos=qos)
+        for topic, payload in announced:
+            client.publish(topic, payload, qos=1, retain=True)
         self._connected.set()
 
     def _on_disconnect(
@@ -219,3 +229,13 @@ class MqttTransport:
 
     def _on_message(self, client: paho.Client, userdata: Any, message: paho.MQTTMessage) -> None:
         self._queue.put(Received(message.topic, bytes(message.payload), retained=bool(message.retain)))
+
+
+def _settled(info: paho.MQTTMessageInfo) -> bool:
+    """Whether a QoS 1 publish needs no more waiting: acknowledged, or queued while disconnected (paho then
+    reports ``not connected`` but sends it after reconnecting; the roles' resends cover a broker that lost
+    it)."""
+    try:
+        return info.is_published()
+    except (RuntimeError, ValueError):
+        return True

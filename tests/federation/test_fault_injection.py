@@ -1,0 +1,170 @@
+"""Must show (issue 7): a killed worker, a restarted broker and a slow worker do not cost the run."""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import threading
+import time
+from collections.abc import Callable
+from pathlib import Path
+from typing import IO, Any
+
+import pytest
+
+from fleetrl.federation.chief import Chief, ChiefEvent
+from fleetrl.federation.runner import ChiefSummary, run_chief
+from fleetrl.transport.broker import EmbeddedBroker, find_mosquitto
+from fleetrl.transport.local import LocalBus
+from fleetrl.transport.mqtt import MqttTransport
+
+HERE = Path(__file__).resolve().parent
+needs_mosquitto = pytest.mark.skipif(find_mosquitto() is None, reason="mosquitto not installed")
+
+
+class WorkerProcess:
+    """A fake-learner worker process whose printed rounds are read on a thread."""
+
+    def __init__(self, url: str, run_id: str, worker_id: str, max_rounds: int, pause: float) -> None:
+        argv = [sys.executable, str(HERE / "fake_worker_process.py"), url, run_id, worker_id, worker_id]
+        self.proc = subprocess.Popen(
+            [*argv, str(max_rounds), str(pause)],
+            stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True, start_new_session=True,
+        )  # fmt: skip
+        self.lines: list[str] = []
+        assert self.proc.stdout is not None
+        threading.Thread(target=self._read, args=(self.proc.stdout,), daemon=True).start()
+
+    def _read(self, stdout: IO[str]) -> None:
+        for line in stdout:
+            self.lines.append(line.strip())
+
+    def rounds(self) -> list[int]:
+        return [int(line.split()[1]) for line in self.lines if line.startswith("round ")]
+
+    def wait_for_round(self, rnd: int, timeout: float = 30.0) -> None:
+        deadline = time.monotonic() + timeout
+        while max(self.rounds(), default=0) < rnd:
+            assert time.monotonic() < deadline, f"worker stuck at {self.lines[-3:]}"
+            time.sleep(0.02)
+
+    def stop(self) -> int:
+        try:
+            return self.proc.wait(timeout=30)
+        finally:
+            if self.proc.poll() is None:
+                self.proc.kill()
+
+
+@pytest.mark.mqtt
+@pytest.mark.timeout(90)
+@needs_mosquitto
+def test_kill_9_of_a_worker_then_rejoin_with_the_same_id(fake_learner: Any) -> None:
+    """The run completes; the summary records the dropout; the restarted worker rejoins at the open round."""
+    run_id, rounds = "kill9", 40
+    layout = fake_learner(0).agent.actor_layout()
+    chief = Chief(run_id=run_id, workers=["1", "2", "3"], layout=layout, max_rounds=rounds)
+    events: list[ChiefEvent] = []
+    outcome: dict[str, ChiefSummary] = {}
+    with EmbeddedBroker("mosquitto") as broker:
+
+        def serve() -> None:
+            transport = MqttTransport(broker.url, reconnect_delay=(1, 2))
+            outcome["chief"] = run_chief(chief, transport, on_event=events.append, idle_timeout=30)
+
+        thread = threading.Thread(target=serve, daemon=True)
+        thread.start()
+        workers = {w: WorkerProcess(broker.url, run_id, w, rounds, 0.05) for w in ("1", "2", "3")}
+        try:
+            workers["3"].wait_for_round(5)
+            os.kill(workers["3"].proc.pid, signal.SIGKILL)
+            assert workers["3"].stop() == -signal.SIGKILL
+            deadline = time.monotonic() + 10
+            while not chief.dropouts:
+                assert time.monotonic() < deadline, "the chief did not notice the dead worker"
+                time.sleep(0.02)
+            assert chief.members == ("1", "2")
+            reborn = WorkerProcess(broker.url, run_id, "3", rounds, 0.05)
+            reborn.wait_for_round(chief.round + 1)
+            codes = [workers["1"].stop(), workers["2"].stop(), reborn.stop()]
+        finally:
+            for w in workers.values():
+                if w.proc.poll() is None:
+                    w.proc.kill()
+        thread.join(30)
+    summary = outcome["chief"]
+    assert codes == [0, 0, 0]
+    assert summary.end_reason == f"reached M={rounds} rounds" and summary.rounds == rounds
+    ((drop_round, who, why),) = summary.dropouts
+    assert who == "3" and why == "went offline" and drop_round >= 5
+    ((rejoin_round, again),) = summary.rejoins
+    assert again == "3" and reborn.rounds()[0] == rejoin_round  # it starts at the chief's open round
+    assert reborn.rounds() == list(range(rejoin_round, rounds + 1))
+    assert workers["1"].rounds() == list(range(1, rounds + 1))
+
+
+@pytest.mark.mqtt
+@pytest.mark.timeout(90)
+@needs_mosquitto
+def test_broker_stopped_and_restarted_mid_run(
+    fleet_runner: Callable[..., Any], fake_fleet: Callable[..., dict[str, Any]]
+) -> None:
+    """Every role reconnects and the run gives exactly the local bus's rounds: none lost, none doubled."""
+    local = fleet_runner(LocalBus().client, fake_fleet(), max_rounds=10)
+    chiefs: list[Chief] = []
+    restarted: list[bool] = []
+    with EmbeddedBroker("mosquitto") as broker:
+        url = broker.url
+
+        def outage() -> None:
+            deadline = time.monotonic() + 30
+            while not chiefs or chiefs[0].round < 3:
+                if time.monotonic() > deadline:
+                    return
+                time.sleep(0.01)
+            broker.close()
+            time.sleep(0.5)
+            broker.start()
+            restarted.append(chiefs[0].round < 10)
+
+        thread = threading.Thread(target=outage)
+        thread.start()
+        remote = fleet_runner(
+            lambda: MqttTransport(url, reconnect_delay=(1, 2)),
+            fake_fleet(pause=0.1),
+            run_id="outage",
+            max_rounds=10,
+            timeout=40,
+            on_chief=chiefs.append,
+            chief_kwargs={"resend_holdoff": 0.5},
+            worker_kwargs={"resend_interval": 1.0},
+        )
+        thread.join(30)
+    assert restarted == [True], "the broker was not restarted mid-run"
+    assert remote.records == local.records
+    assert remote.chief.end_reason == "reached M=10 rounds" and remote.chief.dropouts == ()
+
+
+@pytest.mark.timeout(60)
+def test_a_worker_ten_times_slower_does_not_slow_the_rounds_with_a_quorum(
+    fleet_runner: Callable[..., Any], fake_learner: Any
+) -> None:
+    rounds, fast, slow = 15, 0.02, 0.3
+    learners = {w: fake_learner(int(w), None, slow if w == "3" else fast) for w in ("1", "2", "3")}
+    started = time.monotonic()
+    result = fleet_runner(
+        LocalBus().client,
+        learners,
+        max_rounds=rounds,
+        chief_kwargs={"quorum": 0.6, "round_timeout": 0.08},
+    )
+    elapsed = time.monotonic() - started
+    assert result.chief.end_reason == f"reached M={rounds} rounds" and result.chief.dropouts == ()
+    assert elapsed < 0.5 * rounds * slow  # the synchronous rule would take ≥ rounds × slow
+    averaged = [e for e in result.events if e.kind == "averaged"]
+    assert len(averaged) == rounds
+    assert sum("3" in e.averaged for e in averaged) <= 3 and all("1" in e.averaged for e in averaged)
+    assert [r.event for r in result.records["3"]].count("late") >= 1
+    assert len(result.records["1"]) == rounds and len(result.records["3"]) < rounds
