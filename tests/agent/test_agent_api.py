@@ -1,6 +1,7 @@
 """What the federation uses: actor layout, last gradient, gradient through Adam, get/set parameters."""
 
 import dataclasses
+from typing import Any
 
 import numpy as np
 import pytest
@@ -12,8 +13,9 @@ from fleetrl.agent.ppo import PPOAgent
 OBS_DIM, N_ACTIONS = 4, 3
 
 
-def agent_with_memory(preset: str = "paper", seed: int = 0, n: int = 100) -> PPOAgent:
-    agent = PPOAgent(OBS_DIM, N_ACTIONS, get_preset(preset), seed=seed)
+def agent_with_memory(preset: str = "paper", seed: int = 0, n: int = 100, **overrides: Any) -> PPOAgent:
+    config = dataclasses.replace(get_preset(preset), **overrides)
+    agent = PPOAgent(OBS_DIM, N_ACTIONS, config, seed=seed)
     rng = np.random.default_rng(seed)
     obs = rng.normal(size=OBS_DIM).astype(np.float32)
     for i in range(n):
@@ -121,3 +123,18 @@ def test_trunk_split_decides_who_moves_the_trunk(split: TrunkSplit) -> None:
     assert trunk <= actor_of  # θ always holds the trunk: the shared gradient covers it
     assert (trunk <= critic_of) == (split == "shared")
     assert id(agent.net.value.weight) in critic_of and id(agent.net.value.weight) not in actor_of
+
+
+@pytest.mark.parametrize(
+    "overrides",
+    [
+        {"trunk_split": "actor"},
+        {"gae_scope": "memory", "critic_target": "gae"},
+        {"old_policy": "behaviour", "normalise_advantages": True, "entropy_coef": 0.01},
+        {"critic_loss": "mse", "max_grad_norm": 0.5, "activation": "relu"},
+    ],
+)
+def test_every_option_updates(overrides: dict[str, Any]) -> None:
+    agent = agent_with_memory(**overrides)
+    stats = agent.update()
+    assert np.isfinite(stats.actor_loss) and np.isfinite(agent.actor_gradient()).all()

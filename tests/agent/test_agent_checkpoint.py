@@ -69,3 +69,19 @@ def test_load_weights_into_another_architecture_is_refused(tmp_path: Path) -> No
     same = PPOAgent(4, 2, get_preset("standard"), seed=9)
     same.load_weights(path)
     assert np.array_equal(same.actor_parameters(), PPOAgent.load(path).actor_parameters())
+
+
+def test_tensors_that_do_not_fit_the_stated_architecture(tmp_path: Path) -> None:
+    agent, path = saved(tmp_path)
+    small = PPOAgent(4, 2, dataclasses.replace(get_preset("standard"), hidden=(8, 8, 8)), seed=0)
+    small_path = tmp_path / "small.safetensors"
+    small.save(small_path)
+    # graft the small network's tensors under the big model's metadata
+    from fleetrl.agent.checkpoint import read_checkpoint, write_checkpoint
+
+    tensors, _ = read_checkpoint(small_path)
+    _, metadata = read_checkpoint(path)
+    write_checkpoint(path, tensors, metadata)
+    with pytest.raises(CheckpointError, match=r"does not fit this architecture: trunk.0.weight has shape"):
+        PPOAgent.load(path)
+    assert agent.actor_size() > small.actor_size()

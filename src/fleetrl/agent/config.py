@@ -118,7 +118,17 @@ PRESETS: dict[str, PPOConfig] = {
     # Table 1 exactly; the choices the paper leaves open take their literal reading (docs/algorithm.md).
     "paper": PPOConfig(),
     # clip 0.2 plus what measurement on CartPole showed to learn faster (docs/algorithm.md, "Presets").
-    "standard": PPOConfig(clip_eps=0.2),
+    "standard": PPOConfig(
+        clip_eps=0.2,
+        gamma=0.98,
+        old_policy="behaviour",
+        gae_scope="memory",
+        critic_target="gae",
+        normalise_advantages=True,
+        n_optimisations=20,
+        memory_size=1000,
+        batch_size=128,
+    ),
 }
 
 
