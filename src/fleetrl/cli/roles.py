@@ -1,6 +1,7 @@
-"""The roles of a run spread over several machines: ``fleetrl broker``, ``fleetrl chief``, ``fleetrl worker``.
+"""The roles of a run spread over several machines: ``fleetrl broker``, ``fleetrl chief``, ``fleetrl worker``,
+and ``fleetrl secure-config`` (a mosquitto config with logins, per-role ACLs, TLS and a fleet key).
 
-See docs/deploy.md. Start order does not matter: workers wait for the chief's retained ``online`` status.
+See docs/deploy.md and docs/security.md. Start order does not matter: workers wait for the chief's welcome.
 """
 
 import argparse
@@ -20,7 +21,27 @@ def register(sub: Any) -> None:
     broker = sub.add_parser("broker", help="run an embedded MQTT broker on 127.0.0.1 and print its URL")
     broker.add_argument("--prefer", default="auto", help="auto (mosquitto if installed), mosquitto or amqtt")
     broker.add_argument("--port", type=int, default=None, help="port (default: a free one)")
+    broker.add_argument(
+        "--secure",
+        type=Path,
+        default=None,
+        metavar="DIR",
+        help="run mosquitto with DIR/mosquitto.conf written by `fleetrl secure-config` (login, ACLs, TLS)",
+    )
     broker.set_defaults(handler=cmd_broker)
+
+    secure = sub.add_parser(
+        "secure-config", help="write a secure mosquitto config (passwords, per-role ACLs, TLS, fleet key)"
+    )
+    secure.add_argument(
+        "dir", type=Path, help="directory to write mosquitto.conf, passwd, acl, fleet.key into"
+    )
+    secure.add_argument("--workers", type=int, required=True, help="N: MQTT users for worker ids 0 … N-1")
+    secure.add_argument("--port", type=int, default=8883, help="listener port (default 8883)")
+    secure.add_argument("--host", default="127.0.0.1", help="the broker's address as clients use it")
+    secure.add_argument("--bind", default=None, help="address to listen on (default: --host)")
+    secure.add_argument("--no-tls", action="store_true", help="plain MQTT (logins travel in clear text)")
+    secure.set_defaults(handler=cmd_secure_config)
 
     chief = sub.add_parser("chief", help="serve as the chief of a federated run (Algorithm 1)")
     add_run_arguments(chief)
@@ -28,6 +49,29 @@ def register(sub: Any) -> None:
     chief.add_argument("--out", type=Path, default=None, help="write chief.json and chief.log here")
     chief.add_argument(
         "--idle-timeout", type=float, default=600.0, help="give up after this many idle seconds"
+    )
+    chief.add_argument(
+        "--quorum",
+        type=float,
+        default=1.0,
+        help="at the round deadline, close the round if this fraction of W answered (needs --round-timeout)",
+    )
+    chief.add_argument(
+        "--round-timeout",
+        type=float,
+        default=None,
+        help="round deadline in seconds (default: none, the paper's fully synchronous rule)",
+    )
+    chief.add_argument(
+        "--aggregation",
+        default="mean",
+        help="mean (the paper's), median, trimmed_mean[:β], clipped_mean[:C]",
+    )
+    chief.add_argument(
+        "--dropout-grace",
+        type=float,
+        default=3.0,
+        help="seconds a worker that went offline has to come back before it leaves W",
     )
     chief.set_defaults(handler=cmd_chief)
 
@@ -39,6 +83,12 @@ def register(sub: Any) -> None:
     worker.add_argument("--fleet-seed", type=int, default=0, help="seed of the fleet's per-unit dynamics")
     worker.add_argument("--out", type=Path, required=True, help="this worker's run directory")
     worker.add_argument("--reply-timeout", type=float, default=600.0, help="seconds to wait for the chief")
+    worker.add_argument(
+        "--resend-interval",
+        type=float,
+        default=5.0,
+        help="re-send the round's message after this many seconds without an answer",
+    )
     worker.set_defaults(handler=cmd_worker)
 
 
@@ -46,6 +96,14 @@ def add_run_arguments(p: argparse.ArgumentParser) -> None:
     """Options the chief and every worker must agree on."""
     p.add_argument("--broker", required=True, help="mqtt://[user:pass@]host:port or mqtts://…")
     p.add_argument("--ca-file", default=None, help="CA certificate for mqtts://")
+    p.add_argument("--client-cert", default=None, help="client certificate for mqtts:// (optional)")
+    p.add_argument("--client-key", default=None, help="the client certificate's private key")
+    p.add_argument(
+        "--fleet-key-file",
+        type=Path,
+        default=None,
+        help="sign and verify every federation message with this key (HMAC-SHA256; all roles share it)",
+    )
     p.add_argument("--run-id", required=True, help="the run's id (a topic level shared by all roles)")
     p.add_argument("--env", default="qube", help="qube or cartpole")
     p.add_argument("--preset", default="paper", help="PPO preset: paper or standard")
@@ -61,11 +119,18 @@ def add_run_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def cmd_broker(args: argparse.Namespace) -> int:
-    """Run the embedded broker until Ctrl-C."""
+    """Run the embedded broker (or mosquitto with a secure config) until Ctrl-C."""
     from fleetrl.transport.broker import EmbeddedBroker
 
-    with EmbeddedBroker(args.prefer, port=args.port) as broker:
-        print(f"{broker.kind} broker listening: {broker.url}   (Ctrl-C stops it)", flush=True)
+    config = None
+    if args.secure is not None:
+        config = (args.secure / "mosquitto.conf").resolve()
+        if not config.is_file():
+            raise FileNotFoundError(f"{config} not found: run `fleetrl secure-config {args.secure}` first")
+        args.port = _listener_port(config)
+    with EmbeddedBroker("mosquitto" if config else args.prefer, port=args.port, config=config) as broker:
+        where = f"{config} on port {broker.port}" if config else broker.url
+        print(f"{broker.kind} broker listening: {where}   (Ctrl-C stops it)", flush=True)
         try:
             while True:
                 time.sleep(3600)
@@ -73,10 +138,48 @@ def cmd_broker(args: argparse.Namespace) -> int:
             return 0
 
 
+def _listener_port(config: Path) -> int:
+    for line in config.read_text().splitlines():
+        if line.startswith("listener "):
+            return int(line.split()[1])
+    raise ValueError(f"{config} has no listener line")
+
+
+def cmd_secure_config(args: argparse.Namespace) -> int:
+    """Write the secure config and print each role's broker URL (with its password) once."""
+    from fleetrl.transport.secure import write_secure_config
+
+    if args.workers < 1:
+        raise ValueError(f"--workers must be at least 1, got {args.workers}")
+    fleet = write_secure_config(
+        args.dir,
+        workers=[str(k) for k in range(args.workers)],
+        port=args.port,
+        host=args.host,
+        bind=args.bind,
+        self_signed_tls=not args.no_tls,
+    )
+    print(f"wrote {fleet.config}, passwd, acl, fleet.key, credentials.json in {fleet.directory}")
+    print(f"start the broker:  fleetrl broker --secure {fleet.directory}")
+    extra = f" --ca-file {fleet.ca_file}" if fleet.ca_file else ""
+    for user in fleet.passwords:
+        role = "chief" if user == "chief" else f"worker --worker-id {user}"
+        print(f"  {role}: --broker '{fleet.url(user)}'{extra} --fleet-key-file {fleet.key_file}")
+    return 0
+
+
 def _transport(args: argparse.Namespace) -> Any:
     from fleetrl.transport.mqtt import MqttTransport
 
-    return MqttTransport(args.broker, ca_file=args.ca_file)
+    return MqttTransport(
+        args.broker, ca_file=args.ca_file, cert_file=args.client_cert, key_file=args.client_key
+    )
+
+
+def _key(args: argparse.Namespace) -> Any:
+    from fleetrl.federation.signing import FleetKey
+
+    return None if args.fleet_key_file is None else FleetKey.from_file(args.fleet_key_file)
 
 
 def cmd_chief(args: argparse.Namespace) -> int:
@@ -104,6 +207,11 @@ def cmd_chief(args: argparse.Namespace) -> int:
         workers=[str(k) for k in range(args.workers)],
         layout=actor_layout(settings),
         max_rounds=args.max_rounds,
+        aggregator=args.aggregation,
+        quorum=args.quorum,
+        round_timeout=args.round_timeout,
+        dropout_grace=args.dropout_grace,
+        key=_key(args),
     )
     events: list[str] = []
     summary = run_chief(
@@ -115,6 +223,8 @@ def cmd_chief(args: argparse.Namespace) -> int:
         "end_reason": summary.end_reason,
         "transfers": [{"round": r, "from": o, "to": list(t)} for r, o, t in summary.transfers],
         "rejections": {str(k): v for k, v in summary.rejections.items()},
+        "dropouts": [{"round": r, "worker": w, "reason": why} for r, w, why in summary.dropouts],
+        "rejoins": [{"round": r, "worker": w} for r, w in summary.rejoins],
     }
     if args.out is not None:
         args.out.mkdir(parents=True, exist_ok=True)
@@ -167,7 +277,13 @@ def cmd_worker(args: argparse.Namespace) -> int:
     recorder = RunRecorder(args.out, config, [args.worker_id])
     try:
         outcome = train_federated(
-            spec, _transport(args), args.run_id, recorder.add, reply_timeout=args.reply_timeout
+            spec,
+            _transport(args),
+            args.run_id,
+            recorder.add,
+            reply_timeout=args.reply_timeout,
+            resend_interval=args.resend_interval,
+            key=_key(args),
         )
         recorder.extra["worker"] = {
             "rounds": outcome.rounds,

@@ -11,6 +11,7 @@ from pathlib import Path
 
 from fleetrl.agent.learner import Learner, RoundResult
 from fleetrl.federation import worker as federation_worker
+from fleetrl.federation.signing import FleetKey
 from fleetrl.federation.worker import FederatedWorker, WorkerSummary
 from fleetrl.runs.factory import make_learner
 from fleetrl.runs.records import RoundRecord
@@ -88,6 +89,8 @@ def train_federated(
     *,
     reply_timeout: float | None = 600.0,
     learner: Learner | None = None,
+    resend_interval: float | None = 5.0,
+    key: FleetKey | None = None,
 ) -> WorkerSummary:
     """Federated mode (Algorithm 2): one worker of run ``run_id`` over ``transport``; save the model."""
     learner = learner or make_learner(spec)
@@ -100,6 +103,8 @@ def train_federated(
         max_rounds=spec.max_rounds,
         on_record=lambda record: emit(federated_record(spec.worker, record, started)),
         reply_timeout=reply_timeout,
+        resend_interval=resend_interval,
+        key=key,
     )
     try:
         return worker.run()
