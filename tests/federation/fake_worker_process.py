@@ -27,7 +27,7 @@ def main(argv: list[str]) -> int:
 
     worker = FederatedWorker(
         FakeLearner(int(seed), None, float(pause)),
-        MqttTransport(url, reconnect_delay=(1, 2)),
+        MqttTransport(url, reconnect_delay=(1, 2), clean_session=False),
         run_id=run_id,
         worker_id=worker_id,
         max_rounds=int(max_rounds),

@@ -71,7 +71,7 @@ def test_kill_9_of_a_worker_then_rejoin_with_the_same_id(fake_learner: Any) -> N
     with EmbeddedBroker("mosquitto") as broker:
 
         def serve() -> None:
-            transport = MqttTransport(broker.url, reconnect_delay=(1, 2))
+            transport = MqttTransport(broker.url, reconnect_delay=(1, 2), clean_session=False)
             outcome["chief"] = run_chief(chief, transport, on_event=events.append, idle_timeout=30)
 
         thread = threading.Thread(target=serve, daemon=True)
@@ -132,7 +132,7 @@ def test_broker_stopped_and_restarted_mid_run(
         thread = threading.Thread(target=outage)
         thread.start()
         remote = fleet_runner(
-            lambda: MqttTransport(url, reconnect_delay=(1, 2)),
+            lambda: MqttTransport(url, reconnect_delay=(1, 2), clean_session=False),
             fake_fleet(pause=0.1),
             run_id="outage",
             max_rounds=10,
@@ -162,7 +162,7 @@ def test_a_worker_ten_times_slower_does_not_slow_the_rounds_with_a_quorum(
     )
     elapsed = time.monotonic() - started
     assert result.chief.end_reason == f"reached M={rounds} rounds" and result.chief.dropouts == ()
-    assert elapsed < 0.5 * rounds * slow  # the synchronous rule would take ≥ rounds × slow
+    assert elapsed < 0.7 * rounds * slow  # the synchronous rule would take ≥ rounds × slow
     averaged = [e for e in result.events if e.kind == "averaged"]
     assert len(averaged) == rounds
     assert sum("3" in e.averaged for e in averaged) <= 3 and all("1" in e.averaged for e in averaged)

@@ -172,7 +172,11 @@ def _transport(args: argparse.Namespace) -> Any:
     from fleetrl.transport.mqtt import MqttTransport
 
     return MqttTransport(
-        args.broker, ca_file=args.ca_file, cert_file=args.client_cert, key_file=args.client_key
+        args.broker,
+        ca_file=args.ca_file,
+        cert_file=args.client_cert,
+        key_file=args.client_key,
+        clean_session=False,  # persistent session under the role's fixed client id
     )
 
 

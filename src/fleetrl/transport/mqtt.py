@@ -2,9 +2,10 @@
 
 TCP_NODELAY is set on the socket in ``on_connect`` (without it QoS 1 round trips stall 44–88 ms on Nagle; see
 docs/protocol.md). paho's network thread reconnects with exponential backoff; subscriptions are renewed on
-every connect and QoS 1 messages published while disconnected are sent after reconnecting. Sessions are
-persistent by default (``clean_session`` False with the roles' fixed client ids), so a broker that keeps
-sessions queues QoS 1 messages for a client while it is away.
+every connect and QoS 1 messages published while disconnected are sent after reconnecting. The federation
+roles ask for persistent sessions (``clean_session=False`` with their fixed client ids), so a broker that keeps
+sessions queues QoS 1 messages for them while they are away; the default stays a clean session (a device
+link must not receive stale commands queued while it was away).
 """
 
 from __future__ import annotations
@@ -77,8 +78,8 @@ class MqttTransport:
     :param ca_file: CA certificate file for ``mqtts`` (None: the system's CAs).
     :param keepalive: MQTT keep-alive in seconds; the broker publishes the will after 1.5× this of silence.
     :param reconnect_delay: (min, max) seconds of exponential reconnect backoff.
-    :param clean_session: False (default) asks the broker to keep the session (subscriptions, queued QoS 1
-        messages) across disconnects; True starts afresh on every connect.
+    :param clean_session: True (default) starts afresh on every connect; False asks the broker to keep the
+        session (subscriptions, queued QoS 1 messages) across disconnects — what the federation roles use.
     :param cert_file: client certificate for ``mqtts`` (optional; with ``key_file``).
     :param key_file: the client certificate's private key.
     """
@@ -90,7 +91,7 @@ class MqttTransport:
         ca_file: str | None = None,
         keepalive: int = 30,
         reconnect_delay: tuple[int, int] = (1, 30),
-        clean_session: bool = False,
+        clean_session: bool = True,
         cert_file: str | None = None,
         key_file: str | None = None,
     ) -> None:
