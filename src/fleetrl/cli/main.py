@@ -81,6 +81,15 @@ def build_parser() -> argparse.ArgumentParser:
     homogeneity.add_argument("--seed", type=int, default=0, help="seed of the impulse directions")
     homogeneity.add_argument("--out", type=Path, default=None, help="directory for the CSV matrices")
     homogeneity.set_defaults(handler=cmd_homogeneity)
+    experiment = sub.add_parser(
+        "experiment", help="reproduce the paper's figures and tables; writes report.md"
+    )
+    experiment.add_argument("name", help="fig5, fig6, cartpole-scaling, table2, peers, or all")
+    experiment.add_argument("--seeds", type=int, default=5, help="how many seeds (default 5)")
+    experiment.add_argument("--first-seed", type=int, default=0)
+    experiment.add_argument("--out", type=Path, default=Path("runs/experiments"))
+    experiment.add_argument("--quick", action="store_true", help="tiny budgets: checks the pipeline only")
+    experiment.set_defaults(handler=cmd_experiment)
     roles.register(sub)
     device_command.register(sub)
     return parser
@@ -170,6 +179,16 @@ def cmd_homogeneity(args: argparse.Namespace) -> int:
     from fleetrl.runs.homogeneity_report import homogeneity_report
 
     print(homogeneity_report(args.units, args.fleet_seed, args.impulses, args.seed, args.out))
+    return 0
+
+
+def cmd_experiment(args: argparse.Namespace) -> int:
+    """``fleetrl experiment``."""
+    from fleetrl.experiments.runner import run_experiment
+
+    seeds = list(range(args.first_seed, args.first_seed + args.seeds))
+    report = run_experiment(args.name, args.out, seeds, args.quick)
+    print(f"report: {report}")
     return 0
 
 

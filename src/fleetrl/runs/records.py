@@ -1,8 +1,10 @@
 """One row of a run's metrics: what one worker did in one round."""
 
+import csv
 import json
 import math
 from dataclasses import asdict, dataclass, fields
+from pathlib import Path
 from typing import Any
 
 CSV_COLUMNS = (
@@ -54,6 +56,26 @@ class RoundRecord:
         values: dict[str, Any] = {k: (math.nan if v is None else v) for k, v in data.items()}
         return cls(**values)
 
+    @classmethod
+    def from_csv_row(cls, row: dict[str, str]) -> "RoundRecord":
+        """Parse one row of metrics.csv (as ``csv.DictReader`` gives it); empty losses become NaN."""
+
+        def number(name: str) -> float:
+            return float(row[name]) if row[name] else math.nan
+
+        return cls(
+            round=int(row["round"]),
+            worker=int(row["worker"]),
+            score=number("score"),
+            wma=number("wma"),
+            actor_loss=number("actor_loss"),
+            critic_loss=number("critic_loss"),
+            entropy=number("entropy"),
+            steps=int(row["steps"]),
+            wall_time=number("wall_time"),
+            event=row["event"],
+        )
+
     def csv_row(self) -> list[object]:
         """Values in :data:`CSV_COLUMNS` order."""
         return [getattr(self, name) for name in CSV_COLUMNS]
@@ -63,3 +85,9 @@ def _finite_or_none(value: object) -> object:
     if isinstance(value, float) and not math.isfinite(value):
         return None
     return value
+
+
+def read_metrics(path: Path) -> list[RoundRecord]:
+    """Every record of a run's metrics.csv."""
+    with path.open(newline="") as f:
+        return [RoundRecord.from_csv_row(row) for row in csv.DictReader(f)]

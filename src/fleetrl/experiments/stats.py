@@ -1,0 +1,84 @@
+"""Summaries of repeated runs: rounds to completion, medians with spread, speed-up ratios."""
+
+import json
+import math
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+
+@dataclass(frozen=True)
+class Completion:
+    """Rounds to completion of one run: per worker, and for the fleet (its last worker)."""
+
+    per_worker: dict[str, int | None]
+    """round at which each worker's criterion held (None: not within the run)"""
+    max_rounds: int
+    """the run's M (an incomplete worker is counted as M, a lower bound, and flagged)"""
+
+    @property
+    def fleet(self) -> int:
+        """Round at which the last worker completed (M if one never did)."""
+        return max(self.max_rounds if r is None else r for r in self.per_worker.values())
+
+    @property
+    def complete(self) -> bool:
+        """Every worker completed within M rounds."""
+        return all(r is not None for r in self.per_worker.values())
+
+    def worker_rounds(self) -> list[int]:
+        """Every worker's rounds to completion (M for an incomplete one)."""
+        return [self.max_rounds if r is None else r for r in self.per_worker.values()]
+
+
+def read_completion(run_dir: Path) -> Completion:
+    """Rounds to completion from a run directory's summary.json and config.json."""
+    summary = json.loads((run_dir / "summary.json").read_text())
+    config = json.loads((run_dir / "config.json").read_text())
+    per_worker = {k: v["completed_at_round"] for k, v in summary["workers"].items()}
+    return Completion(per_worker, int(config["max_rounds"]))
+
+
+@dataclass(frozen=True)
+class Spread:
+    """Median and inter-quartile range of a sample."""
+
+    median: float
+    q1: float
+    q3: float
+    n: int
+
+    def __str__(self) -> str:
+        if self.n == 0:
+            return "-"
+        return f"{self.median:.0f} [{self.q1:.0f}–{self.q3:.0f}]"
+
+
+def spread(values: list[float] | list[int]) -> Spread:
+    """Median and IQR (linear interpolation) of ``values``."""
+    if not values:
+        return Spread(math.nan, math.nan, math.nan, 0)
+    q1, median, q3 = np.percentile(np.asarray(values, dtype=float), [25, 50, 75])
+    return Spread(float(median), float(q1), float(q3), len(values))
+
+
+def bootstrap_ratio(
+    numerator: list[float] | list[int], denominator: list[float] | list[int], seed: int = 0, draws: int = 2000
+) -> tuple[float, float, float]:
+    """median(numerator) / median(denominator) with a 95 % bootstrap interval (resampling both samples)."""
+    a = np.asarray(numerator, dtype=float)
+    b = np.asarray(denominator, dtype=float)
+    point = float(np.median(a) / np.median(b))
+    rng = np.random.default_rng(seed)
+    ratios = [np.median(rng.choice(a, a.size)) / np.median(rng.choice(b, b.size)) for _ in range(draws)]
+    low, high = np.percentile(ratios, [2.5, 97.5])
+    return point, float(low), float(high)
+
+
+def markdown_table(header: list[str], rows: list[list[Any]]) -> str:
+    """A GitHub-flavoured markdown table."""
+    lines = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
+    lines += ["| " + " | ".join(str(c) for c in row) + " |" for row in rows]
+    return "\n".join(lines)
