@@ -7,7 +7,9 @@ from fleetrl.cli.parsing import parse_overrides
 
 
 def test_overrides_are_json_typed() -> None:
-    assert parse_overrides(["clip_eps=0.2", "normalise_advantages=true", "activation=tanh", "hidden=[64,64]"]) == {
+    assert parse_overrides(
+        ["clip_eps=0.2", "normalise_advantages=true", "activation=tanh", "hidden=[64,64]"]
+    ) == {
         "clip_eps": 0.2,
         "normalise_advantages": True,
         "activation": "tanh",

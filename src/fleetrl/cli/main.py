@@ -56,6 +56,23 @@ def build_parser() -> argparse.ArgumentParser:
         default="inprocess",
         help="inprocess (default) or mqtt: each unit served by a device bridge over the broker",
     )
+    train.add_argument(
+        "--aggregation",
+        default="mean",
+        help="federated: mean (default), median, trimmed_mean[:β] or clipped_mean[:C]",
+    )
+    train.add_argument(
+        "--quorum",
+        type=float,
+        default=1.0,
+        help="federated: close a round at the deadline with this fraction of W (default 1.0)",
+    )
+    train.add_argument(
+        "--round-timeout",
+        type=float,
+        default=None,
+        help="federated: round deadline in seconds (default: wait for every worker)",
+    )
     train.set_defaults(handler=cmd_train)
 
     demo = sub.add_parser("demo", help="the main job: a 3-unit federated QUBE run on an embedded broker")
@@ -111,6 +128,9 @@ def run_settings(args: argparse.Namespace, mode: str) -> Any:
         transport=getattr(args, "transport", "mqtt"),
         broker=getattr(args, "broker", None),
         device_link=getattr(args, "device_link", "inprocess"),
+        aggregation=getattr(args, "aggregation", "mean"),
+        quorum=getattr(args, "quorum", 1.0),
+        round_timeout=getattr(args, "round_timeout", None),
         overrides=parse_overrides(args.overrides),
         live=not args.no_live,
     )

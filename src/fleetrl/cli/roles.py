@@ -221,15 +221,7 @@ def cmd_chief(args: argparse.Namespace) -> int:
     summary = run_chief(
         chief, _transport(args), on_event=lambda e: events.append(str(e)), idle_timeout=args.idle_timeout
     )
-    result = {
-        "run_id": args.run_id,
-        "rounds": summary.rounds,
-        "end_reason": summary.end_reason,
-        "transfers": [{"round": r, "from": o, "to": list(t)} for r, o, t in summary.transfers],
-        "rejections": {str(k): v for k, v in summary.rejections.items()},
-        "dropouts": [{"round": r, "worker": w, "reason": why} for r, w, why in summary.dropouts],
-        "rejoins": [{"round": r, "worker": w} for r, w in summary.rejoins],
-    }
+    result = {"run_id": args.run_id, **summary.to_dict()}
     if args.out is not None:
         args.out.mkdir(parents=True, exist_ok=True)
         (args.out / "chief.json").write_text(json.dumps(result, indent=2) + "\n")

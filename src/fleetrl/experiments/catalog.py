@@ -20,48 +20,37 @@ FULL = Budget(qube_rounds=1000, cartpole_rounds=400)
 QUICK = Budget(qube_rounds=4, cartpole_rounds=6)
 
 
-def train_args(env: str, units: int, mode: str, preset: str, rounds: int) -> tuple[str, ...]:
-    """``fleetrl train`` arguments of an arm (federated arms use the in-process bus)."""
-    args = [
-        "--env",
-        env,
-        "--units",
-        str(units),
-        "--mode",
-        mode,
-        "--preset",
-        preset,
-        "--max-rounds",
-        str(rounds),
-    ]
-    if mode == "federated":
-        args += ["--transport", "local"]
-    return tuple(args)
+def arm(env: str, units: int, mode: str, preset: str, rounds: int, label: str) -> Arm:
+    """A training arm; its key names the configuration, so experiments that share one share its runs.
+
+    Federated arms use the in-process bus (each experiment checks one arm over MQTT as well).
+    """
+    args = ["--env", env, "--units", str(units), "--mode", mode, "--preset", preset]
+    args += ["--max-rounds", str(rounds)] + (["--transport", "local"] if mode == "federated" else [])
+    return Arm(f"{env}-{units}-{mode}-{preset}-m{rounds}", label, tuple(args))
 
 
 def fig5(budget: Budget) -> Plan:
     """3 QUBE units: individual vs federated, with the paper's preset and with ``standard``."""
     m = budget.qube_rounds
-    arms = [
-        Arm(f"{mode}-{preset}", f"{mode} · {preset}", train_args("qube", 3, mode, preset, m))
+    ind_paper, fed_paper, ind_std, fed_std = (
+        arm("qube", 3, mode, preset, m, f"{mode} · {preset}")
         for preset in ("paper", "standard")
         for mode in ("individual", "federated")
-    ]
+    )
     return Plan(
         name="fig5",
         title="Fig. 5: 3 QUBE units, individual vs federated",
-        arms=arms,
+        arms=[ind_paper, fed_paper, ind_std, fed_std],
         max_rounds=m,
         ratios=[
-            Ratio(
-                "individual-paper", "federated-paper", "the paper: ≈1.5× overall, 2.7× on the slowest unit"
-            ),
-            Ratio("individual-standard", "federated-standard", "federation with the standard preset"),
-            Ratio("individual-paper", "federated-standard", "fleetrl's best scheme vs the paper's baseline"),
-            Ratio("federated-paper", "federated-standard", "fleetrl's best scheme vs the paper's scheme"),
+            Ratio(ind_paper, fed_paper, "the paper: ≈1.5× overall, 2.7× on the slowest unit"),
+            Ratio(ind_std, fed_std, "federation with the standard preset"),
+            Ratio(ind_paper, fed_std, "fleetrl's best scheme vs the paper's baseline"),
+            Ratio(fed_paper, fed_std, "fleetrl's best scheme vs the paper's scheme"),
         ],
-        side_by_side=("individual-standard", "federated-standard"),
-        mqtt_check="federated-standard",
+        side_by_side=(ind_std, fed_std),
+        mqtt_check=fed_std,
         notes="Paper (3 real units): ≈300 rounds federated vs 820 / 820 / 571 individual.",
     )
 
@@ -69,52 +58,42 @@ def fig5(budget: Budget) -> Plan:
 def fig6(budget: Budget) -> Plan:
     """2 vs 3 QUBE workers, federated."""
     m = budget.qube_rounds
-    arms = [
-        Arm(
-            f"federated-{n}-{preset}",
-            f"{n} workers · {preset}",
-            train_args("qube", n, "federated", preset, m),
-        )
+    two_paper, three_paper, two_std, three_std = (
+        arm("qube", n, "federated", preset, m, f"{n} workers · {preset}")
         for preset in ("paper", "standard")
         for n in (2, 3)
-    ]
+    )
     return Plan(
         name="fig6",
         title="Fig. 6: 2 vs 3 workers, federated (QUBE)",
-        arms=arms,
+        arms=[two_paper, three_paper, two_std, three_std],
         max_rounds=m,
         ratios=[
-            Ratio("federated-2-paper", "federated-3-paper", "the paper: 3 workers ≈ 1.38× faster than 2"),
-            Ratio("federated-2-standard", "federated-3-standard", "the same with the standard preset"),
+            Ratio(two_paper, three_paper, "the paper: 3 workers ≈ 1.38× faster than 2"),
+            Ratio(two_std, three_std, "the same with the standard preset"),
         ],
-        mqtt_check="federated-3-standard",
+        mqtt_check=three_std,
     )
 
 
 def cartpole_scaling(budget: Budget) -> Plan:
     """1, 2, 4, 8 CartPole workers, federated."""
     m = budget.cartpole_rounds
-    arms = [
-        Arm(
-            f"federated-{n}-{preset}",
-            f"{n} workers · {preset}",
-            train_args("cartpole", n, "federated", preset, m),
-        )
+    arms = {
+        (n, preset): arm("cartpole", n, "federated", preset, m, f"{n} workers · {preset}")
         for preset in ("paper", "standard")
         for n in (1, 2, 4, 8)
-    ]
+    }
     return Plan(
         name="cartpole-scaling",
         title="CartPole scaling: 1, 2, 4, 8 workers, federated",
-        arms=arms,
+        arms=list(arms.values()),
         max_rounds=m,
         ratios=[
-            Ratio(
-                "federated-1-standard", "federated-8-standard", "the paper's earlier study: faster with more"
-            ),
-            Ratio("federated-1-paper", "federated-8-paper", "the same with the paper's preset"),
+            Ratio(arms[1, "standard"], arms[8, "standard"], "the paper's earlier study: faster with more"),
+            Ratio(arms[1, "paper"], arms[8, "paper"], "the same with the paper's preset"),
         ],
-        mqtt_check="federated-4-standard",
+        mqtt_check=arms[4, "standard"],
     )
 
 

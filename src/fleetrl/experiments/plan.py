@@ -23,8 +23,8 @@ log = logging.getLogger(__name__)
 class Ratio:
     """A speed-up to report: median fleet rounds of ``slower`` / of ``faster``."""
 
-    slower: str
-    faster: str
+    slower: Arm
+    faster: Arm
     claim: str
     """what the paper reports for it (or what we aim at)"""
 
@@ -38,26 +38,28 @@ class Plan:
     arms: list[Arm]
     max_rounds: int
     ratios: list[Ratio] = field(default_factory=list)
-    side_by_side: tuple[str, str] | None = None
+    side_by_side: tuple[Arm, Arm] | None = None
     """two arms whose first seed is drawn worker by worker, next to each other (Fig. 5 a/b)"""
-    mqtt_check: str | None = None
+    mqtt_check: Arm | None = None
     """an arm run over the local bus that is run once more over MQTT, to show the numbers do not change"""
     notes: str = ""
 
-    def arm(self, key: str) -> Arm:
-        """The arm named ``key``."""
-        return next(a for a in self.arms if a.key == key)
-
 
 def run_plan(plan: Plan, out: Path, seeds: list[int], command: str) -> str:
-    """Run every arm for every seed (reusing finished runs) and return the report section (markdown)."""
+    """Run every arm for every seed and return the report section (markdown).
+
+    Runs live in ``out/runs/<arm key>/seed-<seed>``, shared by every experiment (an arm two experiments
+    have in common runs once); finished runs are reused. The section's files go to ``out/<plan name>/``.
+    """
+    runs_root = out / "runs"
     root = out / plan.name
-    runs = {arm.key: arm.runs(root, seeds) for arm in plan.arms}
+    root.mkdir(parents=True, exist_ok=True)
+    runs = {arm.key: arm.runs(runs_root, seeds) for arm in plan.arms}
     extra = []
     if plan.mqtt_check:
-        local_arm = plan.arm(plan.mqtt_check)
+        local_arm = plan.mqtt_check
         mqtt_arm = replace(local_arm, key=f"{local_arm.key}-mqtt", args=_over_mqtt(local_arm.args))
-        extra = [mqtt_arm.run(root, seeds[0])]
+        extra = [mqtt_arm.run(runs_root, seeds[0])]
     run_all([r for rs in runs.values() for r in rs] + extra)
 
     rows = []
@@ -85,23 +87,22 @@ def run_plan(plan: Plan, out: Path, seeds: list[int], command: str) -> str:
         lines += [plan.notes, ""]
     lines += [_arms_table(plan, runs), ""]
     for ratio in plan.ratios:
-        slower = [c.fleet for c in completions(runs[ratio.slower])]
-        faster = [c.fleet for c in completions(runs[ratio.faster])]
-        point, low, high = bootstrap_ratio(slower, faster)
+        slower = completions(runs[ratio.slower.key])
+        faster = completions(runs[ratio.faster.key])
+        point, low, high = bootstrap_ratio([c.fleet for c in slower], [c.fleet for c in faster])
         per_unit = bootstrap_ratio(
-            [r for c in completions(runs[ratio.slower]) for r in c.worker_rounds()],
-            [r for c in completions(runs[ratio.faster]) for r in c.worker_rounds()],
+            [r for c in slower for r in c.worker_rounds()], [r for c in faster for r in c.worker_rounds()]
         )
         lines.append(
-            f"- **{plan.arm(ratio.slower).label} → {plan.arm(ratio.faster).label}**: fleet speed-up "
+            f"- **{ratio.slower.label} → {ratio.faster.label}**: fleet speed-up "
             f"{point:.2f}× (95 % bootstrap {low:.2f}–{high:.2f}), per unit {per_unit[0]:.2f}× "
             f"({per_unit[1]:.2f}–{per_unit[2]:.2f}); {ratio.claim}"
         )
     if extra:
-        local_run = runs[plan.mqtt_check][0] if plan.mqtt_check else None
-        identical = local_run is not None and same_scores(local_run.out, extra[0].out)
+        assert plan.mqtt_check is not None
+        identical = same_scores(runs[plan.mqtt_check.key][0].out, extra[0].out)
         lines.append(
-            f"- Transport check: seed {seeds[0]} of `{plan.mqtt_check}` over MQTT (embedded broker): "
+            f"- Transport check: seed {seeds[0]} of {plan.mqtt_check.label} over MQTT (embedded broker): "
             f"scores {'identical' if identical else 'DIFFERENT'} to the in-process bus."
         )
     curves = root / "mean_score.png"
@@ -112,7 +113,7 @@ def run_plan(plan: Plan, out: Path, seeds: list[int], command: str) -> str:
         _plot_side_by_side(plan, runs, fig)
         lines += ["", f"![per-worker curves, seed {seeds[0]}]({fig.relative_to(out)})"]
     lines += ["", "Regenerate one arm (SEEDS as listed):", ""]
-    lines += [f"    {plan.arm(key).command(root)}" for key in runs]
+    lines += [f"    {arm.command(runs_root)}" for arm in plan.arms]
     return "\n".join(lines) + "\n"
 
 
@@ -158,11 +159,11 @@ def _plot_curves(plan: Plan, runs: dict[str, list], path: Path) -> None:
 
 def _plot_side_by_side(plan: Plan, runs: dict[str, list], path: Path) -> None:
     assert plan.side_by_side is not None
-    columns = [by_worker(read_metrics(runs[key][0].out / "metrics.csv")) for key in plan.side_by_side]
+    columns = [by_worker(read_metrics(runs[arm.key][0].out / "metrics.csv")) for arm in plan.side_by_side]
     n_rows = max(len(c) for c in columns)
     fig, axes = plt.subplots(n_rows, 2, figsize=(12, 2.4 * n_rows), sharex=True, sharey=True, squeeze=False)
-    for col, (key, groups) in enumerate(zip(plan.side_by_side, columns, strict=True)):
-        axes[0, col].set_title(plan.arm(key).label, fontsize=10)
+    for col, (arm, groups) in enumerate(zip(plan.side_by_side, columns, strict=True)):
+        axes[0, col].set_title(arm.label, fontsize=10)
         for row, (worker, records) in enumerate(groups.items()):
             draw_worker(axes[row, col], records, f"worker {worker}")
     axes[0, 0].legend(loc="upper left", fontsize=7)

@@ -5,8 +5,8 @@ from pathlib import Path
 import numpy as np
 
 from fleetrl.devices.homogeneity import format_tables, homogeneity_test, write_csv
-from fleetrl.experiments.arms import Arm, completions
-from fleetrl.experiments.catalog import Budget, fig5, train_args
+from fleetrl.experiments.arms import completions
+from fleetrl.experiments.catalog import Budget, arm
 from fleetrl.experiments.peers import PeerRun
 from fleetrl.experiments.stats import bootstrap_ratio, markdown_table, spread
 from fleetrl.experiments.sweep import run_all
@@ -44,31 +44,28 @@ def table2_section(out: Path, seeds: list[int], command: str, units: int = 3, im
     return "\n".join(lines) + "\n"
 
 
-PEER_STEPS = {"cartpole": 200_000, "qube": 400_000}
+PEER_STEPS = {"cartpole": 200_000, "qube": 150_000}
+"""SB3's step budget per unit (QUBE: the first two seeds only, SB3 takes ~2 min per 150k QUBE steps here)"""
 
 
 def peers_section(out: Path, seeds: list[int], command: str, budget: Budget, quick: bool) -> str:
     """SB3 PPO (defaults) per unit vs fleetrl on the same envs and criterion: episodes per unit."""
     envs = ["cartpole"] if quick else ["cartpole", "qube"]
     steps = {env: (5_000 if quick else PEER_STEPS[env]) for env in envs}
+    peer_seeds = {env: seeds if env == "cartpole" or quick else seeds[:2] for env in envs}
     peer_runs = {
         env: [
             PeerRun(out / "peers" / env / f"unit-{u}-seed-{s}.json", env, u, s, steps[env])
-            for s in seeds
+            for s in peer_seeds[env]
             for u in range(3)
         ]
         for env in envs
     }
     ours = {
-        "cartpole": Arm(
-            "cartpole-federated-standard",
-            "fleetrl federated · standard",
-            train_args("cartpole", 3, "federated", "standard", budget.cartpole_rounds),
-        ),
-        "qube": fig5(budget).arm("federated-standard"),
+        "cartpole": arm("cartpole", 3, "federated", "standard", budget.cartpole_rounds, "fleetrl"),
+        "qube": arm("qube", 3, "federated", "standard", budget.qube_rounds, "fleetrl"),
     }
-    roots = {"cartpole": out / "peers", "qube": out / "fig5"}
-    our_runs = {env: ours[env].runs(roots[env], seeds) for env in envs}
+    our_runs = {env: ours[env].runs(out / "runs", seeds) for env in envs}
     run_all([r for env in envs for r in peer_runs[env]] + [r for env in envs for r in our_runs[env]])
 
     lines = ["## Peers: Stable-Baselines3 PPO (defaults) per unit", "", f"Command: `{command}`", ""]

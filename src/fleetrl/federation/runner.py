@@ -7,6 +7,7 @@ import time
 from collections import Counter
 from collections.abc import Callable
 from dataclasses import dataclass
+from typing import Any
 
 from fleetrl.federation.chief import Chief, ChiefEvent, ChiefStep
 from fleetrl.federation.messages import Reason, encode
@@ -42,6 +43,17 @@ class ChiefSummary:
     """(round, worker, reason) of every worker that left W without transferring"""
     rejoins: tuple[tuple[int, str], ...] = ()
     """(round, worker) of every dropped worker that came back"""
+
+    def to_dict(self) -> dict[str, Any]:
+        """A JSON-ready account (chief.json)."""
+        return {
+            "rounds": self.rounds,
+            "end_reason": self.end_reason,
+            "transfers": [{"round": r, "from": o, "to": list(t)} for r, o, t in self.transfers],
+            "rejections": {str(k): v for k, v in self.rejections.items()},
+            "dropouts": [{"round": r, "worker": w, "reason": why} for r, w, why in self.dropouts],
+            "rejoins": [{"round": r, "worker": w} for r, w in self.rejoins],
+        }
 
 
 def run_chief(

@@ -175,6 +175,9 @@ def train_federated(
         workers=[str(k) for k in specs],
         layout=actor_layout(settings),
         max_rounds=settings.max_rounds,
+        aggregator=settings.aggregation,
+        quorum=settings.quorum,
+        round_timeout=settings.round_timeout,
     )
     make_transport, fleet_for = transports(settings, url, specs, run_id)
     outcome: dict[str, ChiefSummary | BaseException] = {}
@@ -198,12 +201,7 @@ def train_federated(
         chief_thread.join(timeout=10)
     result = outcome.get("chief")
     if isinstance(result, ChiefSummary):
-        recorder.extra["chief"] = {
-            "rounds": result.rounds,
-            "end_reason": result.end_reason,
-            "transfers": [{"round": r, "from": origin, "to": list(to)} for r, origin, to in result.transfers],
-            "rejections": {str(k): v for k, v in result.rejections.items()},
-        }
+        recorder.extra["chief"] = result.to_dict()
     else:
         recorder.extra["chief"] = {"error": str(result) if result else "did not finish"}
     write_json_atomic(recorder.out / "chief.json", recorder.extra["chief"])
@@ -241,7 +239,7 @@ def transports(
         commands = {k: worker_command(s, "--broker", url, "--run-id", run_id) for k, s in specs.items()}
         return ProcessFleet(commands, Path(settings.out) / "logs")
 
-    return (lambda: MqttTransport(url)), process_fleet
+    return (lambda: MqttTransport(url, clean_session=False)), process_fleet
 
 
 def federated_thread(

@@ -36,6 +36,12 @@ class RunSettings:
     """federated: ``mqtt`` (a real broker, workers in processes) or ``local`` (in-process bus, threads)"""
     broker: str | None = None
     """federated mode: ``mqtt://[user:pass@]host:port`` of an existing broker; none starts an embedded one"""
+    aggregation: str = "mean"
+    """federated: how the chief aggregates gradients (mean, median, trimmed_mean[:β], clipped_mean[:C])"""
+    quorum: float = 1.0
+    """federated: fraction of W whose gradients close a round at the deadline (1.0: fully synchronous)"""
+    round_timeout: float | None = None
+    """federated: seconds after which a round closes with the quorum (None: wait for every worker)"""
     device_link: str = "inprocess"
     """how workers reach their devices: ``inprocess`` or ``mqtt`` (one device bridge per unit)"""
     overrides: dict[str, Any] = field(default_factory=dict)
@@ -52,6 +58,10 @@ class RunSettings:
             raise ValueError(f"unknown transport {self.transport!r} (choose {' or '.join(TRANSPORTS)})")
         if self.device_link not in DEVICE_LINKS:
             raise ValueError(f"unknown device link {self.device_link!r} (choose {' or '.join(DEVICE_LINKS)})")
+        if not 0.0 < self.quorum <= 1.0:
+            raise ValueError(f"--quorum must be in (0, 1], got {self.quorum}")
+        if self.round_timeout is not None and self.round_timeout <= 0:
+            raise ValueError(f"--round-timeout must be positive, got {self.round_timeout}")
         if self.units < 1:
             raise ValueError(f"--units must be at least 1, got {self.units}")
         if self.max_rounds < 1:

@@ -37,7 +37,11 @@ def main(argv: list[str] | None = None) -> int:
             from fleetrl.transport.mqtt import MqttTransport
 
             train_federated(
-                spec, MqttTransport(args.broker), args.run_id, print_record, reply_timeout=args.reply_timeout
+                spec,
+                MqttTransport(args.broker, clean_session=False),
+                args.run_id,
+                print_record,
+                reply_timeout=args.reply_timeout,
             )
     except KeyboardInterrupt:
         logging.getLogger(__name__).info("interrupted; the model was saved")

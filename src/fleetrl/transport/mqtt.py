@@ -3,7 +3,7 @@
 TCP_NODELAY is set on the socket in ``on_connect`` (without it QoS 1 round trips stall 44–88 ms on Nagle; see
 docs/protocol.md). paho's network thread reconnects with exponential backoff; subscriptions are renewed on
 every connect and QoS 1 messages published while disconnected are sent after reconnecting. The federation
-roles ask for persistent sessions (``clean_session=False`` with their fixed client ids), so a broker that keeps
+roles ask for persistent sessions (``clean_session=False``, fixed client ids), so a broker that keeps
 sessions queues QoS 1 messages for them while they are away; the default stays a clean session (a device
 link must not receive stale commands queued while it was away).
 """
