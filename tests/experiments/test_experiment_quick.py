@@ -1,0 +1,51 @@
+"""`fleetrl experiment all --quick`: every experiment's pipeline end to end (files, numbers that parse);
+the science is not asserted here (see docs/results.md for full runs)."""
+
+import csv
+import json
+import re
+from pathlib import Path
+
+import pytest
+
+from fleetrl.cli.main import main
+from fleetrl.experiments.catalog import EXPERIMENTS, PLANS
+
+
+@pytest.fixture(scope="module")
+def quick_report(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    out = tmp_path_factory.mktemp("experiments")
+    assert main(["experiment", "all", "--seeds", "1", "--quick", "--out", str(out)]) == 0
+    return out
+
+
+@pytest.mark.timeout(600)
+def test_report_has_every_section_with_its_command(quick_report: Path) -> None:
+    report = (quick_report / "report.md").read_text()
+    assert report.count("Command: `fleetrl experiment ") == len(EXPERIMENTS)
+    for name in EXPERIMENTS:
+        assert f"fleetrl experiment {name} --seeds 1" in report
+    for image in re.findall(r"!\[[^\]]*\]\(([^)]+)\)", report):
+        assert (quick_report / image).stat().st_size > 5_000
+
+
+@pytest.mark.parametrize("name", sorted(PLANS))
+def test_training_experiments_write_parseable_runs(quick_report: Path, name: str) -> None:
+    rows = list(csv.DictReader((quick_report / name / "runs.csv").open()))
+    plan = PLANS[name]
+    assert rows, name
+    for row in rows:
+        assert int(row["fleet_rounds"]) >= 1 and float(row["wall_seconds"]) > 0
+        assert all(int(r) >= 1 for r in row["worker_rounds"].split(";"))
+    section = (quick_report / name / "section.md").read_text()
+    assert re.findall(r"speed-up (\d+\.\d+)×", section) or plan is PLANS["learning"]
+    if "Transport check" in section:
+        assert "scores identical to the in-process bus" in section
+
+
+def test_table2_and_peers_write_their_numbers(quick_report: Path) -> None:
+    matrix = list(csv.reader((quick_report / "table2" / "seed-0" / "motor_correlation.csv").open()))
+    assert any(float(cell) == pytest.approx(1.0) for cell in matrix[1][1:])
+    results = [json.loads(p.read_text()) for p in (quick_report / "peers" / "cartpole").glob("*.json")]
+    assert len(results) == 3 and all(r["episodes"] >= 1 for r in results)
+    assert "fleetrl / SB3" in (quick_report / "peers" / "section.md").read_text()
