@@ -4,9 +4,8 @@ PYTHON ?= $(shell command -v python3.11 || command -v python3)
 VENV := .venv
 PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed
-DEMO_OUT ?= runs/demo
 
-.PHONY: install demo test lint bench clean
+.PHONY: install demo test lint bench results clean
 
 install: $(STAMP)
 
@@ -19,7 +18,7 @@ $(STAMP): pyproject.toml
 	touch $(STAMP)
 
 demo: install
-	$(VENV)/bin/fleetrl demo --out $(DEMO_OUT)
+	$(VENV)/bin/fleetrl demo
 
 test: install
 	$(PY) -m pytest -q
@@ -31,6 +30,12 @@ lint: install
 
 bench: install
 	$(PY) benchmarks/physics_speed.py
+	$(PY) benchmarks/device_link.py
+	$(PY) benchmarks/round_overhead.py
+	$(PY) benchmarks/learning.py
+
+results: install
+	$(VENV)/bin/fleetrl experiment all --seeds 5 --out runs/experiments
 
 clean:
 	rm -rf $(VENV) build *.egg-info src/*.egg-info

@@ -4,6 +4,7 @@ import argparse
 import json
 import logging
 import sys
+import time
 from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
@@ -76,7 +77,7 @@ def build_parser() -> argparse.ArgumentParser:
     train.set_defaults(handler=cmd_train)
 
     demo = sub.add_parser("demo", help="the main job: a 3-unit federated QUBE run on an embedded broker")
-    demo.add_argument("--out", type=Path, default=Path("runs/demo"), help="run directory (default runs/demo)")
+    demo.add_argument("--out", type=Path, default=None, help="run directory (default runs/demo-<date-time>)")
     demo.add_argument("--seed", type=int, default=0)
     demo.set_defaults(handler=cmd_demo)
 
@@ -153,7 +154,8 @@ def cmd_demo(args: argparse.Namespace) -> int:
     """``fleetrl demo``: the main job of the day."""
     from fleetrl.runs.launch import demo_settings, train
 
-    settings = demo_settings(args.out, args.seed)
+    out = args.out or Path("runs") / time.strftime("demo-%Y%m%d-%H%M%S")
+    settings = demo_settings(out, args.seed)
     if (settings.out / "metrics.csv").exists():
         raise UsageError(f"{settings.out} already holds a run; remove it or pass --out DIR")
     summary = train(settings)

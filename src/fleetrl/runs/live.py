@@ -32,6 +32,8 @@ class LiveView:
         self.threshold = threshold
         self.enabled = enabled
         self.console = Console(stderr=True)
+        if not self.console.is_terminal:
+            self.console.width = 200  # one progress line per update in logs, not wrapped at 80
         self._live: Live | None = None
         self._last_plain = 0.0
         self._plain_every = 5.0
