@@ -11,6 +11,7 @@ import numpy as np
 from fleetrl.devices.cartpole import THETA_LIMIT, X_LIMIT, CartPoleDevice
 from fleetrl.devices.variation import check_unit
 from fleetrl.envs.link_env import LinkEnv
+from fleetrl.envs.render import cartpole_frame
 from fleetrl.link.base import DeviceLink
 from fleetrl.link.inprocess import InProcessLink
 
@@ -21,7 +22,7 @@ class CartPoleUnitEnv(LinkEnv):
     :param unit: index of the unit in the fleet (non-negative)
     :param fleet_seed: seed of the fleet; (fleet_seed, unit) fixes the unit's parameters
     :param link: reach the device through this link instead of simulating it in-process
-    :param render_mode: only None is supported
+    :param render_mode: None, or ``rgb_array`` for :meth:`render` frames
     """
 
     def __init__(
@@ -33,9 +34,8 @@ class CartPoleUnitEnv(LinkEnv):
         render_mode: str | None = None,
     ) -> None:
         self.unit, self.fleet_seed = check_unit(unit, fleet_seed)
-        if render_mode is not None:
-            raise ValueError(f"render_mode {render_mode!r} is not supported (use None)")
-        super().__init__(link or InProcessLink(CartPoleDevice.from_fleet(self.unit, self.fleet_seed)), 2)
+        device_link = link or InProcessLink(CartPoleDevice.from_fleet(self.unit, self.fleet_seed))
+        super().__init__(device_link, 2, render_mode=render_mode)
         big = np.finfo(np.float32).max  # CartPole-v1's bounds
         high = np.array([X_LIMIT * 2, big, THETA_LIMIT * 2, big], dtype=np.float32)
         self.observation_space = gymnasium.spaces.Box(-high, high, dtype=np.float32)
@@ -44,3 +44,7 @@ class CartPoleUnitEnv(LinkEnv):
     def judge(self, obs: np.ndarray) -> tuple[float, bool]:
         """CartPole-v1: +1 every step; terminate when the cart or the pole leaves its band."""
         return 1.0, not (abs(float(obs[0])) <= X_LIMIT and abs(float(obs[2])) <= THETA_LIMIT)
+
+    def frame(self, obs: np.ndarray) -> np.ndarray:
+        """An RGB picture of the unit in state ``obs``."""
+        return cartpole_frame(obs)

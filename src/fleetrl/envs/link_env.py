@@ -25,12 +25,16 @@ def action_index(action: object, n_actions: int) -> int:
 class LinkEnv(gymnasium.Env[np.ndarray, np.int64]):
     """A Gymnasium env whose device sits behind a ``DeviceLink``; subclasses judge each observation."""
 
-    metadata: dict[str, Any] = {"render_modes": []}  # noqa: RUF012 (gymnasium's convention)
+    metadata: dict[str, Any] = {"render_modes": ["rgb_array"], "render_fps": 50}  # noqa: RUF012 (gymnasium's convention)
 
-    def __init__(self, link: DeviceLink, n_actions: int) -> None:
+    def __init__(self, link: DeviceLink, n_actions: int, render_mode: str | None = None) -> None:
+        if render_mode not in (None, "rgb_array"):
+            raise ValueError(f"render_mode {render_mode!r} is not supported (use None or 'rgb_array')")
+        self.render_mode = render_mode
         self._link = link
         self._n_actions = n_actions
         self._link_step = link.step
+        self._last_obs: np.ndarray | None = None
 
     @property
     def link(self) -> DeviceLink:
@@ -41,20 +45,32 @@ class LinkEnv(gymnasium.Env[np.ndarray, np.int64]):
         """Reward and termination for an observation; subclasses define the task."""
         raise NotImplementedError
 
+    def frame(self, obs: np.ndarray) -> np.ndarray:
+        """An ``rgb_array`` picture of an observation; subclasses draw their unit."""
+        raise NotImplementedError
+
+    def render(self) -> np.ndarray | None:
+        """The last observation as an RGB frame with ``render_mode="rgb_array"``; None otherwise."""
+        if self.render_mode != "rgb_array" or self._last_obs is None:
+            return None
+        return self.frame(self._last_obs)
+
     def reset(
         self, *, seed: int | None = None, options: dict[str, Any] | None = None
     ) -> tuple[np.ndarray, dict[str, Any]]:
         """Seed (if given) and reset the device; the device's seed is drawn from the env's generator."""
         super().reset(seed=seed)
         device_seed = int(self.np_random.integers(0, 2**63 - 1))
-        return self._link.reset(device_seed).copy(), {}
+        self._last_obs = self._link.reset(device_seed).copy()
+        return self._last_obs, {}
 
     def step(self, action: object) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
         """Send the action, judge the new observation. Truncation is left to gymnasium's TimeLimit."""
         index = action if type(action) is int and 0 <= action < self._n_actions else None
         obs, extra = self._link_step(action_index(action, self._n_actions) if index is None else index)
         reward, terminated = self.judge(obs)
-        return obs.copy(), reward, terminated, False, _info(extra)
+        self._last_obs = obs = obs.copy()
+        return obs, reward, terminated, False, _info(extra)
 
     def close(self) -> None:
         """Close the link."""

@@ -17,6 +17,7 @@ from fleetrl.devices.qube.device import QubeDevice
 from fleetrl.devices.qube.params import qube_config
 from fleetrl.devices.variation import check_unit
 from fleetrl.envs.link_env import LinkEnv
+from fleetrl.envs.render import qube_frame
 from fleetrl.link.base import DeviceLink
 from fleetrl.link.inprocess import InProcessLink
 
@@ -35,7 +36,7 @@ class QubeBalanceEnv(LinkEnv):
     :param unit: index of the unit in the fleet (non-negative)
     :param fleet_seed: seed of the fleet; (fleet_seed, unit) fixes the unit's parameters
     :param link: reach the device through this link instead of simulating it in-process
-    :param render_mode: only None is supported
+    :param render_mode: None, or ``rgb_array`` for :meth:`render` frames
     :param options: ``QubeConfig`` fields for the in-process simulation, e.g. ``control_period=0.006``,
         ``quantise=True``, ``velocity_estimate="difference"``, ``actuation_delay=True``
     """
@@ -50,13 +51,11 @@ class QubeBalanceEnv(LinkEnv):
         **options: object,
     ) -> None:
         self.unit, self.fleet_seed = check_unit(unit, fleet_seed)
-        if render_mode is not None:
-            raise ValueError(f"render_mode {render_mode!r} is not supported (use None)")
         if link is None:
             link = InProcessLink(QubeDevice.from_fleet(self.unit, self.fleet_seed, qube_config(**options)))
         elif options:
             raise ValueError(f"options {sorted(options)} configure the in-process simulation; not with link=")
-        super().__init__(link, n_actions=3)
+        super().__init__(link, n_actions=3, render_mode=render_mode)
         high = np.array([math.pi, VELOCITY_BOUND, 2.0 * math.pi, VELOCITY_BOUND], dtype=np.float32)
         self.observation_space = gymnasium.spaces.Box(-high, high, dtype=np.float32)
         self.action_space = gymnasium.spaces.Discrete(3)
@@ -66,3 +65,7 @@ class QubeBalanceEnv(LinkEnv):
         if abs(float(obs[0])) <= PENDULUM_LIMIT and abs(float(obs[2])) <= ARM_LIMIT:
             return 1.0, False
         return 0.0, True
+
+    def frame(self, obs: np.ndarray) -> np.ndarray:
+        """An RGB picture of the unit in state ``obs``."""
+        return qube_frame(obs)
