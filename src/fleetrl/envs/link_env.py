@@ -1,5 +1,6 @@
 """What both cyber environments share: a device link, seeded resets, action checking."""
 
+from abc import abstractmethod
 from collections.abc import Mapping
 from typing import Any
 
@@ -41,13 +42,13 @@ class LinkEnv(gymnasium.Env[np.ndarray, np.int64]):
         """The link this env reaches its device through."""
         return self._link
 
+    @abstractmethod
     def judge(self, obs: np.ndarray) -> tuple[float, bool]:
         """Reward and termination for an observation; subclasses define the task."""
-        raise NotImplementedError
 
+    @abstractmethod
     def frame(self, obs: np.ndarray) -> np.ndarray:
         """An ``rgb_array`` picture of an observation; subclasses draw their unit."""
-        raise NotImplementedError
 
     def render(self) -> np.ndarray | None:
         """The last observation as an RGB frame with ``render_mode="rgb_array"``; None otherwise."""
