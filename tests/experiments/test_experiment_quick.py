@@ -43,6 +43,14 @@ def test_training_experiments_write_parseable_runs(quick_report: Path, name: str
         assert "scores identical to the in-process bus" in section
 
 
+def test_published_report_carries_its_images(quick_report: Path, tmp_path: Path) -> None:
+    from fleetrl.experiments.runner import publish_report
+
+    published = publish_report(quick_report, tmp_path / "docs" / "results.md")
+    images = re.findall(r"!\[[^\]]*\]\(([^)]+)\)", published.read_text())
+    assert images and all((published.parent / image).is_file() for image in images)
+
+
 def test_table2_and_peers_write_their_numbers(quick_report: Path) -> None:
     matrix = list(csv.reader((quick_report / "table2" / "seed-0" / "motor_correlation.csv").open()))
     assert any(float(cell) == pytest.approx(1.0) for cell in matrix[1][1:])

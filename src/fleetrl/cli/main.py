@@ -107,6 +107,9 @@ def build_parser() -> argparse.ArgumentParser:
     experiment.add_argument("--first-seed", type=int, default=0)
     experiment.add_argument("--out", type=Path, default=Path("runs/experiments"))
     experiment.add_argument("--quick", action="store_true", help="tiny budgets: checks the pipeline only")
+    experiment.add_argument(
+        "--publish", type=Path, default=None, help="also copy report.md (and its images) to this file"
+    )
     experiment.set_defaults(handler=cmd_experiment)
     roles.register(sub)
     device_command.register(sub)
@@ -211,6 +214,10 @@ def cmd_experiment(args: argparse.Namespace) -> int:
     seeds = list(range(args.first_seed, args.first_seed + args.seeds))
     report = run_experiment(args.name, args.out, seeds, args.quick)
     print(f"report: {report}")
+    if args.publish is not None:
+        from fleetrl.experiments.runner import publish_report
+
+        print(f"published: {publish_report(args.out, args.publish)}")
     return 0
 
 

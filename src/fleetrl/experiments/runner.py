@@ -1,6 +1,8 @@
 """``fleetrl experiment NAME``: run an experiment's sweep, write its report section, assemble report.md."""
 
+import re
 import shlex
+import shutil
 from pathlib import Path
 
 from fleetrl.experiments.catalog import EXPERIMENTS, FULL, PLANS, QUICK
@@ -51,3 +53,19 @@ def assemble_report(out: Path) -> Path:
     report = out / "report.md"
     report.write_text(REPORT_HEADER + "\n" + body)
     return report
+
+
+def publish_report(out: Path, destination: Path) -> Path:
+    """Copy ``out/report.md`` to ``destination`` with its images beside it (``<destination stem>/``)."""
+    report = (out / "report.md").read_text()
+    assets = destination.parent / destination.stem
+    assets.mkdir(parents=True, exist_ok=True)
+
+    def move(match: re.Match[str]) -> str:
+        source = out / match.group(2)
+        target = assets / match.group(2).replace("/", "-")
+        shutil.copyfile(source, target)
+        return f"![{match.group(1)}]({target.relative_to(destination.parent)})"
+
+    destination.write_text(re.sub(r"!\[([^\]]*)\]\(([^)]+)\)", move, report))
+    return destination
