@@ -97,9 +97,31 @@ def cartpole_scaling(budget: Budget) -> Plan:
     )
 
 
+def learning(budget: Budget) -> Plan:
+    """3 units of each env, individual and federated, both presets (benchmarks/learning.py)."""
+    arms: dict[tuple[str, str, str], Arm] = {}
+    ratios = []
+    for env, rounds in (("cartpole", budget.cartpole_rounds), ("qube", budget.qube_rounds)):
+        for preset in ("paper", "standard"):
+            for mode in ("individual", "federated"):
+                arms[env, preset, mode] = arm(env, 3, mode, preset, rounds, f"{env} · {mode} · {preset}")
+            ratios.append(
+                Ratio(arms[env, preset, "individual"], arms[env, preset, "federated"], "federation")
+            )
+    return Plan(
+        name="learning",
+        title="Learning speed: 3 units of each env, individual and federated, both presets",
+        arms=list(arms.values()),
+        max_rounds=max(budget.cartpole_rounds, budget.qube_rounds),
+        ratios=ratios,
+        notes="Rounds = episodes per unit. SB3 PPO on the same envs and criterion: see the Peers section.",
+    )
+
+
 PLANS: dict[str, Callable[[Budget], Plan]] = {
     "fig5": fig5,
     "fig6": fig6,
     "cartpole-scaling": cartpole_scaling,
+    "learning": learning,
 }
 EXPERIMENTS = (*PLANS, "table2", "peers")
