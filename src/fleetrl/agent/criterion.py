@@ -43,6 +43,15 @@ class CompletionCriterion:
         """True once ``window`` scores are recorded and their WMA is at least the threshold."""
         return len(self._scores) == self.window and self.wma >= self.threshold
 
+    def history(self) -> list[float]:
+        """The recorded scores in the window, oldest first (for a checkpoint)."""
+        return list(self._scores)
+
+    def load_history(self, scores: list[float]) -> None:
+        """Replace the recorded scores with ``scores`` (oldest first; only the last ``window`` count)."""
+        self._scores.clear()
+        self._scores.extend(float(s) for s in scores)
+
     def reset(self) -> None:
         """Forget all scores."""
         self._scores.clear()

@@ -127,6 +127,26 @@ class TrajectoryMemory:
         """Observations and actions stored at ``slots``."""
         return self._obs[slots], self._actions[slots]
 
+    def state_arrays(self) -> dict[str, np.ndarray]:
+        """The whole buffer as named arrays (copies), ring position included, for a checkpoint."""
+        arrays = {name.lstrip("_"): getattr(self, name).copy() for name in _STATE}
+        arrays["position"] = np.array([self._next, self._size], dtype=np.int64)
+        return arrays
+
+    def load_state_arrays(self, arrays: dict[str, np.ndarray]) -> None:
+        """Restore what :meth:`state_arrays` returned; shapes must match this memory's."""
+        for name in _STATE:
+            current = getattr(self, name)
+            key = name.lstrip("_")
+            value = np.asarray(arrays[key])
+            if value.shape != current.shape:
+                raise ValueError(f"memory {key} has shape {value.shape}, expected {current.shape}")
+            current[...] = value
+        self._next, self._size = (int(v) for v in arrays["position"])
+
+
+_STATE = ("_obs", "_next_obs", "_actions", "_rewards", "_terminated", "_episode_end", "_log_probs", "_scored")
+
 
 def sample_window(n: int, size: int, rng: np.random.Generator) -> tuple[int, int]:
     """Bounds ``(start, stop)`` of a contiguous window of ``size`` among ``n`` chronological transitions.

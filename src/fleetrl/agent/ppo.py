@@ -260,6 +260,21 @@ class PPOAgent:
             offset += p.numel()
         return chunks
 
+    # ---- resumable state (fleetrl.agent.state) --------------------------------------------------------
+
+    def rng_states(self) -> dict[str, Any]:
+        """The bit-generator states of action sampling and window starts (JSON-ready)."""
+        return {"act": self._act_rng.bit_generator.state, "window": self._window_rng.bit_generator.state}
+
+    def load_rng_states(self, states: dict[str, Any]) -> None:
+        """Continue action sampling and window starts from :meth:`rng_states`."""
+        self._act_rng.bit_generator.state = states["act"]
+        self._window_rng.bit_generator.state = states["window"]
+
+    def refresh_policy(self) -> None:
+        """Copy the network into the acting policy after its weights were changed in place."""
+        self._policy.refresh(self.net)
+
     # ---- checkpoints ------------------------------------------------------------------------------------
 
     def architecture(self) -> dict[str, Any]:

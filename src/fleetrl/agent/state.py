@@ -1,0 +1,115 @@
+"""A worker's learning state as data, to checkpoint between rounds and resume exactly where it stopped.
+
+:func:`learner_state` returns (fields, tensors): JSON fields (round counter, completion criterion history,
+the bit-generator states of the agent's action and window generators and of the env's ``np_random``) and
+float/int tensors (every network weight, both Adam states, the trajectory memory, torch's global RNG state).
+:func:`load_learner_state` puts them back into a learner built the same way (same env, preset, seed), after
+which it plays the next rounds exactly as the original would have (in-process devices; a device behind an
+MQTT link keeps its own state). Nothing is pickled; :class:`~fleetrl.agent.statestore.StateStore` writes it.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+import torch
+
+from fleetrl.agent.learner import Learner
+from fleetrl.agent.ppo import PPOAgent
+
+STATE_VERSION = 1
+"""Version of the fields; :func:`load_learner_state` refuses any other."""
+
+_OPTIMISERS = ("actor", "critic")
+
+
+def agent_state(agent: PPOAgent) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
+    """(fields, tensors) of one agent: weights, Adam states, trajectory memory, RNG states."""
+    tensors = {f"net.{k}": v.detach().numpy().copy() for k, v in agent.net.state_dict().items()}
+    steps: dict[str, dict[str, float]] = {}
+    for which in _OPTIMISERS:
+        state = _optimiser(agent, which).state_dict()["state"]
+        steps[which] = {}
+        for index, slots in state.items():
+            for slot, value in slots.items():
+                if slot == "step":  # a scalar (a tensor in recent torch): keep it exact in JSON
+                    steps[which][str(index)] = float(value)
+                else:
+                    tensors[f"optim.{which}.{index}.{slot}"] = value.detach().numpy().copy()
+    tensors.update({f"memory.{k}": v for k, v in agent.memory.state_arrays().items()})
+    return {"optimiser_steps": steps, "rng": agent.rng_states()}, tensors
+
+
+def load_agent_state(agent: PPOAgent, fields: dict[str, Any], tensors: dict[str, np.ndarray]) -> None:
+    """Restore :func:`agent_state` into an agent of the same architecture and configuration.
+
+    :raises ValueError: a tensor is missing or has another shape (another architecture)
+    """
+    net = agent.net.state_dict()
+    weights = {k: _tensor(tensors, f"net.{k}", tuple(v.shape)) for k, v in net.items()}
+    agent.net.load_state_dict(weights)
+    for which in _OPTIMISERS:
+        optimiser = _optimiser(agent, which)
+        current = optimiser.state_dict()
+        restored: dict[int, dict[str, torch.Tensor]] = {}
+        for index_text, step in fields["optimiser_steps"][which].items():
+            index = int(index_text)
+            slots = {"step": torch.tensor(float(step))}
+            for slot in ("exp_avg", "exp_avg_sq"):
+                slots[slot] = _tensor(tensors, f"optim.{which}.{index}.{slot}", None)
+            restored[index] = slots
+        optimiser.load_state_dict({"state": restored, "param_groups": current["param_groups"]})
+    memory = {k.removeprefix("memory."): v for k, v in tensors.items() if k.startswith("memory.")}
+    agent.memory.load_state_arrays(memory)
+    agent.load_rng_states(fields["rng"])
+    agent.refresh_policy()
+
+
+def learner_state(learner: Learner) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
+    """(fields, tensors) of a learner between rounds: its agent, criterion, round counter and env RNG."""
+    fields, tensors = agent_state(learner.agent)
+    tensors["torch.rng"] = torch.get_rng_state().numpy().copy()
+    fields.update(
+        version=STATE_VERSION,
+        rounds=learner.rounds,
+        completed=learner.completed,
+        criterion=learner.criterion.history(),
+        env_rng=_env_generator(learner).bit_generator.state,
+    )
+    return fields, tensors
+
+
+def load_learner_state(learner: Learner, fields: dict[str, Any], tensors: dict[str, np.ndarray]) -> None:
+    """Restore :func:`learner_state` into a learner built the same way (env, preset, seed).
+
+    :raises ValueError: another state version, or tensors that do not fit this learner's agent
+    """
+    if fields.get("version") != STATE_VERSION:
+        raise ValueError(f"learner state version {fields.get('version')!r}, expected {STATE_VERSION}")
+    load_agent_state(learner.agent, fields, tensors)
+    torch.set_rng_state(torch.from_numpy(np.asarray(tensors["torch.rng"], dtype=np.uint8).copy()))
+    learner.rounds = int(fields["rounds"])
+    learner.completed = bool(fields["completed"])
+    learner.criterion.load_history([float(s) for s in fields["criterion"]])
+    _env_generator(learner).bit_generator.state = fields["env_rng"]
+
+
+def _optimiser(agent: PPOAgent, which: str) -> torch.optim.Optimizer:
+    return agent.actor_optimizer if which == "actor" else agent.critic_optimizer
+
+
+def _env_generator(learner: Learner) -> np.random.Generator:
+    """The env's ``np_random`` (created now, from entropy, if the env was never reset: that state is then
+    saved too, so the resumed learner draws the same numbers)."""
+    generator: np.random.Generator = learner.env.unwrapped.np_random
+    return generator
+
+
+def _tensor(tensors: dict[str, np.ndarray], name: str, shape: tuple[int, ...] | None) -> torch.Tensor:
+    if name not in tensors:
+        raise ValueError(f"state has no tensor {name!r} (written for another architecture?)")
+    value = np.asarray(tensors[name])
+    if shape is not None and tuple(value.shape) != shape:
+        raise ValueError(f"state tensor {name!r} has shape {tuple(value.shape)}, expected {shape}")
+    return torch.from_numpy(value.copy())

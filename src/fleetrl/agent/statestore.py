@@ -1,0 +1,159 @@
+"""A crash-safe state directory: one JSON commit record that names an immutable safetensors blob.
+
+A state is ``fields`` (JSON: counters, ids, RNG states, configuration) plus ``tensors`` (name → array). Saving
+writes the tensors to a new file ``<name>-<n>.safetensors`` (temp file, fsync, ``os.replace``), then the
+record ``<name>.json`` naming that blob and its SHA-256 (same way), then removes older blobs. The record's
+rename is the commit point: a process killed at any instant leaves either the previous state or the new
+one, never a mix. Nothing is pickled; safetensors and JSON only.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import logging
+import os
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from safetensors import SafetensorError
+from safetensors.numpy import load_file, save_file
+
+log = logging.getLogger(__name__)
+
+FORMAT = "fleetrl.state/1"
+"""``format`` of every state record this module writes."""
+
+
+class StateError(ValueError):
+    """A state directory that cannot be used: missing, corrupt, or written for something else."""
+
+
+class StateStore:
+    """Save and load one named state in ``directory`` (created on the first save).
+
+    :param directory: where the record and blobs live.
+    :param name: the state's name (``chief``, ``worker``...); the record is ``<name>.json``.
+    """
+
+    def __init__(self, directory: str | Path, name: str) -> None:
+        """Bind the store to ``directory``/``name``; nothing is read or written yet."""
+        self.directory = Path(directory)
+        self.name = name
+        self._blob: str | None = None  # the blob the last save or load used
+        self._blob_digest: str | None = None
+        self._tensor_digest: str | None = None
+        self._serial = 0
+
+    @property
+    def record(self) -> Path:
+        """The JSON commit record."""
+        return self.directory / f"{self.name}.json"
+
+    def exists(self) -> bool:
+        """True if a state was committed here."""
+        return self.record.is_file()
+
+    def save(self, fields: dict[str, Any], tensors: dict[str, np.ndarray]) -> None:
+        """Commit ``fields`` and ``tensors`` atomically; unchanged tensors reuse the current blob."""
+        self.directory.mkdir(parents=True, exist_ok=True)
+        contiguous = {k: np.ascontiguousarray(v) for k, v in sorted(tensors.items())}
+        digest = _tensor_digest(contiguous)
+        previous = self._blob
+        if previous is None:  # never number a new blob like one a committed record may name
+            existing = (_serial_of(b.name) for b in self.directory.glob(f"{self.name}-*.safetensors"))
+            self._serial = max(self._serial, *existing, 0)
+        if digest != self._tensor_digest or self._blob is None:
+            self._serial += 1
+            blob = f"{self.name}-{self._serial}.safetensors"
+            partial = self.directory / f".{blob}.partial"
+            save_file(contiguous, str(partial))
+            _fsync(partial)
+            os.replace(partial, self.directory / blob)
+            self._blob, self._tensor_digest = blob, digest
+            self._blob_digest = _file_digest(self.directory / blob)
+        record = {
+            "format": FORMAT,
+            "name": self.name,
+            "tensors": self._blob,
+            "sha256": self._blob_digest,
+            "fields": fields,
+        }
+        _write_atomic(self.record, json.dumps(record, indent=1, sort_keys=True) + "\n")
+        if previous is not None and previous != self._blob:
+            (self.directory / previous).unlink(missing_ok=True)
+
+    def load(self) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
+        """The committed (fields, tensors).
+
+        :raises FileNotFoundError: nothing was committed in the directory
+        :raises StateError: the record or its blob is unreadable, corrupt or not this state
+        """
+        if not self.exists():
+            raise FileNotFoundError(f"no {self.name} state in {self.directory} ({self.record.name} missing)")
+        try:
+            record = json.loads(self.record.read_text())
+        except (OSError, ValueError) as exc:
+            raise StateError(f"{self.record} is not a readable state record ({exc})") from exc
+        if not isinstance(record, dict) or record.get("format") != FORMAT or record.get("name") != self.name:
+            raise StateError(f"{self.record} is not a fleetrl {self.name} state ({FORMAT})")
+        blob = self.directory / str(record.get("tensors"))
+        if not blob.is_file() or _file_digest(blob) != record.get("sha256"):
+            raise StateError(f"{self.record}: its tensor file {blob.name} is missing or does not match")
+        try:
+            tensors = load_file(str(blob))
+        except (SafetensorError, OSError) as exc:
+            raise StateError(f"{blob} is not a readable safetensors file ({exc})") from exc
+        self._blob, self._blob_digest = blob.name, record["sha256"]
+        self._tensor_digest = _tensor_digest({k: tensors[k] for k in sorted(tensors)})
+        self._serial = max(self._serial, _serial_of(blob.name))
+        for stale in self.directory.glob(f"{self.name}-*.safetensors"):
+            if stale.name != blob.name:  # a blob written by a save that crashed before its commit
+                stale.unlink(missing_ok=True)
+        return dict(record["fields"]), tensors
+
+
+def _serial_of(blob: str) -> int:
+    try:
+        return int(blob.rsplit("-", 1)[1].split(".")[0])
+    except (IndexError, ValueError):
+        return 0
+
+
+def _tensor_digest(tensors: dict[str, np.ndarray]) -> str:
+    h = hashlib.sha256()
+    for name, array in tensors.items():
+        h.update(f"{name}|{array.dtype.str}|{array.shape}|".encode())
+        h.update(array.tobytes())
+    return h.hexdigest()
+
+
+def _file_digest(path: Path) -> str:
+    return hashlib.sha256(path.read_bytes()).hexdigest()
+
+
+def _write_atomic(path: Path, text: str) -> None:
+    partial = path.with_name(f".{path.name}.partial")
+    with open(partial, "w") as handle:
+        handle.write(text)
+        handle.flush()
+        os.fsync(handle.fileno())
+    os.replace(partial, path)
+    _fsync_dir(path.parent)
+
+
+def _fsync(path: Path) -> None:
+    with open(path, "rb") as handle:
+        os.fsync(handle.fileno())
+
+
+def _fsync_dir(directory: Path) -> None:
+    try:
+        fd = os.open(directory, os.O_RDONLY)
+    except OSError:  # some filesystems do not open directories; the rename is still atomic
+        return
+    try:
+        os.fsync(fd)
+    finally:
+        os.close(fd)
