@@ -231,7 +231,7 @@ class Chief:
             status = parse_status(payload, run_id=self.run_id, node=worker, key=self.key)
         except MessageRejected as exc:
             return self._reject(worker, exc.reason, exc.detail)
-        if self.finished or worker in self._left:
+        if self.finished:
             return ChiefStep()
         known = self._incarnation.get(worker)
         inc = status.incarnation

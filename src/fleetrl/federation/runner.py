@@ -10,6 +10,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from fleetrl.federation.chief import Chief, ChiefEvent, ChiefStep
+from fleetrl.federation.chief_state import chief_fields
 from fleetrl.federation.messages import Reason, encode
 from fleetrl.federation.signing import status_payload
 from fleetrl.federation.topics import (
@@ -63,6 +64,8 @@ def run_chief(
     on_event: Callable[[ChiefEvent], None] | None = None,
     idle_timeout: float | None = None,
     clock: Callable[[], float] = time.monotonic,
+    checkpoint: Callable[[Chief], None] | None = None,
+    first_step: ChiefStep | None = None,
 ) -> ChiefSummary:
     """Serve one run: connect, announce the chief online, answer every round until the chief ends the run.
 
@@ -78,6 +81,12 @@ def run_chief(
         WARNING).
     :param idle_timeout: raise TimeoutError when nothing arrives for this many seconds (None: wait forever).
     :param clock: the time source handed to the state machine (seconds).
+    :param checkpoint: called with the chief at the start and whenever its durable state
+        (:func:`~fleetrl.federation.chief_state.chief_fields`) changed — a round closed, a worker left,
+        rejoined or restarted, the run ended — *before* the step's messages are published, so no worker ever
+        acts on an answer the checkpoint does not hold (write-ahead).
+    :param first_step: published right after the chief announces itself online (a resumed chief passes
+        :func:`~fleetrl.federation.chief_state.replay_last_answer`).
     """
     run_id = chief.run_id
     own_status = status_topic(run_id, CHIEF_ID)
@@ -87,7 +96,14 @@ def run_chief(
     def status(state: bytes) -> bytes:
         return status_payload(state, run_id=run_id, node=CHIEF_ID, incarnation=incarnation, key=chief.key)
 
+    committed = [chief_fields(chief) if checkpoint is not None else None]
+    if checkpoint is not None:  # a chief killed before its first round closes can be resumed too
+        checkpoint(chief)
+
     def publish(step: ChiefStep) -> None:
+        if checkpoint is not None and (fields := chief_fields(chief)) != committed[0]:
+            checkpoint(chief)
+            committed[0] = fields
         for message in step.outgoing:
             transport.publish(out_topic, encode(message, layout=chief.layout, key=chief.key))
         for event in step.events:
@@ -109,6 +125,8 @@ def run_chief(
             chief.max_rounds,
             chief.aggregator_name,
         )
+        if first_step is not None:
+            publish(first_step)
         last_input = clock()
         while not chief.finished:
             now = clock()

@@ -155,6 +155,12 @@ class FederatedWorker:
     :param resend_interval: seconds without an answer after which the round's message (or, before the
         welcome, the ``online`` status) is sent again; None never re-sends.
     :param key: the fleet key: sign what is sent, accept only what is signed with it.
+    :param start_round: resuming from a checkpoint: the first round the learner's state has not played. A
+        ``welcome`` for that round or the next keeps the state as it is and plays that round (see
+        docs/protocol.md, "Checkpoints and resume"); a later one means rounds were missed while down, and the
+        worker rejoins like a fresh one; an earlier one is an error (the chief lost rounds).
+    :param on_round_done: called with the next round to play after each round's answer was applied and
+        before that round starts (the moment to checkpoint the learner).
     """
 
     def __init__(
@@ -169,6 +175,8 @@ class FederatedWorker:
         reply_timeout: float | None = 600.0,
         resend_interval: float | None = 5.0,
         key: FleetKey | None = None,
+        start_round: int | None = None,
+        on_round_done: Callable[[int], None] | None = None,
     ) -> None:
         """Prepare the worker; nothing is sent before :meth:`run`."""
         self.learner = learner
@@ -180,6 +188,8 @@ class FederatedWorker:
         self.reply_timeout = reply_timeout
         self.resend_interval = resend_interval
         self.key = key
+        self.start_round = start_round
+        self.on_round_done = on_round_done
         self.incarnation = time.time_ns()
         """This process's incarnation: newer than any earlier process with the same worker id."""
         self.layout: Layout = list(learner.agent.actor_layout())
@@ -212,10 +222,11 @@ class FederatedWorker:
         agent = self.learner.agent
         if welcome.type == "done":
             return WorkerSummary(self.worker_id, 0, finished=False, reason="run ended")
-        if welcome.flat is not None:  # rejoining after a transfer: start from θ*
+        resume = self._resume_round(welcome.round)
+        if welcome.flat is not None and resume is None:  # rejoining after a transfer: start from θ*
             agent.set_actor_parameters(welcome.flat)
         log.info("worker %s: welcomed at round %d (θ* of %s)", self.worker_id, welcome.round, welcome.origin)
-        rnd = welcome.round
+        rnd = welcome.round if resume is None else resume
         while rnd <= self.max_rounds:
             result = self.learner.play_round()  # lines 2-24
             completed = bool(result.completed)
@@ -234,9 +245,32 @@ class FederatedWorker:
             rnd, stop = self._catch_up(reply.round, agent)
             if stop is not None:
                 return WorkerSummary(self.worker_id, rnd - 1, finished=False, reason=stop)
+            if self.on_round_done is not None:
+                self.on_round_done(rnd)
         return WorkerSummary(
             self.worker_id, self.max_rounds, finished=False, reason=f"reached M={self.max_rounds}"
         )
+
+    def _resume_round(self, welcome_round: int) -> int | None:
+        """The round a worker resumed from a checkpoint plays first; None: rejoin at the welcome's round."""
+        if self.start_round is None:
+            return None
+        if welcome_round < self.start_round:
+            raise RuntimeError(
+                f"worker {self.worker_id}: the chief is at round {welcome_round} but this worker's "
+                f"checkpoint is at round {self.start_round}: the chief lost rounds (resume it from its "
+                "checkpoint)"
+            )
+        if welcome_round <= self.start_round + 1:
+            # One round ahead: the message this worker sent before it died closed that round. Playing it again
+            # gives the same message (same state, same RNGs); the chief answers the copy with that round's
+            # answer, and the worker continues exactly as if it had never stopped.
+            return self.start_round
+        log.warning(
+            "worker %s: rounds %d-%d were played without this worker; rejoining at round %d",
+            self.worker_id, self.start_round, welcome_round - 1, welcome_round,
+        )  # fmt: skip
+        return None
 
     def _apply(self, reply: Message, completed: bool, agent: ActorAgent) -> tuple[str, str | None, bool]:
         """Act on the chief's answer; return (event, peer, whether this worker stops)."""
