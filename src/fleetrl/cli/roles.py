@@ -46,7 +46,17 @@ def register(sub: Any) -> None:
     chief = sub.add_parser("chief", help="serve as the chief of a federated run (Algorithm 1)")
     add_run_arguments(chief)
     chief.add_argument("--workers", type=int, required=True, help="N: the workers are ids 0 … N-1")
-    chief.add_argument("--out", type=Path, default=None, help="write chief.json and chief.log here")
+    chief.add_argument(
+        "--out",
+        type=Path,
+        default=None,
+        help="write chief.json, chief.log and a checkpoint every round (checkpoints/chief/) here",
+    )
+    chief.add_argument(
+        "--resume",
+        action="store_true",
+        help="continue the run from the checkpoint in --out (after a crash; same settings)",
+    )
     chief.add_argument(
         "--idle-timeout", type=float, default=600.0, help="give up after this many idle seconds"
     )
@@ -81,7 +91,17 @@ def register(sub: Any) -> None:
     worker.add_argument("--unit", type=int, default=None, help="device unit to train on (default: worker id)")
     worker.add_argument("--seed", type=int, default=0, help="the run's learning seed")
     worker.add_argument("--fleet-seed", type=int, default=0, help="seed of the fleet's per-unit dynamics")
-    worker.add_argument("--out", type=Path, required=True, help="this worker's run directory")
+    worker.add_argument(
+        "--out",
+        type=Path,
+        required=True,
+        help="this worker's run directory (metrics, model, a checkpoint every round in checkpoints/)",
+    )
+    worker.add_argument(
+        "--resume",
+        action="store_true",
+        help="continue from the checkpoint in --out at its round (after a crash; same settings)",
+    )
     worker.add_argument("--reply-timeout", type=float, default=600.0, help="seconds to wait for the chief")
     worker.add_argument(
         "--resend-interval",
@@ -191,6 +211,7 @@ def cmd_chief(args: argparse.Namespace) -> int:
     from fleetrl.federation.chief import Chief
     from fleetrl.federation.runner import run_chief
     from fleetrl.runs.launch import actor_layout
+    from fleetrl.runs.rundir import write_json_atomic
     from fleetrl.runs.settings import RunSettings
 
     if args.workers < 1:
@@ -217,21 +238,48 @@ def cmd_chief(args: argparse.Namespace) -> int:
         dropout_grace=args.dropout_grace,
         key=_key(args),
     )
-    events: list[str] = []
-    summary = run_chief(
-        chief, _transport(args), on_event=lambda e: events.append(str(e)), idle_timeout=args.idle_timeout
-    )
+    if args.out is None:
+        if args.resume:
+            raise ValueError("--resume needs --out: the run directory holding the chief's checkpoint")
+        summary = run_chief(chief, _transport(args), idle_timeout=args.idle_timeout)
+    else:
+        summary = _serve_with_checkpoints(chief, args)
     result = {"run_id": args.run_id, **summary.to_dict()}
     if args.out is not None:
-        args.out.mkdir(parents=True, exist_ok=True)
-        (args.out / "chief.json").write_text(json.dumps(result, indent=2) + "\n")
-        (args.out / "chief.log").write_text("\n".join(events) + "\n")
+        write_json_atomic(args.out / "chief.json", result)
     print(json.dumps(result))
     return 0
 
 
+def _serve_with_checkpoints(chief: Any, args: argparse.Namespace) -> Any:
+    """Run the chief with a checkpoint every round in ``args.out`` (resuming from it with ``--resume``)
+    and its events appended to chief.log as they happen."""
+    from fleetrl.federation.chief_state import replay_last_answer
+    from fleetrl.federation.runner import run_chief
+    from fleetrl.runs.checkpoints import ChiefCheckpoint, chief_checkpoint_dir
+
+    args.out.mkdir(parents=True, exist_ok=True)
+    store = ChiefCheckpoint(chief_checkpoint_dir(args.out))
+    first = None
+    if args.resume:
+        chief = store.load(key=chief.key, now=time.monotonic(), expect=chief)
+        first = replay_last_answer(chief)
+    elif store.exists():
+        raise FileExistsError(f"{args.out} holds a chief checkpoint: add --resume, or choose another --out")
+    with open(args.out / "chief.log", "a") as log_file:
+        return run_chief(
+            chief,
+            _transport(args),
+            on_event=lambda e: print(e, file=log_file, flush=True),
+            idle_timeout=args.idle_timeout,
+            checkpoint=store.save,
+            first_step=first,
+        )
+
+
 def cmd_worker(args: argparse.Namespace) -> int:
     """Serve as one worker; its run directory gets the same files as a ``fleetrl train`` run."""
+    from fleetrl.runs.checkpoints import WorkerCheckpoint, worker_checkpoint_dir
     from fleetrl.runs.roles import train_federated
     from fleetrl.runs.rundir import RunRecorder
     from fleetrl.runs.settings import RunSettings
@@ -270,7 +318,10 @@ def cmd_worker(args: argparse.Namespace) -> int:
         "worker_id": args.worker_id,
         "unit": unit,
     }
-    recorder = RunRecorder(args.out, config, [args.worker_id])
+    checkpoints = worker_checkpoint_dir(args.out, args.worker_id)
+    where = WorkerCheckpoint(checkpoints, spec, args.run_id).where() if args.resume else None
+    resume_from = {args.worker_id: 1 if where is None else where.next_round} if args.resume else None
+    recorder = RunRecorder(args.out, config, [args.worker_id], resume_from=resume_from)
     try:
         outcome = train_federated(
             spec,
@@ -280,6 +331,8 @@ def cmd_worker(args: argparse.Namespace) -> int:
             reply_timeout=args.reply_timeout,
             resend_interval=args.resend_interval,
             key=_key(args),
+            checkpoint_dir=checkpoints,
+            resume=args.resume,
         )
         recorder.extra["worker"] = {
             "rounds": outcome.rounds,

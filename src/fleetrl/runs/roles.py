@@ -13,6 +13,7 @@ from fleetrl.agent.learner import Learner, RoundResult
 from fleetrl.federation import worker as federation_worker
 from fleetrl.federation.signing import FleetKey
 from fleetrl.federation.worker import FederatedWorker, WorkerSummary
+from fleetrl.runs.checkpoints import WorkerCheckpoint
 from fleetrl.runs.factory import make_learner
 from fleetrl.runs.records import RoundRecord
 from fleetrl.runs.rundir import model_path
@@ -91,10 +92,31 @@ def train_federated(
     learner: Learner | None = None,
     resend_interval: float | None = 5.0,
     key: FleetKey | None = None,
+    checkpoint_dir: Path | None = None,
+    resume: bool = False,
 ) -> WorkerSummary:
-    """Federated mode (Algorithm 2): one worker of run ``run_id`` over ``transport``; save the model."""
+    """Federated mode (Algorithm 2): one worker of run ``run_id`` over ``transport``; save the model.
+
+    :param checkpoint_dir: commit the worker's state there after every round (see
+        :class:`~fleetrl.runs.checkpoints.WorkerCheckpoint`); None: no checkpoints.
+    :param resume: first restore the state committed in ``checkpoint_dir`` (if there is one) and continue
+        from its round; a worker whose run was already over returns at once.
+    """
     learner = learner or make_learner(spec)
     started = time.monotonic()
+    store = None if checkpoint_dir is None else WorkerCheckpoint(checkpoint_dir, spec, run_id)
+    start_round = None
+    if resume and store is not None and store.exists():
+        where = store.load(learner)
+        log.info("worker %d: resumed from %s at round %d", spec.worker, checkpoint_dir, where.next_round)
+        if where.ended is not None:
+            log.info("worker %d: its run was already over (%s)", spec.worker, where.ended)
+            return WorkerSummary(
+                str(spec.worker), where.next_round - 1, where.ended == "transfer_out", where.ended
+            )
+        start_round = where.next_round
+    elif resume:
+        log.warning("worker %d: nothing to resume in %s; starting afresh", spec.worker, checkpoint_dir)
     worker = FederatedWorker(
         learner,
         transport,
@@ -105,8 +127,13 @@ def train_federated(
         reply_timeout=reply_timeout,
         resend_interval=resend_interval,
         key=key,
+        start_round=start_round,
+        on_round_done=None if store is None else lambda next_round: store.save(learner, next_round),
     )
     try:
-        return worker.run()
+        summary = worker.run()
+        if store is not None:
+            store.save(learner, summary.rounds + 1, ended=summary.reason)
+        return summary
     finally:
         learner.agent.save(model_path(Path(spec.out), spec.worker))

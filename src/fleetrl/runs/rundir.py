@@ -15,7 +15,7 @@ from typing import Any
 
 from torch.utils.tensorboard import SummaryWriter
 
-from fleetrl.runs.records import CSV_COLUMNS, RoundRecord
+from fleetrl.runs.records import CSV_COLUMNS, RoundRecord, read_metrics
 
 
 @dataclass
@@ -49,11 +49,26 @@ class RunRecorder:
         silently overwrites another)
     :param config: every setting of the run, written to config.json
     :param workers: the worker ids taking part
+    :param resume_from: continue the run already in ``out`` (``--resume``): worker id → the first round it
+        will play again (from its checkpoint); its rows from that round on are dropped, the others kept
     """
 
-    def __init__(self, out: Path, config: dict[str, Any], workers: list[int]) -> None:
+    def __init__(
+        self,
+        out: Path,
+        config: dict[str, Any],
+        workers: list[int],
+        resume_from: dict[int, int] | None = None,
+    ) -> None:
         self.out = Path(out)
-        if (self.out / "metrics.csv").exists():
+        kept: list[RoundRecord] = []
+        if resume_from is not None and (self.out / "metrics.csv").exists():
+            kept = [
+                r
+                for r in read_metrics(self.out / "metrics.csv")
+                if r.round < resume_from.get(r.worker, r.round + 1)
+            ]
+        elif (self.out / "metrics.csv").exists():
             raise FileExistsError(f"{self.out} already holds a run (metrics.csv); choose another --out")
         (self.out / "models").mkdir(parents=True, exist_ok=True)
         self.config = config
@@ -64,10 +79,16 @@ class RunRecorder:
         self.extra: dict[str, Any] = {}
         """more entries for summary.json (e.g. the chief's account of a federated run)"""
         write_json_atomic(self.out / "config.json", config)
-        self._csv_file = (self.out / "metrics.csv").open("w", newline="")
+        metrics = self.out / "metrics.csv"
+        partial = metrics.with_name(".metrics.csv.partial")  # the kept rows replace the file in one rename
+        with partial.open("w", newline="") as handle:
+            csv.writer(handle).writerows([CSV_COLUMNS, *(r.csv_row() for r in kept)])
+        os.replace(partial, metrics)
+        for record in kept:  # a resumed run's earlier rounds (TensorBoard has them already)
+            self.records.append(record)
+            self._progress(record)
+        self._csv_file = metrics.open("a", newline="")
         self._csv = csv.writer(self._csv_file)
-        self._csv.writerow(CSV_COLUMNS)
-        self._csv_file.flush()
         self._tb = SummaryWriter(log_dir=str(self.out / "tensorboard"))
 
     def elapsed(self) -> float:
@@ -79,6 +100,7 @@ class RunRecorder:
         self.records.append(record)
         self._csv.writerow(record.csv_row())
         self._csv_file.flush()
+        self._progress(record)
         tag = f"worker_{record.worker}"
         self._tb.add_scalar(f"rollout/score/{tag}", record.score, record.round)
         self._tb.add_scalar(f"rollout/wma/{tag}", record.wma, record.round)
@@ -86,6 +108,8 @@ class RunRecorder:
             value = getattr(record, name)
             if math.isfinite(value):
                 self._tb.add_scalar(f"train/{name}/{tag}", value, record.round)
+
+    def _progress(self, record: RoundRecord) -> None:
         progress = self.progress.setdefault(record.worker, WorkerProgress())
         progress.round, progress.score, progress.wma = record.round, record.score, record.wma
         progress.state = "learning"
