@@ -237,6 +237,7 @@ class FederatedWorker:
             payload = encode(message, layout=self.layout, key=self.key)
             topic = worker_topic(self.run_id, self.worker_id)
             self.transport.publish(topic, payload)
+            log.debug("worker %s: sent %s for round %d", self.worker_id, kind, rnd)
             reply = self._wait_for(_answer_for(rnd), f"the chief's answer for round {rnd}", (topic, payload))
             event, peer, leave = self._apply(reply, completed, agent)  # lines 28-31
             self._record(rnd, result, event, peer)
