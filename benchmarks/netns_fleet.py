@@ -8,8 +8,9 @@ Topology: one namespace for the mosquitto broker, one for the chief (``fleetrl c
 (``fleetrl worker``). Each non-broker namespace is joined to the broker's by its own veth pair with a /30 of
 10.77.0.0/24 (broker side ``.4i+1``, node side ``.4i+2``); no namespace has a default route, so no packet can
 leave the machine's own namespaces. If the kernel has ``sch_netem``, ``tc qdisc … netem delay D jitter J loss
-L%`` goes on both ends of every veth (each MQTT hop crosses two qdiscs: a node → broker → node round trip
-sees 4 × D of delay); without it the script says so and runs without impairment.
+L%`` goes on both ends of every veth (netem acts on egress, so each hop is delayed once and a worker →
+broker → chief → broker → worker round trip sees 4 × D); without it the script says so and runs without
+impairment.
 
 Round overhead, from the roles' own DEBUG logs (one machine, one clock): for round r, (latest time a worker
 had the chief's answer applied and its round recorded) − (latest time a worker sent its message for r); the

@@ -9,6 +9,7 @@ stops it after saving its model.
 import argparse
 import logging
 import sys
+from pathlib import Path
 
 from fleetrl.runs.records import RoundRecord
 from fleetrl.runs.roles import train_alone, train_federated
@@ -27,6 +28,10 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--broker", default=None, help="federated mode: the broker URL")
     parser.add_argument("--run-id", default=None, help="federated mode: the run id")
     parser.add_argument("--reply-timeout", type=float, default=600.0)
+    parser.add_argument(
+        "--checkpoint-dir", type=Path, default=None, help="federated: checkpoint every round here"
+    )
+    parser.add_argument("--resume", action="store_true", help="federated: continue from --checkpoint-dir")
     args = parser.parse_args(argv)
     logging.basicConfig(level=logging.INFO, format="%(asctime)s %(name)s %(levelname)s %(message)s")
     spec = WorkerSpec.from_json(args.spec)
@@ -42,6 +47,8 @@ def main(argv: list[str] | None = None) -> int:
                 args.run_id,
                 print_record,
                 reply_timeout=args.reply_timeout,
+                checkpoint_dir=args.checkpoint_dir,
+                resume=args.resume,
             )
     except KeyboardInterrupt:
         logging.getLogger(__name__).info("interrupted; the model was saved")
