@@ -32,7 +32,6 @@ def test_report_has_every_section_with_its_command(quick_report: Path) -> None:
 @pytest.mark.parametrize("name", sorted(PLANS))
 def test_training_experiments_write_parseable_runs(quick_report: Path, name: str) -> None:
     rows = list(csv.DictReader((quick_report / name / "runs.csv").open()))
-    plan = PLANS[name]
     assert rows, name
     for row in rows:
         assert int(row["fleet_rounds"]) >= 1 and float(row["wall_seconds"]) > 0

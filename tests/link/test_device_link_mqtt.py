@@ -97,7 +97,7 @@ def test_watchdog_stops_the_motor_when_the_worker_process_is_killed() -> None:
             bridge.close()
     assert isinstance(driver, SimulatedDriver) and driver.volts == 0.0
     assert bridge.stats.watchdog_trips == 1 and bridge.stats.protective_stops == 0
-    assert stopped_after < watchdog + 0.05
+    assert stopped_after < watchdog + 0.5  # the watchdog's doing, not the 2 s give-up
 
 
 def test_device_command_line_parses() -> None:

@@ -1,0 +1,68 @@
+"""Per-step cost of the agent's acting path and the rollout rate of a worker (env + policy + memory).
+
+    python benchmarks/agent_speed.py [--steps 20000] [--repeats 5]
+
+Target (issue: fast acting): a rollout of at least 25k steps/s per worker on this machine. Prints medians
+over repeats (the machine is shared; medians are steadier than single runs).
+"""
+
+import argparse
+import statistics
+import sys
+import time
+
+import gymnasium
+import numpy as np
+import torch
+
+import fleetrl  # noqa: F401  (registers the envs)
+from fleetrl.agent.config import get_preset
+from fleetrl.agent.ppo import PPOAgent
+from fleetrl.envs.registration import CARTPOLE_UNIT_ID, QUBE_BALANCE_ID
+
+
+def act_and_remember(steps: int) -> float:
+    """Seconds per step of act + remember on a fixed observation."""
+    agent = PPOAgent(4, 3, get_preset("standard"), seed=0)
+    obs = np.zeros(4, dtype=np.float32)
+    agent.act(obs)
+    started = time.perf_counter()
+    for _ in range(steps):
+        agent.remember(obs, agent.act(obs), 1.0, obs, False, False)
+    return (time.perf_counter() - started) / steps
+
+
+def rollout(env_id: str, steps: int) -> float:
+    """Steps per second of a worker's rollout (act, env step, remember), resets included."""
+    env = gymnasium.make(env_id, unit=0, fleet_seed=0)
+    n_actions = int(env.action_space.n)  # type: ignore[attr-defined]
+    agent = PPOAgent(4, n_actions, get_preset("standard"), seed=0)
+    obs, _ = env.reset(seed=0)
+    agent.act(obs)
+    started = time.perf_counter()
+    for _ in range(steps):
+        action = agent.act(obs)
+        next_obs, reward, terminated, truncated, _ = env.step(action)
+        agent.remember(obs, action, float(reward), next_obs, terminated, truncated)
+        obs = env.reset()[0] if terminated or truncated else next_obs
+    return steps / (time.perf_counter() - started)
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
+    parser.add_argument("--steps", type=int, default=20_000)
+    parser.add_argument("--repeats", type=int, default=5)
+    args = parser.parse_args()
+    torch.set_num_threads(1)
+    act = statistics.median(act_and_remember(args.steps) for _ in range(args.repeats))
+    print(f"act + remember: {act * 1e6:.1f} µs per step (median of {args.repeats})")
+    for env_id in (CARTPOLE_UNIT_ID, QUBE_BALANCE_ID):
+        rate = statistics.median(rollout(env_id, args.steps) for _ in range(args.repeats))
+        print(f"rollout {env_id}: {rate:,.0f} steps/s (median of {args.repeats}; target ≥ 25,000)")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
