@@ -3,6 +3,7 @@
 import argparse
 import json
 import logging
+import signal
 import sys
 import time
 from collections.abc import Callable, Sequence
@@ -221,6 +222,10 @@ def cmd_experiment(args: argparse.Namespace) -> int:
     return 0
 
 
+def _terminate(signum: int, frame: object) -> None:
+    raise KeyboardInterrupt(f"signal {signum}")
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Parse, run, and turn known failures into one clear line and a non-zero exit code."""
     parser = build_parser()
@@ -230,6 +235,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         format="%(asctime)s %(levelname)s %(name)s: %(message)s",
     )
     handler: Callable[[argparse.Namespace], int] = args.handler
+    # SIGTERM unwinds like Ctrl-C: brokers, bridges and worker processes this command started are stopped
+    signal.signal(signal.SIGTERM, _terminate)
     try:
         return handler(args)
     except (UsageError, ValueError, FileNotFoundError, FileExistsError) as err:
