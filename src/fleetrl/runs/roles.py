@@ -8,8 +8,9 @@ import logging
 import time
 from collections.abc import Callable
 from pathlib import Path
+from typing import Protocol
 
-from fleetrl.agent.learner import Learner, RoundResult
+from fleetrl.agent.learner import Learner
 from fleetrl.federation import worker as federation_worker
 from fleetrl.federation.signing import FleetKey
 from fleetrl.federation.worker import FederatedWorker, WorkerSummary
@@ -25,19 +26,38 @@ log = logging.getLogger(__name__)
 Emit = Callable[[RoundRecord], None]
 
 
-def individual_record(worker: int, result: RoundResult, started: float) -> RoundRecord:
-    """The metrics row of an individual-mode round."""
+class RoundFigures(Protocol):
+    """The figures a round reports, whichever mode played it (``RoundResult`` and the federated record)."""
+
+    @property
+    def round(self) -> int: ...
+    @property
+    def score(self) -> float: ...
+    @property
+    def wma(self) -> float: ...
+    @property
+    def steps(self) -> int: ...
+    @property
+    def actor_loss(self) -> float: ...
+    @property
+    def critic_loss(self) -> float: ...
+    @property
+    def entropy(self) -> float: ...
+
+
+def metrics_row(worker: int, figures: RoundFigures, started: float, event: str) -> RoundRecord:
+    """The metrics row of a round (``wall_time`` counted from ``started``)."""
     return RoundRecord(
-        round=result.round,
+        round=figures.round,
         worker=worker,
-        score=result.score,
-        wma=result.wma,
-        actor_loss=result.actor_loss,
-        critic_loss=result.critic_loss,
-        entropy=result.entropy,
-        steps=result.steps,
+        score=figures.score,
+        wma=figures.wma,
+        actor_loss=figures.actor_loss,
+        critic_loss=figures.critic_loss,
+        entropy=figures.entropy,
+        steps=figures.steps,
         wall_time=round(time.monotonic() - started, 4),
-        event="completed" if result.completed else "",
+        event=event,
     )
 
 
@@ -52,22 +72,6 @@ def federated_event(record: federation_worker.RoundRecord) -> str:
     return record.event.replace(" ", "_")
 
 
-def federated_record(worker: int, record: federation_worker.RoundRecord, started: float) -> RoundRecord:
-    """The metrics row of a federated round."""
-    return RoundRecord(
-        round=record.round,
-        worker=worker,
-        score=record.score,
-        wma=record.wma,
-        actor_loss=record.actor_loss,
-        critic_loss=record.critic_loss,
-        entropy=record.entropy,
-        steps=record.steps,
-        wall_time=round(time.monotonic() - started, 4),
-        event=federated_event(record),
-    )
-
-
 def train_alone(spec: WorkerSpec, emit: Emit, learner: Learner | None = None) -> None:
     """Individual mode: play rounds until the criterion holds or M rounds pass; save the model."""
     learner = learner or make_learner(spec)
@@ -75,7 +79,7 @@ def train_alone(spec: WorkerSpec, emit: Emit, learner: Learner | None = None) ->
     try:
         for _ in range(spec.max_rounds):
             result = learner.play_round()
-            emit(individual_record(spec.worker, result, started))
+            emit(metrics_row(spec.worker, result, started, "completed" if result.completed else ""))
             if result.completed:
                 break
     finally:
@@ -123,7 +127,7 @@ def train_federated(
         run_id=run_id,
         worker_id=str(spec.worker),
         max_rounds=spec.max_rounds,
-        on_record=lambda record: emit(federated_record(spec.worker, record, started)),
+        on_record=lambda record: emit(metrics_row(spec.worker, record, started, federated_event(record))),
         reply_timeout=reply_timeout,
         resend_interval=resend_interval,
         key=key,
