@@ -44,36 +44,40 @@ def table2_section(out: Path, seeds: list[int], command: str, units: int = 3, im
     return "\n".join(lines) + "\n"
 
 
-PEER_STEPS = {"cartpole": 200_000, "qube": 150_000}
-"""SB3's step budget per unit (QUBE: the first two seeds only, SB3 takes ~2 min per 150k QUBE steps here)"""
+PEER_STEPS = {"cartpole": 200_000, "qube": 100_000}
+"""SB3's step budget per unit run. SB3 takes ~2 min per 100k QUBE steps here, so on QUBE each seed s trains
+one unit (s mod 3) instead of all three."""
 
 
 def peers_section(out: Path, seeds: list[int], command: str, budget: Budget, quick: bool) -> str:
     """SB3 PPO (defaults) per unit vs fleetrl on the same envs and criterion: episodes per unit."""
     envs = ["cartpole"] if quick else ["cartpole", "qube"]
     steps = {env: (5_000 if quick else PEER_STEPS[env]) for env in envs}
-    peer_seeds = {env: seeds if env == "cartpole" or quick else seeds[:2] for env in envs}
+    units = {env: (lambda s: range(3)) if env == "cartpole" else (lambda s: [s % 3]) for env in envs}
     peer_runs = {
         env: [
             PeerRun(out / "peers" / env / f"unit-{u}-seed-{s}.json", env, u, s, steps[env])
-            for s in peer_seeds[env]
-            for u in range(3)
+            for s in seeds
+            for u in units[env](s)
         ]
         for env in envs
     }
+    rounds = {"cartpole": budget.cartpole_rounds, "qube": budget.qube_rounds}
     ours = {
-        "cartpole": arm("cartpole", 3, "federated", "standard", budget.cartpole_rounds, "fleetrl"),
-        "qube": arm("qube", 3, "federated", "standard", budget.qube_rounds, "fleetrl"),
+        (env, mode): arm(env, 3, mode, "standard", rounds[env], f"fleetrl {mode} · standard")
+        for env in envs
+        for mode in ("individual", "federated")
     }
-    our_runs = {env: ours[env].runs(out / "runs", seeds) for env in envs}
-    run_all([r for env in envs for r in peer_runs[env]] + [r for env in envs for r in our_runs[env]])
+    our_runs = {key: ours[key].runs(out / "runs", seeds) for key in ours}
+    run_all([r for env in envs for r in peer_runs[env]] + [r for runs in our_runs.values() for r in runs])
 
     lines = ["## Peers: Stable-Baselines3 PPO (defaults) per unit", "", f"Command: `{command}`", ""]
     lines += [
         "Each of 3 units trained alone by SB3 PPO with its default hyper-parameters on the same registered"
         " env, stopped by the same criterion (WMA of the last 10 scores ≥ threshold); an incomplete run"
-        " counts as its episodes so far (a lower bound). fleetrl: the federated `standard` scheme, episodes"
-        " per unit.",
+        " counts as its episodes so far (a lower bound). SB3's step budget per unit run: "
+        + ", ".join(f"{env} {steps[env]:,}" for env in envs)
+        + " (on QUBE, seed s trains unit s mod 3).",
         "",
     ]
     rows = []
@@ -81,23 +85,30 @@ def peers_section(out: Path, seeds: list[int], command: str, budget: Budget, qui
         results = [r.result() for r in peer_runs[env]]
         sb3 = [r["episodes_to_completion"] or r["episodes"] for r in results]
         sb3_done = sum(r["episodes_to_completion"] is not None for r in results)
-        fleet = [r for c in completions(our_runs[env]) for r in c.worker_rounds()]
-        ratio, low, high = bootstrap_ratio(fleet, sb3)
-        rows.append(
-            [
-                env,
-                f"{spread(sb3)} ({sb3_done}/{len(results)} complete, ≤{steps[env]} steps)",
-                f"{spread(fleet)}",
-                f"{ratio:.2f}× ({low:.2f}–{high:.2f})",
-            ]
-        )
+        rows.append([env, "SB3 PPO (defaults)", f"{spread(sb3)}", f"{sb3_done}/{len(results)}", "1"])
+        for mode in ("individual", "federated"):
+            done = completions(our_runs[env, mode])
+            fleet = [r for c in done for r in c.worker_rounds()]
+            complete = sum(r is not None for c in done for r in c.per_worker.values())
+            ratio, low, high = bootstrap_ratio(fleet, sb3)
+            label = ours[env, mode].label
+            rows.append(
+                [
+                    env,
+                    label,
+                    f"{spread(fleet)}",
+                    f"{complete}/{len(fleet)}",
+                    f"{ratio:.2f}× ({low:.2f}–{high:.2f})",
+                ]
+            )
     lines.append(
         markdown_table(
             [
                 "env",
-                "SB3 PPO episodes per unit, median [IQR]",
-                "fleetrl episodes per unit, median [IQR]",
-                "fleetrl / SB3 (target ≤ 0.5×)",
+                "learner",
+                "episodes per unit to completion, median [IQR]",
+                "units complete",
+                "episodes / SB3's (target ≤ 0.5×; 95 % bootstrap)",
             ],
             rows,
         )
