@@ -93,9 +93,12 @@ def run_plan(plan: Plan, out: Path, seeds: list[int], command: str) -> str:
         per_unit = bootstrap_ratio(
             [r for c in slower for r in c.worker_rounds()], [r for c in faster for r in c.worker_rounds()]
         )
+        # an arm whose runs hit M without completing gives a bound, not a ratio (both: no direction)
+        censored = (not all(c.complete for c in slower), not all(c.complete for c in faster))
+        bound = {(False, False): "", (True, False): "≥ ", (False, True): "≤ ", (True, True): "~"}[censored]
         lines.append(
             f"- **{ratio.slower.label} → {ratio.faster.label}**: fleet speed-up "
-            f"{point:.2f}× (95 % bootstrap {low:.2f}–{high:.2f}), per unit {per_unit[0]:.2f}× "
+            f"{bound}{point:.2f}× (95 % bootstrap {low:.2f}–{high:.2f}), per unit {bound}{per_unit[0]:.2f}× "
             f"({per_unit[1]:.2f}–{per_unit[2]:.2f}); {ratio.claim}"
         )
     if extra:
@@ -112,7 +115,7 @@ def run_plan(plan: Plan, out: Path, seeds: list[int], command: str) -> str:
         fig = root / "workers.png"
         _plot_side_by_side(plan, runs, fig)
         lines += ["", f"![per-worker curves, seed {seeds[0]}]({fig.relative_to(out)})"]
-    lines += ["", "Regenerate one arm (SEEDS as listed):", ""]
+    lines += ["", f"Regenerate one arm (SEEDS: {' '.join(map(str, seeds))}):", ""]
     lines += [f"    {arm.command(runs_root)}" for arm in plan.arms]
     return "\n".join(lines) + "\n"
 
