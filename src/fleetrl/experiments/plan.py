@@ -138,8 +138,8 @@ def _arms_table(plan: Plan, runs: dict[str, list]) -> str:
         rows.append([arm.label, str(fleet), str(unit), f"{complete}/{len(done)}", f"{walls.median:.1f}"])
     header = [
         "arm",
-        "rounds until the last unit completes, median [IQR]",
-        "rounds per unit, median [IQR]",
+        "rounds until the last unit completes, median [IQR] (range)",
+        "rounds per unit, median [IQR] (range)",
         "runs complete within M",
         "wall s (median)",
     ]

@@ -106,7 +106,7 @@ def peers_section(out: Path, seeds: list[int], command: str, budget: Budget, qui
             [
                 "env",
                 "learner",
-                "episodes per unit to completion, median [IQR]",
+                "episodes per unit to completion, median [IQR] (range)",
                 "units complete",
                 "episodes / SB3's (target ≤ 0.5×; 95 % bootstrap)",
             ],

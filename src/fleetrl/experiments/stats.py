@@ -43,25 +43,27 @@ def read_completion(run_dir: Path) -> Completion:
 
 @dataclass(frozen=True)
 class Spread:
-    """Median and inter-quartile range of a sample."""
+    """Median, inter-quartile range and range of a sample."""
 
     median: float
     q1: float
     q3: float
     n: int
+    low: float = math.nan
+    high: float = math.nan
 
     def __str__(self) -> str:
         if self.n == 0:
             return "-"
-        return f"{self.median:.0f} [{self.q1:.0f}–{self.q3:.0f}]"
+        return f"{self.median:.0f} [{self.q1:.0f}–{self.q3:.0f}] ({self.low:.0f}–{self.high:.0f})"
 
 
 def spread(values: list[float] | list[int]) -> Spread:
-    """Median and IQR (linear interpolation) of ``values``."""
+    """Median, IQR (linear interpolation) and range of ``values``."""
     if not values:
         return Spread(math.nan, math.nan, math.nan, 0)
-    q1, median, q3 = np.percentile(np.asarray(values, dtype=float), [25, 50, 75])
-    return Spread(float(median), float(q1), float(q3), len(values))
+    low, q1, median, q3, high = np.percentile(np.asarray(values, dtype=float), [0, 25, 50, 75, 100])
+    return Spread(float(median), float(q1), float(q3), len(values), float(low), float(high))
 
 
 def bootstrap_ratio(
