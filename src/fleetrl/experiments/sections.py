@@ -98,7 +98,7 @@ def peers_section(out: Path, seeds: list[int], command: str, budget: Budget, qui
                     label,
                     f"{spread(fleet)}",
                     f"{complete}/{len(fleet)}",
-                    f"{ratio:.2f}× ({low:.2f}–{high:.2f})",
+                    f"{'≤ ' if sb3_done < len(results) else ''}{ratio:.2f}× ({low:.2f}–{high:.2f})",
                 ]
             )
     lines.append(
