@@ -40,7 +40,7 @@ def table2_section(out: Path, seeds: list[int], command: str, units: int = 3, im
             f"- {name} angle: off-diagonal correlations over {len(seeds)} impulse seed(s) "
             f"{min(values):.2f}–{max(values):.2f} (median {np.median(values):.2f})"
         )
-    lines += ["", "CSV matrices: `table2/seed-*/{motor,pendulum}_correlation.csv` under the experiment's --out."]
+    lines += ["", "CSV matrices: `table2/seed-*/{motor,pendulum}_correlation.csv` in the experiment's --out."]
     return "\n".join(lines) + "\n"
 
 
