@@ -77,23 +77,23 @@ def fig6(budget: Budget) -> Plan:
 
 
 def cartpole_scaling(budget: Budget) -> Plan:
-    """1, 2, 4, 8 CartPole workers, federated."""
+    """1, 2, 4, 8 CartPole workers, federated, preset standard (the paper preset does not learn CartPole
+    within the budget: see the learning experiment)."""
     m = budget.cartpole_rounds
     arms = {
-        (n, preset): arm("cartpole", n, "federated", preset, m, f"{n} workers · {preset}")
-        for preset in ("paper", "standard")
-        for n in (1, 2, 4, 8)
+        n: arm("cartpole", n, "federated", "standard", m, f"{n} workers · standard") for n in (1, 2, 4, 8)
     }
     return Plan(
         name="cartpole-scaling",
-        title="CartPole scaling: 1, 2, 4, 8 workers, federated",
+        title="CartPole scaling: 1, 2, 4, 8 workers, federated (preset standard)",
         arms=list(arms.values()),
         max_rounds=m,
         ratios=[
-            Ratio(arms[1, "standard"], arms[8, "standard"], "the paper's earlier study: faster with more"),
-            Ratio(arms[1, "paper"], arms[8, "paper"], "the same with the paper's preset"),
+            Ratio(arms[1], arms[2], "the paper's earlier study: faster with more workers"),
+            Ratio(arms[1], arms[4], "the paper's earlier study: faster with more workers"),
+            Ratio(arms[1], arms[8], "the paper's earlier study: faster with more workers"),
         ],
-        mqtt_check=arms[4, "standard"],
+        mqtt_check=arms[4],
     )
 
 
