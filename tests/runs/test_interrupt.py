@@ -39,15 +39,15 @@ def test_sigint_leaves_a_valid_partial_run(tmp_path: Path, mode: str) -> None:
     deadline = time.monotonic() + 120
     while time.monotonic() < deadline and child.poll() is None:
         metrics = out / "metrics.csv"
-        if metrics.exists() and len(metrics.read_text().splitlines()) > 6:
-            break
+        if metrics.exists() and {r.worker for r in read_metrics(metrics)} == {0, 1}:
+            break  # both workers have reported a round
         time.sleep(0.2)
     assert child.poll() is None, child.communicate()
     child.send_signal(signal.SIGINT)
     stdout, stderr = child.communicate(timeout=60)
     assert child.returncode == 130, stderr[-2000:]
     summary = json.loads((out / "summary.json").read_text())
-    assert summary["interrupted"] is True and summary["rounds"] >= 3
+    assert summary["interrupted"] is True and summary["rounds"] >= 1
     records = read_metrics(out / "metrics.csv")
     assert {r.worker for r in records} == {0, 1}
     assert (out / "scores.png").is_file() and "run directory" in stdout

@@ -235,8 +235,11 @@ def main(argv: Sequence[str] | None = None) -> int:
         format="%(asctime)s %(levelname)s %(name)s: %(message)s",
     )
     handler: Callable[[argparse.Namespace], int] = args.handler
-    # SIGTERM unwinds like Ctrl-C: brokers, bridges and worker processes this command started are stopped
+    # SIGTERM unwinds like Ctrl-C: brokers, bridges and worker processes this command started are stopped.
+    # SIGINT is re-armed too: a process started in the background inherits it ignored, and Ctrl-C (or the
+    # launcher's stop request) must still end a run cleanly.
     signal.signal(signal.SIGTERM, _terminate)
+    signal.signal(signal.SIGINT, signal.default_int_handler)
     try:
         return handler(args)
     except (UsageError, ValueError, FileNotFoundError, FileExistsError) as err:

@@ -8,6 +8,7 @@ stops it after saving its model.
 
 import argparse
 import logging
+import signal
 import sys
 from pathlib import Path
 
@@ -33,6 +34,8 @@ def main(argv: list[str] | None = None) -> int:
     )
     parser.add_argument("--resume", action="store_true", help="federated: continue from --checkpoint-dir")
     args = parser.parse_args(argv)
+    # the launcher stops workers with SIGINT; re-arm it in case this process inherited it ignored
+    signal.signal(signal.SIGINT, signal.default_int_handler)
     logging.basicConfig(level=logging.INFO, format="%(asctime)s %(name)s %(levelname)s %(message)s")
     spec = WorkerSpec.from_json(args.spec)
     try:
