@@ -132,18 +132,7 @@ class NumpyPolicy:
 
     def act_greedy(self, obs: np.ndarray) -> int:
         """The most probable action under π_θ(·|obs)."""
-        return int(
-            _act_kernel(
-                self._weights,
-                self._biases,
-                self._dims,
-                self._activation,
-                self._load_obs(obs),
-                self._a,
-                self._b,
-                -1.0,
-            )
-        )
+        return self.act(obs, -1.0)  # the kernel takes a negative draw as "the arg-max, no sampling"
 
     def probabilities(self, obs: np.ndarray) -> np.ndarray:
         """π_θ(·|obs) as a float64 vector (for tests and inspection)."""

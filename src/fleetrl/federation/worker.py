@@ -74,8 +74,8 @@ class ActorAgent(Protocol):
         ...
 
 
-class RoundOutcome(Protocol):
-    """What one ``play_round`` reports (``fleetrl.agent.learner.RoundResult`` provides it)."""
+class RoundFigures(Protocol):
+    """The figures of one round: the episode and the update's statistics."""
 
     @property
     def score(self) -> float: ...
@@ -84,13 +84,18 @@ class RoundOutcome(Protocol):
     @property
     def wma(self) -> float: ...
     @property
-    def completed(self) -> bool: ...
-    @property
     def actor_loss(self) -> float: ...
     @property
     def critic_loss(self) -> float: ...
     @property
     def entropy(self) -> float: ...
+
+
+class RoundOutcome(RoundFigures, Protocol):
+    """What one ``play_round`` reports (``fleetrl.agent.learner.RoundResult`` provides it)."""
+
+    @property
+    def completed(self) -> bool: ...
 
 
 class RoundPlayer(Protocol):

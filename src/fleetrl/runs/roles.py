@@ -13,7 +13,7 @@ from typing import Protocol
 from fleetrl.agent.learner import Learner
 from fleetrl.federation import worker as federation_worker
 from fleetrl.federation.signing import FleetKey
-from fleetrl.federation.worker import FederatedWorker, WorkerSummary
+from fleetrl.federation.worker import FederatedWorker, RoundFigures, WorkerSummary
 from fleetrl.runs.checkpoints import WorkerCheckpoint
 from fleetrl.runs.factory import make_learner
 from fleetrl.runs.records import RoundRecord
@@ -26,26 +26,14 @@ log = logging.getLogger(__name__)
 Emit = Callable[[RoundRecord], None]
 
 
-class RoundFigures(Protocol):
-    """The figures a round reports, whichever mode played it (``RoundResult`` and the federated record)."""
+class NumberedRound(RoundFigures, Protocol):
+    """A round's figures with its number, whichever mode played it (``RoundResult``, the federated record)."""
 
     @property
     def round(self) -> int: ...
-    @property
-    def score(self) -> float: ...
-    @property
-    def wma(self) -> float: ...
-    @property
-    def steps(self) -> int: ...
-    @property
-    def actor_loss(self) -> float: ...
-    @property
-    def critic_loss(self) -> float: ...
-    @property
-    def entropy(self) -> float: ...
 
 
-def metrics_row(worker: int, figures: RoundFigures, started: float, event: str) -> RoundRecord:
+def metrics_row(worker: int, figures: NumberedRound, started: float, event: str) -> RoundRecord:
     """The metrics row of a round (``wall_time`` counted from ``started``)."""
     return RoundRecord(
         round=figures.round,
