@@ -101,6 +101,33 @@ def test_gradient_round_trip_between_agents() -> None:
     )
 
 
+def test_model_vector_is_the_actor_then_the_value_head() -> None:
+    agent = agent_with_memory(seed=5)
+    layout = agent.model_layout()
+    assert layout[: len(agent.actor_layout())] == agent.actor_layout()
+    assert layout[-2:] == [("value.weight", (1, 128)), ("value.bias", (1,))]
+    assert sum(p.numel() for p in agent.net.parameters()) == agent.model_parameters().shape[0]
+    assert np.array_equal(agent.model_parameters()[: agent.actor_size()], agent.actor_parameters())
+
+
+def test_set_model_parameters_moves_both_heads_and_keeps_each_adam() -> None:
+    source = agent_with_memory(seed=1)
+    source.update()
+    target = agent_with_memory(seed=2)
+    target.update()
+    adam_steps = [s["step"].item() for s in target.actor_optimizer.state.values()]
+    target.set_model_parameters(source.model_parameters())
+    assert np.array_equal(target.model_parameters(), source.model_parameters())
+    obs = np.array([0.1, -0.2, 0.3, 0.0], dtype=np.float32)
+    with torch.no_grad():
+        values = [a.net.value_of(torch.from_numpy(obs[None]))[0].item() for a in (source, target)]
+    assert values[0] == values[1]
+    assert target.act_greedy(obs) == source.act_greedy(obs)
+    assert [s["step"].item() for s in target.actor_optimizer.state.values()] == adam_steps
+    with pytest.raises(ValueError, match="model parameter vector must be flat with"):
+        target.set_model_parameters(source.actor_parameters())
+
+
 @pytest.mark.parametrize("bad", [np.zeros(5, np.float32), np.zeros((2, 2), np.float32)])
 def test_wrong_vectors_are_rejected(bad: np.ndarray) -> None:
     agent = PPOAgent(OBS_DIM, N_ACTIONS, get_preset("paper"), seed=0)

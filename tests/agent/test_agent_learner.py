@@ -60,6 +60,17 @@ def test_completed_round_makes_no_update() -> None:
     assert last.steps == last.score  # CartPole: +1 per step
 
 
+def test_a_learner_that_keeps_learning_updates_after_completion() -> None:
+    learner = make_learner("standard", seed=0, threshold=0.0)
+    learner.keep_learning = True
+    results = [learner.play_round() for _ in range(10)]
+    theta = learner.agent.actor_parameters()
+    last = learner.play_round()
+    assert results[-1].completed and last.completed and learner.completed
+    assert all(np.isfinite(r.actor_loss) for r in [*results, last])
+    assert not np.array_equal(theta, learner.agent.actor_parameters())
+
+
 STANDARD_SEED = 0
 STANDARD_MAX_ROUNDS = 150  # seed 0 completes at round 79 (docs/algorithm.md)
 

@@ -54,6 +54,6 @@ def test_table2_and_peers_write_their_numbers(quick_report: Path) -> None:
     matrix = list(csv.reader((quick_report / "table2" / "seed-0" / "motor_correlation.csv").open()))
     assert any(float(cell) == pytest.approx(1.0) for cell in matrix[1][1:])
     results = [json.loads(p.read_text()) for p in (quick_report / "peers" / "cartpole").glob("*.json")]
-    assert len(results) == 3 and all(r["episodes"] >= 1 for r in results)
+    assert len(results) == 1 and all(r["episodes"] >= 1 for r in results)  # --seeds 1: unit 0
     section = (quick_report / "peers" / "section.md").read_text()
     assert "SB3 PPO (defaults)" in section and re.findall(r"\| (?:≤ )?\d+\.\d+× \(", section)

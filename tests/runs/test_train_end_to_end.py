@@ -111,3 +111,18 @@ def test_devices_behind_mqtt_bridges_give_the_same_scores(local_run: Path, tmp_p
     summary = train(tmp_path / "run", "--mode", "federated", "--transport", "local", "--device-link", "mqtt")
     assert summary["broker"].startswith("mqtt://127.0.0.1:")
     assert scores(tmp_path / "run") == scores(local_run)
+
+
+@pytest.mark.mqtt
+def test_fedavg_is_reproducible_and_the_same_over_mqtt(local_run: Path, tmp_path: Path) -> None:
+    fedavg = ("--mode", "federated", "--scheme", "fedavg")
+    train(tmp_path / "local", *fedavg, "--transport", "local")
+    train(tmp_path / "again", *fedavg, "--transport", "local")
+    with EmbeddedBroker() as broker:
+        train(tmp_path / "mqtt", *fedavg, "--broker", broker.url)
+    assert scores(tmp_path / "local") == scores(tmp_path / "again") == scores(tmp_path / "mqtt")
+    rows = list(csv.DictReader((tmp_path / "local" / "metrics.csv").open()))
+    assert {r["event"] for r in rows} == {"model"} and len(rows) == 3 * ROUNDS
+    config = json.loads((tmp_path / "mqtt" / "config.json").read_text())
+    assert config["scheme"] == "fedavg"
+    assert scores(tmp_path / "local") != scores(local_run)  # the paper's scheme, same seed: other rounds

@@ -27,7 +27,8 @@ class RoundResult:
     wma: float
     """weighted moving average of the last scores after this one (see CompletionCriterion)"""
     completed: bool
-    """the criterion holds after this episode; then no update was made (Algorithm 2, line 7)"""
+    """the criterion holds after this episode; then no update was made (Algorithm 2, line 7) unless the
+    learner keeps learning"""
     actor_loss: float
     """−L^CLIP averaged over the round's K optimisations (NaN when no update was made)"""
     critic_loss: float
@@ -45,6 +46,8 @@ class Learner:
     :param agent: the PPO agent that acts and learns
     :param criterion: decides when learning is complete
     :param seed: seeds the env at its first reset (later resets continue its random stream)
+    :param keep_learning: update after every episode, also once the criterion holds (the ``fedavg``
+        federation scheme, where a completed worker keeps learning with the fleet)
     """
 
     def __init__(
@@ -53,11 +56,13 @@ class Learner:
         agent: PPOAgent,
         criterion: CompletionCriterion,
         seed: int | None = None,
+        keep_learning: bool = False,
     ) -> None:
         self.env = env
         self.agent = agent
         self.criterion = criterion
         self.seed = seed
+        self.keep_learning = keep_learning
         self.rounds = 0
         self.completed = False
 
@@ -87,9 +92,9 @@ class Learner:
         nan = math.nan
         losses = (nan, nan, nan)
         done = self.criterion.done
-        if done:  # line 7: learning finished — the worker sends θ instead of updating
+        if done:
             self.completed = True
-        else:
+        if not done or self.keep_learning:  # line 7: once learning is finished the worker sends θ instead
             stats = self.agent.update()  # lines 11-24
             losses = (stats.actor_loss, stats.critic_loss, stats.entropy)
         return RoundResult(

@@ -209,7 +209,7 @@ class PPOAgent:
 
     def actor_layout(self) -> list[tuple[str, tuple[int, ...]]]:
         """Names and shapes of θ, in the order of every flat actor vector (gradient or parameters)."""
-        return [(name, tuple(p.shape)) for name, p in self._actor_named]
+        return _layout(self._actor_named)
 
     def actor_size(self) -> int:
         """Length of a flat actor vector."""
@@ -223,7 +223,7 @@ class PPOAgent:
 
     def apply_actor_gradient(self, flat: np.ndarray) -> None:
         """Line 31: update π_θ with a received (average) gradient ḡ through the actor's Adam."""
-        chunks = self._split(flat, "gradient")
+        chunks = _split(flat, self._actor_named, "actor gradient")
         self._score_new_transitions()
         params = [p for _, p in self._actor_named]
         for p, g in zip(params, chunks, strict=True):
@@ -235,30 +235,37 @@ class PPOAgent:
 
     def actor_parameters(self) -> np.ndarray:
         """θ as flat float32 in :meth:`actor_layout` order (line 8: what a finished worker sends)."""
-        return np.concatenate([p.detach().numpy().ravel() for _, p in self._actor_named]).astype(np.float32)
+        return _flatten(self._actor_named)
 
     def set_actor_parameters(self, flat: np.ndarray) -> None:
         """Line 29: replace θ with received parameters θ̄ (the critic head and Adam state are kept)."""
-        chunks = self._split(flat, "parameter")
+        self._replace(self._actor_named, flat, "actor parameter")
+
+    # The whole actor-critic (θ and μ: trunk, policy head and value head), for the ``fedavg`` scheme, which
+    # averages models rather than actor gradients (docs/algorithm.md, "Federation schemes").
+
+    def model_layout(self) -> list[tuple[str, tuple[int, ...]]]:
+        """Names and shapes of every network parameter, in the order of every flat model vector."""
+        return _layout(self._model_named())
+
+    def model_parameters(self) -> np.ndarray:
+        """Every network parameter as flat float32 in :meth:`model_layout` order."""
+        return _flatten(self._model_named())
+
+    def set_model_parameters(self, flat: np.ndarray) -> None:
+        """Replace every network parameter (both Adam states are kept: each worker's own optimiser)."""
+        self._replace(self._model_named(), flat, "model parameter")
+
+    def _model_named(self) -> list[tuple[str, nn.Parameter]]:
+        return self._actor_named + self.net.head_parameters("value")
+
+    def _replace(self, named: list[tuple[str, nn.Parameter]], flat: np.ndarray, what: str) -> None:
+        chunks = _split(flat, named, what)
         self._score_new_transitions()
         with torch.no_grad():
-            for (_, p), value in zip(self._actor_named, chunks, strict=True):
+            for (_, p), value in zip(named, chunks, strict=True):
                 p.copy_(value)
         self._policy.refresh(self.net)
-
-    def _split(self, flat: np.ndarray, what: str) -> list[torch.Tensor]:
-        array = np.asarray(flat)
-        size = self.actor_size()
-        if array.ndim != 1 or array.shape[0] != size:
-            raise ValueError(f"actor {what} vector must be flat with {size} values, got shape {array.shape}")
-        if not np.all(np.isfinite(array)):
-            raise ValueError(f"actor {what} vector has non-finite values")
-        tensor = torch.from_numpy(array.astype(np.float32))
-        chunks, offset = [], 0
-        for _, p in self._actor_named:
-            chunks.append(tensor[offset : offset + p.numel()].view_as(p).clone())
-            offset += p.numel()
-        return chunks
 
     # ---- resumable state (fleetrl.agent.state) --------------------------------------------------------
 
@@ -342,3 +349,27 @@ class PPOAgent:
             {k: torch.from_numpy(np.asarray(v, dtype=np.float32)) for k, v in tensors.items()}
         )
         self._policy.refresh(self.net)
+
+
+def _layout(named: list[tuple[str, nn.Parameter]]) -> list[tuple[str, tuple[int, ...]]]:
+    return [(name, tuple(p.shape)) for name, p in named]
+
+
+def _flatten(named: list[tuple[str, nn.Parameter]]) -> np.ndarray:
+    return np.concatenate([p.detach().numpy().ravel() for _, p in named]).astype(np.float32)
+
+
+def _split(flat: np.ndarray, named: list[tuple[str, nn.Parameter]], what: str) -> list[torch.Tensor]:
+    """``flat`` cut into tensors shaped like ``named``; ValueError if it does not fit or is not finite."""
+    array = np.asarray(flat)
+    size = sum(p.numel() for _, p in named)
+    if array.ndim != 1 or array.shape[0] != size:
+        raise ValueError(f"{what} vector must be flat with {size} values, got shape {array.shape}")
+    if not np.all(np.isfinite(array)):
+        raise ValueError(f"{what} vector has non-finite values")
+    tensor = torch.from_numpy(array.astype(np.float32))
+    chunks, offset = [], 0
+    for _, p in named:
+        chunks.append(tensor[offset : offset + p.numel()].view_as(p).clone())
+        offset += p.numel()
+    return chunks

@@ -59,6 +59,11 @@ def build_parser() -> argparse.ArgumentParser:
         help="inprocess (default) or mqtt: each unit served by a device bridge over the broker",
     )
     train.add_argument(
+        "--scheme",
+        default="paper",
+        help="federated: paper (default; gradient sharing + model transfer) or fedavg (model averaging)",
+    )
+    train.add_argument(
         "--aggregation",
         default="mean",
         help="federated: mean (default), median, trimmed_mean[:β] or clipped_mean[:C]",
@@ -133,6 +138,7 @@ def run_settings(args: argparse.Namespace, mode: str) -> Any:
         transport=getattr(args, "transport", "mqtt"),
         broker=getattr(args, "broker", None),
         device_link=getattr(args, "device_link", "inprocess"),
+        scheme=getattr(args, "scheme", "paper"),
         aggregation=getattr(args, "aggregation", "mean"),
         quorum=getattr(args, "quorum", 1.0),
         round_timeout=getattr(args, "round_timeout", None),

@@ -115,6 +115,7 @@ def register(sub: Any) -> None:
 def add_run_arguments(p: argparse.ArgumentParser) -> None:
     """Options the chief and every worker must agree on."""
     p.add_argument("--broker", required=True, help="mqtt://[user:pass@]host:port or mqtts://…")
+    p.add_argument("--scheme", default="paper", help="federation scheme: paper (default) or fedavg")
     p.add_argument("--ca-file", default=None, help="CA certificate for mqtts://")
     p.add_argument("--client-cert", default=None, help="client certificate for mqtts:// (optional)")
     p.add_argument("--client-key", default=None, help="the client certificate's private key")
@@ -210,7 +211,7 @@ def cmd_chief(args: argparse.Namespace) -> int:
     """Serve one run as its chief; print how it ended as JSON."""
     from fleetrl.federation.chief import Chief
     from fleetrl.federation.runner import run_chief
-    from fleetrl.runs.launch import actor_layout
+    from fleetrl.runs.launch import shared_layout
     from fleetrl.runs.rundir import write_json_atomic
     from fleetrl.runs.settings import RunSettings
 
@@ -224,13 +225,15 @@ def cmd_chief(args: argparse.Namespace) -> int:
         0,
         args.max_rounds,
         Path("."),
+        scheme=args.scheme,
         overrides=parse_overrides(args.overrides),
     )
     settings.validate()
     chief = Chief(
         run_id=args.run_id,
         workers=[str(k) for k in range(args.workers)],
-        layout=actor_layout(settings),
+        layout=shared_layout(settings),
+        scheme=args.scheme,
         max_rounds=args.max_rounds,
         aggregator=args.aggregation,
         quorum=args.quorum,
@@ -296,6 +299,7 @@ def cmd_worker(args: argparse.Namespace) -> int:
         args.out,
         fleet_seed=args.fleet_seed,
         broker=args.broker,
+        scheme=args.scheme,
         overrides=parse_overrides(args.overrides),
     )
     settings.validate()
@@ -311,6 +315,7 @@ def cmd_worker(args: argparse.Namespace) -> int:
         args.max_rounds,
         str(args.out),
         settings.overrides,
+        scheme=args.scheme,
     )
     config = settings.to_config() | {
         "role": "worker",

@@ -20,68 +20,82 @@ FULL = Budget(qube_rounds=1000, cartpole_rounds=400)
 QUICK = Budget(qube_rounds=4, cartpole_rounds=6)
 
 
-def arm(env: str, units: int, mode: str, preset: str, rounds: int, label: str) -> Arm:
+def arm(env: str, units: int, mode: str, preset: str, rounds: int, label: str, scheme: str = "paper") -> Arm:
     """A training arm; its key names the configuration, so experiments that share one share its runs.
 
-    Federated arms use the in-process bus (each experiment checks one arm over MQTT as well).
+    Federated arms use the in-process bus (each experiment checks one arm over MQTT as well). The key of a
+    ``paper``-scheme arm carries no scheme (it is the default), so runs made before schemes existed count.
     """
     args = ["--env", env, "--units", str(units), "--mode", mode, "--preset", preset]
     args += ["--max-rounds", str(rounds)] + (["--transport", "local"] if mode == "federated" else [])
-    return Arm(f"{env}-{units}-{mode}-{preset}-m{rounds}", label, tuple(args))
+    key = f"{env}-{units}-{mode}-{preset}-m{rounds}"
+    if scheme != "paper":
+        args += ["--scheme", scheme]
+        key += f"-{scheme}"
+    return Arm(key, label, tuple(args))
 
 
 def fig5(budget: Budget) -> Plan:
-    """3 QUBE units: individual vs federated, with the paper's preset and with ``standard``."""
+    """3 QUBE units: individual vs federated, with the paper's preset and with ``standard``, and fleetrl's
+    model-averaging scheme (``fedavg``)."""
     m = budget.qube_rounds
     ind_paper, fed_paper, ind_std, fed_std = (
         arm("qube", 3, mode, preset, m, f"{mode} · {preset}")
         for preset in ("paper", "standard")
         for mode in ("individual", "federated")
     )
+    fedavg = arm("qube", 3, "federated", "standard", m, "federated · standard · fedavg", "fedavg")
     return Plan(
         name="fig5",
         title="Fig. 5: 3 QUBE units, individual vs federated",
-        arms=[ind_paper, fed_paper, ind_std, fed_std],
+        arms=[ind_paper, fed_paper, ind_std, fed_std, fedavg],
         max_rounds=m,
         ratios=[
             Ratio(ind_paper, fed_paper, "the paper: ≈1.5× overall, 2.7× on the slowest unit"),
-            Ratio(ind_std, fed_std, "federation with the standard preset"),
-            Ratio(ind_paper, fed_std, "fleetrl's best scheme vs the paper's baseline"),
-            Ratio(fed_paper, fed_std, "fleetrl's best scheme vs the paper's scheme"),
+            Ratio(ind_std, fed_std, "the paper's scheme with the standard preset"),
+            Ratio(ind_std, fedavg, "fleetrl's best scheme vs each unit alone (target ≥ 1.5×, aim 2.7×)"),
+            Ratio(fed_std, fedavg, "fleetrl's best scheme vs the paper's scheme, same preset"),
+            Ratio(fed_paper, fedavg, "fleetrl's best scheme vs the paper's scheme and preset"),
         ],
-        side_by_side=(ind_std, fed_std),
-        mqtt_check=fed_std,
+        side_by_side=(ind_std, fedavg),
+        mqtt_check=fedavg,
         notes="Paper (3 real units): ≈300 rounds federated vs 820 / 820 / 571 individual.",
     )
 
 
 def fig6(budget: Budget) -> Plan:
-    """2 vs 3 QUBE workers, federated."""
+    """2 vs 3 QUBE workers, federated, with each scheme."""
     m = budget.qube_rounds
-    two_paper, three_paper, two_std, three_std = (
-        arm("qube", n, "federated", preset, m, f"{n} workers · {preset}")
-        for preset in ("paper", "standard")
+    variants = (("paper", "paper"), ("standard", "paper"), ("standard", "fedavg"))
+    arms = {
+        (n, preset, scheme): arm(
+            "qube", n, "federated", preset, m, f"{n} workers · {preset} · {scheme}", scheme
+        )
+        for preset, scheme in variants
         for n in (2, 3)
-    )
+    }
     return Plan(
         name="fig6",
         title="Fig. 6: 2 vs 3 workers, federated (QUBE)",
-        arms=[two_paper, three_paper, two_std, three_std],
+        arms=list(arms.values()),
         max_rounds=m,
         ratios=[
-            Ratio(two_paper, three_paper, "the paper: 3 workers ≈ 1.38× faster than 2"),
-            Ratio(two_std, three_std, "the same with the standard preset"),
+            Ratio(arms[2, *v], arms[3, *v], "the paper: 3 workers ≈ 1.38× faster than 2") for v in variants
         ],
-        mqtt_check=three_std,
+        mqtt_check=arms[3, "standard", "fedavg"],
     )
 
 
 def cartpole_scaling(budget: Budget) -> Plan:
-    """1, 2, 4, 8 CartPole workers, federated, preset standard (the paper preset does not learn CartPole
-    within the budget: see the learning experiment)."""
+    """1, 2, 4, 8 CartPole workers, federated, preset standard, with each scheme (the paper preset does not
+    learn CartPole within the budget: see the learning experiment)."""
     m = budget.cartpole_rounds
     arms = {
-        n: arm("cartpole", n, "federated", "standard", m, f"{n} workers · standard") for n in (1, 2, 4, 8)
+        (n, scheme): arm(
+            "cartpole", n, "federated", "standard", m, f"{n} workers · standard · {scheme}", scheme
+        )
+        for scheme in ("paper", "fedavg")
+        for n in (1, 2, 4, 8)
     }
     return Plan(
         name="cartpole-scaling",
@@ -89,28 +103,29 @@ def cartpole_scaling(budget: Budget) -> Plan:
         arms=list(arms.values()),
         max_rounds=m,
         ratios=[
-            Ratio(arms[1], arms[2], "the paper's earlier study: faster with more workers"),
-            Ratio(arms[1], arms[4], "the paper's earlier study: faster with more workers"),
-            Ratio(arms[1], arms[8], "the paper's earlier study: faster with more workers"),
+            Ratio(arms[1, scheme], arms[n, scheme], "the paper's earlier study: faster with more workers")
+            for scheme in ("paper", "fedavg")
+            for n in (2, 4, 8)
         ],
-        mqtt_check=arms[4],
+        mqtt_check=arms[4, "fedavg"],
     )
 
 
 def learning(budget: Budget) -> Plan:
-    """3 units of each env, individual and federated, both presets (benchmarks/learning.py)."""
+    """3 units of each env, individual and federated (both schemes), both presets (benchmarks/learning.py)."""
     arms: dict[tuple[str, str, str], Arm] = {}
     ratios = []
     for env, rounds in (("cartpole", budget.cartpole_rounds), ("qube", budget.qube_rounds)):
         for preset in ("paper", "standard"):
-            for mode in ("individual", "federated"):
-                arms[env, preset, mode] = arm(env, 3, mode, preset, rounds, f"{env} · {mode} · {preset}")
-            ratios.append(
-                Ratio(arms[env, preset, "individual"], arms[env, preset, "federated"], "federation")
-            )
+            for mode, scheme in (("individual", "paper"), ("federated", "paper"), ("federated", "fedavg")):
+                label = f"{env} · {mode} · {preset}" + (" · fedavg" if scheme == "fedavg" else "")
+                arms[env, preset, mode + scheme] = arm(env, 3, mode, preset, rounds, label, scheme)
+            alone = arms[env, preset, "individualpaper"]
+            ratios.append(Ratio(alone, arms[env, preset, "federatedpaper"], "federation, the paper's scheme"))
+            ratios.append(Ratio(alone, arms[env, preset, "federatedfedavg"], "federation, fedavg"))
     return Plan(
         name="learning",
-        title="Learning speed: 3 units of each env, individual and federated, both presets",
+        title="Learning speed: 3 units of each env, individual and federated (both schemes), both presets",
         arms=list(arms.values()),
         max_rounds=max(budget.cartpole_rounds, budget.qube_rounds),
         ratios=ratios,

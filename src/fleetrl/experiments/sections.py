@@ -5,7 +5,7 @@ from pathlib import Path
 import numpy as np
 
 from fleetrl.devices.homogeneity import format_tables, homogeneity_test, write_csv
-from fleetrl.experiments.arms import completions
+from fleetrl.experiments.arms import Arm, completions
 from fleetrl.experiments.catalog import Budget, arm
 from fleetrl.experiments.peers import PeerRun
 from fleetrl.experiments.stats import bootstrap_ratio, markdown_table, spread
@@ -45,29 +45,34 @@ def table2_section(out: Path, seeds: list[int], command: str, units: int = 3, im
 
 
 PEER_STEPS = {"cartpole": 200_000, "qube": 100_000}
-"""SB3's step budget per unit run. SB3 takes ~2 min per 100k QUBE steps here, so on QUBE each seed s trains
-one unit (s mod 3) instead of all three."""
+"""SB3's step budget per unit run. SB3 takes minutes per 100k QUBE steps here, so each seed s trains one unit
+(s mod 3) instead of all three."""
+
+
+OUR_ARMS = ("individual", "paper", "fedavg")
+"""fleetrl's arms next to SB3 (preset standard): each unit alone, federated with each scheme"""
+
+
+def ours_arm(env: str, name: str, rounds: int) -> Arm:
+    """fleetrl's arm ``name`` of :data:`OUR_ARMS` on 3 units of ``env``."""
+    if name == "individual":
+        return arm(env, 3, "individual", "standard", rounds, "fleetrl individual · standard")
+    return arm(env, 3, "federated", "standard", rounds, f"fleetrl federated · standard · {name}", name)
 
 
 def peers_section(out: Path, seeds: list[int], command: str, budget: Budget, quick: bool) -> str:
     """SB3 PPO (defaults) per unit vs fleetrl on the same envs and criterion: episodes per unit."""
     envs = ["cartpole"] if quick else ["cartpole", "qube"]
     steps = {env: (5_000 if quick else PEER_STEPS[env]) for env in envs}
-    units = {env: (lambda s: range(3)) if env == "cartpole" else (lambda s: [s % 3]) for env in envs}
     peer_runs = {
         env: [
-            PeerRun(out / "peers" / env / f"unit-{u}-seed-{s}.json", env, u, s, steps[env])
+            PeerRun(out / "peers" / env / f"unit-{s % 3}-seed-{s}.json", env, s % 3, s, steps[env])
             for s in seeds
-            for u in units[env](s)
         ]
         for env in envs
     }
     rounds = {"cartpole": budget.cartpole_rounds, "qube": budget.qube_rounds}
-    ours = {
-        (env, mode): arm(env, 3, mode, "standard", rounds[env], f"fleetrl {mode} · standard")
-        for env in envs
-        for mode in ("individual", "federated")
-    }
+    ours = {(env, scheme): ours_arm(env, scheme, rounds[env]) for env in envs for scheme in OUR_ARMS}
     our_runs = {key: ours[key].runs(out / "runs", seeds) for key in ours}
     run_all([r for env in envs for r in peer_runs[env]] + [r for runs in our_runs.values() for r in runs])
 
@@ -77,7 +82,7 @@ def peers_section(out: Path, seeds: list[int], command: str, budget: Budget, qui
         " env, stopped by the same criterion (WMA of the last 10 scores ≥ threshold); an incomplete run"
         " counts as its episodes so far (a lower bound). SB3's step budget per unit run: "
         + ", ".join(f"{env} {steps[env]:,}" for env in envs)
-        + " (on QUBE, seed s trains unit s mod 3).",
+        + " (seed s trains unit s mod 3).",
         "",
     ]
     rows = []
@@ -86,12 +91,12 @@ def peers_section(out: Path, seeds: list[int], command: str, budget: Budget, qui
         sb3 = [r["episodes_to_completion"] or r["episodes"] for r in results]
         sb3_done = sum(r["episodes_to_completion"] is not None for r in results)
         rows.append([env, "SB3 PPO (defaults)", f"{spread(sb3)}", f"{sb3_done}/{len(results)}", "1"])
-        for mode in ("individual", "federated"):
-            done = completions(our_runs[env, mode])
+        for scheme in OUR_ARMS:
+            done = completions(our_runs[env, scheme])
             fleet = [r for c in done for r in c.worker_rounds()]
             complete = sum(r is not None for c in done for r in c.per_worker.values())
             ratio, low, high = bootstrap_ratio(fleet, sb3)
-            label = ours[env, mode].label
+            label = ours[env, scheme].label
             rows.append(
                 [
                     env,

@@ -16,6 +16,11 @@ deadlines are tested without a broker. Round semantics (docs/protocol.md has the
   W. The others replace their actor parameters; their gradients of that round are discarded.
 * The run ends after the round in which W becomes empty, or after round M; ``done`` is then broadcast.
 
+With the ``fedavg`` scheme (:mod:`fleetrl.federation.schemes`) workers send ``model`` messages (their whole
+actor-critic) and the aggregate is an average model. A ``parameters`` message marks its sender's criterion as
+held: the sender's model is averaged like the others and it stays in W. The run ends after the round in
+which every member of W has completed at least once.
+
 Reliability (issue 7):
 
 * Dropout: a worker whose live status turns ``offline`` (its last will, or a goodbye) leaves W unless it
@@ -43,12 +48,12 @@ import numpy as np
 from fleetrl.federation.aggregation import Aggregator, get_aggregator
 from fleetrl.federation.events import ChiefEvent, ChiefStep
 from fleetrl.federation.messages import Layout, Message, MessageRejected, Reason, decode
+from fleetrl.federation.schemes import Scheme, get_scheme
 from fleetrl.federation.signing import FleetKey, parse_status
 from fleetrl.federation.topics import CHIEF_ID, sorted_workers, validate_id, validate_worker_id
 
 __all__ = ["Chief", "ChiefEvent", "ChiefStep"]
 
-_FROM_WORKERS = ("gradient", "parameters")
 DEADLINE_DROP = "no message within the round deadline"
 OFFLINE_DROP = "went offline"
 
@@ -69,6 +74,8 @@ class Chief:
     :param resend_holdoff: least seconds between two re-sends of the last answer to one worker.
     :param dropout_grace: seconds an ``offline`` worker has to come back before it leaves W (0: at once).
     :param key: the fleet key; if given, only messages and statuses signed with it are accepted.
+    :param scheme: the federation scheme's name (``paper`` or ``fedavg``; see
+        :mod:`fleetrl.federation.schemes`); ``layout`` must be what it shares.
     """
 
     def __init__(
@@ -85,6 +92,7 @@ class Chief:
         resend_holdoff: float = 1.0,
         dropout_grace: float = 3.0,
         key: FleetKey | None = None,
+        scheme: str = "paper",
     ) -> None:
         """Create the chief with W = ``workers`` and round 1 open."""
         self.run_id = validate_id(run_id, "run id")
@@ -100,6 +108,7 @@ class Chief:
         if quorum < 1.0 and round_timeout is None:
             raise ValueError("a quorum below 1 needs a round timeout (--round-timeout)")
         self.layout = list(layout)
+        self.scheme: Scheme = get_scheme(scheme)
         self.max_rounds = max_rounds
         self.aggregator_name = aggregator
         self._aggregate: Aggregator = get_aggregator(aggregator)
@@ -119,9 +128,11 @@ class Chief:
         self._last_answer: tuple[Message, ...] = ()
         self._answer_sent: dict[str, float] = {}  # worker → when the last answer was (re)sent for it
         self._incarnation: dict[str, int] = {}
-        self._model: Message | None = None  # the last transfer: θ* for rejoining workers
+        self._model: Message | None = None  # θ* of the last transfer (fedavg: the last average) for joiners
         self.rejections: Counter[Reason] = Counter()
         """How many messages were rejected, by reason."""
+        self.completed: dict[str, int] = {}
+        """worker → the first round its criterion held (every scheme)."""
         self.transfers: list[tuple[int, str, tuple[str, ...]]] = []
         """(round, origin, recipients) of every model transfer."""
         self.dropouts: list[tuple[int, str, str]] = []
@@ -192,7 +203,7 @@ class Chief:
         complete)."""
         self._start_clock(now)
         sender, rnd = message.sender, message.round
-        if message.type not in _FROM_WORKERS:
+        if message.type not in (self.scheme.round_message, "parameters"):
             return self._reject(sender, Reason.UNEXPECTED_TYPE, message.type)
         if sender not in self.all_workers:
             return self._reject(sender, Reason.UNKNOWN_SENDER, f"round {rnd}")
@@ -334,7 +345,9 @@ class Chief:
             w: self._pending[w].metrics["score"] for w in answered if "score" in self._pending[w].metrics
         }
         completed = tuple(w for w in answered if self._pending[w].type == "parameters")
-        if completed:
+        for worker in completed:
+            self.completed.setdefault(worker, rnd)
+        if completed and not self.scheme.stays_after_completion:
             origin = completed[0]
             self._members.difference_update(completed)
             self._left.update(completed)
@@ -353,14 +366,19 @@ class Chief:
             flats = [self._require_flat(self._pending[w]) for w in answered]
             average = self._aggregate(flats)
             reply = Message("average", self.run_id, CHIEF_ID, rnd, flat=average, contributors=answered)
+            if self.scheme.shares == "model":  # the fleet's model: what a (re)joining worker starts from
+                self._model = reply
+            detail = self.aggregator_name + (f"; completed: {','.join(completed)}" if completed else "")
             event = ChiefEvent(
-                "averaged", rnd, answered=answered, averaged=answered, detail=self.aggregator_name,
+                "averaged", rnd, answered=answered, averaged=answered, detail=detail,
                 remaining=self.members, scores=scores, late=late,
             )  # fmt: skip
         self._pending = {}
         self._last_answer = (reply,)
         self._answer_sent = dict.fromkeys(self.all_workers, now)
         step = ChiefStep((reply,), (event,))
+        if self.scheme.stays_after_completion and self._members and self._members.issubset(self.completed):
+            return step + self._end("every unit completed")
         if not self._members or rnd >= self.max_rounds:
             return step + self._end(
                 "W is empty" if not self._members else f"reached M={self.max_rounds} rounds"

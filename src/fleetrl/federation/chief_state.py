@@ -3,8 +3,9 @@
 No files here: :mod:`fleetrl.runs.checkpoints` stores what :func:`chief_to_state` returns. The state is what a
 restarted chief needs to continue a run with no round lost or counted twice (docs/protocol.md, "Checkpoints
 and resume"): its configuration, the open round, W, the workers that left, the last transfer θ*, the last
-answer (re-sent to workers that ask again), dropouts, rejoins, rejections, suspects and the newest incarnation
-seen of each worker. Answers received for the open round are not kept: the workers re-send them.
+answer (re-sent to workers that ask again), the first completion of each worker, dropouts, rejoins,
+rejections, suspects and the newest incarnation seen of each worker. Answers received for the open round are
+not kept: the workers re-send them.
 
 Times are not kept either (they are seconds of a monotonic clock of a dead process): a restored chief opens
 its round, re-arms the grace of suspected workers at the ``now`` it is given, and answers the first re-send of
@@ -43,6 +44,7 @@ def chief_config(chief: Chief) -> dict[str, Any]:
         "resend_holdoff": chief.resend_holdoff,
         "dropout_grace": chief.dropout_grace,
         "signed": chief.key is not None,
+        "scheme": chief.scheme.name,
     }
 
 
@@ -63,6 +65,7 @@ def chief_fields(chief: Chief) -> dict[str, Any]:
         "model": None if model is None else _message_fields(model, "model"),
         "rejections": {reason.value: n for reason, n in sorted(chief.rejections.items())},
         "transfers": [[r, origin, list(to)] for r, origin, to in chief.transfers],
+        "completed": dict(sorted(chief.completed.items())),
         "dropouts": [list(d) for d in chief.dropouts],
         "rejoins": [list(r) for r in chief.rejoins],
     }
@@ -110,6 +113,7 @@ def chief_from_state(
     chief._model = None if fields["model"] is None else _message(chief.run_id, fields["model"], tensors)
     chief.rejections = Counter({Reason(r): int(n) for r, n in fields["rejections"].items()})
     chief.transfers = [(int(r), str(o), tuple(to)) for r, o, to in fields["transfers"]]
+    chief.completed = {str(w): int(r) for w, r in fields.get("completed", {}).items()}
     chief.dropouts = [(int(r), str(w), str(why)) for r, w, why in fields["dropouts"]]
     chief.rejoins = [(int(r), str(w)) for r, w in fields["rejoins"]]
     return chief

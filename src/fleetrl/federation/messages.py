@@ -35,7 +35,8 @@ Layout = Sequence[tuple[str, tuple[int, ...]]]
 MESSAGE_TYPES: Mapping[str, bool] = {
     "gradient": True,  # worker → chief: the last actor gradient of the round (Algorithm 2, line 25)
     "parameters": True,  # worker → chief: the actor parameters of a mature worker (Algorithm 2, line 8)
-    "average": True,  # chief → workers: the aggregated gradient (Algorithm 1, line 13)
+    "model": True,  # worker → chief: its whole actor-critic after the round's update (scheme fedavg)
+    "average": True,  # chief → workers: the aggregated gradient (Algorithm 1, line 13) or model (fedavg)
     "transfer": True,  # chief → workers: a mature worker's parameters (Algorithm 1, line 8)
     "done": False,  # chief → workers: the run is over (W empty, or M rounds)
     "welcome": False,  # chief → workers: round i is open; the last transferred θ* if there was a transfer

@@ -14,6 +14,10 @@ parameters — to the chief, and waits for the chief's answer for that round:
 
 The worker also stops after round M. Every round produces a :class:`RoundRecord` through ``on_record``.
 
+With the ``fedavg`` scheme (:mod:`fleetrl.federation.schemes`) the worker sends its whole actor-critic
+(``model``; ``parameters`` once its criterion holds), replaces it with the chief's ``average``, and keeps
+learning after its criterion held, until the chief's ``done``.
+
 Reliability (issue 7): the worker starts (or, restarted with the same id, rejoins) at the round named by the
 chief's ``welcome``, taking the last transferred parameters if it carries them. It re-sends its round's
 message (and, before the welcome, its ``online`` status) every ``resend_interval`` seconds without an
@@ -34,6 +38,7 @@ from typing import Protocol
 import numpy as np
 
 from fleetrl.federation.messages import Layout, Message, MessageRejected, decode, encode
+from fleetrl.federation.schemes import get_scheme
 from fleetrl.federation.signing import FleetKey, status_payload
 from fleetrl.federation.topics import (
     CHIEF_ID,
@@ -71,6 +76,18 @@ class ActorAgent(Protocol):
 
     def set_actor_parameters(self, flat: np.ndarray) -> None:
         """Replace the actor's parameters."""
+        ...
+
+    def model_layout(self) -> list[tuple[str, tuple[int, ...]]]:
+        """Names and shapes of the whole actor-critic's parameters, in flat order."""
+        ...
+
+    def model_parameters(self) -> np.ndarray:
+        """The whole actor-critic's parameters, flat float32."""
+        ...
+
+    def set_model_parameters(self, flat: np.ndarray) -> None:
+        """Replace the whole actor-critic's parameters."""
         ...
 
 
@@ -119,7 +136,8 @@ class RoundRecord:
     which the chief forwarded; finished), ``finished`` (sent its parameters, but a lower worker id's were
     forwarded in the same round; finished), ``transfer_in from K`` (replaced its actor with worker K's),
     ``late`` (its message missed the round, which the chief closed without it; the average was applied) or
-    ``run ended`` (the chief ended the run while it waited).
+    ``run ended`` (the chief ended the run while it waited). With the ``fedavg`` scheme: ``model`` (sent its
+    model, took the average) or ``completed`` (the same, in a round where its criterion held).
     """
 
     worker_id: str
@@ -166,6 +184,8 @@ class FederatedWorker:
         worker rejoins like a fresh one; an earlier one is an error (the chief lost rounds).
     :param on_round_done: called with the next round to play after each round's answer was applied and
         before that round starts (the moment to checkpoint the learner).
+    :param scheme: the federation scheme's name (``paper`` or ``fedavg``); the chief's must be the same. With
+        ``fedavg`` the learner must keep learning after its criterion holds (``Learner.keep_learning``).
     """
 
     def __init__(
@@ -182,6 +202,7 @@ class FederatedWorker:
         key: FleetKey | None = None,
         start_round: int | None = None,
         on_round_done: Callable[[int], None] | None = None,
+        scheme: str = "paper",
     ) -> None:
         """Prepare the worker; nothing is sent before :meth:`run`."""
         self.learner = learner
@@ -197,7 +218,16 @@ class FederatedWorker:
         self.on_round_done = on_round_done
         self.incarnation = time.time_ns()
         """This process's incarnation: newer than any earlier process with the same worker id."""
-        self.layout: Layout = list(learner.agent.actor_layout())
+        self.scheme = get_scheme(scheme)
+        agent = learner.agent
+        if self.scheme.shares == "model":
+            self.layout: Layout = list(agent.model_layout())
+            self._send, self._take = agent.model_parameters, agent.set_model_parameters
+            self._apply_average = agent.set_model_parameters
+        else:
+            self.layout = list(agent.actor_layout())
+            self._send, self._take = agent.actor_gradient, agent.set_actor_parameters
+            self._apply_average = agent.apply_actor_gradient
         self._chief_topic = chief_topic(run_id)
         self._chief_status = status_topic(run_id, CHIEF_ID)
         self._own_status = status_topic(run_id, worker_id)
@@ -228,15 +258,18 @@ class FederatedWorker:
         if welcome.type == "done":
             return WorkerSummary(self.worker_id, 0, finished=False, reason="run ended")
         resume = self._resume_round(welcome.round)
-        if welcome.flat is not None and resume is None:  # rejoining after a transfer: start from θ*
-            agent.set_actor_parameters(welcome.flat)
+        if welcome.flat is not None and resume is None:  # rejoining: start from θ* (fedavg: the fleet's)
+            self._take(welcome.flat)
         log.info("worker %s: welcomed at round %d (θ* of %s)", self.worker_id, welcome.round, welcome.origin)
         rnd = welcome.round if resume is None else resume
         while rnd <= self.max_rounds:
             result = self.learner.play_round()  # lines 2-24
             completed = bool(result.completed)
-            kind = "parameters" if completed else "gradient"
-            flat = agent.actor_parameters() if completed else agent.actor_gradient()  # line 8 / line 25
+            kind = "parameters" if completed else self.scheme.round_message
+            if self.scheme.shares == "model" or not completed:
+                flat = self._send()  # line 25 (fedavg: the model after the round's update)
+            else:
+                flat = agent.actor_parameters()  # line 8
             metrics = {"score": float(result.score), "wma": float(result.wma), "steps": float(result.steps)}
             message = Message(kind, self.run_id, self.worker_id, rnd, flat=flat, metrics=_finite(metrics))
             payload = encode(message, layout=self.layout, key=self.key)
@@ -244,11 +277,11 @@ class FederatedWorker:
             self.transport.publish(topic, payload)
             log.debug("worker %s: sent %s for round %d", self.worker_id, kind, rnd)
             reply = self._wait_for(_answer_for(rnd), f"the chief's answer for round {rnd}", (topic, payload))
-            event, peer, leave = self._apply(reply, completed, agent)  # lines 28-31
+            event, peer, leave = self._apply(reply, completed)  # lines 28-31
             self._record(rnd, result, event, peer)
             if leave:
                 return WorkerSummary(self.worker_id, rnd, finished=reply.type == "transfer", reason=event)
-            rnd, stop = self._catch_up(reply.round, agent)
+            rnd, stop = self._catch_up(reply.round)
             if stop is not None:
                 return WorkerSummary(self.worker_id, rnd - 1, finished=False, reason=stop)
             if self.on_round_done is not None:
@@ -278,7 +311,7 @@ class FederatedWorker:
         )  # fmt: skip
         return None
 
-    def _apply(self, reply: Message, completed: bool, agent: ActorAgent) -> tuple[str, str | None, bool]:
+    def _apply(self, reply: Message, completed: bool) -> tuple[str, str | None, bool]:
         """Act on the chief's answer; return (event, peer, whether this worker stops)."""
         if reply.type == "done":
             return "run ended", None, True
@@ -289,18 +322,19 @@ class FederatedWorker:
         if reply.flat is None:
             raise AssertionError("decode guarantees tensors for average and transfer")
         if reply.type == "transfer":
-            agent.set_actor_parameters(reply.flat)  # line 29
+            self._take(reply.flat)  # line 29
             return f"transfer_in from {reply.origin}", reply.origin, False
+        stays = self.scheme.stays_after_completion
         if self.worker_id not in reply.contributors:  # the round closed without us (straggler, or resend)
-            if not completed:
-                agent.apply_actor_gradient(reply.flat)  # the fleet's update all the same
+            if not completed or stays:
+                self._apply_average(reply.flat)  # the fleet's update all the same
             return "late", None, False
-        if completed:  # the chief averaged our parameters: a protocol bug, not a data problem
+        if completed and not stays:  # the chief averaged our parameters: a protocol bug, not a data problem
             raise RuntimeError(f"worker {self.worker_id}: chief answered round {reply.round} with an average")
-        agent.apply_actor_gradient(reply.flat)  # line 31
-        return "gradient", None, False
+        self._apply_average(reply.flat)  # line 31 (fedavg: continue from the average model)
+        return ("completed" if completed else self.scheme.round_message), None, False
 
-    def _catch_up(self, last: int, agent: ActorAgent) -> tuple[int, str | None]:
+    def _catch_up(self, last: int) -> tuple[int, str | None]:
         """Apply answers of later rounds already queued (the chief moved on without us); return (the next
         round to play, why to stop or None)."""
         while (received := self.transport.receive(0)) is not None:
@@ -314,9 +348,9 @@ class FederatedWorker:
             if message.type == "done":
                 return message.round + 1, "run ended"
             if message.flat is not None and message.type == "transfer":
-                agent.set_actor_parameters(message.flat)
+                self._take(message.flat)
             elif message.flat is not None:
-                agent.apply_actor_gradient(message.flat)
+                self._apply_average(message.flat)
             log.info(
                 "worker %s: caught up with the %s of round %d", self.worker_id, message.type, message.round
             )

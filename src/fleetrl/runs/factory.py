@@ -10,12 +10,17 @@ from fleetrl.agent.criterion import CompletionCriterion
 from fleetrl.agent.learner import Learner
 from fleetrl.agent.ppo import PPOAgent
 from fleetrl.envs.catalog import get_env_spec
+from fleetrl.federation.schemes import get_scheme
 from fleetrl.link.mqtt import open_mqtt_link
 from fleetrl.runs.spec import WorkerSpec
 
 
 def make_learner(spec: WorkerSpec) -> Learner:
-    """The learner for one worker: its unit's env, a seeded agent with the preset (and overrides)."""
+    """The learner for one worker: its unit's env, a seeded agent with the preset (and overrides).
+
+    Under a scheme whose mature workers stay in the federation (``fedavg``) the learner keeps learning after
+    its criterion holds.
+    """
     torch.set_num_threads(1)
     env_spec = get_env_spec(spec.env)
     config = dataclasses.replace(get_preset(spec.preset), **spec.overrides)
@@ -28,4 +33,5 @@ def make_learner(spec: WorkerSpec) -> Learner:
     n_actions = int(env.action_space.n)  # type: ignore[attr-defined]
     agent = PPOAgent(obs_dim, n_actions, config, seed=spec.worker_seed)
     criterion = CompletionCriterion(env_spec.completion_threshold)
-    return Learner(env, agent, criterion, seed=spec.worker_seed)
+    keep_learning = get_scheme(spec.scheme).stays_after_completion
+    return Learner(env, agent, criterion, seed=spec.worker_seed, keep_learning=keep_learning)

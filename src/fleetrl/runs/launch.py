@@ -29,6 +29,7 @@ from fleetrl.agent.ppo import PPOAgent
 from fleetrl.envs.catalog import get_env_spec
 from fleetrl.federation.chief import Chief
 from fleetrl.federation.runner import ChiefSummary, run_chief
+from fleetrl.federation.schemes import get_scheme
 from fleetrl.runs.fleet import Fleet, ThreadFleet, follow
 from fleetrl.runs.live import LiveView
 from fleetrl.runs.processes import ProcessFleet
@@ -73,19 +74,22 @@ def worker_specs(settings: RunSettings, device_url: str | None, run_id: str) -> 
             overrides=dict(settings.overrides),
             device_url=device_url,
             device_run_id=run_id,
+            scheme=settings.scheme,
         )
         for k in range(settings.units)
     }
 
 
-def actor_layout(settings: RunSettings) -> list[tuple[str, tuple[int, ...]]]:
-    """Names and shapes of the actor's parameters for this env and preset (the chief validates with it)."""
+def shared_layout(settings: RunSettings) -> list[tuple[str, tuple[int, ...]]]:
+    """Names and shapes of what the run's scheme shares (the actor, or the whole actor-critic for
+    ``fedavg``) for this env and preset: the chief validates every message with it."""
     env = gymnasium.make(get_env_spec(settings.env).gym_id)
     obs_dim = int(env.observation_space.shape[0])  # type: ignore[index]
     n_actions = int(env.action_space.n)  # type: ignore[attr-defined]
     env.close()
     config = dataclasses.replace(get_preset(settings.preset), **settings.overrides)
-    return PPOAgent(obs_dim, n_actions, config, seed=0).actor_layout()
+    agent = PPOAgent(obs_dim, n_actions, config, seed=0)
+    return agent.model_layout() if get_scheme(settings.scheme).shares == "model" else agent.actor_layout()
 
 
 def train(settings: RunSettings) -> dict[str, Any]:
@@ -173,9 +177,10 @@ def train_federated(
     chief = Chief(
         run_id=run_id,
         workers=[str(k) for k in specs],
-        layout=actor_layout(settings),
+        layout=shared_layout(settings),
         max_rounds=settings.max_rounds,
         aggregator=settings.aggregation,
+        scheme=settings.scheme,
         quorum=settings.quorum,
         round_timeout=settings.round_timeout,
     )

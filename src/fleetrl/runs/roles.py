@@ -121,6 +121,7 @@ def train_federated(
         key=key,
         start_round=start_round,
         on_round_done=None if store is None else lambda next_round: store.save(learner, next_round),
+        scheme=spec.scheme,
     )
     try:
         summary = worker.run()

@@ -30,6 +30,10 @@ class WorkerProgress:
     events: list[str] = field(default_factory=list)
 
 
+PLAIN_EVENTS = frozenset({"", "gradient", "model"})
+"""metrics ``event`` values of rounds that only shared (not listed among a worker's events)"""
+
+
 def model_path(out: Path, worker: int) -> Path:
     """Where worker ``worker``'s actor-critic is saved."""
     return out / "models" / f"worker-{worker}.safetensors"
@@ -112,8 +116,8 @@ class RunRecorder:
     def _progress(self, record: RoundRecord) -> None:
         progress = self.progress.setdefault(record.worker, WorkerProgress())
         progress.round, progress.score, progress.wma = record.round, record.score, record.wma
-        progress.state = "learning"
-        if record.event and record.event != "gradient":  # plain gradient rounds are in metrics.csv
+        progress.state = "learning" if progress.completed_at_round is None else "completed"
+        if record.event not in PLAIN_EVENTS:  # plain sharing rounds are in metrics.csv alone
             progress.events.append(f"{record.round}:{record.event}")
             if "completed" in record.event.split("+") and progress.completed_at_round is None:
                 progress.completed_at_round = record.round

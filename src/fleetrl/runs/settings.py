@@ -6,6 +6,7 @@ from pathlib import Path
 from typing import Any
 
 from fleetrl.envs.catalog import get_env_spec
+from fleetrl.federation.schemes import get_scheme
 
 MODES = ("individual", "federated")
 TRANSPORTS = ("mqtt", "local")
@@ -36,6 +37,9 @@ class RunSettings:
     """federated: ``mqtt`` (a real broker, workers in processes) or ``local`` (in-process bus, threads)"""
     broker: str | None = None
     """federated mode: ``mqtt://[user:pass@]host:port`` of an existing broker; none starts an embedded one"""
+    scheme: str = "paper"
+    """federated: ``paper`` (Algorithms 1 and 2) or ``fedavg`` (model averaging; see
+    :mod:`fleetrl.federation.schemes`)"""
     aggregation: str = "mean"
     """federated: how the chief aggregates gradients (mean, median, trimmed_mean[:β], clipped_mean[:C])"""
     quorum: float = 1.0
@@ -56,6 +60,7 @@ class RunSettings:
             raise ValueError(f"unknown mode {self.mode!r} (choose {' or '.join(MODES)})")
         if self.transport not in TRANSPORTS:
             raise ValueError(f"unknown transport {self.transport!r} (choose {' or '.join(TRANSPORTS)})")
+        get_scheme(self.scheme)
         if self.device_link not in DEVICE_LINKS:
             raise ValueError(f"unknown device link {self.device_link!r} (choose {' or '.join(DEVICE_LINKS)})")
         if not 0.0 < self.quorum <= 1.0:

@@ -33,6 +33,8 @@ class WorkerSpec:
     """broker of the unit's device bridge; None: the device is simulated in-process"""
     device_run_id: str = "default"
     """run id under which the device bridge serves the unit's topics"""
+    scheme: str = "paper"
+    """federated mode: the federation scheme (``paper`` or ``fedavg``, :mod:`fleetrl.federation.schemes`)"""
 
     def to_json(self) -> str:
         """Serialise for a child process's command line."""
