@@ -61,6 +61,8 @@ class RunSettings:
         if self.transport not in TRANSPORTS:
             raise ValueError(f"unknown transport {self.transport!r} (choose {' or '.join(TRANSPORTS)})")
         get_scheme(self.scheme)
+        if self.mode == "individual" and self.scheme != "paper":
+            raise ValueError(f"--scheme {self.scheme} is a federation scheme: it needs --mode federated")
         if self.device_link not in DEVICE_LINKS:
             raise ValueError(f"unknown device link {self.device_link!r} (choose {' or '.join(DEVICE_LINKS)})")
         if not 0.0 < self.quorum <= 1.0:
