@@ -44,6 +44,10 @@ class ChiefSummary:
     """(round, worker, reason) of every worker that left W without transferring"""
     rejoins: tuple[tuple[int, str], ...] = ()
     """(round, worker) of every dropped worker that came back"""
+    scheme: str = "paper"
+    """the federation scheme"""
+    completed: tuple[tuple[str, int], ...] = ()
+    """(worker, round) of the first round each worker's criterion held"""
 
     def to_dict(self) -> dict[str, Any]:
         """A JSON-ready account (chief.json)."""
@@ -54,6 +58,8 @@ class ChiefSummary:
             "rejections": {str(k): v for k, v in self.rejections.items()},
             "dropouts": [{"round": r, "worker": w, "reason": why} for r, w, why in self.dropouts],
             "rejoins": [{"round": r, "worker": w} for r, w in self.rejoins],
+            "scheme": self.scheme,
+            "completed": dict(self.completed),
         }
 
 
@@ -119,10 +125,11 @@ def run_chief(
         transport.announce(own_status, status(ONLINE))
         members = ",".join(chief.members)
         log.info(
-            "chief of run %s online: W={%s}, M=%d, %s",
+            "chief of run %s online: W={%s}, M=%d, scheme %s, %s",
             run_id,
             members,
             chief.max_rounds,
+            chief.scheme.name,
             chief.aggregator_name,
         )
         if first_step is not None:
@@ -164,6 +171,8 @@ def run_chief(
         rejections=dict(Counter(chief.rejections)),
         dropouts=tuple(chief.dropouts),
         rejoins=tuple(chief.rejoins),
+        scheme=chief.scheme.name,
+        completed=tuple(chief.completed.items()),
     )
 
 

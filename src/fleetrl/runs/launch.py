@@ -47,12 +47,14 @@ CHIEF_IDLE_TIMEOUT = 600.0
 
 
 def demo_settings(out: Path, seed: int = 0) -> RunSettings:
-    """The main job: a simulated 3-unit QUBE fleet trained federated through an embedded MQTT broker."""
+    """The main job: a simulated 3-unit QUBE fleet trained federated through an embedded MQTT broker, with
+    fleetrl's best scheme (``fedavg``; docs/results.md measures it against the paper's)."""
     return RunSettings(
         mode="federated",
         env="qube",
         units=3,
         preset="standard",
+        scheme="fedavg",
         seed=seed,
         max_rounds=DEMO_MAX_ROUNDS,
         out=out,
