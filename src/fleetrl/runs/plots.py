@@ -29,6 +29,7 @@ def draw_worker(ax: Axes, rows: list[RoundRecord], label: str) -> None:
     loss_ax = ax.twinx()
     loss_ax.plot(rounds, [r.actor_loss for r in rows], "g:", lw=0.8, label="actor loss")
     loss_ax.tick_params(axis="y", labelsize=7, colors="tab:green")
+    completed_at = None  # the first round the criterion held (under fedavg it may hold again later)
     for r in rows:
         events = r.event.split("+")
         if r.event.startswith("transfer_in"):
@@ -42,7 +43,8 @@ def draw_worker(ax: Axes, rows: list[RoundRecord], label: str) -> None:
                 va="top",
                 color="tab:purple",
             )
-        if "completed" in events or any(e.startswith("completed") for e in events):
+        if completed_at is None and any(e.startswith("completed") for e in events):
+            completed_at = r.round
             ax.axvline(r.round, color="black", lw=0.8)
     ax.set_ylabel(label)
     ax.grid(alpha=0.3)
