@@ -118,7 +118,9 @@ def run_fleet(
     """Chief and workers as threads, each with its own transport from ``make_transport`` (or from
     ``role_transport(role)``, role ``chief`` or the worker id); extra keyword arguments for the Chief and
     FederatedWorker; ``on_chief`` sees the chief's state machine before it starts."""
-    layout = learners[next(iter(learners))].agent.actor_layout()  # type: ignore[attr-defined]
+    agent = learners[next(iter(learners))].agent  # type: ignore[attr-defined]
+    fedavg = (chief_kwargs or {}).get("scheme") == "fedavg"
+    layout = agent.model_layout() if fedavg else agent.actor_layout()
     chief = Chief(
         run_id=run_id, workers=list(learners), layout=layout, max_rounds=max_rounds, **(chief_kwargs or {})
     )

@@ -365,7 +365,14 @@ class Chief:
         else:
             flats = [self._require_flat(self._pending[w]) for w in answered]
             average = self._aggregate(flats)
-            reply = Message("average", self.run_id, CHIEF_ID, rnd, flat=average, contributors=answered)
+            # the round in which the last unit completes: every member leaves W with this average, so no
+            # worker starts another round before the ``done`` that follows reaches it
+            stays = self.scheme.stays_after_completion
+            ends = stays and bool(self._members) and self._members.issubset(self.completed)
+            finished = self.members if ends else ()
+            reply = Message(
+                "average", self.run_id, CHIEF_ID, rnd, flat=average, contributors=answered, finished=finished
+            )
             if self.scheme.shares == "model":  # the fleet's model: what a (re)joining worker starts from
                 self._model = reply
             detail = self.aggregator_name + (f"; completed: {','.join(completed)}" if completed else "")
@@ -377,7 +384,7 @@ class Chief:
         self._last_answer = (reply,)
         self._answer_sent = dict.fromkeys(self.all_workers, now)
         step = ChiefStep((reply,), (event,))
-        if self.scheme.stays_after_completion and self._members and self._members.issubset(self.completed):
+        if reply.type == "average" and reply.finished:
             return step + self._end("every unit completed")
         if not self._members or rnd >= self.max_rounds:
             return step + self._end(

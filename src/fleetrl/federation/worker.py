@@ -160,7 +160,7 @@ class WorkerSummary:
     worker_id: str
     rounds: int
     finished: bool
-    """True if it left W by sending its parameters."""
+    """True if it left W by sending its parameters (fedavg: with the run's last average)."""
     reason: str
 
 
@@ -280,6 +280,8 @@ class FederatedWorker:
             event, peer, leave = self._apply(reply, completed)  # lines 28-31
             self._record(rnd, result, event, peer)
             if leave:
+                if reply.type == "average":  # fedavg: the round in which the last unit completed
+                    return WorkerSummary(self.worker_id, rnd, finished=True, reason="every unit completed")
                 return WorkerSummary(self.worker_id, rnd, finished=reply.type == "transfer", reason=event)
             rnd, stop = self._catch_up(reply.round)
             if stop is not None:
@@ -328,11 +330,16 @@ class FederatedWorker:
         if self.worker_id not in reply.contributors:  # the round closed without us (straggler, or resend)
             if not completed or stays:
                 self._apply_average(reply.flat)  # the fleet's update all the same
-            return "late", None, False
+            return "late", None, self.worker_id in reply.finished
         if completed and not stays:  # the chief averaged our parameters: a protocol bug, not a data problem
             raise RuntimeError(f"worker {self.worker_id}: chief answered round {reply.round} with an average")
         self._apply_average(reply.flat)  # line 31 (fedavg: continue from the average model)
-        return ("completed" if completed else self.scheme.round_message), None, False
+        # fedavg: the average of the round in which the last unit completed lists every member in finished
+        return (
+            ("completed" if completed else self.scheme.round_message),
+            None,
+            self.worker_id in reply.finished,
+        )
 
     def _catch_up(self, last: int) -> tuple[int, str | None]:
         """Apply answers of later rounds already queued (the chief moved on without us); return (the next
