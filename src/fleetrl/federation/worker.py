@@ -222,11 +222,11 @@ class FederatedWorker:
         agent = learner.agent
         if self.scheme.shares == "model":
             self.layout: Layout = list(agent.model_layout())
-            self._send, self._take = agent.model_parameters, agent.set_model_parameters
+            self._round_vector, self._take = agent.model_parameters, agent.set_model_parameters
             self._apply_average = agent.set_model_parameters
         else:
             self.layout = list(agent.actor_layout())
-            self._send, self._take = agent.actor_gradient, agent.set_actor_parameters
+            self._round_vector, self._take = agent.actor_gradient, agent.set_actor_parameters
             self._apply_average = agent.apply_actor_gradient
         self._chief_topic = chief_topic(run_id)
         self._chief_status = status_topic(run_id, CHIEF_ID)
@@ -266,10 +266,10 @@ class FederatedWorker:
             result = self.learner.play_round()  # lines 2-24
             completed = bool(result.completed)
             kind = "parameters" if completed else self.scheme.round_message
-            if self.scheme.shares == "model" or not completed:
-                flat = self._send()  # line 25 (fedavg: the model after the round's update)
-            else:
+            if completed and self.scheme.shares == "actor":
                 flat = agent.actor_parameters()  # line 8
+            else:
+                flat = self._round_vector()  # line 25 (fedavg: the model after the round's update)
             metrics = {"score": float(result.score), "wma": float(result.wma), "steps": float(result.steps)}
             message = Message(kind, self.run_id, self.worker_id, rnd, flat=flat, metrics=_finite(metrics))
             payload = encode(message, layout=self.layout, key=self.key)

@@ -24,6 +24,9 @@ from fleetrl.transport.base import Transport
 log = logging.getLogger(__name__)
 
 Emit = Callable[[RoundRecord], None]
+FINISHED_REASONS = ("transfer_out", "every unit completed")
+"""how a worker's run ends when it left W having completed (paper: its θ was forwarded; fedavg: the last
+average)"""
 
 
 class NumberedRound(RoundFigures, Protocol):
@@ -104,7 +107,7 @@ def train_federated(
         if where.ended is not None:
             log.info("worker %d: its run was already over (%s)", spec.worker, where.ended)
             return WorkerSummary(
-                str(spec.worker), where.next_round - 1, where.ended == "transfer_out", where.ended
+                str(spec.worker), where.next_round - 1, where.ended in FINISHED_REASONS, where.ended
             )
         start_round = where.next_round
     elif resume:
