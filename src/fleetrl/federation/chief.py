@@ -367,9 +367,8 @@ class Chief:
             average = self._aggregate(flats)
             # the round in which the last unit completes: every member leaves W with this average, so no
             # worker starts another round before the ``done`` that follows reaches it
-            stays = self.scheme.stays_after_completion
-            ends = stays and bool(self._members) and self._members.issubset(self.completed)
-            finished = self.members if ends else ()
+            ends = self.scheme.stays_after_completion and self._members.issubset(self.completed)
+            finished = self.members if ends and self._members else ()
             reply = Message(
                 "average", self.run_id, CHIEF_ID, rnd, flat=average, contributors=answered, finished=finished
             )
