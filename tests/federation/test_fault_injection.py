@@ -4,64 +4,31 @@ from __future__ import annotations
 
 import os
 import signal
-import subprocess
 import sys
 import threading
 import time
 from collections.abc import Callable
 from pathlib import Path
-from typing import IO, Any
+from typing import Any
 
 import pytest
 
 from fleetrl.federation.chief import Chief, ChiefEvent
 from fleetrl.federation.runner import ChiefSummary, run_chief
-from fleetrl.transport.broker import EmbeddedBroker, find_mosquitto
+from fleetrl.transport.broker import EmbeddedBroker
 from fleetrl.transport.local import LocalBus
 from fleetrl.transport.mqtt import MqttTransport
 
 HERE = Path(__file__).resolve().parent
-needs_mosquitto = pytest.mark.skipif(find_mosquitto() is None, reason="mosquitto not installed")
-
-
-class WorkerProcess:
-    """A fake-learner worker process whose printed rounds are read on a thread."""
-
-    def __init__(self, url: str, run_id: str, worker_id: str, max_rounds: int, pause: float) -> None:
-        argv = [sys.executable, str(HERE / "fake_worker_process.py"), url, run_id, worker_id, worker_id]
-        self.proc = subprocess.Popen(
-            [*argv, str(max_rounds), str(pause)],
-            stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True, start_new_session=True,
-        )  # fmt: skip
-        self.lines: list[str] = []
-        assert self.proc.stdout is not None
-        threading.Thread(target=self._read, args=(self.proc.stdout,), daemon=True).start()
-
-    def _read(self, stdout: IO[str]) -> None:
-        for line in stdout:
-            self.lines.append(line.strip())
-
-    def rounds(self) -> list[int]:
-        return [int(line.split()[1]) for line in self.lines if line.startswith("round ")]
-
-    def wait_for_round(self, rnd: int, timeout: float = 30.0) -> None:
-        deadline = time.monotonic() + timeout
-        while max(self.rounds(), default=0) < rnd:
-            assert time.monotonic() < deadline, f"worker stuck at {self.lines[-3:]}"
-            time.sleep(0.02)
-
-    def stop(self) -> int:
-        try:
-            return self.proc.wait(timeout=30)
-        finally:
-            if self.proc.poll() is None:
-                self.proc.kill()
+FAKE_WORKER = [sys.executable, str(HERE / "fake_worker_process.py")]
 
 
 @pytest.mark.mqtt
 @pytest.mark.timeout(90)
-@needs_mosquitto
-def test_kill_9_of_a_worker_then_rejoin_with_the_same_id(fake_learner: Any) -> None:
+@pytest.mark.mosquitto
+def test_kill_9_of_a_worker_then_rejoin_with_the_same_id(
+    fake_learner: Any, line_process: Callable[[list[str]], Any]
+) -> None:
     """The run completes; the summary records the dropout; the restarted worker rejoins at the open round."""
     run_id, rounds = "kill9", 40
     layout = fake_learner(0).agent.actor_layout()
@@ -76,9 +43,13 @@ def test_kill_9_of_a_worker_then_rejoin_with_the_same_id(fake_learner: Any) -> N
 
         thread = threading.Thread(target=serve, daemon=True)
         thread.start()
-        workers = {w: WorkerProcess(broker.url, run_id, w, rounds, 0.05) for w in ("1", "2", "3")}
+
+        def worker(w: str) -> Any:
+            return line_process([*FAKE_WORKER, broker.url, run_id, w, w, str(rounds), "0.05"])
+
+        workers = {w: worker(w) for w in ("1", "2", "3")}
         try:
-            workers["3"].wait_for_round(5)
+            workers["3"].wait_for("round ", 5)
             os.kill(workers["3"].proc.pid, signal.SIGKILL)
             assert workers["3"].stop() == -signal.SIGKILL
             deadline = time.monotonic() + 10
@@ -86,13 +57,12 @@ def test_kill_9_of_a_worker_then_rejoin_with_the_same_id(fake_learner: Any) -> N
                 assert time.monotonic() < deadline, "the chief did not notice the dead worker"
                 time.sleep(0.02)
             assert chief.members == ("1", "2")
-            reborn = WorkerProcess(broker.url, run_id, "3", rounds, 0.05)
-            reborn.wait_for_round(chief.round + 1)
+            reborn = worker("3")
+            reborn.wait_for("round ", chief.round + 1)
             codes = [workers["1"].stop(), workers["2"].stop(), reborn.stop()]
         finally:
             for w in workers.values():
-                if w.proc.poll() is None:
-                    w.proc.kill()
+                w.kill()
         thread.join(30)
     summary = outcome["chief"]
     assert codes == [0, 0, 0]
@@ -100,14 +70,14 @@ def test_kill_9_of_a_worker_then_rejoin_with_the_same_id(fake_learner: Any) -> N
     ((drop_round, who, why),) = summary.dropouts
     assert who == "3" and why == "went offline" and drop_round >= 5
     ((rejoin_round, again),) = summary.rejoins
-    assert again == "3" and reborn.rounds()[0] == rejoin_round  # it starts at the chief's open round
-    assert reborn.rounds() == list(range(rejoin_round, rounds + 1))
-    assert workers["1"].rounds() == list(range(1, rounds + 1))
+    assert again == "3" and reborn.numbers("round ")[0] == rejoin_round  # it starts at the chief's open round
+    assert reborn.numbers("round ") == list(range(rejoin_round, rounds + 1))
+    assert workers["1"].numbers("round ") == list(range(1, rounds + 1))
 
 
 @pytest.mark.mqtt
 @pytest.mark.timeout(90)
-@needs_mosquitto
+@pytest.mark.mosquitto
 def test_broker_stopped_and_restarted_mid_run(
     fleet_runner: Callable[..., Any], fake_fleet: Callable[..., dict[str, Any]]
 ) -> None:

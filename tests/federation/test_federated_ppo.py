@@ -43,16 +43,18 @@ def outcome(result: Any) -> tuple[dict[str, list[tuple[float, str]]], Any]:
 
 
 @pytest.mark.slow
-def test_federated_ppo_is_identical_over_local_bus_and_mqtt(fleet_runner: Runner) -> None:
+def test_federated_ppo_is_identical_over_local_bus_and_mqtt(
+    fleet_runner: Runner, broker: EmbeddedBroker
+) -> None:
+    """Real PPO learners, on mosquitto and on the embedded amqtt broker (which carries it where mosquitto is
+    missing)."""
     local = fleet_runner(LocalBus().client, ppo_fleet(), run_id="ppo-local", max_rounds=ROUNDS)
     again = fleet_runner(LocalBus().client, ppo_fleet(), run_id="ppo-local", max_rounds=ROUNDS)
     assert outcome(local) == outcome(again)
     assert all(len(rs) >= 1 for rs in local.records.values())
-    kind = "mosquitto" if find_mosquitto() else "amqtt"
-    with EmbeddedBroker(kind) as broker:
-        remote = fleet_runner(
-            lambda: MqttTransport(broker.url), ppo_fleet(), run_id="ppo-mqtt", max_rounds=ROUNDS
-        )
+    remote = fleet_runner(
+        lambda: MqttTransport(broker.url), ppo_fleet(), run_id=f"ppo-{broker.kind}", max_rounds=ROUNDS
+    )
     assert outcome(remote) == outcome(local)
 
 

@@ -9,7 +9,7 @@ import pytest
 
 from fleetrl.federation.messages import Reason
 from fleetrl.transport.base import Transport
-from fleetrl.transport.broker import EmbeddedBroker, find_mosquitto
+from fleetrl.transport.broker import EmbeddedBroker
 from fleetrl.transport.local import LocalBus
 from fleetrl.transport.mqtt import MqttTransport
 
@@ -57,26 +57,16 @@ def test_run_ends_when_every_worker_has_transferred(fleet_runner: Runner, fake_l
     assert result.records["2"][-1].peer == "1"
 
 
-BROKERS = [
-    pytest.param(
-        "mosquitto", marks=pytest.mark.skipif(find_mosquitto() is None, reason="mosquitto not installed")
-    ),
-    "amqtt",
-]
-
-
 @pytest.mark.mqtt
-@pytest.mark.parametrize("kind", BROKERS)
 def test_mqtt_run_gives_the_same_results_as_the_local_bus(
-    fleet_runner: Runner, fake_fleet: Fleet, kind: str
+    fleet_runner: Runner, fake_fleet: Fleet, broker: EmbeddedBroker
 ) -> None:
     local = run_local(fleet_runner, fake_fleet)
-    with EmbeddedBroker(kind) as broker:
 
-        def make() -> Transport:
-            return MqttTransport(broker.url)
+    def make() -> Transport:
+        return MqttTransport(broker.url)
 
-        remote = fleet_runner(make, fake_fleet(), run_id=f"e2e-{kind}", max_rounds=10)
+    remote = fleet_runner(make, fake_fleet(), run_id=f"e2e-{broker.kind}", max_rounds=10)
     assert remote.records == {w: rs for w, rs in local.records.items()}
     assert remote.chief.transfers == local.chief.transfers
     assert remote.chief.rejections == {}

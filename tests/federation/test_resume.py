@@ -5,60 +5,36 @@ from __future__ import annotations
 import json
 import os
 import signal
-import subprocess
 import sys
 import threading
-import time
 from collections.abc import Callable
 from pathlib import Path
-from typing import IO, Any
+from typing import Any
 
 import pytest
 
 from fleetrl.federation.worker import FederatedWorker, RoundRecord, WorkerSummary
-from fleetrl.transport.broker import EmbeddedBroker, find_mosquitto
+from fleetrl.transport.broker import EmbeddedBroker
 from fleetrl.transport.local import LocalBus
 from fleetrl.transport.mqtt import MqttTransport
 
 HERE = Path(__file__).resolve().parent
-needs_mosquitto = pytest.mark.skipif(find_mosquitto() is None, reason="mosquitto not installed")
+FAKE_CHIEF = [sys.executable, str(HERE / "fake_chief_process.py")]
 
 
-class ChiefProcess:
-    """tests/federation/fake_chief_process.py, its printed lines read on a thread."""
+def kill_after_round(chief: Any, rnd: int) -> None:
+    """kill -9 the chief process once it has printed ``closed N`` with N ≥ ``rnd``."""
+    chief.wait_for("closed ", rnd, timeout=60.0)
+    os.kill(chief.proc.pid, signal.SIGKILL)
+    assert chief.proc.wait(30) == -signal.SIGKILL
 
-    def __init__(
-        self, url: str, run_id: str, workers: str, rounds: int, directory: Path, *extra: str
-    ) -> None:
-        argv = [sys.executable, str(HERE / "fake_chief_process.py"), url, run_id, workers, str(rounds)]
-        self.proc = subprocess.Popen(
-            [*argv, str(directory), *extra],
-            stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True, start_new_session=True,
-        )  # fmt: skip
-        self.lines: list[str] = []
-        assert self.proc.stdout is not None
-        threading.Thread(target=self._read, args=(self.proc.stdout,), daemon=True).start()
 
-    def _read(self, stdout: IO[str]) -> None:
-        for line in stdout:
-            self.lines.append(line.strip())
-
-    def closed(self) -> list[int]:
-        return [int(line.split()[1]) for line in self.lines if line.startswith("closed ")]
-
-    def kill_after_round(self, rnd: int, timeout: float = 60.0) -> None:
-        deadline = time.monotonic() + timeout
-        while max(self.closed(), default=0) < rnd:
-            assert time.monotonic() < deadline, f"chief stuck: {self.lines[-3:]}"
-            time.sleep(0.01)
-        os.kill(self.proc.pid, signal.SIGKILL)
-        assert self.proc.wait(30) == -signal.SIGKILL
-
-    def summary(self) -> dict[str, Any]:
-        assert self.proc.wait(60) == 0
-        (line,) = [line for line in self.lines if line.startswith("summary ")]
-        result: dict[str, Any] = json.loads(line.removeprefix("summary "))
-        return result
+def summary_of(chief: Any) -> dict[str, Any]:
+    """The JSON the chief process printed after ``summary`` once it exited 0."""
+    assert chief.stop(60) == 0
+    (line,) = [line for line in chief.lines if line.startswith("summary ")]
+    result: dict[str, Any] = json.loads(line.removeprefix("summary "))
+    return result
 
 
 def run_workers(
@@ -82,9 +58,12 @@ def run_workers(
 
 @pytest.mark.mqtt
 @pytest.mark.timeout(240)
-@needs_mosquitto
+@pytest.mark.mosquitto
 def test_kill_9_of_the_chief_twice_then_resume_loses_and_doubles_no_round(
-    fleet_runner: Callable[..., Any], fake_fleet: Callable[..., dict[str, Any]], tmp_path: Path
+    fleet_runner: Callable[..., Any],
+    fake_fleet: Callable[..., dict[str, Any]],
+    tmp_path: Path,
+    line_process: Callable[[list[str]], Any],
 ) -> None:
     """Killed before and after the transfer of round 4, the chief resumes from its checkpoint each time; the
     workers' rounds, scores and events are exactly those of an uninterrupted run on the local bus."""
@@ -93,26 +72,26 @@ def test_kill_9_of_the_chief_twice_then_resume_loses_and_doubles_no_round(
     run_id, workers = "resume", "1,2,3"
     with EmbeddedBroker("mosquitto") as broker:
         url = broker.url
-        chief = ChiefProcess(url, run_id, workers, rounds, tmp_path)
+        argv = [*FAKE_CHIEF, url, run_id, workers, str(rounds), str(tmp_path)]
+        chief = line_process(argv)
         records, summaries, threads = run_workers(
             lambda: MqttTransport(url, reconnect_delay=(1, 2), clean_session=False),
             fake_fleet(pause=0.15), run_id, rounds,
         )  # fmt: skip
         try:
-            chief.kill_after_round(2)
-            chief = ChiefProcess(url, run_id, workers, rounds, tmp_path, "--resume")
-            chief.kill_after_round(5)
-            chief = ChiefProcess(url, run_id, workers, rounds, tmp_path, "--resume")
-            summary = chief.summary()
+            kill_after_round(chief, 2)
+            chief = line_process([*argv, "--resume"])
+            kill_after_round(chief, 5)
+            chief = line_process([*argv, "--resume"])
+            summary = summary_of(chief)
             for thread in threads:
                 thread.join(60)
         finally:
-            if chief.proc.poll() is None:
-                chief.proc.kill()
+            chief.kill()
     assert not any(t.is_alive() for t in threads), "a worker hung"
     assert records == local.records  # every round once, with the same numbers
     assert summaries["2"].reason == "transfer_out" and summaries["1"].reason == "transfer_out"
     assert summaries["3"].reason in ("run ended", f"reached M={rounds}")  # `done` may come before or after M
     assert summary["rounds"] == rounds and summary["end_reason"] == f"reached M={rounds} rounds"
     assert [(t["round"], t["from"]) for t in summary["transfers"]] == [(4, "2"), (7, "1")]
-    assert summary["dropouts"] == [] and min(chief.closed()) > 5
+    assert summary["dropouts"] == [] and min(chief.numbers("closed ")) > 5

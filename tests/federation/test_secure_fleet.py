@@ -14,7 +14,7 @@ import pytest
 from fleetrl.federation.signing import FleetKey
 from fleetrl.federation.topics import chief_topic, worker_topic
 from fleetrl.transport.base import Transport
-from fleetrl.transport.broker import EmbeddedBroker, find_mosquitto, free_port
+from fleetrl.transport.broker import EmbeddedBroker, free_port
 from fleetrl.transport.local import LocalBus
 from fleetrl.transport.mqtt import MqttTransport
 from fleetrl.transport.secure import SecureFleet, write_secure_config
@@ -22,7 +22,7 @@ from fleetrl.transport.secure import SecureFleet, write_secure_config
 pytestmark = [
     pytest.mark.mqtt,
     pytest.mark.timeout(90),
-    pytest.mark.skipif(find_mosquitto() is None, reason="mosquitto not installed"),
+    pytest.mark.mosquitto,
 ]
 
 

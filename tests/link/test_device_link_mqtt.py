@@ -10,7 +10,6 @@ import subprocess
 import sys
 import textwrap
 import time
-from collections.abc import Iterator
 
 import pytest
 from trajectory_helpers import assert_same, run_episodes
@@ -22,23 +21,10 @@ from fleetrl.link.bridge import DeviceBridge
 from fleetrl.link.driver import SimulatedDriver, simulated_driver
 from fleetrl.link.fleet import start_bridges
 from fleetrl.link.mqtt import open_mqtt_link
-from fleetrl.transport.broker import EmbeddedBroker, find_mosquitto
+from fleetrl.transport.broker import EmbeddedBroker
 from fleetrl.transport.mqtt import MqttTransport
 
 pytestmark = pytest.mark.mqtt
-
-BROKERS = [
-    pytest.param(
-        "mosquitto", marks=pytest.mark.skipif(find_mosquitto() is None, reason="mosquitto not installed")
-    ),
-    "amqtt",
-]
-
-
-@pytest.fixture(scope="module", params=BROKERS)
-def broker(request: pytest.FixtureRequest) -> Iterator[EmbeddedBroker]:
-    with EmbeddedBroker(request.param) as running:
-        yield running
 
 
 def test_lockstep_over_mqtt_gives_the_in_process_trajectory(broker: EmbeddedBroker) -> None:
@@ -70,7 +56,7 @@ WORKER = textwrap.dedent(
 )
 
 
-@pytest.mark.skipif(find_mosquitto() is None, reason="mosquitto not installed")
+@pytest.mark.mosquitto
 def test_watchdog_stops_the_motor_when_the_worker_process_is_killed() -> None:
     watchdog = 0.05
     with EmbeddedBroker("mosquitto") as broker:

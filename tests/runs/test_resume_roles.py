@@ -18,7 +18,7 @@ from pathlib import Path
 
 import pytest
 
-from fleetrl.transport.broker import EmbeddedBroker, find_mosquitto
+from fleetrl.transport.broker import EmbeddedBroker
 
 ROUNDS = 8
 RUN = ["--env", "cartpole", "--preset", "standard", "--max-rounds", str(ROUNDS)]
@@ -67,7 +67,7 @@ def kill9(proc: subprocess.Popen[bytes]) -> None:
 
 @pytest.mark.mqtt
 @pytest.mark.timeout(420)
-@pytest.mark.skipif(find_mosquitto() is None, reason="mosquitto not installed")
+@pytest.mark.mosquitto
 def test_kill_9_of_a_worker_and_of_the_chief_then_resume_gives_the_undisturbed_run(tmp_path: Path) -> None:
     a, b = tmp_path / "a", tmp_path / "b"
     procs: list[subprocess.Popen[bytes]] = []

@@ -7,7 +7,7 @@ from pathlib import Path
 import pytest
 
 from fleetrl.cli.main import main
-from fleetrl.transport.broker import EmbeddedBroker, find_mosquitto
+from fleetrl.transport.broker import EmbeddedBroker
 
 ROUNDS = 6
 
@@ -69,16 +69,11 @@ def test_federated_run_writes_the_same_files_as_an_individual_run(
 
 
 @pytest.mark.mqtt
-@pytest.mark.parametrize("broker_kind", ["mosquitto", "amqtt"])
 def test_same_seed_same_scores_over_mqtt_and_the_local_bus(
-    local_run: Path, tmp_path: Path, broker_kind: str
+    local_run: Path, tmp_path: Path, broker: EmbeddedBroker
 ) -> None:
-    if broker_kind == "mosquitto" and find_mosquitto() is None:
-        pytest.skip("mosquitto is not installed (CI installs it)")
-    with EmbeddedBroker(broker_kind) as broker:  # type: ignore[arg-type]
-        url = broker.url
-        summary = train(tmp_path / "run", "--mode", "federated", "--broker", url)
-    assert summary["broker"] == url
+    summary = train(tmp_path / "run", "--mode", "federated", "--broker", broker.url)
+    assert summary["broker"] == broker.url
     assert scores(tmp_path / "run") == scores(local_run)
 
 

@@ -8,26 +8,12 @@ import socket
 import subprocess
 import sys
 import time
-from collections.abc import Iterator
 
 import pytest
 
 from fleetrl.transport.base import Transport, Will
-from fleetrl.transport.broker import EmbeddedBroker, find_mosquitto, free_port, mqtt_ready
+from fleetrl.transport.broker import EmbeddedBroker, free_port, mqtt_ready
 from fleetrl.transport.mqtt import BrokerAddress, MqttTransport
-
-BROKERS = [
-    pytest.param(
-        "mosquitto", marks=pytest.mark.skipif(find_mosquitto() is None, reason="mosquitto not installed")
-    ),
-    "amqtt",
-]
-
-
-@pytest.fixture(scope="module", params=BROKERS)
-def broker(request: pytest.FixtureRequest) -> Iterator[EmbeddedBroker]:
-    with EmbeddedBroker(request.param) as running:
-        yield running
 
 
 def client(url: str, client_id: str, will: Will | None = None) -> MqttTransport:
@@ -127,7 +113,7 @@ def test_last_will_is_delivered_as_offline_when_a_client_dies(broker: EmbeddedBr
 
 
 @pytest.mark.mqtt
-@pytest.mark.skipif(find_mosquitto() is None, reason="mosquitto not installed")
+@pytest.mark.mosquitto
 def test_client_reconnects_and_resubscribes_after_a_broker_restart() -> None:
     port = free_port()
     first = EmbeddedBroker("mosquitto", port=port).start()

@@ -37,8 +37,16 @@ _CONNECT = (
 _DISCONNECT = b"\xe0\x00"
 
 
+HIDE_MOSQUITTO_ENV = "FLEETRL_HIDE_MOSQUITTO"
+
+
 def find_mosquitto() -> str | None:
-    """Path of the mosquitto binary (on PATH, or Debian's /usr/sbin), or None."""
+    """Path of the mosquitto binary (on PATH, or Debian's /usr/sbin), or None.
+
+    ``FLEETRL_HIDE_MOSQUITTO=1`` hides an installed mosquitto (amqtt is used), to try a machine without it.
+    """
+    if os.environ.get(HIDE_MOSQUITTO_ENV, "") not in ("", "0"):
+        return None
     found = shutil.which("mosquitto")
     if found:
         return found
