@@ -4,24 +4,45 @@ PYTHON ?= $(shell command -v python3.11 || command -v python3)
 VENV := .venv
 PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed
+# requirements.lock pins every package the venv holds (transitive ones, the build backend and torch's CPU
+# build included); pyproject.toml keeps the compatible ranges for people who install fleetrl as a library.
+LOCK := requirements.lock
+PIP_VERSION := 26.3
 
-.PHONY: install demo test lint bench results clean
+.PHONY: install lock demo test test-fast lint bench results clean
 
 install: $(STAMP)
 
-$(STAMP): pyproject.toml
+$(STAMP): pyproject.toml $(LOCK)
 	test -x $(PY) || $(PYTHON) -m venv $(VENV)
-	$(PY) -m pip install --quiet --upgrade pip
-	# torch pinned first: this exact version is the CPU build; a looser range pulls a CUDA build of several GB.
-	$(PY) -m pip install --quiet torch==2.13.0
-	$(PY) -m pip install --quiet -e '.[test,bench]'
+	$(PY) -m pip install --quiet pip==$(PIP_VERSION)
+	$(PY) -m pip install --quiet -r $(LOCK)
+	$(PY) -m pip install --quiet --no-deps --no-build-isolation -e .
+	$(PY) -m pip check
 	touch $(STAMP)
+
+# Refresh the lock: resolve pyproject.toml's ranges afresh in a scratch venv (torch pinned to its CPU build:
+# a looser range pulls a CUDA build of several GB) and write down every version installed.
+lock:
+	rm -rf .lock-venv
+	$(PYTHON) -m venv .lock-venv
+	.lock-venv/bin/python -m pip install --quiet pip==$(PIP_VERSION)
+	.lock-venv/bin/python -m pip install --quiet 'torch==2.13.0+cpu' setuptools wheel
+	.lock-venv/bin/python -m pip install --quiet --no-build-isolation -e '.[test,bench]'
+	.lock-venv/bin/python -m pip check
+	{ echo "# Every package of fleetrl's development venv, exactly; written by 'make lock' (do not edit)."; \
+	  .lock-venv/bin/python -m pip freeze --exclude-editable --all | grep -v '^pip=='; } > $(LOCK)
+	rm -rf .lock-venv
 
 demo: install
 	$(VENV)/bin/fleetrl demo
 
 test: install
 	$(PY) -m pytest -q
+
+# The edit-run loop: unit tests only (no broker, no training), well under a minute.
+test-fast: install
+	$(PY) -m pytest -q -m "not slow and not mqtt and not mosquitto"
 
 lint: install
 	$(VENV)/bin/ruff check src tests benchmarks
@@ -38,4 +59,4 @@ results: install
 	$(VENV)/bin/fleetrl experiment all --seeds 5 --out runs/experiments
 
 clean:
-	rm -rf $(VENV) build *.egg-info src/*.egg-info
+	rm -rf $(VENV) .lock-venv build *.egg-info src/*.egg-info
