@@ -13,17 +13,13 @@ from fleetrl.agent.config import get_preset
 from fleetrl.agent.criterion import CompletionCriterion
 from fleetrl.agent.learner import Learner
 from fleetrl.agent.ppo import PPOAgent
+from fleetrl.envs.registration import CARTPOLE_UNIT_ID
 
-CARTPOLE_UNIT = "fleetrl/CartPoleUnit-v0"
+pytestmark = pytest.mark.slow  # every test here trains for rounds
 
 
 def make_env() -> gymnasium.Env[Any, Any]:
-    if CARTPOLE_UNIT in gymnasium.envs.registration.registry:
-        try:
-            return gymnasium.make(CARTPOLE_UNIT, unit=0, fleet_seed=0)
-        except ImportError:  # the unit env's module is not there in this checkout
-            pass
-    return gymnasium.make("CartPole-v1")
+    return gymnasium.make(CARTPOLE_UNIT_ID, unit=0, fleet_seed=0)
 
 
 def make_learner(preset: str, seed: int, threshold: float = 475.0) -> Learner:
@@ -71,18 +67,32 @@ def test_a_learner_that_keeps_learning_updates_after_completion() -> None:
     assert not np.array_equal(theta, learner.agent.actor_parameters())
 
 
-STANDARD_SEED = 0
-STANDARD_MAX_ROUNDS = 150  # seed 0 completes at round 79 (docs/algorithm.md)
+# The learning test is statistical: a seed fixes a run on one CPU only (docs/algorithm.md, "Seeding"), so
+# no single seed's round count is asserted. The bounds come from `python benchmarks/preset_rounds.py
+# --seeds 0-9` (tuning seeds, never the ones below) on a 2-core AMD EPYC (AVX2) in four settings that give
+# four different sets of code paths: the host's kernels (rounds 54-108), FLEETRL_PORTABLE=1 (49-120), torch
+# without SIMD (55-141) and MKL's compatible path (64-228); and on an Intel Xeon (AVX-512), seeds 0-6 took
+# 71-173. All 47 runs completed; the slowest took 228 rounds, so the cap of 300 leaves a margin of 1.3×
+# over it and about 3.4× over the pooled median (87), and one seed of five may still miss it.
+LEARNING_SEEDS = range(100, 105)
+LEARNING_MAX_ROUNDS = 300
+LEARNING_MIN_COMPLETED = 4
 
 
-@pytest.mark.slow
+@pytest.mark.timeout(400)
 def test_standard_preset_learns_cartpole() -> None:
     torch.set_num_threads(1)
-    learner = make_learner("standard", seed=STANDARD_SEED)
-    for _ in range(STANDARD_MAX_ROUNDS):
-        result = learner.play_round()
-        if result.completed:
-            break
-    assert result.completed, f"no completion in {STANDARD_MAX_ROUNDS} rounds (WMA {result.wma:.0f})"
-    assert result.wma >= 475.0
-    assert learner.evaluate(3) >= 400.0
+    completed = []
+    for seed in LEARNING_SEEDS:
+        learner = make_learner("standard", seed=seed)
+        for _ in range(LEARNING_MAX_ROUNDS):
+            result = learner.play_round()
+            if result.completed:
+                assert result.wma >= 475.0
+                assert learner.evaluate(3) >= 400.0  # greedy play of the completed policy holds the pole
+                completed.append(result.round)
+                break
+    assert len(completed) >= LEARNING_MIN_COMPLETED, (
+        f"{len(completed)} of {len(LEARNING_SEEDS)} seeds completed within {LEARNING_MAX_ROUNDS} rounds "
+        f"(rounds {completed}); at least {LEARNING_MIN_COMPLETED} should"
+    )

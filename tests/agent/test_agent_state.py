@@ -26,6 +26,7 @@ def fingerprint(learner: Learner, rounds: int) -> list[tuple[float, int, float]]
     return out
 
 
+@pytest.mark.slow
 @pytest.mark.timeout(120)
 def test_a_learner_resumed_from_its_state_plays_the_same_rounds(tmp_path: Path) -> None:
     original = make_learner(SPEC)

@@ -11,6 +11,8 @@ import pytest
 from fleetrl.cli.main import main
 from fleetrl.experiments.catalog import EXPERIMENTS, PLANS
 
+pytestmark = [pytest.mark.slow, pytest.mark.mqtt]  # sweeps of real training runs, one arm over MQTT
+
 
 @pytest.fixture(scope="module")
 def quick_report(tmp_path_factory: pytest.TempPathFactory) -> Path:

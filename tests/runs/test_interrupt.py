@@ -11,6 +11,8 @@ import pytest
 
 from fleetrl.runs.records import read_metrics
 
+pytestmark = [pytest.mark.slow, pytest.mark.mqtt]  # `fleetrl train` processes, federated over MQTT
+
 
 @pytest.mark.timeout(180)
 @pytest.mark.parametrize("mode", ["individual", "federated"])

@@ -20,6 +20,8 @@ import pytest
 
 from fleetrl.transport.broker import EmbeddedBroker
 
+pytestmark = pytest.mark.slow  # chief and worker processes training CartPole
+
 ROUNDS = 8
 RUN = ["--env", "cartpole", "--preset", "standard", "--max-rounds", str(ROUNDS)]
 

@@ -9,6 +9,8 @@ import pytest
 from fleetrl.cli.main import main
 from fleetrl.transport.broker import EmbeddedBroker
 
+pytestmark = pytest.mark.slow  # whole `fleetrl train` runs
+
 ROUNDS = 6
 
 
