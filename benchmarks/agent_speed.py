@@ -11,11 +11,14 @@ import statistics
 import sys
 import time
 
+# isort: off
+import fleetrl  # noqa: F401  (first: it applies FLEETRL_PORTABLE before numpy and torch load)
 import gymnasium
 import numpy as np
 import torch
 
-import fleetrl  # noqa: F401  (registers the envs)
+# isort: on
+from fleetrl import portable
 from fleetrl.agent.config import get_preset
 from fleetrl.agent.ppo import PPOAgent
 from fleetrl.envs.registration import CARTPOLE_UNIT_ID, QUBE_BALANCE_ID
@@ -48,6 +51,20 @@ def rollout(env_id: str, steps: int) -> float:
     return steps / (time.perf_counter() - started)
 
 
+def update_cost(repeats: int) -> float:
+    """Seconds per PPO update (Algorithm 2 lines 11-25) of the standard preset on a full memory."""
+    agent = PPOAgent(4, 3, get_preset("standard"), seed=0)
+    rng = np.random.default_rng(0)
+    for t in range(agent.config.memory_size):
+        obs = rng.normal(size=4).astype(np.float32)
+        agent.remember(obs, agent.act(obs), 1.0, obs, False, t % 200 == 199)
+    agent.update()
+    started = time.perf_counter()
+    for _ in range(repeats):
+        agent.update()
+    return (time.perf_counter() - started) / repeats
+
+
 def main() -> int:
     parser = argparse.ArgumentParser(
         description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
@@ -56,11 +73,21 @@ def main() -> int:
     parser.add_argument("--repeats", type=int, default=5)
     args = parser.parse_args()
     torch.set_num_threads(1)
+    mode = "portable (FLEETRL_PORTABLE=1)" if portable.enabled() else "default"
+    print(
+        f"# {portable.host_cpu()}, torch {torch.__version__} "
+        f"({torch.backends.cpu.get_cpu_capability()} kernels), mode {mode}"
+    )
     act = statistics.median(act_and_remember(args.steps) for _ in range(args.repeats))
     print(f"act + remember: {act * 1e6:.1f} µs per step (median of {args.repeats})")
     for env_id in (CARTPOLE_UNIT_ID, QUBE_BALANCE_ID):
         rate = statistics.median(rollout(env_id, args.steps) for _ in range(args.repeats))
         print(f"rollout {env_id}: {rate:,.0f} steps/s (median of {args.repeats}; target ≥ 25,000)")
+    update = statistics.median(update_cost(10) for _ in range(args.repeats))
+    print(
+        f"PPO update, standard preset (K 20, U 128, memory 1000): {update * 1e3:.1f} ms "
+        f"(median of {args.repeats})"
+    )
     return 0
 
 

@@ -12,7 +12,8 @@ fleetrl/QubeBalance-v0, preset standard, seed 0, one torch thread) in child proc
 make the libraries take the code paths another CPU would take:
 
 - PyTorch's kernels: ``ATEN_CPU_CAPABILITY`` = default (no SIMD) / avx2;
-- MKL's BLAS (torch's matrix products): ``MKL_ENABLE_INSTRUCTIONS`` = SSE4_2 / AVX;
+- MKL's BLAS (torch's matrix products): ``MKL_ENABLE_INSTRUCTIONS`` = SSE4_2 / AVX (no effect on AMD
+  CPUs, where MKL takes its AVX2 path whatever is asked), ``MKL_CBWR`` = COMPATIBLE (its SSE2 path);
 - numba's target CPU: ``NUMBA_CPU_NAME`` = generic (x86-64 baseline) vs the host;
 - numpy's SIMD dispatch: ``NPY_DISABLE_CPU_FEATURES`` (the x86-64-v3 kernels off);
 - glibc's libm variants (sin, cos, exp, tanh): ``GLIBC_TUNABLES`` with AVX2 and FMA masked.
@@ -40,6 +41,7 @@ VARIANTS: dict[str, dict[str, str]] = {
     "torch: no SIMD (ATEN default)": {"ATEN_CPU_CAPABILITY": "default"},
     "MKL: SSE4.2 kernels": {"MKL_ENABLE_INSTRUCTIONS": "SSE4_2"},
     "MKL: AVX kernels": {"MKL_ENABLE_INSTRUCTIONS": "AVX"},
+    "MKL: compatible path (MKL_CBWR)": {"MKL_CBWR": "COMPATIBLE"},
     "numba: generic x86-64": {"NUMBA_CPU_NAME": "generic"},
     "numpy: x86-64-v3 off": {"NPY_DISABLE_CPU_FEATURES": "X86_V3"},
     "glibc libm: no AVX2/FMA": {"GLIBC_TUNABLES": "glibc.cpu.hwcaps=-AVX2,-FMA"},
