@@ -6,7 +6,7 @@ from dataclasses import fields
 import numpy as np
 import pytest
 
-from fleetrl.devices.homogeneity import homogeneity_test
+from fleetrl.devices.homogeneity import homogeneity_test, pooled_homogeneity
 from fleetrl.devices.qube import QubeDevice
 from fleetrl.devices.qube.fleet_profiles import DEFAULT_FLEET_PROFILE, FLEET_PROFILES, fleet_profile
 from fleetrl.devices.qube.units import QubeVariation, qube_unit_params
@@ -75,25 +75,14 @@ def test_table2_units_differ_from_v1_where_the_profiles_differ() -> None:
     assert (a.Rm, a.km, a.mp, a.Lp) == (b.Rm, b.km, b.mp, b.Lp)  # same draws where the spreads agree
 
 
-def pooled_medians(profile: str, fleet_seeds: range, impulse_seeds: range) -> tuple[float, float]:
-    """Median motor and pendulum correlation over all off-diagonal pairs of 3-unit fleets."""
-    motor: list[float] = []
-    pendulum: list[float] = []
-    pairs = np.triu_indices(3, 1)
-    for fleet_seed in fleet_seeds:
-        for seed in impulse_seeds:
-            result = homogeneity_test(3, fleet_seed, 100, seed, profile=profile)
-            motor += list(result.motor[pairs])
-            pendulum += list(result.pendulum[pairs])
-    return float(np.median(motor)), float(np.median(pendulum))
-
-
 @pytest.mark.slow
 def test_table2_profile_gives_the_papers_homogeneity() -> None:
-    motor, pendulum = pooled_medians("table2", range(3), range(5))
+    table2 = pooled_homogeneity(range(3), range(5), profile="table2")
+    assert table2.motor.shape == table2.pendulum.shape == (3 * 5 * 3,)  # 3 pairs per test
+    motor, pendulum = table2.motor_median, table2.pendulum_median
     assert TABLE2_MOTOR[0] <= motor <= TABLE2_MOTOR[1], f"median motor correlation {motor:.3f}"
     assert TABLE2_PENDULUM[0] <= pendulum <= TABLE2_PENDULUM[1], f"median pendulum correlation {pendulum:.3f}"
-    # and the motors differ more than the pendulums, as on the rig, which v1 does not show
-    v1_motor, v1_pendulum = pooled_medians("v1", range(3), range(5))
-    assert motor < pendulum and v1_motor > v1_pendulum
-    assert not math.isclose(motor, v1_motor)
+    # the motors differ more than the pendulums, as on the rig; today's fleet shows the reverse
+    v1 = pooled_homogeneity(range(3), range(5))
+    assert v1.profile == "v1" and v1.motor_median > v1.pendulum_median
+    assert motor < pendulum

@@ -11,6 +11,7 @@ earlier impulses, so small parameter differences accumulate).
 
 import csv
 import math
+from collections.abc import Iterable
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -91,6 +92,61 @@ def homogeneity_test(
         pendulum=np.atleast_2d(np.corrcoef(pendulum)),
         motor_changes=motor,
         pendulum_changes=pendulum,
+    )
+
+
+@dataclass(frozen=True)
+class PooledHomogeneity:
+    """The off-diagonal correlations of many homogeneity tests, pooled (one entry per pair of units)."""
+
+    profile: str
+    fleet_seeds: tuple[int, ...]
+    impulse_seeds: tuple[int, ...]
+    motor: np.ndarray
+    """motor-angle correlations of every unit pair of every (fleet seed, impulse seed)"""
+    pendulum: np.ndarray
+    """pendulum-angle correlations, in the same order"""
+
+    @property
+    def motor_median(self) -> float:
+        """Median motor-angle correlation over all pairs."""
+        return float(np.median(self.motor))
+
+    @property
+    def pendulum_median(self) -> float:
+        """Median pendulum-angle correlation over all pairs."""
+        return float(np.median(self.pendulum))
+
+
+def pooled_homogeneity(
+    fleet_seeds: Iterable[int],
+    impulse_seeds: Iterable[int],
+    *,
+    units: int = 3,
+    impulses: int = 100,
+    profile: str | None = None,
+) -> PooledHomogeneity:
+    """Run ``homogeneity_test`` for every (fleet seed, impulse seed) and pool the off-diagonal pairs.
+
+    The paper's Table 2 is one such test on three real units; a simulated fleet is judged by the median
+    over several fleet and impulse seeds (single pairs scatter widely).
+    """
+    fleets, seeds = tuple(fleet_seeds), tuple(impulse_seeds)
+    pairs = np.triu_indices(units, 1)
+    motor, pendulum = [], []
+    for fleet_seed in fleets:
+        for seed in seeds:
+            result = homogeneity_test(units, fleet_seed, impulses, seed, profile=profile)
+            motor.append(result.motor[pairs])
+            pendulum.append(result.pendulum[pairs])
+    if not motor:
+        raise ValueError("give at least one fleet seed and one impulse seed")
+    return PooledHomogeneity(
+        profile=fleet_profile(profile).name,
+        fleet_seeds=fleets,
+        impulse_seeds=seeds,
+        motor=np.concatenate(motor),
+        pendulum=np.concatenate(pendulum),
     )
 
 
