@@ -1,4 +1,5 @@
-"""A 10-unit QUBE fleet: the reference controller, the device-side reset, per-unit determinism."""
+"""A 10-unit QUBE fleet of each profile: the reference controller (continuous and through the three
+actions), the device-side reset, per-unit determinism."""
 
 import math
 from dataclasses import asdict
@@ -7,9 +8,13 @@ import numpy as np
 import pytest
 
 from fleetrl.devices.qube import NOMINAL, QubeConfig, QubeDevice
-from fleetrl.devices.qube.units import QubeVariation, qube_unit_params
+from fleetrl.devices.qube.controllers import BALANCE_GAINS
+from fleetrl.devices.qube.fleet_profiles import FLEET_PROFILES
+from fleetrl.devices.qube.units import qube_unit_params
 
 FLEET = range(10)
+PROFILES = sorted(FLEET_PROFILES)
+PENDULUM_LIMIT = math.radians(7.5)
 SWING_UP_BOUND_S = 5.0  # measured: at most 1.85 s over 200 units (10 fleet seeds x 20 units)
 ARM_TRAVEL_BOUND = math.radians(150)
 
@@ -22,19 +27,43 @@ ARM_TRAVEL_BOUND = math.radians(150)
     ],
     ids=["500Hz-filter", "166Hz-difference"],
 )
-def test_reference_controller_holds_every_unit(config: QubeConfig) -> None:
+@pytest.mark.parametrize("profile", PROFILES)
+def test_reference_controller_holds_every_unit(config: QubeConfig, profile: str) -> None:
     assert config.quantise and config.actuation_delay
     for unit in FLEET:
-        device = QubeDevice.from_fleet(unit, fleet_seed=0, config=config)
+        device = QubeDevice.from_fleet(unit, fleet_seed=0, config=config, profile=profile)
         device.set_state(np.array([0.0, math.radians(3.0), 0.0, 0.0]))
         worst = device.balance(2500)
         assert worst < math.radians(7.5), f"unit {unit}: |alpha| reached {math.degrees(worst):.1f} deg"
         assert abs(device.state[0]) < math.radians(30), f"unit {unit}: arm drifted"
 
 
-def test_swing_up_and_settle_hands_over_on_every_unit() -> None:
+def _bang_bang(obs: np.ndarray) -> int:
+    """Quanser's law squeezed into the three actions: power +60 / 0 / −60 beyond ±0.7 V."""
+    alpha, alpha_dot, theta, theta_dot = (float(v) for v in obs)
+    volts = -float(np.dot(BALANCE_GAINS, (theta, alpha, theta_dot, alpha_dot)))
+    return 2 if volts > 0.7 else (0 if volts < -0.7 else 1)
+
+
+@pytest.mark.parametrize("profile", PROFILES)
+def test_reference_gains_through_the_three_actions_hold_most_units(profile: str) -> None:
+    """From the device-side reset, bang-bang ±1.44 V on the reference gains: 2500 steps inside the band."""
+    held = []
     for unit in FLEET:
-        device = QubeDevice.from_fleet(unit, fleet_seed=0)
+        device = QubeDevice.from_fleet(unit, fleet_seed=0, profile=profile)
+        obs = device.reset(seed=unit)
+        steps = 0
+        while steps < 2500 and abs(obs[0]) <= PENDULUM_LIMIT and abs(obs[2]) <= math.pi / 2:
+            obs = device.step(_bang_bang(obs))
+            steps += 1
+        held.append(steps == 2500)
+    assert sum(held) >= 8, f"held units {[u for u in FLEET if held[u]]}"
+
+
+@pytest.mark.parametrize("profile", PROFILES)
+def test_swing_up_and_settle_hands_over_on_every_unit(profile: str) -> None:
+    for unit in FLEET:
+        device = QubeDevice.from_fleet(unit, fleet_seed=0, profile=profile)
         obs = device.reset(seed=unit)
         assert device.last_reset_seconds <= SWING_UP_BOUND_S, f"unit {unit}: {device.last_reset_seconds} s"
         assert device.last_reset_arm_travel < ARM_TRAVEL_BOUND
@@ -68,18 +97,29 @@ def test_seeded_reset_is_reproducible() -> None:
     assert not np.array_equal(a, c)
 
 
-def test_deviations_stay_in_their_documented_ranges() -> None:
-    v = QubeVariation()
+@pytest.mark.parametrize("profile", PROFILES)
+def test_deviations_stay_in_their_documented_ranges(profile: str) -> None:
+    v = FLEET_PROFILES[profile].variation
     nominal = asdict(NOMINAL)
-    draws = [qube_unit_params(seed, unit) for seed in range(5) for unit in range(20)]
+    draws = [qube_unit_params(seed, unit, v) for seed in range(5) for unit in range(20)]
     for p in draws:
-        for name in ("mr", "Lr", "mp", "Lp"):
-            assert abs(getattr(p, name) / nominal[name] - 1) <= v.mass_length
-        for name in ("Rm", "km"):
-            assert abs(getattr(p, name) / nominal[name] - 1) <= v.motor
+        for name, spread in (
+            ("mr", v.arm_mass_length),
+            ("Lr", v.arm_mass_length),
+            ("mp", v.pendulum_mass_length),
+            ("Lp", v.pendulum_mass_length),
+            ("Rm", v.resistance),
+            ("km", v.torque_constant),
+        ):
+            assert abs(getattr(p, name) / nominal[name] - 1) <= spread
         assert v.Dr_range[0] <= p.Dr <= v.Dr_range[1] and v.Dp_range[0] <= p.Dp <= v.Dp_range[1]
+        low, high = v.cable_stiffness_range
+        assert low <= p.cable_stiffness <= high
+        assert v.deadband_range[0] <= p.deadband_volts <= v.deadband_range[1]
         assert abs(p.theta_offset_counts) <= 2 and abs(p.alpha_offset_counts) <= 2
     assert len({p.km for p in draws}) == len(draws)  # every unit is its own
+    if high > low:
+        assert len({p.cable_stiffness for p in draws}) == len(draws)
 
 
 @pytest.mark.parametrize("bad", [-1, 1.5, "0", True])

@@ -1,6 +1,7 @@
 """The QUBE equations of motion and their integration: linearisation, energy, back-EMF, sensors."""
 
 import math
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -15,7 +16,7 @@ LINEARISATION_TOLERANCE = 0.01  # the reference rounds to two decimals
 
 
 def _accelerations(x: np.ndarray, volts: float, c: np.ndarray) -> np.ndarray:
-    return np.array(d.accelerations(x[1], x[2], x[3], volts, c))
+    return np.array(d.accelerations(x[0], x[1], x[2], x[3], volts, c))
 
 
 def test_linearisation_at_upright_matches_reference() -> None:
@@ -56,7 +57,7 @@ def test_back_emf_damps_the_arm() -> None:
 
 
 def test_positive_voltage_accelerates_the_arm_positively() -> None:
-    theta_dd, _ = d.accelerations(0.0, 0.0, 0.0, 1.0, NOMINAL.coefficients())
+    theta_dd, _ = d.accelerations(0.0, 0.0, 0.0, 0.0, 1.0, NOMINAL.coefficients())
     assert theta_dd > 0
 
 
@@ -104,3 +105,26 @@ def test_finite_difference_velocity_is_reading_change_over_period() -> None:
     before = obs.copy()
     after = device.step(2).copy()
     assert after[3] == pytest.approx((after[2] - before[2]) / 0.006, rel=1e-5)
+
+
+def test_energy_with_a_cable_torque_counts_its_spring() -> None:
+    """Zero damping, open-circuit motor, a cable torque −Kc·θ: energy incl. ½·Kc·θ² is conserved."""
+    c = replace(NOMINAL, cable_stiffness=5e-3).with_damping(0.0, 0.0).coefficients()
+    c[d.C_KM] = 0.0
+    x = np.array([0.8, 2.5, 3.0, -4.0])
+    start = d.energy(x, c)
+    drift = 0.0
+    for _ in range(10_000):
+        d.rk4_step(x, 0.0, c, 0.001)
+        drift = max(drift, abs(d.energy(x, c) - start))
+    assert drift < 1e-6 * abs(start) + 1e-9
+    theta_dd, _ = d.accelerations(0.5, 0.0, 0.0, 0.0, 0.0, c)
+    assert theta_dd < 0  # the cable pulls the arm back towards 0
+
+
+@pytest.mark.parametrize(("command", "applied"), [(1.44, 0.79), (-1.44, -0.79), (0.5, 0.0), (-0.65, 0.0)])
+def test_amplifier_dead_zone(command: float, applied: float) -> None:
+    device = QubeDevice(replace(NOMINAL, deadband_volts=0.65), QubeConfig(actuation_delay=False))
+    device.set_state(np.array([0.0, math.pi, 0.0, 0.0]))
+    device.step_volts(command)
+    assert device.applied_volts == pytest.approx(applied, abs=1e-12)

@@ -11,12 +11,14 @@ earlier impulses, so small parameter differences accumulate).
 
 import csv
 import math
+from collections.abc import Iterable
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
 from fleetrl.devices.qube.device import QubeDevice
+from fleetrl.devices.qube.fleet_profiles import fleet_profile
 from fleetrl.devices.qube.params import QubeConfig
 from fleetrl.devices.variation import check_unit
 
@@ -27,6 +29,8 @@ class HomogeneityResult:
 
     units: tuple[int, ...]
     fleet_seed: int
+    profile: str
+    """the fleet profile the units were drawn with"""
     motor: np.ndarray
     """Pearson correlation matrix of motor (arm) angle changes"""
     pendulum: np.ndarray
@@ -44,8 +48,9 @@ def homogeneity_test(
     impulse_volts: float = 3.0,
     impulse_seconds: float = 0.03,
     window_seconds: float = 0.5,
+    profile: str | None = None,
 ) -> HomogeneityResult:
-    """Run the test on units 0 … units−1 of fleet ``fleet_seed``.
+    """Run the test on units 0 … units−1 of fleet ``fleet_seed`` drawn with fleet profile ``profile``.
 
     :param units: how many units (at least 2)
     :param impulses: how many impulses per unit (at least 3)
@@ -53,12 +58,14 @@ def homogeneity_test(
     :param impulse_volts: voltage of an impulse
     :param impulse_seconds: duration of an impulse
     :param window_seconds: coasting time after each impulse before the change is read
+    :param profile: the fleet profile (``fleetrl.devices.qube.fleet_profiles``); None: the default
     """
     if isinstance(units, bool) or not isinstance(units, int) or units < 2:
         raise ValueError(f"units must be an integer of at least 2, got {units!r}")
     if isinstance(impulses, bool) or not isinstance(impulses, int) or impulses < 3:
         raise ValueError(f"impulses must be an integer of at least 3, got {impulses!r}")
     check_unit(0, fleet_seed)
+    chosen = fleet_profile(profile).name
     config = QubeConfig()
     push = max(1, round(impulse_seconds / config.control_period))
     coast = max(1, round(window_seconds / config.control_period))
@@ -66,7 +73,7 @@ def homogeneity_test(
     motor = np.empty((units, impulses))
     pendulum = np.empty((units, impulses))
     for unit in range(units):
-        device = QubeDevice.from_fleet(unit, fleet_seed, config)
+        device = QubeDevice.from_fleet(unit, fleet_seed, config, profile=chosen)
         device.set_state(np.array([0.0, math.pi, 0.0, 0.0]))
         for i, direction in enumerate(directions):
             theta0, alpha0 = device.readings
@@ -80,10 +87,66 @@ def homogeneity_test(
     return HomogeneityResult(
         units=tuple(range(units)),
         fleet_seed=fleet_seed,
+        profile=chosen,
         motor=np.atleast_2d(np.corrcoef(motor)),
         pendulum=np.atleast_2d(np.corrcoef(pendulum)),
         motor_changes=motor,
         pendulum_changes=pendulum,
+    )
+
+
+@dataclass(frozen=True)
+class PooledHomogeneity:
+    """The off-diagonal correlations of many homogeneity tests, pooled (one entry per pair of units)."""
+
+    profile: str
+    fleet_seeds: tuple[int, ...]
+    impulse_seeds: tuple[int, ...]
+    motor: np.ndarray
+    """motor-angle correlations of every unit pair of every (fleet seed, impulse seed)"""
+    pendulum: np.ndarray
+    """pendulum-angle correlations, in the same order"""
+
+    @property
+    def motor_median(self) -> float:
+        """Median motor-angle correlation over all pairs."""
+        return float(np.median(self.motor))
+
+    @property
+    def pendulum_median(self) -> float:
+        """Median pendulum-angle correlation over all pairs."""
+        return float(np.median(self.pendulum))
+
+
+def pooled_homogeneity(
+    fleet_seeds: Iterable[int],
+    impulse_seeds: Iterable[int],
+    *,
+    units: int = 3,
+    impulses: int = 100,
+    profile: str | None = None,
+) -> PooledHomogeneity:
+    """Run ``homogeneity_test`` for every (fleet seed, impulse seed) and pool the off-diagonal pairs.
+
+    The paper's Table 2 is one such test on three real units; a simulated fleet is judged by the median
+    over several fleet and impulse seeds (single pairs scatter widely).
+    """
+    fleets, seeds = tuple(fleet_seeds), tuple(impulse_seeds)
+    pairs = np.triu_indices(units, 1)
+    motor, pendulum = [], []
+    for fleet_seed in fleets:
+        for seed in seeds:
+            result = homogeneity_test(units, fleet_seed, impulses, seed, profile=profile)
+            motor.append(result.motor[pairs])
+            pendulum.append(result.pendulum[pairs])
+    if not motor:
+        raise ValueError("give at least one fleet seed and one impulse seed")
+    return PooledHomogeneity(
+        profile=fleet_profile(profile).name,
+        fleet_seeds=fleets,
+        impulse_seeds=seeds,
+        motor=np.concatenate(motor),
+        pendulum=np.concatenate(pendulum),
     )
 
 
@@ -120,6 +183,6 @@ def format_tables(result: HomogeneityResult) -> str:
             lines.append(label.ljust(width) + "".join(f"{v:.2f}".rjust(width) for v in row))
         blocks.append("\n".join(lines))
     return (
-        f"Homogeneity test, fleet seed {result.fleet_seed}, "
+        f"Homogeneity test, fleet seed {result.fleet_seed} (profile {result.profile}), "
         f"{result.motor_changes.shape[1]} impulses per unit\n\n" + "\n\n".join(blocks)
     )

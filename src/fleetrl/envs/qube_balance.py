@@ -35,6 +35,8 @@ class QubeBalanceEnv(LinkEnv):
 
     :param unit: index of the unit in the fleet (non-negative)
     :param fleet_seed: seed of the fleet; (fleet_seed, unit) fixes the unit's parameters
+    :param fleet_profile: the fleet profile the in-process unit is drawn with (``v1``, the default, or
+        ``table2``; see ``fleetrl.devices.qube.fleet_profiles``)
     :param link: reach the device through this link instead of simulating it in-process
     :param render_mode: None, or ``rgb_array`` for :meth:`render` frames
     :param options: ``QubeConfig`` fields for the in-process simulation, e.g. ``control_period=0.006``,
@@ -46,15 +48,20 @@ class QubeBalanceEnv(LinkEnv):
         unit: int = 0,
         fleet_seed: int = 0,
         *,
+        fleet_profile: str | None = None,
         link: DeviceLink | None = None,
         render_mode: str | None = None,
         **options: object,
     ) -> None:
         self.unit, self.fleet_seed = check_unit(unit, fleet_seed)
         if link is None:
-            link = InProcessLink(QubeDevice.from_fleet(self.unit, self.fleet_seed, qube_config(**options)))
-        elif options:
-            raise ValueError(f"options {sorted(options)} configure the in-process simulation; not with link=")
+            device = QubeDevice.from_fleet(
+                self.unit, self.fleet_seed, qube_config(**options), profile=fleet_profile
+            )
+            link = InProcessLink(device)
+        elif options or fleet_profile is not None:
+            given = sorted(options) + (["fleet_profile"] if fleet_profile is not None else [])
+            raise ValueError(f"options {given} configure the in-process simulation; not with link=")
         super().__init__(link, n_actions=3, render_mode=render_mode)
         high = np.array([math.pi, VELOCITY_BOUND, 2.0 * math.pi, VELOCITY_BOUND], dtype=np.float32)
         self.observation_space = gymnasium.spaces.Box(-high, high, dtype=np.float32)

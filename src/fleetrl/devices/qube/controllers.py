@@ -1,9 +1,10 @@
 """The device-side controllers of the rig: Quanser's balance law and an energy swing-up.
 
 They run on the sensor pipeline's readings (never the true state) and use nominal parameters, as a
-controller on a real unit would. ``device_reset`` runs them in one compiled loop: swing up from hanging,
-catch, settle, and report when the pendulum is ready for the agent. The gains were tuned on 200 simulated
-units (docs/devices.md, "Device-side reset").
+controller on a real unit would (a unit's cable torque and amplifier dead zone are unknown to them too).
+``device_reset`` runs them in one compiled loop: swing up from hanging, catch, settle, and report when the
+pendulum is ready for the agent. The gains were tuned on 200 simulated units of fleet profile v1
+(docs/devices.md, "Device-side reset").
 """
 
 import math

@@ -15,6 +15,7 @@ from fleetrl.devices.qube.dynamics import (
     sense_at_rest,
     write_observation,
 )
+from fleetrl.devices.qube.fleet_profiles import fleet_profile
 from fleetrl.devices.qube.params import ACTION_POWERS, POWER_TO_VOLTS, QubeConfig, QubeParams
 from fleetrl.devices.qube.units import QubeVariation, qube_unit_params
 
@@ -76,9 +77,18 @@ class QubeDevice:
         fleet_seed: int,
         config: QubeConfig | None = None,
         variation: QubeVariation | None = None,
+        *,
+        profile: str | None = None,
     ) -> "QubeDevice":
-        """Unit ``unit`` of the fleet ``fleet_seed`` (parameters drawn deterministically)."""
-        return cls(qube_unit_params(fleet_seed, unit, variation), config)
+        """Unit ``unit`` of the fleet ``fleet_seed`` (parameters drawn deterministically).
+
+        :param variation: draw with this variation instead of a named profile's
+        :param profile: the fleet profile (``fleet_profiles``); None: the default, ``v1``
+        """
+        if variation is not None and profile is not None:
+            raise ValueError("give a fleet profile or a variation, not both")
+        chosen = variation if variation is not None else fleet_profile(profile).variation
+        return cls(qube_unit_params(fleet_seed, unit, chosen), config)
 
     @property
     def state(self) -> np.ndarray:

@@ -4,9 +4,12 @@ Equations of motion (alpha = 0 upright), from ``reference/qube-servo2-model.md``
 
     M(alpha) · [theta_dd, alpha_dd] = r
     M11 = Jr + mp·Lr² + ¼·mp·Lp²·sin²α      M12 = M21 = −½·mp·Lp·Lr·cos α      M22 = Jp + ¼·mp·Lp²
-    r1 = τ − Dr·θ̇ − ½·mp·Lp²·sinα·cosα·θ̇·α̇ − ½·mp·Lp·Lr·sinα·α̇²
+    r1 = τ − Dr·θ̇ − Kc·θ − ½·mp·Lp²·sinα·cosα·θ̇·α̇ − ½·mp·Lp·Lr·sinα·α̇²
     r2 = −Dp·α̇ + ¼·mp·Lp²·sinα·cosα·θ̇² + ½·mp·Lp·g·sinα
     τ  = km·(V − km·θ̇)/Rm            (back-EMF damps the arm)
+
+Kc is the stiffness of the cable torque on the arm (0 in the reference's model). The amplifier turns a
+commanded voltage u into V = sign(u)·max(|u| − Vd, 0), a dead zone of Vd volts (0 in the reference's model).
 
 State arrays are float64 ``[theta, alpha, theta_dot, alpha_dot]``; parameters come from
 ``QubeParams.coefficients()``; the pipeline settings from ``pipeline_settings``. Everything here is
@@ -19,8 +22,22 @@ import numpy as np
 from numba import njit, prange
 
 # indices into QubeParams.coefficients()
-C_M11, C_QUARTER, C_HALF, C_M22, C_GRAV, C_KM, C_RM, C_DR, C_DP, C_THETA_OFF, C_ALPHA_OFF = range(11)
-N_COEFFICIENTS = 11
+(
+    C_M11,
+    C_QUARTER,
+    C_HALF,
+    C_M22,
+    C_GRAV,
+    C_KM,
+    C_RM,
+    C_DR,
+    C_DP,
+    C_THETA_OFF,
+    C_ALPHA_OFF,
+    C_CABLE,
+    C_DEADBAND,
+) = range(13)
+N_COEFFICIENTS = 13
 
 # indices into the sensor array: readings (unwrapped), velocity estimates, the actuator's voltages
 S_THETA, S_ALPHA, S_THETA_VEL, S_ALPHA_VEL, S_HELD, S_APPLIED = range(6)
@@ -62,7 +79,7 @@ def wrap_angle(a: float) -> float:
 
 @njit(cache=True, inline="always")
 def accelerations(
-    alpha: float, theta_dot: float, alpha_dot: float, volts: float, c: np.ndarray
+    theta: float, alpha: float, theta_dot: float, alpha_dot: float, volts: float, c: np.ndarray
 ) -> tuple[float, float]:
     """Solve M·[θ̈, α̈] = r for the accelerations."""
     s = math.sin(alpha)
@@ -71,7 +88,8 @@ def accelerations(
     m12 = -c[C_HALF] * co
     m22 = c[C_M22]
     tau = c[C_KM] * (volts - c[C_KM] * theta_dot) / c[C_RM]
-    r1 = tau - c[C_DR] * theta_dot - 2.0 * c[C_QUARTER] * s * co * theta_dot * alpha_dot
+    r1 = tau - c[C_DR] * theta_dot - c[C_CABLE] * theta
+    r1 -= 2.0 * c[C_QUARTER] * s * co * theta_dot * alpha_dot
     r1 -= c[C_HALF] * s * alpha_dot * alpha_dot
     r2 = -c[C_DP] * alpha_dot + c[C_QUARTER] * s * co * theta_dot * theta_dot + c[C_GRAV] * s
     det = m11 * m22 - m12 * m12
@@ -82,13 +100,13 @@ def accelerations(
 def rk4_step(x: np.ndarray, volts: float, c: np.ndarray, h: float) -> None:
     """Advance ``x`` in place by one classical RK4 step of length ``h`` with constant voltage."""
     t0, a0, td0, ad0 = x[0], x[1], x[2], x[3]
-    k1t, k1a = accelerations(a0, td0, ad0, volts, c)
-    a1, td1, ad1 = a0 + 0.5 * h * ad0, td0 + 0.5 * h * k1t, ad0 + 0.5 * h * k1a
-    k2t, k2a = accelerations(a1, td1, ad1, volts, c)
-    a2, td2, ad2 = a0 + 0.5 * h * ad1, td0 + 0.5 * h * k2t, ad0 + 0.5 * h * k2a
-    k3t, k3a = accelerations(a2, td2, ad2, volts, c)
-    a3, td3, ad3 = a0 + h * ad2, td0 + h * k3t, ad0 + h * k3a
-    k4t, k4a = accelerations(a3, td3, ad3, volts, c)
+    k1t, k1a = accelerations(t0, a0, td0, ad0, volts, c)
+    t1, a1, td1, ad1 = t0 + 0.5 * h * td0, a0 + 0.5 * h * ad0, td0 + 0.5 * h * k1t, ad0 + 0.5 * h * k1a
+    k2t, k2a = accelerations(t1, a1, td1, ad1, volts, c)
+    t2, a2, td2, ad2 = t0 + 0.5 * h * td1, a0 + 0.5 * h * ad1, td0 + 0.5 * h * k2t, ad0 + 0.5 * h * k2a
+    k3t, k3a = accelerations(t2, a2, td2, ad2, volts, c)
+    t3, a3, td3, ad3 = t0 + h * td2, a0 + h * ad2, td0 + h * k3t, ad0 + h * k3a
+    k4t, k4a = accelerations(t3, a3, td3, ad3, volts, c)
     x[0] = t0 + h / 6.0 * (td0 + 2.0 * td1 + 2.0 * td2 + td3)
     x[1] = a0 + h / 6.0 * (ad0 + 2.0 * ad1 + 2.0 * ad2 + ad3)
     x[2] = td0 + h / 6.0 * (k1t + 2.0 * k2t + 2.0 * k3t + k4t)
@@ -103,11 +121,22 @@ def encoder(angle: float, offset: float, quantise: bool) -> float:
     return angle + offset
 
 
+@njit(cache=True, inline="always")
+def dead_zone(volts: float, width: float) -> float:
+    """The amplifier's output for a command of ``volts``: nothing inside ±``width``, less ``width`` beyond."""
+    if volts > width:
+        return volts - width
+    if volts < -width:
+        return volts + width
+    return 0.0
+
+
 @njit(cache=True)
 def control_period(
     x: np.ndarray, c: np.ndarray, sensor: np.ndarray, settings: np.ndarray, cmd: float
 ) -> None:
-    """One control period: actuator (saturation, optional delay), RK4 substeps, encoders, velocities."""
+    """One control period: actuator (saturation, optional delay, dead zone), RK4 substeps, encoders,
+    velocities."""
     vmax = settings[P_VMAX]
     cmd = min(max(cmd, -vmax), vmax)
     if settings[P_DELAY] != 0.0:
@@ -115,6 +144,7 @@ def control_period(
         sensor[S_HELD] = cmd
     else:
         volts = cmd
+    volts = dead_zone(volts, c[C_DEADBAND])
     sensor[S_APPLIED] = volts
     h = settings[P_H]
     n = int(settings[P_NSUB])
@@ -181,9 +211,10 @@ def physics_batch(
 
 
 def energy(x: np.ndarray, c: np.ndarray) -> float:
-    """Total mechanical energy (J) of ``x``: kinetic ½·q̇ᵀMq̇ plus pendulum potential (zero at the pivot)."""
+    """Total mechanical energy (J) of ``x``: kinetic ½·q̇ᵀMq̇ plus the potentials of the pendulum (zero at
+    the pivot) and of the cable (½·Kc·θ²)."""
     s = math.sin(x[1])
     m11 = c[C_M11] + c[C_QUARTER] * s * s
     m12 = -c[C_HALF] * math.cos(x[1])
     kinetic = 0.5 * (m11 * x[2] ** 2 + 2.0 * m12 * x[2] * x[3] + c[C_M22] * x[3] ** 2)
-    return float(kinetic + c[C_GRAV] * math.cos(x[1]))
+    return float(kinetic + c[C_GRAV] * math.cos(x[1]) + 0.5 * c[C_CABLE] * x[0] ** 2)

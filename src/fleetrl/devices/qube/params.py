@@ -45,6 +45,11 @@ class QubeParams:
     """zero offset of the arm encoder (counts)"""
     alpha_offset_counts: int = 0
     """zero offset of the pendulum encoder (counts)"""
+    cable_stiffness: float = 0.0
+    """stiffness of the cable torque on the arm, −Kc·θ (N·m/rad); not in the reference's model, so 0"""
+    deadband_volts: float = 0.0
+    """width of the amplifier's dead zone (V): commands inside ±this give 0 V, beyond it lose this much;
+    the QUBE-Servo manual gives ~0.65 V, the reference's model has none, so 0"""
 
     @property
     def Jr(self) -> float:
@@ -75,6 +80,8 @@ class QubeParams:
                 self.Dp,
                 self.theta_offset_counts * ENCODER_RESOLUTION,
                 self.alpha_offset_counts * ENCODER_RESOLUTION,
+                self.cable_stiffness,  # C_CABLE
+                self.deadband_volts,  # C_DEADBAND
             ],
             dtype=np.float64,
         )
