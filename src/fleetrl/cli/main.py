@@ -18,6 +18,10 @@ class UsageError(Exception):
     """A command-line mistake: printed as one line, exit code 2."""
 
 
+class RunFailed(Exception):
+    """The command ran but did not do its job (e.g. no worker played a round): one line, exit code 1."""
+
+
 def add_train_arguments(p: argparse.ArgumentParser) -> None:
     """The options shared by ``train`` and ``demo``."""
     p.add_argument("--env", default="qube", help="qube (QUBE-Servo 2 balance) or cartpole")
@@ -251,6 +255,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     except (UsageError, ValueError, FileNotFoundError, FileExistsError) as err:
         print(f"fleetrl {args.command}: error: {err}", file=sys.stderr)
         return 2
+    except (TimeoutError, ConnectionError, RunFailed) as err:  # the command could not do its job
+        print(f"fleetrl {args.command}: error: {err}", file=sys.stderr)
+        return 1
     except KeyboardInterrupt:
         print("interrupted", file=sys.stderr)
         return 130
