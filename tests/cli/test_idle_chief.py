@@ -2,27 +2,21 @@
 
 from __future__ import annotations
 
-import subprocess
-import sys
 from pathlib import Path
 
 import pytest
+from cli_helpers import Fleetrl, last_line
 
 from fleetrl.transport.broker import EmbeddedBroker, find_mosquitto
 
 needs_mosquitto = pytest.mark.skipif(find_mosquitto() is None, reason="mosquitto not installed")
 
 
-def fleetrl(*argv: str, timeout: float = 60.0) -> subprocess.CompletedProcess[str]:
-    """Run the real command line in a child process."""
-    return subprocess.run(
-        [sys.executable, "-m", "fleetrl.cli.main", *argv], capture_output=True, text=True, timeout=timeout
-    )
-
-
 @pytest.mark.mqtt
 @needs_mosquitto
-def test_a_chief_nobody_joins_gives_up_after_its_idle_timeout_with_one_line(tmp_path: Path) -> None:
+def test_a_chief_nobody_joins_gives_up_after_its_idle_timeout_with_one_line(
+    tmp_path: Path, fleetrl: Fleetrl
+) -> None:
     with EmbeddedBroker("mosquitto") as broker:
         done = fleetrl(
             "chief", "--broker", broker.url, "--run-id", "lonely", "--workers", "3", "--env", "cartpole",
@@ -30,6 +24,6 @@ def test_a_chief_nobody_joins_gives_up_after_its_idle_timeout_with_one_line(tmp_
         )  # fmt: skip
     assert done.returncode == 1, done.stderr
     assert "Traceback" not in done.stderr
-    last = done.stderr.strip().splitlines()[-1]
+    last = last_line(done)
     assert last.startswith("fleetrl chief: error: ") and "no worker message for 3 s" in last, last
     assert "waiting for ['0', '1', '2']" in last

@@ -34,6 +34,9 @@ def register(subparsers: Any) -> None:
         default=10,
         help="with --realtime: SCHED_FIFO priority of the bridge process (needs root/CAP_SYS_NICE; 0: none)",
     )
+    from fleetrl.cli.roles import add_connect_timeout
+
+    add_connect_timeout(p)
     p.set_defaults(handler=cmd_device)
 
 
@@ -56,7 +59,7 @@ def cmd_device(args: argparse.Namespace) -> int:
         url = broker.url
         print(f"broker: {url}", flush=True)
     bridge = DeviceBridge(
-        MqttTransport(url),
+        MqttTransport(url, connect_timeout=args.connect_timeout),
         driver,
         args.run_id,
         args.unit,

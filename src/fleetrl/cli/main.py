@@ -161,7 +161,22 @@ def cmd_train(args: argparse.Namespace) -> int:
 
     summary = train(settings)
     print_summary(summary, settings.out)
-    return 130 if summary.get("interrupted") else 0
+    return exit_code(summary)
+
+
+def exit_code(summary: dict[str, Any]) -> int:
+    """A run's exit code: 130 interrupted, 1 if the chief or any worker failed (or no round was played),
+    else 0 — so a script or CI can trust it."""
+    if summary.get("interrupted"):
+        return 130
+    failed = [w for w, info in summary["workers"].items() if str(info["state"]).startswith("failed")]
+    chief_error = (summary.get("chief") or {}).get("error")
+    if failed or chief_error or summary.get("rounds") == 0:
+        why = [f"worker {w} failed (see logs/)" for w in failed]
+        why += [f"the chief failed: {chief_error}"] if chief_error else []
+        print(f"the run did not complete: {'; '.join(why) or 'no round was played'}", file=sys.stderr)
+        return 1
+    return 0
 
 
 def cmd_demo(args: argparse.Namespace) -> int:
@@ -174,7 +189,7 @@ def cmd_demo(args: argparse.Namespace) -> int:
         raise UsageError(f"{settings.out} already holds a run; remove it or pass --out DIR")
     summary = train(settings)
     print_summary(summary, settings.out)
-    return 130 if summary.get("interrupted") else 0
+    return exit_code(summary)
 
 
 def print_summary(summary: dict[str, Any], out: Path) -> None:

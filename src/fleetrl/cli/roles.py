@@ -15,6 +15,9 @@ from fleetrl.cli.parsing import parse_overrides
 
 log = logging.getLogger(__name__)
 
+CONNECT_TIMEOUT = 60.0
+"""default seconds a standalone role retries the broker before it gives up"""
+
 
 def register(sub: Any) -> None:
     """Add the three role commands to the ``fleetrl`` sub-command parser."""
@@ -126,6 +129,7 @@ def add_run_arguments(p: argparse.ArgumentParser) -> None:
         help="sign and verify every federation message with this key (HMAC-SHA256; all roles share it)",
     )
     p.add_argument("--run-id", required=True, help="the run's id (a topic level shared by all roles)")
+    add_connect_timeout(p)
     p.add_argument("--env", default="qube", help="qube or cartpole")
     p.add_argument("--preset", default="paper", help="PPO preset: paper or standard")
     p.add_argument("--max-rounds", type=int, default=1000, help="the paper's M")
@@ -136,6 +140,17 @@ def add_run_arguments(p: argparse.ArgumentParser) -> None:
         default=[],
         metavar="KEY=VALUE",
         help="override one PPO setting (all roles must agree)",
+    )
+
+
+def add_connect_timeout(p: argparse.ArgumentParser) -> None:
+    """``--connect-timeout``: how long a standalone role retries an unreachable broker (start order does not
+    matter) before it exits 1."""
+    p.add_argument(
+        "--connect-timeout",
+        type=float,
+        default=CONNECT_TIMEOUT,
+        help=f"seconds to keep retrying an unreachable broker, with backoff (default {CONNECT_TIMEOUT:g})",
     )
 
 
@@ -198,6 +213,7 @@ def _transport(args: argparse.Namespace) -> Any:
         cert_file=args.client_cert,
         key_file=args.client_key,
         clean_session=False,  # persistent session under the role's fixed client id
+        connect_timeout=args.connect_timeout,
     )
 
 

@@ -44,6 +44,8 @@ log = logging.getLogger(__name__)
 
 DEMO_MAX_ROUNDS = 1000
 CHIEF_IDLE_TIMEOUT = 600.0
+TRAIN_CONNECT_WINDOW = 10.0
+"""seconds ``fleetrl train`` retries a broker given with ``--broker`` before it gives up (exit 1)"""
 
 
 def demo_settings(out: Path, seed: int = 0) -> RunSettings:
@@ -97,6 +99,10 @@ def shared_layout(settings: RunSettings) -> list[tuple[str, tuple[int, ...]]]:
 def train(settings: RunSettings) -> dict[str, Any]:
     """Run the whole training and return summary.json's content."""
     settings.validate()
+    if settings.needs_broker and settings.broker:  # fatal now, before the run directory exists
+        from fleetrl.transport.mqtt import probe_broker
+
+        probe_broker(settings.broker, timeout=TRAIN_CONNECT_WINDOW)
     run_id = f"run-{uuid.uuid4().hex[:8]}"
     recorder = RunRecorder(Path(settings.out), settings.to_config(), list(range(settings.units)))
     recorder.extra["run_id"] = run_id
