@@ -34,7 +34,7 @@ def register(subparsers: Any) -> None:
         default=10,
         help="with --realtime: SCHED_FIFO priority of the bridge process (needs root/CAP_SYS_NICE; 0: none)",
     )
-    from fleetrl.cli.roles import add_connect_timeout
+    from fleetrl.cli.settings_args import add_connect_timeout
 
     add_connect_timeout(p)
     p.set_defaults(handler=cmd_device)

@@ -26,6 +26,7 @@ import paho.mqtt.client as paho
 from paho.mqtt.enums import CallbackAPIVersion
 
 from fleetrl.transport.base import Received, Will
+from fleetrl.transport.login import broker_password
 
 log = logging.getLogger(__name__)
 
@@ -89,8 +90,8 @@ class MqttTransport:
     :param cert_file: client certificate for ``mqtts`` (optional; with ``key_file``).
     :param key_file: the client certificate's private key.
     :param connect_timeout: seconds :meth:`connect` keeps trying to reach the broker before it gives up.
-    :param password: the login's password (from a file or the environment, :mod:`fleetrl.transport.login`);
-        it replaces one in ``url``.
+    :param password: the login's password (from a file, :mod:`fleetrl.transport.login`); it replaces one in
+        ``url``. Without either, a URL naming a user takes ``FLEETRL_BROKER_PASSWORD`` from the environment.
     """
 
     def __init__(
@@ -108,6 +109,8 @@ class MqttTransport:
     ) -> None:
         """Prepare a client for the broker at ``url``; nothing is sent before :meth:`connect`."""
         self.address = BrokerAddress.parse(url)
+        if password is None and self.address.username is not None and self.address.password is None:
+            password = broker_password(None)  # FLEETRL_BROKER_PASSWORD, if set
         if password is not None:
             self.address = dataclasses.replace(self.address, password=password)
         self.connect_timeout = connect_timeout
@@ -156,9 +159,14 @@ class MqttTransport:
         client.connect_async(self.address.host, self.address.port, keepalive=self._keepalive)
         client.loop_start()
         if not self._wait_connected(timeout) or self._refused:
-            why = self._refused or f"no answer within {timeout:g} s (--connect-timeout)"
             self._shutdown()
-            raise ConnectionError(f"cannot reach the broker {self.address.url} as {client_id!r}: {why}")
+            if self._refused:
+                refused = f"the broker refused the login: {self._refused}"
+                raise ConnectionError(f"cannot connect to {self.address.url} as {client_id!r}: {refused}")
+            raise ConnectionError(
+                f"cannot reach the broker {self.address.url} as {client_id!r}: no answer within {timeout:g} s "
+                "(--connect-timeout)"
+            )
 
     def _wait_connected(self, timeout: float) -> bool:
         """Wait for the first CONNACK while paho retries with backoff; log a line every
