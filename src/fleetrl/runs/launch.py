@@ -17,7 +17,7 @@ import sys
 import threading
 import uuid
 from collections.abc import Callable, Iterator
-from contextlib import contextmanager
+from contextlib import contextmanager, suppress
 from pathlib import Path
 from typing import Any
 
@@ -33,7 +33,7 @@ from fleetrl.runs.live import LiveView
 from fleetrl.runs.processes import ProcessFleet
 from fleetrl.runs.roles import Emit
 from fleetrl.runs.roles import train_federated as train_federated_worker
-from fleetrl.runs.rundir import RunRecorder, write_json_atomic
+from fleetrl.runs.rundir import RunDirectoryError, RunRecorder, write_json_atomic
 from fleetrl.runs.settings import LearningSettings, RunSettings
 from fleetrl.runs.spec import WorkerSpec
 from fleetrl.transport.base import Transport
@@ -130,8 +130,13 @@ def _train(settings: RunSettings) -> dict[str, Any]:
             else:
                 fed_url = url if settings.transport == "mqtt" else None
                 train_federated(settings, specs, run_id, fed_url, recorder, view)
+    except RunDirectoryError:
+        with suppress(OSError):  # the summary and plot too, if there is room; the error says what happened
+            recorder.finish()
+        raise
     finally:
-        summary = recorder.finish()
+        if not recorder.finished:
+            summary = recorder.finish()
     return summary
 
 
@@ -167,7 +172,8 @@ def run_logging(path: Path, quiet: bool) -> Iterator[None]:
         yield
     finally:
         root.removeHandler(handler)
-        handler.close()
+        with suppress(OSError):  # a full disk: the run's own error says so
+            handler.close()
         root.setLevel(previous_level)
         for console, level in saved:
             console.setLevel(level)
