@@ -193,12 +193,12 @@ def cmd_experiment(args: argparse.Namespace) -> int:
 
 
 def _thread_failed(hook: threading.ExceptHookArgs) -> None:
-    """A library's thread that dies (e.g. TensorBoard's writer on a full disk) logs one line, not a traceback
-    (with -v: the traceback too); the main thread decides what the command does about it."""
+    """A library's thread that dies (e.g. TensorBoard's writer on a full disk) logs one line, not a traceback;
+    the main thread decides what the command does about it."""
     name = hook.thread.name if hook.thread is not None else "?"
     verbose = logging.getLogger().isEnabledFor(logging.DEBUG)
-    info = (hook.exc_type, hook.exc_value, hook.exc_traceback) if verbose else None
-    logging.getLogger("fleetrl").error("thread %s failed: %s", name, hook.exc_value, exc_info=info)
+    error = hook.exc_value if verbose else None  # with -v: its traceback too
+    logging.getLogger("fleetrl").error("thread %s failed: %s", name, hook.exc_value, exc_info=error)
 
 
 def _terminate(signum: int, frame: object) -> None:
