@@ -21,14 +21,6 @@ from fleetrl.cli.settings_args import (
 )
 
 
-class UsageError(Exception):
-    """A command-line mistake: printed as one line, exit code 2."""
-
-
-class RunFailed(Exception):
-    """The command ran but did not do its job (e.g. no worker played a round): one line, exit code 1."""
-
-
 def add_train_arguments(p: argparse.ArgumentParser) -> None:
     """``fleetrl train``'s options; each is a field of RunSettings (and a key of a --config file)."""
     add_config_argument(p)
@@ -223,10 +215,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     signal.signal(signal.SIGINT, signal.default_int_handler)
     try:
         return handler(args)
-    except (UsageError, ValueError, FileNotFoundError, FileExistsError) as err:
+    except (ValueError, FileNotFoundError, FileExistsError) as err:  # a setting or a file: exit 2
         print(f"fleetrl {args.command}: error: {err}", file=sys.stderr)
         return 2
-    except (OSError, RunFailed) as err:  # the command could not do its job (broker, nobody came, disk)
+    except OSError as err:  # the command could not do its job (broker, nobody came, disk): exit 1
         logging.getLogger("fleetrl").debug("the error's traceback", exc_info=True)  # with -v
         print(f"fleetrl {args.command}: error: {err}", file=sys.stderr)
         return 1
