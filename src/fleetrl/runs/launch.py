@@ -102,7 +102,10 @@ def train(settings: RunSettings) -> dict[str, Any]:
         if settings.needs_broker and settings.broker:  # fatal now, before the run directory exists
             from fleetrl.transport.mqtt import probe_broker
 
-            probe_broker(settings.broker, timeout=TRAIN_CONNECT_WINDOW, password=password)
+            try:
+                probe_broker(settings.broker, timeout=TRAIN_CONNECT_WINDOW, password=password)
+            except ConnectionError as err:
+                raise ConnectionError(f"{err} (fleetrl train retries its --broker for that long)") from None
         return _train(settings)
 
 

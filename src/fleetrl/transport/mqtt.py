@@ -164,8 +164,7 @@ class MqttTransport:
                 refused = f"the broker refused the login: {self._refused}"
                 raise ConnectionError(f"cannot connect to {self.address.url} as {client_id!r}: {refused}")
             raise ConnectionError(
-                f"cannot reach the broker {self.address.url} as {client_id!r}: "
-                f"no answer within {timeout:g} s (--connect-timeout)"
+                f"cannot reach the broker {self.address.url} as {client_id!r}: no answer within {timeout:g} s"
             )
 
     def _wait_connected(self, timeout: float) -> bool:
