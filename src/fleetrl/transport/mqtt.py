@@ -56,7 +56,7 @@ class BrokerAddress:
         """Parse a broker URL; ValueError saying what is wrong otherwise."""
         parts = urlsplit(url)
         if parts.scheme not in ("mqtt", "mqtts"):
-            raise ValueError(f"bad broker URL {url!r}: use mqtt://[user:pass@]host:port or mqtts://…")
+            raise ValueError(f"bad broker URL {url!r}: use mqtt://[user@]host:port or mqtts://…")
         if not parts.hostname:
             raise ValueError(f"bad broker URL {url!r}: no host")
         tls = parts.scheme == "mqtts"
