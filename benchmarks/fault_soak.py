@@ -36,7 +36,8 @@ from fleetrl.transport.broker import find_mosquitto, free_port, mqtt_ready
 FAULTS = ("worker-resumed", "worker-gone", "chief-resumed", "broker-restarted")
 WORKERS = 2
 GRACE = 15.0
-"""the chief's --dropout-grace: longer than a worker's restart, so a resumed worker keeps its place in W"""
+"""the chief's --dropout-grace by default: it must be longer than a worker's restart for a resumed worker to
+keep its place in W (a restart that takes longer loses the rounds played without it)"""
 RUN_TIMEOUT = 180.0
 
 
@@ -95,8 +96,8 @@ class Outcome:
 class Run:
     """The chief and the workers of one run, as ``fleetrl`` processes."""
 
-    def __init__(self, index: int, broker: Broker, out: Path, rounds: int) -> None:
-        self.index, self.broker, self.out, self.rounds = index, broker, out, rounds
+    def __init__(self, index: int, broker: Broker, out: Path, rounds: int, grace: float) -> None:
+        self.index, self.broker, self.out, self.rounds, self.grace = index, broker, out, rounds, grace
         self.run_id = f"soak-{index}"
         self.procs: dict[str, subprocess.Popen[bytes]] = {}
         self.common = ["--broker", broker.url, "--run-id", self.run_id, "--env", "cartpole"]
@@ -104,15 +105,8 @@ class Run:
 
     def start(self, role: str, *extra: str) -> None:
         if role == "chief":
-            argv = [
-                "chief",
-                "--workers",
-                str(WORKERS),
-                "--dropout-grace",
-                str(GRACE),
-                "--idle-timeout",
-                "120",
-            ]
+            argv = ["chief", "--workers", str(WORKERS), "--dropout-grace", str(self.grace)]
+            argv += ["--idle-timeout", "120"]
             argv += ["--out", str(self.out / "chief")]
         else:
             argv = [
@@ -170,11 +164,13 @@ class Run:
                 proc.wait()
 
 
-def soak_one(index: int, fault: str, rng: random.Random, broker: Broker, root: Path, rounds: int) -> Outcome:
+def soak_one(
+    index: int, fault: str, rng: random.Random, broker: Broker, root: Path, rounds: int, grace: float
+) -> Outcome:
     """One run with one fault; the books checked after."""
     out = root / f"run-{index:03d}"
     out.mkdir(parents=True)
-    run = Run(index, broker, out, rounds)
+    run = Run(index, broker, out, rounds, grace)
     victim = {"chief-resumed": "chief", "broker-restarted": "broker"}.get(fault) or str(
         rng.randrange(WORKERS)
     )
@@ -280,6 +276,9 @@ def main() -> int:
     parser.add_argument("--runs", type=int, default=50)
     parser.add_argument("--rounds", type=int, default=8, help="M of every run (default 8)")
     parser.add_argument("--seed", type=int, default=0, help="seed of the faults and their moments")
+    parser.add_argument(
+        "--grace", type=float, default=GRACE, help=f"the chief's --dropout-grace ({GRACE:g} s)"
+    )
     parser.add_argument("--out", type=Path, default=None, help="directory for the runs and soak.json")
     parser.add_argument(
         "--faults", default=",".join(FAULTS), help=f"the kinds to draw from ({','.join(FAULTS)})"
@@ -297,7 +296,7 @@ def main() -> int:
     started = time.monotonic()
     try:
         for index in range(args.runs):
-            outcome = soak_one(index, rng.choice(kinds), rng, broker, root, args.rounds)
+            outcome = soak_one(index, rng.choice(kinds), rng, broker, root, args.rounds, args.grace)
             outcomes.append(outcome)
             print(json.dumps(asdict(outcome)), flush=True)
             (root / "soak.json").write_text(json.dumps([asdict(o) for o in outcomes], indent=1))
