@@ -28,8 +28,21 @@ def test_override_without_equals_is_refused() -> None:
         (["--env", "qbe"], "unknown env 'qbe' (choose cartpole or qube)"),
         (["--preset", "fancy"], "fancy"),
         (["--mode", "solo"], "unknown mode 'solo'"),
-        (["--units", "0"], "--units must be at least 1"),
+        (["--units", "0"], "--units = 0: must be at least 1"),
         (["--set", "no_such_field=1"], "unknown PPO setting"),
+        # issue 14: each of these ended in a traceback, or was refused only after the run directory existed
+        (["--set", "clip_eps=abc"], "--set clip_eps = 'abc': expected a number"),
+        (["--set", "clip_eps=-1"], "clip_eps must be > 0, got -1"),
+        (["--set", 'hidden=[64,"x"]'], "--set hidden = 'x': expected an integer"),
+        (["--set", "activation=sigmoid"], "expected one of 'tanh', 'relu'"),
+        (["--aggregation", "medain"], "--aggregation: unknown aggregator 'medain' (choose"),
+        (["--scheme", "fedavrg"], "--scheme: unknown federation scheme 'fedavrg'"),
+        (["--quorum", "0.5"], "--quorum = 0.5 needs --round-timeout"),
+        (["--quorum", "1.5", "--round-timeout", "1"], "--quorum = 1.5: must be in (0, 1]"),
+        (["--round-timeout", "-2"], "--round-timeout = -2.0: must be > 0"),
+        (["--broker", "http://x:1"], "--broker: bad broker URL 'http://x:1'"),
+        (["--broker", "mqtt://h:1", "--broker-password-file", "/no/such/file"], "cannot read it"),
+        (["--mode", "individual", "--scheme", "fedavg"], "needs --mode federated"),
     ],
 )
 def test_train_reports_bad_arguments_in_one_line(tmp_path, capsys, argv: list[str], message: str) -> None:
@@ -37,4 +50,9 @@ def test_train_reports_bad_arguments_in_one_line(tmp_path, capsys, argv: list[st
     assert code == 2
     err = capsys.readouterr().err
     assert message in err and "Traceback" not in err
-    assert not (tmp_path / "run" / "metrics.csv").exists()
+    assert not (tmp_path / "run").exists()  # nothing was created
+
+
+def test_train_without_out_names_the_missing_setting(capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["train", "--no-live"]) == 2
+    assert "missing setting(s): --out" in capsys.readouterr().err

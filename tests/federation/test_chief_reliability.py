@@ -54,7 +54,9 @@ def test_silent_worker_is_dropped_at_the_deadline_and_the_round_closes() -> None
     assert reply.contributors == ("1", "2") and c.members == ("1", "2") and c.round == 2
     assert c.dropouts == [(1, "3", "no message within the round deadline")]
     assert kinds(step) == ["dropped", "averaged"]
-    assert c.next_deadline() == 10.0  # the next round opened at 5
+    assert c.next_deadline() is None  # the next round opened at 5; its deadline acts once one answers
+    send(c, grad("1", 2, [1, 1]), now=6)
+    assert c.next_deadline() == 10.0
 
 
 def test_nobody_answered_keeps_waiting_instead_of_emptying_w() -> None:
@@ -202,3 +204,16 @@ def test_bad_reliability_settings_are_refused(kwargs: dict[str, object], match: 
 def test_short_fleet_keys_are_refused() -> None:
     with pytest.raises(ValueError, match="at least 16 bytes"):
         FleetKey(b"short")
+
+
+def test_a_deadline_that_passed_with_nobody_answering_is_not_due_again() -> None:
+    """Issue 14: the runner waits until next_deadline(); one in the past made it poll with a zero timeout."""
+    c = make(round_timeout=3.0)
+    c.tick(0.0)
+    assert c.tick(10.0) == ChiefStep()
+    due = c.next_deadline()
+    assert due is None or due > 10.0
+    send(c, grad("1", 1, [1, 1]), now=11.0)  # an answer after the deadline: now the rule applies at once
+    assert c.next_deadline() == 3.0
+    assert kinds(c.tick(11.0)) == ["dropped", "dropped", "averaged"] and c.round == 2
+    assert c.members == ("1",)

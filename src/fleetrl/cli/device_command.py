@@ -16,7 +16,9 @@ def register(subparsers: Any) -> None:
     p: argparse.ArgumentParser = subparsers.add_parser(
         "device", help="serve one simulated unit over MQTT (device bridge: lockstep or real time)"
     )
-    p.add_argument("--broker", default=None, help="mqtt://[user:pass@]host:port; default: embedded broker")
+    from fleetrl.cli.settings_args import add_broker_arguments, add_connect_timeout
+
+    add_broker_arguments(p, "default: an embedded broker")
     p.add_argument("--run-id", default="default", help="run whose device topics to serve (default: default)")
     p.add_argument("--unit", type=int, required=True, help="index of the unit in the fleet")
     p.add_argument("--env", default="qube", choices=("qube", "cartpole"), help="unit type (default qube)")
@@ -34,6 +36,7 @@ def register(subparsers: Any) -> None:
         default=10,
         help="with --realtime: SCHED_FIFO priority of the bridge process (needs root/CAP_SYS_NICE; 0: none)",
     )
+    add_connect_timeout(p)
     p.set_defaults(handler=cmd_device)
 
 
@@ -42,9 +45,12 @@ def cmd_device(args: argparse.Namespace) -> int:
     when it returns."""
     from fleetrl.link.bridge import DeviceBridge, request_realtime_priority
     from fleetrl.link.driver import simulated_driver
+    from fleetrl.runs.settings import BrokerLogin
     from fleetrl.transport.broker import EmbeddedBroker
     from fleetrl.transport.mqtt import MqttTransport
 
+    login = BrokerLogin(broker=args.broker, broker_password_file=args.broker_password_file)
+    login.validate_broker()  # before the driver or a broker starts
     if args.realtime and args.rt_priority > 0:
         request_realtime_priority(args.rt_priority)
     period = None if args.period_ms is None else args.period_ms / 1e3
@@ -56,7 +62,7 @@ def cmd_device(args: argparse.Namespace) -> int:
         url = broker.url
         print(f"broker: {url}", flush=True)
     bridge = DeviceBridge(
-        MqttTransport(url),
+        MqttTransport(url, connect_timeout=args.connect_timeout, password=login.broker_password),
         driver,
         args.run_id,
         args.unit,

@@ -5,39 +5,40 @@ import json
 import logging
 import signal
 import sys
+import threading
 import time
 from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
 from fleetrl.cli import device_command, roles
-from fleetrl.cli.parsing import parse_overrides
-
-
-class UsageError(Exception):
-    """A command-line mistake: printed as one line, exit code 2."""
+from fleetrl.cli.settings_args import (
+    add_broker_arguments,
+    add_config_argument,
+    add_learning_arguments,
+    add_round_arguments,
+    settings_from_args,
+)
 
 
 def add_train_arguments(p: argparse.ArgumentParser) -> None:
-    """The options shared by ``train`` and ``demo``."""
-    p.add_argument("--env", default="qube", help="qube (QUBE-Servo 2 balance) or cartpole")
-    p.add_argument("--units", type=int, default=3, help="units in the fleet, one worker each (default 3)")
-    p.add_argument("--preset", default="paper", help="PPO preset: paper (Table 1) or standard")
-    p.add_argument("--seed", type=int, default=0, help="learning seed (default 0)")
+    """``fleetrl train``'s options; each is a field of RunSettings (and a key of a --config file)."""
+    add_config_argument(p)
+    add_learning_arguments(p)
+    add_round_arguments(p)
+    add_broker_arguments(p, "default: an embedded broker")
+    p.add_argument("--units", type=int, default=None, help="units in the fleet, one worker each (default 3)")
+    p.add_argument("--seed", type=int, default=None, help="learning seed (default 0)")
+    p.add_argument("--fleet-seed", type=int, default=None, help="seed of the fleet's per-unit dynamics (0)")
+    p.add_argument("--out", type=Path, default=None, help="run directory to create (required)")
+    p.add_argument("--no-live", dest="live", action="store_false", default=None, help="no live terminal view")
+    p.add_argument("--mode", default=None, help="individual or federated (default)")
+    p.add_argument("--transport", default=None, help="federated: mqtt (default) or local")
     p.add_argument(
-        "--fleet-seed", type=int, default=0, help="seed of the fleet's per-unit dynamics (default 0)"
+        "--device-link",
+        default=None,
+        help="inprocess (default) or mqtt: each unit served by a device bridge over the broker",
     )
-    p.add_argument("--max-rounds", type=int, default=1000, help="the paper's M: most rounds per worker")
-    p.add_argument("--out", type=Path, required=True, help="run directory to create")
-    p.add_argument(
-        "--set",
-        dest="overrides",
-        action="append",
-        default=[],
-        metavar="KEY=VALUE",
-        help="override one PPO setting of the preset, e.g. --set clip_eps=0.2 (repeatable)",
-    )
-    p.add_argument("--no-live", action="store_true", help="no live terminal view")
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -48,38 +49,6 @@ def build_parser() -> argparse.ArgumentParser:
 
     train = sub.add_parser("train", help="train a simulated fleet (individual or federated)")
     add_train_arguments(train)
-    train.add_argument("--mode", default="federated", help="individual or federated (default)")
-    train.add_argument("--transport", default="mqtt", help="federated: mqtt (default) or local")
-    train.add_argument(
-        "--broker", default=None, help="mqtt://[user:pass@]host:port; default: embedded broker"
-    )
-    train.add_argument(
-        "--device-link",
-        default="inprocess",
-        help="inprocess (default) or mqtt: each unit served by a device bridge over the broker",
-    )
-    train.add_argument(
-        "--scheme",
-        default="paper",
-        help="federated: paper (default; gradient sharing + model transfer) or fedavg (model averaging)",
-    )
-    train.add_argument(
-        "--aggregation",
-        default="mean",
-        help="federated: mean (default), median, trimmed_mean[:β] or clipped_mean[:C]",
-    )
-    train.add_argument(
-        "--quorum",
-        type=float,
-        default=1.0,
-        help="federated: close a round at the deadline with this fraction of W (default 1.0)",
-    )
-    train.add_argument(
-        "--round-timeout",
-        type=float,
-        default=None,
-        help="federated: round deadline in seconds (default: wait for every worker)",
-    )
     train.set_defaults(handler=cmd_train)
 
     demo = sub.add_parser("demo", help="the main job: a 3-unit federated QUBE run on an embedded broker")
@@ -122,42 +91,30 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
-def run_settings(args: argparse.Namespace, mode: str) -> Any:
-    """RunSettings from parsed arguments."""
+def cmd_train(args: argparse.Namespace) -> int:
+    """``fleetrl train``: every setting is checked before anything is created or started."""
+    from fleetrl.runs.launch import train
     from fleetrl.runs.settings import RunSettings
 
-    return RunSettings(
-        mode=mode,
-        env=args.env,
-        units=args.units,
-        preset=args.preset,
-        seed=args.seed,
-        max_rounds=args.max_rounds,
-        out=args.out,
-        fleet_seed=args.fleet_seed,
-        transport=getattr(args, "transport", "mqtt"),
-        broker=getattr(args, "broker", None),
-        device_link=getattr(args, "device_link", "inprocess"),
-        scheme=getattr(args, "scheme", "paper"),
-        aggregation=getattr(args, "aggregation", "mean"),
-        quorum=getattr(args, "quorum", 1.0),
-        round_timeout=getattr(args, "round_timeout", None),
-        overrides=parse_overrides(args.overrides),
-        live=not args.no_live,
-    )
-
-
-def cmd_train(args: argparse.Namespace) -> int:
-    """``fleetrl train``."""
-    settings = run_settings(args, args.mode)
-    settings.validate()
-    if (settings.out / "metrics.csv").exists():
-        raise UsageError(f"{settings.out} already holds a run; choose another --out")
-    from fleetrl.runs.launch import train
-
+    settings = settings_from_args(RunSettings, args)
     summary = train(settings)
     print_summary(summary, settings.out)
-    return 130 if summary.get("interrupted") else 0
+    return exit_code(summary)
+
+
+def exit_code(summary: dict[str, Any]) -> int:
+    """A run's exit code: 130 interrupted, 1 if the chief or any worker failed (or no round was played),
+    else 0 — so a script or CI can trust it."""
+    if summary.get("interrupted"):
+        return 130
+    failed = [w for w, info in summary["workers"].items() if str(info["state"]).startswith("failed")]
+    chief_error = (summary.get("chief") or {}).get("error")
+    if failed or chief_error or summary.get("rounds") == 0:
+        why = [f"worker {w} failed (see logs/)" for w in failed]
+        why += [f"the chief failed: {chief_error}"] if chief_error else []
+        print(f"the run did not complete: {'; '.join(why) or 'no round was played'}", file=sys.stderr)
+        return 1
+    return 0
 
 
 def cmd_demo(args: argparse.Namespace) -> int:
@@ -166,11 +123,10 @@ def cmd_demo(args: argparse.Namespace) -> int:
 
     out = args.out or Path("runs") / time.strftime("demo-%Y%m%d-%H%M%S")
     settings = demo_settings(out, args.seed)
-    if (settings.out / "metrics.csv").exists():
-        raise UsageError(f"{settings.out} already holds a run; remove it or pass --out DIR")
+    settings.validate()
     summary = train(settings)
     print_summary(summary, settings.out)
-    return 130 if summary.get("interrupted") else 0
+    return exit_code(summary)
 
 
 def print_summary(summary: dict[str, Any], out: Path) -> None:
@@ -228,6 +184,15 @@ def cmd_experiment(args: argparse.Namespace) -> int:
     return 0
 
 
+def _thread_failed(hook: threading.ExceptHookArgs) -> None:
+    """A library's thread that dies (e.g. TensorBoard's writer on a full disk) logs one line, not a traceback;
+    the main thread decides what the command does about it."""
+    name = hook.thread.name if hook.thread is not None else "?"
+    verbose = logging.getLogger().isEnabledFor(logging.DEBUG)
+    error = hook.exc_value if verbose else None  # with -v: its traceback too
+    logging.getLogger("fleetrl").error("thread %s failed: %s", name, hook.exc_value, exc_info=error)
+
+
 def _terminate(signum: int, frame: object) -> None:
     raise KeyboardInterrupt(f"signal {signum}")
 
@@ -241,6 +206,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         format="%(asctime)s %(levelname)s %(name)s: %(message)s",
     )
     handler: Callable[[argparse.Namespace], int] = args.handler
+    threading.excepthook = _thread_failed
+    logging.raiseExceptions = False  # a log file on a full disk must not print tracebacks over the real error
     # SIGTERM unwinds like Ctrl-C: brokers, bridges and worker processes this command started are stopped.
     # SIGINT is re-armed too: a process started in the background inherits it ignored, and Ctrl-C (or the
     # launcher's stop request) must still end a run cleanly.
@@ -248,9 +215,13 @@ def main(argv: Sequence[str] | None = None) -> int:
     signal.signal(signal.SIGINT, signal.default_int_handler)
     try:
         return handler(args)
-    except (UsageError, ValueError, FileNotFoundError, FileExistsError) as err:
+    except (ValueError, FileNotFoundError, FileExistsError) as err:  # a setting or a file: exit 2
         print(f"fleetrl {args.command}: error: {err}", file=sys.stderr)
         return 2
+    except OSError as err:  # the command could not do its job (broker, nobody came, disk): exit 1
+        logging.getLogger("fleetrl").debug("the error's traceback", exc_info=True)  # with -v
+        print(f"fleetrl {args.command}: error: {err}", file=sys.stderr)
+        return 1
     except KeyboardInterrupt:
         print("interrupted", file=sys.stderr)
         return 130

@@ -11,7 +11,14 @@ import time
 from pathlib import Path
 from typing import Any
 
-from fleetrl.cli.parsing import parse_overrides
+from fleetrl.cli.settings_args import (
+    add_broker_arguments,
+    add_config_argument,
+    add_connect_timeout,
+    add_learning_arguments,
+    add_round_arguments,
+    settings_from_args,
+)
 
 log = logging.getLogger(__name__)
 
@@ -45,7 +52,8 @@ def register(sub: Any) -> None:
 
     chief = sub.add_parser("chief", help="serve as the chief of a federated run (Algorithm 1)")
     add_run_arguments(chief)
-    chief.add_argument("--workers", type=int, required=True, help="N: the workers are ids 0 … N-1")
+    add_round_arguments(chief)
+    chief.add_argument("--workers", type=int, default=None, help="N: the workers are ids 0 … N-1 (required)")
     chief.add_argument(
         "--out",
         type=Path,
@@ -55,88 +63,70 @@ def register(sub: Any) -> None:
     chief.add_argument(
         "--resume",
         action="store_true",
+        default=None,
         help="continue the run from the checkpoint in --out (after a crash; same settings)",
     )
     chief.add_argument(
-        "--idle-timeout", type=float, default=600.0, help="give up after this many idle seconds"
-    )
-    chief.add_argument(
-        "--quorum",
-        type=float,
-        default=1.0,
-        help="at the round deadline, close the round if this fraction of W answered (needs --round-timeout)",
-    )
-    chief.add_argument(
-        "--round-timeout",
-        type=float,
-        default=None,
-        help="round deadline in seconds (default: none, the paper's fully synchronous rule)",
-    )
-    chief.add_argument(
-        "--aggregation",
-        default="mean",
-        help="mean (the paper's), median, trimmed_mean[:β], clipped_mean[:C]",
+        "--idle-timeout", type=float, default=None, help="give up after this many idle seconds (600)"
     )
     chief.add_argument(
         "--dropout-grace",
         type=float,
-        default=3.0,
-        help="seconds a worker that went offline has to come back before it leaves W",
+        default=None,
+        help="seconds a worker that went offline has to come back before it leaves W (3)",
     )
     chief.set_defaults(handler=cmd_chief)
 
     worker = sub.add_parser("worker", help="serve as one worker of a federated run (Algorithm 2)")
     add_run_arguments(worker)
-    worker.add_argument("--worker-id", type=int, required=True, help="this worker's id (0 … N-1)")
+    worker.add_argument("--worker-id", type=int, default=None, help="this worker's id (0 … N-1; required)")
     worker.add_argument("--unit", type=int, default=None, help="device unit to train on (default: worker id)")
-    worker.add_argument("--seed", type=int, default=0, help="the run's learning seed")
-    worker.add_argument("--fleet-seed", type=int, default=0, help="seed of the fleet's per-unit dynamics")
+    worker.add_argument("--seed", type=int, default=None, help="the run's learning seed (0)")
+    worker.add_argument("--fleet-seed", type=int, default=None, help="seed of the fleet's per-unit dynamics")
     worker.add_argument(
         "--out",
         type=Path,
-        required=True,
-        help="this worker's run directory (metrics, model, a checkpoint every round in checkpoints/)",
+        default=None,
+        help="this worker's run directory (metrics, model, a checkpoint every round; required)",
     )
     worker.add_argument(
         "--resume",
         action="store_true",
+        default=None,
         help="continue from the checkpoint in --out at its round (after a crash; same settings)",
     )
-    worker.add_argument("--reply-timeout", type=float, default=600.0, help="seconds to wait for the chief")
+    worker.add_argument(
+        "--reply-timeout", type=float, default=None, help="seconds to wait for the chief (600)"
+    )
     worker.add_argument(
         "--resend-interval",
         type=float,
-        default=5.0,
-        help="re-send the round's message after this many seconds without an answer",
+        default=None,
+        help="re-send the round's message after this many seconds without an answer (5)",
     )
     worker.set_defaults(handler=cmd_worker)
 
 
 def add_run_arguments(p: argparse.ArgumentParser) -> None:
-    """Options the chief and every worker must agree on."""
-    p.add_argument("--broker", required=True, help="mqtt://[user:pass@]host:port or mqtts://…")
-    p.add_argument("--scheme", default="paper", help="federation scheme: paper (default) or fedavg")
-    p.add_argument("--ca-file", default=None, help="CA certificate for mqtts://")
-    p.add_argument("--client-cert", default=None, help="client certificate for mqtts:// (optional)")
-    p.add_argument("--client-key", default=None, help="the client certificate's private key")
+    """Options the chief and every worker must agree on, and how each reaches the broker."""
+    add_config_argument(p)
+    add_learning_arguments(p)
+    add_broker_arguments(p, "required")
+    p.add_argument("--ca-file", type=Path, default=None, help="CA certificate for mqtts://")
+    p.add_argument(
+        "--client-cert", type=Path, default=None, help="client certificate for mqtts:// (optional)"
+    )
+    p.add_argument("--client-key", type=Path, default=None, help="the client certificate's private key")
     p.add_argument(
         "--fleet-key-file",
         type=Path,
         default=None,
         help="sign and verify every federation message with this key (HMAC-SHA256; all roles share it)",
     )
-    p.add_argument("--run-id", required=True, help="the run's id (a topic level shared by all roles)")
-    p.add_argument("--env", default="qube", help="qube or cartpole")
-    p.add_argument("--preset", default="paper", help="PPO preset: paper or standard")
-    p.add_argument("--max-rounds", type=int, default=1000, help="the paper's M")
     p.add_argument(
-        "--set",
-        dest="overrides",
-        action="append",
-        default=[],
-        metavar="KEY=VALUE",
-        help="override one PPO setting (all roles must agree)",
+        "--run-id", default=None, help="the run's id (a topic level shared by all roles; required)"
     )
+    add_connect_timeout(p, default=None)
 
 
 def cmd_broker(args: argparse.Namespace) -> int:
@@ -180,31 +170,16 @@ def cmd_secure_config(args: argparse.Namespace) -> int:
         bind=args.bind,
         self_signed_tls=not args.no_tls,
     )
-    print(f"wrote {fleet.config}, passwd, acl, fleet.key, credentials.json in {fleet.directory}")
+    print(f"wrote {fleet.config}, passwd, acl, fleet.key, passwords/, credentials.json in {fleet.directory}")
     print(f"start the broker:  fleetrl broker --secure {fleet.directory}")
     extra = f" --ca-file {fleet.ca_file}" if fleet.ca_file else ""
-    for user in fleet.passwords:
+    for user in fleet.passwords:  # no password on any command line: each role reads its own file
         role = "chief" if user == "chief" else f"worker --worker-id {user}"
-        print(f"  {role}: --broker '{fleet.url(user)}'{extra} --fleet-key-file {fleet.key_file}")
+        print(
+            f"  {role}: --broker '{fleet.login_url(user)}' --broker-password-file {fleet.password_file(user)}"
+            f"{extra} --fleet-key-file {fleet.key_file}"
+        )
     return 0
-
-
-def _transport(args: argparse.Namespace) -> Any:
-    from fleetrl.transport.mqtt import MqttTransport
-
-    return MqttTransport(
-        args.broker,
-        ca_file=args.ca_file,
-        cert_file=args.client_cert,
-        key_file=args.client_key,
-        clean_session=False,  # persistent session under the role's fixed client id
-    )
-
-
-def _key(args: argparse.Namespace) -> Any:
-    from fleetrl.federation.signing import FleetKey
-
-    return None if args.fleet_key_file is None else FleetKey.from_file(args.fleet_key_file)
 
 
 def cmd_chief(args: argparse.Namespace) -> int:
@@ -212,69 +187,55 @@ def cmd_chief(args: argparse.Namespace) -> int:
     from fleetrl.federation.chief import Chief
     from fleetrl.federation.runner import run_chief
     from fleetrl.runs.launch import shared_layout
+    from fleetrl.runs.role_settings import ChiefSettings
     from fleetrl.runs.rundir import write_json_atomic
-    from fleetrl.runs.settings import RunSettings
 
-    if args.workers < 1:
-        raise ValueError(f"--workers must be at least 1, got {args.workers}")
-    settings = RunSettings(
-        "federated",
-        args.env,
-        args.workers,
-        args.preset,
-        0,
-        args.max_rounds,
-        Path("."),
-        scheme=args.scheme,
-        overrides=parse_overrides(args.overrides),
-    )
-    settings.validate()
+    settings = settings_from_args(ChiefSettings, args)
     chief = Chief(
-        run_id=args.run_id,
-        workers=[str(k) for k in range(args.workers)],
+        run_id=settings.run_id,
+        workers=[str(k) for k in range(settings.workers)],
         layout=shared_layout(settings),
-        scheme=args.scheme,
-        max_rounds=args.max_rounds,
-        aggregator=args.aggregation,
-        quorum=args.quorum,
-        round_timeout=args.round_timeout,
-        dropout_grace=args.dropout_grace,
-        key=_key(args),
+        scheme=settings.scheme,
+        max_rounds=settings.max_rounds,
+        aggregator=settings.aggregation,
+        quorum=settings.quorum,
+        round_timeout=settings.round_timeout,
+        dropout_grace=settings.dropout_grace,
+        key=settings.fleet_key(),
     )
-    if args.out is None:
-        if args.resume:
-            raise ValueError("--resume needs --out: the run directory holding the chief's checkpoint")
-        summary = run_chief(chief, _transport(args), idle_timeout=args.idle_timeout)
+    if settings.out is None:
+        summary = run_chief(chief, settings.transport(), idle_timeout=settings.idle_timeout)
     else:
-        summary = _serve_with_checkpoints(chief, args)
-    result = {"run_id": args.run_id, **summary.to_dict()}
-    if args.out is not None:
-        write_json_atomic(args.out / "chief.json", result)
+        summary = _serve_with_checkpoints(chief, settings)
+    result = {"run_id": settings.run_id, **summary.to_dict()}
+    if settings.out is not None:
+        write_json_atomic(settings.out / "chief.json", result)
     print(json.dumps(result))
     return 0
 
 
-def _serve_with_checkpoints(chief: Any, args: argparse.Namespace) -> Any:
-    """Run the chief with a checkpoint every round in ``args.out`` (resuming from it with ``--resume``)
+def _serve_with_checkpoints(chief: Any, settings: Any) -> Any:
+    """Run the chief with a checkpoint every round in ``settings.out`` (resuming from it with ``--resume``)
     and its events appended to chief.log as they happen."""
     from fleetrl.federation.chief_state import replay_last_answer
     from fleetrl.federation.runner import run_chief
     from fleetrl.runs.checkpoints import ChiefCheckpoint, chief_checkpoint_dir
 
-    args.out.mkdir(parents=True, exist_ok=True)
-    store = ChiefCheckpoint(chief_checkpoint_dir(args.out))
+    out: Path = settings.out
+    store = ChiefCheckpoint(chief_checkpoint_dir(out))
     first = None
-    if args.resume:
+    if settings.resume:
         chief = store.load(key=chief.key, now=time.monotonic(), expect=chief)
         first = replay_last_answer(chief)
     elif store.exists():
-        raise FileExistsError(f"{args.out} holds a chief checkpoint: add --resume, or choose another --out")
-    with open(args.out / "chief.log", "a") as log_file:
+        raise FileExistsError(f"{out} holds a chief checkpoint: add --resume, or choose another --out")
+    out.mkdir(parents=True, exist_ok=True)
+    with open(out / "chief.log", "a") as log_file:
         return run_chief(
             chief,
-            _transport(args),
+            settings.transport(),
             on_event=lambda e: print(e, file=log_file, flush=True),
-            idle_timeout=args.idle_timeout,
+            idle_timeout=settings.idle_timeout,
             checkpoint=store.save,
             first_step=first,
         )
@@ -283,61 +244,41 @@ def _serve_with_checkpoints(chief: Any, args: argparse.Namespace) -> Any:
 def cmd_worker(args: argparse.Namespace) -> int:
     """Serve as one worker; its run directory gets the same files as a ``fleetrl train`` run."""
     from fleetrl.runs.checkpoints import WorkerCheckpoint, worker_checkpoint_dir
+    from fleetrl.runs.role_settings import WorkerSettings
     from fleetrl.runs.roles import train_federated
     from fleetrl.runs.rundir import RunRecorder
-    from fleetrl.runs.settings import RunSettings
     from fleetrl.runs.spec import WorkerSpec
 
-    unit = args.worker_id if args.unit is None else args.unit
-    settings = RunSettings(
-        "federated",
-        args.env,
-        1,
-        args.preset,
-        args.seed,
-        args.max_rounds,
-        args.out,
-        fleet_seed=args.fleet_seed,
-        broker=args.broker,
-        scheme=args.scheme,
-        overrides=parse_overrides(args.overrides),
-    )
-    settings.validate()
-    if args.worker_id < 0 or unit < 0:
-        raise ValueError("--worker-id and --unit must be non-negative")
+    settings = settings_from_args(WorkerSettings, args)
     spec = WorkerSpec(
-        args.worker_id,
-        unit,
-        args.env,
-        args.preset,
-        args.seed,
-        args.fleet_seed,
-        args.max_rounds,
-        str(args.out),
+        settings.worker_id,
+        settings.device_unit,
+        settings.env,
+        settings.preset,
+        settings.seed,
+        settings.fleet_seed,
+        settings.max_rounds,
+        str(settings.out),
         settings.overrides,
-        scheme=args.scheme,
+        scheme=settings.scheme,
     )
-    config = settings.to_config() | {
-        "role": "worker",
-        "run_id": args.run_id,
-        "worker_id": args.worker_id,
-        "unit": unit,
-    }
-    checkpoints = worker_checkpoint_dir(args.out, args.worker_id)
-    where = WorkerCheckpoint(checkpoints, spec, args.run_id).where() if args.resume else None
-    resume_from = {args.worker_id: 1 if where is None else where.next_round} if args.resume else None
-    recorder = RunRecorder(args.out, config, [args.worker_id], resume_from=resume_from)
+    config = worker_config(settings)
+    checkpoints = worker_checkpoint_dir(settings.out, settings.worker_id)
+    resume = settings.resume
+    where = WorkerCheckpoint(checkpoints, spec, settings.run_id).where() if resume else None
+    resume_from = {settings.worker_id: 1 if where is None else where.next_round} if resume else None
+    recorder = RunRecorder(settings.out, config, [settings.worker_id], resume_from=resume_from)
     try:
         outcome = train_federated(
             spec,
-            _transport(args),
-            args.run_id,
+            settings.transport(),
+            settings.run_id,
             recorder.add,
-            reply_timeout=args.reply_timeout,
-            resend_interval=args.resend_interval,
-            key=_key(args),
+            reply_timeout=settings.reply_timeout,
+            resend_interval=settings.resend_interval,
+            key=settings.fleet_key(),
             checkpoint_dir=checkpoints,
-            resume=args.resume,
+            resume=resume,
         )
         recorder.extra["worker"] = {
             "rounds": outcome.rounds,
@@ -350,3 +291,18 @@ def cmd_worker(args: argparse.Namespace) -> int:
         summary = recorder.finish()
     print(json.dumps(summary["workers"]))
     return 130 if recorder.interrupted else 0
+
+
+def worker_config(settings: Any) -> dict[str, Any]:
+    """A standalone worker's config.json: its settings (no password) and the resolved PPO config."""
+    from dataclasses import asdict
+
+    config = {k: str(v) if isinstance(v, Path) else v for k, v in asdict(settings).items()}
+    return config | {
+        "role": "worker",
+        "mode": "federated",
+        "units": 1,
+        "broker": settings.public_broker,
+        "unit": settings.device_unit,
+        "ppo": settings.ppo_config(),
+    }

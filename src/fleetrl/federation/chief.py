@@ -170,7 +170,9 @@ class Chief:
         if self.finished:
             return None
         times = list(self._suspects.values())
-        if self.round_timeout is not None and self._opened_at is not None:
+        # the round deadline acts only on answers (with none, tick keeps waiting): without one it is not due,
+        # else a deadline that passed would stay due and the runner would poll without waiting
+        if self.round_timeout is not None and self._opened_at is not None and self._pending:
             times.append(self._opened_at + self.round_timeout)
         return min(times, default=None)
 

@@ -28,6 +28,15 @@ from fleetrl.transport.base import Transport, Will
 
 log = logging.getLogger(__name__)
 
+IDLE_LOG_INTERVAL = 30.0
+"""seconds between the chief's log lines while nothing arrives"""
+MIN_WAIT = 0.005
+"""the shortest wait for a deadline that is due (a state machine bug would otherwise spin a core)"""
+
+
+class IdleTimeout(TimeoutError):
+    """The chief heard nothing for its whole idle timeout (no worker came, or all went away)."""
+
 
 @dataclass(frozen=True)
 class ChiefSummary:
@@ -72,6 +81,7 @@ def run_chief(
     clock: Callable[[], float] = time.monotonic,
     checkpoint: Callable[[Chief], None] | None = None,
     first_step: ChiefStep | None = None,
+    idle_log_interval: float = IDLE_LOG_INTERVAL,
 ) -> ChiefSummary:
     """Serve one run: connect, announce the chief online, answer every round until the chief ends the run.
 
@@ -85,7 +95,9 @@ def run_chief(
         the end.
     :param on_event: called with every :class:`ChiefEvent` (also logged: rounds at INFO, rejections at
         WARNING).
-    :param idle_timeout: raise TimeoutError when nothing arrives for this many seconds (None: wait forever).
+    :param idle_timeout: raise :class:`IdleTimeout` when nothing arrives for this many seconds (None: wait
+        forever). While it waits the chief sleeps in ``receive`` (no polling) and logs who it is waiting for
+        every ``idle_log_interval`` seconds.
     :param clock: the time source handed to the state machine (seconds).
     :param checkpoint: called with the chief at the start and whenever its durable state
         (:func:`~fleetrl.federation.chief_state.chief_fields`) changed — a round closed, a worker left,
@@ -135,23 +147,34 @@ def run_chief(
         if first_step is not None:
             publish(first_step)
         last_input = clock()
+        next_note = last_input + idle_log_interval  # the next "still waiting" log line
         while not chief.finished:
             now = clock()
-            deadline = chief.next_deadline()
-            waits = [] if idle_timeout is None else [last_input + idle_timeout - now]
-            if deadline is not None:
-                waits.append(deadline - now + 0.001)
-            received = transport.receive(max(0.0, min(waits)) if waits else None)
+            waits = [next_note - now]
+            if idle_timeout is not None:
+                waits.append(last_input + idle_timeout - now)
+            if (deadline := chief.next_deadline()) is not None:
+                waits.append(max(deadline - now + 0.001, MIN_WAIT))  # MIN_WAIT: never a busy loop
+            received = transport.receive(max(0.0, min(waits)))
             now = clock()
             if received is None:
                 publish(chief.tick(now))
+                waiting = sorted(set(chief.members) - set(chief.answered))
                 if idle_timeout is not None and now - last_input >= idle_timeout:
-                    waiting = sorted(set(chief.members) - set(chief.answered))
-                    raise TimeoutError(
-                        f"chief: nothing for {idle_timeout} s in round {chief.round}; waiting for {waiting}"
+                    raise IdleTimeout(
+                        f"no worker message for {idle_timeout:g} s (--idle-timeout) in round {chief.round}; "
+                        f"waiting for {waiting}"
                     )
+                if now >= next_note:
+                    log.info(
+                        "chief: round %d, idle for %.0f s, waiting for %s%s",
+                        chief.round, now - last_input, waiting,
+                        "" if idle_timeout is None else f" (giving up after {idle_timeout:g} s)",
+                    )  # fmt: skip
+                    next_note = now + idle_log_interval
                 continue
             last_input = now
+            next_note = now + idle_log_interval
             worker = worker_of_topic(run_id, received.topic)
             if worker is not None:
                 publish(chief.receive_bytes(received.payload, topic_worker=worker, now=now))

@@ -390,7 +390,10 @@ class FederatedWorker:
             if received is None:
                 now = time.monotonic()
                 if deadline is not None and now >= deadline:
-                    raise TimeoutError(f"worker {self.worker_id}: no {what} from run {self.run_id!r}")
+                    raise TimeoutError(
+                        f"worker {self.worker_id}: nothing from the chief of run {self.run_id!r} for "
+                        f"{self.reply_timeout:g} s (--reply-timeout) while waiting for {what}"
+                    )
                 if next_send is not None and now >= next_send:
                     log.info("worker %s: nothing yet; re-sending while waiting for %s", self.worker_id, what)
                     self.transport.publish(topic, payload, retain=resend is None)

@@ -9,7 +9,7 @@ from typing import Protocol
 from fleetrl.runs.live import LiveView
 from fleetrl.runs.processes import FleetEvent, WorkerExit
 from fleetrl.runs.records import RoundRecord
-from fleetrl.runs.rundir import RunRecorder
+from fleetrl.runs.rundir import RunDirectoryError, RunRecorder
 
 log = logging.getLogger(__name__)
 
@@ -83,6 +83,12 @@ def follow(fleet: Fleet, recorder: RunRecorder, view: LiveView) -> None:
                 apply_event(fleet.events.get_nowait(), recorder, ended)
             except queue.Empty:
                 break
+    except OSError as err:  # the disk filled up (or went away): stop the run, keep what is on disk
+        fleet.interrupt()
+        raise RunDirectoryError(
+            f"cannot write the run directory {recorder.out}: {err.strerror or err}; the run was stopped "
+            f"and the rounds recorded so far are in {recorder.out / 'metrics.csv'}"
+        ) from err
     view.update(recorder.progress, recorder.elapsed(), force=True)
 
 

@@ -12,19 +12,17 @@ Every worker reports its rounds as :class:`~fleetrl.runs.records.RoundRecord` ob
 owns the run directory and the live view.
 """
 
-import dataclasses
 import logging
 import sys
 import threading
 import uuid
 from collections.abc import Callable, Iterator
-from contextlib import contextmanager
+from contextlib import contextmanager, suppress
 from pathlib import Path
 from typing import Any
 
 import gymnasium
 
-from fleetrl.agent.config import get_preset
 from fleetrl.agent.ppo import PPOAgent
 from fleetrl.envs.catalog import get_env_spec
 from fleetrl.federation.chief import Chief
@@ -35,15 +33,18 @@ from fleetrl.runs.live import LiveView
 from fleetrl.runs.processes import ProcessFleet
 from fleetrl.runs.roles import Emit
 from fleetrl.runs.roles import train_federated as train_federated_worker
-from fleetrl.runs.rundir import RunRecorder, write_json_atomic
-from fleetrl.runs.settings import RunSettings
+from fleetrl.runs.rundir import RunDirectoryError, RunRecorder, write_json_atomic
+from fleetrl.runs.settings import LearningSettings, RunSettings
 from fleetrl.runs.spec import WorkerSpec
 from fleetrl.transport.base import Transport
+from fleetrl.transport.login import password_in_environment
 
 log = logging.getLogger(__name__)
 
 DEMO_MAX_ROUNDS = 1000
 CHIEF_IDLE_TIMEOUT = 600.0
+TRAIN_CONNECT_WINDOW = 10.0
+"""seconds ``fleetrl train`` retries a broker given with ``--broker`` before it gives up (exit 1)"""
 
 
 def demo_settings(out: Path, seed: int = 0) -> RunSettings:
@@ -82,23 +83,36 @@ def worker_specs(settings: RunSettings, device_url: str | None, run_id: str) -> 
     }
 
 
-def shared_layout(settings: RunSettings) -> list[tuple[str, tuple[int, ...]]]:
+def shared_layout(settings: LearningSettings) -> list[tuple[str, tuple[int, ...]]]:
     """Names and shapes of what the run's scheme shares (the actor, or the whole actor-critic for
     ``fedavg``) for this env and preset: the chief validates every message with it."""
     env = gymnasium.make(get_env_spec(settings.env).gym_id)
     obs_dim = int(env.observation_space.shape[0])  # type: ignore[index]
     n_actions = int(env.action_space.n)  # type: ignore[attr-defined]
     env.close()
-    config = dataclasses.replace(get_preset(settings.preset), **settings.overrides)
-    agent = PPOAgent(obs_dim, n_actions, config, seed=0)
+    agent = PPOAgent(obs_dim, n_actions, settings.ppo(), seed=0)
     return agent.model_layout() if get_scheme(settings.scheme).shares == "model" else agent.actor_layout()
 
 
 def train(settings: RunSettings) -> dict[str, Any]:
     """Run the whole training and return summary.json's content."""
     settings.validate()
+    password = settings.broker_password if settings.broker else None
+    with password_in_environment(password):  # children inherit it; no argv or file holds it
+        if settings.needs_broker and settings.broker:  # fatal now, before the run directory exists
+            from fleetrl.transport.mqtt import probe_broker
+
+            try:
+                probe_broker(settings.broker, timeout=TRAIN_CONNECT_WINDOW, password=password)
+            except ConnectionError as err:
+                raise ConnectionError(f"{err} (fleetrl train retries its --broker for that long)") from None
+        return _train(settings)
+
+
+def _train(settings: RunSettings) -> dict[str, Any]:
     run_id = f"run-{uuid.uuid4().hex[:8]}"
     recorder = RunRecorder(Path(settings.out), settings.to_config(), list(range(settings.units)))
+    (recorder.out / "config.toml").write_text(settings.to_toml())
     recorder.extra["run_id"] = run_id
     title = f"fleetrl {settings.mode} · {settings.env} × {settings.units} · preset {settings.preset}"
     threshold = get_env_spec(settings.env).completion_threshold
@@ -119,8 +133,13 @@ def train(settings: RunSettings) -> dict[str, Any]:
             else:
                 fed_url = url if settings.transport == "mqtt" else None
                 train_federated(settings, specs, run_id, fed_url, recorder, view)
+    except RunDirectoryError:
+        with suppress(OSError):  # the summary and plot too, if there is room; the error says what happened
+            recorder.finish()
+        raise
     finally:
-        summary = recorder.finish()
+        if not recorder.finished:
+            summary = recorder.finish()
     return summary
 
 
@@ -156,7 +175,8 @@ def run_logging(path: Path, quiet: bool) -> Iterator[None]:
         yield
     finally:
         root.removeHandler(handler)
-        handler.close()
+        with suppress(OSError):  # a full disk: the run's own error says so
+            handler.close()
         root.setLevel(previous_level)
         for console, level in saved:
             console.setLevel(level)
@@ -220,7 +240,7 @@ def broker_url(settings: RunSettings) -> Iterator[str | None]:
     if not settings.needs_broker:
         yield None
     elif settings.broker:
-        yield settings.broker
+        yield settings.public_broker  # the password is in the environment (password_in_environment)
     else:
         from fleetrl.transport.broker import EmbeddedBroker
 

@@ -34,6 +34,10 @@ PLAIN_EVENTS = frozenset({"", "gradient", "model"})
 """metrics ``event`` values of rounds that only shared (not listed among a worker's events)"""
 
 
+class RunDirectoryError(OSError):
+    """The run directory could not be written mid-run (e.g. a full disk); the run was stopped cleanly."""
+
+
 def model_path(out: Path, worker: int) -> Path:
     """Where worker ``worker``'s actor-critic is saved."""
     return out / "models" / f"worker-{worker}.safetensors"
@@ -80,6 +84,8 @@ class RunRecorder:
         self.progress = {w: WorkerProgress() for w in workers}
         self.records: list[RoundRecord] = []
         self.interrupted = False
+        self.finished = False
+        """whether :meth:`finish` was called"""
         self.extra: dict[str, Any] = {}
         """more entries for summary.json (e.g. the chief's account of a federated run)"""
         write_json_atomic(self.out / "config.json", config)
@@ -152,6 +158,7 @@ class RunRecorder:
 
     def finish(self) -> dict[str, Any]:
         """Close the files, write summary.json and the plot; returns the summary."""
+        self.finished = True
         self._csv_file.close()
         self._tb.close()
         summary = self.summary()

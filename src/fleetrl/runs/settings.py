@@ -1,92 +1,210 @@
-"""The settings of a training run, as the command line gives them."""
+"""The settings of a run, for every command that starts one: typed, defaulted, validated once before anything
+starts.
 
+``RunSettings`` is ``fleetrl train``'s; :mod:`fleetrl.runs.role_settings` has the chief's and the worker's.
+They are built from parts every command shares (:class:`LearningSettings`, :class:`RoundRules`,
+:class:`BrokerLogin`), so a new setting is one field (a type, a default, a docstring) in the part it belongs
+to, plus its check in that part's ``validate_*`` method and its flag. A field's name is its config-file key
+and its flag's ``dest``; :func:`fleetrl.runs.setting_values.build` reads a file and the flags into them.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import logging
 import platform
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, get_type_hints
 
+from fleetrl.agent.config import PPOConfig, get_preset
 from fleetrl.envs.catalog import get_env_spec
+from fleetrl.federation.aggregation import get_aggregator
 from fleetrl.federation.schemes import get_scheme
+from fleetrl.runs.setting_values import (
+    SettingError,
+    check_readable_file,
+    check_writable_dir,
+    coerce,
+    dump_toml,
+    label,
+    toml_values,
+)
+from fleetrl.transport.login import broker_password, password_in_url, without_password
+from fleetrl.transport.mqtt import BrokerAddress
+
+log = logging.getLogger(__name__)
 
 MODES = ("individual", "federated")
 TRANSPORTS = ("mqtt", "local")
 DEVICE_LINKS = ("inprocess", "mqtt")
 
 
-@dataclass
-class RunSettings:
-    """One training run of a simulated fleet."""
+def choose(name: str, value: str, choices: tuple[str, ...]) -> None:
+    """SettingError unless ``value`` is one of ``choices``."""
+    if value not in choices:
+        what = name.replace("_", " ")
+        raise SettingError(f"{label(name)}: unknown {what} {value!r} (choose {' or '.join(choices)})")
 
-    mode: str
-    """``individual`` (each unit alone, the paper's Fig. 5a) or ``federated`` (Algorithms 1 and 2)"""
-    env: str
-    """``qube`` or ``cartpole``"""
-    units: int
-    """how many units (one worker each)"""
-    preset: str
+
+def positive(name: str, value: float | None, *, allow_zero: bool = False) -> None:
+    """SettingError unless ``value`` (if set) is > 0 (or ≥ 0)."""
+    if value is not None and not (value >= 0 if allow_zero else value > 0):
+        bound = "≥ 0" if allow_zero else "> 0"
+        raise SettingError(f"{label(name)} = {value!r}: must be {bound}")
+
+
+def as_setting_error(name: str, check: Any, *args: Any) -> Any:
+    """Run a lower layer's own check; its ValueError becomes a SettingError naming the setting."""
+    try:
+        return check(*args)
+    except SettingError:
+        raise
+    except ValueError as err:
+        raise SettingError(f"{label(name)}: {err}") from None
+
+
+@dataclass(kw_only=True)
+class LearningSettings:
+    """What every worker learns with (the chief needs it for the shape of what is shared)."""
+
+    env: str = "qube"
+    """``qube`` (QUBE-Servo 2 balance) or ``cartpole``"""
+    preset: str = "paper"
     """PPO preset: ``paper`` (Table 1) or ``standard``"""
-    seed: int
-    """fixes the learning: network initialisation, action sampling, window starts"""
-    max_rounds: int
+    max_rounds: int = 1000
     """the paper's M: the most rounds (episodes) per worker"""
+    scheme: str = "paper"
+    """federated: ``paper`` (Algorithms 1 and 2) or ``fedavg`` (:mod:`fleetrl.federation.schemes`)"""
+    overrides: dict[str, Any] = field(default_factory=dict)
+    """PPO config fields that replace the preset's (``--set KEY=VALUE``; the ``[overrides]`` table)"""
+
+    def validate_learning(self) -> None:
+        """Env, preset, scheme, M and every PPO override (name, type, range)."""
+        as_setting_error("env", get_env_spec, self.env)
+        as_setting_error("preset", get_preset, self.preset)
+        as_setting_error("scheme", get_scheme, self.scheme)
+        if self.max_rounds < 1:
+            raise SettingError(f"{label('max_rounds')} = {self.max_rounds}: must be at least 1")
+        self.overrides = self._typed_overrides()
+        self.ppo()
+
+    def _typed_overrides(self) -> dict[str, Any]:
+        hints = get_type_hints(PPOConfig)
+        unknown = sorted(set(self.overrides) - set(hints))
+        if unknown:
+            raise SettingError(
+                f"--set {', '.join(unknown)}: unknown PPO setting(s) (known: {', '.join(sorted(hints))})"
+            )
+        return {k: coerce(f"--set {k}", v, hints[k]) for k, v in self.overrides.items()}
+
+    def ppo(self) -> PPOConfig:
+        """The preset with the overrides applied, type- and range-checked."""
+        config = dataclasses.replace(get_preset(self.preset), **self._typed_overrides())
+        as_setting_error("overrides", config.validate)
+        return config
+
+    def ppo_config(self) -> dict[str, Any]:
+        """:meth:`ppo` as a plain dict."""
+        return asdict(self.ppo())
+
+
+@dataclass(kw_only=True)
+class RoundRules:
+    """How the chief closes a round."""
+
+    aggregation: str = "mean"
+    """how the chief aggregates (mean, median, trimmed_mean[:β], clipped_mean[:C])"""
+    quorum: float = 1.0
+    """fraction of W whose answers close a round at the deadline (1.0: fully synchronous; < 1 needs
+    ``round_timeout``)"""
+    round_timeout: float | None = None
+    """seconds after which a round closes with the quorum (unset: wait for every worker)"""
+
+    def validate_rounds(self) -> None:
+        """Aggregation rule, quorum and round timeout, and that they fit together."""
+        as_setting_error("aggregation", get_aggregator, self.aggregation)
+        if not 0.0 < self.quorum <= 1.0:
+            raise SettingError(f"{label('quorum')} = {self.quorum}: must be in (0, 1]")
+        positive("round_timeout", self.round_timeout)
+        if self.quorum < 1.0 and self.round_timeout is None:
+            raise SettingError(
+                f"{label('quorum')} = {self.quorum} needs {label('round_timeout')}: "
+                "the quorum applies at the round deadline"
+            )
+
+
+@dataclass(kw_only=True)
+class BrokerLogin:
+    """Where the broker is and how to log in; the password never travels in a URL a run writes or passes
+    on."""
+
+    broker: str | None = None
+    """``mqtt://[user@]host:port`` or ``mqtts://…`` (train: none starts an embedded broker)"""
+    broker_password_file: Path | None = None
+    """a file holding the broker password (else the ``FLEETRL_BROKER_PASSWORD`` environment variable)"""
+
+    def validate_broker(self) -> None:
+        """The URL parses; the password file is readable; a password inside the URL is warned about."""
+        if self.broker is None:
+            return
+        as_setting_error("broker", BrokerAddress.parse, self.broker)
+        check_readable_file("broker_password_file", self.broker_password_file)
+        if password_in_url(self.broker):
+            log.warning(
+                "the broker URL carries a password: every local user sees it in `ps` and it stays in shell "
+                "history; use --broker-password-file FILE or FLEETRL_BROKER_PASSWORD instead"
+            )
+
+    @property
+    def broker_password(self) -> str | None:
+        """The password: from the file, else from the URL, else from the environment (None: no login)."""
+        return broker_password(self.broker_password_file, self.broker)
+
+    @property
+    def public_broker(self) -> str | None:
+        """The broker URL without its password (safe to log, to write and to pass on a command line)."""
+        return None if self.broker is None else without_password(self.broker)
+
+
+@dataclass(kw_only=True)
+class RunSettings(LearningSettings, RoundRules, BrokerLogin):
+    """One training run of a simulated fleet (``fleetrl train``)."""
+
     out: Path
-    """the run directory"""
+    """the run directory (created; must not hold a run)"""
+    mode: str = "federated"
+    """``individual`` (each unit alone, the paper's Fig. 5a) or ``federated`` (Algorithms 1 and 2)"""
+    units: int = 3
+    """how many units (one worker each)"""
+    seed: int = 0
+    """fixes the learning: network initialisation, action sampling, window starts"""
     fleet_seed: int = 0
     """fixes the fleet: with the unit index it draws each unit's dynamics"""
     transport: str = "mqtt"
     """federated: ``mqtt`` (a real broker, workers in processes) or ``local`` (in-process bus, threads)"""
-    broker: str | None = None
-    """federated mode: ``mqtt://[user:pass@]host:port`` of an existing broker; none starts an embedded one"""
-    scheme: str = "paper"
-    """federated: ``paper`` (Algorithms 1 and 2) or ``fedavg`` (model averaging; see
-    :mod:`fleetrl.federation.schemes`)"""
-    aggregation: str = "mean"
-    """federated: how the chief aggregates gradients (mean, median, trimmed_mean[:β], clipped_mean[:C])"""
-    quorum: float = 1.0
-    """federated: fraction of W whose gradients close a round at the deadline (1.0: fully synchronous)"""
-    round_timeout: float | None = None
-    """federated: seconds after which a round closes with the quorum (None: wait for every worker)"""
     device_link: str = "inprocess"
     """how workers reach their devices: ``inprocess`` or ``mqtt`` (one device bridge per unit)"""
-    overrides: dict[str, Any] = field(default_factory=dict)
-    """PPO config fields that replace the preset's"""
     live: bool = True
     """show the live terminal view"""
 
     def validate(self) -> None:
-        """Raise ValueError with a clear message for any setting that cannot work."""
-        get_env_spec(self.env)
-        if self.mode not in MODES:
-            raise ValueError(f"unknown mode {self.mode!r} (choose {' or '.join(MODES)})")
-        if self.transport not in TRANSPORTS:
-            raise ValueError(f"unknown transport {self.transport!r} (choose {' or '.join(TRANSPORTS)})")
-        get_scheme(self.scheme)
+        """Raise SettingError naming the first setting that cannot work; nothing is created."""
+        self.validate_learning()
+        choose("mode", self.mode, MODES)
+        choose("transport", self.transport, TRANSPORTS)
+        choose("device_link", self.device_link, DEVICE_LINKS)
         if self.mode == "individual" and self.scheme != "paper":
-            raise ValueError(f"--scheme {self.scheme} is a federation scheme: it needs --mode federated")
-        if self.device_link not in DEVICE_LINKS:
-            raise ValueError(f"unknown device link {self.device_link!r} (choose {' or '.join(DEVICE_LINKS)})")
-        if not 0.0 < self.quorum <= 1.0:
-            raise ValueError(f"--quorum must be in (0, 1], got {self.quorum}")
-        if self.round_timeout is not None and self.round_timeout <= 0:
-            raise ValueError(f"--round-timeout must be positive, got {self.round_timeout}")
+            raise SettingError(f"--scheme {self.scheme} is a federation scheme: it needs --mode federated")
+        self.validate_rounds()
+        self.validate_broker()
         if self.units < 1:
-            raise ValueError(f"--units must be at least 1, got {self.units}")
-        if self.max_rounds < 1:
-            raise ValueError(f"--max-rounds must be at least 1, got {self.max_rounds}")
+            raise SettingError(f"{label('units')} = {self.units}: must be at least 1")
         if self.seed < 0 or self.fleet_seed < 0:
-            raise ValueError("seeds must be non-negative integers")
-        self.ppo_config()
-
-    def ppo_config(self) -> dict[str, Any]:
-        """The preset's PPO settings with the overrides applied (unknown names are refused)."""
-        from fleetrl.agent.config import get_preset
-
-        ppo = asdict(get_preset(self.preset))
-        unknown = set(self.overrides) - set(ppo)
-        if unknown:
-            raise ValueError(f"unknown PPO setting(s) {sorted(unknown)} (known: {', '.join(sorted(ppo))})")
-        ppo.update(self.overrides)
-        return ppo
+            raise SettingError(f"{label('seed')}, {label('fleet_seed')}: must be non-negative integers")
+        if (self.out / "metrics.csv").exists():
+            raise SettingError(f"{label('out')} = {str(self.out)!r} already holds a run; choose another")
+        check_writable_dir("out", self.out)
 
     @property
     def needs_broker(self) -> bool:
@@ -94,12 +212,26 @@ class RunSettings:
         federated_mqtt = self.mode == "federated" and self.transport == "mqtt"
         return federated_mqtt or self.device_link == "mqtt"
 
+    def to_toml(self) -> str:
+        """config.toml of the run directory: every setting (no password), so that
+        ``fleetrl train --config runs/x/config.toml --out runs/y`` reruns the run."""
+        table = toml_values(self)
+        if self.broker is not None:
+            table["broker"] = self.public_broker
+        header = (
+            "fleetrl train settings of this run (no password is ever written here).\n"
+            f"Rerun it: fleetrl train --config {self.out / 'config.toml'} --out NEW_DIR"
+        )
+        return dump_toml(table, header)
+
     def to_config(self) -> dict[str, Any]:
-        """Everything that defines the run, for config.json (including the resolved PPO config)."""
+        """Everything that defines the run, for config.json (the resolved PPO config too; no password)."""
         import torch
 
         config = asdict(self)
         config["out"] = str(self.out)
+        config["broker"] = self.public_broker
+        config["broker_password_file"] = path_text(self.broker_password_file)
         config["ppo"] = self.ppo_config()
         spec = get_env_spec(self.env)
         config["env_id"] = spec.gym_id
@@ -107,3 +239,7 @@ class RunSettings:
         config["episode_cap"] = spec.episode_cap
         config["versions"] = {"python": platform.python_version(), "torch": torch.__version__}
         return config
+
+
+def path_text(path: Path | None) -> str | None:
+    return None if path is None else str(path)

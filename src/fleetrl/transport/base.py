@@ -40,8 +40,9 @@ class Transport(Protocol):
     :meth:`receive` should be called from a single consumer thread.
     """
 
-    def connect(self, client_id: str, *, will: Will | None = None, timeout: float = 10.0) -> None:
-        """Connect as ``client_id`` with ``will``; ConnectionError if not connected within ``timeout`` s."""
+    def connect(self, client_id: str, *, will: Will | None = None, timeout: float | None = None) -> None:
+        """Connect as ``client_id`` with ``will``; ConnectionError if not connected within ``timeout`` s
+        (None: the transport's own default)."""
         ...
 
     def publish(self, topic: str, payload: bytes, *, qos: int = 1, retain: bool = False) -> None:

@@ -76,7 +76,7 @@ class LocalTransport:
         self._client_id: str | None = None
         self._will: Will | None = None
 
-    def connect(self, client_id: str, *, will: Will | None = None, timeout: float = 10.0) -> None:
+    def connect(self, client_id: str, *, will: Will | None = None, timeout: float | None = None) -> None:
         """Join the bus as ``client_id`` with an optional last will."""
         self._client_id = client_id
         self._will = will

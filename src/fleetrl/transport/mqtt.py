@@ -10,11 +10,14 @@ link must not receive stale commands queued while it was away).
 
 from __future__ import annotations
 
+import dataclasses
 import logging
+import os
 import queue
 import socket
 import ssl
 import threading
+import time
 from dataclasses import dataclass
 from typing import Any
 from urllib.parse import unquote, urlsplit
@@ -23,8 +26,12 @@ import paho.mqtt.client as paho
 from paho.mqtt.enums import CallbackAPIVersion
 
 from fleetrl.transport.base import Received, Will
+from fleetrl.transport.login import broker_password
 
 log = logging.getLogger(__name__)
+
+CONNECT_LOG_INTERVAL = 10.0
+"""seconds between log lines while :meth:`MqttTransport.connect` waits for an unreachable broker"""
 
 
 @dataclass(frozen=True)
@@ -49,7 +56,7 @@ class BrokerAddress:
         """Parse a broker URL; ValueError saying what is wrong otherwise."""
         parts = urlsplit(url)
         if parts.scheme not in ("mqtt", "mqtts"):
-            raise ValueError(f"bad broker URL {url!r}: use mqtt://[user:pass@]host:port or mqtts://…")
+            raise ValueError(f"bad broker URL {url!r}: use mqtt://[user@]host:port or mqtts://…")
         if not parts.hostname:
             raise ValueError(f"bad broker URL {url!r}: no host")
         tls = parts.scheme == "mqtts"
@@ -82,6 +89,9 @@ class MqttTransport:
         session (subscriptions, queued QoS 1 messages) across disconnects — what the federation roles use.
     :param cert_file: client certificate for ``mqtts`` (optional; with ``key_file``).
     :param key_file: the client certificate's private key.
+    :param connect_timeout: seconds :meth:`connect` keeps trying to reach the broker before it gives up.
+    :param password: the login's password (from a file, :mod:`fleetrl.transport.login`); it replaces one in
+        ``url``. Without either, a URL naming a user takes ``FLEETRL_BROKER_PASSWORD`` from the environment.
     """
 
     def __init__(
@@ -94,9 +104,16 @@ class MqttTransport:
         clean_session: bool = True,
         cert_file: str | None = None,
         key_file: str | None = None,
+        connect_timeout: float = 10.0,
+        password: str | None = None,
     ) -> None:
         """Prepare a client for the broker at ``url``; nothing is sent before :meth:`connect`."""
         self.address = BrokerAddress.parse(url)
+        if password is None and self.address.username is not None and self.address.password is None:
+            password = broker_password(None)  # FLEETRL_BROKER_PASSWORD, if set
+        if password is not None:
+            self.address = dataclasses.replace(self.address, password=password)
+        self.connect_timeout = connect_timeout
         self._ca_file = ca_file
         self._keepalive = keepalive
         self._reconnect_delay = reconnect_delay
@@ -112,9 +129,11 @@ class MqttTransport:
         self._unacked: list[paho.MQTTMessageInfo] = []
         self._client: paho.Client | None = None
 
-    def connect(self, client_id: str, *, will: Will | None = None, timeout: float = 10.0) -> None:
+    def connect(self, client_id: str, *, will: Will | None = None, timeout: float | None = None) -> None:
         """Connect as ``client_id`` and start the network thread; ConnectionError on failure (a refused login
-        included)."""
+        at once; an unreachable broker after ``timeout`` s, default the ``connect_timeout`` given at
+        construction, of retries with backoff)."""
+        timeout = self.connect_timeout if timeout is None else timeout
         client = paho.Client(
             CallbackAPIVersion.VERSION2,
             client_id=client_id,
@@ -139,10 +158,29 @@ class MqttTransport:
         self._client = client
         client.connect_async(self.address.host, self.address.port, keepalive=self._keepalive)
         client.loop_start()
-        if not self._connected.wait(timeout) or self._refused:
-            why = self._refused or f"no CONNACK within {timeout:g} s"
+        if not self._wait_connected(timeout) or self._refused:
             self._shutdown()
-            raise ConnectionError(f"cannot connect to {self.address.url} as {client_id!r}: {why}")
+            if self._refused:
+                refused = f"the broker refused the login: {self._refused}"
+                raise ConnectionError(f"cannot connect to {self.address.url} as {client_id!r}: {refused}")
+            raise ConnectionError(
+                f"cannot reach the broker {self.address.url} as {client_id!r}: no answer within {timeout:g} s"
+            )
+
+    def _wait_connected(self, timeout: float) -> bool:
+        """Wait for the first CONNACK while paho retries with backoff; log a line every
+        ``CONNECT_LOG_INTERVAL`` seconds."""
+        started = time.monotonic()
+        deadline = started + timeout
+        while not self._connected.wait(min(CONNECT_LOG_INTERVAL, max(0.0, deadline - time.monotonic()))):
+            waited = time.monotonic() - started
+            if waited >= timeout:
+                return False
+            log.info(
+                "still trying to reach the broker %s (%.0f s of %g s; retrying with backoff)",
+                self.address.url, waited, timeout,
+            )  # fmt: skip
+        return True
 
     def publish(self, topic: str, payload: bytes, *, qos: int = 1, retain: bool = False) -> None:
         """Publish (QoS 1 by default); queued by paho while disconnected."""
@@ -230,6 +268,14 @@ class MqttTransport:
 
     def _on_message(self, client: paho.Client, userdata: Any, message: paho.MQTTMessage) -> None:
         self._queue.put(Received(message.topic, bytes(message.payload), retained=bool(message.retain)))
+
+
+def probe_broker(url: str, *, timeout: float, **options: Any) -> None:
+    """Connect to the broker at ``url`` and leave at once; ConnectionError (naming the broker) if it cannot be
+    reached within ``timeout`` s or refuses the login. ``options`` are :class:`MqttTransport`'s."""
+    transport = MqttTransport(url, connect_timeout=timeout, **options)
+    transport.connect(f"fleetrl-probe-{os.getpid()}-{time.monotonic_ns() % 10**6}")
+    transport.close()
 
 
 def _settled(info: paho.MQTTMessageInfo) -> bool:

@@ -9,7 +9,8 @@
   worker, named like its worker id, each with a random password;
 * ``acl`` — a worker may write only its own worker and status topics; only ``chief`` writes the chief topic;
 * ``fleet.key`` — 32 random bytes (hex) for HMAC-signed federation messages (``--fleet-key-file``);
-* ``credentials.json`` — every role's broker URL with its login (mode 0600: hand each role its own line).
+* ``passwords/<user>`` — each role's password (mode 0600, for ``--broker-password-file``): one per role;
+* ``credentials.json`` — every role's broker URL (user, no password) and password file.
 
 mosquitto started as root drops to the user ``mosquitto``, so the files it reads are made readable by that
 user's group and ``data/`` is given to it. See docs/security.md.
@@ -78,10 +79,20 @@ class SecureFleet:
         return self.directory / "ca.crt" if self.tls else None
 
     def url(self, user: str) -> str:
-        """The broker URL with ``user``'s login."""
+        """The broker URL with ``user``'s login, password included (in-process use only: a URL on a command
+        line is visible in ``ps``; roles get :meth:`login_url` and :meth:`password_file`)."""
         scheme = "mqtts" if self.tls else "mqtt"
         login = f"{quote(user, safe='')}:{quote(self.passwords[user], safe='')}"
         return f"{scheme}://{login}@{self.host}:{self.port}"
+
+    def login_url(self, user: str) -> str:
+        """The broker URL naming ``user``, without the password."""
+        scheme = "mqtts" if self.tls else "mqtt"
+        return f"{scheme}://{quote(user, safe='')}@{self.host}:{self.port}"
+
+    def password_file(self, user: str) -> Path:
+        """The file holding ``user``'s password (mode 0600; ``--broker-password-file``)."""
+        return self.directory / "passwords" / user
 
 
 def find_mosquitto_passwd() -> str:
@@ -147,8 +158,15 @@ def write_secure_config(
         key_file.write_bytes(FleetKey.generate().secret + b"\n")
     key_file.chmod(0o600)
     fleet = SecureFleet(out, host, port, self_signed_tls, passwords)
+    (out / "passwords").mkdir(mode=0o700, exist_ok=True)
+    for user in users:
+        secret = fleet.password_file(user)
+        secret.touch(mode=0o600)
+        secret.chmod(0o600)
+        secret.write_text(passwords[user] + "\n")
     creds = out / "credentials.json"
-    creds.write_text(json.dumps({user: fleet.url(user) for user in users}, indent=2) + "\n")
+    logins = {u: {"url": fleet.login_url(u), "password_file": str(fleet.password_file(u))} for u in users}
+    creds.write_text(json.dumps(logins, indent=2) + "\n")
     creds.chmod(0o600)
     _share_with_mosquitto(out, [out / "mosquitto.conf", passwd, out / "acl", *out.glob("server.*")], data)
     return fleet

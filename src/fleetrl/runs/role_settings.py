@@ -1,0 +1,143 @@
+"""The settings of the standalone roles ``fleetrl chief`` and ``fleetrl worker`` (docs/deploy.md): what both
+must agree on (:class:`RoleSettings`) and what each adds. Validated once, before any file, connection or
+process."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from fleetrl.federation.signing import FleetKey
+from fleetrl.federation.topics import validate_id
+from fleetrl.runs.setting_values import SettingError, check_readable_file, check_writable_dir, label
+from fleetrl.runs.settings import (
+    BrokerLogin,
+    LearningSettings,
+    RoundRules,
+    as_setting_error,
+    path_text,
+    positive,
+)
+
+CONNECT_TIMEOUT = 60.0
+"""default seconds a standalone role retries an unreachable broker before it gives up (exit 1)"""
+
+
+@dataclass(kw_only=True)
+class RoleSettings(LearningSettings, BrokerLogin):
+    """What the chief and every worker of a run must agree on, and how each reaches the broker."""
+
+    run_id: str
+    """the run's id (a topic level shared by all roles)"""
+    ca_file: Path | None = None
+    """CA certificate for ``mqtts://``"""
+    client_cert: Path | None = None
+    """client certificate for ``mqtts://`` (optional)"""
+    client_key: Path | None = None
+    """the client certificate's private key"""
+    fleet_key_file: Path | None = None
+    """sign and verify every federation message with this key (HMAC-SHA256; all roles share it)"""
+    connect_timeout: float = CONNECT_TIMEOUT
+    """seconds to keep retrying an unreachable broker, with backoff, before exiting 1"""
+
+    def validate_role(self) -> None:
+        """Learning settings, broker URL and login, run id, and every file the role will read."""
+        self.validate_learning()
+        if self.broker is None:
+            raise SettingError(f"missing setting: {label('broker')} (mqtt://[user@]host:port or mqtts://…)")
+        self.validate_broker()
+        as_setting_error("run_id", validate_id, self.run_id, "run id")
+        for name in ("ca_file", "client_cert", "client_key", "fleet_key_file"):
+            check_readable_file(name, getattr(self, name))
+        self.fleet_key()
+        positive("connect_timeout", self.connect_timeout)
+
+    def fleet_key(self) -> FleetKey | None:
+        """The fleet key, read from its file (None: messages are not signed)."""
+        if self.fleet_key_file is None:
+            return None
+        return as_setting_error("fleet_key_file", FleetKey.from_file, self.fleet_key_file)
+
+    def transport(self) -> Any:
+        """An unconnected MQTT transport to the broker (a persistent session under the role's client id)."""
+        from fleetrl.transport.mqtt import MqttTransport
+
+        assert self.broker is not None, "validate() requires a broker"
+        return MqttTransport(
+            self.broker,
+            ca_file=path_text(self.ca_file),
+            cert_file=path_text(self.client_cert),
+            key_file=path_text(self.client_key),
+            clean_session=False,
+            connect_timeout=self.connect_timeout,
+            password=self.broker_password,
+        )
+
+
+@dataclass(kw_only=True)
+class ChiefSettings(RoleSettings, RoundRules):
+    """``fleetrl chief``: serve one run as its chief (Algorithm 1)."""
+
+    workers: int
+    """N: the workers are ids 0 … N-1"""
+    out: Path | None = None
+    """write chief.json, chief.log and a checkpoint every round (checkpoints/chief/) here"""
+    resume: bool = False
+    """continue the run from the checkpoint in ``out`` (after a crash; same settings)"""
+    idle_timeout: float = 600.0
+    """give up (exit 1) after this many seconds without any worker message"""
+    dropout_grace: float = 3.0
+    """seconds a worker that went offline has to come back before it leaves W"""
+
+    def validate(self) -> None:
+        """Raise SettingError naming the first setting that cannot work; nothing is created."""
+        self.validate_role()
+        self.validate_rounds()
+        if self.workers < 1:
+            raise SettingError(f"{label('workers')} = {self.workers}: must be at least 1")
+        positive("idle_timeout", self.idle_timeout)
+        positive("dropout_grace", self.dropout_grace, allow_zero=True)
+        if self.out is None:
+            if self.resume:
+                raise SettingError(f"--resume needs {label('out')}: the directory holding the checkpoint")
+        else:
+            check_writable_dir("out", self.out)
+
+
+@dataclass(kw_only=True)
+class WorkerSettings(RoleSettings):
+    """``fleetrl worker``: serve as one worker of a run (Algorithm 2)."""
+
+    worker_id: int
+    """this worker's id (0 … N-1)"""
+    out: Path
+    """this worker's run directory (metrics, model, a checkpoint every round in checkpoints/)"""
+    unit: int | None = None
+    """device unit to train on (default: the worker id)"""
+    seed: int = 0
+    """the run's learning seed"""
+    fleet_seed: int = 0
+    """seed of the fleet's per-unit dynamics"""
+    resume: bool = False
+    """continue from the checkpoint in ``out`` at its round (after a crash; same settings)"""
+    reply_timeout: float = 600.0
+    """give up (exit 1) after this many seconds without the chief's answer"""
+    resend_interval: float = 5.0
+    """re-send the round's message after this many seconds without an answer"""
+
+    def validate(self) -> None:
+        """Raise SettingError naming the first setting that cannot work; nothing is created."""
+        self.validate_role()
+        if self.worker_id < 0 or (self.unit is not None and self.unit < 0):
+            raise SettingError(f"{label('worker_id')} and {label('unit')}: must be non-negative")
+        if self.seed < 0 or self.fleet_seed < 0:
+            raise SettingError(f"{label('seed')}, {label('fleet_seed')}: must be non-negative integers")
+        positive("reply_timeout", self.reply_timeout)
+        positive("resend_interval", self.resend_interval)
+        check_writable_dir("out", self.out)
+
+    @property
+    def device_unit(self) -> int:
+        """The unit this worker trains on."""
+        return self.worker_id if self.unit is None else self.unit
