@@ -8,13 +8,11 @@ from pathlib import Path
 import pytest
 from cli_helpers import Fleetrl, last_line
 
-from fleetrl.transport.broker import EmbeddedBroker, find_mosquitto
-
-needs_mosquitto = pytest.mark.skipif(find_mosquitto() is None, reason="mosquitto not installed")
+from fleetrl.transport.broker import EmbeddedBroker
 
 
 @pytest.mark.mqtt
-@needs_mosquitto
+@pytest.mark.mosquitto
 def test_a_chief_nobody_joins_gives_up_after_its_idle_timeout_with_one_line(
     tmp_path: Path, fleetrl: Fleetrl
 ) -> None:
@@ -31,7 +29,7 @@ def test_a_chief_nobody_joins_gives_up_after_its_idle_timeout_with_one_line(
 
 
 @pytest.mark.mqtt
-@needs_mosquitto
+@pytest.mark.mosquitto
 def test_a_worker_the_chief_never_answers_gives_up_after_its_reply_timeout_with_one_line(
     tmp_path: Path, fleetrl: Fleetrl
 ) -> None:

@@ -17,6 +17,8 @@ from pathlib import Path
 import pytest
 from cli_helpers import Fleetrl, last_line
 
+pytestmark = pytest.mark.slow  # `fleetrl` processes, tmpfs mounts
+
 SMALL = ["--env", "cartpole", "--preset", "standard", "--units", "1", "--mode", "individual", "--no-live"]
 
 

@@ -15,12 +15,12 @@ from pathlib import Path
 import pytest
 from cli_helpers import Fleetrl
 
-from fleetrl.transport.broker import EmbeddedBroker, find_mosquitto, free_port
+from fleetrl.transport.broker import EmbeddedBroker, free_port
 from fleetrl.transport.secure import find_mosquitto_passwd
 
 pytestmark = [
     pytest.mark.mqtt,
-    pytest.mark.skipif(find_mosquitto() is None, reason="mosquitto not installed"),
+    pytest.mark.mosquitto,
 ]
 PASSWORD = "s3cret-Pa55word"
 

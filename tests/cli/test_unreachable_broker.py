@@ -9,6 +9,8 @@ from cli_helpers import Fleetrl, last_line
 
 from fleetrl.cli.main import exit_code
 
+pytestmark = pytest.mark.slow  # `fleetrl` processes that retry for up to 10 s
+
 NOWHERE = "mqtt://127.0.0.1:1"  # nothing listens on port 1
 SMALL = ["--env", "cartpole", "--max-rounds", "2"]
 

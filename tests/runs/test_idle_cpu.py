@@ -18,14 +18,14 @@ import pytest
 
 from fleetrl.federation.topics import status_topic
 from fleetrl.link.wire import device_topic
-from fleetrl.transport.broker import EmbeddedBroker, find_mosquitto
+from fleetrl.transport.broker import EmbeddedBroker
 from fleetrl.transport.mqtt import MqttTransport
 
 pytestmark = [
     pytest.mark.slow,
     pytest.mark.mqtt,
     pytest.mark.timeout(120),
-    pytest.mark.skipif(find_mosquitto() is None, reason="mosquitto not installed"),
+    pytest.mark.mosquitto,
 ]
 MEASURE = 10.0
 """seconds of waiting measured"""
