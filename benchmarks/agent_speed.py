@@ -73,11 +73,7 @@ def main() -> int:
     parser.add_argument("--repeats", type=int, default=5)
     args = parser.parse_args()
     torch.set_num_threads(1)
-    mode = "portable (FLEETRL_PORTABLE=1)" if portable.enabled() else "default"
-    print(
-        f"# {portable.host_cpu()}, torch {torch.__version__} "
-        f"({torch.backends.cpu.get_cpu_capability()} kernels), mode {mode}"
-    )
+    print(f"# {portable.describe_host()}")
     act = statistics.median(act_and_remember(args.steps) for _ in range(args.repeats))
     print(f"act + remember: {act * 1e6:.1f} µs per step (median of {args.repeats})")
     for env_id in (CARTPOLE_UNIT_ID, QUBE_BALANCE_ID):

@@ -54,11 +54,7 @@ def main() -> int:
     parser.add_argument("--max-rounds", type=int, default=400)
     args = parser.parse_args()
     torch.set_num_threads(1)
-    mode = "portable" if portable.enabled() else "default"
-    print(
-        f"# preset {args.preset}, CartPoleUnit unit 0, {portable.host_cpu()}, torch {torch.__version__}, "
-        f"mode {mode}"
-    )
+    print(f"# preset {args.preset}, CartPoleUnit unit 0; {portable.describe_host()}")
     found: list[int] = []
     started = time.process_time()
     for seed in args.seeds:

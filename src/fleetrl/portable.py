@@ -99,3 +99,12 @@ def host_cpu() -> str:
         return model
     vector = "AVX-512" if "avx512f" in flags else "AVX2" if "avx2" in flags else "no AVX2"
     return f"{model}, {vector}, {cores} cores"
+
+
+def describe_host() -> str:
+    """One line for a figure's header: the CPU, torch and the kernels it runs, and the mode."""
+    import torch
+
+    mode = f"portable ({PORTABLE_ENV}=1)" if enabled() else "default"
+    kernels = torch.backends.cpu.get_cpu_capability()
+    return f"{host_cpu()}; torch {torch.__version__} ({kernels} kernels); mode {mode}"
