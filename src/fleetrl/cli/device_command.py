@@ -16,13 +16,18 @@ def register(subparsers: Any) -> None:
     p: argparse.ArgumentParser = subparsers.add_parser(
         "device", help="serve one simulated unit over MQTT (device bridge: lockstep or real time)"
     )
-    from fleetrl.cli.settings_args import add_broker_arguments, add_connect_timeout
+    from fleetrl.cli.settings_args import (
+        add_broker_arguments,
+        add_connect_timeout,
+        add_fleet_profile_argument,
+    )
 
     add_broker_arguments(p, "default: an embedded broker")
     p.add_argument("--run-id", default="default", help="run whose device topics to serve (default: default)")
     p.add_argument("--unit", type=int, required=True, help="index of the unit in the fleet")
     p.add_argument("--env", default="qube", choices=("qube", "cartpole"), help="unit type (default qube)")
     p.add_argument("--fleet-seed", type=int, default=0, help="seed of the fleet's per-unit dynamics")
+    add_fleet_profile_argument(p)
     p.add_argument("--realtime", action="store_true", help="fixed control period, last command held")
     p.add_argument(
         "--period-ms", type=float, default=None, help="control period in ms (qube only; default 6)"
@@ -54,7 +59,14 @@ def cmd_device(args: argparse.Namespace) -> int:
     if args.realtime and args.rt_priority > 0:
         request_realtime_priority(args.rt_priority)
     period = None if args.period_ms is None else args.period_ms / 1e3
-    driver = simulated_driver(args.env, args.unit, args.fleet_seed, period=period, realtime=args.realtime)
+    driver = simulated_driver(
+        args.env,
+        args.unit,
+        args.fleet_seed,
+        fleet_profile=args.fleet_profile,
+        period=period,
+        realtime=args.realtime,
+    )
     broker = None
     url = args.broker
     if url is None:

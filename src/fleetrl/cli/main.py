@@ -15,6 +15,7 @@ from fleetrl.cli import device_command, roles
 from fleetrl.cli.settings_args import (
     add_broker_arguments,
     add_config_argument,
+    add_fleet_profile_argument,
     add_learning_arguments,
     add_round_arguments,
     settings_from_args,
@@ -61,6 +62,7 @@ def build_parser() -> argparse.ArgumentParser:
     evaluate.add_argument("--env", default="qube")
     evaluate.add_argument("--unit", type=int, default=0)
     evaluate.add_argument("--fleet-seed", type=int, default=0)
+    add_fleet_profile_argument(evaluate)
     evaluate.add_argument("--episodes", type=int, default=10)
     evaluate.add_argument("--seed", type=int, default=0)
     evaluate.set_defaults(handler=cmd_evaluate)
@@ -70,6 +72,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     homogeneity.add_argument("--units", type=int, default=3)
     homogeneity.add_argument("--fleet-seed", type=int, default=0)
+    add_fleet_profile_argument(homogeneity)
     homogeneity.add_argument("--impulses", type=int, default=100)
     homogeneity.add_argument("--seed", type=int, default=0, help="seed of the impulse directions")
     homogeneity.add_argument("--out", type=Path, default=None, help="directory for the CSV matrices")
@@ -145,7 +148,9 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
     """``fleetrl evaluate``."""
     from fleetrl.runs.evaluate import evaluate_model
 
-    scores = evaluate_model(args.model, args.env, args.unit, args.fleet_seed, args.episodes, args.seed)
+    scores = evaluate_model(
+        args.model, args.env, args.unit, args.fleet_seed, args.episodes, args.seed, args.fleet_profile
+    )
     mean = sum(scores) / len(scores)
     print(
         json.dumps(
@@ -166,7 +171,10 @@ def cmd_homogeneity(args: argparse.Namespace) -> int:
     """``fleetrl homogeneity``."""
     from fleetrl.runs.homogeneity_report import homogeneity_report
 
-    print(homogeneity_report(args.units, args.fleet_seed, args.impulses, args.seed, args.out))
+    report = homogeneity_report(
+        args.units, args.fleet_seed, args.impulses, args.seed, args.out, args.fleet_profile
+    )
+    print(report)
     return 0
 
 

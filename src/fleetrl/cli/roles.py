@@ -260,6 +260,7 @@ def cmd_worker(args: argparse.Namespace) -> int:
         settings.max_rounds,
         str(settings.out),
         settings.overrides,
+        fleet_profile=settings.fleet_profile,
         scheme=settings.scheme,
     )
     config = worker_config(settings)

@@ -35,6 +35,7 @@ def add_config_argument(p: argparse.ArgumentParser) -> None:
 def add_learning_arguments(p: argparse.ArgumentParser) -> None:
     """The learning options of ``train``, ``chief`` and ``worker`` (defaults: fleetrl.runs.settings)."""
     p.add_argument("--env", default=None, help="qube (QUBE-Servo 2 balance; default) or cartpole")
+    add_fleet_profile_argument(p)
     p.add_argument("--preset", default=None, help="PPO preset: paper (Table 1; default) or standard")
     p.add_argument(
         "--max-rounds", type=int, default=None, help="the paper's M: most rounds per worker (1000)"
@@ -51,6 +52,16 @@ def add_learning_arguments(p: argparse.ArgumentParser) -> None:
         default=None,
         metavar="KEY=VALUE",
         help="override one PPO setting of the preset, e.g. --set clip_eps=0.2 (repeatable; all roles agree)",
+    )
+
+
+def add_fleet_profile_argument(p: argparse.ArgumentParser) -> None:
+    """``--fleet-profile``: which per-unit variation the simulated QUBE fleet is drawn with."""
+    p.add_argument(
+        "--fleet-profile",
+        default=None,
+        metavar="NAME",
+        help="QUBE fleet profile: table2 (default; fitted to the paper's Table 2) or v1 (the first fleet)",
     )
 
 

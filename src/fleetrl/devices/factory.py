@@ -10,17 +10,24 @@ DEVICE_TYPES = ("qube", "cartpole")
 
 
 def make_device(
-    unit_type: str, unit: int = 0, fleet_seed: int = 0, **config: object
+    unit_type: str,
+    unit: int = 0,
+    fleet_seed: int = 0,
+    *,
+    fleet_profile: str | None = None,
+    **config: object,
 ) -> QubeDevice | CartPoleDevice:
     """Unit ``unit`` of fleet ``fleet_seed`` of type ``qube`` or ``cartpole``.
 
-    ``config`` holds ``QubeConfig`` fields for a QUBE (a CartPole takes none).
+    ``fleet_profile`` names a QUBE fleet profile (None: the default); ``config`` holds ``QubeConfig`` fields
+    for a QUBE. A CartPole takes neither.
     """
     unit, fleet_seed = check_unit(unit, fleet_seed)
     if unit_type == "qube":
-        return QubeDevice.from_fleet(unit, fleet_seed, qube_config(**config))
+        return QubeDevice.from_fleet(unit, fleet_seed, qube_config(**config), profile=fleet_profile)
     if unit_type == "cartpole":
-        if config:
-            raise ValueError(f"a cartpole unit takes no options, got {sorted(config)}")
+        if config or fleet_profile is not None:
+            given = sorted(config) + (["fleet_profile"] if fleet_profile is not None else [])
+            raise ValueError(f"a cartpole unit takes no options, got {given}")
         return CartPoleDevice.from_fleet(unit, fleet_seed)
     raise ValueError(f"unknown unit type {unit_type!r} (choose {' or '.join(DEVICE_TYPES)})")

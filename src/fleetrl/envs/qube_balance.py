@@ -35,8 +35,8 @@ class QubeBalanceEnv(LinkEnv):
 
     :param unit: index of the unit in the fleet (non-negative)
     :param fleet_seed: seed of the fleet; (fleet_seed, unit) fixes the unit's parameters
-    :param fleet_profile: the fleet profile the in-process unit is drawn with (``v1``, the default, or
-        ``table2``; see ``fleetrl.devices.qube.fleet_profiles``)
+    :param fleet_profile: the fleet profile the in-process unit is drawn with (``table2``, the default, or
+        ``v1``; see ``fleetrl.devices.qube.fleet_profiles``)
     :param link: reach the device through this link instead of simulating it in-process
     :param render_mode: None, or ``rgb_array`` for :meth:`render` frames
     :param options: ``QubeConfig`` fields for the in-process simulation, e.g. ``control_period=0.006``,

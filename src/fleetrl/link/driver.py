@@ -166,10 +166,17 @@ class SimulatedDriver:
 
 
 def simulated_driver(
-    env: str, unit: int, fleet_seed: int = 0, *, period: float | None = None, realtime: bool = False
+    env: str,
+    unit: int,
+    fleet_seed: int = 0,
+    *,
+    fleet_profile: str | None = None,
+    period: float | None = None,
+    realtime: bool = False,
 ) -> SimulatedDriver:
     """A driver over unit ``unit`` of fleet ``fleet_seed`` of type ``env`` (``qube`` or ``cartpole``).
 
+    :param fleet_profile: the QUBE fleet profile (None: the default; a CartPole fleet has none)
     :param period: control period in seconds (QUBE only; default the device's 6 ms; CartPole's is 20 ms)
     :param realtime: pace by the wall clock (see ``SimulatedDriver``)
     """
@@ -182,4 +189,5 @@ def simulated_driver(
         if env != "qube":
             raise ValueError(f"a {env} unit has a fixed control period; --period-ms applies to qube only")
         options["control_period"] = period
-    return SimulatedDriver(make_device(env, unit, fleet_seed, **options), realtime=realtime)
+    device = make_device(env, unit, fleet_seed, fleet_profile=fleet_profile, **options)
+    return SimulatedDriver(device, realtime=realtime)

@@ -47,6 +47,7 @@ def start_bridges(
     units: Iterable[int],
     fleet_seed: int = 0,
     *,
+    fleet_profile: str | None = None,
     realtime: bool = False,
     period: float | None = None,
     watchdog: float = WATCHDOG_SECONDS,
@@ -60,6 +61,7 @@ def start_bridges(
     :param env: ``qube`` or ``cartpole``
     :param units: unit indices
     :param fleet_seed: seed of the fleet's per-unit dynamics (must match the workers' envs)
+    :param fleet_profile: the QUBE fleet profile (None: the default; must match the workers' envs)
     :param realtime: real-time mode instead of lockstep
     :param period: control period in seconds (QUBE only; default 6 ms)
     :param watchdog: seconds without a command before a bridge switches its motor off
@@ -69,7 +71,9 @@ def start_bridges(
     bridges: list[DeviceBridge] = []
     try:
         for unit in units:
-            driver = simulated_driver(env, unit, fleet_seed, period=period, realtime=realtime)
+            driver = simulated_driver(
+                env, unit, fleet_seed, fleet_profile=fleet_profile, period=period, realtime=realtime
+            )
             bridge = DeviceBridge(
                 MqttTransport(url), driver, run_id, unit, realtime=realtime, watchdog=watchdog
             )

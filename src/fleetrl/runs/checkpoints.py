@@ -146,6 +146,7 @@ def _identity(spec: WorkerSpec, run_id: str) -> dict[str, Any]:
         "preset": spec.preset,
         "seed": spec.seed,
         "fleet_seed": spec.fleet_seed,
+        "fleet_profile": spec.fleet_profile,
         "max_rounds": spec.max_rounds,
         "overrides": json.loads(json.dumps(spec.overrides, sort_keys=True)),  # as the JSON record has it
     }

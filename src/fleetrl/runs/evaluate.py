@@ -10,9 +10,16 @@ from fleetrl.envs.catalog import get_env_spec
 
 
 def evaluate_model(
-    model: Path, env: str, unit: int, fleet_seed: int, episodes: int, seed: int = 0
+    model: Path,
+    env: str,
+    unit: int,
+    fleet_seed: int,
+    episodes: int,
+    seed: int = 0,
+    fleet_profile: str | None = None,
 ) -> list[float]:
-    """Scores of ``episodes`` greedy episodes of the saved policy on ``unit``.
+    """Scores of ``episodes`` greedy episodes of the saved policy on ``unit`` (of fleet ``fleet_seed`` drawn
+    with ``fleet_profile``; None: the env's default).
 
     :raises FileNotFoundError: no such model file
     :raises ValueError: the file is not a fleetrl model, or it was made for another env's shapes
@@ -24,7 +31,8 @@ def evaluate_model(
     torch.set_num_threads(1)
     spec = get_env_spec(env)
     agent = PPOAgent.load(model)
-    gym_env = gymnasium.make(spec.gym_id, unit=unit, fleet_seed=fleet_seed)
+    fleet = spec.make_kwargs(fleet_profile)
+    gym_env = gymnasium.make(spec.gym_id, unit=unit, fleet_seed=fleet_seed, **fleet)
     obs_shape = gym_env.observation_space.shape
     n_actions = int(gym_env.action_space.n)  # type: ignore[attr-defined]
     if (agent.obs_dim, agent.n_actions) != (obs_shape[0] if obs_shape else -1, n_actions):

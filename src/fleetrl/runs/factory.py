@@ -25,8 +25,9 @@ def make_learner(spec: WorkerSpec) -> Learner:
     env_spec = get_env_spec(spec.env)
     config = dataclasses.replace(get_preset(spec.preset), **spec.overrides)
     if spec.device_url is None:
-        env = gymnasium.make(env_spec.gym_id, unit=spec.unit, fleet_seed=spec.fleet_seed)
-    else:
+        fleet = env_spec.make_kwargs(spec.fleet_profile)
+        env = gymnasium.make(env_spec.gym_id, unit=spec.unit, fleet_seed=spec.fleet_seed, **fleet)
+    else:  # the device bridge draws the unit (with the same fleet profile)
         link = open_mqtt_link(spec.device_url, spec.device_run_id, spec.unit)
         env = gymnasium.make(env_spec.gym_id, unit=spec.unit, fleet_seed=spec.fleet_seed, link=link)
     obs_dim = int(env.observation_space.shape[0])  # type: ignore[index]

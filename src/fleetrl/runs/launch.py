@@ -72,6 +72,7 @@ def worker_specs(settings: RunSettings, device_url: str | None, run_id: str) -> 
             preset=settings.preset,
             seed=settings.seed,
             fleet_seed=settings.fleet_seed,
+            fleet_profile=settings.fleet_profile,
             max_rounds=settings.max_rounds,
             out=str(settings.out),
             overrides=dict(settings.overrides),
@@ -152,7 +153,9 @@ def device_bridges(settings: RunSettings, url: str | None, run_id: str) -> Itera
     from fleetrl.link.fleet import start_bridges
 
     assert url is not None, "a device link over MQTT needs a broker"
-    with start_bridges(url, run_id, settings.env, range(settings.units), settings.fleet_seed):
+    units = range(settings.units)
+    profile = settings.fleet_profile
+    with start_bridges(url, run_id, settings.env, units, settings.fleet_seed, fleet_profile=profile):
         yield
 
 

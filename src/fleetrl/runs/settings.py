@@ -70,6 +70,9 @@ class LearningSettings:
 
     env: str = "qube"
     """``qube`` (QUBE-Servo 2 balance) or ``cartpole``"""
+    fleet_profile: str | None = None
+    """the simulated fleet's profile (QUBE: ``table2``, the default, or ``v1``, the fleet before the
+    calibration; CartPole has one fleet); validation fills in the default's name"""
     preset: str = "paper"
     """PPO preset: ``paper`` (Table 1) or ``standard``"""
     max_rounds: int = 1000
@@ -81,7 +84,8 @@ class LearningSettings:
 
     def validate_learning(self) -> None:
         """Env, preset, scheme, M and every PPO override (name, type, range)."""
-        as_setting_error("env", get_env_spec, self.env)
+        env = as_setting_error("env", get_env_spec, self.env)
+        self.fleet_profile = as_setting_error("fleet_profile", env.resolve_fleet_profile, self.fleet_profile)
         as_setting_error("preset", get_preset, self.preset)
         as_setting_error("scheme", get_scheme, self.scheme)
         if self.max_rounds < 1:

@@ -33,6 +33,8 @@ class WorkerSpec:
     """broker of the unit's device bridge; None: the device is simulated in-process"""
     device_run_id: str = "default"
     """run id under which the device bridge serves the unit's topics"""
+    fleet_profile: str | None = None
+    """the simulated fleet's profile (QUBE; None: the default or a unit type with one fleet)"""
     scheme: str = "paper"
     """federated mode: the federation scheme (``paper`` or ``fedavg``, :mod:`fleetrl.federation.schemes`)"""
 

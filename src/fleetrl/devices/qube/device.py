@@ -83,7 +83,7 @@ class QubeDevice:
         """Unit ``unit`` of the fleet ``fleet_seed`` (parameters drawn deterministically).
 
         :param variation: draw with this variation instead of a named profile's
-        :param profile: the fleet profile (``fleet_profiles``); None: the default, ``v1``
+        :param profile: the fleet profile (``fleet_profiles``); None: the default, ``table2``
         """
         if variation is not None and profile is not None:
             raise ValueError("give a fleet profile or a variation, not both")
