@@ -34,7 +34,9 @@ def test_lockstep_over_mqtt_gives_the_in_process_trajectory(broker: EmbeddedBrok
         start_bridges(broker.url, run_id, "cartpole", [5], fleet_seed=4),
     ):
         for unit, env_cls in [(0, QubeBalanceEnv), (1, QubeBalanceEnv), (5, CartPoleUnitEnv)]:
-            over_mqtt = env_cls(unit, 4, link=open_mqtt_link(broker.url, run_id, unit))
+            # the trajectory is under test, not the latency: a loaded machine gets 10 s per step
+            link = open_mqtt_link(broker.url, run_id, unit, step_timeout=10.0)
+            over_mqtt = env_cls(unit, 4, link=link)
             in_process = env_cls(unit, 4)
             expected = run_episodes(in_process, 2, 200, seed=unit)
             assert_same(run_episodes(over_mqtt, 2, 200, seed=unit), expected)

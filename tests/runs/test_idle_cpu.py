@@ -2,7 +2,8 @@
 
 Each role runs as its own process (``python -m fleetrl.cli.main ROLE``, no wrapper); the test waits until the
 role announced itself on the broker (it is then waiting), then reads the role process's own CPU time (utime +
-stime in /proc/<pid>/stat) over MEASURE seconds.
+stime in /proc/<pid>/stat) over MEASURE seconds. All roles wait side by side and are measured over the same
+window (one wait for the whole module instead of one per role).
 """
 
 from __future__ import annotations
@@ -12,6 +13,7 @@ import subprocess
 import sys
 import time
 from collections.abc import Callable, Iterator
+from dataclasses import dataclass
 from pathlib import Path
 
 import pytest
@@ -38,13 +40,6 @@ def cpu_seconds(pid: int) -> float:
     """User + system CPU seconds of process ``pid`` so far (its threads included, its children not)."""
     fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
     return (int(fields[11]) + int(fields[12])) / CLOCK_TICKS  # fields 14 and 15 of proc(5)
-
-
-def cpu_share(pids: list[int], seconds: float = MEASURE) -> float:
-    """The share of one core the processes used together over the next ``seconds``."""
-    before, started = sum(cpu_seconds(p) for p in pids), time.monotonic()
-    time.sleep(seconds)
-    return (sum(cpu_seconds(p) for p in pids) - before) / (time.monotonic() - started)
 
 
 @pytest.fixture(scope="module")
@@ -77,20 +72,17 @@ def wait_for_retained(url: str, topic: str, role: subprocess.Popen[str], timeout
         probe.close()
 
 
-def measure(
-    role: subprocess.Popen[str], ready: Callable[[], None], name: str, children: bool = False
-) -> float:
-    try:
-        ready()
-        time.sleep(1.5)  # past the chief's 1 s round deadline, into plain waiting
-        pids = [role.pid, *(_children(role.pid) if children else [])]
-        share = cpu_share(pids)
-        assert role.poll() is None, "the role stopped while it was measured"
-    finally:
-        role.terminate()
-        role.wait(30)
-    print(f"idle CPU of {name}: {100 * share:.2f} % of a core over {MEASURE:g} s")
-    return share
+@dataclass
+class Role:
+    """One long-running role under measurement: its process and how to tell it is up and waiting."""
+
+    name: str
+    process: subprocess.Popen[str]
+    ready: Callable[[], None]
+    children: bool = False
+
+    def pids(self) -> list[int]:
+        return [self.process.pid, *(_children(self.process.pid) if self.children else [])]
 
 
 def _children(pid: int) -> list[int]:
@@ -98,44 +90,103 @@ def _children(pid: int) -> list[int]:
     return [int(p) for p in found]
 
 
-def test_a_chief_waiting_for_workers_after_its_round_deadline_is_idle(broker: EmbeddedBroker) -> None:
-    role = start_role(
-        "chief", "--broker", broker.url, "--run-id", "idle-chief", "--workers", "2", "--env", "cartpole",
-        "--round-timeout", "1", "--idle-timeout", "100",
-    )  # fmt: skip
-    ready = lambda: wait_for_retained(broker.url, status_topic("idle-chief", "chief"), role)  # noqa: E731
-    assert measure(role, ready, "chief (waiting for workers, round deadline passed)") <= MAX_SHARE
-
-
-def test_a_worker_waiting_for_the_chief_is_idle(broker: EmbeddedBroker, tmp_path: Path) -> None:
-    role = start_role(
-        "worker", "--broker", broker.url, "--run-id", "idle-worker", "--worker-id", "0", "--env", "cartpole",
-        "--out", str(tmp_path / "w0"), "--reply-timeout", "100",
-    )  # fmt: skip
-    ready = lambda: wait_for_retained(broker.url, status_topic("idle-worker", "0"), role)  # noqa: E731
-    assert measure(role, ready, "worker (waiting for the chief's welcome)") <= MAX_SHARE
-
-
-def test_a_device_bridge_in_lockstep_waiting_for_commands_is_idle(broker: EmbeddedBroker) -> None:
-    role = start_role(
-        "device", "--broker", broker.url, "--run-id", "idle-dev", "--unit", "0", "--env", "cartpole"
-    )
-    ready = lambda: wait_for_retained(broker.url, device_topic("idle-dev", 0, "status"), role)  # noqa: E731
-    assert measure(role, ready, "device bridge (lockstep, no commands)") <= MAX_SHARE
-
-
-@pytest.mark.parametrize("prefer", ["mosquitto", "amqtt"])
-def test_fleetrl_broker_with_nobody_connected_is_idle(prefer: str) -> None:
-    role = start_role("broker", "--prefer", prefer)
-
+def _broker_line(role: subprocess.Popen[str]) -> Callable[[], None]:
     def ready() -> None:
         assert role.stdout is not None
         line = role.stdout.readline()
         assert "broker listening" in line, line
 
-    name = (
-        f"fleetrl broker --prefer {prefer} (with its mosquitto child)"
-        if prefer == "mosquitto"
-        else ("fleetrl broker --prefer amqtt (in-process broker)")
+    return ready
+
+
+def _roles(broker: EmbeddedBroker, tmp: Path) -> list[Role]:
+    chief = start_role(
+        "chief", "--broker", broker.url, "--run-id", "idle-chief", "--workers", "2", "--env", "cartpole",
+        "--round-timeout", "1", "--idle-timeout", "100",
+    )  # fmt: skip
+    worker = start_role(
+        "worker", "--broker", broker.url, "--run-id", "idle-worker", "--worker-id", "0", "--env", "cartpole",
+        "--out", str(tmp / "w0"), "--reply-timeout", "100",
+    )  # fmt: skip
+    device = start_role(
+        "device", "--broker", broker.url, "--run-id", "idle-dev", "--unit", "0", "--env", "cartpole"
     )
-    assert measure(role, ready, name, children=prefer == "mosquitto") <= MAX_SHARE
+    roles = [
+        Role(
+            "chief (waiting for workers, round deadline passed)",
+            chief,
+            lambda: wait_for_retained(broker.url, status_topic("idle-chief", "chief"), chief),
+        ),
+        Role(
+            "worker (waiting for the chief's welcome)",
+            worker,
+            lambda: wait_for_retained(broker.url, status_topic("idle-worker", "0"), worker),
+        ),
+        Role(
+            "device bridge (lockstep, no commands)",
+            device,
+            lambda: wait_for_retained(broker.url, device_topic("idle-dev", 0, "status"), device),
+        ),
+    ]
+    for prefer in ("mosquitto", "amqtt"):
+        process = start_role("broker", "--prefer", prefer)
+        name = (
+            "fleetrl broker --prefer mosquitto (with its mosquitto child)"
+            if prefer == "mosquitto"
+            else "fleetrl broker --prefer amqtt (in-process broker)"
+        )
+        roles.append(Role(name, process, _broker_line(process), children=prefer == "mosquitto"))
+    return roles
+
+
+@pytest.fixture(scope="module")
+def idle_shares(
+    broker: EmbeddedBroker, tmp_path_factory: pytest.TempPathFactory
+) -> Iterator[dict[str, float]]:
+    """Every role started at once and measured over the same window (each process's own CPU time, so the
+    roles do not count against each other): role name → share of a core."""
+    roles = _roles(broker, tmp_path_factory.mktemp("idle"))
+    try:
+        for role in roles:
+            role.ready()
+        time.sleep(1.5)  # past the chief's 1 s round deadline, into plain waiting
+        pids = {role.name: role.pids() for role in roles}
+        before = {name: sum(cpu_seconds(p) for p in ps) for name, ps in pids.items()}
+        started = time.monotonic()
+        time.sleep(MEASURE)
+        elapsed = time.monotonic() - started
+        shares = {
+            name: (sum(cpu_seconds(p) for p in ps) - before[name]) / elapsed for name, ps in pids.items()
+        }
+        for role in roles:
+            assert role.process.poll() is None, f"{role.name} stopped while it was measured"
+    finally:
+        for role in roles:
+            role.process.terminate()
+        for role in roles:
+            role.process.wait(30)
+    for name, share in shares.items():
+        print(f"idle CPU of {name}: {100 * share:.2f} % of a core over {MEASURE:g} s")
+    yield shares
+
+
+def _share(shares: dict[str, float], starts: str) -> float:
+    (share,) = [value for name, value in shares.items() if name.startswith(starts)]
+    return share
+
+
+def test_a_chief_waiting_for_workers_after_its_round_deadline_is_idle(idle_shares: dict[str, float]) -> None:
+    assert _share(idle_shares, "chief") <= MAX_SHARE
+
+
+def test_a_worker_waiting_for_the_chief_is_idle(idle_shares: dict[str, float]) -> None:
+    assert _share(idle_shares, "worker") <= MAX_SHARE
+
+
+def test_a_device_bridge_in_lockstep_waiting_for_commands_is_idle(idle_shares: dict[str, float]) -> None:
+    assert _share(idle_shares, "device bridge") <= MAX_SHARE
+
+
+@pytest.mark.parametrize("prefer", ["mosquitto", "amqtt"])
+def test_fleetrl_broker_with_nobody_connected_is_idle(idle_shares: dict[str, float], prefer: str) -> None:
+    assert _share(idle_shares, f"fleetrl broker --prefer {prefer}") <= MAX_SHARE
