@@ -72,7 +72,7 @@ def test_the_roles_read_the_same_file(tmp_path: Path) -> None:
         ("quorum = 'high'\n", "--quorum = 'high': expected a number in "),
         ("unit = 3\n", "unknown setting(s) unit (known: "),
         ("units = 2.5\n", "--units = 2.5: expected an integer in "),
-        ("live = 'no'\n", "--live = 'no': expected true or false in "),
+        ("live = 'no'\n", "live (flag --no-live) = 'no': expected true or false in "),
         ("[overrides]\nclip_eps = 'x'\n", "--set clip_eps = 'x': expected a number"),
         ("env = \n", "not valid TOML"),
     ],

@@ -32,14 +32,19 @@ class SettingError(ValueError):
     """A setting with a value that cannot work: printed as one line, nothing was started (exit code 2)."""
 
 
+NEGATED_FLAGS = {"live": "--no-live"}
+"""settings whose flag switches them off (the key ``live = false``, the flag ``--no-live``)"""
+
+
 def flag(name: str) -> str:
     """The command-line flag of setting ``name`` (``round_timeout`` → ``--round-timeout``)."""
-    return "--" + name.replace("_", "-")
+    return NEGATED_FLAGS.get(name, "--" + name.replace("_", "-"))
 
 
 def label(name: str) -> str:
-    """How an error names a setting: its flag (the config-file key is its name with ``_`` for ``-``)."""
-    return flag(name)
+    """How an error names a setting: its flag (the config-file key is its name with ``_`` for ``-``), or for a
+    setting whose flag switches it off, its key and that flag."""
+    return f"{name} (flag {NEGATED_FLAGS[name]})" if name in NEGATED_FLAGS else flag(name)
 
 
 def describe(kind: Any) -> str:
