@@ -37,8 +37,9 @@ lock:
 demo: install
 	$(VENV)/bin/fleetrl demo
 
+# Two test processes per two cores (pytest-xdist): the suite is mostly child processes and brokers waiting.
 test: install
-	$(PY) -m pytest -q
+	$(PY) -m pytest -q -n 2
 
 # The edit-run loop: unit tests only (no broker, no training), well under a minute.
 test-fast: install
