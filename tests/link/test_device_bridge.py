@@ -160,7 +160,7 @@ def test_protective_stop_when_the_arm_passes_its_limit(bus: LocalBus, bridge: De
         if extras:
             break
     assert extras == {"protective_stop": 1.0} and abs(obs[2]) > np.pi / 2
-    assert isinstance(bridge.driver, SimulatedDriver) and bridge.driver.volts == 0.0
+    assert isinstance(bridge.driver, SimulatedDriver) and not bridge.driver.command.any()
     with pytest.raises(DeviceLinkError, match="protective stop"):
         link.step(2)
     link.reset(6)
@@ -182,12 +182,12 @@ def test_realtime_bridge_paces_steps_and_its_watchdog_stops_a_dead_worker(bus: L
             elapsed > 30 * 0.006 * 0.8
         )  # paced by the 6 ms period, never faster (slower under load is fine)
         driver = bridge.driver
-        assert isinstance(driver, SimulatedDriver) and bridge.motor_on and driver.volts != 0.0
+        assert isinstance(driver, SimulatedDriver) and bridge.motor_on and driver.command.any()
         died = time.perf_counter()
         worker.abort()  # the worker dies without a goodbye
         while bridge.motor_on and time.perf_counter() - died < 1.0:
             time.sleep(0.001)
-        assert not bridge.motor_on and driver.volts == 0.0
+        assert not bridge.motor_on and not driver.command.any()
         assert time.perf_counter() - died < 0.05 + 0.5  # the watchdog's doing (precise figures: benchmarks)
         assert bridge.stats.watchdog_trips == 1
     finally:

@@ -8,11 +8,15 @@ its last will), and keeps the unit safe on its own:
 * **protective stop**: when the arm (cart) passes its limit the motor is switched off and steps are refused
   until the next reset.
 
-Two modes. *Lockstep* (simulation): each step command applies its voltage for one control period and
+A step command carries a discrete action index; the bridge turns it into the driver's actuator command
+vector (``DriverSpec.command_of``: QUBE ``[volts]``, CartPole ``[force fraction]``), so the driver never sees
+an index.
+
+Two modes. *Lockstep* (simulation): each step command applies its command for one control period and
 answers with the observation at its end — exactly what an in-process step does. *Real time* (as on the rig):
-a loop ticks every control period on the driver's clock; at each tick it reads the encoders, answers the
-command that arrived since the last tick with that reading, then applies the command's voltage, which the
-motor holds until the next command (the rig's answer-before-acting order: one period of actuation delay).
+a loop ticks every control period on the driver's clock; at each tick it reads the sensors, answers the
+command that arrived since the last tick with that reading, then applies the command, which the motor
+holds until the next command (the rig's answer-before-acting order: one period of actuation delay).
 
 The bridge runs in one thread (``serve``); ``start`` runs it in a daemon thread.
 """
@@ -118,12 +122,13 @@ class DeviceBridge:
         self.status_topic = device_topic(run_id, unit, "status")
         self.stats = BridgeStats()
         self.tick_times: collections.deque[float] = collections.deque(maxlen=TICK_HISTORY)
-        """driver-clock times at which real-time ticks read the encoders"""
+        """driver-clock times at which real-time ticks read the sensors"""
         self.motor_on = False
-        """whether a command's voltage is being held (the watchdog's concern)"""
+        """whether a command is being held (the watchdog's concern)"""
         self.stopped = False
         """protective stop in force (cleared by a reset)"""
         self._spec = driver.spec
+        self._commands = [driver.spec.command_of(action) for action in range(driver.spec.n_actions)]
         self._session = -1
         self._last_seq = -1
         self._last_command = time.monotonic()
@@ -163,7 +168,7 @@ class DeviceBridge:
             else:
                 self._serve_lockstep()
         finally:
-            self.driver.write_voltage(0.0)
+            self.driver.motor_off()
             self.motor_on = False
 
     def start(self) -> DeviceBridge:
@@ -229,7 +234,7 @@ class DeviceBridge:
     def _tick(self) -> None:
         driver = self.driver
         self.tick_times.append(driver.time())
-        obs = driver.read_encoders()
+        obs = driver.read_sensors()
         self._check_limit(obs)
         self._check_watchdog()
         command, self._pending = self._pending, None
@@ -239,8 +244,7 @@ class DeviceBridge:
             self._refuse(command, "protective stop in force: the arm passed its limit; reset first")
             return
         self._answer(command, obs)
-        driver.write_voltage(self._spec.action_volts[command.action])
-        self.motor_on = True
+        self._actuate(command)
 
     def _run_lockstep(self, command: Command) -> None:
         driver = self.driver
@@ -250,14 +254,18 @@ class DeviceBridge:
         if self.stopped:
             self._refuse(command, "protective stop in force: the arm passed its limit; reset first")
             return
-        driver.write_voltage(self._spec.action_volts[command.action])
-        self.motor_on = True
+        self._actuate(command)
         driver.wait_until(driver.time() + self._spec.control_period)
-        obs = driver.read_encoders()
+        obs = driver.read_sensors()
         self._check_limit(obs)
         self._answer(command, obs)
 
     # -- commands, answers, safety ---------------------------------------------------------------------
+
+    def _actuate(self, command: Command) -> None:
+        """Hold the actuator command vector of ``command``'s action index (validated on decoding)."""
+        self.driver.write_command(self._commands[command.action])
+        self.motor_on = True
 
     def _accept(self, message: Received) -> Command | None:
         """The command in ``message`` if it is valid and fresh; otherwise log why and (if possible) answer."""
@@ -306,7 +314,7 @@ class DeviceBridge:
     def _check_limit(self, obs: np.ndarray) -> None:
         value = abs(float(obs[self._spec.limit_index]))
         if not self.stopped and value > self._spec.limit:
-            self.driver.write_voltage(0.0)
+            self.driver.motor_off()
             self.motor_on = False
             self.stopped = True
             self.stats.protective_stops += 1
@@ -320,7 +328,7 @@ class DeviceBridge:
 
     def _check_watchdog(self) -> None:
         if self.motor_on and time.monotonic() - self._last_command > self.watchdog:
-            self.driver.write_voltage(0.0)
+            self.driver.motor_off()
             self.motor_on = False
             self._flags |= FLAG_WATCHDOG
             self.stats.watchdog_trips += 1

@@ -1,13 +1,20 @@
-"""The hardware seam of the device bridge: ``DeviceDriver`` (read encoders, write voltage, time), with the
-simulated units as one implementation.
+"""The hardware seam of the device bridge: ``DeviceDriver`` (read the sensors, write an actuator command
+vector, time), with the simulated units as one implementation and the QUBE-Servo 2 over SPI
+(``fleetrl.link.qube_spi``) as another.
 
-The bridge (``fleetrl.link.bridge``) knows only this interface, so a driver for a physical QUBE-Servo 2
-(SPI from a Raspberry Pi, or Quanser's HIL API; see docs/hardware.md) replaces ``SimulatedDriver`` without
-touching the bridge. One agent step on the bridge is::
+The bridge (``fleetrl.link.bridge``) knows only this interface. A driver declares in its ``DriverSpec`` the
+actuator command it takes (``command_size`` floats of ``command_dtype``, each inside its
+``command_low``/``command_high`` bound: QUBE ``[volts]`` within ±10 V, CartPole ``[force fraction]`` within
+±1) and the sensor vector it returns. A discrete task's action index is mapped to a command vector by
+``spec.discrete_commands`` in the bridge; a continuous task would pass its vector straight through
+``spec.clamp``. One agent step on the bridge is::
 
-    driver.write_voltage(spec.action_volts[action])   # held until the next write
-    driver.wait_until(driver.time() + period)         # hardware: sleep; simulator: integrate
-    obs = driver.read_encoders()
+    driver.write_command(spec.command_of(action))  # held until the next write
+    driver.wait_until(driver.time() + period)      # hardware: sleep; simulator: integrate
+    obs = driver.read_sensors()
+
+``motor_off()`` is the safe state (the watchdog, the protective stop, shutdown): on hardware it also
+disables the amplifier; the next ``write_command`` enables it again.
 """
 
 from __future__ import annotations
@@ -25,6 +32,13 @@ from fleetrl.devices.qube.device import ACTION_VOLTS, QubeDevice
 
 SPIN_SECONDS = 0.0005
 """``precise_sleep_until`` sleeps in the OS until this close to the deadline, then spins"""
+QUBE_SAFE_VOLTS = 10.0
+"""Quanser's recommended amplifier range (±10 V; ±15 V is the absolute maximum): every QUBE driver clamps
+its command to this"""
+QUBE_ARM_LIMIT = math.pi / 2.0
+"""the rig's protective stop: |arm angle| past this ends the episode"""
+QUBE_ARM_INDEX = 2
+"""the arm angle's place in the QUBE observation [alpha, alpha_dot, theta, theta_dot]"""
 
 
 @dataclass(frozen=True)
@@ -32,22 +46,80 @@ class DriverSpec:
     """What the bridge must know about a unit type.
 
     :param kind: the unit type (``qube`` or ``cartpole``)
-    :param action_volts: the motor command of each action index (QUBE: volts; CartPole: ±1 = full force)
+    :param command_low: lower bound of each actuator command component (its length is the command size)
+    :param command_high: upper bound of each component
+    :param discrete_commands: the command vector of each discrete action index (empty: no discrete actions)
     :param control_period: seconds of one agent step
-    :param limit_index: the observation component the protective stop watches (QUBE: arm angle)
-    :param limit: the protective stop trips when ``abs(obs[limit_index]) > limit``
+    :param limit_index: the sensor component the protective stop watches (QUBE: arm angle)
+    :param limit: the protective stop trips when ``abs(sensors[limit_index]) > limit``
+    :param sensor_size: length of the sensor vector ``read_sensors`` returns (float32)
+    :param command_dtype: numpy dtype name of a command vector
     """
 
     kind: str
-    action_volts: tuple[float, ...]
+    command_low: tuple[float, ...]
+    command_high: tuple[float, ...]
+    discrete_commands: tuple[tuple[float, ...], ...]
     control_period: float
     limit_index: int
     limit: float
+    sensor_size: int = 4
+    command_dtype: str = "float64"
+
+    def __post_init__(self) -> None:
+        size = len(self.command_low)
+        if size < 1 or len(self.command_high) != size:
+            raise ValueError(f"command bounds must be two equal non-empty tuples, got {self!r}")
+        if not all(lo < hi for lo, hi in zip(self.command_low, self.command_high, strict=True)):
+            raise ValueError(f"each command_low must be below its command_high, got {self!r}")
+        for command in self.discrete_commands:
+            if len(command) != size or not np.array_equal(self.clamp(np.asarray(command)), command):
+                raise ValueError(f"discrete command {command} is not a command of size {size} in bounds")
+        if not 0 <= self.limit_index < self.sensor_size:
+            last = self.sensor_size - 1
+            raise ValueError(f"limit_index {self.limit_index} is not a sensor index (0..{last})")
+
+    @property
+    def command_size(self) -> int:
+        """How many floats an actuator command holds."""
+        return len(self.command_low)
 
     @property
     def n_actions(self) -> int:
-        """How many action indices a command may use."""
-        return len(self.action_volts)
+        """How many discrete action indices a command may use (0: continuous commands only)."""
+        return len(self.discrete_commands)
+
+    def command_of(self, action: int) -> np.ndarray:
+        """The command vector of discrete action index ``action``."""
+        return np.array(self.discrete_commands[action], dtype=self.command_dtype)
+
+    def off_command(self) -> np.ndarray:
+        """The zero command (motor off)."""
+        return np.zeros(self.command_size, dtype=self.command_dtype)
+
+    def clamp(self, command: np.ndarray) -> np.ndarray:
+        """``command`` as a vector of ``command_dtype`` clipped to the bounds; ValueError when it has the
+        wrong size or a value that is not finite (a driver never acts on such a command)."""
+        vector = np.asarray(command, dtype=self.command_dtype).reshape(-1)
+        if vector.size != self.command_size:
+            raise ValueError(f"a {self.kind} command holds {self.command_size} values, got {vector.size}")
+        if not np.all(np.isfinite(vector)):
+            raise ValueError(f"a {self.kind} command must be finite, got {vector.tolist()}")
+        return np.clip(vector, self.command_low, self.command_high)
+
+
+def qube_spec(control_period: float, max_volts: float = QUBE_SAFE_VOLTS) -> DriverSpec:
+    """The spec of a QUBE-Servo 2 driver: command ``[volts]`` within ±``max_volts``, the paper's three
+    actions (−1.44, 0, +1.44 V), the arm limit ±π/2 on observation [alpha, alpha_dot, theta, theta_dot]."""
+    return DriverSpec(
+        "qube",
+        (-max_volts,),
+        (max_volts,),
+        tuple((volts,) for volts in ACTION_VOLTS),
+        control_period,
+        QUBE_ARM_INDEX,
+        QUBE_ARM_LIMIT,
+    )
 
 
 @runtime_checkable
@@ -60,12 +132,17 @@ class DeviceDriver(Protocol):
         """Seconds on the driver's clock (monotonic; hardware: wall time, lockstep simulation: simulated)."""
         ...
 
-    def read_encoders(self) -> np.ndarray:
-        """The observation read now: encoder angles and their velocity estimates (float32, may be reused)."""
+    def read_sensors(self) -> np.ndarray:
+        """The sensor vector read now (QUBE: encoder angles, velocity estimates; float32, may be reused)."""
         ...
 
-    def write_voltage(self, volts: float) -> None:
-        """Command ``volts``; the motor holds it until the next write (0 switches the motor off)."""
+    def write_command(self, command: np.ndarray) -> None:
+        """Command the actuator vector ``command`` (clamped to the spec's bounds); held until the next write.
+        Raises ValueError for a vector of the wrong size or with a value that is not finite."""
+        ...
+
+    def motor_off(self) -> None:
+        """The safe state: zero command (hardware: amplifier disabled until the next ``write_command``)."""
         ...
 
     def wait_until(self, deadline: float) -> None:
@@ -73,7 +150,7 @@ class DeviceDriver(Protocol):
         ...
 
     def home(self, seed: int | None) -> np.ndarray:
-        """Device-side reset (QUBE: swing up from hanging, catch, settle); return the first observation."""
+        """Device-side reset (QUBE: swing up from hanging, catch, settle); return the first sensor vector."""
         ...
 
     def close(self) -> None:
@@ -106,11 +183,15 @@ class SimulatedDriver:
         self.device = device
         self.realtime = realtime
         if isinstance(device, QubeDevice):
-            self.spec = DriverSpec("qube", ACTION_VOLTS, device.config.control_period, 2, math.pi / 2.0)
+            self.spec = qube_spec(device.config.control_period, device.config.max_volts)
         else:
-            # the track's end: beyond the env's own termination band, so it never cuts an episode short
-            self.spec = DriverSpec("cartpole", (-1.0, 1.0), device.params.tau, 0, 2.0 * X_LIMIT)
-        self.volts = 0.0
+            # command [force fraction]: the simulated cart pushes with full force the way its sign says;
+            # the limit is the track's end, beyond the env's own termination band, so it never cuts an
+            # episode short
+            self.spec = DriverSpec(
+                "cartpole", (-1.0,), (1.0,), ((-1.0,), (1.0,)), device.params.tau, 0, 2.0 * X_LIMIT
+            )
+        self.command = self.spec.off_command()
         """the command the motor holds"""
         self.periods = 0
         """control periods simulated since the last reset"""
@@ -123,13 +204,17 @@ class SimulatedDriver:
             return time.perf_counter() - self._origin
         return self.periods * self.spec.control_period
 
-    def read_encoders(self) -> np.ndarray:
+    def read_sensors(self) -> np.ndarray:
         """The observation after the last simulated period."""
         return self._obs
 
-    def write_voltage(self, volts: float) -> None:
-        """Hold ``volts`` from the next simulated period on."""
-        self.volts = float(volts)
+    def write_command(self, command: np.ndarray) -> None:
+        """Hold ``command`` (clamped to the spec's bounds) from the next simulated period on."""
+        self.command = self.spec.clamp(command)
+
+    def motor_off(self) -> None:
+        """Hold the zero command."""
+        self.command = self.spec.off_command()
 
     def wait_until(self, deadline: float) -> None:
         """Simulate every control period that ends by ``deadline`` (real time: sleep until then first)."""
@@ -142,10 +227,11 @@ class SimulatedDriver:
 
     def _period(self) -> None:
         device = self.device
+        value = float(self.command[0])
         if isinstance(device, QubeDevice):
-            obs = device.step_volts(self.volts)
-        elif self.volts != 0.0:
-            obs = device.step(1 if self.volts > 0.0 else 0)
+            obs = device.step_volts(value)
+        elif value != 0.0:
+            obs = device.step(1 if value > 0.0 else 0)
         else:  # a CartPole unit has no "off" action: with the motor off the simulated cart is braked
             obs = self._obs
         self._obs[:] = obs
@@ -155,13 +241,13 @@ class SimulatedDriver:
         """The device's own reset (QUBE: swing-up and settle, simulated instantly). In lockstep the
         simulated clock restarts at 0; in real time the clock runs on and the period count catches up."""
         self._obs[:] = self.device.reset(seed)
-        self.volts = 0.0
+        self.motor_off()
         self.periods = math.floor(self.time() / self.spec.control_period) if self.realtime else 0
         return self._obs
 
     def close(self) -> None:
         """Motor off; close the simulated unit."""
-        self.volts = 0.0
+        self.motor_off()
         self.device.close()
 
 
