@@ -2,9 +2,11 @@
 
 They run on the sensor pipeline's readings (never the true state) and use nominal parameters, as a
 controller on a real unit would (a unit's cable torque and amplifier dead zone are unknown to them too).
-``device_reset`` runs them in one compiled loop: swing up from hanging, catch, settle, and report when the
-pendulum is ready for the agent. The gains were tuned on 200 simulated units of fleet profile v1
-(docs/devices.md, "Device-side reset").
+``reset_phase_step`` is the reset's phase logic for one reading (swing up, catch, drop back, settle); it is
+driven two ways, never copied: ``device_reset`` runs it with the simulated plant in one compiled loop, and
+``ResetPhases`` runs it one reading at a time from Python, for a reset through any device driver
+(``fleetrl.link.reset``). The gains were tuned on 200 simulated units of fleet profile v1 (docs/devices.md,
+"Device-side reset").
 """
 
 import math
@@ -140,6 +142,108 @@ def swing_up_volts(
     return min(max(volts, -k[G_SWING_VMAX]), k[G_SWING_VMAX])
 
 
+# indices into a reset's phase memory (see reset_phase_start)
+R_BALANCING, R_INSIDE, R_REFERENCE, R_AMPLITUDE, R_LAST_ALPHA_DOT, R_TRAVEL = range(6)
+N_RESET_MEMORY = 6
+
+
+@njit(cache=True, inline="always")
+def reset_phase_start(memory: np.ndarray, alpha: float) -> None:
+    """Start a reset's phase memory from the pendulum reading ``alpha`` (swinging up, nothing seen yet)."""
+    memory[R_BALANCING] = 0.0
+    memory[R_INSIDE] = 0.0
+    memory[R_REFERENCE] = 0.0  # arm set-point of the balance law: the catch angle, walked back to centre
+    memory[R_AMPLITUDE] = abs(wrap_angle(alpha - math.pi))
+    memory[R_LAST_ALPHA_DOT] = 0.0
+    memory[R_TRAVEL] = 0.0
+
+
+@njit(cache=True, inline="always")
+def reset_phase_step(
+    memory: np.ndarray,
+    theta: float,
+    alpha_reading: float,
+    theta_dot: float,
+    alpha_dot: float,
+    k: np.ndarray,
+    walk: float,
+    settle_periods: int,
+) -> tuple[float, bool]:
+    """One period of the device-side reset: the volts to apply and whether the pendulum has settled.
+
+    Hands over to the balance law inside ``catch`` of upright (its arm set-point starts where it caught
+    and walks back to centre by ``walk`` rad per period), falls back to the swing-up beyond ``drop``;
+    settled means every reading stayed inside its ``settle_*`` window for ``settle_periods`` periods in a
+    row while the balance law was in charge. ``memory`` (from ``reset_phase_start``) carries the phase.
+    """
+    alpha = wrap_angle(alpha_reading)
+    memory[R_TRAVEL] = max(memory[R_TRAVEL], abs(theta))
+    balancing = memory[R_BALANCING] != 0.0
+    if balancing and abs(alpha) > k[G_DROP]:
+        balancing = False
+    elif not balancing and abs(alpha) < k[G_CATCH]:
+        balancing = True
+        memory[R_REFERENCE] = theta
+    memory[R_BALANCING] = 1.0 if balancing else 0.0
+    settled = False
+    if balancing:
+        reference = memory[R_REFERENCE]
+        reference = min(max(0.0, reference - walk), reference + walk)
+        memory[R_REFERENCE] = reference
+        volts = balance_volts(theta - reference, alpha, theta_dot, alpha_dot, k)
+        calm = (
+            abs(alpha) <= k[G_SETTLE_ALPHA]
+            and abs(alpha_dot) <= k[G_SETTLE_ALPHA_DOT]
+            and abs(theta) <= k[G_SETTLE_THETA]
+            and abs(theta_dot) <= k[G_SETTLE_THETA_DOT]
+        )
+        memory[R_INSIDE] = memory[R_INSIDE] + 1.0 if calm else 0.0
+        settled = memory[R_INSIDE] >= settle_periods
+    else:
+        memory[R_INSIDE] = 0.0
+        if alpha_dot * memory[R_LAST_ALPHA_DOT] <= 0.0:  # a turning point
+            memory[R_AMPLITUDE] = abs(wrap_angle(alpha - math.pi))
+        volts = swing_up_volts(theta, alpha, theta_dot, alpha_dot, memory[R_AMPLITUDE], k)
+    memory[R_LAST_ALPHA_DOT] = alpha_dot
+    return volts, settled
+
+
+class ResetPhases:
+    """The device-side reset's phase machine fed one reading at a time (from Python, e.g. a driver's loop).
+
+    :param period: seconds between readings (the set-point walk per period follows from it)
+    :param settle_periods: readings in a row inside the settle windows that end the reset
+    :param constants: the controllers' constants (default: ``controller_constants()``, nominal)
+    """
+
+    def __init__(self, period: float, settle_periods: int, constants: np.ndarray | None = None) -> None:
+        self.constants = controller_constants() if constants is None else constants
+        self.walk = float(self.constants[G_RECENTRE] * period)
+        self.settle_periods = settle_periods
+        self.memory = np.zeros(N_RESET_MEMORY, dtype=np.float64)
+
+    def start(self, alpha: float) -> None:
+        """Begin a reset with the pendulum reading ``alpha`` (rad, 0 upright)."""
+        reset_phase_start(self.memory, alpha)
+
+    def step(self, theta: float, alpha: float, theta_dot: float, alpha_dot: float) -> tuple[float, bool]:
+        """The volts for this reading and whether the pendulum has settled (then the reset is over)."""
+        volts, settled = reset_phase_step(
+            self.memory, theta, alpha, theta_dot, alpha_dot, self.constants, self.walk, self.settle_periods
+        )
+        return float(volts), bool(settled)
+
+    @property
+    def balancing(self) -> bool:
+        """Whether the balance law is in charge."""
+        return bool(self.memory[R_BALANCING] != 0.0)
+
+    @property
+    def travel(self) -> float:
+        """The largest |arm angle| reading seen since ``start`` (rad)."""
+        return float(self.memory[R_TRAVEL])
+
+
 @njit(cache=True)
 def device_reset(
     x: np.ndarray,
@@ -156,44 +260,24 @@ def device_reset(
     Settled means every reading stays inside its ``settle_*`` window for ``settle_periods`` periods in a row
     while the balance law is in charge.
     """
-    balancing = False
-    inside = 0
-    travel = 0.0
-    reference = 0.0  # arm set-point of the balance law: the catch angle, walked back to centre
     walk = k[G_RECENTRE] * settings[P_H] * settings[P_NSUB]
-    amplitude = abs(wrap_angle(sensor[S_ALPHA] - math.pi))
-    last_alpha_dot = 0.0
+    memory = np.empty(N_RESET_MEMORY, dtype=np.float64)
+    reset_phase_start(memory, sensor[S_ALPHA])
     for period in range(max_periods):
-        theta = sensor[S_THETA]
-        alpha = wrap_angle(sensor[S_ALPHA])
-        theta_dot = sensor[S_THETA_VEL]
-        alpha_dot = sensor[S_ALPHA_VEL]
-        travel = max(travel, abs(theta))
-        if balancing and abs(alpha) > k[G_DROP]:
-            balancing = False
-        elif not balancing and abs(alpha) < k[G_CATCH]:
-            balancing = True
-            reference = theta
-        if balancing:
-            reference = min(max(0.0, reference - walk), reference + walk)
-            volts = balance_volts(theta - reference, alpha, theta_dot, alpha_dot, k)
-            calm = (
-                abs(alpha) <= k[G_SETTLE_ALPHA]
-                and abs(alpha_dot) <= k[G_SETTLE_ALPHA_DOT]
-                and abs(theta) <= k[G_SETTLE_THETA]
-                and abs(theta_dot) <= k[G_SETTLE_THETA_DOT]
-            )
-            inside = inside + 1 if calm else 0
-            if inside >= settle_periods:
-                return period, travel
-        else:
-            inside = 0
-            if alpha_dot * last_alpha_dot <= 0.0:  # a turning point
-                amplitude = abs(wrap_angle(alpha - math.pi))
-            volts = swing_up_volts(theta, alpha, theta_dot, alpha_dot, amplitude, k)
-        last_alpha_dot = alpha_dot
+        volts, settled = reset_phase_step(
+            memory,
+            sensor[S_THETA],
+            sensor[S_ALPHA],
+            sensor[S_THETA_VEL],
+            sensor[S_ALPHA_VEL],
+            k,
+            walk,
+            settle_periods,
+        )
+        if settled:
+            return period, memory[R_TRAVEL]
         control_period(x, c, sensor, settings, volts)
-    return -1, travel
+    return -1, memory[R_TRAVEL]
 
 
 @njit(cache=True)
