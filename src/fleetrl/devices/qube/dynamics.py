@@ -122,6 +122,13 @@ def encoder(angle: float, offset: float, quantise: bool) -> float:
 
 
 @njit(cache=True, inline="always")
+def filtered_rate(rate: float, delta: float, dt: float, coeff: float) -> float:
+    """One update of the first-order velocity filter: ``rate`` moves by ``coeff`` (1 − e^(−cut-off·dt))
+    towards the difference quotient ``delta / dt`` of the reading."""
+    return rate + coeff * (delta / dt - rate)
+
+
+@njit(cache=True, inline="always")
 def dead_zone(volts: float, width: float) -> float:
     """The amplifier's output for a command of ``volts``: nothing inside ±``width``, less ``width`` beyond."""
     if volts > width:
@@ -157,8 +164,8 @@ def control_period(
         theta_m = encoder(x[0], c[C_THETA_OFF], quantise)
         alpha_m = encoder(x[1], c[C_ALPHA_OFF], quantise)
         if coeff > 0.0:  # filtered derivative, updated at the device's 1 ms loop
-            sensor[S_THETA_VEL] += coeff * ((theta_m - sensor[S_THETA]) / h - sensor[S_THETA_VEL])
-            sensor[S_ALPHA_VEL] += coeff * ((alpha_m - sensor[S_ALPHA]) / h - sensor[S_ALPHA_VEL])
+            sensor[S_THETA_VEL] = filtered_rate(sensor[S_THETA_VEL], theta_m - sensor[S_THETA], h, coeff)
+            sensor[S_ALPHA_VEL] = filtered_rate(sensor[S_ALPHA_VEL], alpha_m - sensor[S_ALPHA], h, coeff)
         sensor[S_THETA] = theta_m
         sensor[S_ALPHA] = alpha_m
     if coeff <= 0.0:  # finite difference over the whole period

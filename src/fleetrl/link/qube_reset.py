@@ -1,0 +1,135 @@
+"""The QUBE's device-side reset run step by step through any ``DeviceDriver`` (wait still → swing up →
+catch → settle), with the same control laws and phase logic as the simulator's compiled reset.
+
+The phase logic is ``fleetrl.devices.qube.controllers.reset_phase_step`` (through ``ResetPhases``); this
+module only drives it: read the angles, estimate the velocities through Quanser's 50 rad/s filter (the
+simulator's ``filtered_rate``, at the measured time between readings), write the volts, wait for the next
+period on the driver's clock. The clock is the driver's (``time``/``wait_until``): inject a simulated one
+into the driver and the reset runs without sleeping.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from fleetrl.devices.qube.controllers import ResetPhases
+from fleetrl.devices.qube.device import SETTLE_SECONDS, DeviceResetError
+from fleetrl.devices.qube.dynamics import filtered_rate, wrap_angle
+from fleetrl.link.driver import DeviceDriver
+
+ALPHA, THETA = 0, 2
+"""places of the pendulum and arm angles in a QUBE sensor vector [alpha, alpha_dot, theta, theta_dot]"""
+
+
+@dataclass(frozen=True)
+class ResetSettings:
+    """How a reset through a driver runs (defaults: the simulator's device-side reset)."""
+
+    period: float = 0.002
+    """seconds between readings (the simulator's device period: 500 Hz)"""
+    still_rate: float = 1.0
+    """the arm counts as at rest while its filtered velocity is below this (rad/s; a swinging pendulum
+    rocks it a little)…"""
+    still_swing: float = math.radians(5.0)
+    """…and the pendulum as hanging while it stays within this of straight down (rad): a lightly damped
+    pendulum swings for minutes, and the swing-up starts from a small swing as well as from rest"""
+    still_seconds: float = 0.5
+    """how long both must hold, motor off, before the swing-up starts (0: start at once)"""
+    still_timeout: float = 30.0
+    """seconds to wait for that before giving up"""
+    timeout: float = 20.0
+    """seconds the swing-up, catch and settle may take before giving up"""
+    settle_seconds: float = SETTLE_SECONDS
+    """the readings stay inside the hand-off windows this long before the reset ends"""
+    arm_limit: float = math.radians(150.0)
+    """past this |arm angle| (rad) the reset stops the motor and fails (the simulated swing-up travels up
+    to ~90°; the bridge's own ±90° stop is not active during a reset)"""
+    velocity_cutoff: float = 50.0
+    """cut-off of the velocity filter (rad/s), Quanser's"""
+
+
+class AngleRates:
+    """Velocity estimates of the arm and pendulum angles through a first-order filter at ``cutoff``."""
+
+    def __init__(self, cutoff: float) -> None:
+        self.cutoff = cutoff
+        self.theta_dot = 0.0
+        self.alpha_dot = 0.0
+        self._last: tuple[float, float, float] | None = None
+
+    def update(self, time: float, theta: float, alpha: float) -> tuple[float, float]:
+        """Feed the readings taken at ``time``; return (theta_dot, alpha_dot)."""
+        if self._last is not None and time > self._last[0]:
+            dt = time - self._last[0]
+            coeff = 1.0 - math.exp(-self.cutoff * dt)
+            self.theta_dot = filtered_rate(self.theta_dot, theta - self._last[1], dt, coeff)
+            # the pendulum reading wraps at ±π (hanging): differentiate the shortest way round
+            self.alpha_dot = filtered_rate(self.alpha_dot, wrap_angle(alpha - self._last[2]), dt, coeff)
+        self._last = (time, theta, alpha)
+        return self.theta_dot, self.alpha_dot
+
+
+def reset_through_driver(
+    driver: DeviceDriver, settings: ResetSettings | None = None, constants: np.ndarray | None = None
+) -> np.ndarray:
+    """Run the device-side reset on ``driver``'s QUBE and return the last sensor vector, its velocities the
+    filtered ones the reset judged by (the balance law's last command is left held, as the simulator's
+    reset leaves it, until the bridge's first step).
+
+    Raises ``DeviceResetError`` with the motor off when the unit does not come to rest, does not settle in
+    time, or the arm passes ``arm_limit``; any driver fault propagates (the driver switches itself off).
+
+    :param constants: the controllers' constants (default: ``controller_constants()``, nominal)
+    """
+    s = settings or ResetSettings()
+    try:
+        driver.motor_off()
+        rates = AngleRates(s.velocity_cutoff)
+        _wait_still(driver, rates, s)
+        phases = ResetPhases(s.period, max(1, round(s.settle_seconds / s.period)), constants)
+        obs = driver.read_sensors()
+        phases.start(float(obs[ALPHA]))
+        start = driver.time()
+        tick = start
+        while tick - start < s.timeout:
+            obs = driver.read_sensors()
+            theta, alpha = float(obs[THETA]), float(obs[ALPHA])
+            theta_dot, alpha_dot = rates.update(driver.time(), theta, alpha)
+            if abs(theta) > s.arm_limit:
+                raise DeviceResetError(
+                    f"reset stopped: the arm reached {math.degrees(theta):.0f}° (limit "
+                    f"±{math.degrees(s.arm_limit):.0f}°); centre it and retry"
+                )
+            volts, settled = phases.step(theta, alpha, theta_dot, alpha_dot)
+            driver.write_command(np.array([volts]))  # settled: the balance law's volts hold until the agent's
+            if (
+                settled
+            ):  # the velocities the reset judged by (the simulator's reset reports its filtered ones)
+                return np.array([alpha, alpha_dot, theta, theta_dot], dtype=np.float32)
+            tick += s.period
+            driver.wait_until(tick)
+        raise DeviceResetError(f"swing-up did not settle within {s.timeout} s; check the unit and its gains")
+    except BaseException:
+        driver.motor_off()
+        raise
+
+
+def _wait_still(driver: DeviceDriver, rates: AngleRates, s: ResetSettings) -> None:
+    """Motor off until the arm has stayed still and the pendulum near hanging for ``still_seconds``."""
+    start = driver.time()
+    still_since = start
+    tick = start
+    while driver.time() - still_since < s.still_seconds:
+        obs = driver.read_sensors()
+        now = driver.time()
+        alpha = float(obs[ALPHA])
+        theta_dot, _ = rates.update(now, float(obs[THETA]), alpha)
+        if abs(theta_dot) > s.still_rate or abs(wrap_angle(alpha - math.pi)) > s.still_swing:
+            still_since = now
+        if now - start > s.still_timeout:
+            raise DeviceResetError(f"the unit did not come to rest within {s.still_timeout} s (motor off)")
+        tick += s.period
+        driver.wait_until(tick)

@@ -1,0 +1,248 @@
+"""``QubeSpiDriver``: a QUBE-Servo 2 (Raspberry Pi variant) on the Pi's SPI bus, behind ``DeviceDriver``.
+
+Every read and every write is one full-duplex transfer of the 17-byte frames (``fleetrl.link.qube_frames``):
+a write sends the new motor word, a read resends the held one. Safety, on the driver's side:
+
+* the command is clamped to ±10 V (Quanser's recommended range) before it becomes a duty word;
+* every reply's device id is checked; a wrong one is a ``QubeFault``;
+* an arm encoder that does not move while ≥ ``STUCK_VOLTS`` are held for ``STUCK_SECONDS`` is a fault;
+* on any fault, on ``motor_off``, on ``close`` and on leaving ``with``, the amplifier is disabled (bit 15
+  clear, duty 0); after a fault the driver refuses everything but ``motor_off`` and ``close``.
+
+``spidev`` is optional (``pip install 'fleetrl[pi]'``) and imported only when no ``spi_factory`` is given;
+the clock and the sleep are injectable, so the tests run it against an emulated QUBE on a simulated clock.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import time
+from collections.abc import Callable
+from types import TracebackType
+from typing import Protocol
+
+import numpy as np
+
+from fleetrl.link.driver import QUBE_SAFE_VOLTS, precise_sleep_until, qube_spec
+from fleetrl.link.qube_frames import (
+    LED_FULL,
+    RESET_MASK,
+    SPI_MODE,
+    SPI_SPEED_HZ,
+    VOLTS_PER_DUTY,
+    Reply,
+    arm_angle,
+    command_frame,
+    decode_reply,
+    duty_of_volts,
+    motor_word,
+    pendulum_angle,
+    volts_of_duty,
+)
+from fleetrl.link.qube_reset import ResetSettings, reset_through_driver
+
+log = logging.getLogger(__name__)
+
+STUCK_VOLTS = 2.0
+"""a held command at least this large (V) must move the arm…"""
+STUCK_SECONDS = 0.3
+"""…by a count within this long, or the arm encoder (or the motor) is stuck"""
+STUCK_DUTY = duty_of_volts(STUCK_VOLTS)
+SAFE_DUTY = math.floor(QUBE_SAFE_VOLTS / VOLTS_PER_DUTY)
+"""the largest duty inside ±10 V (416 ≈ 9.98 V)"""
+NO_DEVICE_IDS = (0x0000, 0xFFFF)
+"""what a bus with nothing on it reads back: never a QUBE's id"""
+INSTALL_HINT = "pip install 'fleetrl[pi]'"
+
+
+class QubeFault(RuntimeError):
+    """The QUBE or its bus misbehaved; the amplifier has been disabled."""
+
+
+class SpiDevice(Protocol):
+    """The part of ``spidev.SpiDev`` the driver uses."""
+
+    mode: int
+    max_speed_hz: int
+
+    def open(self, bus: int, device: int) -> None:
+        """Open ``/dev/spidev<bus>.<device>``."""
+        ...
+
+    def xfer2(self, data: list[int]) -> list[int]:
+        """One full-duplex transfer, chip select held throughout."""
+        ...
+
+    def close(self) -> None:
+        """Release the bus."""
+        ...
+
+
+def spidev_factory() -> Callable[[], SpiDevice]:
+    """``spidev.SpiDev``, imported now; a clear error naming the extra when it is not installed."""
+    try:
+        import spidev
+    except ImportError:
+        raise QubeFault(f"the qube-spi driver needs the spidev package: {INSTALL_HINT}") from None
+    factory: Callable[[], SpiDevice] = spidev.SpiDev
+    return factory
+
+
+class QubeSpiDriver:
+    """A QUBE-Servo 2 over SPI (mode 2, 1 MHz, 17-byte frames) as a ``DeviceDriver``.
+
+    Opening zeroes both encoders: start it with the pendulum hanging still and the arm centred.
+
+    :param bus: SPI bus number (``/dev/spidev<bus>.<device>``)
+    :param device: chip-select number on that bus
+    :param control_period: seconds of one agent step (the rig: 6 ms)
+    :param expected_id: the device id every reply must carry; None: the id of the first reply (which must
+        not be 0x0000 or 0xFFFF, what an empty bus reads)
+    :param spi_factory: makes the bus object (default ``spidev.SpiDev``)
+    :param clock: seconds, monotonic (default ``time.perf_counter``)
+    :param sleep_until: sleeps until ``clock() >= deadline`` (default ``precise_sleep_until``)
+    :param reset: how ``home`` runs the device-side reset
+    """
+
+    def __init__(
+        self,
+        bus: int = 0,
+        device: int = 0,
+        *,
+        control_period: float = 0.006,
+        expected_id: int | None = None,
+        spi_factory: Callable[[], SpiDevice] | None = None,
+        clock: Callable[[], float] = time.perf_counter,
+        sleep_until: Callable[[float], None] = precise_sleep_until,
+        reset: ResetSettings | None = None,
+    ) -> None:
+        self.spec = qube_spec(control_period, QUBE_SAFE_VOLTS)
+        self.expected_id = expected_id
+        self.reset_settings = reset or ResetSettings()
+        self.faulted: str | None = None
+        """why the driver stopped (None while healthy)"""
+        self.duty = 0
+        """the duty value held"""
+        self.amplifier = False
+        """whether the amplifier is enabled"""
+        self._clock = clock
+        self._sleep_until = sleep_until
+        self._obs = np.zeros(4, dtype=np.float32)
+        self._last_read: tuple[float, float, float] | None = None
+        self._arm_counts: int | None = None
+        self._arm_still_since = 0.0
+        self._spi = (spi_factory or spidev_factory())()
+        self._spi.open(bus, device)
+        self._spi.mode = SPI_MODE
+        self._spi.max_speed_hz = SPI_SPEED_HZ
+        self._origin = clock()
+        try:
+            self._transfer(RESET_MASK)  # amplifier off, both encoders zeroed
+        except BaseException:
+            self._spi.close()
+            raise
+        log.info("QUBE on /dev/spidev%d.%d, device id 0x%04x", bus, device, self.expected_id)
+
+    # -- DeviceDriver ---------------------------------------------------------------------------------
+
+    def time(self) -> float:
+        """Seconds on the clock since the driver opened."""
+        return self._clock() - self._origin
+
+    def read_sensors(self) -> np.ndarray:
+        """One transfer (the held command resent); float32 [alpha, alpha_dot, theta, theta_dot], the
+        velocities by finite difference over the measured time since the previous read (as the rig)."""
+        self._refuse_if_faulted()
+        reply = self._transfer()
+        now = self.time()
+        theta, alpha = arm_angle(reply.arm_counts), pendulum_angle(reply.pendulum_counts)
+        self._check_arm_moves(reply.arm_counts, now)
+        theta_dot = alpha_dot = 0.0
+        if self._last_read is not None and now > self._last_read[0]:
+            dt = now - self._last_read[0]
+            theta_dot = (theta - self._last_read[1]) / dt
+            alpha_dot = math.remainder(alpha - self._last_read[2], 2.0 * math.pi) / dt
+        self._last_read = (now, theta, alpha)
+        self._obs[:] = (alpha, alpha_dot, theta, theta_dot)
+        return self._obs
+
+    def write_command(self, command: np.ndarray) -> None:
+        """Clamp ``[volts]`` to ±10 V, enable the amplifier and send the duty word."""
+        self._refuse_if_faulted()
+        volts = float(self.spec.clamp(command)[0])
+        self.duty = min(max(duty_of_volts(volts), -SAFE_DUTY), SAFE_DUTY)
+        self.amplifier = True
+        self._transfer()
+
+    def motor_off(self) -> None:
+        """Duty 0 and the amplifier disabled (also after a fault; never raises for the bus's sake)."""
+        self.duty, self.amplifier = 0, False
+        try:
+            self._transfer(check=False)
+        except Exception as err:  # the bus itself failed: nothing more can be sent
+            log.error("QUBE: could not send amplifier-off: %s", err)
+
+    def wait_until(self, deadline: float) -> None:
+        """Sleep until ``time() >= deadline`` (the amplifier holds the duty meanwhile)."""
+        self._sleep_until(self._origin + deadline)
+
+    def home(self, seed: int | None) -> np.ndarray:
+        """The device-side reset through this driver (``fleetrl.link.qube_reset``); ``seed`` is ignored."""
+        self._refuse_if_faulted()
+        return reset_through_driver(self, self.reset_settings)
+
+    def close(self) -> None:
+        """Disable the amplifier and release the bus."""
+        self.motor_off()
+        self._spi.close()
+
+    def __enter__(self) -> QubeSpiDriver:
+        """The driver itself."""
+        return self
+
+    def __exit__(
+        self, exc_type: type[BaseException] | None, exc: BaseException | None, tb: TracebackType | None
+    ) -> None:
+        """Close (amplifier off), whatever happened."""
+        self.close()
+
+    # -- frames and faults ----------------------------------------------------------------------------
+
+    def _transfer(self, mask: int | None = None, *, check: bool = True) -> Reply:
+        """Send the held duty word (LEDs: green running, red faulted, blue amplifier off); return the
+        decoded reply, its device id checked unless ``check`` is False."""
+        led = (LED_FULL, 0, 0) if self.faulted else (0, LED_FULL, 0) if self.amplifier else (0, 0, LED_FULL)
+        word = motor_word(self.duty, enabled=self.amplifier)
+        frame = command_frame(word, led=led) if mask is None else command_frame(word, mask=mask, led=led)
+        reply = decode_reply(self._spi.xfer2(frame))
+        if check:
+            self._check_id(reply.device_id)
+        return reply
+
+    def _check_id(self, device_id: int) -> None:
+        if self.expected_id is None and device_id not in NO_DEVICE_IDS:
+            self.expected_id = device_id
+        if device_id != self.expected_id:
+            expected = "a QUBE's" if self.expected_id is None else f"0x{self.expected_id:04x}"
+            self._fault(f"reply carries device id 0x{device_id:04x}, expected {expected}: check the wiring")
+
+    def _check_arm_moves(self, counts: int, now: float) -> None:
+        if counts != self._arm_counts or not self.amplifier or abs(self.duty) < STUCK_DUTY:
+            self._arm_counts = counts
+            self._arm_still_since = now
+        elif now - self._arm_still_since > STUCK_SECONDS:
+            self._fault(
+                f"arm encoder stuck at {counts} counts for {now - self._arm_still_since:.2f} s under "
+                f"{volts_of_duty(self.duty):.1f} V: check the encoder cable and that the arm is free"
+            )
+
+    def _fault(self, reason: str) -> None:
+        self.faulted = reason
+        self.motor_off()
+        log.error("QUBE fault, amplifier disabled: %s", reason)
+        raise QubeFault(f"{reason} (amplifier disabled)")
+
+    def _refuse_if_faulted(self) -> None:
+        if self.faulted is not None:
+            raise QubeFault(f"the QUBE driver stopped after a fault: {self.faulted}")
