@@ -30,7 +30,7 @@ def test_the_reset_through_a_driver_settles_like_the_compiled_reset(unit: int) -
     device = QubeDevice.from_fleet(unit, 0, QubeConfig(control_period=0.002, velocity_estimate="filter"))
     device.set_state(start_state(unit))
     driver = SimulatedDriver(device)
-    obs = reset_through_driver(driver, ResetSettings(still_seconds=0.0))
+    obs = reset_through_driver(driver, ResetSettings(still_seconds=0.0, kick_seconds=0.0))
     seconds = driver.time()
     # measured on units 0-5: within 0.08 s of each other (1.2-1.6 s)
     assert abs(seconds - compiled.last_reset_seconds) < 0.25, (seconds, compiled.last_reset_seconds)

@@ -32,6 +32,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from fleetrl.devices.qube.device import DeviceResetError
 from fleetrl.link.driver import SPIN_SECONDS, DeviceDriver
 from fleetrl.link.wire import (
     FLAG_PROTECTIVE_STOP,
@@ -218,7 +219,7 @@ class DeviceBridge:
                     command = self._accept(message)
                     if command is not None and command.op == "reset":
                         self._pending = None
-                        self._answer(command, driver.home(command.seed), reset=True)
+                        self._home(command)
                         next_tick = driver.time() + period
                     elif command is not None:
                         self._pending = command  # the newest command wins the next tick
@@ -249,7 +250,7 @@ class DeviceBridge:
     def _run_lockstep(self, command: Command) -> None:
         driver = self.driver
         if command.op == "reset":
-            self._answer(command, driver.home(command.seed), reset=True)
+            self._home(command)
             return
         if self.stopped:
             self._refuse(command, "protective stop in force: the arm passed its limit; reset first")
@@ -261,6 +262,18 @@ class DeviceBridge:
         self._answer(command, obs)
 
     # -- commands, answers, safety ---------------------------------------------------------------------
+
+    def _home(self, command: Command) -> None:
+        """Run the device-side reset and answer with its observation; a reset that fails (the unit did not
+        settle: the driver has switched the motor off) is answered with the reason. Driver faults are not
+        caught: they end ``serve`` with the motor off."""
+        try:
+            obs = self.driver.home(command.seed)
+        except DeviceResetError as err:
+            self.motor_on = False
+            self._refuse(command, f"reset failed: {err}")
+            return
+        self._answer(command, obs, reset=True)
 
     def _actuate(self, command: Command) -> None:
         """Hold the actuator command vector of ``command``'s action index (validated on decoding)."""

@@ -40,6 +40,11 @@ class ResetSettings:
     """how long both must hold, motor off, before the swing-up starts (0: start at once)"""
     still_timeout: float = 30.0
     """seconds to wait for that before giving up"""
+    kick_volts: float = 3.0
+    """a pendulum hanging at rest gives the energy law nothing to pump (its sign(α̇) is 0): the arm is
+    pushed with this many volts first (the simulated reset starts from a seeded perturbation instead)"""
+    kick_seconds: float = 0.05
+    """how long the push lasts (0: none)"""
     timeout: float = 20.0
     """seconds the swing-up, catch and settle may take before giving up"""
     settle_seconds: float = SETTLE_SECONDS
@@ -79,57 +84,70 @@ def reset_through_driver(
     filtered ones the reset judged by (the balance law's last command is left held, as the simulator's
     reset leaves it, until the bridge's first step).
 
-    Raises ``DeviceResetError`` with the motor off when the unit does not come to rest, does not settle in
-    time, or the arm passes ``arm_limit``; any driver fault propagates (the driver switches itself off).
+    Phases: hold the arm at centre (the swing-up law's arm spring-damper, no pumping) until it is at rest
+    and the pendulum hangs; push; swing up, catch and settle (``ResetPhases``). Raises ``DeviceResetError``
+    with the motor off when the unit does not come to rest, does not settle in time, or the arm passes
+    ``arm_limit``; any driver fault propagates (the driver switches itself off).
 
     :param constants: the controllers' constants (default: ``controller_constants()``, nominal)
     """
     s = settings or ResetSettings()
+    phases = ResetPhases(s.period, max(1, round(s.settle_seconds / s.period)), constants)
+    reader = _Reader(driver, AngleRates(s.velocity_cutoff), s)
     try:
-        driver.motor_off()
-        rates = AngleRates(s.velocity_cutoff)
-        _wait_still(driver, rates, s)
-        phases = ResetPhases(s.period, max(1, round(s.settle_seconds / s.period)), constants)
-        obs = driver.read_sensors()
-        phases.start(float(obs[ALPHA]))
+        still_since = start = driver.time()
+        while driver.time() - still_since < s.still_seconds:
+            theta, alpha, theta_dot, alpha_dot = reader.next()
+            if abs(theta_dot) > s.still_rate or abs(wrap_angle(alpha - math.pi)) > s.still_swing:
+                still_since = driver.time()
+            if driver.time() - start > s.still_timeout:
+                raise DeviceResetError(f"the unit did not come to rest within {s.still_timeout} s")
+            driver.write_command(np.array([phases.hold_volts(theta, alpha, theta_dot, alpha_dot)]))
         start = driver.time()
-        tick = start
-        while tick - start < s.timeout:
-            obs = driver.read_sensors()
-            theta, alpha = float(obs[THETA]), float(obs[ALPHA])
-            theta_dot, alpha_dot = rates.update(driver.time(), theta, alpha)
-            if abs(theta) > s.arm_limit:
-                raise DeviceResetError(
-                    f"reset stopped: the arm reached {math.degrees(theta):.0f}° (limit "
-                    f"±{math.degrees(s.arm_limit):.0f}°); centre it and retry"
-                )
+        while driver.time() - start < s.kick_seconds:
+            reader.next()
+            driver.write_command(np.array([s.kick_volts]))
+        start = driver.time()
+        started = False
+        while driver.time() - start < s.timeout:
+            theta, alpha, theta_dot, alpha_dot = reader.next()
+            if not started:  # the swing-up judges its first amplitude by this reading
+                phases.start(alpha)
+                started = True
             volts, settled = phases.step(theta, alpha, theta_dot, alpha_dot)
-            driver.write_command(np.array([volts]))  # settled: the balance law's volts hold until the agent's
-            if (
-                settled
-            ):  # the velocities the reset judged by (the simulator's reset reports its filtered ones)
+            driver.write_command(np.array([volts]))  # settled: these volts hold until the agent's first step
+            if settled:  # with the velocities the reset judged by (as the simulator's reset reports them)
                 return np.array([alpha, alpha_dot, theta, theta_dot], dtype=np.float32)
-            tick += s.period
-            driver.wait_until(tick)
         raise DeviceResetError(f"swing-up did not settle within {s.timeout} s; check the unit and its gains")
     except BaseException:
         driver.motor_off()
         raise
 
 
-def _wait_still(driver: DeviceDriver, rates: AngleRates, s: ResetSettings) -> None:
-    """Motor off until the arm has stayed still and the pendulum near hanging for ``still_seconds``."""
-    start = driver.time()
-    still_since = start
-    tick = start
-    while driver.time() - still_since < s.still_seconds:
+class _Reader:
+    """Paces a reset at ``period`` on the driver's clock: each ``next`` waits for the next tick (the first
+    reads at once), reads the angles, filters the velocities and enforces the arm limit."""
+
+    def __init__(self, driver: DeviceDriver, rates: AngleRates, settings: ResetSettings) -> None:
+        self.driver = driver
+        self.rates = rates
+        self.settings = settings
+        self._tick: float | None = None
+
+    def next(self) -> tuple[float, float, float, float]:
+        """(theta, alpha, theta_dot, alpha_dot) at the next tick."""
+        driver, s = self.driver, self.settings
+        if self._tick is not None:
+            self._tick += s.period
+            driver.wait_until(self._tick)
+        else:
+            self._tick = driver.time()
         obs = driver.read_sensors()
-        now = driver.time()
-        alpha = float(obs[ALPHA])
-        theta_dot, _ = rates.update(now, float(obs[THETA]), alpha)
-        if abs(theta_dot) > s.still_rate or abs(wrap_angle(alpha - math.pi)) > s.still_swing:
-            still_since = now
-        if now - start > s.still_timeout:
-            raise DeviceResetError(f"the unit did not come to rest within {s.still_timeout} s (motor off)")
-        tick += s.period
-        driver.wait_until(tick)
+        theta, alpha = float(obs[THETA]), float(obs[ALPHA])
+        if abs(theta) > s.arm_limit:
+            raise DeviceResetError(
+                f"reset stopped: the arm reached {math.degrees(theta):.0f}° (limit "
+                f"±{math.degrees(s.arm_limit):.0f}°); centre it and retry"
+            )
+        theta_dot, alpha_dot = self.rates.update(driver.time(), theta, alpha)
+        return theta, alpha, theta_dot, alpha_dot

@@ -233,6 +233,12 @@ class ResetPhases:
         )
         return float(volts), bool(settled)
 
+    def hold_volts(self, theta: float, alpha: float, theta_dot: float, alpha_dot: float) -> float:
+        """The swing-up law with nothing left to pump (its amplitude at the target): only its arm
+        spring-damper acts, bringing the arm back to centre while the pendulum calms down."""
+        k = self.constants
+        return float(swing_up_volts(theta, alpha, theta_dot, alpha_dot, k[G_TARGET_AMPLITUDE], k))
+
     @property
     def balancing(self) -> bool:
         """Whether the balance law is in charge."""
