@@ -1,4 +1,6 @@
-"""``fleetrl device``: serve one simulated unit over MQTT through a device bridge (the Raspberry Pi's role).
+"""``fleetrl device``: serve one unit over MQTT through a device bridge (the Raspberry Pi's role): a
+simulated unit (``--driver sim``, the default) or a QUBE-Servo 2 on the Pi's SPI bus (``--driver qube-spi``,
+always in real time; needs ``pip install 'fleetrl[pi]'``).
 
 Registered on the main parser by ``register(subparsers)``. Without ``--broker`` an embedded broker is
 started and its URL printed (the one line this command prints).
@@ -8,13 +10,18 @@ from __future__ import annotations
 
 import argparse
 import signal
-from typing import Any
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:  # the driver modules load numba: only when the command runs
+    from fleetrl.link.driver import DeviceDriver
+
+DRIVERS = ("sim", "qube-spi")
 
 
 def register(subparsers: Any) -> None:
     """Add the ``device`` subcommand to ``subparsers`` (the result of ``add_subparsers``)."""
     p: argparse.ArgumentParser = subparsers.add_parser(
-        "device", help="serve one simulated unit over MQTT (device bridge: lockstep or real time)"
+        "device", help="serve one unit (simulated, or a QUBE on SPI) over MQTT through a device bridge"
     )
     from fleetrl.cli.settings_args import (
         add_broker_arguments,
@@ -29,6 +36,20 @@ def register(subparsers: Any) -> None:
     p.add_argument("--fleet-seed", type=int, default=0, help="seed of the fleet's per-unit dynamics")
     add_fleet_profile_argument(p)
     p.add_argument("--realtime", action="store_true", help="fixed control period, last command held")
+    p.add_argument(
+        "--driver",
+        default="sim",
+        choices=DRIVERS,
+        help="sim: a simulated unit of the fleet (default); qube-spi: a QUBE-Servo 2 on the Raspberry Pi's "
+        "SPI bus (implies --realtime; pip install 'fleetrl[pi]')",
+    )
+    p.add_argument("--spi-bus", type=int, default=0, help="qube-spi: SPI bus number (default 0)")
+    p.add_argument("--spi-device", type=int, default=0, help="qube-spi: chip select (default 0: spidev0.0)")
+    p.add_argument(
+        "--spi-device-id",
+        default=None,
+        help="qube-spi: the device id every reply must carry (e.g. 0x0309; default: the first reply's)",
+    )
     p.add_argument(
         "--period-ms", type=float, default=None, help="control period in ms (qube only; default 6)"
     )
@@ -49,43 +70,82 @@ def cmd_device(args: argparse.Namespace) -> int:
     """Run the bridge until interrupted (Ctrl-C or SIGTERM); the motor is off and ``offline`` announced
     when it returns."""
     from fleetrl.link.bridge import DeviceBridge, request_realtime_priority
-    from fleetrl.link.driver import simulated_driver
     from fleetrl.runs.settings import BrokerLogin
     from fleetrl.transport.broker import EmbeddedBroker
     from fleetrl.transport.mqtt import MqttTransport
 
     login = BrokerLogin(broker=args.broker, broker_password_file=args.broker_password_file)
     login.validate_broker()  # before the driver or a broker starts
-    if args.realtime and args.rt_priority > 0:
+    # on hardware time runs whether a command came or not: a real unit's bridge always runs in real time
+    realtime = args.realtime or args.driver == "qube-spi"
+    if realtime and args.rt_priority > 0:
         request_realtime_priority(args.rt_priority)
-    period = None if args.period_ms is None else args.period_ms / 1e3
-    driver = simulated_driver(
-        args.env,
-        args.unit,
-        args.fleet_seed,
-        fleet_profile=args.fleet_profile,
-        period=period,
-        realtime=args.realtime,
-    )
+    driver = make_driver(args, realtime)
     broker = None
-    url = args.broker
-    if url is None:
-        broker = EmbeddedBroker().start()
-        url = broker.url
-        print(f"broker: {url}", flush=True)
-    bridge = DeviceBridge(
-        MqttTransport(url, connect_timeout=args.connect_timeout, password=login.broker_password),
-        driver,
-        args.run_id,
-        args.unit,
-        realtime=args.realtime,
-        watchdog=args.watchdog_ms / 1e3,
-    )
-    signal.signal(signal.SIGTERM, lambda *_: bridge.stop())  # a service manager's stop: motor off, offline
+    bridge = None
     try:
+        url = args.broker
+        if url is None:
+            broker = EmbeddedBroker().start()
+            url = broker.url
+            print(f"broker: {url}", flush=True)
+        bridge = DeviceBridge(
+            MqttTransport(url, connect_timeout=args.connect_timeout, password=login.broker_password),
+            driver,
+            args.run_id,
+            args.unit,
+            realtime=realtime,
+            watchdog=args.watchdog_ms / 1e3,
+        )
+        signal.signal(signal.SIGTERM, lambda *_: bridge.stop() if bridge else None)  # motor off, offline
         bridge.serve()
     finally:
-        bridge.close()
+        if bridge is not None:
+            bridge.close()  # closes the driver too
+        else:
+            driver.close()
         if broker is not None:
             broker.close()
     return 0
+
+
+def make_driver(args: argparse.Namespace, realtime: bool) -> DeviceDriver:
+    """The driver the arguments choose; ValueError (exit 2) for a bad combination, ``QubeFault`` (an
+    OSError: exit 1) when the QUBE cannot be reached or answers wrongly."""
+    from fleetrl.link.driver import simulated_driver
+
+    period = None if args.period_ms is None else args.period_ms / 1e3
+    if args.driver == "sim":
+        return simulated_driver(
+            args.env,
+            args.unit,
+            args.fleet_seed,
+            fleet_profile=args.fleet_profile,
+            period=period,
+            realtime=realtime,
+        )
+    from fleetrl.link.qube_spi import QubeSpiDriver
+
+    if args.env != "qube":
+        raise ValueError(f"--driver qube-spi drives a qube unit, not {args.env!r} (use --env qube)")
+    if args.spi_bus < 0 or args.spi_device < 0:
+        raise ValueError(f"--spi-bus and --spi-device must be >= 0, got {args.spi_bus} and {args.spi_device}")
+    if period is not None and not period > 0:
+        raise ValueError(f"--period-ms must be positive, got {args.period_ms}")
+    return QubeSpiDriver(
+        args.spi_bus,
+        args.spi_device,
+        control_period=0.006 if period is None else period,
+        expected_id=None if args.spi_device_id is None else device_id(args.spi_device_id),
+    )
+
+
+def device_id(text: str) -> int:
+    """A 16-bit device id from decimal or 0x-hex text; ValueError otherwise."""
+    try:
+        value = int(text, 0)
+    except ValueError:
+        raise ValueError(f"--spi-device-id {text!r} is not a number (e.g. 0x0309 or 777)") from None
+    if not 0 < value < 0xFFFF:
+        raise ValueError(f"--spi-device-id {text!r} is not a 16-bit id (0x0001 to 0xFFFE)")
+    return value

@@ -56,8 +56,8 @@ NO_DEVICE_IDS = (0x0000, 0xFFFF)
 INSTALL_HINT = "pip install 'fleetrl[pi]'"
 
 
-class QubeFault(RuntimeError):
-    """The QUBE or its bus misbehaved; the amplifier has been disabled."""
+class QubeFault(OSError):
+    """The QUBE or its bus misbehaved (or cannot be reached); the amplifier has been disabled."""
 
 
 class SpiDevice(Protocol):
@@ -133,7 +133,13 @@ class QubeSpiDriver:
         self._arm_counts: int | None = None
         self._arm_still_since = 0.0
         self._spi = (spi_factory or spidev_factory())()
-        self._spi.open(bus, device)
+        try:
+            self._spi.open(bus, device)
+        except OSError as err:
+            raise QubeFault(
+                f"cannot open /dev/spidev{bus}.{device} ({err}): enable SPI (raspi-config, Interface "
+                "Options) and run as a user in the spi group"
+            ) from None
         self._spi.mode = SPI_MODE
         self._spi.max_speed_hz = SPI_SPEED_HZ
         self._origin = clock()
