@@ -9,11 +9,13 @@ from the true angles quantised to 2048 counts. Faults to inject: a wrong device 
 from __future__ import annotations
 
 import math
+import time
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from fleetrl.devices.qube import QubeConfig, QubeDevice, QubeParams
+from fleetrl.link.driver import precise_sleep_until
 
 QUBE_ID = 0x0309
 """the id this emulated unit answers with (the sheet gives no value: any id the driver then expects)"""
@@ -44,6 +46,8 @@ class EmulatedQube:
     params: QubeParams = field(default_factory=QubeParams)
     device_id: int = QUBE_ID
     stuck_arm: bool = False
+    wall_clock: bool = False
+    """run on the wall clock (for a real-time bridge) instead of the simulated one"""
     now: float = 0.0
     duty: int = 0
     amplifier: bool = False
@@ -54,16 +58,19 @@ class EmulatedQube:
         self.device = QubeDevice(self.params, config)
         self.device.set_state(np.array([0.0, math.pi, 0.0, 0.0]))  # hanging still, arm centred
         self._integrated = 0.0
+        self._started = time.perf_counter()
         self._zero = [0, 0]
         self._stuck_counts = 0
 
     # the injected clock
     def clock(self) -> float:
-        """Simulated seconds."""
-        return self.now
+        """Simulated seconds (or wall seconds since the emulator was made)."""
+        return time.perf_counter() - self._started if self.wall_clock else self.now
 
     def sleep_until(self, deadline: float) -> None:
-        """Sleeping on the simulated clock: time jumps."""
+        """Sleeping on the simulated clock: time jumps (on the wall clock: a real sleep)."""
+        if self.wall_clock:
+            precise_sleep_until(self._started + deadline)
         self.now = max(self.now, deadline)
 
     @property
@@ -118,7 +125,7 @@ class EmulatedQube:
         return reply + [0] * 9
 
     def _integrate(self) -> None:
-        steps = math.floor((self.now - self._integrated) / STEP + 1e-6)
+        steps = math.floor((self.clock() - self._integrated) / STEP + 1e-6)
         for _ in range(steps):
             self.device.step_volts(self.volts)
         self._integrated += steps * STEP

@@ -5,6 +5,7 @@ pendulum, and full power one way trips the bridge's protective stop at the arm l
 from __future__ import annotations
 
 import math
+import time
 from collections.abc import Iterator
 
 import numpy as np
@@ -87,3 +88,23 @@ def test_a_failed_reset_is_answered_with_its_reason_and_the_bridge_carries_on(
     assert not qube.amplifier and running.stats.rejected == 1
     qube.raw_counts, driver.reset_settings = original, ResetSettings()
     assert abs(link.reset(2)[0]) <= math.radians(3.0)
+
+
+def test_a_realtime_bridge_ticks_the_spi_driver_on_the_wall_clock(qube: EmulatedQube) -> None:
+    """The rig's mode: the emulator's clock is the wall clock here, so this one test really waits."""
+    qube.wall_clock = True
+    spi = FakeSpiDev(qube)
+    driver = QubeSpiDriver(spi_factory=lambda: spi, clock=qube.clock, sleep_until=qube.sleep_until)
+    bus = LocalBus()
+    running = DeviceBridge(bus.client(), driver, RUN, 0, realtime=True).start()
+    try:
+        link = MqttLink(bus.client(), RUN, 0)
+        started = time.perf_counter()
+        for i in range(30):
+            link.step(2 * (i % 2))  # full power both ways in turn
+        assert {frame.word for frame in qube.frames[-20:]} >= {0x803C, 0xFFC4}
+        assert time.perf_counter() - started > 30 * 0.006 * 0.8  # paced by the 6 ms ticks
+        assert len(running.tick_times) >= 30
+    finally:
+        running.close()
+    assert not qube.amplifier and spi.closed
