@@ -10,7 +10,7 @@ import pytest
 
 from fleetrl.devices.qube import QubeConfig, QubeDevice
 from fleetrl.devices.qube.device import RESET_PERTURBATION, DeviceResetError
-from fleetrl.link.driver import SimulatedDriver
+from fleetrl.link.driver import SimulatedDriver, simulated_driver
 from fleetrl.link.qube_reset import ResetSettings, reset_through_driver
 
 UNITS = range(6)
@@ -66,3 +66,8 @@ def test_a_unit_that_keeps_moving_is_not_swung_up() -> None:
     with pytest.raises(DeviceResetError, match=r"did not come to rest within 1\.0 s"):
         reset_through_driver(driver, ResetSettings(still_timeout=1.0))
     assert driver.command.tolist() == [0.0]
+
+
+def test_only_a_qube_driver_is_reset_this_way() -> None:
+    with pytest.raises(ValueError, match="needs a qube driver, got a cartpole one"):
+        reset_through_driver(simulated_driver("cartpole", 0, 0))

@@ -91,6 +91,8 @@ def reset_through_driver(
 
     :param constants: the controllers' constants (default: ``controller_constants()``, nominal)
     """
+    if driver.spec.kind != "qube":
+        raise ValueError(f"the QUBE reset needs a qube driver, got a {driver.spec.kind} one")
     s = settings or ResetSettings()
     phases = ResetPhases(s.period, max(1, round(s.settle_seconds / s.period)), constants)
     reader = _Reader(driver, AngleRates(s.velocity_cutoff), s)
