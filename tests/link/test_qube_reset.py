@@ -32,8 +32,9 @@ def test_the_reset_through_a_driver_settles_like_the_compiled_reset(unit: int) -
     driver = SimulatedDriver(device)
     obs = reset_through_driver(driver, ResetSettings(still_seconds=0.0, kick_seconds=0.0))
     seconds = driver.time()
-    # measured on units 0-5: within 0.08 s of each other (1.2-1.6 s)
-    assert abs(seconds - compiled.last_reset_seconds) < 0.25, (seconds, compiled.last_reset_seconds)
+    # measured on units 0-9 of fleet 0, profiles table2 and v1: both always settle (1.2-4.1 s), at most
+    # 0.25 s apart (the sampling differs, and a pump can end a swing earlier or later)
+    assert abs(seconds - compiled.last_reset_seconds) < 0.35, (seconds, compiled.last_reset_seconds)
     for got, expected, tolerance in zip(
         obs, first, (math.radians(3), 1.5, math.radians(20), 1.5), strict=True
     ):

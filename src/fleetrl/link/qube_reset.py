@@ -51,7 +51,7 @@ class ResetSettings:
     """the readings stay inside the hand-off windows this long before the reset ends"""
     arm_limit: float = math.radians(150.0)
     """past this |arm angle| (rad) the reset stops the motor and fails (the simulated swing-up travels up
-    to ~90°; the bridge's own ±90° stop is not active during a reset)"""
+    to ~120°, docs/devices.md; the bridge's own ±90° stop is not active during a reset)"""
     velocity_cutoff: float = 50.0
     """cut-off of the velocity filter (rad/s), Quanser's"""
 
