@@ -79,6 +79,32 @@ def bootstrap_ratio(
     return point, float(low), float(high)
 
 
+@dataclass(frozen=True)
+class Interval:
+    """A point estimate with its 95 % bootstrap interval."""
+
+    point: float
+    low: float
+    high: float
+
+    def format(self, digits: int = 0, unit: str = "") -> str:
+        """``91 (80–120)`` or ``1.59× (1.10–2.30)``; ``-`` for an empty sample."""
+        if math.isnan(self.point):
+            return "-"
+        return f"{self.point:.{digits}f}{unit} ({self.low:.{digits}f}–{self.high:.{digits}f})"
+
+
+def bootstrap_median(values: list[float] | list[int], seed: int = 0, draws: int = 2000) -> Interval:
+    """The median of ``values`` with a 95 % percentile-bootstrap interval (NaNs for an empty sample)."""
+    a = np.asarray(values, dtype=float)
+    if a.size == 0:
+        return Interval(math.nan, math.nan, math.nan)
+    rng = np.random.default_rng(seed)
+    medians = np.median(rng.choice(a, (draws, a.size)), axis=1)
+    low, high = np.percentile(medians, [2.5, 97.5])
+    return Interval(float(np.median(a)), float(low), float(high))
+
+
 def markdown_table(header: list[str], rows: list[list[Any]]) -> str:
     """A GitHub-flavoured markdown table."""
     lines = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
