@@ -1,9 +1,7 @@
 """Summaries of repeated runs: rounds to completion, medians with spread, speed-up ratios."""
 
-import json
 import math
 from dataclasses import dataclass
-from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -31,14 +29,6 @@ class Completion:
     def worker_rounds(self) -> list[int]:
         """Every worker's rounds to completion (M for an incomplete one)."""
         return [self.max_rounds if r is None else r for r in self.per_worker.values()]
-
-
-def read_completion(run_dir: Path) -> Completion:
-    """Rounds to completion from a run directory's summary.json and config.json."""
-    summary = json.loads((run_dir / "summary.json").read_text())
-    config = json.loads((run_dir / "config.json").read_text())
-    per_worker = {k: v["completed_at_round"] for k, v in summary["workers"].items()}
-    return Completion(per_worker, int(config["max_rounds"]))
 
 
 @dataclass(frozen=True)
