@@ -57,7 +57,7 @@ bench: install
 	$(PY) benchmarks/learning.py
 
 results: install
-	$(VENV)/bin/fleetrl experiment all --seeds 5 --out runs/experiments
+	$(VENV)/bin/fleetrl experiment all --out runs/experiments --records docs/results/records --publish docs/results.md
 
 clean:
 	rm -rf $(VENV) .lock-venv build *.egg-info src/*.egg-info

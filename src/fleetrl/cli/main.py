@@ -80,10 +80,26 @@ def build_parser() -> argparse.ArgumentParser:
     experiment = sub.add_parser(
         "experiment", help="reproduce the paper's figures and tables; writes report.md"
     )
-    experiment.add_argument("name", help="fig5, fig6, cartpole-scaling, table2, peers, or all")
-    experiment.add_argument("--seeds", type=int, default=5, help="how many seeds (default 5)")
-    experiment.add_argument("--first-seed", type=int, default=0)
-    experiment.add_argument("--out", type=Path, default=Path("runs/experiments"))
+    experiment.add_argument("name", help="fig5, fig6, cartpole-scaling, learning, table2, peers, or all")
+    experiment.add_argument("--seeds", type=int, default=10, help="how many learning seeds (default 10)")
+    experiment.add_argument(
+        "--first-seed",
+        type=int,
+        default=100,
+        help="the first learning seed (default 100: seeds 0-9 are for tuning, never reported)",
+    )
+    experiment.add_argument(
+        "--fleet-seed", type=int, default=0, help="fleet of every arm (default 0: the tuning fleet)"
+    )
+    experiment.add_argument(
+        "--out", type=Path, default=Path("runs/experiments"), help="run directories and the report"
+    )
+    experiment.add_argument(
+        "--records",
+        type=Path,
+        default=None,
+        help="the runs' small JSON records, from which the report is computed (default OUT/records)",
+    )
     experiment.add_argument("--quick", action="store_true", help="tiny budgets: checks the pipeline only")
     experiment.add_argument(
         "--publish", type=Path, default=None, help="also copy report.md (and its images) to this file"
@@ -183,7 +199,7 @@ def cmd_experiment(args: argparse.Namespace) -> int:
     from fleetrl.experiments.runner import run_experiment
 
     seeds = list(range(args.first_seed, args.first_seed + args.seeds))
-    report = run_experiment(args.name, args.out, seeds, args.quick)
+    report = run_experiment(args.name, args.out, seeds, args.quick, args.records, args.fleet_seed)
     print(f"report: {report}")
     if args.publish is not None:
         from fleetrl.experiments.runner import publish_report

@@ -1,76 +1,123 @@
-"""An arm of an experiment: one training configuration repeated over seeds, and what its runs measured."""
+"""An arm of an experiment: one training configuration repeated over seeds, and what its runs measured.
 
+An arm is a dict of ``fleetrl train`` settings (RunSettings field → value); its command line and its key are
+both derived from it, so the printed command and the key cannot disagree.
+"""
+
+import hashlib
 import json
 import shlex
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
-from fleetrl.experiments.stats import Completion, read_completion
-from fleetrl.experiments.sweep import Run
-from fleetrl.runs.records import read_metrics
+from fleetrl.experiments.records import RunRecord, record_path
+from fleetrl.experiments.stats import Completion
+from fleetrl.experiments.sweep import Run, train_args
+
+KEY_SETTINGS = ("env", "units", "mode", "preset", "max_rounds", "scheme", "fleet_seed", "transport")
+"""settings the key spells out; any other makes the key end in a digest of them"""
+
+
+def arm_key(settings: dict[str, Any]) -> str:
+    """A directory name for ``settings``: ``qube-3-federated-standard-m1000-fedavg`` (``-fleet<n>`` off fleet
+    seed 0, ``-mqtt`` over MQTT, ``-<digest>`` if anything else is set)."""
+    env, units, mode, preset = (settings[k] for k in ("env", "units", "mode", "preset"))
+    key = f"{env}-{units}-{mode}-{preset}-m{settings['max_rounds']}"
+    if settings.get("scheme", "paper") != "paper":
+        key += f"-{settings['scheme']}"
+    if settings.get("fleet_seed", 0):
+        key += f"-fleet{settings['fleet_seed']}"
+    if settings.get("transport") == "mqtt" and settings["mode"] == "federated":
+        key += "-mqtt"
+    rest = {k: v for k, v in settings.items() if k not in KEY_SETTINGS}
+    if rest:
+        key += "-" + hashlib.sha256(json.dumps(rest, sort_keys=True).encode()).hexdigest()[:8]
+    return key
 
 
 @dataclass(frozen=True)
+class Places:
+    """Where a sweep's runs and records go."""
+
+    runs: Path
+    """run directories (models, TensorBoard; not committed)"""
+    records: Path
+    """run records (committed beside the report)"""
+    unseen_units: int = 0
+    """units of the generalisation row per run"""
+
+
+@dataclass(frozen=True, eq=False)
 class Arm:
     """One configuration of ``fleetrl train``, run once per seed."""
 
-    key: str
-    """directory name (no spaces)"""
     label: str
     """how the report names it"""
-    args: tuple[str, ...]
-    """``fleetrl train`` arguments other than ``--seed`` and ``--out``"""
+    settings: dict[str, Any]
+    """``fleetrl train`` settings other than ``seed`` and ``out``"""
 
-    def run(self, root: Path, seed: int) -> Run:
-        """The run of this arm for ``seed`` under ``root``."""
+    @property
+    def key(self) -> str:
+        """Directory name of its runs and records."""
+        return arm_key(self.settings)
+
+    @property
+    def units(self) -> int:
+        """Units (one worker each)."""
+        return int(self.settings["units"])
+
+    def with_settings(self, **changes: Any) -> "Arm":
+        """The same arm with some settings changed (its key follows)."""
+        return Arm(self.label, {**self.settings, **changes})
+
+    def run(self, places: Places, seed: int) -> Run:
+        """The run of this arm for ``seed``."""
         return Run(
-            root / self.key / f"seed-{seed}",
-            [*self.args, "--seed", str(seed)],
+            places.runs / self.key / f"seed-{seed}",
+            {**self.settings, "seed": seed},
+            record_path(places.records, self.key, seed),
             {"arm": self.key, "seed": seed},
+            places.unseen_units,
         )
 
-    def runs(self, root: Path, seeds: list[int]) -> list[Run]:
+    def runs(self, places: Places, seeds: list[int]) -> list[Run]:
         """One run per seed."""
-        return [self.run(root, seed) for seed in seeds]
+        return [self.run(places, seed) for seed in seeds]
 
     def command(self, root: Path) -> str:
         """The command that regenerates the arm's runs (one per seed)."""
         out = shlex.quote(str(root / self.key))
-        return f"for s in SEEDS; do fleetrl train {shlex.join(self.args)} --seed $s --out {out}/seed-$s; done"
+        args = shlex.join(train_args(self.settings))
+        return f"for s in SEEDS; do fleetrl train {args} --seed $s --out {out}/seed-$s; done"
 
 
-def completions(runs: list[Run]) -> list[Completion]:
+def completions(records: list[RunRecord]) -> list[Completion]:
     """Rounds to completion of each run."""
-    return [read_completion(run.out) for run in runs]
+    return [record.completion() for record in records]
 
 
-def mean_score_curve(runs: list[Run], max_rounds: int) -> np.ndarray:
-    """Mean score per round over every worker of every run (a finished worker holds its last WMA)."""
+def mean_score_curve(records: list[RunRecord], max_rounds: int) -> np.ndarray:
+    """Mean score per round over every worker of every run (a finished worker holds its last score)."""
     totals = np.zeros(max_rounds)
     count = 0
-    for run in runs:
-        per_worker: dict[int, list[float]] = {}
-        for record in read_metrics(run.out / "metrics.csv"):
-            per_worker.setdefault(record.worker, []).append(record.score)
-        for scores in per_worker.values():
-            padded = np.full(max_rounds, scores[-1] if scores else 0.0)
-            padded[: len(scores)] = scores[:max_rounds]
+    for record in records:
+        for scores in record.scores().values():
+            values = [np.nan if s is None else s for s in scores]
+            padded = np.full(max_rounds, values[-1] if values else 0.0)
+            padded[: len(values)] = values[:max_rounds]
             totals += padded
             count += 1
     return totals / max(count, 1)
 
 
-def wall_seconds(runs: list[Run]) -> list[float]:
+def wall_seconds(records: list[RunRecord]) -> list[float]:
     """Wall time of each run."""
-    return [float(json.loads((run.out / "summary.json").read_text())["wall_seconds"]) for run in runs]
+    return [record.wall_seconds for record in records]
 
 
-def same_scores(a: Path, b: Path) -> bool:
-    """Whether two run directories hold exactly the same (worker, round, score) rows."""
-
-    def rows(path: Path) -> list[tuple[int, int, float]]:
-        return sorted((r.worker, r.round, r.score) for r in read_metrics(path / "metrics.csv"))
-
-    return rows(a) == rows(b)
+def same_scores(a: RunRecord, b: RunRecord) -> bool:
+    """Whether two runs hold exactly the same per-round scores of every worker."""
+    return a.scores() == b.scores()

@@ -10,29 +10,54 @@ from fleetrl.experiments.plan import Plan, Ratio
 
 @dataclass(frozen=True)
 class Budget:
-    """How many rounds (the paper's M) the runs of an experiment may take."""
+    """How big an experiment's runs are (the paper's M, the unseen units) and which fleet they train on."""
 
     qube_rounds: int
     cartpole_rounds: int
+    unseen_units: int
+    """units of the generalisation row (each final policy, one greedy episode on each)"""
+    fleet_seed: int = 0
+    """the fleet every arm trains on"""
 
 
-FULL = Budget(qube_rounds=1000, cartpole_rounds=400)
-QUICK = Budget(qube_rounds=4, cartpole_rounds=6)
+FULL = Budget(qube_rounds=1000, cartpole_rounds=400, unseen_units=10)
+QUICK = Budget(qube_rounds=4, cartpole_rounds=6, unseen_units=2)
+
+TUNING_SEEDS = range(0, 10)
+"""the learning seeds tuning may use; a report's figures are on seeds outside them (``fleetrl experiment
+--first-seed``, default 100)"""
+TUNING_FLEET_SEED = 0
+"""the fleet tuning happens on"""
 
 
-def arm(env: str, units: int, mode: str, preset: str, rounds: int, label: str, scheme: str = "paper") -> Arm:
+def arm(
+    env: str,
+    units: int,
+    mode: str,
+    preset: str,
+    rounds: int,
+    label: str,
+    scheme: str = "paper",
+    fleet_seed: int = 0,
+) -> Arm:
     """A training arm; its key names the configuration, so experiments that share one share its runs.
 
-    Federated arms use the in-process bus (each experiment checks one arm over MQTT as well). The key of a
-    ``paper``-scheme arm carries no scheme (it is the default), so runs made before schemes existed count.
+    Federated arms use the in-process bus (each experiment checks one arm over MQTT as well).
     """
-    args = ["--env", env, "--units", str(units), "--mode", mode, "--preset", preset]
-    args += ["--max-rounds", str(rounds)] + (["--transport", "local"] if mode == "federated" else [])
-    key = f"{env}-{units}-{mode}-{preset}-m{rounds}"
+    settings: dict[str, object] = {
+        "env": env,
+        "units": units,
+        "mode": mode,
+        "preset": preset,
+        "max_rounds": rounds,
+    }
+    if mode == "federated":
+        settings["transport"] = "local"
     if scheme != "paper":
-        args += ["--scheme", scheme]
-        key += f"-{scheme}"
-    return Arm(key, label, tuple(args))
+        settings["scheme"] = scheme
+    if fleet_seed:
+        settings["fleet_seed"] = fleet_seed
+    return Arm(label, settings)
 
 
 def fig5(budget: Budget) -> Plan:
@@ -40,11 +65,13 @@ def fig5(budget: Budget) -> Plan:
     model-averaging scheme (``fedavg``)."""
     m = budget.qube_rounds
     ind_paper, fed_paper, ind_std, fed_std = (
-        arm("qube", 3, mode, preset, m, f"{mode} · {preset}")
+        arm("qube", 3, mode, preset, m, f"{mode} · {preset}", fleet_seed=budget.fleet_seed)
         for preset in ("paper", "standard")
         for mode in ("individual", "federated")
     )
-    fedavg = arm("qube", 3, "federated", "standard", m, "federated · standard · fedavg", "fedavg")
+    fedavg = arm(
+        "qube", 3, "federated", "standard", m, "federated · standard · fedavg", "fedavg", budget.fleet_seed
+    )
     return Plan(
         name="fig5",
         title="Fig. 5: 3 QUBE units, individual vs federated",
@@ -69,7 +96,7 @@ def fig6(budget: Budget) -> Plan:
     variants = (("paper", "paper"), ("standard", "paper"), ("standard", "fedavg"))
     arms = {
         (n, preset, scheme): arm(
-            "qube", n, "federated", preset, m, f"{n} workers · {preset} · {scheme}", scheme
+            "qube", n, "federated", preset, m, f"{n} workers · {preset} · {scheme}", scheme, budget.fleet_seed
         )
         for preset, scheme in variants
         for n in (2, 3)
@@ -92,7 +119,14 @@ def cartpole_scaling(budget: Budget) -> Plan:
     m = budget.cartpole_rounds
     arms = {
         (n, scheme): arm(
-            "cartpole", n, "federated", "standard", m, f"{n} workers · standard · {scheme}", scheme
+            "cartpole",
+            n,
+            "federated",
+            "standard",
+            m,
+            f"{n} workers · standard · {scheme}",
+            scheme,
+            budget.fleet_seed,
         )
         for scheme in ("paper", "fedavg")
         for n in (1, 2, 4, 8)
@@ -119,13 +153,23 @@ def learning(budget: Budget) -> Plan:
     for env, rounds in (("cartpole", budget.cartpole_rounds), ("qube", budget.qube_rounds)):
         for preset in ("paper", "standard"):
             for mode in ("individual", "federated"):
-                arms[env, preset, mode] = arm(env, 3, mode, preset, rounds, f"{env} · {mode} · {preset}")
+                label = f"{env} · {mode} · {preset}"
+                arms[env, preset, mode] = arm(
+                    env, 3, mode, preset, rounds, label, fleet_seed=budget.fleet_seed
+                )
             alone = arms[env, preset, "individual"]
             ratios.append(Ratio(alone, arms[env, preset, "federated"], "federation, the paper's scheme"))
         # fedavg with the preset that learns (the paper preset learns neither env alone nor with the paper's
         # scheme within M: see the rows above)
         fedavg = arm(
-            env, 3, "federated", "standard", rounds, f"{env} · federated · standard · fedavg", "fedavg"
+            env,
+            3,
+            "federated",
+            "standard",
+            rounds,
+            f"{env} · federated · standard · fedavg",
+            "fedavg",
+            budget.fleet_seed,
         )
         arms[env, "standard", "fedavg"] = fedavg
         ratios.append(Ratio(arms[env, "standard", "individual"], fedavg, "federation, fedavg"))

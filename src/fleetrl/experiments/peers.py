@@ -100,9 +100,26 @@ class PeerRun:
         return shlex.join(["python", "-m", "fleetrl.experiments.peers", *self.args()])
 
     @property
+    def name(self) -> str:
+        """How progress lines name it."""
+        return f"SB3 {self.env} unit {self.unit} seed {self.seed}"
+
+    @property
     def done(self) -> bool:
-        """Whether the result file exists."""
-        return self.out.is_file()
+        """Whether the result file exists and was made with these settings."""
+        try:
+            result = self.result()
+        except (OSError, ValueError):
+            return False
+        made = (result.get(k) for k in ("env", "unit", "fleet_seed", "seed", "max_steps"))
+        return tuple(made) == (self.env, self.unit, self.fleet_seed, self.seed, self.max_steps)
+
+    def reusable(self) -> bool:
+        """A result on disk is either done or redone."""
+        return False
+
+    def finish(self) -> None:
+        """The process wrote its result itself."""
 
     def result(self) -> dict[str, Any]:
         """The result written by the run."""

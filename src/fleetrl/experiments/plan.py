@@ -1,8 +1,9 @@
-"""A training experiment: arms × seeds, run as a sweep, summarised as CSV, plots and a report section."""
+"""A training experiment: arms × seeds, run as a sweep, summarised from the runs' records as CSV, plots and a
+report section."""
 
 import csv
 import logging
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import matplotlib
@@ -10,11 +11,11 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 
-from fleetrl.experiments.arms import Arm, completions, mean_score_curve, same_scores, wall_seconds
-from fleetrl.experiments.stats import bootstrap_ratio, markdown_table, spread
+from fleetrl.experiments.arms import Arm, Places, completions, mean_score_curve, same_scores, wall_seconds
+from fleetrl.experiments.records import RunRecord
+from fleetrl.experiments.stats import bootstrap_median, bootstrap_ratio, markdown_table
 from fleetrl.experiments.sweep import run_all
 from fleetrl.runs.plots import by_worker, draw_worker
-from fleetrl.runs.records import read_metrics
 
 log = logging.getLogger(__name__)
 
@@ -45,111 +46,185 @@ class Plan:
     notes: str = ""
 
 
-def run_plan(plan: Plan, out: Path, seeds: list[int], command: str) -> str:
-    """Run every arm for every seed and return the report section (markdown).
+Records = dict[str, list[RunRecord]]
+"""each arm's records (by arm key), one per seed"""
 
-    Runs live in ``out/runs/<arm key>/seed-<seed>``, shared by every experiment (an arm two experiments
-    have in common runs once); finished runs are reused. The section's files go to ``out/<plan name>/``.
+
+def run_plan(plan: Plan, out: Path, places: Places, seeds: list[int], preamble: list[str]) -> str:
+    """Run every arm for every seed (runs not done yet) and return the report section (markdown).
+
+    Runs live in ``places.runs/<arm key>/seed-<seed>``, their records in ``places.records``, shared by every
+    experiment (an arm two experiments have in common runs once). The section is computed from the records
+    alone; its files go to ``out/<plan name>/``. ``preamble``: the section's lines after its title.
     """
-    runs_root = out / "runs"
     root = out / plan.name
     root.mkdir(parents=True, exist_ok=True)
-    runs = {arm.key: arm.runs(runs_root, seeds) for arm in plan.arms}
-    extra = []
-    if plan.mqtt_check:
-        local_arm = plan.mqtt_check
-        mqtt_arm = replace(local_arm, key=f"{local_arm.key}-mqtt", args=_over_mqtt(local_arm.args))
-        extra = [mqtt_arm.run(runs_root, seeds[0])]
+    runs = {arm.key: arm.runs(places, seeds) for arm in plan.arms}
+    mqtt_arm = plan.mqtt_check.with_settings(transport="mqtt") if plan.mqtt_check else None
+    extra = [mqtt_arm.run(places, seeds[0])] if mqtt_arm else []
     run_all([r for rs in runs.values() for r in rs] + extra)
+    records = {key: [run.result() for run in arm_runs] for key, arm_runs in runs.items()}
+    _write_csv(root / "runs.csv", records, seeds)
 
-    rows = []
-    for key, arm_runs in runs.items():
-        for run, completion, wall in zip(
-            arm_runs, completions(arm_runs), wall_seconds(arm_runs), strict=True
-        ):
-            rows.append(
-                [
-                    key,
-                    run.labels["seed"],
-                    completion.fleet,
-                    completion.complete,
-                    ";".join(str(r) for r in completion.worker_rounds()),
-                    round(wall, 1),
-                ]
-            )
-    with (root / "runs.csv").open("w", newline="") as f:
-        writer = csv.writer(f)
-        writer.writerow(["arm", "seed", "fleet_rounds", "all_completed", "worker_rounds", "wall_seconds"])
-        writer.writerows(rows)
-
-    lines = [f"## {plan.title}", "", f"Command: `{command}`", ""]
+    lines = [f"## {plan.title}", "", *preamble]
     if plan.notes:
         lines += [plan.notes, ""]
-    lines += [_arms_table(plan, runs), ""]
-    for ratio in plan.ratios:
-        slower = completions(runs[ratio.slower.key])
-        faster = completions(runs[ratio.faster.key])
-        point, low, high = bootstrap_ratio([c.fleet for c in slower], [c.fleet for c in faster])
-        per_unit = bootstrap_ratio(
-            [r for c in slower for r in c.worker_rounds()], [r for c in faster for r in c.worker_rounds()]
-        )
-        # an arm whose runs hit M without completing gives a bound, not a ratio (both: no direction)
-        censored = (not all(c.complete for c in slower), not all(c.complete for c in faster))
-        bound = {(False, False): "", (True, False): "≥ ", (False, True): "≤ ", (True, True): "~"}[censored]
-        lines.append(
-            f"- **{ratio.slower.label} → {ratio.faster.label}**: fleet speed-up "
-            f"{bound}{point:.2f}× (95 % bootstrap {low:.2f}–{high:.2f}), per unit {bound}{per_unit[0]:.2f}× "
-            f"({per_unit[1]:.2f}–{per_unit[2]:.2f}); {ratio.claim}"
-        )
-    if extra:
-        assert plan.mqtt_check is not None
-        identical = same_scores(runs[plan.mqtt_check.key][0].out, extra[0].out)
+    lines += [_arms_table(plan, records), ""]
+    speed = _speed_up_table(plan, records)
+    if speed:
+        lines += [speed, ""]
+    lines += [_ratio_line(ratio, records) for ratio in plan.ratios]
+    if extra and plan.mqtt_check:
+        identical = same_scores(records[plan.mqtt_check.key][0], extra[0].result())
         lines.append(
             f"- Transport check: seed {seeds[0]} of {plan.mqtt_check.label} over MQTT (embedded broker): "
             f"scores {'identical' if identical else 'DIFFERENT'} to the in-process bus."
         )
+    hosts = sorted({r.host for rs in records.values() for r in rs})
+    lines += ["", "Runs made on: " + "; ".join(f"`{h}`" for h in hosts) + "."]
     curves = root / "mean_score.png"
-    _plot_curves(plan, runs, curves)
+    _plot_curves(plan, records, curves)
     lines += ["", f"![mean score per round]({curves.relative_to(out)})"]
     if plan.side_by_side:
         fig = root / "workers.png"
-        _plot_side_by_side(plan, runs, fig)
+        _plot_side_by_side(plan, records, fig)
         lines += ["", f"![per-worker curves, seed {seeds[0]}]({fig.relative_to(out)})"]
     lines += ["", f"Regenerate one arm (SEEDS: {' '.join(map(str, seeds))}):", ""]
-    lines += [f"    {arm.command(runs_root)}" for arm in plan.arms]
+    lines += [f"    {arm.command(places.runs)}" for arm in plan.arms]
     return "\n".join(lines) + "\n"
 
 
-def _over_mqtt(args: tuple[str, ...]) -> tuple[str, ...]:
-    out = list(args)
-    index = out.index("--transport")
-    out[index + 1] = "mqtt"
-    return tuple(out)
+def _write_csv(path: Path, records: Records, seeds: list[int]) -> None:
+    with path.open("w", newline="") as f:
+        writer = csv.writer(f)
+        writer.writerow(["arm", "seed", "fleet_rounds", "all_completed", "worker_rounds", "wall_seconds"])
+        for key, arm_records in records.items():
+            for seed, record in zip(seeds, arm_records, strict=True):
+                completion = record.completion()
+                rounds = ";".join(str(r) for r in completion.worker_rounds())
+                writer.writerow(
+                    [key, seed, completion.fleet, completion.complete, rounds, record.wall_seconds]
+                )
 
 
-def _arms_table(plan: Plan, runs: dict[str, list]) -> str:
+def _bound(slower: list[RunRecord], faster: list[RunRecord]) -> str:
+    """An arm whose runs hit M without completing gives a bound, not a ratio (both: no direction)."""
+    censored = (
+        not all(c.complete for c in completions(slower)),
+        not all(c.complete for c in completions(faster)),
+    )
+    return {(False, False): "", (True, False): "≥ ", (False, True): "≤ ", (True, True): "~"}[censored]
+
+
+def _fleet(records: list[RunRecord]) -> list[int]:
+    return [c.fleet for c in completions(records)]
+
+
+def _per_unit(records: list[RunRecord]) -> list[int]:
+    return [r for c in completions(records) for r in c.worker_rounds()]
+
+
+def _ratio_line(ratio: Ratio, records: Records) -> str:
+    slower, faster = records[ratio.slower.key], records[ratio.faster.key]
+    point, low, high = bootstrap_ratio(_fleet(slower), _fleet(faster))
+    unit, unit_low, unit_high = bootstrap_ratio(_per_unit(slower), _per_unit(faster))
+    bound = _bound(slower, faster)
+    return (
+        f"- **{ratio.slower.label} → {ratio.faster.label}**: fleet speed-up "
+        f"{bound}{point:.2f}× (95 % bootstrap {low:.2f}–{high:.2f}), per unit {bound}{unit:.2f}× "
+        f"({unit_low:.2f}–{unit_high:.2f}); {ratio.claim}"
+    )
+
+
+def unseen_summary(records: list[RunRecord]) -> tuple[str, str]:
+    """Mean score and share of episodes held to the cap on unseen units, over every run of an arm."""
+    scores = [s for r in records for s in r.unseen_scores()]
+    if not scores:
+        return "-", "-"
+    cap = records[0].episode_cap
+    held = sum(s >= cap for s in scores)
+    return f"{sum(scores) / len(scores):.0f}", f"{100 * held / len(scores):.0f} % of {len(scores)}"
+
+
+def _arms_table(plan: Plan, records: Records) -> str:
     rows = []
     for arm in plan.arms:
-        done = completions(runs[arm.key])
-        fleet = spread([c.fleet for c in done])
-        unit = spread([r for c in done for r in c.worker_rounds()])
-        walls = spread(wall_seconds(runs[arm.key]))
-        complete = sum(c.complete for c in done)
-        rows.append([arm.label, str(fleet), str(unit), f"{complete}/{len(done)}", f"{walls.median:.1f}"])
+        done = records[arm.key]
+        complete = sum(c.complete for c in completions(done))
+        walls = sorted(wall_seconds(done))
+        mean_unseen, held = unseen_summary(done)
+        rows.append(
+            [
+                arm.label,
+                bootstrap_median(_fleet(done)).format(),
+                bootstrap_median(_per_unit(done)).format(),
+                f"{complete}/{len(done)}",
+                mean_unseen,
+                held,
+                f"{walls[len(walls) // 2]:.1f}",
+            ]
+        )
     header = [
         "arm",
-        "rounds until the last unit completes, median [IQR] (range)",
-        "rounds per unit, median [IQR] (range)",
+        "rounds until the last unit completes: median (95 % CI)",
+        "rounds per unit: median (95 % CI)",
         "runs complete within M",
+        "unseen units: mean score",
+        "unseen units: held to the cap",
         "wall s (median)",
     ]
     return markdown_table(header, rows)
 
 
-def _plot_curves(plan: Plan, runs: dict[str, list], path: Path) -> None:
+def alone_arm(plan: Plan, arm: Arm) -> Arm | None:
+    """The plan's arm "each unit alone" that ``arm`` is compared with: individual, same env, units, preset, M,
+    fleet and settings otherwise (None if the plan has none, or ``arm`` is that arm)."""
+    if arm.settings["mode"] == "individual":
+        return None
+    for other in plan.arms:
+        expected = {**arm.settings, "mode": "individual"}
+        expected.pop("transport", None)
+        expected.pop("scheme", None)
+        if other.settings == expected:
+            return other
+    return None
+
+
+def _speed_up_table(plan: Plan, records: Records) -> str:
+    rows = []
+    for arm in plan.arms:
+        alone = alone_arm(plan, arm)
+        if alone is None:
+            continue
+        slower, faster = records[alone.key], records[arm.key]
+        bound = _bound(slower, faster)
+        point, low, high = bootstrap_ratio(_fleet(slower), _fleet(faster))
+        unit, unit_low, unit_high = bootstrap_ratio(_per_unit(slower), _per_unit(faster))
+        rows.append(
+            [
+                arm.label,
+                str(arm.units),
+                f"{bound}{point:.2f}× ({low:.2f}–{high:.2f})",
+                f"{bound}{unit:.2f}× ({unit_low:.2f}–{unit_high:.2f})",
+                f"{bound}{point / arm.units:.2f}",
+            ]
+        )
+    if not rows:
+        return ""
+    header = [
+        "arm (vs each unit alone, same preset)",
+        "N units",
+        "speed-up, rounds until the last unit completes (95 % CI)",
+        "speed-up, rounds per unit (95 % CI)",
+        "efficiency (speed-up / N)",
+    ]
+    return markdown_table(header, rows)
+
+
+def _plot_curves(plan: Plan, records: Records, path: Path) -> None:
     fig, ax = plt.subplots(figsize=(8, 4))
     for arm in plan.arms:
-        ax.plot(mean_score_curve(runs[arm.key], plan.max_rounds), label=arm.label, lw=1.2)
+        ax.plot(mean_score_curve(records[arm.key], plan.max_rounds), label=arm.label, lw=1.2)
     ax.set_xlabel("round (episode)")
     ax.set_ylabel("mean score (all workers, all seeds)")
     ax.set_title(plan.title, fontsize=10)
@@ -160,15 +235,15 @@ def _plot_curves(plan: Plan, runs: dict[str, list], path: Path) -> None:
     plt.close(fig)
 
 
-def _plot_side_by_side(plan: Plan, runs: dict[str, list], path: Path) -> None:
+def _plot_side_by_side(plan: Plan, records: Records, path: Path) -> None:
     assert plan.side_by_side is not None
-    columns = [by_worker(read_metrics(runs[arm.key][0].out / "metrics.csv")) for arm in plan.side_by_side]
+    columns = [by_worker(records[arm.key][0].round_records()) for arm in plan.side_by_side]
     n_rows = max(len(c) for c in columns)
     fig, axes = plt.subplots(n_rows, 2, figsize=(12, 2.4 * n_rows), sharex=True, sharey=True, squeeze=False)
     for col, (arm, groups) in enumerate(zip(plan.side_by_side, columns, strict=True)):
         axes[0, col].set_title(arm.label, fontsize=10)
-        for row, (worker, records) in enumerate(groups.items()):
-            draw_worker(axes[row, col], records, f"worker {worker}")
+        for row, (worker, rows) in enumerate(groups.items()):
+            draw_worker(axes[row, col], rows, f"worker {worker}")
     axes[0, 0].legend(loc="upper left", fontsize=7)
     fig.tight_layout()
     fig.savefig(path, dpi=100)

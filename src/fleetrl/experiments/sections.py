@@ -5,7 +5,7 @@ from pathlib import Path
 import numpy as np
 
 from fleetrl.devices.homogeneity import format_tables, homogeneity_test, write_csv
-from fleetrl.experiments.arms import Arm, completions
+from fleetrl.experiments.arms import Arm, Places, completions
 from fleetrl.experiments.catalog import Budget, arm
 from fleetrl.experiments.peers import PeerRun
 from fleetrl.experiments.stats import bootstrap_ratio, markdown_table, spread
@@ -16,20 +16,21 @@ PAPER_TABLE2 = (
 )
 
 
-def table2_section(out: Path, seeds: list[int], command: str, units: int = 3, impulses: int = 100) -> str:
-    """The homogeneity test on the simulated fleet (fleet seed 0), once per impulse seed."""
-    lines = [
-        "## Table 2: homogeneity of the simulated fleet",
-        "",
-        f"Command: `{command}`",
-        "",
-        PAPER_TABLE2,
-        "",
-    ]
+def table2_section(
+    directory: Path,
+    seeds: list[int],
+    preamble: list[str],
+    fleet_seed: int = 0,
+    units: int = 3,
+    impulses: int = 100,
+) -> str:
+    """The homogeneity test on the simulated fleet, once per impulse seed, its matrices written under
+    ``directory`` (``preamble``: the lines after the title)."""
+    lines = ["## Table 2: homogeneity of the simulated fleet", "", *preamble, PAPER_TABLE2, ""]
     off_diagonal: dict[str, list[float]] = {"motor": [], "pendulum": []}
     for seed in seeds:
-        result = homogeneity_test(units, 0, impulses, seed)
-        write_csv(result, out / "table2" / f"seed-{seed}")
+        result = homogeneity_test(units, fleet_seed, impulses, seed)
+        write_csv(result, directory / f"seed-{seed}")
         for name in off_diagonal:
             matrix = getattr(result, name)
             off_diagonal[name] += list(matrix[np.triu_indices(units, 1)])
@@ -40,7 +41,11 @@ def table2_section(out: Path, seeds: list[int], command: str, units: int = 3, im
             f"- {name} angle: off-diagonal correlations over {len(seeds)} impulse seed(s) "
             f"{min(values):.2f}–{max(values):.2f} (median {np.median(values):.2f})"
         )
-    lines += ["", "CSV matrices: `table2/seed-*/{motor,pendulum}_correlation.csv` in the experiment's --out."]
+    lines += [
+        "",
+        f"CSV matrices: `{directory.name}/seed-*/{{motor,pendulum}}_correlation.csv` in the experiment's"
+        " --out.",
+    ]
     return "\n".join(lines) + "\n"
 
 
@@ -53,30 +58,38 @@ OUR_ARMS = ("individual", "paper", "fedavg")
 """fleetrl's arms next to SB3 (preset standard): each unit alone, federated with each scheme"""
 
 
-def ours_arm(env: str, name: str, rounds: int) -> Arm:
+def ours_arm(env: str, name: str, rounds: int, fleet_seed: int = 0) -> Arm:
     """fleetrl's arm ``name`` of :data:`OUR_ARMS` on 3 units of ``env``."""
     if name == "individual":
-        return arm(env, 3, "individual", "standard", rounds, "fleetrl individual · standard")
-    return arm(env, 3, "federated", "standard", rounds, f"fleetrl federated · standard · {name}", name)
+        return arm(
+            env, 3, "individual", "standard", rounds, "fleetrl individual · standard", fleet_seed=fleet_seed
+        )
+    label = f"fleetrl federated · standard · {name}"
+    return arm(env, 3, "federated", "standard", rounds, label, name, fleet_seed)
 
 
-def peers_section(out: Path, seeds: list[int], command: str, budget: Budget, quick: bool) -> str:
-    """SB3 PPO (defaults) per unit vs fleetrl on the same envs and criterion: episodes per unit."""
+def peers_section(places: Places, seeds: list[int], preamble: list[str], budget: Budget, quick: bool) -> str:
+    """SB3 PPO (defaults) per unit vs fleetrl on the same envs and criterion: episodes per unit (SB3's results
+    are records too, under ``places.records/peers``)."""
     envs = ["cartpole"] if quick else ["cartpole", "qube"]
     steps = {env: (5_000 if quick else PEER_STEPS[env]) for env in envs}
+    fleet_seed = budget.fleet_seed
+    where = places.records / "peers" / (f"fleet-{fleet_seed}" if fleet_seed else "")
     peer_runs = {
         env: [
-            PeerRun(out / "peers" / env / f"unit-{s % 3}-seed-{s}.json", env, s % 3, s, steps[env])
+            PeerRun(where / env / f"unit-{s % 3}-seed-{s}.json", env, s % 3, s, steps[env], fleet_seed)
             for s in seeds
         ]
         for env in envs
     }
     rounds = {"cartpole": budget.cartpole_rounds, "qube": budget.qube_rounds}
-    ours = {(env, scheme): ours_arm(env, scheme, rounds[env]) for env in envs for scheme in OUR_ARMS}
-    our_runs = {key: ours[key].runs(out / "runs", seeds) for key in ours}
+    ours = {
+        (env, scheme): ours_arm(env, scheme, rounds[env], fleet_seed) for env in envs for scheme in OUR_ARMS
+    }
+    our_runs = {key: ours[key].runs(places, seeds) for key in ours}
     run_all([r for env in envs for r in peer_runs[env]] + [r for runs in our_runs.values() for r in runs])
 
-    lines = ["## Peers: Stable-Baselines3 PPO (defaults) per unit", "", f"Command: `{command}`", ""]
+    lines = ["## Peers: Stable-Baselines3 PPO (defaults) per unit", "", *preamble]
     lines += [
         "Each of 3 units trained alone by SB3 PPO with its default hyper-parameters on the same registered"
         " env, stopped by the same criterion (WMA of the last 10 scores ≥ threshold); an incomplete run"
@@ -92,7 +105,7 @@ def peers_section(out: Path, seeds: list[int], command: str, budget: Budget, qui
         sb3_done = sum(r["episodes_to_completion"] is not None for r in results)
         rows.append([env, "SB3 PPO (defaults)", f"{spread(sb3)}", f"{sb3_done}/{len(results)}", "1"])
         for scheme in OUR_ARMS:
-            done = completions(our_runs[env, scheme])
+            done = completions([run.result() for run in our_runs[env, scheme]])
             fleet = [r for c in done for r in c.worker_rounds()]
             complete = sum(r is not None for c in done for r in c.per_worker.values())
             ratio, low, high = bootstrap_ratio(fleet, sb3)

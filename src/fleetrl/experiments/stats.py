@@ -1,9 +1,7 @@
 """Summaries of repeated runs: rounds to completion, medians with spread, speed-up ratios."""
 
-import json
 import math
 from dataclasses import dataclass
-from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -31,14 +29,6 @@ class Completion:
     def worker_rounds(self) -> list[int]:
         """Every worker's rounds to completion (M for an incomplete one)."""
         return [self.max_rounds if r is None else r for r in self.per_worker.values()]
-
-
-def read_completion(run_dir: Path) -> Completion:
-    """Rounds to completion from a run directory's summary.json and config.json."""
-    summary = json.loads((run_dir / "summary.json").read_text())
-    config = json.loads((run_dir / "config.json").read_text())
-    per_worker = {k: v["completed_at_round"] for k, v in summary["workers"].items()}
-    return Completion(per_worker, int(config["max_rounds"]))
 
 
 @dataclass(frozen=True)
@@ -77,6 +67,32 @@ def bootstrap_ratio(
     ratios = [np.median(rng.choice(a, a.size)) / np.median(rng.choice(b, b.size)) for _ in range(draws)]
     low, high = np.percentile(ratios, [2.5, 97.5])
     return point, float(low), float(high)
+
+
+@dataclass(frozen=True)
+class Interval:
+    """A point estimate with its 95 % bootstrap interval."""
+
+    point: float
+    low: float
+    high: float
+
+    def format(self, digits: int = 0, unit: str = "") -> str:
+        """``91 (80–120)`` or ``1.59× (1.10–2.30)``; ``-`` for an empty sample."""
+        if math.isnan(self.point):
+            return "-"
+        return f"{self.point:.{digits}f}{unit} ({self.low:.{digits}f}–{self.high:.{digits}f})"
+
+
+def bootstrap_median(values: list[float] | list[int], seed: int = 0, draws: int = 2000) -> Interval:
+    """The median of ``values`` with a 95 % percentile-bootstrap interval (NaNs for an empty sample)."""
+    a = np.asarray(values, dtype=float)
+    if a.size == 0:
+        return Interval(math.nan, math.nan, math.nan)
+    rng = np.random.default_rng(seed)
+    medians = np.median(rng.choice(a, (draws, a.size)), axis=1)
+    low, high = np.percentile(medians, [2.5, 97.5])
+    return Interval(float(np.median(a)), float(low), float(high))
 
 
 def markdown_table(header: list[str], rows: list[list[Any]]) -> str:

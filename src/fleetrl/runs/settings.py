@@ -11,6 +11,7 @@ and its flag's ``dest``; :func:`fleetrl.runs.setting_values.build` reads a file 
 from __future__ import annotations
 
 import dataclasses
+import json
 import logging
 import platform
 from dataclasses import asdict, dataclass, field
@@ -38,6 +39,8 @@ log = logging.getLogger(__name__)
 MODES = ("individual", "federated")
 TRANSPORTS = ("mqtt", "local")
 DEVICE_LINKS = ("inprocess", "mqtt")
+NOT_RESULT_SETTINGS = ("out", "live", "broker", "broker_password_file")
+"""settings that cannot change what a run learns (where it writes, the live view, the broker's address)"""
 
 
 def choose(name: str, value: str, choices: tuple[str, ...]) -> None:
@@ -228,6 +231,14 @@ class RunSettings(LearningSettings, RoundRules, BrokerLogin):
         )
         return dump_toml(table, header)
 
+    def result_settings(self) -> dict[str, Any]:
+        """Every setting that can change the run's result, as JSON-plain values (the fleet profile's default
+        name and the typed overrides filled in): two runs with equal result settings learn the same."""
+        self.validate_learning()
+        values = {k: v for k, v in asdict(self).items() if k not in NOT_RESULT_SETTINGS}
+        plain: dict[str, Any] = json.loads(json.dumps(values, sort_keys=True, default=str))
+        return plain
+
     def to_config(self) -> dict[str, Any]:
         """Everything that defines the run, for config.json (the resolved PPO config too; no password)."""
         import torch
@@ -237,6 +248,7 @@ class RunSettings(LearningSettings, RoundRules, BrokerLogin):
         config["broker"] = self.public_broker
         config["broker_password_file"] = path_text(self.broker_password_file)
         config["ppo"] = self.ppo_config()
+        config["result_settings"] = self.result_settings()
         spec = get_env_spec(self.env)
         config["env_id"] = spec.gym_id
         config["completion_threshold"] = spec.completion_threshold

@@ -1,0 +1,205 @@
+"""A run's record: the small JSON file a sweep keeps of each finished run, beside the report.
+
+Every number, table and plot of a report is computed from records alone, so the report regenerates from what
+is committed (``docs/results/records``) while run directories (models, TensorBoard) stay out of git. A record
+carries the run's result settings: a sweep reuses it only while they equal what the arm asks for now.
+
+``<records>/<arm key>/seed-<n>.json``::
+
+    {
+     "format": 1,
+     "command": "fleetrl train --env qube ... --seed 100 --out runs/experiments/runs/.../seed-100",
+     "result_settings": {"env": "qube", "fleet_profile": "table2", "fleet_seed": 0, ...},
+     "host": "AMD EPYC ...; torch 2.5.1 (AVX2 kernels); mode default",
+     "wall_seconds": 412.3,
+     "max_rounds": 1000,
+     "workers": {"0": {"completed_at_round": 91, "score": [9,14,...], "wma": [9.0,11.8,...],
+                       "events": {"91": "completed"}}, ...},
+     "generalisation": {"units": [10,...,19], "cap": 2500, "scores": {"0": [2500,1830,...]}}
+    }
+"""
+
+import csv
+import json
+import math
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from fleetrl.experiments.stats import Completion
+from fleetrl.runs.records import RoundRecord
+from fleetrl.runs.rundir import PLAIN_EVENTS, model_path
+
+FORMAT = 1
+FIRST_UNSEEN_UNIT = 10
+"""the generalisation row's units start here (or after the fleet's last trained unit, if that is later)"""
+
+
+@dataclass(frozen=True)
+class RunRecord:
+    """A record read back: what one run measured."""
+
+    data: dict[str, Any]
+
+    @property
+    def result_settings(self) -> dict[str, Any]:
+        """The settings the run was made with (those that change its result)."""
+        settings: dict[str, Any] = self.data["result_settings"]
+        return settings
+
+    @property
+    def wall_seconds(self) -> float:
+        """The run's wall time."""
+        return float(self.data["wall_seconds"])
+
+    @property
+    def host(self) -> str:
+        """The machine the run ran on."""
+        return str(self.data.get("host", "?"))
+
+    def completion(self) -> Completion:
+        """Rounds to completion, per worker and for the fleet."""
+        workers = self.data["workers"]
+        per_worker = {k: workers[k]["completed_at_round"] for k in sorted(workers, key=int)}
+        return Completion(per_worker, int(self.data["max_rounds"]))
+
+    def scores(self) -> dict[int, list[float]]:
+        """Each worker's score per round (round 1 first)."""
+        return {int(k): list(v["score"]) for k, v in sorted(self.data["workers"].items())}
+
+    def round_records(self) -> list[RoundRecord]:
+        """The per-round rows the record keeps (score, WMA, events; no losses), for the per-worker plots."""
+        rows = []
+        for key, worker in self.data["workers"].items():
+            events = worker.get("events", {})
+            for i, (score, wma) in enumerate(zip(worker["score"], worker["wma"], strict=True)):
+                nan = math.nan
+                event = events.get(str(i + 1), "")
+                rows.append(
+                    RoundRecord(i + 1, int(key), _number(score), _number(wma), nan, nan, nan, 0, nan, event)
+                )
+        return rows
+
+    def unseen_scores(self) -> list[float]:
+        """Every greedy episode of the final policies on units no worker trained on."""
+        scores = (self.data.get("generalisation") or {}).get("scores", {})
+        return [float(s) for per_worker in scores.values() for s in per_worker]
+
+    @property
+    def episode_cap(self) -> int:
+        """The episode cap the unseen units were evaluated at."""
+        return int((self.data.get("generalisation") or {}).get("cap", 0))
+
+
+def _number(value: float | None) -> float:
+    return math.nan if value is None else float(value)
+
+
+def record_path(records: Path, arm_key: str, seed: int) -> Path:
+    """Where the record of an arm's seed lives."""
+    return records / arm_key / f"seed-{seed}.json"
+
+
+def read_record(path: Path) -> RunRecord | None:
+    """The record at ``path``; None if there is none or it is not a record of this format."""
+    try:
+        data = json.loads(path.read_text())
+    except (OSError, ValueError):
+        return None
+    if not isinstance(data, dict) or data.get("format") != FORMAT or "result_settings" not in data:
+        return None
+    return RunRecord(data)
+
+
+def _compact(value: float) -> float | int | None:
+    """A score or WMA for the record: 2 decimals, integers without a point, NaN as null."""
+    if not math.isfinite(value):
+        return None
+    rounded = round(value, 2)
+    return int(rounded) if rounded == int(rounded) else rounded
+
+
+def read_worker_rows(run_dir: Path) -> dict[str, dict[str, Any]]:
+    """Per worker, from metrics.csv: score, WMA, events other than plain sharing, and (if the file has that
+    column) the episodes of each round.
+
+    Read by column name, so columns added later do not break it.
+    """
+    workers: dict[str, dict[str, Any]] = {}
+    with (run_dir / "metrics.csv").open(newline="") as f:
+        rows = sorted(csv.DictReader(f), key=lambda r: (int(r["worker"]), int(r["round"])))
+    for row in rows:
+        worker = workers.setdefault(row["worker"], {"score": [], "wma": [], "events": {}})
+        worker["score"].append(_compact(float(row["score"] or "nan")))
+        worker["wma"].append(_compact(float(row["wma"] or "nan")))
+        if row.get("event", "") not in PLAIN_EVENTS:  # rounds that only shared are not kept
+            worker["events"][row["round"]] = row["event"]
+        if row.get("episodes"):
+            worker.setdefault("episodes", []).append(int(row["episodes"]))
+    return workers
+
+
+def unseen_units(trained: int, count: int) -> list[int]:
+    """The units of the generalisation row: ``count`` units of the fleet no worker trained on."""
+    first = max(FIRST_UNSEEN_UNIT, trained)
+    return list(range(first, first + count))
+
+
+def evaluate_unseen(run_dir: Path, settings: dict[str, Any], count: int) -> dict[str, Any]:
+    """Each worker's final policy, greedily, one episode on each of ``count`` unseen units of its fleet."""
+    from fleetrl.envs.catalog import get_env_spec
+    from fleetrl.runs.evaluate import evaluate_model
+
+    units = unseen_units(int(settings["units"]), count)
+    scores = {}
+    for worker in range(int(settings["units"])):
+        model = model_path(run_dir, worker)
+        if model.is_file():
+            scores[str(worker)] = [
+                _compact(
+                    evaluate_model(
+                        model, settings["env"], unit, settings["fleet_seed"], 1, 0, settings["fleet_profile"]
+                    )[0]
+                )
+                for unit in units
+            ]
+    return {"units": units, "cap": get_env_spec(settings["env"]).episode_cap, "scores": scores}
+
+
+def build_record(
+    run_dir: Path, command: str, result_settings: dict[str, Any], host: str, unseen: int
+) -> dict[str, Any]:
+    """The record of the finished run in ``run_dir`` (``unseen``: units of the generalisation row)."""
+    summary = json.loads((run_dir / "summary.json").read_text())
+    workers = read_worker_rows(run_dir)
+    for key, info in summary["workers"].items():
+        workers.setdefault(key, {"score": [], "wma": [], "events": {}})["completed_at_round"] = info[
+            "completed_at_round"
+        ]
+    return {
+        "format": FORMAT,
+        "command": command,
+        "result_settings": result_settings,
+        "host": host,
+        "wall_seconds": round(float(summary["wall_seconds"]), 1),
+        "max_rounds": int(result_settings["max_rounds"]),
+        "workers": {k: workers[k] for k in sorted(workers, key=int)},
+        "generalisation": evaluate_unseen(run_dir, result_settings, unseen) if unseen else None,
+    }
+
+
+def write_record(path: Path, record: dict[str, Any]) -> None:
+    """Write ``record`` atomically: one line per top-level key and per worker, lists on one line."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_suffix(".tmp")
+    tmp.write_text(_dumps(record) + "\n")
+    tmp.replace(path)
+
+
+def _dumps(value: Any, depth: int = 0) -> str:
+    """JSON with dicts indented down to workers and lists kept on one line (short, diff-friendly)."""
+    if not isinstance(value, dict) or not value or depth >= 2:
+        return json.dumps(value, separators=(",", ":"), ensure_ascii=False)
+    pad = " " * (depth + 1)
+    items = [f"{pad}{json.dumps(k)}: {_dumps(v, depth + 1)}" for k, v in value.items()]
+    return "{\n" + ",\n".join(items) + "\n" + " " * depth + "}"

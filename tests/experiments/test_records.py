@@ -1,0 +1,59 @@
+"""A run's record: built from a run directory (with or without an ``episodes`` column), written compactly,
+read back to the same numbers; anything else is not a record."""
+
+import json
+from pathlib import Path
+
+import pytest
+from experiment_fakes import record, write_run_dir
+
+from fleetrl.experiments.arms import Places
+from fleetrl.experiments.catalog import arm
+from fleetrl.experiments.records import build_record, read_record, unseen_units, write_record
+
+ALONE = arm("cartpole", 2, "individual", "standard", 10, "alone")
+
+
+@pytest.mark.parametrize("episodes", [False, True])
+def test_a_record_built_from_a_run_directory_reads_back_the_same(tmp_path: Path, episodes: bool) -> None:
+    run = ALONE.run(Places(tmp_path / "runs", tmp_path / "records"), 100)
+    write_run_dir(run, {0: [9.0, 20.456, 500.0], 1: [8.0, 7.0, 6.0]}, {0: 3, 1: None}, episodes=episodes)
+    data = build_record(run.out, run.command(), run.expected, "host A", unseen=0)
+    write_record(run.record, data)
+    kept = read_record(run.record)
+    assert kept is not None and kept.data == json.loads(json.dumps(data))
+    assert kept.result_settings == run.expected and kept.host == "host A" and kept.wall_seconds == 12.3
+    assert kept.scores() == {0: [9, 20.46, 500], 1: [8, 7, 6]}
+    completion = kept.completion()
+    assert completion.per_worker == {"0": 3, "1": None} and completion.fleet == 10 and not completion.complete
+    worker = kept.data["workers"]["0"]
+    assert worker["events"] == {"3": "completed"}  # plain sharing rounds are not kept
+    assert ("episodes" in worker) is episodes and worker.get("episodes", [2, 2, 2]) == [2, 2, 2]
+    text = run.record.read_text()
+    assert '"score":[9,20.46,500]' in text and len(text.splitlines()) < 40  # one line per worker
+
+
+def test_round_records_carry_scores_and_events_for_the_plots(tmp_path: Path) -> None:
+    run = ALONE.run(Places(tmp_path / "runs", tmp_path / "records"), 1)
+    rows = (read_record(_written(run, record(run, fleet=3, units=2))) or pytest.fail()).round_records()
+    assert [(r.worker, r.round, r.score) for r in rows if r.worker == 1] == [(1, 1, 1.0), (1, 2, 2.0)]
+
+
+def _written(run, data) -> Path:  # type: ignore[no-untyped-def]
+    write_record(run.record, data)
+    return run.record
+
+
+@pytest.mark.parametrize(
+    "text", ["", "{not json", "[]", '{"format": 0, "result_settings": {}}', '{"format": 1}']
+)
+def test_anything_else_is_not_a_record(tmp_path: Path, text: str) -> None:
+    path = tmp_path / "seed-1.json"
+    path.write_text(text)
+    assert read_record(path) is None
+    assert read_record(tmp_path / "missing.json") is None
+
+
+def test_unseen_units_follow_the_trained_ones() -> None:
+    assert unseen_units(3, 2) == [10, 11]
+    assert unseen_units(12, 3) == [12, 13, 14]
