@@ -1,22 +1,21 @@
 """The worker of Algorithm 2 (lines 7–31) on top of a learner: play a round, send, wait for the chief, apply.
 
 Each round the worker calls ``learner.play_round()`` (the episode and, unless learning is complete, the K PPO
-optimisations). It then sends the actor's last gradient — or, once the completion criterion holds, its actor
-parameters — to the chief, and waits for the chief's answer for that round:
+optimisations). It then sends what its scheme (:mod:`fleetrl.federation.schemes`) says — ``paper``: the
+actor's last gradient, ``fedavg``: its whole model; once the completion criterion holds, a ``parameters``
+message — to the chief, and waits for the chief's answer for that round:
 
-* ``average``: the averaged gradient goes through the actor's optimiser (``apply_actor_gradient``, line 31);
+* ``average``: the scheme applies it (``paper``: through the actor's optimiser, line 31; ``fedavg``: the
+  average model replaces the worker's);
 * ``transfer`` listing this worker in ``finished``: the chief acknowledged its parameters; the worker is
   finished and stops (it has left W; what the chief forwarded — its own parameters or a lower id's — is in the
   record);
-* ``transfer`` not listing it: it replaces its actor parameters with the received ones (line 29) and keeps
-  learning;
+* ``transfer`` not listing it: the scheme replaces its shared parameters with the received ones (line 29) and
+  it keeps learning;
+* an ``average`` listing it in ``finished``: the run is complete for it (``fedavg``'s last round);
 * ``done``: the run is over.
 
 The worker also stops after round M. Every round produces a :class:`RoundRecord` through ``on_record``.
-
-With the ``fedavg`` scheme (:mod:`fleetrl.federation.schemes`) the worker sends its whole actor-critic
-(``model``; ``parameters`` once its criterion holds), replaces it with the chief's ``average``, and keeps
-learning after its criterion held, until the chief's ``done``.
 
 Reliability (issue 7): the worker starts (or, restarted with the same id, rejoins) at the round named by the
 chief's ``welcome``, taking the last transferred parameters if it carries them. It re-sends its round's
@@ -35,10 +34,8 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Protocol
 
-import numpy as np
-
 from fleetrl.federation.messages import Layout, Message, MessageRejected, decode, encode
-from fleetrl.federation.schemes import get_scheme
+from fleetrl.federation.schemes import FederatedAgent, Scheme, resolve_scheme
 from fleetrl.federation.signing import FleetKey, status_payload
 from fleetrl.federation.topics import (
     CHIEF_ID,
@@ -53,42 +50,6 @@ from fleetrl.federation.topics import (
 from fleetrl.transport.base import Transport, Will
 
 log = logging.getLogger(__name__)
-
-
-class ActorAgent(Protocol):
-    """What the worker needs from the agent (``fleetrl.agent.ppo.PPOAgent`` provides it)."""
-
-    def actor_layout(self) -> list[tuple[str, tuple[int, ...]]]:
-        """Names and shapes of the actor's parameters, in flat order."""
-        ...
-
-    def actor_gradient(self) -> np.ndarray:
-        """The actor's last gradient of the round, flat float32."""
-        ...
-
-    def apply_actor_gradient(self, flat: np.ndarray) -> None:
-        """Update the actor with ``flat`` through its optimiser."""
-        ...
-
-    def actor_parameters(self) -> np.ndarray:
-        """The actor's parameters, flat float32."""
-        ...
-
-    def set_actor_parameters(self, flat: np.ndarray) -> None:
-        """Replace the actor's parameters."""
-        ...
-
-    def model_layout(self) -> list[tuple[str, tuple[int, ...]]]:
-        """Names and shapes of the whole actor-critic's parameters, in flat order."""
-        ...
-
-    def model_parameters(self) -> np.ndarray:
-        """The whole actor-critic's parameters, flat float32."""
-        ...
-
-    def set_model_parameters(self, flat: np.ndarray) -> None:
-        """Replace the whole actor-critic's parameters."""
-        ...
 
 
 class RoundFigures(Protocol):
@@ -119,7 +80,7 @@ class RoundPlayer(Protocol):
     """What the worker needs from the learner (``fleetrl.agent.learner.Learner`` provides it)."""
 
     @property
-    def agent(self) -> ActorAgent:
+    def agent(self) -> FederatedAgent:
         """The agent whose actor is federated."""
         ...
 
@@ -184,8 +145,9 @@ class FederatedWorker:
         worker rejoins like a fresh one; an earlier one is an error (the chief lost rounds).
     :param on_round_done: called with the next round to play after each round's answer was applied and
         before that round starts (the moment to checkpoint the learner).
-    :param scheme: the federation scheme's name (``paper`` or ``fedavg``); the chief's must be the same. With
-        ``fedavg`` the learner must keep learning after its criterion holds (``Learner.keep_learning``).
+    :param scheme: the federation scheme (or its name); the chief's must be the same. If it
+        ``stays_after_completion`` the learner must keep learning after its criterion holds
+        (``Learner.keep_learning``).
     """
 
     def __init__(
@@ -202,7 +164,7 @@ class FederatedWorker:
         key: FleetKey | None = None,
         start_round: int | None = None,
         on_round_done: Callable[[int], None] | None = None,
-        scheme: str = "paper",
+        scheme: str | Scheme = "paper",
     ) -> None:
         """Prepare the worker; nothing is sent before :meth:`run`."""
         self.learner = learner
@@ -218,16 +180,8 @@ class FederatedWorker:
         self.on_round_done = on_round_done
         self.incarnation = time.time_ns()
         """This process's incarnation: newer than any earlier process with the same worker id."""
-        self.scheme = get_scheme(scheme)
-        agent = learner.agent
-        if self.scheme.shares == "model":
-            self.layout: Layout = list(agent.model_layout())
-            self._round_vector, self._take = agent.model_parameters, agent.set_model_parameters
-            self._apply_average = agent.set_model_parameters
-        else:
-            self.layout = list(agent.actor_layout())
-            self._round_vector, self._take = agent.actor_gradient, agent.set_actor_parameters
-            self._apply_average = agent.apply_actor_gradient
+        self.scheme = resolve_scheme(scheme)
+        self.layout: Layout = list(self.scheme.layout(learner.agent))
         self._chief_topic = chief_topic(run_id)
         self._chief_status = status_topic(run_id, CHIEF_ID)
         self._own_status = status_topic(run_id, worker_id)
@@ -259,17 +213,13 @@ class FederatedWorker:
             return WorkerSummary(self.worker_id, 0, finished=False, reason="run ended")
         resume = self._resume_round(welcome.round)
         if welcome.flat is not None and resume is None:  # rejoining: start from θ* (fedavg: the fleet's)
-            self._take(welcome.flat)
+            self.scheme.take_parameters(agent, welcome.flat)
         log.info("worker %s: welcomed at round %d (θ* of %s)", self.worker_id, welcome.round, welcome.origin)
         rnd = welcome.round if resume is None else resume
         while rnd <= self.max_rounds:
             result = self.learner.play_round()  # lines 2-24
             completed = bool(result.completed)
-            kind = "parameters" if completed else self.scheme.round_message
-            if completed and self.scheme.shares == "actor":
-                flat = agent.actor_parameters()  # line 8
-            else:
-                flat = self._round_vector()  # line 25 (fedavg: the model after the round's update)
+            kind, flat = self.scheme.outgoing(agent, completed=completed)  # lines 8 and 25
             metrics = {"score": float(result.score), "wma": float(result.wma), "steps": float(result.steps)}
             message = Message(kind, self.run_id, self.worker_id, rnd, flat=flat, metrics=_finite(metrics))
             payload = encode(message, layout=self.layout, key=self.key)
@@ -280,7 +230,7 @@ class FederatedWorker:
             event, peer, leave = self._apply(reply, completed)  # lines 28-31
             self._record(rnd, result, event, peer)
             if leave:
-                if reply.type == "average":  # fedavg: the round in which the last unit completed
+                if reply.type == "average":  # the round in which the scheme's run completed
                     return WorkerSummary(self.worker_id, rnd, finished=True, reason="every unit completed")
                 return WorkerSummary(self.worker_id, rnd, finished=reply.type == "transfer", reason=event)
             rnd, stop = self._catch_up(reply.round)
@@ -324,22 +274,15 @@ class FederatedWorker:
         if reply.flat is None:
             raise AssertionError("decode guarantees tensors for average and transfer")
         if reply.type == "transfer":
-            self._take(reply.flat)  # line 29
+            self.scheme.take_parameters(self.learner.agent, reply.flat)  # line 29
             return f"transfer_in from {reply.origin}", reply.origin, False
-        stays = self.scheme.stays_after_completion
-        if self.worker_id not in reply.contributors:  # the round closed without us (straggler, or resend)
-            if not completed or stays:
-                self._apply_average(reply.flat)  # the fleet's update all the same
-            return "late", None, self.worker_id in reply.finished
-        if completed and not stays:  # the chief averaged our parameters: a protocol bug, not a data problem
-            raise RuntimeError(f"worker {self.worker_id}: chief answered round {reply.round} with an average")
-        self._apply_average(reply.flat)  # line 31 (fedavg: continue from the average model)
-        # fedavg: the average of the round in which the last unit completed lists every member in finished
-        return (
-            ("completed" if completed else self.scheme.round_message),
-            None,
-            self.worker_id in reply.finished,
+        # the round may have closed without us (a straggler, or a resend): the fleet's update all the same
+        contributed = self.worker_id in reply.contributors
+        self.scheme.apply_average(
+            self.learner.agent, reply.flat, completed=completed, contributed=contributed
         )
+        event = "late" if not contributed else "completed" if completed else self.scheme.round_message
+        return event, None, self.worker_id in reply.finished
 
     def _catch_up(self, last: int) -> tuple[int, str | None]:
         """Apply answers of later rounds already queued (the chief moved on without us); return (the next
@@ -354,10 +297,11 @@ class FederatedWorker:
                 continue
             if message.type == "done":
                 return message.round + 1, "run ended"
+            agent = self.learner.agent
             if message.flat is not None and message.type == "transfer":
-                self._take(message.flat)
+                self.scheme.take_parameters(agent, message.flat)
             elif message.flat is not None:
-                self._apply_average(message.flat)
+                self.scheme.apply_average(agent, message.flat, completed=False, contributed=False)
             log.info(
                 "worker %s: caught up with the %s of round %d", self.worker_id, message.type, message.round
             )

@@ -84,14 +84,14 @@ def worker_specs(settings: RunSettings, device_url: str | None, run_id: str) -> 
 
 
 def shared_layout(settings: LearningSettings) -> list[tuple[str, tuple[int, ...]]]:
-    """Names and shapes of what the run's scheme shares (the actor, or the whole actor-critic for
-    ``fedavg``) for this env and preset: the chief validates every message with it."""
+    """Names and shapes of what the run's scheme shares for this env and preset (the scheme's
+    :meth:`~fleetrl.federation.schemes.Scheme.layout`): the chief validates every message with it."""
     env = gymnasium.make(get_env_spec(settings.env).gym_id)
     obs_dim = int(env.observation_space.shape[0])  # type: ignore[index]
     n_actions = int(env.action_space.n)  # type: ignore[attr-defined]
     env.close()
     agent = PPOAgent(obs_dim, n_actions, settings.ppo(), seed=0)
-    return agent.model_layout() if get_scheme(settings.scheme).shares == "model" else agent.actor_layout()
+    return list(get_scheme(settings.scheme).layout(agent))
 
 
 def train(settings: RunSettings) -> dict[str, Any]:
