@@ -86,7 +86,7 @@ def test_a_hostile_client_does_not_disturb_a_live_run(fleet_runner: Runner, fake
         def spam() -> None:
             intruder = MqttTransport(broker.url)
             intruder.connect("intruder")
-            blobs = [b"\xc1junk", b"\x00" * 200_000, b"\x81\xa7version\x02"]
+            blobs = [b"\xc1junk", b"\x00" * 200_000, b"\x81\xa7version\x7f"]
             i = 0
             while not stop.is_set():
                 intruder.publish(worker_topic("hostile", str(1 + i % 3)), blobs[i % 3])

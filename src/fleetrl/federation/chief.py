@@ -26,6 +26,10 @@ Reliability (issue 7):
   ⌈q·|W|⌉ members answered; the others stay in W and their late messages are stale.
 * Rejoin: a dropped worker that comes back online (or sends a message for the open round) re-enters W; a
   worker coming online gets a ``welcome`` with the open round and the last transferred parameters θ*, if any.
+* Join (:mod:`fleetrl.federation.shared_settings`): with ``settings``, a worker's ``join`` whose shared
+  settings differ is answered with ``refused`` naming the first differing key; until it joins with matching
+  settings (or a new incarnation comes online) its round messages are rejected and its ``online`` gets the
+  refusal again.
 * Idempotent resends: a message for a closed round makes the chief send its last answer again (at most once
   per worker per ``resend_holdoff`` seconds, and not within that time of the original).
 
@@ -42,6 +46,7 @@ from fleetrl.federation.aggregation import Aggregator, get_aggregator
 from fleetrl.federation.events import ChiefEvent, ChiefStep
 from fleetrl.federation.messages import Layout, Message, MessageRejected, Reason, decode
 from fleetrl.federation.schemes import COMPLETED, RoundContext, Scheme, resolve_scheme
+from fleetrl.federation.shared_settings import SharedSettings, settings_difference
 from fleetrl.federation.signing import FleetKey, parse_status
 from fleetrl.federation.topics import CHIEF_ID, sorted_workers, validate_id, validate_worker_id
 
@@ -69,6 +74,8 @@ class Chief:
     :param key: the fleet key; if given, only messages and statuses signed with it are accepted.
     :param scheme: the federation scheme, or its name with default parameters (see
         :mod:`fleetrl.federation.schemes`); ``layout`` must be what it shares.
+    :param settings: the settings every worker must share (:mod:`fleetrl.federation.shared_settings`), sent in
+        the ``welcome``; a worker whose ``join`` carries others is refused. None: no check.
     """
 
     def __init__(
@@ -86,6 +93,7 @@ class Chief:
         dropout_grace: float = 3.0,
         key: FleetKey | None = None,
         scheme: str | Scheme = "paper",
+        settings: SharedSettings | None = None,
     ) -> None:
         """Create the chief with W = ``workers`` and round 1 open."""
         self.run_id = validate_id(run_id, "run id")
@@ -102,6 +110,11 @@ class Chief:
             raise ValueError("a quorum below 1 needs a round timeout (--round-timeout)")
         self.layout = list(layout)
         self.scheme: Scheme = resolve_scheme(scheme)
+        self.settings: dict[str, str] | None = None if settings is None else dict(settings)
+        self._refused: dict[str, str] = {}  # worker → why its last join was refused
+        self._joined: set[str] = (
+            set()
+        )  # workers whose join matched (since their newest incarnation came online)
         self.max_rounds = max_rounds
         self.aggregator_name = aggregator
         self._aggregate: Aggregator = get_aggregator(aggregator)
@@ -198,6 +211,10 @@ class Chief:
         complete)."""
         self._start_clock(now)
         sender, rnd = message.sender, message.round
+        if message.type == "join":
+            return self._join(message)
+        if sender in self._refused:
+            return self._reject(sender, Reason.REFUSED, self._refused[sender])
         if not self.scheme.accepts(message.type):
             return self._reject(sender, Reason.UNEXPECTED_TYPE, message.type)
         if sender not in self.all_workers:
@@ -244,17 +261,23 @@ class Chief:
         if inc is not None and known is not None and inc < known:  # an old status played again
             return self._reject(worker, Reason.REPLAYED, f"{status.state} of incarnation {inc} < {known}")
         if inc is not None:
+            if known is None or inc > known:  # a new process: it joins afresh
+                self._joined.discard(worker)
+                self._refused.pop(worker, None)
             self._incarnation[worker] = inc
         if status.state == "offline":
             if retained or worker not in self._members:
                 return ChiefStep()
             self._suspects[worker] = now + self.dropout_grace
             return self.tick(now)
+        if worker in self._refused:  # no welcome until a join that matches
+            return self._refusal(worker)
         step = ChiefStep() if retained else self._rejoin(worker, "came back online")
         model = self._model
         welcome = Message(
             "welcome", self.run_id, CHIEF_ID, self._round,
             flat=model.flat if model else None, origin=model.origin if model else None,
+            settings=self.settings or {},
         )  # fmt: skip
         detail = f"of round {self._round}" + (f" with θ* of {welcome.origin}" if welcome.origin else "")
         return step + ChiefStep(
@@ -284,6 +307,23 @@ class Chief:
         if len(answered_members) >= math.ceil(self.quorum * len(self._members) - 1e-9):
             return step + self._close_round(now)
         return step + self._drop(sorted_workers(silent), DEADLINE_DROP) + self._close_round(now)
+
+    def _join(self, message: Message) -> ChiefStep:
+        """Check a worker's shared settings: refuse it (until a join that matches) if one differs."""
+        why = None if self.settings is None else settings_difference(self.settings, message.settings)
+        if why is None:
+            if message.sender in self._joined:  # a re-sent or replayed join: nothing to do
+                return self._reject(message.sender, Reason.DUPLICATE, "join")
+            self._joined.add(message.sender)
+            self._refused.pop(message.sender, None)
+            return ChiefStep(events=(ChiefEvent("joined", self._round, sender=message.sender),))
+        self._refused[message.sender] = why
+        return self._refusal(message.sender)
+
+    def _refusal(self, worker: str) -> ChiefStep:
+        why = self._refused[worker]
+        refusal = Message("refused", self.run_id, CHIEF_ID, self._round, finished=(worker,), detail=why)
+        return ChiefStep((refusal,), (ChiefEvent("refused", self._round, sender=worker, detail=why),))
 
     def _start_clock(self, now: float) -> None:
         if self._opened_at is None:

@@ -49,6 +49,7 @@ def chief_config(chief: Chief) -> dict[str, Any]:
         "signed": chief.key is not None,
         "scheme": chief.scheme.name,
         "scheme_params": chief.scheme.params(),
+        "settings": chief.settings,
     }
 
 

@@ -13,8 +13,9 @@ class ChiefEvent:
 
     :param kind: ``rejected``, ``accepted``, ``averaged``, ``transfer``, ``run_ended``, ``dropped``
         (a worker left W: offline or silent past the deadline), ``rejoined`` (a dropped worker is back in W),
-        ``welcome`` (the open round was announced to a worker coming online) or ``resent`` (the last answer
-        was sent again for a worker that re-sent a closed round).
+        ``welcome`` (the open round was announced to a worker coming online), ``resent`` (the last answer
+        was sent again for a worker that re-sent a closed round), ``joined`` (a worker's shared settings
+        match the chief's) or ``refused`` (they differ: ``detail`` names the setting).
     :param round: the chief's open round when it happened (the closed round for ``averaged``/``transfer``).
     :param sender: who sent the message concerned, or the worker dropped, rejoined or welcomed.
     :param reason: why a message was rejected.
@@ -47,6 +48,10 @@ class ChiefEvent:
         if self.kind == "rejected":
             reason = self.reason.value if self.reason else "?"
             return f"round {self.round}: rejected message from {self.sender or '?'}: {reason} ({self.detail})"
+        if self.kind == "joined":
+            return f"round {self.round}: worker {self.sender} joined (shared settings match)"
+        if self.kind == "refused":
+            return f"round {self.round}: worker {self.sender} refused: {self.detail}"
         if self.kind in ("accepted", "resent", "welcome"):
             return f"round {self.round}: {self.kind} {self.detail} for {self.sender}".replace("  ", " ")
         if self.kind in ("dropped", "rejoined"):

@@ -17,6 +17,10 @@ message — to the chief, and waits for the chief's answer for that round:
 
 The worker also stops after round M. Every round produces a :class:`RoundRecord` through ``on_record``.
 
+Join: before its first round the worker publishes a retained ``join`` carrying its shared settings; a chief
+``refused`` naming it, or a ``welcome`` whose settings differ, raises
+:class:`~fleetrl.federation.shared_settings.SettingsRefused` (``fleetrl worker`` exits 2).
+
 Reliability (issue 7): the worker starts (or, restarted with the same id, rejoins) at the round named by the
 chief's ``welcome``, taking the last transferred parameters if it carries them. It re-sends its round's
 message (and, before the welcome, its ``online`` status) every ``resend_interval`` seconds without an
@@ -36,6 +40,7 @@ from typing import Protocol
 
 from fleetrl.federation.messages import Layout, Message, MessageRejected, decode, encode
 from fleetrl.federation.schemes import FederatedAgent, Scheme, resolve_scheme
+from fleetrl.federation.shared_settings import SettingsRefused, SharedSettings, settings_difference
 from fleetrl.federation.signing import FleetKey, status_payload
 from fleetrl.federation.topics import (
     CHIEF_ID,
@@ -50,6 +55,9 @@ from fleetrl.federation.topics import (
 from fleetrl.transport.base import Transport, Will
 
 log = logging.getLogger(__name__)
+
+ANSWERS = ("average", "transfer", "done")
+"""The chief's answers to a round."""
 
 
 class RoundFigures(Protocol):
@@ -148,6 +156,9 @@ class FederatedWorker:
     :param scheme: the federation scheme (or its name); the chief's must be the same. If it
         ``stays_after_completion`` the learner must keep learning after its criterion holds
         (``Learner.keep_learning``).
+    :param settings: this worker's shared settings (:mod:`fleetrl.federation.shared_settings`), sent in its
+        ``join``; a ``welcome`` carrying others, or the chief's ``refused``, raises
+        :class:`~fleetrl.federation.shared_settings.SettingsRefused`.
     """
 
     def __init__(
@@ -165,6 +176,7 @@ class FederatedWorker:
         start_round: int | None = None,
         on_round_done: Callable[[int], None] | None = None,
         scheme: str | Scheme = "paper",
+        settings: SharedSettings | None = None,
     ) -> None:
         """Prepare the worker; nothing is sent before :meth:`run`."""
         self.learner = learner
@@ -181,10 +193,12 @@ class FederatedWorker:
         self.incarnation = time.time_ns()
         """This process's incarnation: newer than any earlier process with the same worker id."""
         self.scheme = resolve_scheme(scheme)
+        self.settings: dict[str, str] = dict(settings or {})
         self.layout: Layout = list(self.scheme.layout(learner.agent))
         self._chief_topic = chief_topic(run_id)
         self._chief_status = status_topic(run_id, CHIEF_ID)
         self._own_status = status_topic(run_id, worker_id)
+        self._topic = worker_topic(run_id, worker_id)
 
     def run(self) -> WorkerSummary:
         """Connect, wait for the chief's welcome, play rounds until finished, M rounds, or ``done``; close."""
@@ -194,7 +208,14 @@ class FederatedWorker:
             self.transport.subscribe(self._chief_topic)
             self.transport.subscribe(self._chief_status)
             self.transport.announce(self._own_status, self._status(ONLINE))
-            welcome = self._wait_for(lambda m: m.type in ("welcome", "done"), "the chief's welcome", None)
+            join = Message("join", self.run_id, self.worker_id, 1, settings=self.settings)
+            join_payload = encode(join, layout=self.layout, key=self.key)
+            # retained: a chief that subscribes later (started after this worker) still checks it
+            self.transport.publish(self._topic, join_payload, retain=True)
+            welcome = self._wait_for(
+                lambda m: m.type in ("welcome", "done"), "the chief's welcome", join_payload, announce=True
+            )
+            self._check_settings(welcome)
             summary = self._rounds(welcome)
             self.transport.publish(self._own_status, self._status(OFFLINE), retain=True)
         finally:
@@ -223,10 +244,9 @@ class FederatedWorker:
             metrics = {"score": float(result.score), "wma": float(result.wma), "steps": float(result.steps)}
             message = Message(kind, self.run_id, self.worker_id, rnd, flat=flat, metrics=_finite(metrics))
             payload = encode(message, layout=self.layout, key=self.key)
-            topic = worker_topic(self.run_id, self.worker_id)
-            self.transport.publish(topic, payload)
+            self.transport.publish(self._topic, payload)
             log.debug("worker %s: sent %s for round %d", self.worker_id, kind, rnd)
-            reply = self._wait_for(_answer_for(rnd), f"the chief's answer for round {rnd}", (topic, payload))
+            reply = self._wait_for(_answer_for(rnd), f"the chief's answer for round {rnd}", payload)
             event, peer, leave = self._apply(reply, completed)  # lines 28-31
             self._record(rnd, result, event, peer)
             if leave:
@@ -291,7 +311,7 @@ class FederatedWorker:
             message = self._decode(received.topic, received.payload)
             if (
                 message is None
-                or message.type == "welcome"
+                or message.type not in ANSWERS
                 or (message.type != "done" and message.round <= last)
             ):
                 continue
@@ -308,26 +328,41 @@ class FederatedWorker:
             last = message.round
         return last + 1, None
 
+    def _check_settings(self, welcome: Message) -> None:
+        """SettingsRefused if the chief's welcome carries shared settings that differ from this worker's."""
+        why = settings_difference(welcome.settings, self.settings) if welcome.settings else None
+        if why is not None:
+            self._refused(why)
+
+    def _refused(self, why: str) -> None:
+        raise SettingsRefused(
+            f"worker {self.worker_id}: refused by the chief of run {self.run_id!r}: {why}; start it with the"
+            " chief's settings"
+        )
+
     def _decode(self, topic: str, payload: bytes) -> Message | None:
         if topic == self._chief_status:
             if payload.startswith(OFFLINE):
                 log.warning("worker %s: the chief went offline; waiting", self.worker_id)
             return None
         try:
-            return decode(
+            message = decode(
                 payload, run_id=self.run_id, known_senders=(CHIEF_ID,), layout=self.layout, key=self.key
             )
         except MessageRejected as exc:
             log.warning("worker %s: rejected a chief message: %s", self.worker_id, exc)
             return None
+        if message.type == "refused" and self.worker_id in message.finished:
+            self._refused(message.detail)
+        return None if message.type == "refused" else message
 
     def _wait_for(
-        self, wanted: Callable[[Message], bool], what: str, resend: tuple[str, bytes] | None
+        self, wanted: Callable[[Message], bool], what: str, resend: bytes, *, announce: bool = False
     ) -> Message:
-        """The first chief message ``wanted`` accepts; re-send ``resend`` (topic, payload) — or, if None, the
-        ``online`` status — every ``resend_interval`` s; TimeoutError after ``reply_timeout`` s."""
+        """The first chief message ``wanted`` accepts; re-send ``resend`` on the worker topic (and, if
+        ``announce``, the retained ``online`` status first) every ``resend_interval`` s; TimeoutError after
+        ``reply_timeout`` s."""
         deadline = None if self.reply_timeout is None else time.monotonic() + self.reply_timeout
-        topic, payload = resend or (self._own_status, self._status(ONLINE))
         next_send = None if self.resend_interval is None else time.monotonic() + self.resend_interval
         while True:
             received = self.transport.receive(_remaining(_earliest(deadline, next_send)))
@@ -340,7 +375,9 @@ class FederatedWorker:
                     )
                 if next_send is not None and now >= next_send:
                     log.info("worker %s: nothing yet; re-sending while waiting for %s", self.worker_id, what)
-                    self.transport.publish(topic, payload, retain=resend is None)
+                    if announce:
+                        self.transport.publish(self._own_status, self._status(ONLINE), retain=True)
+                    self.transport.publish(self._topic, resend, retain=announce)
                     next_send = now + (self.resend_interval or 0.0)
                 continue
             message = self._decode(received.topic, received.payload)
@@ -365,7 +402,7 @@ class FederatedWorker:
 
 def _answer_for(rnd: int) -> Callable[[Message], bool]:
     """Accepts the chief's answer for round ``rnd`` or a later one (we missed ours), or ``done``."""
-    return lambda m: m.type == "done" or (m.type != "welcome" and m.round >= rnd)
+    return lambda m: m.type == "done" or (m.type in ANSWERS and m.round >= rnd)
 
 
 def _earliest(a: float | None, b: float | None) -> float | None:

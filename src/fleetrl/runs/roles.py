@@ -18,6 +18,7 @@ from fleetrl.runs.checkpoints import WorkerCheckpoint
 from fleetrl.runs.factory import make_learner
 from fleetrl.runs.records import RoundRecord
 from fleetrl.runs.rundir import model_path
+from fleetrl.runs.shared import spec_shared_settings
 from fleetrl.runs.spec import WorkerSpec
 from fleetrl.transport.base import Transport
 
@@ -125,6 +126,7 @@ def train_federated(
         start_round=start_round,
         on_round_done=None if store is None else lambda next_round: store.save(learner, next_round),
         scheme=spec.scheme,
+        settings=spec_shared_settings(spec),
     )
     try:
         summary = worker.run()
