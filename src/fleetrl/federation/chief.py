@@ -46,7 +46,7 @@ from fleetrl.federation.aggregation import Aggregator, get_aggregator
 from fleetrl.federation.events import ChiefEvent, ChiefStep
 from fleetrl.federation.messages import Layout, Message, MessageRejected, Reason, decode
 from fleetrl.federation.schemes import COMPLETED, RoundContext, Scheme, resolve_scheme
-from fleetrl.federation.shared_settings import SharedSettings, settings_difference
+from fleetrl.federation.shared_settings import JoinGate, SharedSettings
 from fleetrl.federation.signing import FleetKey, parse_status
 from fleetrl.federation.topics import CHIEF_ID, sorted_workers, validate_id, validate_worker_id
 
@@ -110,11 +110,7 @@ class Chief:
             raise ValueError("a quorum below 1 needs a round timeout (--round-timeout)")
         self.layout = list(layout)
         self.scheme: Scheme = resolve_scheme(scheme)
-        self.settings: dict[str, str] | None = None if settings is None else dict(settings)
-        self._refused: dict[str, str] = {}  # worker → why its last join was refused
-        self._joined: set[str] = (
-            set()
-        )  # workers whose join matched (since their newest incarnation came online)
+        self._gate = JoinGate(settings)
         self.max_rounds = max_rounds
         self.aggregator_name = aggregator
         self._aggregate: Aggregator = get_aggregator(aggregator)
@@ -145,6 +141,11 @@ class Chief:
         """(round, worker, reason) of every worker that left W without transferring."""
         self.rejoins: list[tuple[int, str]] = []
         """(round, worker) of every dropped worker that re-entered W."""
+
+    @property
+    def settings(self) -> dict[str, str] | None:
+        """The shared settings every worker must have (None: not checked)."""
+        return self._gate.settings
 
     @property
     def round(self) -> int:
@@ -213,8 +214,8 @@ class Chief:
         sender, rnd = message.sender, message.round
         if message.type == "join":
             return self._join(message)
-        if sender in self._refused:
-            return self._reject(sender, Reason.REFUSED, self._refused[sender])
+        if (why := self._gate.refusal(sender)) is not None:
+            return self._reject(sender, Reason.REFUSED, why)
         if not self.scheme.accepts(message.type):
             return self._reject(sender, Reason.UNEXPECTED_TYPE, message.type)
         if sender not in self.all_workers:
@@ -262,15 +263,14 @@ class Chief:
             return self._reject(worker, Reason.REPLAYED, f"{status.state} of incarnation {inc} < {known}")
         if inc is not None:
             if known is None or inc > known:  # a new process: it joins afresh
-                self._joined.discard(worker)
-                self._refused.pop(worker, None)
+                self._gate.new_incarnation(worker)
             self._incarnation[worker] = inc
         if status.state == "offline":
             if retained or worker not in self._members:
                 return ChiefStep()
             self._suspects[worker] = now + self.dropout_grace
             return self.tick(now)
-        if worker in self._refused:  # no welcome until a join that matches
+        if self._gate.refusal(worker) is not None:  # no welcome until a join that matches
             return self._refusal(worker)
         step = ChiefStep() if retained else self._rejoin(worker, "came back online")
         model = self._model
@@ -310,18 +310,15 @@ class Chief:
 
     def _join(self, message: Message) -> ChiefStep:
         """Check a worker's shared settings: refuse it (until a join that matches) if one differs."""
-        why = None if self.settings is None else settings_difference(self.settings, message.settings)
-        if why is None:
-            if message.sender in self._joined:  # a re-sent or replayed join: nothing to do
-                return self._reject(message.sender, Reason.DUPLICATE, "join")
-            self._joined.add(message.sender)
-            self._refused.pop(message.sender, None)
+        outcome = self._gate.join(message.sender, message.settings)
+        if outcome == "duplicate":  # a re-sent or replayed join: nothing to do
+            return self._reject(message.sender, Reason.DUPLICATE, "join")
+        if outcome == "joined":
             return ChiefStep(events=(ChiefEvent("joined", self._round, sender=message.sender),))
-        self._refused[message.sender] = why
         return self._refusal(message.sender)
 
     def _refusal(self, worker: str) -> ChiefStep:
-        why = self._refused[worker]
+        why = self._gate.refusal(worker) or ""
         refusal = Message("refused", self.run_id, CHIEF_ID, self._round, finished=(worker,), detail=why)
         return ChiefStep((refusal,), (ChiefEvent("refused", self._round, sender=worker, detail=why),))
 

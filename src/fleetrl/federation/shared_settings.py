@@ -28,3 +28,40 @@ def settings_difference(chief: SharedSettings, worker: SharedSettings) -> str | 
         if ours != theirs:
             return f"setting {key!r} differs (chief {ours!r}, worker {theirs!r})"
     return None
+
+
+class JoinGate:
+    """The chief's record of who joined with matching settings and who was refused (and why).
+
+    :param settings: the chief's shared settings; None checks nothing (every join matches).
+    """
+
+    def __init__(self, settings: SharedSettings | None) -> None:
+        """Nobody has joined yet."""
+        self.settings: dict[str, str] | None = None if settings is None else dict(settings)
+        self._refused: dict[str, str] = {}  # worker → why its last join was refused
+        self._joined: set[str] = (
+            set()
+        )  # workers whose join matched, since their newest incarnation came online
+
+    def join(self, worker: str, settings: SharedSettings) -> str:
+        """Check a join: ``joined``, ``duplicate`` (a matching join already seen) or ``refused`` (then
+        :meth:`refusal` says why)."""
+        why = None if self.settings is None else settings_difference(self.settings, settings)
+        if why is not None:
+            self._refused[worker] = why
+            return "refused"
+        if worker in self._joined:
+            return "duplicate"
+        self._joined.add(worker)
+        self._refused.pop(worker, None)
+        return "joined"
+
+    def refusal(self, worker: str) -> str | None:
+        """Why ``worker`` is refused, or None."""
+        return self._refused.get(worker)
+
+    def new_incarnation(self, worker: str) -> None:
+        """A new process of ``worker`` came online: it joins afresh."""
+        self._joined.discard(worker)
+        self._refused.pop(worker, None)
