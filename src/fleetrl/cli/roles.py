@@ -164,7 +164,7 @@ def _listener_port(config: Path) -> int:
 
 def cmd_secure_config(args: argparse.Namespace) -> int:
     """Write the secure config and print each role's broker URL (with its password) once."""
-    from fleetrl.transport.secure import write_secure_config
+    from fleetrl.runs.secure import write_secure_config
 
     if args.workers < 1:
         raise ValueError(f"--workers must be at least 1, got {args.workers}")

@@ -21,14 +21,29 @@ from __future__ import annotations
 import math
 from collections.abc import Collection, Mapping, Sequence
 from dataclasses import dataclass, field
-from enum import StrEnum
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import msgpack
 import numpy as np
 
-if TYPE_CHECKING:
-    from fleetrl.federation.signing import FleetKey
+from fleetrl.federation.rejections import MessageRejected, Reason
+from fleetrl.federation.signing import OVERHEAD as SIGNATURE_OVERHEAD
+from fleetrl.federation.signing import FleetKey
+
+__all__ = [
+    "MESSAGE_TYPES",
+    "SIGNATURE_OVERHEAD",
+    "VERSION",
+    "Layout",
+    "Message",
+    "MessageRejected",
+    "Reason",
+    "decode",
+    "default_max_bytes",
+    "encode",
+    "envelope",
+    "layout_size",
+]
 
 VERSION = 2
 """Envelope version; a receiver rejects any other."""
@@ -59,8 +74,6 @@ MAX_TEXT = 1024
 """Longest setting value or detail text accepted."""
 HEADER_ALLOWANCE = 64 * 1024
 """Bytes allowed beyond the tensors' own size by :func:`default_max_bytes`."""
-SIGNATURE_OVERHEAD = 36
-"""Bytes a signature adds (magic + HMAC-SHA256, see :mod:`fleetrl.federation.signing`)."""
 _MAX_ROUND = 2**31 - 1
 _KEYS = frozenset(
     {
@@ -80,44 +93,6 @@ _KEYS = frozenset(
         "data",
     }
 )
-
-
-class Reason(StrEnum):
-    """Why a message was rejected (by the decoder, or by the chief or worker that received it)."""
-
-    OVERSIZED = "oversized"
-    NOT_MSGPACK = "not msgpack"
-    MALFORMED = "malformed envelope"
-    WRONG_VERSION = "wrong version"
-    UNKNOWN_TYPE = "unknown type"
-    WRONG_RUN_ID = "wrong run id"
-    UNKNOWN_SENDER = "unknown sender"
-    BAD_ROUND = "bad round"
-    BAD_METRICS = "bad metrics"
-    LAYOUT_MISMATCH = "tensor names/shapes do not match the layout"
-    NOT_FINITE = "NaN or Inf"
-    UNSIGNED = "unsigned"
-    BAD_SIGNATURE = "bad signature"
-    # Raised by the receivers, not the decoder:
-    TOPIC_MISMATCH = "sender does not match topic"
-    UNEXPECTED_TYPE = "type not expected from this sender"
-    STALE_ROUND = "stale round"
-    FUTURE_ROUND = "future round"
-    DUPLICATE = "duplicate (sender, round)"
-    NOT_IN_W = "sender no longer in W"
-    RUN_OVER = "run is over"
-    REFUSED = "sender was refused at join"
-    REPLAYED = "replayed status"
-
-
-class MessageRejected(Exception):
-    """A received message failed validation; ``reason`` says which rule, ``detail`` says what was seen."""
-
-    def __init__(self, reason: Reason, detail: str = "") -> None:
-        """:param reason: the rule that failed.  :param detail: what was wrong, for the log."""
-        super().__init__(f"{reason.value}: {detail}" if detail else reason.value)
-        self.reason = reason
-        self.detail = detail
 
 
 @dataclass(frozen=True)
