@@ -65,7 +65,7 @@ def test_equal_settings_give_equal_text_whatever_the_order_of_the_overrides() ->
 
 def test_the_welcome_carries_the_chiefs_settings() -> None:
     online = status_payload(b"online", run_id=RUN, node="1", incarnation=1)
-    (welcome,) = chief().status("1", online).outgoing
+    (welcome,) = chief().status("1", online, now=0.0).outgoing
     assert welcome.type == "welcome" and dict(welcome.settings) == CHIEF_SETTINGS
 
 
@@ -85,31 +85,31 @@ def test_a_worker_whose_settings_differ_is_refused_at_join_and_its_messages_reje
     change: dict[str, object], reason: str
 ) -> None:
     c = chief()
-    step = c.receive_bytes(join("2", **change), topic_worker="2")
+    step = c.receive_bytes(join("2", **change), topic_worker="2", now=0.0)
     (refusal,) = step.outgoing
     assert (refusal.type, refusal.finished, refusal.detail) == ("refused", ("2",), reason)
     assert [(e.kind, e.sender, e.detail) for e in step.events] == [("refused", "2", reason)]
-    c.receive_bytes(gradient("1"), topic_worker="1")
-    late = c.receive_bytes(gradient("2"), topic_worker="2")
+    c.receive_bytes(gradient("1"), topic_worker="1", now=0.0)
+    late = c.receive_bytes(gradient("2"), topic_worker="2", now=0.0)
     assert [e.reason for e in late.events] == [Reason.REFUSED] and late.outgoing == ()
     assert c.round == 1 and c.answered == ("1",)  # the refused worker's gradient entered nothing
 
 
 def test_a_matching_join_is_accepted_once_and_lifts_a_refusal() -> None:
     c = chief()
-    c.receive_bytes(join("2", preset="paper"), topic_worker="2")
-    step = c.receive_bytes(join("2"), topic_worker="2")
+    c.receive_bytes(join("2", preset="paper"), topic_worker="2", now=0.0)
+    step = c.receive_bytes(join("2"), topic_worker="2", now=0.0)
     assert [e.kind for e in step.events] == ["joined"] and step.outgoing == ()
-    again = c.receive_bytes(join("2"), topic_worker="2")  # a re-send (or a replay) changes nothing
+    again = c.receive_bytes(join("2"), topic_worker="2", now=0.0)  # a re-send (or a replay) changes nothing
     assert [e.reason for e in again.events] == [Reason.DUPLICATE]
-    c.receive_bytes(gradient("1"), topic_worker="1")
-    closed = c.receive_bytes(gradient("2"), topic_worker="2")
+    c.receive_bytes(gradient("1"), topic_worker="1", now=0.0)
+    closed = c.receive_bytes(gradient("2"), topic_worker="2", now=0.0)
     assert [m.type for m in closed.outgoing] == ["average"] and c.round == 2
 
 
 def test_a_chief_without_settings_checks_nothing() -> None:
     c = Chief(run_id=RUN, workers=("1",), layout=LAYOUT, max_rounds=5)
-    step = c.receive_bytes(join("1", preset="paper"), topic_worker="1")
+    step = c.receive_bytes(join("1", preset="paper"), topic_worker="1", now=0.0)
     assert [e.kind for e in step.events] == ["joined"]
 
 
@@ -156,9 +156,9 @@ def test_a_worker_with_another_scheme_or_preset_stops_with_the_chiefs_reason(
 
 def test_a_refused_worker_coming_online_is_refused_again_until_a_new_process_comes() -> None:
     c = chief()
-    c.status("2", status_payload(b"online", run_id=RUN, node="2", incarnation=5))
-    c.receive_bytes(join("2", scheme="fedavg"), topic_worker="2")
-    again = c.status("2", status_payload(b"online", run_id=RUN, node="2", incarnation=5))
+    c.status("2", status_payload(b"online", run_id=RUN, node="2", incarnation=5), now=0.0)
+    c.receive_bytes(join("2", scheme="fedavg"), topic_worker="2", now=0.0)
+    again = c.status("2", status_payload(b"online", run_id=RUN, node="2", incarnation=5), now=0.0)
     assert [m.type for m in again.outgoing] == ["refused"]
-    restarted = c.status("2", status_payload(b"online", run_id=RUN, node="2", incarnation=6))
+    restarted = c.status("2", status_payload(b"online", run_id=RUN, node="2", incarnation=6), now=0.0)
     assert [m.type for m in restarted.outgoing] == ["welcome"]  # its own join is checked when it comes

@@ -1,7 +1,8 @@
 """The chief of Algorithm 1 as a pure state machine: messages, statuses and time in → messages and events out.
 
-No sockets and no clocks: every input that depends on time takes ``now`` (seconds, any monotonic origin), so
-deadlines are tested without a broker. Round semantics (docs/protocol.md has the full rules):
+No sockets and no clocks: every input takes ``now`` (seconds, any monotonic origin; keyword-only and
+required, so a caller that forgets the clock gets a TypeError), and deadlines are tested without a broker.
+Round semantics (docs/protocol.md has the full rules):
 
 * The chief keeps W, the workers still learning, and the open round i (from 1). It accepts from each worker
   exactly one message for round i of a type its scheme accepts (the scheme's round message, or ``parameters``:
@@ -184,7 +185,7 @@ class Chief:
         return min(times, default=None)
 
     def receive_bytes(
-        self, payload: bytes, *, topic_worker: str | None = None, now: float = 0.0
+        self, payload: bytes, *, topic_worker: str | None = None, now: float
     ) -> ChiefStep:
         """Decode and handle one payload; any defect becomes a ``rejected`` event, never an exception.
 
@@ -207,7 +208,7 @@ class Chief:
             return self._reject(topic_worker, Reason.TOPIC_MISMATCH, f"envelope says {message.sender!r}")
         return self.receive(message, now=now)
 
-    def receive(self, message: Message, *, now: float = 0.0) -> ChiefStep:
+    def receive(self, message: Message, *, now: float) -> ChiefStep:
         """Handle one decoded message from a worker (Algorithm 1, lines 2–5; closes the round when
         complete)."""
         self._start_clock(now)
@@ -241,7 +242,7 @@ class Chief:
             step += self._close_round(now)
         return step
 
-    def status(self, worker: str, payload: bytes, *, retained: bool = False, now: float = 0.0) -> ChiefStep:
+    def status(self, worker: str, payload: bytes, *, retained: bool = False, now: float) -> ChiefStep:
         """Handle a status payload of ``worker`` (its ``online``, its ``offline`` goodbye or last will).
 
         A live ``offline`` drops the worker from W; a live ``online`` of a dropped worker brings it back; any

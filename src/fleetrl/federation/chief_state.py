@@ -92,7 +92,7 @@ def chief_to_state(chief: Chief) -> tuple[dict[str, Any], dict[str, np.ndarray]]
 
 
 def chief_from_state(
-    fields: dict[str, Any], tensors: dict[str, np.ndarray], *, key: FleetKey | None = None, now: float = 0.0
+    fields: dict[str, Any], tensors: dict[str, np.ndarray], *, key: FleetKey | None = None, now: float
 ) -> Chief:
     """The chief as it was when ``fields``/``tensors`` were taken, its open round starting at ``now``.
 
