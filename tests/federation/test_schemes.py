@@ -6,8 +6,10 @@ import numpy as np
 import pytest
 
 from fleetrl.federation.aggregation import get_aggregator
-from fleetrl.federation.messages import Message
-from fleetrl.federation.schemes import COMPLETED, SCHEMES, RoundContext, Scheme, get_scheme
+from fleetrl.federation.chief import Chief
+from fleetrl.federation.messages import Message, Reason, encode
+from fleetrl.federation.schemes import COMPLETED, SCHEMES, Granularity, RoundContext, Scheme, get_scheme
+from fleetrl.federation.schemes.paper import PaperScheme
 
 RUN = "r1"
 
@@ -151,3 +153,25 @@ def test_every_scheme_sends_what_its_layout_describes(name: str) -> None:
     for completed in (False, True):
         kind, flat = scheme.outgoing(agent, completed=completed)
         assert flat.size == size and scheme.accepts(kind)
+
+
+class PerStepScheme(PaperScheme):
+    """A scheme that would send once per optimisation step (none is registered yet)."""
+
+    name = "per-step"
+    granularity = Granularity.STEP
+
+
+def test_the_per_round_chief_and_worker_refuse_a_per_step_scheme() -> None:
+    with pytest.raises(
+        ValueError, match="'per-step' sends per step: this chief drives per-round schemes only"
+    ):
+        Chief(run_id=RUN, workers=("1",), layout=[("pi", (2,))], max_rounds=3, scheme=PerStepScheme())
+
+
+def test_a_message_for_a_step_is_rejected_by_a_per_round_chief() -> None:
+    chief = Chief(run_id=RUN, workers=("1", "2"), layout=[("pi", (2,))], max_rounds=3)
+    message = Message("gradient", RUN, "1", 1, flat=np.ones(2, np.float32), step=2)
+    step = chief.receive_bytes(encode(message, layout=[("pi", (2,))]), topic_worker="1", now=0.0)
+    assert [(e.reason, e.detail) for e in step.events] == [(Reason.BAD_ROUND, "step 2 in a per-round scheme")]
+    assert chief.answered == ()

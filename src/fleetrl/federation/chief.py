@@ -46,7 +46,7 @@ from collections.abc import Iterable
 from fleetrl.federation.aggregation import Aggregator, get_aggregator
 from fleetrl.federation.events import ChiefEvent, ChiefStep
 from fleetrl.federation.messages import Layout, Message, MessageRejected, Reason, decode
-from fleetrl.federation.schemes import COMPLETED, RoundContext, Scheme, resolve_scheme
+from fleetrl.federation.schemes import COMPLETED, Granularity, RoundContext, Scheme, resolve_scheme
 from fleetrl.federation.shared_settings import JoinGate, SharedSettings
 from fleetrl.federation.signing import FleetKey, parse_status
 from fleetrl.federation.topics import CHIEF_ID, sorted_workers, validate_id, validate_worker_id
@@ -111,6 +111,11 @@ class Chief:
             raise ValueError("a quorum below 1 needs a round timeout (--round-timeout)")
         self.layout = list(layout)
         self.scheme: Scheme = resolve_scheme(scheme)
+        if self.scheme.granularity is not Granularity.ROUND:
+            raise ValueError(
+                f"scheme {self.scheme.name!r} sends per {self.scheme.granularity}: this chief drives "
+                "per-round schemes only"
+            )
         self._gate = JoinGate(settings)
         self.max_rounds = max_rounds
         self.aggregator_name = aggregator
@@ -184,9 +189,7 @@ class Chief:
             times.append(self._opened_at + self.round_timeout)
         return min(times, default=None)
 
-    def receive_bytes(
-        self, payload: bytes, *, topic_worker: str | None = None, now: float
-    ) -> ChiefStep:
+    def receive_bytes(self, payload: bytes, *, topic_worker: str | None = None, now: float) -> ChiefStep:
         """Decode and handle one payload; any defect becomes a ``rejected`` event, never an exception.
 
         :param payload: bytes received on a worker topic.
@@ -217,6 +220,8 @@ class Chief:
             return self._join(message)
         if (why := self._gate.refusal(sender)) is not None:
             return self._reject(sender, Reason.REFUSED, why)
+        if message.step != 0:  # a per-round scheme: one message per (sender, round)
+            return self._reject(sender, Reason.BAD_ROUND, f"step {message.step} in a per-round scheme")
         if not self.scheme.accepts(message.type):
             return self._reject(sender, Reason.UNEXPECTED_TYPE, message.type)
         if sender not in self.all_workers:

@@ -35,11 +35,10 @@ import logging
 import math
 import time
 from collections.abc import Callable
-from dataclasses import dataclass
-from typing import Protocol
 
 from fleetrl.federation.messages import Layout, Message, MessageRejected, decode, encode
-from fleetrl.federation.schemes import FederatedAgent, Scheme, resolve_scheme
+from fleetrl.federation.rounds import RoundFigures, RoundOutcome, RoundPlayer, RoundRecord, WorkerSummary
+from fleetrl.federation.schemes import Granularity, Scheme, resolve_scheme
 from fleetrl.federation.shared_settings import SettingsRefused, SharedSettings, settings_difference
 from fleetrl.federation.signing import FleetKey, status_payload
 from fleetrl.federation.topics import (
@@ -54,83 +53,12 @@ from fleetrl.federation.topics import (
 )
 from fleetrl.transport.base import Transport, Will
 
+__all__ = ["FederatedWorker", "RoundFigures", "RoundOutcome", "RoundPlayer", "RoundRecord", "WorkerSummary"]
+
 log = logging.getLogger(__name__)
 
 ANSWERS = ("average", "transfer", "done")
 """The chief's answers to a round."""
-
-
-class RoundFigures(Protocol):
-    """The figures of one round: the episode and the update's statistics."""
-
-    @property
-    def score(self) -> float: ...
-    @property
-    def steps(self) -> int: ...
-    @property
-    def wma(self) -> float: ...
-    @property
-    def actor_loss(self) -> float: ...
-    @property
-    def critic_loss(self) -> float: ...
-    @property
-    def entropy(self) -> float: ...
-
-
-class RoundOutcome(RoundFigures, Protocol):
-    """What one ``play_round`` reports (``fleetrl.agent.learner.RoundResult`` provides it)."""
-
-    @property
-    def completed(self) -> bool: ...
-
-
-class RoundPlayer(Protocol):
-    """What the worker needs from the learner (``fleetrl.agent.learner.Learner`` provides it)."""
-
-    @property
-    def agent(self) -> FederatedAgent:
-        """The agent whose actor is federated."""
-        ...
-
-    def play_round(self) -> RoundOutcome:
-        """Play one episode and, unless learning is complete, optimise (Algorithm 2, lines 2–24)."""
-        ...
-
-
-@dataclass(frozen=True)
-class RoundRecord:
-    """One round of one worker, for metrics files and the live view.
-
-    ``event`` is ``gradient`` (sent a gradient, applied the average), ``transfer_out`` (sent its parameters,
-    which the chief forwarded; finished), ``finished`` (sent its parameters, but a lower worker id's were
-    forwarded in the same round; finished), ``transfer_in from K`` (replaced its actor with worker K's),
-    ``late`` (its message missed the round, which the chief closed without it; the average was applied) or
-    ``run ended`` (the chief ended the run while it waited). With the ``fedavg`` scheme: ``model`` (sent its
-    model, took the average) or ``completed`` (the same, in a round where its criterion held).
-    """
-
-    worker_id: str
-    round: int
-    score: float
-    wma: float
-    steps: int
-    actor_loss: float
-    critic_loss: float
-    entropy: float
-    event: str
-    peer: str | None = None
-    """the other worker of a transfer (``transfer_in``: the origin; ``finished``: the one forwarded)"""
-
-
-@dataclass(frozen=True)
-class WorkerSummary:
-    """How a worker's run ended."""
-
-    worker_id: str
-    rounds: int
-    finished: bool
-    """True if it left W by sending its parameters (fedavg: with the run's last average)."""
-    reason: str
 
 
 class FederatedWorker:
@@ -193,6 +121,11 @@ class FederatedWorker:
         self.incarnation = time.time_ns()
         """This process's incarnation: newer than any earlier process with the same worker id."""
         self.scheme = resolve_scheme(scheme)
+        if self.scheme.granularity is not Granularity.ROUND:
+            raise ValueError(
+                f"scheme {self.scheme.name!r} sends per {self.scheme.granularity}: this worker "
+                "drives per-round schemes only"
+            )
         self.settings: dict[str, str] = dict(settings or {})
         self.layout: Layout = list(self.scheme.layout(learner.agent))
         self._chief_topic = chief_topic(run_id)
