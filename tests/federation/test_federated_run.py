@@ -32,7 +32,7 @@ def run_local(fleet_runner: Runner, fake_fleet: Fleet) -> Any:
 
 def test_local_run_follows_algorithms_1_and_2(fleet_runner: Runner, fake_fleet: Fleet) -> None:
     result = run_local(fleet_runner, fake_fleet)
-    assert {w: [r.event for r in rs] for w, rs in result.records.items()} == EXPECTED_EVENTS
+    assert {w: [r.event.describe(r.peer) for r in rs] for w, rs in result.records.items()} == EXPECTED_EVENTS
     assert result.chief.transfers == ((4, "2", ("1", "3")), (7, "1", ("3",)))
     assert result.chief.end_reason == "reached M=10 rounds" and result.chief.rounds == 10
     assert result.chief.rejections == {}

@@ -10,6 +10,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Protocol
 
+from fleetrl.federation.events import WorkerEvent
 from fleetrl.federation.schemes import FederatedAgent
 
 
@@ -54,12 +55,8 @@ class RoundPlayer(Protocol):
 class RoundRecord:
     """One round of one worker, for metrics files and the live view.
 
-    ``event`` is ``gradient`` (sent a gradient, applied the average), ``transfer_out`` (sent its parameters,
-    which the chief forwarded; finished), ``finished`` (sent its parameters, but a lower worker id's were
-    forwarded in the same round; finished), ``transfer_in from K`` (replaced its actor with worker K's),
-    ``late`` (its message missed the round, which the chief closed without it; the average was applied) or
-    ``run ended`` (the chief ended the run while it waited). With the ``fedavg`` scheme: ``model`` (sent its
-    model, took the average) or ``completed`` (the same, in a round where its criterion held).
+    ``event`` is a :class:`~fleetrl.federation.events.WorkerEvent`; ``peer`` the other worker of a
+    transfer.
     """
 
     worker_id: str
@@ -70,7 +67,7 @@ class RoundRecord:
     actor_loss: float
     critic_loss: float
     entropy: float
-    event: str
+    event: WorkerEvent
     peer: str | None = None
     """the other worker of a transfer (``transfer_in``: the origin; ``finished``: the one forwarded)"""
 

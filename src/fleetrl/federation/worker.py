@@ -36,6 +36,7 @@ import math
 import time
 from collections.abc import Callable
 
+from fleetrl.federation.events import WorkerEvent
 from fleetrl.federation.messages import Layout, Message, MessageRejected, decode, encode
 from fleetrl.federation.rounds import RoundFigures, RoundOutcome, RoundPlayer, RoundRecord, WorkerSummary
 from fleetrl.federation.schemes import Granularity, Scheme, resolve_scheme
@@ -185,7 +186,8 @@ class FederatedWorker:
             if leave:
                 if reply.type == "average":  # the round in which the scheme's run completed
                     return WorkerSummary(self.worker_id, rnd, finished=True, reason="every unit completed")
-                return WorkerSummary(self.worker_id, rnd, finished=reply.type == "transfer", reason=event)
+                reason = "run ended" if event is WorkerEvent.RUN_ENDED else event.value
+                return WorkerSummary(self.worker_id, rnd, finished=reply.type == "transfer", reason=reason)
             rnd, stop = self._catch_up(reply.round)
             if stop is not None:
                 return WorkerSummary(self.worker_id, rnd - 1, finished=False, reason=stop)
@@ -216,25 +218,28 @@ class FederatedWorker:
         )  # fmt: skip
         return None
 
-    def _apply(self, reply: Message, completed: bool) -> tuple[str, str | None, bool]:
+    def _apply(self, reply: Message, completed: bool) -> tuple[WorkerEvent, str | None, bool]:
         """Act on the chief's answer; return (event, peer, whether this worker stops)."""
         if reply.type == "done":
-            return "run ended", None, True
+            return WorkerEvent.RUN_ENDED, None, True
         if reply.type == "transfer" and self.worker_id in reply.finished:
             if reply.origin == self.worker_id:
-                return "transfer_out", None, True
-            return "finished", reply.origin, True
+                return WorkerEvent.TRANSFER_OUT, None, True
+            return WorkerEvent.FINISHED, reply.origin, True
         if reply.flat is None:
             raise AssertionError("decode guarantees tensors for average and transfer")
         if reply.type == "transfer":
             self.scheme.take_parameters(self.learner.agent, reply.flat)  # line 29
-            return f"transfer_in from {reply.origin}", reply.origin, False
+            return WorkerEvent.TRANSFER_IN, reply.origin, False
         # the round may have closed without us (a straggler, or a resend): the fleet's update all the same
         contributed = self.worker_id in reply.contributors
         self.scheme.apply_average(
             self.learner.agent, reply.flat, completed=completed, contributed=contributed
         )
-        event = "late" if not contributed else "completed" if completed else self.scheme.round_message
+        if not contributed:
+            event = WorkerEvent.LATE
+        else:
+            event = WorkerEvent.COMPLETED if completed else WorkerEvent(self.scheme.round_message)
         return event, None, self.worker_id in reply.finished
 
     def _catch_up(self, last: int) -> tuple[int, str | None]:
@@ -319,7 +324,7 @@ class FederatedWorker:
             if message is not None:
                 log.debug("worker %s: ignoring %s of round %d", self.worker_id, message.type, message.round)
 
-    def _record(self, rnd: int, result: RoundOutcome, event: str, peer: str | None) -> None:
+    def _record(self, rnd: int, result: RoundOutcome, event: WorkerEvent, peer: str | None) -> None:
         record = RoundRecord(
             self.worker_id, rnd, float(result.score), float(result.wma), int(result.steps),
             float(result.actor_loss), float(result.critic_loss), float(result.entropy), event, peer,
@@ -327,7 +332,7 @@ class FederatedWorker:
         log.info(
             "worker %s round %d: score %g wma %.1f steps %d actor %.4g critic %.4g entropy %.3f: %s",
             self.worker_id, rnd, record.score, record.wma, record.steps,
-            record.actor_loss, record.critic_loss, record.entropy, event,
+            record.actor_loss, record.critic_loss, record.entropy, event.describe(peer),
         )  # fmt: skip
         if self.on_record is not None:
             self.on_record(record)

@@ -54,14 +54,8 @@ def metrics_row(worker: int, figures: NumberedRound, started: float, event: str)
 
 
 def federated_event(record: federation_worker.RoundRecord) -> str:
-    """The metrics ``event`` for a federated round (``+``-joined; ``completed`` marks the criterion)."""
-    if record.event == "transfer_out":
-        return "completed+transfer_out"
-    if record.event == "finished":
-        return f"completed+finished:{record.peer}"
-    if record.event.startswith("transfer_in"):
-        return f"transfer_in:{record.peer}"
-    return record.event.replace(" ", "_")
+    """The metrics ``event`` for a federated round (:meth:`~fleetrl.federation.events.WorkerEvent.label`)."""
+    return record.event.label(record.peer)
 
 
 def train_alone(spec: WorkerSpec, emit: Emit, learner: Learner | None = None) -> None:
