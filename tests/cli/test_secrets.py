@@ -15,8 +15,8 @@ from pathlib import Path
 import pytest
 from cli_helpers import Fleetrl
 
+from fleetrl.runs.secure import find_mosquitto_passwd
 from fleetrl.transport.broker import EmbeddedBroker, free_port
-from fleetrl.transport.secure import find_mosquitto_passwd
 
 pytestmark = [
     pytest.mark.mqtt,

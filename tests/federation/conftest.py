@@ -13,6 +13,7 @@ import pytest
 
 from fleetrl.federation.chief import Chief, ChiefEvent
 from fleetrl.federation.runner import ChiefSummary, run_chief
+from fleetrl.federation.schemes import resolve_scheme
 from fleetrl.federation.worker import FederatedWorker, RoundRecord, WorkerSummary
 from fleetrl.transport.base import Transport
 
@@ -119,8 +120,7 @@ def run_fleet(
     ``role_transport(role)``, role ``chief`` or the worker id); extra keyword arguments for the Chief and
     FederatedWorker; ``on_chief`` sees the chief's state machine before it starts."""
     agent = learners[next(iter(learners))].agent  # type: ignore[attr-defined]
-    fedavg = (chief_kwargs or {}).get("scheme") == "fedavg"
-    layout = agent.model_layout() if fedavg else agent.actor_layout()
+    layout = resolve_scheme((chief_kwargs or {}).get("scheme", "paper")).layout(agent)
     chief = Chief(
         run_id=run_id, workers=list(learners), layout=layout, max_rounds=max_rounds, **(chief_kwargs or {})
     )

@@ -62,10 +62,14 @@ def script() -> Script:
             steps.append(lambda c, t, w=w, rnd=rnd, kind=kind: send(c, msg(w, rnd, rnd + int(w), kind), t))
         if rnd == 4:
             steps.append(
-                lambda c, t: c.status("3", status_payload(b"offline", run_id=RUN, node="3", incarnation=5))
+                lambda c, t: c.status(
+                    "3", status_payload(b"offline", run_id=RUN, node="3", incarnation=5), now=0.0
+                )
             )
             steps.append(
-                lambda c, t: c.status("3", status_payload(b"online", run_id=RUN, node="3", incarnation=6))
+                lambda c, t: c.status(
+                    "3", status_payload(b"online", run_id=RUN, node="3", incarnation=6), now=0.0
+                )
             )
     return steps
 
@@ -111,15 +115,15 @@ def test_a_restored_chief_answers_a_resend_at_once_and_replays_its_last_answer()
 def test_the_fleet_key_must_be_given_back_exactly_when_the_run_was_signed() -> None:
     fields, tensors = chief_to_state(make(key=KEY))
     with pytest.raises(ValueError, match="with a fleet key"):
-        chief_from_state(fields, tensors)
-    assert chief_from_state(fields, tensors, key=KEY).key is KEY
+        chief_from_state(fields, tensors, now=0.0)
+    assert chief_from_state(fields, tensors, key=KEY, now=0.0).key is KEY
     with pytest.raises(ValueError, match="without a fleet key"):
-        chief_from_state(*chief_to_state(make()), key=KEY)
+        chief_from_state(*chief_to_state(make()), key=KEY, now=0.0)
 
 
 def test_the_checkpoint_file_refuses_other_settings(tmp_path: Path) -> None:
     store = ChiefCheckpoint(tmp_path)
     store.save(make())
-    assert ChiefCheckpoint(tmp_path).load(expect=make()).round == 1
+    assert ChiefCheckpoint(tmp_path).load(now=0.0, expect=make()).round == 1
     with pytest.raises(ValueError, match="max_rounds: checkpoint 6, now 9"):
-        ChiefCheckpoint(tmp_path).load(expect=make(max_rounds=9))
+        ChiefCheckpoint(tmp_path).load(now=0.0, expect=make(max_rounds=9))

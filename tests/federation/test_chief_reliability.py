@@ -107,16 +107,16 @@ def test_a_worker_back_within_its_grace_is_not_dropped() -> None:
 
 def test_retained_offline_never_drops() -> None:
     c = make()
-    assert c.status("3", b"offline", retained=True) == ChiefStep() and "3" in c.members
+    assert c.status("3", b"offline", retained=True, now=0.0) == ChiefStep() and "3" in c.members
 
 
 def test_rejoin_gets_the_open_round_and_the_last_transferred_parameters() -> None:
     c = make(dropout_grace=0.0)
     send(c, grad("1", 1, [1, 1]))
     send(c, grad("2", 1, [7, 8], kind="parameters"))
-    c.status("3", status("3", b"offline", 1))  # worker 3 dies in round 1
+    c.status("3", status("3", b"offline", 1), now=0.0)  # worker 3 dies in round 1
     assert c.round == 2 and c.members == ("1",)
-    step = c.status("3", status("3", b"online", 2))  # restarted with the same id
+    step = c.status("3", status("3", b"online", 2), now=0.0)  # restarted with the same id
     assert kinds(step) == ["rejoined", "welcome"] and c.members == ("1", "3")
     (welcome,) = step.outgoing
     assert (welcome.type, welcome.round, welcome.origin) == ("welcome", 2, "2")
@@ -130,10 +130,10 @@ def test_rejoin_gets_the_open_round_and_the_last_transferred_parameters() -> Non
 
 def test_welcome_before_any_transfer_has_no_tensors_and_a_late_will_is_ignored() -> None:
     c = make()
-    step = c.status("2", status("2", b"online", 5), retained=True)
+    step = c.status("2", status("2", b"online", 5), retained=True, now=0.0)
     (welcome,) = step.outgoing
     assert welcome.type == "welcome" and welcome.flat is None and c.members == ("1", "2", "3")
-    replay = c.status("2", status("2", b"offline", 4))  # will of an earlier incarnation
+    replay = c.status("2", status("2", b"offline", 4), now=0.0)  # will of an earlier incarnation
     assert replay.events[0].reason == Reason.REPLAYED and "2" in c.members
 
 
@@ -170,14 +170,14 @@ def test_signed_chief_rejects_unsigned_forged_and_bad_statuses() -> None:
     forged = FleetKey(b"x" * 32)
     assert send(c, grad("1", 1, [1, 1])).events[0].reason == Reason.UNSIGNED
     assert send(c, grad("1", 1, [1, 1]), key=forged).events[0].reason == Reason.BAD_SIGNATURE
-    assert c.status("1", b"offline").events[0].reason == Reason.UNSIGNED
-    assert c.status("1", status("1", b"offline", 3, forged)).events[0].reason == Reason.BAD_SIGNATURE
+    assert c.status("1", b"offline", now=0.0).events[0].reason == Reason.UNSIGNED
+    assert c.status("1", status("1", b"offline", 3, forged), now=0.0).events[0].reason == Reason.BAD_SIGNATURE
     assert c.members == ("1", "2", "3") and c.answered == ()
     assert kinds(send(c, grad("1", 1, [1, 1]), key=KEY)) == ["accepted"]
     replay = send(c, grad("1", 1, [1, 1]), key=KEY)
     assert replay.events[0].reason == Reason.DUPLICATE
     # a signed message cannot be moved to another sender's topic
-    moved = c.receive_bytes(encode(grad("1", 1, [1, 1]), layout=LAYOUT, key=KEY), topic_worker="2")
+    moved = c.receive_bytes(encode(grad("1", 1, [1, 1]), layout=LAYOUT, key=KEY), topic_worker="2", now=0.0)
     assert moved.events[0].reason == Reason.TOPIC_MISMATCH
 
 
@@ -185,7 +185,7 @@ def test_tampering_with_a_signed_message_breaks_the_signature() -> None:
     c = make(key=KEY)
     payload = bytearray(encode(grad("1", 1, [1, 1]), layout=LAYOUT, key=KEY))
     payload[-1] ^= 0x01
-    assert c.receive_bytes(bytes(payload), topic_worker="1").events[0].reason == Reason.BAD_SIGNATURE
+    assert c.receive_bytes(bytes(payload), topic_worker="1", now=0.0).events[0].reason == Reason.BAD_SIGNATURE
 
 
 @pytest.mark.parametrize(

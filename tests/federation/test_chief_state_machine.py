@@ -35,7 +35,7 @@ def wire(message: Message) -> bytes:
 
 
 def feed(c: Chief, *messages: Message) -> list[ChiefStep]:
-    return [c.receive_bytes(wire(m), topic_worker=m.sender) for m in messages]
+    return [c.receive_bytes(wire(m), topic_worker=m.sender, now=0.0) for m in messages]
 
 
 def out(steps: list[ChiefStep]) -> list[Message]:
@@ -173,7 +173,7 @@ def test_bad_messages_are_rejected_and_never_change_the_average(payload: bytes, 
     c = chief()
     first, second, third = ROUND1
     steps = feed(c, first)
-    steps.append(c.receive_bytes(payload, topic_worker="2"))
+    steps.append(c.receive_bytes(payload, topic_worker="2", now=0.0))
     steps += feed(c, second, third)
     assert rejected(steps[1]) == reason and steps[1].outgoing == ()
     assert c.rejections == {reason: 1}
@@ -184,7 +184,7 @@ def test_bad_messages_are_rejected_and_never_change_the_average(payload: bytes, 
 
 def test_sender_must_match_its_topic() -> None:
     c = chief()
-    step = c.receive_bytes(wire(grad("1", 1, [1, 1])), topic_worker="3")
+    step = c.receive_bytes(wire(grad("1", 1, [1, 1])), topic_worker="3", now=0.0)
     assert rejected(step) == Reason.TOPIC_MISMATCH and c.answered == ()
 
 
@@ -195,8 +195,8 @@ def test_junk_interleaved_with_a_round_never_changes_the_average(junk: list[byte
     outgoing: list[Message] = []
     for i, k in enumerate(order):
         for blob in junk[i::3]:
-            outgoing += c.receive_bytes(blob, topic_worker=ROUND1[k].sender).outgoing
-        outgoing += c.receive_bytes(wire(ROUND1[k]), topic_worker=ROUND1[k].sender).outgoing
+            outgoing += c.receive_bytes(blob, topic_worker=ROUND1[k].sender, now=0.0).outgoing
+        outgoing += c.receive_bytes(wire(ROUND1[k]), topic_worker=ROUND1[k].sender, now=0.0).outgoing
     (reply,) = outgoing
     np.testing.assert_allclose(reply.flat, [3.0, 5.0])
 

@@ -27,7 +27,7 @@ def model(sender: str, rnd: int, values: list[float], kind: str = "model") -> Me
 
 
 def feed(c: Chief, *messages: Message) -> list[ChiefStep]:
-    return [c.receive_bytes(encode(m, layout=LAYOUT), topic_worker=m.sender) for m in messages]
+    return [c.receive_bytes(encode(m, layout=LAYOUT), topic_worker=m.sender, now=0.0) for m in messages]
 
 
 def replies(steps: list[ChiefStep]) -> list[Message]:
@@ -77,7 +77,9 @@ def test_a_dropped_worker_need_not_complete() -> None:
     c.status("2", offline, now=0.0)
     c.tick(10.0)  # the grace ran out: 2 left W
     assert c.members == ("1",)
-    steps = [c.receive_bytes(encode(model("1", 1, [4, 4], "parameters"), layout=LAYOUT), topic_worker="1")]
+    steps = [
+        c.receive_bytes(encode(model("1", 1, [4, 4], "parameters"), layout=LAYOUT), topic_worker="1", now=0.0)
+    ]
     assert [m.type for m in replies(steps)] == ["average", "done"]
     assert c.end_reason == "every unit completed"
 
@@ -96,7 +98,7 @@ def test_a_joining_worker_is_welcomed_with_the_fleet_model() -> None:
     c = fedavg_chief(workers=("1", "2"))
     feed(c, model("1", 1, [2, 0]), model("2", 1, [0, 2]))
     online = status_payload(b"online", run_id=RUN, node="2", incarnation=7)
-    (welcome,) = c.status("2", online).outgoing
+    (welcome,) = c.status("2", online, now=0.0).outgoing
     assert (welcome.type, welcome.round, welcome.origin) == ("welcome", 2, None)
     np.testing.assert_allclose(welcome.flat, [1.0, 1.0])
 
@@ -105,7 +107,7 @@ def test_the_checkpoint_keeps_the_scheme_and_who_completed() -> None:
     c = fedavg_chief()
     feed(c, model("1", 1, [1, 1], "parameters"), model("2", 1, [1, 1]), model("3", 1, [1, 1]))
     fields, tensors = chief_to_state(c)
-    restored = chief_from_state(json.loads(json.dumps(fields)), tensors)
+    restored = chief_from_state(json.loads(json.dumps(fields)), tensors, now=0.0)
     assert restored.scheme.name == "fedavg" and restored.completed == {"1": 1}
     feed(restored, model("1", 2, [1, 1]), model("2", 2, [1, 1], "parameters"))
     steps = feed(restored, model("3", 2, [1, 1], "parameters"))

@@ -32,7 +32,7 @@ def run_local(fleet_runner: Runner, fake_fleet: Fleet) -> Any:
 
 def test_local_run_follows_algorithms_1_and_2(fleet_runner: Runner, fake_fleet: Fleet) -> None:
     result = run_local(fleet_runner, fake_fleet)
-    assert {w: [r.event for r in rs] for w, rs in result.records.items()} == EXPECTED_EVENTS
+    assert {w: [r.event.describe(r.peer) for r in rs] for w, rs in result.records.items()} == EXPECTED_EVENTS
     assert result.chief.transfers == ((4, "2", ("1", "3")), (7, "1", ("3",)))
     assert result.chief.end_reason == "reached M=10 rounds" and result.chief.rounds == 10
     assert result.chief.rejections == {}
@@ -86,7 +86,7 @@ def test_a_hostile_client_does_not_disturb_a_live_run(fleet_runner: Runner, fake
         def spam() -> None:
             intruder = MqttTransport(broker.url)
             intruder.connect("intruder")
-            blobs = [b"\xc1junk", b"\x00" * 200_000, b"\x81\xa7version\x02"]
+            blobs = [b"\xc1junk", b"\x00" * 200_000, b"\x81\xa7version\x7f"]
             i = 0
             while not stop.is_set():
                 intruder.publish(worker_topic("hostile", str(1 + i % 3)), blobs[i % 3])

@@ -13,11 +13,11 @@ import pytest
 
 from fleetrl.federation.signing import FleetKey
 from fleetrl.federation.topics import chief_topic, worker_topic
+from fleetrl.runs.secure import SecureFleet, write_secure_config
 from fleetrl.transport.base import Transport
 from fleetrl.transport.broker import EmbeddedBroker, free_port
 from fleetrl.transport.local import LocalBus
 from fleetrl.transport.mqtt import MqttTransport
-from fleetrl.transport.secure import SecureFleet, write_secure_config
 
 pytestmark = [
     pytest.mark.mqtt,

@@ -55,6 +55,12 @@ def register(sub: Any) -> None:
     add_round_arguments(chief)
     chief.add_argument("--workers", type=int, default=None, help="N: the workers are ids 0 … N-1 (required)")
     chief.add_argument(
+        "--fleet-seed",
+        type=int,
+        default=None,
+        help="seed of the fleet's per-unit dynamics; every worker must have the same (0)",
+    )
+    chief.add_argument(
         "--out",
         type=Path,
         default=None,
@@ -158,7 +164,7 @@ def _listener_port(config: Path) -> int:
 
 def cmd_secure_config(args: argparse.Namespace) -> int:
     """Write the secure config and print each role's broker URL (with its password) once."""
-    from fleetrl.transport.secure import write_secure_config
+    from fleetrl.runs.secure import write_secure_config
 
     if args.workers < 1:
         raise ValueError(f"--workers must be at least 1, got {args.workers}")
@@ -189,6 +195,7 @@ def cmd_chief(args: argparse.Namespace) -> int:
     from fleetrl.runs.launch import shared_layout
     from fleetrl.runs.role_settings import ChiefSettings
     from fleetrl.runs.rundir import write_json_atomic
+    from fleetrl.runs.shared import shared_settings
 
     settings = settings_from_args(ChiefSettings, args)
     chief = Chief(
@@ -202,7 +209,11 @@ def cmd_chief(args: argparse.Namespace) -> int:
         round_timeout=settings.round_timeout,
         dropout_grace=settings.dropout_grace,
         key=settings.fleet_key(),
-    )
+        settings=shared_settings(
+            env=settings.env, fleet_seed=settings.fleet_seed, preset=settings.preset,
+            overrides=settings.overrides, scheme=settings.scheme,
+        ),
+    )  # fmt: skip
     if settings.out is None:
         summary = run_chief(chief, settings.transport(), idle_timeout=settings.idle_timeout)
     else:

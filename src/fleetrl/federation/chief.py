@@ -1,25 +1,21 @@
 """The chief of Algorithm 1 as a pure state machine: messages, statuses and time in → messages and events out.
 
-No sockets and no clocks: every input that depends on time takes ``now`` (seconds, any monotonic origin), so
-deadlines are tested without a broker. Round semantics (docs/protocol.md has the full rules):
+No sockets and no clocks: every input takes ``now`` (seconds, any monotonic origin; keyword-only and
+required, so a caller that forgets the clock gets a TypeError), and deadlines are tested without a broker.
+Round semantics (docs/protocol.md has the full rules):
 
 * The chief keeps W, the workers still learning, and the open round i (from 1). It accepts from each worker
-  exactly one ``gradient`` or ``parameters`` message for round i, keyed by (sender, round): a second one is a
-  rejected duplicate, a message for a later round is from the future, from a worker that transferred is
-  rejected — none of them changes anything.
+  exactly one message for round i of a type its scheme accepts (the scheme's round message, or ``parameters``:
+  "my criterion holds"), keyed by (sender, round): a second one is a rejected duplicate, a message for a later
+  round is from the future, one from a worker that left W is rejected — none of them changes anything.
 * Round i closes when every worker in W has answered. Answers are read in sorted worker-id order, never
   arrival order, so the same inputs give bit-identical outputs on any transport.
-* If no answer carries parameters: the gradients are combined by the aggregator (the paper's mean) and one
-  ``average`` message is broadcast (Algorithm 1, lines 11–13).
-* If one or more answers carry parameters (lines 6–9): the parameters of the lowest worker id among them are
-  broadcast in one ``transfer`` whose ``finished`` lists every worker that sent parameters; all of those leave
-  W. The others replace their actor parameters; their gradients of that round are discarded.
-* The run ends after the round in which W becomes empty, or after round M; ``done`` is then broadcast.
-
-With the ``fedavg`` scheme (:mod:`fleetrl.federation.schemes`) workers send ``model`` messages (their whole
-actor-critic) and the aggregate is an average model. A ``parameters`` message marks its sender's criterion as
-held: the sender's model is averaged like the others and it stays in W. The run ends after the round in
-which every member of W has completed at least once.
+* The scheme (:mod:`fleetrl.federation.schemes`) combines the answers into one ``average`` or ``transfer``
+  (``paper``: the mean of the actor gradients, Algorithm 1 lines 11–13, or the lowest completed worker's θ,
+  lines 6–9; ``fedavg``: the mean model), says who leaves W and whether the run is complete; the chief
+  broadcasts the answer.
+* The run ends after the round the scheme calls complete, after the round in which W becomes empty, or after
+  round M; ``done`` is then broadcast.
 
 Reliability (issue 7):
 
@@ -31,6 +27,10 @@ Reliability (issue 7):
   ⌈q·|W|⌉ members answered; the others stay in W and their late messages are stale.
 * Rejoin: a dropped worker that comes back online (or sends a message for the open round) re-enters W; a
   worker coming online gets a ``welcome`` with the open round and the last transferred parameters θ*, if any.
+* Join (:mod:`fleetrl.federation.shared_settings`): with ``settings``, a worker's ``join`` whose shared
+  settings differ is answered with ``refused`` naming the first differing key; until it joins with matching
+  settings (or a new incarnation comes online) its round messages are rejected and its ``online`` gets the
+  refusal again.
 * Idempotent resends: a message for a closed round makes the chief send its last answer again (at most once
   per worker per ``resend_holdoff`` seconds, and not within that time of the original).
 
@@ -43,12 +43,11 @@ import math
 from collections import Counter
 from collections.abc import Iterable
 
-import numpy as np
-
 from fleetrl.federation.aggregation import Aggregator, get_aggregator
 from fleetrl.federation.events import ChiefEvent, ChiefStep
 from fleetrl.federation.messages import Layout, Message, MessageRejected, Reason, decode
-from fleetrl.federation.schemes import Scheme, get_scheme
+from fleetrl.federation.schemes import COMPLETED, Granularity, RoundContext, Scheme, resolve_scheme
+from fleetrl.federation.shared_settings import JoinGate, SharedSettings
 from fleetrl.federation.signing import FleetKey, parse_status
 from fleetrl.federation.topics import CHIEF_ID, sorted_workers, validate_id, validate_worker_id
 
@@ -74,8 +73,10 @@ class Chief:
     :param resend_holdoff: least seconds between two re-sends of the last answer to one worker.
     :param dropout_grace: seconds an ``offline`` worker has to come back before it leaves W (0: at once).
     :param key: the fleet key; if given, only messages and statuses signed with it are accepted.
-    :param scheme: the federation scheme's name (``paper`` or ``fedavg``; see
+    :param scheme: the federation scheme, or its name with default parameters (see
         :mod:`fleetrl.federation.schemes`); ``layout`` must be what it shares.
+    :param settings: the settings every worker must share (:mod:`fleetrl.federation.shared_settings`), sent in
+        the ``welcome``; a worker whose ``join`` carries others is refused. None: no check.
     """
 
     def __init__(
@@ -92,7 +93,8 @@ class Chief:
         resend_holdoff: float = 1.0,
         dropout_grace: float = 3.0,
         key: FleetKey | None = None,
-        scheme: str = "paper",
+        scheme: str | Scheme = "paper",
+        settings: SharedSettings | None = None,
     ) -> None:
         """Create the chief with W = ``workers`` and round 1 open."""
         self.run_id = validate_id(run_id, "run id")
@@ -108,7 +110,13 @@ class Chief:
         if quorum < 1.0 and round_timeout is None:
             raise ValueError("a quorum below 1 needs a round timeout (--round-timeout)")
         self.layout = list(layout)
-        self.scheme: Scheme = get_scheme(scheme)
+        self.scheme: Scheme = resolve_scheme(scheme)
+        if self.scheme.granularity is not Granularity.ROUND:
+            raise ValueError(
+                f"scheme {self.scheme.name!r} sends per {self.scheme.granularity}: this chief drives "
+                "per-round schemes only"
+            )
+        self._gate = JoinGate(settings)
         self.max_rounds = max_rounds
         self.aggregator_name = aggregator
         self._aggregate: Aggregator = get_aggregator(aggregator)
@@ -139,6 +147,11 @@ class Chief:
         """(round, worker, reason) of every worker that left W without transferring."""
         self.rejoins: list[tuple[int, str]] = []
         """(round, worker) of every dropped worker that re-entered W."""
+
+    @property
+    def settings(self) -> dict[str, str] | None:
+        """The shared settings every worker must have (None: not checked)."""
+        return self._gate.settings
 
     @property
     def round(self) -> int:
@@ -176,9 +189,7 @@ class Chief:
             times.append(self._opened_at + self.round_timeout)
         return min(times, default=None)
 
-    def receive_bytes(
-        self, payload: bytes, *, topic_worker: str | None = None, now: float = 0.0
-    ) -> ChiefStep:
+    def receive_bytes(self, payload: bytes, *, topic_worker: str | None = None, now: float) -> ChiefStep:
         """Decode and handle one payload; any defect becomes a ``rejected`` event, never an exception.
 
         :param payload: bytes received on a worker topic.
@@ -200,12 +211,18 @@ class Chief:
             return self._reject(topic_worker, Reason.TOPIC_MISMATCH, f"envelope says {message.sender!r}")
         return self.receive(message, now=now)
 
-    def receive(self, message: Message, *, now: float = 0.0) -> ChiefStep:
+    def receive(self, message: Message, *, now: float) -> ChiefStep:
         """Handle one decoded message from a worker (Algorithm 1, lines 2–5; closes the round when
         complete)."""
         self._start_clock(now)
         sender, rnd = message.sender, message.round
-        if message.type not in (self.scheme.round_message, "parameters"):
+        if message.type == "join":
+            return self._join(message)
+        if (why := self._gate.refusal(sender)) is not None:
+            return self._reject(sender, Reason.REFUSED, why)
+        if message.step != 0:  # a per-round scheme: one message per (sender, round)
+            return self._reject(sender, Reason.BAD_ROUND, f"step {message.step} in a per-round scheme")
+        if not self.scheme.accepts(message.type):
             return self._reject(sender, Reason.UNEXPECTED_TYPE, message.type)
         if sender not in self.all_workers:
             return self._reject(sender, Reason.UNKNOWN_SENDER, f"round {rnd}")
@@ -230,7 +247,7 @@ class Chief:
             step += self._close_round(now)
         return step
 
-    def status(self, worker: str, payload: bytes, *, retained: bool = False, now: float = 0.0) -> ChiefStep:
+    def status(self, worker: str, payload: bytes, *, retained: bool = False, now: float) -> ChiefStep:
         """Handle a status payload of ``worker`` (its ``online``, its ``offline`` goodbye or last will).
 
         A live ``offline`` drops the worker from W; a live ``online`` of a dropped worker brings it back; any
@@ -251,17 +268,22 @@ class Chief:
         if inc is not None and known is not None and inc < known:  # an old status played again
             return self._reject(worker, Reason.REPLAYED, f"{status.state} of incarnation {inc} < {known}")
         if inc is not None:
+            if known is None or inc > known:  # a new process: it joins afresh
+                self._gate.new_incarnation(worker)
             self._incarnation[worker] = inc
         if status.state == "offline":
             if retained or worker not in self._members:
                 return ChiefStep()
             self._suspects[worker] = now + self.dropout_grace
             return self.tick(now)
+        if self._gate.refusal(worker) is not None:  # no welcome until a join that matches
+            return self._refusal(worker)
         step = ChiefStep() if retained else self._rejoin(worker, "came back online")
         model = self._model
         welcome = Message(
             "welcome", self.run_id, CHIEF_ID, self._round,
             flat=model.flat if model else None, origin=model.origin if model else None,
+            settings=self.settings or {},
         )  # fmt: skip
         detail = f"of round {self._round}" + (f" with θ* of {welcome.origin}" if welcome.origin else "")
         return step + ChiefStep(
@@ -291,6 +313,20 @@ class Chief:
         if len(answered_members) >= math.ceil(self.quorum * len(self._members) - 1e-9):
             return step + self._close_round(now)
         return step + self._drop(sorted_workers(silent), DEADLINE_DROP) + self._close_round(now)
+
+    def _join(self, message: Message) -> ChiefStep:
+        """Check a worker's shared settings: refuse it (until a join that matches) if one differs."""
+        outcome = self._gate.join(message.sender, message.settings)
+        if outcome == "duplicate":  # a re-sent or replayed join: nothing to do
+            return self._reject(message.sender, Reason.DUPLICATE, "join")
+        if outcome == "joined":
+            return ChiefStep(events=(ChiefEvent("joined", self._round, sender=message.sender),))
+        return self._refusal(message.sender)
+
+    def _refusal(self, worker: str) -> ChiefStep:
+        why = self._gate.refusal(worker) or ""
+        refusal = Message("refused", self.run_id, CHIEF_ID, self._round, finished=(worker,), detail=why)
+        return ChiefStep((refusal,), (ChiefEvent("refused", self._round, sender=worker, detail=why),))
 
     def _start_clock(self, now: float) -> None:
         if self._opened_at is None:
@@ -346,46 +382,37 @@ class Chief:
         scores = {
             w: self._pending[w].metrics["score"] for w in answered if "score" in self._pending[w].metrics
         }
-        completed = tuple(w for w in answered if self._pending[w].type == "parameters")
+        completed = tuple(w for w in answered if self._pending[w].type == COMPLETED)
         for worker in completed:
             self.completed.setdefault(worker, rnd)
-        if completed and not self.scheme.stays_after_completion:
-            origin = completed[0]
-            self._members.difference_update(completed)
-            self._left.update(completed)
-            remaining = self.members
-            reply = Message(
-                "transfer", self.run_id, CHIEF_ID, rnd, flat=self._pending[origin].flat, origin=origin,
-                finished=completed,
-            )  # fmt: skip
+        context = RoundContext(self._aggregate, self.members, dict(self.completed))
+        answer = self.scheme.combine({w: self._pending[w] for w in answered}, context)
+        self._members.difference_update(answer.leave_w)
+        self._left.update(answer.leave_w)
+        remaining = self.members
+        reply = Message(
+            answer.kind, self.run_id, CHIEF_ID, rnd, flat=answer.flat, origin=answer.origin,
+            finished=answer.finished, contributors=answer.contributors,
+        )  # fmt: skip
+        if answer.fleet_model:  # what a (re)joining worker starts from
             self._model = reply
-            self.transfers.append((rnd, origin, remaining))
+        if answer.kind == "transfer":
+            self.transfers.append((rnd, str(answer.origin), remaining))
             event = ChiefEvent(
-                "transfer", rnd, answered=answered, dropped=completed, origin=origin,
+                "transfer", rnd, answered=answered, dropped=tuple(answer.leave_w), origin=answer.origin,
                 remaining=remaining, scores=scores, late=late,
             )  # fmt: skip
         else:
-            flats = [self._require_flat(self._pending[w]) for w in answered]
-            average = self._aggregate(flats)
-            # the round in which the last unit completes: every member leaves W with this average, so no
-            # worker starts another round before the ``done`` that follows reaches it
-            ends = self.scheme.stays_after_completion and self._members.issubset(self.completed)
-            finished = self.members if ends and self._members else ()
-            reply = Message(
-                "average", self.run_id, CHIEF_ID, rnd, flat=average, contributors=answered, finished=finished
-            )
-            if self.scheme.shares == "model":  # the fleet's model: what a (re)joining worker starts from
-                self._model = reply
             detail = self.aggregator_name + (f"; completed: {','.join(completed)}" if completed else "")
             event = ChiefEvent(
-                "averaged", rnd, answered=answered, averaged=answered, detail=detail,
-                remaining=self.members, scores=scores, late=late,
+                "averaged", rnd, answered=answered, averaged=answer.contributors, detail=detail,
+                remaining=remaining, scores=scores, late=late,
             )  # fmt: skip
         self._pending = {}
         self._last_answer = (reply,)
         self._answer_sent = dict.fromkeys(self.all_workers, now)
         step = ChiefStep((reply,), (event,))
-        if reply.type == "average" and reply.finished:
+        if answer.ends_run:
             return step + self._end("every unit completed")
         if not self._members or rnd >= self.max_rounds:
             return step + self._end(
@@ -401,9 +428,3 @@ class Chief:
         self._last_answer = (*self._last_answer, done)
         event = ChiefEvent("run_ended", self._round, detail=reason, remaining=self.members)
         return ChiefStep((done,), (event,))
-
-    @staticmethod
-    def _require_flat(message: Message) -> np.ndarray:
-        if message.flat is None:  # decode guarantees tensors for gradient messages
-            raise AssertionError(f"gradient from {message.sender} has no tensors")
-        return message.flat

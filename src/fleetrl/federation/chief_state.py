@@ -23,11 +23,14 @@ import numpy as np
 from fleetrl.federation.chief import Chief
 from fleetrl.federation.events import ChiefEvent, ChiefStep
 from fleetrl.federation.messages import Message, Reason
+from fleetrl.federation.schemes import get_scheme
 from fleetrl.federation.signing import FleetKey
 from fleetrl.federation.topics import CHIEF_ID
 
 STATE_VERSION = 1
 """Version of the state's fields; :func:`chief_from_state` refuses any other."""
+SCHEME_TENSOR = "scheme."
+"""Prefix of the scheme's own state tensors (a server optimiser's moments) in the tensor file."""
 
 
 def chief_config(chief: Chief) -> dict[str, Any]:
@@ -45,6 +48,8 @@ def chief_config(chief: Chief) -> dict[str, Any]:
         "dropout_grace": chief.dropout_grace,
         "signed": chief.key is not None,
         "scheme": chief.scheme.name,
+        "scheme_params": chief.scheme.params(),
+        "settings": chief.settings,
     }
 
 
@@ -68,6 +73,7 @@ def chief_fields(chief: Chief) -> dict[str, Any]:
         "completed": dict(sorted(chief.completed.items())),
         "dropouts": [list(d) for d in chief.dropouts],
         "rejoins": [list(r) for r in chief.rejoins],
+        "scheme_state": chief.scheme.state()[0],
     }
 
 
@@ -76,6 +82,7 @@ def chief_tensors(chief: Chief) -> dict[str, np.ndarray]:
     tensors = {f"answer.{i}": m.flat for i, m in enumerate(chief._last_answer) if m.flat is not None}
     if chief._model is not None and chief._model.flat is not None:
         tensors["model"] = chief._model.flat
+    tensors |= {SCHEME_TENSOR + name: flat for name, flat in chief.scheme.state()[1].items()}
     return {name: np.asarray(flat, dtype=np.float32) for name, flat in tensors.items()}
 
 
@@ -85,7 +92,7 @@ def chief_to_state(chief: Chief) -> tuple[dict[str, Any], dict[str, np.ndarray]]
 
 
 def chief_from_state(
-    fields: dict[str, Any], tensors: dict[str, np.ndarray], *, key: FleetKey | None = None, now: float = 0.0
+    fields: dict[str, Any], tensors: dict[str, np.ndarray], *, key: FleetKey | None = None, now: float
 ) -> Chief:
     """The chief as it was when ``fields``/``tensors`` were taken, its open round starting at ``now``.
 
@@ -100,7 +107,12 @@ def chief_from_state(
         had = "with" if key is None else "without"
         raise ValueError(f"the checkpoint was written by a chief {had} a fleet key; resume it the same way")
     config["layout"] = [(str(name), tuple(int(d) for d in shape)) for name, shape in config["layout"]]
-    chief = Chief(**config, key=key)
+    scheme = get_scheme(config.pop("scheme"), **config.pop("scheme_params", {}))
+    chief = Chief(**config, scheme=scheme, key=key)
+    scheme_tensors = {
+        n.removeprefix(SCHEME_TENSOR): t for n, t in tensors.items() if n.startswith(SCHEME_TENSOR)
+    }
+    scheme.restore(fields.get("scheme_state", {}), scheme_tensors)
     chief._round = int(fields["round"])
     chief._members = set(fields["members"])
     chief._left = set(fields["left"])

@@ -1,8 +1,11 @@
-"""What the chief decides, as data: :class:`ChiefEvent` (a log line for people) and :class:`ChiefStep`."""
+"""What the roles decide, as data: the chief's :class:`ChiefEvent` (a log line for people) and
+:class:`ChiefStep`; the worker's :class:`WorkerEvent` (what a round did), which metrics files write through
+:meth:`WorkerEvent.label` — one vocabulary from the state machine to the CSV."""
 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from enum import StrEnum
 
 from fleetrl.federation.messages import Message, Reason
 
@@ -13,8 +16,9 @@ class ChiefEvent:
 
     :param kind: ``rejected``, ``accepted``, ``averaged``, ``transfer``, ``run_ended``, ``dropped``
         (a worker left W: offline or silent past the deadline), ``rejoined`` (a dropped worker is back in W),
-        ``welcome`` (the open round was announced to a worker coming online) or ``resent`` (the last answer
-        was sent again for a worker that re-sent a closed round).
+        ``welcome`` (the open round was announced to a worker coming online), ``resent`` (the last answer
+        was sent again for a worker that re-sent a closed round), ``joined`` (a worker's shared settings
+        match the chief's) or ``refused`` (they differ: ``detail`` names the setting).
     :param round: the chief's open round when it happened (the closed round for ``averaged``/``transfer``).
     :param sender: who sent the message concerned, or the worker dropped, rejoined or welcomed.
     :param reason: why a message was rejected.
@@ -47,6 +51,10 @@ class ChiefEvent:
         if self.kind == "rejected":
             reason = self.reason.value if self.reason else "?"
             return f"round {self.round}: rejected message from {self.sender or '?'}: {reason} ({self.detail})"
+        if self.kind == "joined":
+            return f"round {self.round}: worker {self.sender} joined (shared settings match)"
+        if self.kind == "refused":
+            return f"round {self.round}: worker {self.sender} refused: {self.detail}"
         if self.kind in ("accepted", "resent", "welcome"):
             return f"round {self.round}: {self.kind} {self.detail} for {self.sender}".replace("  ", " ")
         if self.kind in ("dropped", "rejoined"):
@@ -78,3 +86,39 @@ class ChiefStep:
     def __add__(self, other: ChiefStep) -> ChiefStep:
         """Both steps, this one first."""
         return ChiefStep(self.outgoing + other.outgoing, self.events + other.events)
+
+
+class WorkerEvent(StrEnum):
+    """What one round did for a worker (:attr:`fleetrl.federation.rounds.RoundRecord.event`)."""
+
+    GRADIENT = "gradient"
+    """sent its gradient, applied the average (``paper``)"""
+    MODEL = "model"
+    """sent its model, continued from the average (``fedavg``)"""
+    COMPLETED = "completed"
+    """its criterion held; it sent its parameters, which were averaged, and it stays (``fedavg``)"""
+    LATE = "late"
+    """its message missed the round, which the chief closed without it; the scheme applied the answer"""
+    TRANSFER_IN = "transfer_in"
+    """replaced its shared parameters with the peer's (a transfer)"""
+    TRANSFER_OUT = "transfer_out"
+    """sent its parameters, which the chief forwarded; it left W"""
+    FINISHED = "finished"
+    """sent its parameters, but the peer's (a lower id) were forwarded in the same round; it left W"""
+    RUN_ENDED = "run_ended"
+    """the chief ended the run while it waited"""
+
+    def label(self, peer: str | None = None) -> str:
+        """The event as metrics files write it: ``completed+`` marks a round whose criterion held when the
+        worker left W, ``:K`` names the peer of a transfer."""
+        if self is WorkerEvent.TRANSFER_OUT:
+            return "completed+transfer_out"
+        if self is WorkerEvent.FINISHED:
+            return f"completed+finished:{peer}"
+        if self is WorkerEvent.TRANSFER_IN:
+            return f"transfer_in:{peer}"
+        return self.value
+
+    def describe(self, peer: str | None = None) -> str:
+        """The event for a log line (``transfer_in from K``)."""
+        return f"{self.value} from {peer}" if peer is not None else self.value

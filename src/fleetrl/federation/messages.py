@@ -5,8 +5,12 @@ An envelope is one msgpack map with exactly these keys (see docs/protocol.md):
 ``version`` (int, :data:`VERSION`), ``type`` (str, one of :data:`MESSAGE_TYPES`), ``run_id`` (str), ``sender``
 (str), ``round`` (int ≥ 1), ``metrics`` (map str → finite number, small), ``origin`` (str or nil: whose
 parameters a ``transfer`` carries), ``finished`` (list of str: workers that leave W with this message),
-``contributors`` (list of str: whose gradients an ``average`` combines), ``tensors`` (list of ``[name,
-shape]``) and ``data`` (bin: the tensors concatenated in that order as little-endian float32).
+``contributors`` (list of str: whose gradients an ``average`` combines), ``step`` (int ≥ 0: the optimisation
+step within the round, for schemes that send per step; 0 otherwise), ``settings`` (map str → str: the settings
+all roles must share, in ``join`` and ``welcome``), ``detail`` (str: why, in ``refused``), ``tensors`` (list
+of ``[name, shape]``) and ``data`` (bin: the tensors concatenated in that order as little-endian float32).
+
+Version 2 added ``step``, ``settings``, ``detail`` and the ``join`` / ``refused`` types.
 
 :func:`decode` validates all of it and raises :class:`MessageRejected` with a :class:`Reason` for anything
 wrong; it never raises anything else, whatever the bytes.
@@ -17,16 +21,31 @@ from __future__ import annotations
 import math
 from collections.abc import Collection, Mapping, Sequence
 from dataclasses import dataclass, field
-from enum import StrEnum
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import msgpack
 import numpy as np
 
-if TYPE_CHECKING:
-    from fleetrl.federation.signing import FleetKey
+from fleetrl.federation.rejections import MessageRejected, Reason
+from fleetrl.federation.signing import OVERHEAD as SIGNATURE_OVERHEAD
+from fleetrl.federation.signing import FleetKey
 
-VERSION = 1
+__all__ = [
+    "MESSAGE_TYPES",
+    "SIGNATURE_OVERHEAD",
+    "VERSION",
+    "Layout",
+    "Message",
+    "MessageRejected",
+    "Reason",
+    "decode",
+    "default_max_bytes",
+    "encode",
+    "envelope",
+    "layout_size",
+]
+
+VERSION = 2
 """Envelope version; a receiver rejects any other."""
 
 Layout = Sequence[tuple[str, tuple[int, ...]]]
@@ -40,6 +59,8 @@ MESSAGE_TYPES: Mapping[str, bool] = {
     "transfer": True,  # chief → workers: a mature worker's parameters (Algorithm 1, line 8)
     "done": False,  # chief → workers: the run is over (W empty, or M rounds)
     "welcome": False,  # chief → workers: round i is open; the last transferred θ* if there was a transfer
+    "join": False,  # worker → chief: its shared settings, checked against the chief's before it plays
+    "refused": False,  # chief → workers: the join of the worker in ``finished`` is refused (``detail``: why)
 }
 """Known message types, each mapped to whether it must carry the layout's tensors."""
 OPTIONAL_TENSORS = frozenset({"welcome"})
@@ -49,10 +70,10 @@ MAX_METRICS = 32
 """Most metrics one message may carry."""
 MAX_NAME = 64
 """Longest metric name or id accepted."""
+MAX_TEXT = 1024
+"""Longest setting value or detail text accepted."""
 HEADER_ALLOWANCE = 64 * 1024
 """Bytes allowed beyond the tensors' own size by :func:`default_max_bytes`."""
-SIGNATURE_OVERHEAD = 36
-"""Bytes a signature adds (magic + HMAC-SHA256, see :mod:`fleetrl.federation.signing`)."""
 _MAX_ROUND = 2**31 - 1
 _KEYS = frozenset(
     {
@@ -65,47 +86,13 @@ _KEYS = frozenset(
         "origin",
         "finished",
         "contributors",
+        "step",
+        "settings",
+        "detail",
         "tensors",
         "data",
     }
 )
-
-
-class Reason(StrEnum):
-    """Why a message was rejected (by the decoder, or by the chief or worker that received it)."""
-
-    OVERSIZED = "oversized"
-    NOT_MSGPACK = "not msgpack"
-    MALFORMED = "malformed envelope"
-    WRONG_VERSION = "wrong version"
-    UNKNOWN_TYPE = "unknown type"
-    WRONG_RUN_ID = "wrong run id"
-    UNKNOWN_SENDER = "unknown sender"
-    BAD_ROUND = "bad round"
-    BAD_METRICS = "bad metrics"
-    LAYOUT_MISMATCH = "tensor names/shapes do not match the layout"
-    NOT_FINITE = "NaN or Inf"
-    UNSIGNED = "unsigned"
-    BAD_SIGNATURE = "bad signature"
-    # Raised by the receivers, not the decoder:
-    TOPIC_MISMATCH = "sender does not match topic"
-    UNEXPECTED_TYPE = "type not expected from this sender"
-    STALE_ROUND = "stale round"
-    FUTURE_ROUND = "future round"
-    DUPLICATE = "duplicate (sender, round)"
-    NOT_IN_W = "sender no longer in W"
-    RUN_OVER = "run is over"
-    REPLAYED = "replayed status"
-
-
-class MessageRejected(Exception):
-    """A received message failed validation; ``reason`` says which rule, ``detail`` says what was seen."""
-
-    def __init__(self, reason: Reason, detail: str = "") -> None:
-        """:param reason: the rule that failed.  :param detail: what was wrong, for the log."""
-        super().__init__(f"{reason.value}: {detail}" if detail else reason.value)
-        self.reason = reason
-        self.detail = detail
 
 
 @dataclass(frozen=True)
@@ -121,6 +108,9 @@ class Message:
     :param origin: for ``transfer``: the worker whose parameters are carried.
     :param finished: workers that leave W with this message (``transfer``).
     :param contributors: workers whose gradients were combined (``average``).
+    :param step: the optimisation step within the round (schemes that send per step); 0 otherwise.
+    :param settings: the settings all roles must share (``join``, ``welcome``): name → value text.
+    :param detail: free text (``refused``: the reason).
     :param version: envelope version.
     """
 
@@ -133,6 +123,9 @@ class Message:
     origin: str | None = None
     finished: tuple[str, ...] = ()
     contributors: tuple[str, ...] = ()
+    step: int = 0
+    settings: Mapping[str, str] = field(default_factory=dict)
+    detail: str = ""
     version: int = VERSION
 
     def tensors(self, layout: Layout) -> dict[str, np.ndarray]:
@@ -182,6 +175,9 @@ def envelope(message: Message, *, layout: Layout) -> dict[str, Any]:
         "origin": message.origin,
         "finished": list(message.finished),
         "contributors": list(message.contributors),
+        "step": message.step,
+        "settings": {str(k): str(v) for k, v in message.settings.items()},
+        "detail": message.detail,
         "tensors": tensors,
         "data": data,
     }
@@ -260,6 +256,12 @@ def decode(
     origin = env["origin"]
     if origin is not None and not isinstance(origin, str):
         raise MessageRejected(Reason.MALFORMED, "origin is not a string")
+    step = env["step"]
+    if not isinstance(step, int) or isinstance(step, bool) or not 0 <= step <= _MAX_ROUND:
+        raise MessageRejected(Reason.MALFORMED, f"step {_short(step)}")
+    detail = env["detail"]
+    if not isinstance(detail, str) or len(detail) > MAX_TEXT:
+        raise MessageRejected(Reason.MALFORMED, "detail is not a short string")
     carries = MESSAGE_TYPES[mtype] or (mtype in OPTIONAL_TENSORS and env["tensors"] != [])
     flat = _tensors(env["tensors"], env["data"], layout if carries else ())
     return Message(
@@ -272,6 +274,9 @@ def decode(
         origin=origin,
         finished=_names(env["finished"], "finished"),
         contributors=_names(env["contributors"], "contributors"),
+        step=step,
+        settings=_settings(env["settings"]),
+        detail=detail,
     )
 
 
@@ -286,6 +291,17 @@ def _names(value: object, what: str) -> tuple[str, ...]:
     if not isinstance(value, list) or len(value) > 4096 or not all(isinstance(v, str) for v in value):
         raise MessageRejected(Reason.MALFORMED, f"{what} is not a list of strings")
     return tuple(value)
+
+
+def _settings(value: object) -> dict[str, str]:
+    if not isinstance(value, dict) or len(value) > MAX_METRICS:
+        raise MessageRejected(Reason.MALFORMED, f"settings is not a map of at most {MAX_METRICS} entries")
+    for key, val in value.items():
+        if not (
+            isinstance(key, str) and len(key) <= MAX_NAME and isinstance(val, str) and len(val) <= MAX_TEXT
+        ):
+            raise MessageRejected(Reason.MALFORMED, f"setting {_short(key)}")
+    return dict(value)
 
 
 def _metrics(value: object) -> dict[str, float]:

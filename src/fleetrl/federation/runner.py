@@ -200,7 +200,7 @@ def run_chief(
 
 
 def _log_event(event: ChiefEvent) -> None:
-    if event.kind in ("rejected", "dropped"):
+    if event.kind in ("rejected", "dropped", "refused"):
         log.warning("chief: %s", event)
     elif event.kind == "accepted":
         log.debug("chief: %s", event)

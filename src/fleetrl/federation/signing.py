@@ -18,15 +18,14 @@ import os
 from dataclasses import dataclass
 from pathlib import Path
 
-from fleetrl.federation.messages import SIGNATURE_OVERHEAD, MessageRejected, Reason
+from fleetrl.federation.rejections import MessageRejected, Reason
 
 MAGIC = b"FRS1"
 """First bytes of a signed message."""
 SIGNATURE_BYTES = 32
 """Length of an HMAC-SHA256 tag."""
-OVERHEAD = SIGNATURE_OVERHEAD
+OVERHEAD = len(MAGIC) + SIGNATURE_BYTES
 """Bytes a signature adds to a message (``MAGIC`` + tag)."""
-assert len(MAGIC) + SIGNATURE_BYTES == OVERHEAD
 MIN_KEY_BYTES = 16
 """Shortest fleet key accepted."""
 

@@ -1,22 +1,25 @@
 """The worker of Algorithm 2 (lines 7–31) on top of a learner: play a round, send, wait for the chief, apply.
 
 Each round the worker calls ``learner.play_round()`` (the episode and, unless learning is complete, the K PPO
-optimisations). It then sends the actor's last gradient — or, once the completion criterion holds, its actor
-parameters — to the chief, and waits for the chief's answer for that round:
+optimisations). It then sends what its scheme (:mod:`fleetrl.federation.schemes`) says — ``paper``: the
+actor's last gradient, ``fedavg``: its whole model; once the completion criterion holds, a ``parameters``
+message — to the chief, and waits for the chief's answer for that round:
 
-* ``average``: the averaged gradient goes through the actor's optimiser (``apply_actor_gradient``, line 31);
+* ``average``: the scheme applies it (``paper``: through the actor's optimiser, line 31; ``fedavg``: the
+  average model replaces the worker's);
 * ``transfer`` listing this worker in ``finished``: the chief acknowledged its parameters; the worker is
   finished and stops (it has left W; what the chief forwarded — its own parameters or a lower id's — is in the
   record);
-* ``transfer`` not listing it: it replaces its actor parameters with the received ones (line 29) and keeps
-  learning;
+* ``transfer`` not listing it: the scheme replaces its shared parameters with the received ones (line 29) and
+  it keeps learning;
+* an ``average`` listing it in ``finished``: the run is complete for it (``fedavg``'s last round);
 * ``done``: the run is over.
 
 The worker also stops after round M. Every round produces a :class:`RoundRecord` through ``on_record``.
 
-With the ``fedavg`` scheme (:mod:`fleetrl.federation.schemes`) the worker sends its whole actor-critic
-(``model``; ``parameters`` once its criterion holds), replaces it with the chief's ``average``, and keeps
-learning after its criterion held, until the chief's ``done``.
+Join: before its first round the worker publishes a retained ``join`` carrying its shared settings; a chief
+``refused`` naming it, or a ``welcome`` whose settings differ, raises
+:class:`~fleetrl.federation.shared_settings.SettingsRefused` (``fleetrl worker`` exits 2).
 
 Reliability (issue 7): the worker starts (or, restarted with the same id, rejoins) at the round named by the
 chief's ``welcome``, taking the last transferred parameters if it carries them. It re-sends its round's
@@ -32,13 +35,12 @@ import logging
 import math
 import time
 from collections.abc import Callable
-from dataclasses import dataclass
-from typing import Protocol
 
-import numpy as np
-
+from fleetrl.federation.events import WorkerEvent
 from fleetrl.federation.messages import Layout, Message, MessageRejected, decode, encode
-from fleetrl.federation.schemes import get_scheme
+from fleetrl.federation.rounds import RoundFigures, RoundOutcome, RoundPlayer, RoundRecord, WorkerSummary
+from fleetrl.federation.schemes import Granularity, Scheme, resolve_scheme
+from fleetrl.federation.shared_settings import SettingsRefused, SharedSettings, settings_difference
 from fleetrl.federation.signing import FleetKey, status_payload
 from fleetrl.federation.topics import (
     CHIEF_ID,
@@ -52,116 +54,12 @@ from fleetrl.federation.topics import (
 )
 from fleetrl.transport.base import Transport, Will
 
+__all__ = ["FederatedWorker", "RoundFigures", "RoundOutcome", "RoundPlayer", "RoundRecord", "WorkerSummary"]
+
 log = logging.getLogger(__name__)
 
-
-class ActorAgent(Protocol):
-    """What the worker needs from the agent (``fleetrl.agent.ppo.PPOAgent`` provides it)."""
-
-    def actor_layout(self) -> list[tuple[str, tuple[int, ...]]]:
-        """Names and shapes of the actor's parameters, in flat order."""
-        ...
-
-    def actor_gradient(self) -> np.ndarray:
-        """The actor's last gradient of the round, flat float32."""
-        ...
-
-    def apply_actor_gradient(self, flat: np.ndarray) -> None:
-        """Update the actor with ``flat`` through its optimiser."""
-        ...
-
-    def actor_parameters(self) -> np.ndarray:
-        """The actor's parameters, flat float32."""
-        ...
-
-    def set_actor_parameters(self, flat: np.ndarray) -> None:
-        """Replace the actor's parameters."""
-        ...
-
-    def model_layout(self) -> list[tuple[str, tuple[int, ...]]]:
-        """Names and shapes of the whole actor-critic's parameters, in flat order."""
-        ...
-
-    def model_parameters(self) -> np.ndarray:
-        """The whole actor-critic's parameters, flat float32."""
-        ...
-
-    def set_model_parameters(self, flat: np.ndarray) -> None:
-        """Replace the whole actor-critic's parameters."""
-        ...
-
-
-class RoundFigures(Protocol):
-    """The figures of one round: the episode and the update's statistics."""
-
-    @property
-    def score(self) -> float: ...
-    @property
-    def steps(self) -> int: ...
-    @property
-    def wma(self) -> float: ...
-    @property
-    def actor_loss(self) -> float: ...
-    @property
-    def critic_loss(self) -> float: ...
-    @property
-    def entropy(self) -> float: ...
-
-
-class RoundOutcome(RoundFigures, Protocol):
-    """What one ``play_round`` reports (``fleetrl.agent.learner.RoundResult`` provides it)."""
-
-    @property
-    def completed(self) -> bool: ...
-
-
-class RoundPlayer(Protocol):
-    """What the worker needs from the learner (``fleetrl.agent.learner.Learner`` provides it)."""
-
-    @property
-    def agent(self) -> ActorAgent:
-        """The agent whose actor is federated."""
-        ...
-
-    def play_round(self) -> RoundOutcome:
-        """Play one episode and, unless learning is complete, optimise (Algorithm 2, lines 2–24)."""
-        ...
-
-
-@dataclass(frozen=True)
-class RoundRecord:
-    """One round of one worker, for metrics files and the live view.
-
-    ``event`` is ``gradient`` (sent a gradient, applied the average), ``transfer_out`` (sent its parameters,
-    which the chief forwarded; finished), ``finished`` (sent its parameters, but a lower worker id's were
-    forwarded in the same round; finished), ``transfer_in from K`` (replaced its actor with worker K's),
-    ``late`` (its message missed the round, which the chief closed without it; the average was applied) or
-    ``run ended`` (the chief ended the run while it waited). With the ``fedavg`` scheme: ``model`` (sent its
-    model, took the average) or ``completed`` (the same, in a round where its criterion held).
-    """
-
-    worker_id: str
-    round: int
-    score: float
-    wma: float
-    steps: int
-    actor_loss: float
-    critic_loss: float
-    entropy: float
-    event: str
-    peer: str | None = None
-    """the other worker of a transfer (``transfer_in``: the origin; ``finished``: the one forwarded)"""
-
-
-@dataclass(frozen=True)
-class WorkerSummary:
-    """How a worker's run ended."""
-
-    worker_id: str
-    rounds: int
-    finished: bool
-    """True if it left W by sending its parameters (fedavg: with the run's last average)."""
-    reason: str
+ANSWERS = ("average", "transfer", "done")
+"""The chief's answers to a round."""
 
 
 class FederatedWorker:
@@ -184,8 +82,12 @@ class FederatedWorker:
         worker rejoins like a fresh one; an earlier one is an error (the chief lost rounds).
     :param on_round_done: called with the next round to play after each round's answer was applied and
         before that round starts (the moment to checkpoint the learner).
-    :param scheme: the federation scheme's name (``paper`` or ``fedavg``); the chief's must be the same. With
-        ``fedavg`` the learner must keep learning after its criterion holds (``Learner.keep_learning``).
+    :param scheme: the federation scheme (or its name); the chief's must be the same. If it
+        ``stays_after_completion`` the learner must keep learning after its criterion holds
+        (``Learner.keep_learning``).
+    :param settings: this worker's shared settings (:mod:`fleetrl.federation.shared_settings`), sent in its
+        ``join``; a ``welcome`` carrying others, or the chief's ``refused``, raises
+        :class:`~fleetrl.federation.shared_settings.SettingsRefused`.
     """
 
     def __init__(
@@ -202,7 +104,8 @@ class FederatedWorker:
         key: FleetKey | None = None,
         start_round: int | None = None,
         on_round_done: Callable[[int], None] | None = None,
-        scheme: str = "paper",
+        scheme: str | Scheme = "paper",
+        settings: SharedSettings | None = None,
     ) -> None:
         """Prepare the worker; nothing is sent before :meth:`run`."""
         self.learner = learner
@@ -218,19 +121,18 @@ class FederatedWorker:
         self.on_round_done = on_round_done
         self.incarnation = time.time_ns()
         """This process's incarnation: newer than any earlier process with the same worker id."""
-        self.scheme = get_scheme(scheme)
-        agent = learner.agent
-        if self.scheme.shares == "model":
-            self.layout: Layout = list(agent.model_layout())
-            self._round_vector, self._take = agent.model_parameters, agent.set_model_parameters
-            self._apply_average = agent.set_model_parameters
-        else:
-            self.layout = list(agent.actor_layout())
-            self._round_vector, self._take = agent.actor_gradient, agent.set_actor_parameters
-            self._apply_average = agent.apply_actor_gradient
+        self.scheme = resolve_scheme(scheme)
+        if self.scheme.granularity is not Granularity.ROUND:
+            raise ValueError(
+                f"scheme {self.scheme.name!r} sends per {self.scheme.granularity}: this worker "
+                "drives per-round schemes only"
+            )
+        self.settings: dict[str, str] = dict(settings or {})
+        self.layout: Layout = list(self.scheme.layout(learner.agent))
         self._chief_topic = chief_topic(run_id)
         self._chief_status = status_topic(run_id, CHIEF_ID)
         self._own_status = status_topic(run_id, worker_id)
+        self._topic = worker_topic(run_id, worker_id)
 
     def run(self) -> WorkerSummary:
         """Connect, wait for the chief's welcome, play rounds until finished, M rounds, or ``done``; close."""
@@ -240,7 +142,14 @@ class FederatedWorker:
             self.transport.subscribe(self._chief_topic)
             self.transport.subscribe(self._chief_status)
             self.transport.announce(self._own_status, self._status(ONLINE))
-            welcome = self._wait_for(lambda m: m.type in ("welcome", "done"), "the chief's welcome", None)
+            join = Message("join", self.run_id, self.worker_id, 1, settings=self.settings)
+            join_payload = encode(join, layout=self.layout, key=self.key)
+            # retained: a chief that subscribes later (started after this worker) still checks it
+            self.transport.publish(self._topic, join_payload, retain=True)
+            welcome = self._wait_for(
+                lambda m: m.type in ("welcome", "done"), "the chief's welcome", join_payload, announce=True
+            )
+            self._check_settings(welcome)
             summary = self._rounds(welcome)
             self.transport.publish(self._own_status, self._status(OFFLINE), retain=True)
         finally:
@@ -259,30 +168,26 @@ class FederatedWorker:
             return WorkerSummary(self.worker_id, 0, finished=False, reason="run ended")
         resume = self._resume_round(welcome.round)
         if welcome.flat is not None and resume is None:  # rejoining: start from θ* (fedavg: the fleet's)
-            self._take(welcome.flat)
+            self.scheme.take_parameters(agent, welcome.flat)
         log.info("worker %s: welcomed at round %d (θ* of %s)", self.worker_id, welcome.round, welcome.origin)
         rnd = welcome.round if resume is None else resume
         while rnd <= self.max_rounds:
             result = self.learner.play_round()  # lines 2-24
             completed = bool(result.completed)
-            kind = "parameters" if completed else self.scheme.round_message
-            if completed and self.scheme.shares == "actor":
-                flat = agent.actor_parameters()  # line 8
-            else:
-                flat = self._round_vector()  # line 25 (fedavg: the model after the round's update)
+            kind, flat = self.scheme.outgoing(agent, completed=completed)  # lines 8 and 25
             metrics = {"score": float(result.score), "wma": float(result.wma), "steps": float(result.steps)}
             message = Message(kind, self.run_id, self.worker_id, rnd, flat=flat, metrics=_finite(metrics))
             payload = encode(message, layout=self.layout, key=self.key)
-            topic = worker_topic(self.run_id, self.worker_id)
-            self.transport.publish(topic, payload)
+            self.transport.publish(self._topic, payload)
             log.debug("worker %s: sent %s for round %d", self.worker_id, kind, rnd)
-            reply = self._wait_for(_answer_for(rnd), f"the chief's answer for round {rnd}", (topic, payload))
+            reply = self._wait_for(_answer_for(rnd), f"the chief's answer for round {rnd}", payload)
             event, peer, leave = self._apply(reply, completed)  # lines 28-31
             self._record(rnd, result, event, peer)
             if leave:
-                if reply.type == "average":  # fedavg: the round in which the last unit completed
+                if reply.type == "average":  # the round in which the scheme's run completed
                     return WorkerSummary(self.worker_id, rnd, finished=True, reason="every unit completed")
-                return WorkerSummary(self.worker_id, rnd, finished=reply.type == "transfer", reason=event)
+                reason = "run ended" if event is WorkerEvent.RUN_ENDED else event.value
+                return WorkerSummary(self.worker_id, rnd, finished=reply.type == "transfer", reason=reason)
             rnd, stop = self._catch_up(reply.round)
             if stop is not None:
                 return WorkerSummary(self.worker_id, rnd - 1, finished=False, reason=stop)
@@ -313,33 +218,29 @@ class FederatedWorker:
         )  # fmt: skip
         return None
 
-    def _apply(self, reply: Message, completed: bool) -> tuple[str, str | None, bool]:
+    def _apply(self, reply: Message, completed: bool) -> tuple[WorkerEvent, str | None, bool]:
         """Act on the chief's answer; return (event, peer, whether this worker stops)."""
         if reply.type == "done":
-            return "run ended", None, True
+            return WorkerEvent.RUN_ENDED, None, True
         if reply.type == "transfer" and self.worker_id in reply.finished:
             if reply.origin == self.worker_id:
-                return "transfer_out", None, True
-            return "finished", reply.origin, True
+                return WorkerEvent.TRANSFER_OUT, None, True
+            return WorkerEvent.FINISHED, reply.origin, True
         if reply.flat is None:
             raise AssertionError("decode guarantees tensors for average and transfer")
         if reply.type == "transfer":
-            self._take(reply.flat)  # line 29
-            return f"transfer_in from {reply.origin}", reply.origin, False
-        stays = self.scheme.stays_after_completion
-        if self.worker_id not in reply.contributors:  # the round closed without us (straggler, or resend)
-            if not completed or stays:
-                self._apply_average(reply.flat)  # the fleet's update all the same
-            return "late", None, self.worker_id in reply.finished
-        if completed and not stays:  # the chief averaged our parameters: a protocol bug, not a data problem
-            raise RuntimeError(f"worker {self.worker_id}: chief answered round {reply.round} with an average")
-        self._apply_average(reply.flat)  # line 31 (fedavg: continue from the average model)
-        # fedavg: the average of the round in which the last unit completed lists every member in finished
-        return (
-            ("completed" if completed else self.scheme.round_message),
-            None,
-            self.worker_id in reply.finished,
+            self.scheme.take_parameters(self.learner.agent, reply.flat)  # line 29
+            return WorkerEvent.TRANSFER_IN, reply.origin, False
+        # the round may have closed without us (a straggler, or a resend): the fleet's update all the same
+        contributed = self.worker_id in reply.contributors
+        self.scheme.apply_average(
+            self.learner.agent, reply.flat, completed=completed, contributed=contributed
         )
+        if not contributed:
+            event = WorkerEvent.LATE
+        else:
+            event = WorkerEvent.COMPLETED if completed else WorkerEvent(self.scheme.round_message)
+        return event, None, self.worker_id in reply.finished
 
     def _catch_up(self, last: int) -> tuple[int, str | None]:
         """Apply answers of later rounds already queued (the chief moved on without us); return (the next
@@ -348,21 +249,34 @@ class FederatedWorker:
             message = self._decode(received.topic, received.payload)
             if (
                 message is None
-                or message.type == "welcome"
+                or message.type not in ANSWERS
                 or (message.type != "done" and message.round <= last)
             ):
                 continue
             if message.type == "done":
                 return message.round + 1, "run ended"
+            agent = self.learner.agent
             if message.flat is not None and message.type == "transfer":
-                self._take(message.flat)
+                self.scheme.take_parameters(agent, message.flat)
             elif message.flat is not None:
-                self._apply_average(message.flat)
+                self.scheme.apply_average(agent, message.flat, completed=False, contributed=False)
             log.info(
                 "worker %s: caught up with the %s of round %d", self.worker_id, message.type, message.round
             )
             last = message.round
         return last + 1, None
+
+    def _check_settings(self, welcome: Message) -> None:
+        """SettingsRefused if the chief's welcome carries shared settings that differ from this worker's."""
+        why = settings_difference(welcome.settings, self.settings) if welcome.settings else None
+        if why is not None:
+            self._refused(why)
+
+    def _refused(self, why: str) -> None:
+        raise SettingsRefused(
+            f"worker {self.worker_id}: refused by the chief of run {self.run_id!r}: {why}; start it with the"
+            " chief's settings"
+        )
 
     def _decode(self, topic: str, payload: bytes) -> Message | None:
         if topic == self._chief_status:
@@ -370,20 +284,23 @@ class FederatedWorker:
                 log.warning("worker %s: the chief went offline; waiting", self.worker_id)
             return None
         try:
-            return decode(
+            message = decode(
                 payload, run_id=self.run_id, known_senders=(CHIEF_ID,), layout=self.layout, key=self.key
             )
         except MessageRejected as exc:
             log.warning("worker %s: rejected a chief message: %s", self.worker_id, exc)
             return None
+        if message.type == "refused" and self.worker_id in message.finished:
+            self._refused(message.detail)
+        return None if message.type == "refused" else message
 
     def _wait_for(
-        self, wanted: Callable[[Message], bool], what: str, resend: tuple[str, bytes] | None
+        self, wanted: Callable[[Message], bool], what: str, resend: bytes, *, announce: bool = False
     ) -> Message:
-        """The first chief message ``wanted`` accepts; re-send ``resend`` (topic, payload) — or, if None, the
-        ``online`` status — every ``resend_interval`` s; TimeoutError after ``reply_timeout`` s."""
+        """The first chief message ``wanted`` accepts; re-send ``resend`` on the worker topic (and, if
+        ``announce``, the retained ``online`` status first) every ``resend_interval`` s; TimeoutError after
+        ``reply_timeout`` s."""
         deadline = None if self.reply_timeout is None else time.monotonic() + self.reply_timeout
-        topic, payload = resend or (self._own_status, self._status(ONLINE))
         next_send = None if self.resend_interval is None else time.monotonic() + self.resend_interval
         while True:
             received = self.transport.receive(_remaining(_earliest(deadline, next_send)))
@@ -396,7 +313,9 @@ class FederatedWorker:
                     )
                 if next_send is not None and now >= next_send:
                     log.info("worker %s: nothing yet; re-sending while waiting for %s", self.worker_id, what)
-                    self.transport.publish(topic, payload, retain=resend is None)
+                    if announce:
+                        self.transport.publish(self._own_status, self._status(ONLINE), retain=True)
+                    self.transport.publish(self._topic, resend, retain=announce)
                     next_send = now + (self.resend_interval or 0.0)
                 continue
             message = self._decode(received.topic, received.payload)
@@ -405,7 +324,7 @@ class FederatedWorker:
             if message is not None:
                 log.debug("worker %s: ignoring %s of round %d", self.worker_id, message.type, message.round)
 
-    def _record(self, rnd: int, result: RoundOutcome, event: str, peer: str | None) -> None:
+    def _record(self, rnd: int, result: RoundOutcome, event: WorkerEvent, peer: str | None) -> None:
         record = RoundRecord(
             self.worker_id, rnd, float(result.score), float(result.wma), int(result.steps),
             float(result.actor_loss), float(result.critic_loss), float(result.entropy), event, peer,
@@ -413,7 +332,7 @@ class FederatedWorker:
         log.info(
             "worker %s round %d: score %g wma %.1f steps %d actor %.4g critic %.4g entropy %.3f: %s",
             self.worker_id, rnd, record.score, record.wma, record.steps,
-            record.actor_loss, record.critic_loss, record.entropy, event,
+            record.actor_loss, record.critic_loss, record.entropy, event.describe(peer),
         )  # fmt: skip
         if self.on_record is not None:
             self.on_record(record)
@@ -421,7 +340,7 @@ class FederatedWorker:
 
 def _answer_for(rnd: int) -> Callable[[Message], bool]:
     """Accepts the chief's answer for round ``rnd`` or a later one (we missed ours), or ``done``."""
-    return lambda m: m.type == "done" or (m.type != "welcome" and m.round >= rnd)
+    return lambda m: m.type == "done" or (m.type in ANSWERS and m.round >= rnd)
 
 
 def _earliest(a: float | None, b: float | None) -> float | None:

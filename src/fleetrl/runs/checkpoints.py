@@ -61,7 +61,7 @@ class ChiefCheckpoint:
         self.store.save(*chief_to_state(chief))
         self.saves += 1
 
-    def load(self, *, key: FleetKey | None = None, now: float = 0.0, expect: Chief | None = None) -> Chief:
+    def load(self, *, key: FleetKey | None = None, now: float, expect: Chief | None = None) -> Chief:
         """The chief as last committed, its open round starting at ``now``.
 
         :param key: the run's fleet key (required if and only if the run was signed).

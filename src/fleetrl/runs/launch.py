@@ -35,6 +35,7 @@ from fleetrl.runs.roles import Emit
 from fleetrl.runs.roles import train_federated as train_federated_worker
 from fleetrl.runs.rundir import RunDirectoryError, RunRecorder, write_json_atomic
 from fleetrl.runs.settings import LearningSettings, RunSettings
+from fleetrl.runs.shared import shared_settings
 from fleetrl.runs.spec import WorkerSpec
 from fleetrl.transport.base import Transport
 from fleetrl.transport.login import password_in_environment
@@ -85,14 +86,14 @@ def worker_specs(settings: RunSettings, device_url: str | None, run_id: str) -> 
 
 
 def shared_layout(settings: LearningSettings) -> list[tuple[str, tuple[int, ...]]]:
-    """Names and shapes of what the run's scheme shares (the actor, or the whole actor-critic for
-    ``fedavg``) for this env and preset: the chief validates every message with it."""
+    """Names and shapes of what the run's scheme shares for this env and preset (the scheme's
+    :meth:`~fleetrl.federation.schemes.Scheme.layout`): the chief validates every message with it."""
     env = gymnasium.make(get_env_spec(settings.env).gym_id)
     obs_dim = int(env.observation_space.shape[0])  # type: ignore[index]
     n_actions = int(env.action_space.n)  # type: ignore[attr-defined]
     env.close()
     agent = PPOAgent(obs_dim, n_actions, settings.ppo(), seed=0)
-    return agent.model_layout() if get_scheme(settings.scheme).shares == "model" else agent.actor_layout()
+    return list(get_scheme(settings.scheme).layout(agent))
 
 
 def train(settings: RunSettings) -> dict[str, Any]:
@@ -208,7 +209,11 @@ def train_federated(
         scheme=settings.scheme,
         quorum=settings.quorum,
         round_timeout=settings.round_timeout,
-    )
+        settings=shared_settings(
+            env=settings.env, fleet_seed=settings.fleet_seed, preset=settings.preset,
+            overrides=settings.overrides, scheme=settings.scheme,
+        ),
+    )  # fmt: skip
     make_transport, fleet_for = transports(settings, url, specs, run_id)
     outcome: dict[str, ChiefSummary | BaseException] = {}
     with open(recorder.out / "logs" / "chief.log", "w") as log_file:

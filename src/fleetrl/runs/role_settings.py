@@ -81,6 +81,8 @@ class ChiefSettings(RoleSettings, RoundRules):
 
     workers: int
     """N: the workers are ids 0 … N-1"""
+    fleet_seed: int = 0
+    """seed of the fleet's per-unit dynamics; every worker's must be the same (checked at join)"""
     out: Path | None = None
     """write chief.json, chief.log and a checkpoint every round (checkpoints/chief/) here"""
     resume: bool = False
@@ -96,6 +98,8 @@ class ChiefSettings(RoleSettings, RoundRules):
         self.validate_rounds()
         if self.workers < 1:
             raise SettingError(f"{label('workers')} = {self.workers}: must be at least 1")
+        if self.fleet_seed < 0:
+            raise SettingError(f"{label('fleet_seed')} = {self.fleet_seed}: must be a non-negative integer")
         positive("idle_timeout", self.idle_timeout)
         positive("dropout_grace", self.dropout_grace, allow_zero=True)
         if self.out is None:

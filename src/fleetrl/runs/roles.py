@@ -18,6 +18,7 @@ from fleetrl.runs.checkpoints import WorkerCheckpoint
 from fleetrl.runs.factory import make_learner
 from fleetrl.runs.records import RoundRecord
 from fleetrl.runs.rundir import model_path
+from fleetrl.runs.shared import spec_shared_settings
 from fleetrl.runs.spec import WorkerSpec
 from fleetrl.transport.base import Transport
 
@@ -53,14 +54,8 @@ def metrics_row(worker: int, figures: NumberedRound, started: float, event: str)
 
 
 def federated_event(record: federation_worker.RoundRecord) -> str:
-    """The metrics ``event`` for a federated round (``+``-joined; ``completed`` marks the criterion)."""
-    if record.event == "transfer_out":
-        return "completed+transfer_out"
-    if record.event == "finished":
-        return f"completed+finished:{record.peer}"
-    if record.event.startswith("transfer_in"):
-        return f"transfer_in:{record.peer}"
-    return record.event.replace(" ", "_")
+    """The metrics ``event`` for a federated round (:meth:`~fleetrl.federation.events.WorkerEvent.label`)."""
+    return record.event.label(record.peer)
 
 
 def train_alone(spec: WorkerSpec, emit: Emit, learner: Learner | None = None) -> None:
@@ -125,6 +120,7 @@ def train_federated(
         start_round=start_round,
         on_round_done=None if store is None else lambda next_round: store.save(learner, next_round),
         scheme=spec.scheme,
+        settings=spec_shared_settings(spec),
     )
     try:
         summary = worker.run()

@@ -1,0 +1,65 @@
+"""``fedavg``: whole actor-critic models averaged; mature workers stay until every unit has completed.
+
+Each worker runs its K optimisations and sends its model (trunk, policy and value heads; Adam states stay with
+each worker); the chief averages the models with the run's aggregation rule and every worker continues from
+the average. A worker whose criterion holds says so (a ``parameters`` message carrying the same model), is
+averaged like the others and stays: its unit's episodes keep teaching the fleet's shared policy. The run ends
+after the round in which every member of W has completed at least once; that round's average lists every
+member in ``finished``. docs/algorithm.md ("Federation schemes") gives the measurements.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+
+import numpy as np
+
+from fleetrl.federation.messages import Layout, Message
+from fleetrl.federation.schemes.base import (
+    COMPLETED,
+    FederatedAgent,
+    RoundAnswer,
+    RoundContext,
+    Scheme,
+    flats,
+)
+
+
+class FedAvgScheme(Scheme):
+    """Federated averaging of whole models (McMahan et al.), one average per round."""
+
+    name = "fedavg"
+    summary = "average whole actor-critic models every round; mature workers stay until every unit completes"
+    round_message = "model"
+    stays_after_completion = True
+
+    def layout(self, agent: FederatedAgent) -> Layout:
+        """The whole actor-critic's parameters."""
+        return agent.model_layout()
+
+    def outgoing(self, agent: FederatedAgent, *, completed: bool) -> tuple[str, np.ndarray]:
+        """The model after the round's update; typed :data:`COMPLETED` when the criterion holds."""
+        return (COMPLETED if completed else self.round_message), agent.model_parameters()
+
+    def take_parameters(self, agent: FederatedAgent, flat: np.ndarray) -> None:
+        """Replace the whole model."""
+        agent.set_model_parameters(flat)
+
+    def apply_average(
+        self, agent: FederatedAgent, flat: np.ndarray, *, completed: bool, contributed: bool
+    ) -> None:
+        """Continue from the fleet's average model, whether or not this worker's model is in it."""
+        agent.set_model_parameters(flat)
+
+    def combine(self, answers: Mapping[str, Message], context: RoundContext) -> RoundAnswer:
+        """The aggregate of the models; in the round in which the last member of W completes, every member is
+        listed in ``finished`` (so none starts another round before the ``done`` that follows)."""
+        ends = bool(context.members) and set(context.members).issubset(context.completed)
+        return RoundAnswer(
+            "average",
+            context.aggregate(flats(answers)),
+            contributors=tuple(answers),
+            finished=context.members if ends else (),
+            fleet_model=True,
+            ends_run=ends,
+        )

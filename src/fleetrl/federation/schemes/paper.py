@@ -1,0 +1,71 @@
+"""``paper``: the paper's scheme (Algorithms 1 and 2) — average actor gradients; the first mature worker's θ
+is transferred to the others and it leaves W.
+
+Each worker sends the actor's last gradient of the round (Algorithm 2, line 25); the chief averages the
+gradients with the run's aggregation rule (Algorithm 1, lines 11–13) and every worker applies the average
+through its actor optimiser (line 31). The first worker whose criterion holds sends its actor parameters θ
+(line 8) instead: the chief forwards them (lines 6–9; the lowest worker id if several completed in the same
+round), the gradients of that round are discarded, every worker that sent parameters leaves W, and the others
+replace their actor parameters (line 29) and keep learning. The run ends when W is empty.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+
+import numpy as np
+
+from fleetrl.federation.messages import Layout, Message
+from fleetrl.federation.schemes.base import (
+    COMPLETED,
+    FederatedAgent,
+    RoundAnswer,
+    RoundContext,
+    Scheme,
+    flats,
+)
+
+
+class PaperScheme(Scheme):
+    """Gradient sharing with model transfer (the paper's Algorithms 1 and 2)."""
+
+    name = "paper"
+    summary = "average actor gradients every round; transfer θ of the first mature worker, which leaves"
+    round_message = "gradient"
+    stays_after_completion = False
+
+    def layout(self, agent: FederatedAgent) -> Layout:
+        """The actor's parameters (the critic stays with each worker)."""
+        return agent.actor_layout()
+
+    def outgoing(self, agent: FederatedAgent, *, completed: bool) -> tuple[str, np.ndarray]:
+        """θ once the criterion holds (line 8), else the actor's last gradient of the round (line 25)."""
+        if completed:
+            return COMPLETED, agent.actor_parameters()
+        return self.round_message, agent.actor_gradient()
+
+    def take_parameters(self, agent: FederatedAgent, flat: np.ndarray) -> None:
+        """Replace the actor's parameters (line 29)."""
+        agent.set_actor_parameters(flat)
+
+    def apply_average(
+        self, agent: FederatedAgent, flat: np.ndarray, *, completed: bool, contributed: bool
+    ) -> None:
+        """Apply the averaged gradient through the actor's optimiser (line 31) — unless this worker sent its
+        θ: then it keeps its mature policy (and if the chief averaged its θ as a gradient: a protocol bug)."""
+        if completed and contributed:
+            raise RuntimeError("the chief answered a worker's parameters with an average")
+        if not completed:
+            agent.apply_actor_gradient(flat)
+
+    def combine(self, answers: Mapping[str, Message], context: RoundContext) -> RoundAnswer:
+        """A transfer of the lowest completed worker's θ if any completed, else the gradients' aggregate."""
+        completed = tuple(w for w, m in answers.items() if m.type == COMPLETED)
+        if completed:
+            origin = completed[0]
+            flat = answers[origin].flat
+            assert flat is not None, "decode guarantees tensors for parameters"
+            return RoundAnswer(
+                "transfer", flat, origin=origin, finished=completed, leave_w=completed, fleet_model=True
+            )
+        return RoundAnswer("average", context.aggregate(flats(answers)), contributors=tuple(answers))

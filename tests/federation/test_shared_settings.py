@@ -1,0 +1,164 @@
+"""The settings all roles must share: carried in the welcome, checked at join; a worker whose settings differ
+is refused with a reason naming the key (the chief's state machine, then a worker over the in-process bus)."""
+
+from __future__ import annotations
+
+import threading
+from typing import Any
+
+import numpy as np
+import pytest
+
+from fleetrl.federation.chief import Chief
+from fleetrl.federation.messages import Message, Reason, encode
+from fleetrl.federation.runner import IdleTimeout, run_chief
+from fleetrl.federation.shared_settings import SettingsRefused, settings_difference
+from fleetrl.federation.signing import status_payload
+from fleetrl.federation.worker import FederatedWorker
+from fleetrl.runs.shared import shared_settings
+from fleetrl.transport.local import LocalBus
+
+RUN = "shared"
+LAYOUT = [("w", (2,))]
+CHIEF_SETTINGS = shared_settings(env="qube", fleet_seed=0, preset="standard", overrides={}, scheme="paper")
+
+
+def chief() -> Chief:
+    return Chief(run_id=RUN, workers=("1", "2"), layout=LAYOUT, max_rounds=5, settings=CHIEF_SETTINGS)
+
+
+def join(worker: str, **changes: object) -> bytes:
+    values = {
+        "env": "qube",
+        "fleet_seed": 0,
+        "preset": "standard",
+        "overrides": {},
+        "scheme": "paper",
+    } | changes
+    settings = shared_settings(**values)  # type: ignore[arg-type]
+    return encode(Message("join", RUN, worker, 1, settings=settings), layout=LAYOUT)
+
+
+def gradient(worker: str) -> bytes:
+    return encode(Message("gradient", RUN, worker, 1, flat=np.ones(2, np.float32)), layout=LAYOUT)
+
+
+def test_the_first_differing_key_is_named_with_both_values() -> None:
+    ours = {"env": "qube", "preset": "standard", "scheme": "paper"}
+    assert settings_difference(ours, dict(ours)) is None
+    theirs = ours | {"preset": "paper", "scheme": "fedavg"}
+    assert settings_difference(ours, theirs) == "setting 'preset' differs (chief 'standard', worker 'paper')"
+    assert settings_difference(ours, {"env": "qube", "preset": "standard"}) == (
+        "setting 'scheme' differs (chief 'paper', worker '<not set>')"
+    )
+
+
+def test_equal_settings_give_equal_text_whatever_the_order_of_the_overrides() -> None:
+    a = shared_settings(
+        env="qube", fleet_seed=3, preset="paper", overrides={"lr": 0.1, "k": 2}, scheme="paper"
+    )
+    b = shared_settings(
+        env="qube", fleet_seed=3, preset="paper", overrides={"k": 2, "lr": 0.1}, scheme="paper"
+    )
+    assert a == b and a["overrides"] == '{"k":2,"lr":0.1}' and a["fleet_seed"] == "3"
+
+
+def test_the_welcome_carries_the_chiefs_settings() -> None:
+    online = status_payload(b"online", run_id=RUN, node="1", incarnation=1)
+    (welcome,) = chief().status("1", online, now=0.0).outgoing
+    assert welcome.type == "welcome" and dict(welcome.settings) == CHIEF_SETTINGS
+
+
+@pytest.mark.parametrize(
+    ("change", "reason"),
+    [
+        ({"preset": "paper"}, "setting 'preset' differs (chief 'standard', worker 'paper')"),
+        ({"scheme": "fedavg"}, "setting 'scheme' differs (chief 'paper', worker 'fedavg')"),
+        ({"fleet_seed": 7}, "setting 'fleet_seed' differs (chief '0', worker '7')"),
+        (
+            {"overrides": {"clip_eps": 0.3}},
+            "setting 'overrides' differs (chief '{}', worker '{\"clip_eps\":0.3}')",
+        ),
+    ],
+)
+def test_a_worker_whose_settings_differ_is_refused_at_join_and_its_messages_rejected(
+    change: dict[str, object], reason: str
+) -> None:
+    c = chief()
+    step = c.receive_bytes(join("2", **change), topic_worker="2", now=0.0)
+    (refusal,) = step.outgoing
+    assert (refusal.type, refusal.finished, refusal.detail) == ("refused", ("2",), reason)
+    assert [(e.kind, e.sender, e.detail) for e in step.events] == [("refused", "2", reason)]
+    c.receive_bytes(gradient("1"), topic_worker="1", now=0.0)
+    late = c.receive_bytes(gradient("2"), topic_worker="2", now=0.0)
+    assert [e.reason for e in late.events] == [Reason.REFUSED] and late.outgoing == ()
+    assert c.round == 1 and c.answered == ("1",)  # the refused worker's gradient entered nothing
+
+
+def test_a_matching_join_is_accepted_once_and_lifts_a_refusal() -> None:
+    c = chief()
+    c.receive_bytes(join("2", preset="paper"), topic_worker="2", now=0.0)
+    step = c.receive_bytes(join("2"), topic_worker="2", now=0.0)
+    assert [e.kind for e in step.events] == ["joined"] and step.outgoing == ()
+    again = c.receive_bytes(join("2"), topic_worker="2", now=0.0)  # a re-send (or a replay) changes nothing
+    assert [e.reason for e in again.events] == [Reason.DUPLICATE]
+    c.receive_bytes(gradient("1"), topic_worker="1", now=0.0)
+    closed = c.receive_bytes(gradient("2"), topic_worker="2", now=0.0)
+    assert [m.type for m in closed.outgoing] == ["average"] and c.round == 2
+
+
+def test_a_chief_without_settings_checks_nothing() -> None:
+    c = Chief(run_id=RUN, workers=("1",), layout=LAYOUT, max_rounds=5)
+    step = c.receive_bytes(join("1", preset="paper"), topic_worker="1", now=0.0)
+    assert [e.kind for e in step.events] == ["joined"]
+
+
+@pytest.mark.parametrize("change", [{"scheme": "fedavg"}, {"preset": "paper"}])
+def test_a_worker_with_another_scheme_or_preset_stops_with_the_chiefs_reason(
+    change: dict[str, str], fake_learner: Any
+) -> None:
+    bus = LocalBus()
+    learner = fake_learner(1)
+    layout = learner.agent.actor_layout()
+    boss = Chief(run_id=RUN, workers=("1",), layout=layout, max_rounds=5, settings=CHIEF_SETTINGS)
+    failures: list[BaseException] = []
+
+    def serve() -> None:
+        try:
+            run_chief(boss, bus.client(), idle_timeout=1.5)
+        except IdleTimeout:
+            pass  # nobody it accepts ever answers
+        except BaseException as err:
+            failures.append(err)
+
+    thread = threading.Thread(target=serve)
+    thread.start()
+    values = {
+        "env": "qube",
+        "fleet_seed": 0,
+        "preset": "standard",
+        "overrides": {},
+        "scheme": "paper",
+    } | change
+    worker = FederatedWorker(
+        learner, bus.client(), run_id=RUN, worker_id="1", max_rounds=5, reply_timeout=10,
+        settings=shared_settings(**values),  # type: ignore[arg-type]
+    )  # fmt: skip
+    key = next(iter(change))
+    with pytest.raises(
+        SettingsRefused, match=f"worker 1: refused by the chief of run 'shared': setting '{key}'"
+    ):
+        worker.run()
+    thread.join(10)
+    assert not failures and learner.rounds == 0
+    assert boss.round == 1 and boss.answered == ()
+
+
+def test_a_refused_worker_coming_online_is_refused_again_until_a_new_process_comes() -> None:
+    c = chief()
+    c.status("2", status_payload(b"online", run_id=RUN, node="2", incarnation=5), now=0.0)
+    c.receive_bytes(join("2", scheme="fedavg"), topic_worker="2", now=0.0)
+    again = c.status("2", status_payload(b"online", run_id=RUN, node="2", incarnation=5), now=0.0)
+    assert [m.type for m in again.outgoing] == ["refused"]
+    restarted = c.status("2", status_payload(b"online", run_id=RUN, node="2", incarnation=6), now=0.0)
+    assert [m.type for m in restarted.outgoing] == ["welcome"]  # its own join is checked when it comes

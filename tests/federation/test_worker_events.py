@@ -1,0 +1,31 @@
+"""The worker's round events: one enum from the state machine to the metrics files, whose labels stay as they
+were (metrics.csv's ``event`` column)."""
+
+from __future__ import annotations
+
+from fleetrl.federation.events import WorkerEvent
+from fleetrl.federation.rounds import RoundRecord
+from fleetrl.runs.roles import federated_event
+
+
+def record(event: WorkerEvent, peer: str | None = None) -> RoundRecord:
+    return RoundRecord("1", 4, 10.0, 9.0, 10, 0.1, 0.2, 1.0, event, peer)
+
+
+def test_metrics_labels_are_those_of_the_metrics_files() -> None:
+    labels = {
+        WorkerEvent.GRADIENT: "gradient",
+        WorkerEvent.MODEL: "model",
+        WorkerEvent.COMPLETED: "completed",
+        WorkerEvent.LATE: "late",
+        WorkerEvent.RUN_ENDED: "run_ended",
+        WorkerEvent.TRANSFER_OUT: "completed+transfer_out",
+    }
+    assert {e: federated_event(record(e)) for e in labels} == labels
+    assert federated_event(record(WorkerEvent.TRANSFER_IN, "2")) == "transfer_in:2"
+    assert federated_event(record(WorkerEvent.FINISHED, "0")) == "completed+finished:0"
+
+
+def test_log_lines_name_the_peer_of_a_transfer() -> None:
+    assert WorkerEvent.TRANSFER_IN.describe("2") == "transfer_in from 2"
+    assert WorkerEvent.GRADIENT.describe() == "gradient"
