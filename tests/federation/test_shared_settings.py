@@ -20,7 +20,9 @@ from fleetrl.transport.local import LocalBus
 
 RUN = "shared"
 LAYOUT = [("w", (2,))]
-CHIEF_SETTINGS = shared_settings(env="qube", fleet_seed=0, preset="standard", overrides={}, scheme="paper")
+CHIEF_SETTINGS = shared_settings(
+    env="qube", fleet_seed=0, fleet_profile="table2", preset="standard", overrides={}, scheme="paper"
+)
 
 
 def chief() -> Chief:
@@ -31,6 +33,7 @@ def join(worker: str, **changes: object) -> bytes:
     values = {
         "env": "qube",
         "fleet_seed": 0,
+        "fleet_profile": "table2",
         "preset": "standard",
         "overrides": {},
         "scheme": "paper",
@@ -55,10 +58,20 @@ def test_the_first_differing_key_is_named_with_both_values() -> None:
 
 def test_equal_settings_give_equal_text_whatever_the_order_of_the_overrides() -> None:
     a = shared_settings(
-        env="qube", fleet_seed=3, preset="paper", overrides={"lr": 0.1, "k": 2}, scheme="paper"
+        env="qube",
+        fleet_seed=3,
+        fleet_profile=None,
+        preset="paper",
+        overrides={"lr": 0.1, "k": 2},
+        scheme="paper",
     )
     b = shared_settings(
-        env="qube", fleet_seed=3, preset="paper", overrides={"k": 2, "lr": 0.1}, scheme="paper"
+        env="qube",
+        fleet_seed=3,
+        fleet_profile=None,
+        preset="paper",
+        overrides={"k": 2, "lr": 0.1},
+        scheme="paper",
     )
     assert a == b and a["overrides"] == '{"k":2,"lr":0.1}' and a["fleet_seed"] == "3"
 
@@ -75,6 +88,7 @@ def test_the_welcome_carries_the_chiefs_settings() -> None:
         ({"preset": "paper"}, "setting 'preset' differs (chief 'standard', worker 'paper')"),
         ({"scheme": "fedavg"}, "setting 'scheme' differs (chief 'paper', worker 'fedavg')"),
         ({"fleet_seed": 7}, "setting 'fleet_seed' differs (chief '0', worker '7')"),
+        ({"fleet_profile": "v1"}, "setting 'fleet_profile' differs (chief 'table2', worker 'v1')"),
         (
             {"overrides": {"clip_eps": 0.3}},
             "setting 'overrides' differs (chief '{}', worker '{\"clip_eps\":0.3}')",
@@ -136,6 +150,7 @@ def test_a_worker_with_another_scheme_or_preset_stops_with_the_chiefs_reason(
     values = {
         "env": "qube",
         "fleet_seed": 0,
+        "fleet_profile": "table2",
         "preset": "standard",
         "overrides": {},
         "scheme": "paper",

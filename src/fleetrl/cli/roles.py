@@ -210,8 +210,8 @@ def cmd_chief(args: argparse.Namespace) -> int:
         dropout_grace=settings.dropout_grace,
         key=settings.fleet_key(),
         settings=shared_settings(
-            env=settings.env, fleet_seed=settings.fleet_seed, preset=settings.preset,
-            overrides=settings.overrides, scheme=settings.scheme,
+            env=settings.env, fleet_seed=settings.fleet_seed, fleet_profile=settings.fleet_profile,
+            preset=settings.preset, overrides=settings.overrides, scheme=settings.scheme,
         ),
     )  # fmt: skip
     if settings.out is None:

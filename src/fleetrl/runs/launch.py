@@ -210,8 +210,8 @@ def train_federated(
         quorum=settings.quorum,
         round_timeout=settings.round_timeout,
         settings=shared_settings(
-            env=settings.env, fleet_seed=settings.fleet_seed, preset=settings.preset,
-            overrides=settings.overrides, scheme=settings.scheme,
+            env=settings.env, fleet_seed=settings.fleet_seed, fleet_profile=settings.fleet_profile,
+            preset=settings.preset, overrides=settings.overrides, scheme=settings.scheme,
         ),
     )  # fmt: skip
     make_transport, fleet_for = transports(settings, url, specs, run_id)

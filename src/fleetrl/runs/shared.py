@@ -2,9 +2,9 @@
 worker's ``join`` carry (:mod:`fleetrl.federation.shared_settings` compares them).
 
 They are what makes the workers' messages mean the same thing to the chief and to each other: the env (the
-tensor shapes and the task), the fleet seed (which units the fleet is made of), the PPO preset and its
-``--set`` overrides, and the scheme with its parameters. Each value is written the same way on every machine
-(JSON with sorted keys), so equal settings give equal text.
+tensor shapes and the task), the fleet seed and profile (which units the fleet is made of), the PPO preset
+and its ``--set`` overrides, and the scheme with its parameters. Each value is written the same way on every
+machine (JSON with sorted keys), so equal settings give equal text.
 """
 
 from __future__ import annotations
@@ -18,12 +18,19 @@ from fleetrl.runs.spec import WorkerSpec
 
 
 def shared_settings(
-    *, env: str, fleet_seed: int, preset: str, overrides: Mapping[str, Any], scheme: str
+    *,
+    env: str,
+    fleet_seed: int,
+    fleet_profile: str | None,
+    preset: str,
+    overrides: Mapping[str, Any],
+    scheme: str,
 ) -> dict[str, str]:
     """The shared settings of a run as name → value text (validated settings in, so every value is known)."""
     return {
         "env": env,
         "fleet_seed": str(int(fleet_seed)),
+        "fleet_profile": fleet_profile or "none",
         "preset": preset,
         "overrides": _canonical(dict(overrides)),
         "scheme": scheme,
@@ -40,6 +47,7 @@ def spec_shared_settings(spec: WorkerSpec) -> dict[str, str]:
     return shared_settings(
         env=spec.env,
         fleet_seed=spec.fleet_seed,
+        fleet_profile=spec.fleet_profile,
         preset=spec.preset,
         overrides=spec.overrides,
         scheme=spec.scheme,
