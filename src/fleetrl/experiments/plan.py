@@ -13,7 +13,7 @@ import matplotlib.pyplot as plt
 from fleetrl.experiments.arms import Arm, completions, mean_score_curve, same_scores, wall_seconds
 from fleetrl.experiments.stats import bootstrap_ratio, markdown_table, spread
 from fleetrl.experiments.sweep import run_all
-from fleetrl.runs.plots import by_worker, draw_worker
+from fleetrl.runs.plots import X_LABELS, by_worker, draw_worker
 from fleetrl.runs.records import read_metrics
 
 log = logging.getLogger(__name__)
@@ -150,7 +150,7 @@ def _plot_curves(plan: Plan, runs: dict[str, list], path: Path) -> None:
     fig, ax = plt.subplots(figsize=(8, 4))
     for arm in plan.arms:
         ax.plot(mean_score_curve(runs[arm.key], plan.max_rounds), label=arm.label, lw=1.2)
-    ax.set_xlabel("round (episode)")
+    ax.set_xlabel(X_LABELS["rounds"])
     ax.set_ylabel("mean score (all workers, all seeds)")
     ax.set_title(plan.title, fontsize=10)
     ax.grid(alpha=0.3)
