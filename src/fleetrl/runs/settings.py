@@ -71,9 +71,10 @@ class LearningSettings:
     env: str = "qube"
     """``qube`` (QUBE-Servo 2 balance) or ``cartpole``"""
     preset: str = "paper"
-    """PPO preset: ``paper`` (Table 1) or ``standard``"""
+    """PPO preset: ``paper`` (Table 1), ``paper-code`` (what the authors' code ran) or ``standard``"""
     max_rounds: int = 1000
-    """the paper's M: the most rounds (episodes) per worker"""
+    """the paper's M: the most rounds per worker (a round is one episode, or with the paper-code preset
+    the episodes that fill the memory)"""
     scheme: str = "paper"
     """federated: ``paper`` (Algorithms 1 and 2) or ``fedavg`` (:mod:`fleetrl.federation.schemes`)"""
     overrides: dict[str, Any] = field(default_factory=dict)
