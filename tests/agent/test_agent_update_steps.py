@@ -81,7 +81,9 @@ def test_averaged_step_gradients_keep_two_agents_identical(preset: str) -> None:
 @pytest.mark.parametrize(("preset", "steps"), [("paper", 10), ("paper-code", 20)])
 def test_step_layouts_name_what_each_step_moves(preset: str, steps: int) -> None:
     agent = agent_with_memory(preset)
+    before = agent.step_layout(0)  # known before the update starts (a scheme can set up its buffers)
     assert agent.begin_update() == steps
+    assert agent.step_layout(0) == before
     first = [name for name, _ in agent.step_layout(0)]
     if preset == "paper":  # both models at once, critic first (the order their steps are applied)
         assert first[0] == "critic:trunk.0.weight" and first[-1] == "actor:policy.bias"

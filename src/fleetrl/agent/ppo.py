@@ -16,7 +16,7 @@ from fleetrl.agent.flat import Named, flatten, flatten_tensors, layout, split
 from fleetrl.agent.memory import TrajectoryMemory
 from fleetrl.agent.network import ActorCritic
 from fleetrl.agent.policy_numpy import NumpyPolicy
-from fleetrl.agent.update import ACTOR, CRITIC, RoundUpdate, UpdateStats
+from fleetrl.agent.update import ACTOR, CRITIC, RoundUpdate, UpdateStats, step_parts
 
 __all__ = ["PPOAgent", "UpdateStats"]
 
@@ -131,7 +131,7 @@ class PPOAgent:
     def step_layout(self, k: int) -> list[tuple[str, tuple[int, ...]]]:
         """Names and shapes of step ``k``'s flat gradient: ``critic:<name>`` over the critic optimiser's
         parameters, then ``actor:<name>`` over θ, for the parts the step moves (both with ``per_model``;
-        the critic's at even, the actor's at odd steps with ``one_sequential``)."""
+        the critic's at even, the actor's at odd steps with ``one_sequential``); needs no update under way."""
         return [
             (f"{part}:{name}", shape) for part, named in self._step_parts(k) for name, shape in layout(named)
         ]
@@ -194,9 +194,8 @@ class PPOAgent:
         return self._round_update
 
     def _step_parts(self, k: int) -> list[tuple[str, Named]]:
-        update = self._update_under_way()
         named = {CRITIC: self._critic_named, ACTOR: self._actor_named}
-        return [(part, named[part]) for part in update.parts(k)]
+        return [(part, named[part]) for part in step_parts(self.config, k)]
 
     def _score_new_transitions(self) -> None:
         """Record log π(a|s) of the acting policy for transitions stored since θ last changed."""

@@ -124,10 +124,8 @@ class RoundUpdate:
         self._totals = np.zeros(5)  # actor loss, critic loss, entropy, approx KL, clip fraction
 
     def parts(self, k: int) -> tuple[str, ...]:
-        """What step ``k`` moves, in the order its optimiser steps are taken."""
-        if not self.sequential:
-            return (CRITIC, ACTOR)
-        return (CRITIC,) if k % 2 == 0 else (ACTOR,)
+        """What step ``k`` moves, in the order its optimiser steps are taken (:func:`step_parts`)."""
+        return step_parts(self.config, k)
 
     def gradients(self, k: int) -> list[list[torch.Tensor]]:
         """Step ``k``'s gradients, one list per part of :meth:`parts` (g_μ over the critic optimiser's
@@ -218,6 +216,14 @@ class RoundUpdate:
         for i, g in enumerate(trunk_grads):
             g_theta[i] = g_theta[i] + cfg.critic_trunk_coef * g
         return g_theta, head_grads
+
+
+def step_parts(config: PPOConfig, k: int) -> tuple[str, ...]:
+    """What step ``k`` of an update moves, in order: the critic and the actor (``per_model``), or the critic
+    at even and the actor at odd steps (``one_sequential``)."""
+    if config.optimisers == "per_model":
+        return (CRITIC, ACTOR)
+    return (CRITIC,) if k % 2 == 0 else (ACTOR,)
 
 
 def _log_prob(logits: torch.Tensor, actions: torch.Tensor) -> torch.Tensor:
