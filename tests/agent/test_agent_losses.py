@@ -60,8 +60,8 @@ def test_critic_loss_is_mean_absolute_td_error() -> None:
 
 def test_critic_loss_mse_and_unknown_kind() -> None:
     assert math.isclose(critic_loss(t(1.0, 2.0), t(3.0, 2.0), "mse").item(), 0.5 * 4 / 2)
-    with pytest.raises(ValueError, match="abs or mse"):
-        critic_loss(t(1.0), t(1.0), "huber")
+    with pytest.raises(ValueError, match="abs, mse or huber"):
+        critic_loss(t(1.0), t(1.0), "l2")
 
 
 def test_clipped_surrogate_hand_computed() -> None:
@@ -85,3 +85,14 @@ def test_clipped_surrogate_gradient_vanishes_when_clipped() -> None:
     log_probs = torch.log(t(1.5)).requires_grad_(True)
     clipped_surrogate(log_probs, t(0.0), t(1.0), 0.2).backward()
     assert log_probs.grad is not None and log_probs.grad.item() == 0.0
+
+
+def test_critic_loss_huber_hand_computed() -> None:
+    # errors V^target − V = 0.5, −2, 3: ½·0.5² = 0.125 inside |e| < 1, |e| − ½ = 1.5 and 2.5 outside.
+    values = torch.tensor([1.0, 0.0, 2.0], requires_grad=True)
+    targets = torch.tensor([1.5, -2.0, 5.0])
+    loss = critic_loss(values, targets, "huber")
+    assert loss.item() == pytest.approx((0.125 + 1.5 + 2.5) / 3)
+    loss.backward()
+    assert values.grad is not None  # ∂/∂V: −e inside, −sign(e) outside, over the mean's 3
+    assert values.grad.tolist() == pytest.approx([-0.5 / 3, 1.0 / 3, -1.0 / 3])

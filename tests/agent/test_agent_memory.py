@@ -68,3 +68,28 @@ def test_window_starts_are_seeded() -> None:
     a = [sample_window(200, 64, np.random.default_rng(3)) for _ in range(5)]
     b = [sample_window(200, 64, np.random.default_rng(3)) for _ in range(5)]
     assert a == b
+
+
+def test_a_growing_memory_keeps_every_transition_until_cleared() -> None:
+    memory = TrajectoryMemory(3, obs_dim=2, grows=True)
+    for i in range(7):
+        assert memory.filled() == (i >= 3)
+        memory.add(np.full(2, i, np.float32), i % 2, float(i), np.full(2, i + 1, np.float32), False, i == 6)
+    data = memory.transitions()
+    assert len(memory) == 7 and memory.filled()
+    assert data.rewards.tolist() == [0, 1, 2, 3, 4, 5, 6]  # nothing overwritten, in order
+    assert data.next_obs[:, 0].tolist() == [1, 2, 3, 4, 5, 6, 7] and data.episode_end.tolist()[-1] == 1.0
+    assert memory.unscored().tolist() == list(range(7))
+    memory.clear()
+    assert len(memory) == 0 and not memory.filled() and memory.unscored().size == 0
+
+
+def test_a_grown_memory_state_loads_into_a_fresh_one() -> None:
+    memory = TrajectoryMemory(2, obs_dim=1, grows=True)
+    for i in range(5):
+        memory.add(np.array([i], np.float32), 0, float(i), np.array([i], np.float32), False, False)
+    fresh = TrajectoryMemory(2, obs_dim=1, grows=True)
+    fresh.load_state_arrays(memory.state_arrays())
+    assert fresh.transitions().rewards.tolist() == [0, 1, 2, 3, 4]
+    fresh.add(np.array([5], np.float32), 0, 5.0, np.array([5], np.float32), False, False)
+    assert fresh.transitions().rewards.tolist() == [0, 1, 2, 3, 4, 5]

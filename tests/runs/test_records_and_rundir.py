@@ -1,6 +1,7 @@
 """The run directory's files: metrics rows, summary, plot, and refusing to overwrite a run."""
 
 import csv
+import dataclasses
 import json
 import math
 
@@ -56,3 +57,38 @@ def test_recorder_refuses_to_overwrite_a_run(tmp_path) -> None:
     RunRecorder(tmp_path, {"mode": "individual"}, [0]).finish()
     with pytest.raises(FileExistsError, match="already holds a run"):
         RunRecorder(tmp_path, {"mode": "individual"}, [0])
+
+
+def test_records_carry_the_episodes_of_a_round_and_older_rows_read_as_one() -> None:
+    record = RoundRecord(2, 0, 25.5, 20.0, 0.1, 0.2, 0.6, 204, 1.5, "", episodes=8)
+    assert RoundRecord.from_json(record.to_json()).episodes == 8
+    row = dict(zip(CSV_COLUMNS, (str(v) for v in record.csv_row()), strict=True))
+    assert RoundRecord.from_csv_row(row) == record
+    old = {k: v for k, v in row.items() if k != "episodes"}  # a metrics.csv written before the column
+    assert RoundRecord.from_csv_row(old).episodes == 1
+    assert CSV_COLUMNS.index("episodes") == len(CSV_COLUMNS) - 1  # the old columns keep their places
+    old_json = json.loads(record.to_json())
+    del old_json["episodes"]
+    assert RoundRecord.from_json(json.dumps(old_json)).episodes == 1
+
+
+def test_the_x_axis_counts_rounds_or_episodes_and_says_which() -> None:
+    from fleetrl.runs.plots import X_LABELS, x_values
+
+    rows = [make_record(0, r, 10.0) for r in (1, 2, 3)]
+    rows = [dataclasses.replace(r, episodes=n) for r, n in zip(rows, (9, 4, 1), strict=True)]
+    assert x_values(rows, "rounds") == [1, 2, 3]
+    assert x_values(rows, "episodes") == [9, 13, 14]
+    assert X_LABELS["rounds"].startswith("round") and "episode" in X_LABELS["episodes"]
+
+
+def test_summary_counts_episodes_to_completion(tmp_path) -> None:
+    recorder = RunRecorder(tmp_path / "run", {"mode": "individual"}, [0])
+    for rnd, episodes in ((1, 10), (2, 7)):
+        recorder.add(dataclasses.replace(make_record(0, rnd, 30.0), episodes=episodes))
+    recorder.add(dataclasses.replace(make_record(0, 3, 300.0, "completed"), episodes=1))
+    summary = recorder.finish()
+    worker = summary["workers"]["0"]
+    assert worker["completed_at_round"] == 3 and worker["completed_at_episode"] == 18
+    assert worker["episodes"] == 18
+    assert (tmp_path / "run" / "scores-by-episode.png").is_file()

@@ -1,4 +1,4 @@
-"""Hyper-parameters of the Actor-Critic PPO agent, and the two named presets (``paper``, ``standard``)."""
+"""Hyper-parameters of the Actor-Critic PPO agent and the named presets (paper, paper-code, standard)."""
 
 from __future__ import annotations
 
@@ -11,7 +11,9 @@ TrunkSplit = Literal["shared", "actor"]
 GaeScope = Literal["window", "memory"]
 CriticTarget = Literal["td", "gae"]
 OldPolicy = Literal["round_start", "behaviour"]
-CriticLoss = Literal["abs", "mse"]
+CriticLoss = Literal["abs", "mse", "huber"]
+TrajectoryMemoryKind = Literal["ring", "per_round"]
+Optimisers = Literal["per_model", "one_sequential"]
 
 
 @dataclass
@@ -29,7 +31,8 @@ class PPOConfig:
     critic_lr: float = 1e-3
     """Adam learning rate η_μ of the critic (Eq. 4; Table 1: 0.001)"""
     memory_size: int = 200
-    """trajectory memory: the last this-many transitions are kept across rounds (Table 1: 200)"""
+    """trajectory memory size (Table 1: 200): the transitions kept across rounds, or with
+    trajectory_memory 'per_round' the least a round collects"""
     batch_size: int = 64
     """U: length of the contiguous window each optimisation takes from the memory (Table 1: 64)"""
     n_optimisations: int = 10
@@ -50,7 +53,20 @@ class PPOConfig:
     critic_target: CriticTarget = "td"
     """'td': V_target = r + γV(s') (Eq. 3); 'gae': V_target = Â + V(s) (the λ-return)"""
     critic_loss: CriticLoss = "abs"
-    """'abs': |V_target − V| (Eq. 3); 'mse': ½(V_target − V)²"""
+    """'abs': |V_target − V| (Eq. 3); 'mse': ½(V_target − V)²; 'huber': smooth L1 (½e² for |e| < 1, else
+    |e| − ½; the authors' code)"""
+    critic_coef: float = 1.0
+    """weight of L^V in the critic's step (the authors' code: 0.5); UpdateStats report L^V unweighted"""
+    trajectory_memory: TrajectoryMemoryKind = "ring"
+    """'ring': the last memory_size transitions, kept across rounds, and a round is one episode (the
+    paper's text); 'per_round': a round plays whole episodes until the memory holds at least memory_size
+    transitions (the last episode is kept whole), makes one update and empties the memory (the authors'
+    code)"""
+    optimisers: Optimisers = "per_model"
+    """'per_model': one Adam for θ and one for μ; both gradients are taken at the same parameters, then
+    the critic steps and the actor steps (Algorithm 2, lines 20-23); 'one_sequential': one Adam over the
+    whole network: the critic's gradient and step, then the actor's gradient at the stepped parameters and
+    its step (the authors' code; needs actor_lr == critic_lr and trunk_split 'shared')"""
     old_policy: OldPolicy = "round_start"
     """π_θold of Eq. 5-6: 'round_start' = the policy at line 11 of this round (the paper); 'behaviour' = the
     policy that generated each stored transition (standard PPO importance sampling)"""
@@ -102,7 +118,28 @@ class PPOConfig:
             ),
             (self.gae_scope in ("window", "memory"), f"gae_scope: window or memory, got {self.gae_scope!r}"),
             (self.critic_target in ("td", "gae"), f"critic_target: td or gae, got {self.critic_target!r}"),
-            (self.critic_loss in ("abs", "mse"), f"critic_loss: abs or mse, got {self.critic_loss!r}"),
+            (
+                self.critic_loss in ("abs", "mse", "huber"),
+                f"critic_loss: abs, mse or huber, got {self.critic_loss!r}",
+            ),
+            (self.critic_coef > 0.0, f"critic_coef must be > 0, got {self.critic_coef}"),
+            (
+                self.trajectory_memory in ("ring", "per_round"),
+                f"trajectory_memory: ring or per_round, got {self.trajectory_memory!r}",
+            ),
+            (
+                self.optimisers in ("per_model", "one_sequential"),
+                f"optimisers: per_model or one_sequential, got {self.optimisers!r}",
+            ),
+            (
+                self.optimisers != "one_sequential" or self.actor_lr == self.critic_lr,
+                f"optimisers 'one_sequential' is one Adam with one learning rate: actor_lr ({self.actor_lr}) "
+                f"must equal critic_lr ({self.critic_lr})",
+            ),
+            (
+                self.optimisers != "one_sequential" or self.trunk_split == "shared",
+                "optimisers 'one_sequential' steps the trunk with both losses: it needs trunk_split 'shared'",
+            ),
             (
                 self.old_policy in ("round_start", "behaviour"),
                 f"old_policy: round_start or behaviour, got {self.old_policy!r}",
@@ -117,6 +154,23 @@ class PPOConfig:
 PRESETS: dict[str, PPOConfig] = {
     # Table 1 exactly; the choices the paper leaves open take their literal reading (docs/algorithm.md).
     "paper": PPOConfig(),
+    # What the authors' public code ran where the text is silent or disagrees (docs/algorithm.md,
+    # "The paper-code preset"; ../shared/reference/federated-rl-anchors.md): clip 0.1, γ 0.98, behaviour
+    # π_θold, a fresh memory of whole episodes (≥ 200 transitions) emptied after the one update, Huber
+    # critic loss × 0.5, entropy bonus 0.01, standardised Â, one Adam stepping the critic then the actor.
+    # λ 0.99, lr 0.001, U 64 (one contiguous window per optimisation), K 10 and the per-window GAE with
+    # TD(0) targets are Table 1's / Eq. 2-3's and the code's alike.
+    "paper-code": PPOConfig(
+        clip_eps=0.1,
+        gamma=0.98,
+        old_policy="behaviour",
+        trajectory_memory="per_round",
+        critic_loss="huber",
+        critic_coef=0.5,
+        entropy_coef=0.01,
+        normalise_advantages=True,
+        optimisers="one_sequential",
+    ),
     # clip 0.2 plus what measurement on CartPole showed to learn faster (docs/algorithm.md, "Presets").
     "standard": PPOConfig(
         clip_eps=0.2,
@@ -137,6 +191,7 @@ def get_preset(name: str) -> PPOConfig:
     try:
         preset = PRESETS[name]
     except KeyError:
-        choices = " or ".join(sorted(PRESETS))
+        *others, last = sorted(PRESETS)
+        choices = f"{', '.join(others)} or {last}" if others else last
         raise ValueError(f"unknown preset {name!r} (choose {choices})") from None
     return dataclasses.replace(preset)

@@ -11,19 +11,41 @@ import gymnasium
 import numpy as np
 
 from fleetrl.agent.criterion import CompletionCriterion
-from fleetrl.agent.ppo import PPOAgent
+from fleetrl.agent.ppo import PPOAgent, UpdateStats
+
+
+@dataclass(frozen=True)
+class Episodes:
+    """The episodes of one round (Algorithm 2, lines 2-6), in the order played."""
+
+    scores: tuple[float, ...]
+    """each episode's return (sum of its rewards)"""
+    steps: tuple[int, ...]
+    """each episode's number of steps"""
+
+    @property
+    def score(self) -> float:
+        """The round's score: the mean return of its episodes (the one episode's return for a ring memory)."""
+        return float(np.mean(self.scores))
 
 
 @dataclass(frozen=True)
 class RoundResult:
-    """What one round (one episode, then maybe the update) produced."""
+    """What one round (its episodes, then maybe the update) produced.
+
+    A round is one episode, or with ``trajectory_memory='per_round'`` (the ``paper-code`` preset) the whole
+    episodes that fill the memory; it always ends with at most one update, so the federation's round
+    numbers count updates either way.
+    """
 
     round: int
     """1-based index of the round"""
     score: float
-    """sum of the episode's rewards"""
+    """the mean return of the round's episodes (with one episode: its return)"""
     steps: int
-    """number of steps in the episode"""
+    """number of steps in the round (all its episodes)"""
+    episodes: int
+    """number of episodes in the round"""
     wma: float
     """weighted moving average of the last scores after this one (see CompletionCriterion)"""
     completed: bool
@@ -64,11 +86,15 @@ class Learner:
         self.seed = seed
         self.keep_learning = keep_learning
         self.rounds = 0
+        self.episodes = 0
+        """learning episodes played in all rounds"""
         self.completed = False
+        self.last_round: RoundResult | None = None
+        """the result of the latest :meth:`play_round`"""
 
     def play_episode(self, greedy: bool = False, learn: bool = True) -> tuple[float, int]:
         """One episode (Algorithm 2, lines 2-6), storing transitions if ``learn``; returns (score, steps)."""
-        seed = self.seed if self.rounds == 0 else None
+        seed = self.seed if self.episodes == 0 else None
         obs, _ = self.env.reset(seed=seed)
         act = self.agent.act_greedy if greedy else self.agent.act
         score, steps = 0.0, 0
@@ -80,32 +106,54 @@ class Learner:
             score += float(reward)
             steps += 1
             if terminated or truncated:
+                if learn:
+                    self.episodes += 1
                 return score, steps
             obs = next_obs
 
-    def play_round(self) -> RoundResult:
-        """One episode, then the update unless the criterion now holds (lines 2-24 without messaging)."""
-        started = time.perf_counter()
-        score, steps = self.play_episode()
+    def play_episodes(self) -> Episodes:
+        """The first half of a round: one episode, or whole episodes until the agent's trajectory memory
+        holds what its update needs (``trajectory_memory='per_round'``); the criterion sees the mean."""
+        played = [self.play_episode()]
+        while self.agent.needs_more_episodes():
+            played.append(self.play_episode())
+        scores, steps = zip(*played, strict=True)
+        episodes = Episodes(scores, steps)
         self.rounds += 1
-        self.criterion.add(score)
+        self.criterion.add(episodes.score)
+        if self.criterion.done:
+            self.completed = True
+        return episodes
+
+    def wants_update(self) -> bool:
+        """Line 7: update unless learning is finished (the worker then sends θ); always if keep_learning."""
+        return not self.criterion.done or self.keep_learning
+
+    def update_steps(self) -> UpdateStats:
+        """The second half of a round: the agent's update (lines 11-24), step by step (PPOAgent.update)."""
+        return self.agent.update()
+
+    def play_round(self) -> RoundResult:
+        """:meth:`play_episodes`, then :meth:`update_steps` unless the criterion now holds (lines 2-24
+        without messaging)."""
+        started = time.perf_counter()
+        episodes = self.play_episodes()
         nan = math.nan
         losses = (nan, nan, nan)
-        done = self.criterion.done
-        if done:
-            self.completed = True
-        if not done or self.keep_learning:  # line 7: once learning is finished the worker sends θ instead
-            stats = self.agent.update()  # lines 11-24
+        if self.wants_update():
+            stats = self.update_steps()
             losses = (stats.actor_loss, stats.critic_loss, stats.entropy)
-        return RoundResult(
+        self.last_round = RoundResult(
             self.rounds,
-            score,
-            steps,
+            episodes.score,
+            sum(episodes.steps),
+            len(episodes.scores),
             self.criterion.wma,
-            done,
+            self.criterion.done,
             *losses,
             time.perf_counter() - started,
         )
+        return self.last_round
 
     def evaluate(self, episodes: int) -> float:
         """Mean score of ``episodes`` greedy episodes, storing nothing."""

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import torch
+from torch.nn import functional
 
 
 def td_targets(
@@ -44,7 +45,8 @@ def gae(
 
 
 def critic_loss(values: torch.Tensor, targets: torch.Tensor, kind: str = "abs") -> torch.Tensor:
-    """L^V(μ) = Ê[|V^target(s_t) − V_μ(s_t)|] (Eq. 3), or Ê[½(V^target − V)²] for ``kind='mse'``.
+    """L^V(μ) = Ê[|V^target(s_t) − V_μ(s_t)|] (Eq. 3); Ê[½(V^target − V)²] for ``kind='mse'``; for
+    ``kind='huber'`` the smooth L1 loss of the authors' code, Ê[½e²] where |e| < 1 and Ê[|e| − ½] elsewhere.
 
     ``targets`` carry no gradient (semi-gradient TD).
     """
@@ -53,7 +55,9 @@ def critic_loss(values: torch.Tensor, targets: torch.Tensor, kind: str = "abs") 
         return error.abs().mean()
     if kind == "mse":
         return 0.5 * (error**2).mean()
-    raise ValueError(f"unknown critic loss {kind!r} (choose abs or mse)")
+    if kind == "huber":
+        return functional.smooth_l1_loss(values, targets.detach(), beta=1.0)
+    raise ValueError(f"unknown critic loss {kind!r} (choose abs, mse or huber)")
 
 
 def clipped_surrogate(

@@ -1,4 +1,4 @@
-"""Trajectory memory (the last N transitions, across episodes) and its contiguous-window sampler."""
+"""Trajectory memory (the last N transitions across episodes, or one round's) and its window sampler."""
 
 from __future__ import annotations
 
@@ -44,16 +44,23 @@ class Transitions:
 
 
 class TrajectoryMemory:
-    """Ring buffer of the last ``capacity`` transitions (Table 1: 200); it is not cleared between rounds.
+    """The trajectory memory, in one of two kinds (``PPOConfig.trajectory_memory``).
 
-    :param capacity: number of transitions kept
+    ``grows=False`` (``ring``): a ring buffer of the last ``capacity`` transitions (Table 1: 200), kept
+    across rounds, the oldest overwritten. ``grows=True`` (``per_round``): nothing is ever overwritten; the
+    buffer doubles when full, so one round's whole episodes fit however long the last one is, and the agent
+    empties it with :meth:`clear` after the update. :meth:`filled` says whether it holds ``capacity``.
+
+    :param capacity: number of transitions kept (``grows``: the initial size, and what :meth:`filled` needs)
     :param obs_dim: length of an observation
+    :param grows: keep every transition (double the buffer when full) instead of overwriting the oldest
     """
 
-    def __init__(self, capacity: int, obs_dim: int) -> None:
+    def __init__(self, capacity: int, obs_dim: int, grows: bool = False) -> None:
         if capacity < 1:
             raise ValueError(f"capacity must be >= 1, got {capacity}")
         self.capacity = capacity
+        self.grows = grows
         self._obs = np.zeros((capacity, obs_dim), dtype=np.float32)
         self._next_obs = np.zeros((capacity, obs_dim), dtype=np.float32)
         self._actions = np.zeros(capacity, dtype=np.int64)
@@ -77,7 +84,9 @@ class TrajectoryMemory:
         terminated: bool,
         truncated: bool,
     ) -> None:
-        """Store one transition, overwriting the oldest when full."""
+        """Store one transition; when full, overwrite the oldest (ring) or double the buffer (``grows``)."""
+        if self.grows and self._size == self._buffer_size:
+            self._resize(2 * self._buffer_size)
         i = self._next
         self._obs[i] = obs
         self._actions[i] = action
@@ -86,20 +95,39 @@ class TrajectoryMemory:
         self._terminated[i] = 1.0 if terminated else 0.0
         self._episode_end[i] = 1.0 if (terminated or truncated) else 0.0
         self._scored[i] = False
-        self._next = (i + 1) % self.capacity
-        self._size = min(self._size + 1, self.capacity)
+        self._next = (i + 1) % self._buffer_size
+        self._size = min(self._size + 1, self._buffer_size)
+
+    def filled(self) -> bool:
+        """True once at least ``capacity`` transitions are stored (a ``per_round`` round may end)."""
+        return self._size >= self.capacity
 
     def clear(self) -> None:
         """Forget every transition."""
         self._next = 0
         self._size = 0
 
+    @property
+    def _buffer_size(self) -> int:
+        return int(self._actions.shape[0])
+
+    def _resize(self, size: int) -> None:
+        """Reallocate every array to ``size`` slots (a growing memory: its transitions are in slot order)."""
+        keep = min(size, self._buffer_size)
+        for name in _STATE:
+            old = getattr(self, name)
+            new = np.zeros((size, *old.shape[1:]), dtype=old.dtype)
+            new[:keep] = old[:keep]
+            setattr(self, name, new)
+        self._size = min(self._size, size)
+        self._next = self._size % size  # the write position wrapped to 0 when the old buffer filled
+
     def transitions(self) -> Transitions:
         """All stored transitions in chronological order (a copy)."""
-        if self._size < self.capacity:
+        if self._size < self._buffer_size:
             order = np.arange(self._size)
         else:
-            order = (np.arange(self.capacity) + self._next) % self.capacity
+            order = (np.arange(self._buffer_size) + self._next) % self._buffer_size
         return Transitions(
             self._obs[order],
             self._actions[order],
@@ -134,7 +162,11 @@ class TrajectoryMemory:
         return arrays
 
     def load_state_arrays(self, arrays: dict[str, np.ndarray]) -> None:
-        """Restore what :meth:`state_arrays` returned; shapes must match this memory's."""
+        """Restore what :meth:`state_arrays` returned; shapes must match this memory's (a growing memory
+        first takes the saved length)."""
+        saved = np.asarray(arrays["actions"]).shape[0]
+        if self.grows and saved >= self.capacity and saved != self._buffer_size:
+            self._resize(saved)
         for name in _STATE:
             current = getattr(self, name)
             key = name.lstrip("_")

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -13,26 +12,13 @@ from torch.nn import functional
 
 from fleetrl.agent.checkpoint import CheckpointError, read_checkpoint, write_checkpoint
 from fleetrl.agent.config import PPOConfig
-from fleetrl.agent.losses import clipped_surrogate, critic_loss, gae, td_targets
-from fleetrl.agent.memory import TrajectoryMemory, sample_window
+from fleetrl.agent.flat import Named, flatten, flatten_tensors, layout, split
+from fleetrl.agent.memory import TrajectoryMemory
 from fleetrl.agent.network import ActorCritic
 from fleetrl.agent.policy_numpy import NumpyPolicy
+from fleetrl.agent.update import ACTOR, CRITIC, RoundUpdate, UpdateStats, step_parts
 
-
-@dataclass(frozen=True)
-class UpdateStats:
-    """What one round's update did, averaged over its K optimisations."""
-
-    actor_loss: float
-    """−L^CLIP (Eq. 6), the quantity the actor minimises (entropy bonus not included)"""
-    critic_loss: float
-    """L^V (Eq. 3)"""
-    entropy: float
-    """mean entropy of π_θ over the sampled windows (nats)"""
-    approx_kl: float
-    """mean of (R − 1) − log R, an estimate of KL(π_θold ‖ π_θ) (diagnostic)"""
-    clip_fraction: float
-    """share of samples whose ratio R_t lay outside [1 − ε, 1 + ε] (diagnostic)"""
+__all__ = ["PPOAgent", "UpdateStats"]
 
 
 class PPOAgent:
@@ -64,11 +50,19 @@ class PPOAgent:
         # The critic loss is differentiated w.r.t. trunk and value head in both splits (see _step).
         self._critic_grad_params = [p for _, p in trunk + value_head]
         self._n_trunk = len(trunk)
-        self.actor_optimizer = torch.optim.Adam([p for _, p in self._actor_named], lr=config.actor_lr)
-        self.critic_optimizer = torch.optim.Adam([p for _, p in self._critic_named], lr=config.critic_lr)
-        self.memory = TrajectoryMemory(config.memory_size, obs_dim)
+        if config.optimisers == "per_model":
+            self.actor_optimizer = torch.optim.Adam([p for _, p in self._actor_named], lr=config.actor_lr)
+            self.critic_optimizer = torch.optim.Adam([p for _, p in self._critic_named], lr=config.critic_lr)
+        else:  # one Adam over the whole network: each step moves only the parameters given a gradient
+            shared = torch.optim.Adam([p for _, p in self._model_named()], lr=config.actor_lr)
+            self.actor_optimizer = self.critic_optimizer = shared
+        self.memory = TrajectoryMemory(
+            config.memory_size, obs_dim, grows=config.trajectory_memory == "per_round"
+        )
         self._policy = NumpyPolicy(self.net)
         self._last_actor_gradient: np.ndarray | None = None
+        self._round_update: RoundUpdate | None = None
+        self._pending_step: int | None = None
 
     # ---- acting (Algorithm 2, lines 3 and 5) ------------------------------------------------------------
 
@@ -94,69 +88,114 @@ class PPOAgent:
 
     # ---- learning (Algorithm 2, lines 11-25) ----------------------------------------------------------
 
+    def needs_more_episodes(self) -> bool:
+        """Whether the round goes on with another episode before its update: never for a ``ring`` memory (a
+        round is one episode); for ``per_round`` until the memory holds ``memory_size`` transitions."""
+        return self.config.trajectory_memory == "per_round" and not self.memory.filled()
+
     def update(self) -> UpdateStats:
-        """K optimisations on contiguous windows of U transitions (lines 11-24); keeps line 25's gradient."""
-        cfg = self.config
+        """K optimisations on contiguous windows of U transitions (lines 11-24); keeps line 25's gradient.
+
+        The same steps as :meth:`begin_update`, then :meth:`step_gradients` and :meth:`apply_step` for
+        each step, then :meth:`end_update`.
+        """
+        for k in range(self.begin_update()):
+            self.apply_step(self.step_gradients(k))
+        return self.end_update()
+
+    # ---- the update as single steps (for schemes that combine workers' gradients at every step) -------
+
+    def begin_update(self) -> int:
+        """Line 11: score the new transitions, fix π_θold and draw the K windows; returns the number of
+        steps (K, or 2K with ``optimisers='one_sequential'``: each optimisation's critic step, then its
+        actor step).
+
+        :raises RuntimeError: the trajectory memory is empty, or an update is already under way
+        """
+        if self._round_update is not None:
+            raise RuntimeError("an update is already under way: finish it with end_update()")
         if len(self.memory) == 0:
             raise RuntimeError("update() needs at least one transition in the trajectory memory")
         self._score_new_transitions()
-        data = self.memory.transitions()
-        obs = torch.from_numpy(data.obs)
-        actions = torch.from_numpy(data.actions)
-        rewards = torch.from_numpy(data.rewards)
-        next_obs = torch.from_numpy(data.next_obs)
-        terminated = torch.from_numpy(data.terminated)
-        episode_end = torch.from_numpy(data.episode_end)
+        self._round_update = RoundUpdate(
+            self.net,
+            self.config,
+            self.memory.transitions(),
+            self._window_rng,
+            [p for _, p in self._actor_named],
+            self._critic_grad_params,
+            self._n_trunk,
+        )
+        return self._round_update.n_steps
 
-        # Line 11: π_θold ← π_θ — the log-probabilities of the stored actions under the policy as it is now.
-        with torch.no_grad():
-            logits, values = self.net(obs)
-            old_log_probs = functional.log_softmax(logits, dim=-1).gather(1, actions[:, None]).squeeze(1)
-            if cfg.old_policy == "behaviour":
-                old_log_probs = torch.from_numpy(data.behaviour_log_probs)
-            if cfg.gae_scope == "memory":  # Eq. 2 once over the whole memory, critic frozen at line 11
-                next_values = self.net.value_of(next_obs)
-                memory_adv = gae(
-                    rewards, values, next_values, terminated, episode_end, cfg.gamma, cfg.gae_lambda
-                )
+    def step_layout(self, k: int) -> list[tuple[str, tuple[int, ...]]]:
+        """Names and shapes of step ``k``'s flat gradient: ``critic:<name>`` over the critic optimiser's
+        parameters, then ``actor:<name>`` over θ, for the parts the step moves (both with ``per_model``;
+        the critic's at even, the actor's at odd steps with ``one_sequential``); needs no update under way."""
+        return [
+            (f"{part}:{name}", shape) for part, named in self._step_parts(k) for name, shape in layout(named)
+        ]
 
-        totals = np.zeros(5)
-        for _ in range(cfg.n_optimisations):  # line 12
-            start, stop = sample_window(len(data), cfg.batch_size, self._window_rng)  # line 13: mini-batch B
-            w = slice(start, stop)
-            logits, v = self.net(obs[w])  # lines 14-16: π_θ(·|s_t) and V_μ(s_t)
-            with torch.no_grad():
-                v_next = self.net.value_of(next_obs[w])
-            if cfg.gae_scope == "window":  # line 15, Eq. 2: the sum runs to the end of the window
-                adv = gae(
-                    rewards[w], v.detach(), v_next, terminated[w], episode_end[w], cfg.gamma, cfg.gae_lambda
-                )
-            else:
-                adv = memory_adv[w]
-            if cfg.critic_target == "td":  # line 16, Eq. 3: V^target = r + γV(s'), bootstrapped at truncation
-                targets = td_targets(rewards[w], v_next, terminated[w], cfg.gamma)
-            else:  # the λ-return Â + V(s)
-                targets = adv + v.detach()
-            if cfg.normalise_advantages and adv.numel() > 1:
-                adv = (adv - adv.mean()) / (adv.std() + 1e-8)
-            l_v = critic_loss(v, targets, cfg.critic_loss)  # line 17, Eq. 3
-            log_probs_all = functional.log_softmax(logits, dim=-1)
-            log_probs = log_probs_all.gather(1, actions[w][:, None]).squeeze(1)
-            entropy = -(log_probs_all.exp() * log_probs_all).sum(-1).mean()
-            l_clip = clipped_surrogate(log_probs, old_log_probs[w], adv, cfg.clip_eps)  # line 18, Eq. 6
-            actor_objective = -l_clip - cfg.entropy_coef * entropy  # Eq. 7 descends on −L^CLIP
-            self._step(actor_objective, l_v)  # lines 20-23
+    def step_gradients(self, k: int) -> np.ndarray:
+        """Lines 14-22 for step ``k``: its gradient as flat float32 in :meth:`step_layout` order, nothing
+        stepped. Steps go in order, each gradient applied (:meth:`apply_step`) before the next is taken.
 
-            with torch.no_grad():
-                log_ratio = log_probs - old_log_probs[w]
-                ratio = log_ratio.exp()
-                kl = ((ratio - 1.0) - log_ratio).mean()
-                clipped = ((ratio - 1.0).abs() > cfg.clip_eps).float().mean()
-            totals += [-l_clip.item(), l_v.item(), entropy.item(), kl.item(), clipped.item()]
+        :raises RuntimeError: no update under way, ``k`` is not the next step, or the last gradient was
+            not applied yet
+        """
+        update = self._update_under_way()
+        if self._pending_step is not None:
+            raise RuntimeError(f"step {self._pending_step}'s gradient is not applied yet: call apply_step()")
+        if k != update.applied or k >= update.n_steps:
+            raise RuntimeError(f"step {k} requested, but step {update.applied} of {update.n_steps} is next")
+        gradients = update.gradients(k)
+        self._pending_step = k
+        return flatten_tensors([g for part in gradients for g in part])
 
+    def apply_step(self, flat_grad: np.ndarray) -> None:
+        """Lines 21 and 23: step the optimiser(s) with a gradient for the step last computed (its own, or
+        a combination of several workers' in the same layout); an actor part becomes line 25's gradient.
+
+        :raises RuntimeError: no step's gradient is waiting to be applied
+        :raises ValueError: the vector does not fit :meth:`step_layout` or is not finite
+        """
+        update = self._update_under_way()
+        if self._pending_step is None:
+            raise RuntimeError("no step gradient to apply: call step_gradients(k) first")
+        parts = self._step_parts(self._pending_step)
+        chunks = split(flat_grad, [item for _, named in parts for item in named], "step gradient")
+        offset = 0
+        for part, named in parts:
+            grads, offset = chunks[offset : offset + len(named)], offset + len(named)
+            optimizer = self.actor_optimizer if part == ACTOR else self.critic_optimizer
+            self._apply(optimizer, [p for _, p in named], grads)
+            if part == ACTOR:  # line 25 sends the last of these (as applied, i.e. after clipping)
+                self._last_actor_gradient = flatten_tensors(grads)
+        update.applied += 1
+        self._pending_step = None
+
+    def end_update(self) -> UpdateStats:
+        """The update's statistics; the acting copy follows θ, and a ``per_round`` memory is emptied.
+
+        :raises RuntimeError: no update under way, or not every step was applied
+        """
+        update = self._update_under_way()
+        if update.applied != update.n_steps:
+            raise RuntimeError(f"end_update() after {update.applied} of {update.n_steps} steps")
+        self._round_update = None
         self._policy.refresh(self.net)
-        means = totals / cfg.n_optimisations
-        return UpdateStats(*(float(m) for m in means))
+        if self.config.trajectory_memory == "per_round":
+            self.memory.clear()
+        return update.stats()
+
+    def _update_under_way(self) -> RoundUpdate:
+        if self._round_update is None:
+            raise RuntimeError("no update under way: call begin_update() first")
+        return self._round_update
+
+    def _step_parts(self, k: int) -> list[tuple[str, Named]]:
+        named = {CRITIC: self._critic_named, ACTOR: self._actor_named}
+        return [(part, named[part]) for part in step_parts(self.config, k)]
 
     def _score_new_transitions(self) -> None:
         """Record log π(a|s) of the acting policy for transitions stored since θ last changed."""
@@ -168,31 +207,6 @@ class PPOAgent:
             logits, _ = self.net(torch.from_numpy(obs))
             log_probs = functional.log_softmax(logits, dim=-1).gather(1, torch.from_numpy(actions)[:, None])
         self.memory.score(slots, log_probs.squeeze(1).numpy())
-
-    def _step(self, actor_objective: torch.Tensor, l_v: torch.Tensor) -> None:
-        """Lines 20-23: g_μ = ∇L^V, step the critic; g_θ = ∇(−L^CLIP), step the actor (both Adam).
-
-        Both gradients are taken at the same parameters before either step. With ``trunk_split ==
-        'actor'`` the critic loss's trunk gradient, times ``critic_trunk_coef``, joins g_θ, so the actor
-        optimiser alone moves the trunk and the shared gradient carries the critic's say in it.
-        """
-        cfg = self.config
-        actor_params = [p for _, p in self._actor_named]
-        g_theta = list(torch.autograd.grad(actor_objective, actor_params, retain_graph=True))
-        g_v = list(torch.autograd.grad(l_v, self._critic_grad_params))
-        trunk_grads, head_grads = g_v[: self._n_trunk], g_v[self._n_trunk :]
-        if cfg.trunk_split == "shared":
-            g_mu = trunk_grads + head_grads
-        else:
-            g_mu = head_grads
-            for i, g in enumerate(trunk_grads):
-                g_theta[i] = g_theta[i] + cfg.critic_trunk_coef * g
-        self._apply(self.critic_optimizer, [p for _, p in self._critic_named], g_mu)  # line 21
-        self._apply(self.actor_optimizer, actor_params, g_theta)  # line 23
-        # Line 25 sends the last of these; keep it (as applied, i.e. after clipping).
-        self._last_actor_gradient = np.concatenate([g.detach().numpy().ravel() for g in g_theta]).astype(
-            np.float32
-        )
 
     def _apply(
         self, optimizer: torch.optim.Optimizer, params: list[nn.Parameter], grads: list[torch.Tensor]
@@ -209,7 +223,7 @@ class PPOAgent:
 
     def actor_layout(self) -> list[tuple[str, tuple[int, ...]]]:
         """Names and shapes of θ, in the order of every flat actor vector (gradient or parameters)."""
-        return _layout(self._actor_named)
+        return layout(self._actor_named)
 
     def actor_size(self) -> int:
         """Length of a flat actor vector."""
@@ -223,7 +237,7 @@ class PPOAgent:
 
     def apply_actor_gradient(self, flat: np.ndarray) -> None:
         """Line 31: update π_θ with a received (average) gradient ḡ through the actor's Adam."""
-        chunks = _split(flat, self._actor_named, "actor gradient")
+        chunks = split(flat, self._actor_named, "actor gradient")
         self._score_new_transitions()
         params = [p for _, p in self._actor_named]
         for p, g in zip(params, chunks, strict=True):
@@ -235,7 +249,7 @@ class PPOAgent:
 
     def actor_parameters(self) -> np.ndarray:
         """θ as flat float32 in :meth:`actor_layout` order (line 8: what a finished worker sends)."""
-        return _flatten(self._actor_named)
+        return flatten(self._actor_named)
 
     def set_actor_parameters(self, flat: np.ndarray) -> None:
         """Line 29: replace θ with received parameters θ̄ (the critic head and Adam state are kept)."""
@@ -246,21 +260,21 @@ class PPOAgent:
 
     def model_layout(self) -> list[tuple[str, tuple[int, ...]]]:
         """Names and shapes of every network parameter, in the order of every flat model vector."""
-        return _layout(self._model_named())
+        return layout(self._model_named())
 
     def model_parameters(self) -> np.ndarray:
         """Every network parameter as flat float32 in :meth:`model_layout` order."""
-        return _flatten(self._model_named())
+        return flatten(self._model_named())
 
     def set_model_parameters(self, flat: np.ndarray) -> None:
         """Replace every network parameter (both Adam states are kept: each worker's own optimiser)."""
         self._replace(self._model_named(), flat, "model parameter")
 
-    def _model_named(self) -> list[tuple[str, nn.Parameter]]:
+    def _model_named(self) -> Named:
         return self._actor_named + self.net.head_parameters("value")
 
-    def _replace(self, named: list[tuple[str, nn.Parameter]], flat: np.ndarray, what: str) -> None:
-        chunks = _split(flat, named, what)
+    def _replace(self, named: Named, flat: np.ndarray, what: str) -> None:
+        chunks = split(flat, named, what)
         self._score_new_transitions()
         with torch.no_grad():
             for (_, p), value in zip(named, chunks, strict=True):
@@ -268,6 +282,12 @@ class PPOAgent:
         self._policy.refresh(self.net)
 
     # ---- resumable state (fleetrl.agent.state) --------------------------------------------------------
+
+    def optimisers(self) -> dict[str, torch.optim.Optimizer]:
+        """The Adam optimisers by name: ``actor`` and ``critic``, or the one ``shared`` optimiser."""
+        if self.actor_optimizer is self.critic_optimizer:
+            return {"shared": self.actor_optimizer}
+        return {"actor": self.actor_optimizer, "critic": self.critic_optimizer}
 
     def rng_states(self) -> dict[str, Any]:
         """The bit-generator states of action sampling and window starts (JSON-ready)."""
@@ -349,27 +369,3 @@ class PPOAgent:
             {k: torch.from_numpy(np.asarray(v, dtype=np.float32)) for k, v in tensors.items()}
         )
         self._policy.refresh(self.net)
-
-
-def _layout(named: list[tuple[str, nn.Parameter]]) -> list[tuple[str, tuple[int, ...]]]:
-    return [(name, tuple(p.shape)) for name, p in named]
-
-
-def _flatten(named: list[tuple[str, nn.Parameter]]) -> np.ndarray:
-    return np.concatenate([p.detach().numpy().ravel() for _, p in named]).astype(np.float32)
-
-
-def _split(flat: np.ndarray, named: list[tuple[str, nn.Parameter]], what: str) -> list[torch.Tensor]:
-    """``flat`` cut into tensors shaped like ``named``; ValueError if it does not fit or is not finite."""
-    array = np.asarray(flat)
-    size = sum(p.numel() for _, p in named)
-    if array.ndim != 1 or array.shape[0] != size:
-        raise ValueError(f"{what} vector must be flat with {size} values, got shape {array.shape}")
-    if not np.all(np.isfinite(array)):
-        raise ValueError(f"{what} vector has non-finite values")
-    tensor = torch.from_numpy(array.astype(np.float32))
-    chunks, offset = [], 0
-    for _, p in named:
-        chunks.append(tensor[offset : offset + p.numel()].view_as(p).clone())
-        offset += p.numel()
-    return chunks

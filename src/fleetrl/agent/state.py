@@ -21,15 +21,13 @@ from fleetrl.agent.ppo import PPOAgent
 STATE_VERSION = 1
 """Version of the fields; :func:`load_learner_state` refuses any other."""
 
-_OPTIMISERS = ("actor", "critic")
-
 
 def agent_state(agent: PPOAgent) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
     """(fields, tensors) of one agent: weights, Adam states, trajectory memory, RNG states."""
     tensors = {f"net.{k}": v.detach().numpy().copy() for k, v in agent.net.state_dict().items()}
     steps: dict[str, dict[str, float]] = {}
-    for which in _OPTIMISERS:
-        state = _optimiser(agent, which).state_dict()["state"]
+    for which, optimiser in agent.optimisers().items():
+        state = optimiser.state_dict()["state"]
         steps[which] = {}
         for index, slots in state.items():
             for slot, value in slots.items():
@@ -49,8 +47,7 @@ def load_agent_state(agent: PPOAgent, fields: dict[str, Any], tensors: dict[str,
     net = agent.net.state_dict()
     weights = {k: _tensor(tensors, f"net.{k}", tuple(v.shape)) for k, v in net.items()}
     agent.net.load_state_dict(weights)
-    for which in _OPTIMISERS:
-        optimiser = _optimiser(agent, which)
+    for which, optimiser in agent.optimisers().items():
         current = optimiser.state_dict()
         restored: dict[int, dict[str, torch.Tensor]] = {}
         for index_text, step in fields["optimiser_steps"][which].items():
@@ -73,6 +70,7 @@ def learner_state(learner: Learner) -> tuple[dict[str, Any], dict[str, np.ndarra
     fields.update(
         version=STATE_VERSION,
         rounds=learner.rounds,
+        episodes=learner.episodes,
         completed=learner.completed,
         criterion=learner.criterion.history(),
         env_rng=_env_generator(learner).bit_generator.state,
@@ -90,13 +88,10 @@ def load_learner_state(learner: Learner, fields: dict[str, Any], tensors: dict[s
     load_agent_state(learner.agent, fields, tensors)
     torch.set_rng_state(torch.from_numpy(np.asarray(tensors["torch.rng"], dtype=np.uint8).copy()))
     learner.rounds = int(fields["rounds"])
+    learner.episodes = int(fields.get("episodes", learner.rounds))  # states written before rounds of episodes
     learner.completed = bool(fields["completed"])
     learner.criterion.load_history([float(s) for s in fields["criterion"]])
     _env_generator(learner).bit_generator.state = fields["env_rng"]
-
-
-def _optimiser(agent: PPOAgent, which: str) -> torch.optim.Optimizer:
-    return agent.actor_optimizer if which == "actor" else agent.critic_optimizer
 
 
 def _env_generator(learner: Learner) -> np.random.Generator:

@@ -36,7 +36,11 @@ def add_learning_arguments(p: argparse.ArgumentParser) -> None:
     """The learning options of ``train``, ``chief`` and ``worker`` (defaults: fleetrl.runs.settings)."""
     p.add_argument("--env", default=None, help="qube (QUBE-Servo 2 balance; default) or cartpole")
     add_fleet_profile_argument(p)
-    p.add_argument("--preset", default=None, help="PPO preset: paper (Table 1; default) or standard")
+    p.add_argument(
+        "--preset",
+        default=None,
+        help="PPO preset: paper (Table 1; default), paper-code (the authors' code) or standard",
+    )
     p.add_argument(
         "--max-rounds", type=int, default=None, help="the paper's M: most rounds per worker (1000)"
     )

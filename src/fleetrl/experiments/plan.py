@@ -15,7 +15,7 @@ from fleetrl.experiments.arms import Arm, Places, completions, mean_score_curve,
 from fleetrl.experiments.records import RunRecord
 from fleetrl.experiments.stats import bootstrap_median, bootstrap_ratio, markdown_table
 from fleetrl.experiments.sweep import run_all
-from fleetrl.runs.plots import by_worker, draw_worker
+from fleetrl.runs.plots import X_LABELS, by_worker, draw_worker
 
 log = logging.getLogger(__name__)
 
@@ -225,7 +225,7 @@ def _plot_curves(plan: Plan, records: Records, path: Path) -> None:
     fig, ax = plt.subplots(figsize=(8, 4))
     for arm in plan.arms:
         ax.plot(mean_score_curve(records[arm.key], plan.max_rounds), label=arm.label, lw=1.2)
-    ax.set_xlabel("round (episode)")
+    ax.set_xlabel(X_LABELS["rounds"])
     ax.set_ylabel("mean score (all workers, all seeds)")
     ax.set_title(plan.title, fontsize=10)
     ax.grid(alpha=0.3)

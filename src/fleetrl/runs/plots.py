@@ -1,8 +1,14 @@
 """Figure-5-style plots: per worker, the score per round (blue), its WMA (red), the actor loss (green
-dotted, right axis), and model transfers as vertical lines."""
+dotted, right axis), and model transfers as vertical lines.
 
+The x-axis counts rounds (one update each) or, with ``x_axis="episodes"``, the episodes played by the end
+of each round; the two differ with the ``paper-code`` preset, whose rounds play several episodes.
+"""
+
+import itertools
 from collections import defaultdict
 from pathlib import Path
+from typing import Literal
 
 import matplotlib
 
@@ -11,6 +17,13 @@ import matplotlib.pyplot as plt
 from matplotlib.axes import Axes
 
 from fleetrl.runs.records import RoundRecord
+
+XAxis = Literal["rounds", "episodes"]
+X_LABELS: dict[str, str] = {
+    "rounds": "round (one update: one episode, or with paper-code the episodes filling the memory)",
+    "episodes": "episodes played",
+}
+"""the axis label for each choice of x-axis"""
 
 
 def by_worker(records: list[RoundRecord]) -> dict[int, list[RoundRecord]]:
@@ -21,21 +34,28 @@ def by_worker(records: list[RoundRecord]) -> dict[int, list[RoundRecord]]:
     return {w: sorted(rs, key=lambda r: r.round) for w, rs in sorted(groups.items())}
 
 
-def draw_worker(ax: Axes, rows: list[RoundRecord], label: str) -> None:
+def x_values(rows: list[RoundRecord], x_axis: XAxis = "rounds") -> list[int]:
+    """Where each of one worker's rounds sits on the x-axis: its number, or the episodes played by its end."""
+    if x_axis == "rounds":
+        return [r.round for r in rows]
+    return list(itertools.accumulate(r.episodes for r in rows))
+
+
+def draw_worker(ax: Axes, rows: list[RoundRecord], label: str, x_axis: XAxis = "rounds") -> None:
     """One worker's panel: score, WMA, actor loss (right axis), transfers and completion."""
-    rounds = [r.round for r in rows]
+    rounds = x_values(rows, x_axis)
     ax.plot(rounds, [r.score for r in rows], color="tab:blue", lw=0.8, label="score")
     ax.plot(rounds, [r.wma for r in rows], color="tab:red", lw=1.5, label="WMA (last 10)")
     loss_ax = ax.twinx()
     loss_ax.plot(rounds, [r.actor_loss for r in rows], "g:", lw=0.8, label="actor loss")
     loss_ax.tick_params(axis="y", labelsize=7, colors="tab:green")
     completed_at = None  # the first round the criterion held (under fedavg it may hold again later)
-    for r in rows:
+    for x, r in zip(rounds, rows, strict=True):
         events = r.event.split("+")
         if r.event.startswith("transfer_in"):
-            ax.axvline(r.round, color="tab:purple", ls="--", lw=1)
+            ax.axvline(x, color="tab:purple", ls="--", lw=1)
             ax.text(
-                r.round,
+                x,
                 0.95,
                 f" from {r.event.split(':', 1)[-1]}",
                 transform=ax.get_xaxis_transform(),
@@ -44,20 +64,20 @@ def draw_worker(ax: Axes, rows: list[RoundRecord], label: str) -> None:
                 color="tab:purple",
             )
         if completed_at is None and any(e.startswith("completed") for e in events):
-            completed_at = r.round
-            ax.axvline(r.round, color="black", lw=0.8)
+            completed_at = x
+            ax.axvline(x, color="black", lw=0.8)
     ax.set_ylabel(label)
     ax.grid(alpha=0.3)
 
 
-def plot_run(records: list[RoundRecord], path: Path, title: str = "") -> None:
-    """Draw one panel per worker and save a PNG at ``path``."""
+def plot_run(records: list[RoundRecord], path: Path, title: str = "", x_axis: XAxis = "rounds") -> None:
+    """Draw one panel per worker against rounds or episodes (``x_axis``) and save a PNG at ``path``."""
     groups = by_worker(records) or {0: []}
     fig, axes = plt.subplots(len(groups), 1, figsize=(9, 2.6 * len(groups)), sharex=True, squeeze=False)
     for ax, (worker, rows) in zip(axes[:, 0], groups.items(), strict=True):
-        draw_worker(ax, rows, f"worker {worker}\nscore")
+        draw_worker(ax, rows, f"worker {worker}\nscore", x_axis)
     axes[0, 0].legend(loc="upper left", fontsize=8)
-    axes[-1, 0].set_xlabel("round (episode)")
+    axes[-1, 0].set_xlabel(X_LABELS[x_axis])
     if title:
         fig.suptitle(title, fontsize=10)
     fig.tight_layout()

@@ -18,7 +18,9 @@ CSV_COLUMNS = (
     "steps",
     "wall_time",
     "event",
+    "episodes",
 )
+"""metrics.csv's columns (``episodes`` came last, so older files keep their columns' positions)"""
 
 
 @dataclass
@@ -26,7 +28,9 @@ class RoundRecord:
     """A worker's round: the episode's score, the learning statistics, and what federation did.
 
     ``event`` is empty for a plain round, ``gradient`` for a gradient-sharing round, ``completed`` when the
-    worker's criterion holds, ``transfer_out`` / ``transfer_in:<from>`` for model transfers.
+    worker's criterion holds, ``transfer_out`` / ``transfer_in:<from>`` for model transfers. A round is one
+    episode, or with the ``paper-code`` preset the episodes that fill the memory: ``score`` is then their
+    mean return, ``steps`` their total and ``episodes`` their number.
     """
 
     round: int
@@ -39,6 +43,7 @@ class RoundRecord:
     steps: int
     wall_time: float
     event: str = ""
+    episodes: int = 1
 
     def to_json(self) -> str:
         """One line of JSON (non-finite floats become null)."""
@@ -51,6 +56,7 @@ class RoundRecord:
         if not isinstance(data, dict):
             raise ValueError("a round record must be a JSON object")
         names = {f.name for f in fields(cls)}
+        data.setdefault("episodes", 1)  # written before rounds of several episodes
         if set(data) != names:
             raise ValueError(f"round record fields {sorted(data)} != {sorted(names)}")
         values: dict[str, Any] = {k: (math.nan if v is None else v) for k, v in data.items()}
@@ -74,6 +80,7 @@ class RoundRecord:
             steps=int(row["steps"]),
             wall_time=number("wall_time"),
             event=row["event"],
+            episodes=int(row.get("episodes") or 1),  # older files have no such column
         )
 
     def csv_row(self) -> list[object]:

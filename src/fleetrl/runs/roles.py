@@ -37,8 +37,10 @@ class NumberedRound(RoundFigures, Protocol):
     def round(self) -> int: ...
 
 
-def metrics_row(worker: int, figures: NumberedRound, started: float, event: str) -> RoundRecord:
-    """The metrics row of a round (``wall_time`` counted from ``started``)."""
+def metrics_row(
+    worker: int, figures: NumberedRound, started: float, event: str, episodes: int = 1
+) -> RoundRecord:
+    """The metrics row of a round (``wall_time`` counted from ``started``; ``episodes`` it played)."""
     return RoundRecord(
         round=figures.round,
         worker=worker,
@@ -50,12 +52,18 @@ def metrics_row(worker: int, figures: NumberedRound, started: float, event: str)
         steps=figures.steps,
         wall_time=round(time.monotonic() - started, 4),
         event=event,
+        episodes=episodes,
     )
 
 
 def federated_event(record: federation_worker.RoundRecord) -> str:
     """The metrics ``event`` for a federated round (:meth:`~fleetrl.federation.events.WorkerEvent.label`)."""
     return record.event.label(record.peer)
+
+
+def _episodes_of(learner: Learner) -> int:
+    """How many episodes the learner's latest round played (the federated worker's record does not say)."""
+    return 1 if learner.last_round is None else learner.last_round.episodes
 
 
 def train_alone(spec: WorkerSpec, emit: Emit, learner: Learner | None = None) -> None:
@@ -65,7 +73,8 @@ def train_alone(spec: WorkerSpec, emit: Emit, learner: Learner | None = None) ->
     try:
         for _ in range(spec.max_rounds):
             result = learner.play_round()
-            emit(metrics_row(spec.worker, result, started, "completed" if result.completed else ""))
+            event = "completed" if result.completed else ""
+            emit(metrics_row(spec.worker, result, started, event, result.episodes))
             if result.completed:
                 break
     finally:
@@ -113,7 +122,9 @@ def train_federated(
         run_id=run_id,
         worker_id=str(spec.worker),
         max_rounds=spec.max_rounds,
-        on_record=lambda record: emit(metrics_row(spec.worker, record, started, federated_event(record))),
+        on_record=lambda record: emit(
+            metrics_row(spec.worker, record, started, federated_event(record), _episodes_of(learner))
+        ),
         reply_timeout=reply_timeout,
         resend_interval=resend_interval,
         key=key,

@@ -26,6 +26,9 @@ class WorkerProgress:
     score: float = math.nan
     wma: float = math.nan
     completed_at_round: int | None = None
+    episodes: int = 0
+    """episodes played so far (a round of the paper-code preset plays several)"""
+    completed_at_episode: int | None = None
     state: str = "starting"
     events: list[str] = field(default_factory=list)
 
@@ -122,11 +125,13 @@ class RunRecorder:
     def _progress(self, record: RoundRecord) -> None:
         progress = self.progress.setdefault(record.worker, WorkerProgress())
         progress.round, progress.score, progress.wma = record.round, record.score, record.wma
+        progress.episodes += record.episodes
         progress.state = "learning" if progress.completed_at_round is None else "completed"
         if record.event not in PLAIN_EVENTS:  # plain sharing rounds are in metrics.csv alone
             progress.events.append(f"{record.round}:{record.event}")
             if "completed" in record.event.split("+") and progress.completed_at_round is None:
                 progress.completed_at_round = record.round
+                progress.completed_at_episode = progress.episodes
                 progress.state = "completed"
 
     def set_state(self, worker: int, state: str) -> None:
@@ -147,6 +152,8 @@ class RunRecorder:
             "workers": {
                 str(w): {
                     "completed_at_round": p.completed_at_round,
+                    "completed_at_episode": p.completed_at_episode,
+                    "episodes": p.episodes,
                     "final_wma": None if math.isnan(p.wma) else p.wma,
                     "state": p.state,
                     "events": p.events,
@@ -165,7 +172,10 @@ class RunRecorder:
         write_json_atomic(self.out / "summary.json", summary)
         from fleetrl.runs.plots import plot_run  # matplotlib loads only when a run ends
 
-        plot_run(self.records, self.out / "scores.png", title=_plot_title(self.config))
+        title = _plot_title(self.config)
+        plot_run(self.records, self.out / "scores.png", title=title)
+        if any(r.episodes > 1 for r in self.records):  # rounds of several episodes: both x-axes
+            plot_run(self.records, self.out / "scores-by-episode.png", title=title, x_axis="episodes")
         return summary
 
 

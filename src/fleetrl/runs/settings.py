@@ -77,9 +77,10 @@ class LearningSettings:
     """the simulated fleet's profile (QUBE: ``table2``, the default, or ``v1``, the fleet before the
     calibration; CartPole has one fleet); validation fills in the default's name"""
     preset: str = "paper"
-    """PPO preset: ``paper`` (Table 1) or ``standard``"""
+    """PPO preset: ``paper`` (Table 1), ``paper-code`` (what the authors' code ran) or ``standard``"""
     max_rounds: int = 1000
-    """the paper's M: the most rounds (episodes) per worker"""
+    """the paper's M: the most rounds per worker (a round is one episode, or with the paper-code preset
+    the episodes that fill the memory)"""
     scheme: str = "paper"
     """federated: ``paper`` (Algorithms 1 and 2) or ``fedavg`` (:mod:`fleetrl.federation.schemes`)"""
     overrides: dict[str, Any] = field(default_factory=dict)

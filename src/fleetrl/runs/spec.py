@@ -24,7 +24,7 @@ class WorkerSpec:
     fleet_seed: int
     """the fleet's seed: with ``unit`` it fixes the device's dynamics"""
     max_rounds: int
-    """the paper's M: the most rounds (episodes) the worker plays"""
+    """the paper's M: the most rounds the worker plays (each one episode, or with paper-code several)"""
     out: str
     """the run directory"""
     overrides: dict[str, Any] = field(default_factory=dict)
