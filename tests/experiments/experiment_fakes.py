@@ -15,7 +15,8 @@ def write_run_dir(
     """A finished run directory of ``run`` (metrics.csv, summary.json, config.json), as ``fleetrl train``
     leaves one; ``episodes`` adds the column another scheme's rounds carry."""
     run.out.mkdir(parents=True)
-    columns = [*CSV_COLUMNS, "episodes"] if episodes else list(CSV_COLUMNS)
+    single = [c for c in CSV_COLUMNS if c != "episodes"]  # the columns before rounds of several episodes
+    columns = [*single, "episodes"] if episodes else single
     with (run.out / "metrics.csv").open("w", newline="") as f:
         writer = csv.writer(f)
         writer.writerow(columns)

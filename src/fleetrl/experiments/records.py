@@ -120,8 +120,8 @@ def _compact(value: float) -> float | int | None:
 
 
 def read_worker_rows(run_dir: Path) -> dict[str, dict[str, Any]]:
-    """Per worker, from metrics.csv: score, WMA, events other than plain sharing, and (if the file has that
-    column) the episodes of each round.
+    """Per worker, from metrics.csv: score, WMA, events other than plain sharing, and the episodes of each
+    round where a round held more than one (older files have no such column).
 
     Read by column name, so columns added later do not break it.
     """
@@ -134,8 +134,10 @@ def read_worker_rows(run_dir: Path) -> dict[str, dict[str, Any]]:
         worker["wma"].append(_compact(float(row["wma"] or "nan")))
         if row.get("event", "") not in PLAIN_EVENTS:  # rounds that only shared are not kept
             worker["events"][row["round"]] = row["event"]
-        if row.get("episodes"):
-            worker.setdefault("episodes", []).append(int(row["episodes"]))
+        worker.setdefault("episodes", []).append(int(row.get("episodes") or 1))
+    for worker in workers.values():
+        if all(n == 1 for n in worker["episodes"]):  # one episode per round: nothing worth keeping
+            del worker["episodes"]
     return workers
 
 
