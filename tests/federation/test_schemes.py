@@ -9,7 +9,6 @@ from fleetrl.federation.aggregation import get_aggregator
 from fleetrl.federation.chief import Chief
 from fleetrl.federation.messages import Message, Reason, encode
 from fleetrl.federation.schemes import COMPLETED, SCHEMES, Granularity, RoundContext, Scheme, get_scheme
-from fleetrl.federation.schemes.paper import PaperScheme
 
 RUN = "r1"
 
@@ -60,8 +59,12 @@ def context(
 
 
 def test_the_registry_builds_each_scheme_and_names_the_choices() -> None:
-    assert {name: type(get_scheme(name)).name for name in SCHEMES} == {"paper": "paper", "fedavg": "fedavg"}
-    with pytest.raises(ValueError, match=r"unknown federation scheme 'fedsgd' \(choose paper or fedavg\)"):
+    assert {name: type(get_scheme(name)).name for name in SCHEMES} == {
+        n: n for n in ("paper", "fedavg", "pergrad")
+    }
+    with pytest.raises(
+        ValueError, match=r"unknown federation scheme 'fedsgd' \(choose paper or fedavg or pergrad\)"
+    ):
         get_scheme("fedsgd")
     with pytest.raises(ValueError, match="scheme 'paper': bad parameters \\['momentum'\\]"):
         get_scheme("paper", momentum=0.9)
@@ -145,8 +148,8 @@ def test_fedavg_ends_the_run_once_every_member_has_completed() -> None:
     assert not not_yet.ends_run and not_yet.finished == ()
 
 
-@pytest.mark.parametrize("name", sorted(SCHEMES))
-def test_every_scheme_sends_what_its_layout_describes(name: str) -> None:
+@pytest.mark.parametrize("name", sorted(n for n, s in SCHEMES.items() if s.granularity is Granularity.ROUND))
+def test_every_per_round_scheme_sends_what_its_layout_describes(name: str) -> None:
     scheme: Scheme = get_scheme(name)
     agent = FakeAgent()
     size = sum(int(np.prod(shape)) for _, shape in scheme.layout(agent))
@@ -155,23 +158,107 @@ def test_every_scheme_sends_what_its_layout_describes(name: str) -> None:
         assert flat.size == size and scheme.accepts(kind)
 
 
-class PerStepScheme(PaperScheme):
-    """A scheme that would send once per optimisation step (none is registered yet)."""
-
-    name = "per-step"
-    granularity = Granularity.STEP
+LAYOUT2 = [("g", (2,))]
 
 
-def test_the_per_round_chief_and_worker_refuse_a_per_step_scheme() -> None:
-    with pytest.raises(
-        ValueError, match="'per-step' sends per step: this chief drives per-round schemes only"
-    ):
-        Chief(run_id=RUN, workers=("1",), layout=[("pi", (2,))], max_rounds=3, scheme=PerStepScheme())
+class StepAgent(FakeAgent):
+    """FakeAgent with an update of two steps, each moving the same two parameters."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.stepped: list[np.ndarray] = []
+
+    def update_step_count(self) -> int:
+        return 2
+
+    def step_layout(self, k: int) -> list[tuple[str, tuple[int, ...]]]:
+        return LAYOUT2
+
+    def apply_step(self, flat_grad: np.ndarray) -> None:
+        self.stepped.append(flat_grad)
 
 
-def test_a_message_for_a_step_is_rejected_by_a_per_round_chief() -> None:
+def test_pergrad_averages_each_steps_gradients_and_ends_at_the_last_step_once_all_completed() -> None:
+    scheme, agent = get_scheme("pergrad"), StepAgent()
+    assert scheme.granularity is Granularity.STEP and scheme.shared_start and scheme.stays_after_completion
+    assert scheme.layout(agent) == LAYOUT2 and scheme.exchanges_per_round(agent) == 2
+    grads = answers(("1", "step_gradient", [1.0, 4.0]), ("2", COMPLETED, [3.0, -2.0]))
+    middle = scheme.combine(
+        grads, RoundContext(get_aggregator("mean"), ("1", "2"), {"1": 3, "2": 5}, 0, False)
+    )
+    np.testing.assert_array_equal(middle.flat, [2.0, 1.0])  # (1+3)/2, (4-2)/2
+    assert middle.kind == "average" and middle.contributors == ("1", "2") and not middle.ends_run
+    assert middle.finished == () and not middle.fleet_model  # no model travels: nobody rejoins from it
+    last = scheme.combine(grads, RoundContext(get_aggregator("mean"), ("1", "2"), {"1": 3, "2": 5}, 1, True))
+    assert last.ends_run and last.finished == ("1", "2")
+    not_yet = scheme.combine(grads, RoundContext(get_aggregator("mean"), ("1", "2"), {"2": 5}, 1, True))
+    assert not not_yet.ends_run and not_yet.finished == ()
+    median = scheme.combine(
+        answers(
+            ("1", "step_gradient", [1, 1]), ("2", "step_gradient", [2, 9]), ("3", "step_gradient", [7, 2])
+        ),
+        RoundContext(get_aggregator("median"), ("1", "2", "3"), {}),
+    )
+    np.testing.assert_array_equal(median.flat, [2.0, 2.0])  # the run's robust rule applies per step
+    scheme.apply_step_answer(agent, middle.flat)
+    np.testing.assert_array_equal(agent.stepped[0], [2.0, 1.0])
+
+
+def test_pergrad_refuses_an_update_whose_steps_move_different_parameters() -> None:
+    class Sequential(StepAgent):
+        def step_layout(self, k: int) -> list[tuple[str, tuple[int, ...]]]:
+            return [("critic", (1,))] if k % 2 == 0 else [("actor", (2,))]
+
+    with pytest.raises(ValueError, match="optimisers = 'per_model'"):
+        get_scheme("pergrad").exchanges_per_round(Sequential())
+
+
+def step_message(worker: str, rnd: int, step: int, values: list[float], kind: str = "step_gradient") -> bytes:
+    message = Message(kind, RUN, worker, rnd, step=step, flat=np.array(values, np.float32))
+    return encode(message, layout=LAYOUT2)
+
+
+def test_the_chief_closes_each_step_and_the_round_at_its_last_step() -> None:
+    chief = Chief(
+        run_id=RUN, workers=("1", "2"), layout=LAYOUT2, max_rounds=3, scheme="pergrad", steps_per_round=2
+    )
+    chief.receive_bytes(step_message("1", 1, 0, [1, 2]), topic_worker="1", now=0.0)
+    (answer,) = chief.receive_bytes(step_message("2", 1, 0, [3, 4]), topic_worker="2", now=0.0).outgoing
+    assert (answer.type, answer.round, answer.step) == ("average", 1, 0)
+    np.testing.assert_array_equal(answer.flat, [2.0, 3.0])
+    assert chief.round == 1  # still round 1: its step 1 is open
+    stale = chief.receive_bytes(step_message("1", 1, 0, [1, 2]), topic_worker="1", now=5.0)
+    assert [e.reason for e in stale.events if e.kind == "rejected"] == [Reason.STALE_ROUND]
+    early = chief.receive_bytes(step_message("1", 2, 0, [1, 2]), topic_worker="1", now=5.0)
+    assert [e.reason for e in early.events] == [Reason.FUTURE_ROUND]
+    beyond = chief.receive_bytes(step_message("1", 1, 2, [1, 2]), topic_worker="1", now=5.0)
+    assert [(e.reason, e.detail) for e in beyond.events] == [(Reason.BAD_ROUND, "step 2 of 2 per round")]
+    chief.receive_bytes(step_message("1", 1, 1, [0, 0], COMPLETED), topic_worker="1", now=6.0)
+    (last,) = chief.receive_bytes(step_message("2", 1, 1, [2, 2]), topic_worker="2", now=6.0).outgoing
+    assert (last.round, last.step) == (1, 1) and chief.round == 2 and chief.completed == {"1": 1}
+    chief.receive_bytes(step_message("1", 2, 0, [0, 0], COMPLETED), topic_worker="1", now=7.0)
+    chief.receive_bytes(step_message("2", 2, 0, [0, 0], COMPLETED), topic_worker="2", now=7.0)
+    chief.receive_bytes(step_message("1", 2, 1, [0, 0], COMPLETED), topic_worker="1", now=7.0)
+    end = chief.receive_bytes(step_message("2", 2, 1, [0, 0], COMPLETED), topic_worker="2", now=7.0)
+    assert [m.type for m in end.outgoing] == [
+        "average",
+        "done",
+    ] and chief.end_reason == "every unit completed"
+    assert end.outgoing[0].finished == ("1", "2")
+
+
+def test_a_per_round_chief_rejects_a_step_and_a_per_step_chief_needs_every_worker() -> None:
     chief = Chief(run_id=RUN, workers=("1", "2"), layout=[("pi", (2,))], max_rounds=3)
     message = Message("gradient", RUN, "1", 1, flat=np.ones(2, np.float32), step=2)
     step = chief.receive_bytes(encode(message, layout=[("pi", (2,))]), topic_worker="1", now=0.0)
-    assert [(e.reason, e.detail) for e in step.events] == [(Reason.BAD_ROUND, "step 2 in a per-round scheme")]
+    assert [(e.reason, e.detail) for e in step.events] == [(Reason.BAD_ROUND, "step 2 of 1 per round")]
     assert chief.answered == ()
+    with pytest.raises(ValueError, match="scheme 'paper' sends once per round"):
+        Chief(run_id=RUN, workers=("1",), layout=LAYOUT2, max_rounds=3, steps_per_round=2)
+    with pytest.raises(
+        ValueError, match=r"scheme 'pergrad' averages every step: it needs every worker \(quorum 1\)"
+    ):
+        Chief(
+            run_id=RUN, workers=("1", "2"), layout=LAYOUT2, max_rounds=3, scheme="pergrad", steps_per_round=2,
+            quorum=0.5, round_timeout=1.0,
+        )  # fmt: skip

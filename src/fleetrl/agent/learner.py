@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
@@ -133,15 +134,16 @@ class Learner:
         """The second half of a round: the agent's update (lines 11-24), step by step (PPOAgent.update)."""
         return self.agent.update()
 
-    def play_round(self) -> RoundResult:
+    def play_round(self, update: Callable[[], UpdateStats] | None = None) -> RoundResult:
         """:meth:`play_episodes`, then :meth:`update_steps` unless the criterion now holds (lines 2-24
-        without messaging)."""
+        without messaging). ``update`` runs instead of :meth:`update_steps` (it drives the agent's update step
+        by step, e.g. combining every step's gradient with other learners')."""
         started = time.perf_counter()
         episodes = self.play_episodes()
         nan = math.nan
         losses = (nan, nan, nan)
         if self.wants_update():
-            stats = self.update_steps()
+            stats = self.update_steps() if update is None else update()
             losses = (stats.actor_loss, stats.critic_loss, stats.entropy)
         self.last_round = RoundResult(
             self.rounds,

@@ -128,6 +128,10 @@ class PPOAgent:
         )
         return self._round_update.n_steps
 
+    def update_step_count(self) -> int:
+        """How many steps :meth:`begin_update` will return: K, or 2K with ``optimisers='one_sequential'``."""
+        return self.config.n_optimisations * (2 if self.config.optimisers == "one_sequential" else 1)
+
     def step_layout(self, k: int) -> list[tuple[str, tuple[int, ...]]]:
         """Names and shapes of step ``k``'s flat gradient: ``critic:<name>`` over the critic optimiser's
         parameters, then ``actor:<name>`` over θ, for the parts the step moves (both with ``per_model``;

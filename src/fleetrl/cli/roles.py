@@ -192,7 +192,7 @@ def cmd_chief(args: argparse.Namespace) -> int:
     """Serve one run as its chief; print how it ended as JSON."""
     from fleetrl.federation.chief import Chief
     from fleetrl.federation.runner import run_chief
-    from fleetrl.runs.launch import shared_layout
+    from fleetrl.runs.launch import exchanges_per_round, shared_layout
     from fleetrl.runs.role_settings import ChiefSettings
     from fleetrl.runs.rundir import write_json_atomic
     from fleetrl.runs.shared import shared_settings
@@ -202,6 +202,7 @@ def cmd_chief(args: argparse.Namespace) -> int:
         run_id=settings.run_id,
         workers=[str(k) for k in range(settings.workers)],
         layout=shared_layout(settings),
+        steps_per_round=exchanges_per_round(settings),
         scheme=settings.scheme,
         max_rounds=settings.max_rounds,
         aggregator=settings.aggregation,

@@ -77,6 +77,9 @@ class Chief:
         :mod:`fleetrl.federation.schemes`); ``layout`` must be what it shares.
     :param settings: the settings every worker must share (:mod:`fleetrl.federation.shared_settings`), sent in
         the ``welcome``; a worker whose ``join`` carries others is refused. None: no check.
+    :param steps_per_round: exchanges per round: 1 for a scheme that sends once per round; the K optimisation
+        steps of the round for one that sends per step (each step is closed and answered like a round, keyed
+        (round, step); completions and the run's end are decided at a round's last step).
     """
 
     def __init__(
@@ -95,6 +98,7 @@ class Chief:
         key: FleetKey | None = None,
         scheme: str | Scheme = "paper",
         settings: SharedSettings | None = None,
+        steps_per_round: int = 1,
     ) -> None:
         """Create the chief with W = ``workers`` and round 1 open."""
         self.run_id = validate_id(run_id, "run id")
@@ -111,11 +115,17 @@ class Chief:
             raise ValueError("a quorum below 1 needs a round timeout (--round-timeout)")
         self.layout = list(layout)
         self.scheme: Scheme = resolve_scheme(scheme)
-        if self.scheme.granularity is not Granularity.ROUND:
+        per_step = self.scheme.granularity is Granularity.STEP
+        if steps_per_round < 1 or (steps_per_round != 1 and not per_step):
             raise ValueError(
-                f"scheme {self.scheme.name!r} sends per {self.scheme.granularity}: this chief drives "
-                "per-round schemes only"
+                f"steps_per_round = {steps_per_round}: scheme {self.scheme.name!r} sends "
+                + ("per step (at least 1)" if per_step else "once per round (1)")
             )
+        if per_step and quorum < 1.0:
+            raise ValueError(
+                f"scheme {self.scheme.name!r} averages every step: it needs every worker (quorum 1)"
+            )
+        self.steps_per_round = steps_per_round
         self._gate = JoinGate(settings)
         self.max_rounds = max_rounds
         self.aggregator_name = aggregator
@@ -130,6 +140,7 @@ class Chief:
         self._members: set[str] = set(self.all_workers)
         self._left: set[str] = set()  # sent parameters: out of W for good
         self._round = 1
+        self._step = 0  # the open exchange of the round (always 0 for a scheme that sends once per round)
         self._opened_at: float | None = None
         self._pending: dict[str, Message] = {}
         self._end_reason: str | None = None
@@ -220,23 +231,27 @@ class Chief:
             return self._join(message)
         if (why := self._gate.refusal(sender)) is not None:
             return self._reject(sender, Reason.REFUSED, why)
-        if message.step != 0:  # a per-round scheme: one message per (sender, round)
-            return self._reject(sender, Reason.BAD_ROUND, f"step {message.step} in a per-round scheme")
+        if message.step >= self.steps_per_round:  # messages are keyed (sender, round, step)
+            return self._reject(
+                sender, Reason.BAD_ROUND, f"step {message.step} of {self.steps_per_round} per round"
+            )
         if not self.scheme.accepts(message.type):
             return self._reject(sender, Reason.UNEXPECTED_TYPE, message.type)
         if sender not in self.all_workers:
             return self._reject(sender, Reason.UNKNOWN_SENDER, f"round {rnd}")
-        closed = self._round - 1 if not self.finished else self._round
-        if rnd <= closed:  # a resend after a lost answer, or a straggler: answer again, change nothing
+        at = (rnd, message.step)
+        open_at = (self._round, self.steps_per_round if self.finished else self._step)
+        if at < open_at:
+            # a resend after a lost answer, or a straggler: answer again, change nothing
             reason = Reason.RUN_OVER if self.finished else Reason.STALE_ROUND
-            step = self._reject(sender, reason, f"round {rnd} <= last closed round {closed}")
+            step = self._reject(sender, reason, f"{_where(*at)} before the open {_where(*open_at)}")
             return step + self._resend(sender, now)
         if self.finished:
             return self._reject(sender, Reason.RUN_OVER, f"round {rnd}")
         if sender in self._left:
             return self._reject(sender, Reason.NOT_IN_W, f"round {rnd}")
-        if rnd > self._round:
-            return self._reject(sender, Reason.FUTURE_ROUND, f"round {rnd} > open round {self._round}")
+        if at > open_at:
+            return self._reject(sender, Reason.FUTURE_ROUND, f"{_where(*at)} > open {_where(*open_at)}")
         if sender in self._pending:
             return self._reject(sender, Reason.DUPLICATE, f"{message.type} for round {rnd}")
         step = self._rejoin(sender, f"sent {message.type} for round {rnd}")
@@ -376,23 +391,27 @@ class Chief:
         return ChiefStep()
 
     def _close_round(self, now: float) -> ChiefStep:
-        rnd = self._round
+        rnd, exchange = self._round, self._step
+        last_step = exchange == self.steps_per_round - 1
         answered = tuple(sorted_workers(self._pending))
         late = tuple(sorted_workers(self._members - set(answered)))
         scores = {
             w: self._pending[w].metrics["score"] for w in answered if "score" in self._pending[w].metrics
         }
         completed = tuple(w for w in answered if self._pending[w].type == COMPLETED)
-        for worker in completed:
-            self.completed.setdefault(worker, rnd)
-        context = RoundContext(self._aggregate, self.members, dict(self.completed))
+        if last_step:
+            for worker in completed:
+                self.completed.setdefault(worker, rnd)
+        context = RoundContext(
+            self._aggregate, self.members, dict(self.completed), step=exchange, last_step=last_step
+        )
         answer = self.scheme.combine({w: self._pending[w] for w in answered}, context)
         self._members.difference_update(answer.leave_w)
         self._left.update(answer.leave_w)
         remaining = self.members
         reply = Message(
             answer.kind, self.run_id, CHIEF_ID, rnd, flat=answer.flat, origin=answer.origin,
-            finished=answer.finished, contributors=answer.contributors,
+            finished=answer.finished, contributors=answer.contributors, step=exchange,
         )  # fmt: skip
         if answer.fleet_model:  # what a (re)joining worker starts from
             self._model = reply
@@ -412,6 +431,11 @@ class Chief:
         self._last_answer = (reply,)
         self._answer_sent = dict.fromkeys(self.all_workers, now)
         step = ChiefStep((reply,), (event,))
+        if not last_step and not answer.ends_run:  # the round's next exchange
+            self._step = exchange + 1
+            self._opened_at = now
+            return step
+        self._step = 0
         if answer.ends_run:
             return step + self._end("every unit completed")
         if not self._members or rnd >= self.max_rounds:
@@ -428,3 +452,7 @@ class Chief:
         self._last_answer = (*self._last_answer, done)
         event = ChiefEvent("run_ended", self._round, detail=reason, remaining=self.members)
         return ChiefStep((done,), (event,))
+
+
+def _where(rnd: int, step: int) -> str:
+    return f"round {rnd}" if step == 0 else f"round {rnd} step {step}"

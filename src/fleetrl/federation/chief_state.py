@@ -50,6 +50,7 @@ def chief_config(chief: Chief) -> dict[str, Any]:
         "scheme": chief.scheme.name,
         "scheme_params": chief.scheme.params(),
         "settings": chief.settings,
+        "steps_per_round": chief.steps_per_round,
     }
 
 
@@ -61,6 +62,7 @@ def chief_fields(chief: Chief) -> dict[str, Any]:
         "version": STATE_VERSION,
         "config": chief_config(chief),
         "round": chief._round,
+        "step": chief._step,
         "members": list(chief.members),
         "left": sorted(chief._left),
         "end_reason": chief._end_reason,
@@ -114,6 +116,7 @@ def chief_from_state(
     }
     scheme.restore(fields.get("scheme_state", {}), scheme_tensors)
     chief._round = int(fields["round"])
+    chief._step = int(fields.get("step", 0))
     chief._members = set(fields["members"])
     chief._left = set(fields["left"])
     chief._end_reason = fields["end_reason"]
@@ -147,6 +150,7 @@ def _message_fields(message: Message, tensor: str) -> dict[str, Any]:
     return {
         "type": message.type,
         "round": message.round,
+        "step": message.step,
         "origin": message.origin,
         "finished": list(message.finished),
         "contributors": list(message.contributors),
@@ -164,4 +168,5 @@ def _message(run_id: str, fields: dict[str, Any], tensors: dict[str, np.ndarray]
         flat=None if name is None else np.asarray(tensors[name], dtype=np.float32),
         metrics={str(k): float(v) for k, v in fields["metrics"].items()}, origin=fields["origin"],
         finished=tuple(fields["finished"]), contributors=tuple(fields["contributors"]),
+        step=int(fields.get("step", 0)),
     )  # fmt: skip

@@ -95,6 +95,8 @@ class WorkerEvent(StrEnum):
     """sent its gradient, applied the average (``paper``)"""
     MODEL = "model"
     """sent its model, continued from the average (``fedavg``)"""
+    STEP_GRADIENT = "step_gradient"
+    """sent every optimisation step's gradient and applied each step's average (``pergrad``)"""
     COMPLETED = "completed"
     """its criterion held; it sent its parameters, which were averaged, and it stays (``fedavg``)"""
     LATE = "late"

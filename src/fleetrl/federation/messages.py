@@ -55,6 +55,7 @@ MESSAGE_TYPES: Mapping[str, bool] = {
     "gradient": True,  # worker → chief: the last actor gradient of the round (Algorithm 2, line 25)
     "parameters": True,  # worker → chief: the actor parameters of a mature worker (Algorithm 2, line 8)
     "model": True,  # worker → chief: its whole actor-critic after the round's update (scheme fedavg)
+    "step_gradient": True,  # worker → chief: one optimisation step's gradient (scheme pergrad)
     "average": True,  # chief → workers: the aggregated gradient (Algorithm 1, line 13) or model (fedavg)
     "transfer": True,  # chief → workers: a mature worker's parameters (Algorithm 1, line 8)
     "done": False,  # chief → workers: the run is over (W empty, or M rounds)

@@ -7,8 +7,9 @@ round becomes one :class:`RoundRecord`, and a worker's run ends with a :class:`W
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Protocol
+from typing import Any, Protocol
 
 from fleetrl.federation.events import WorkerEvent
 from fleetrl.federation.schemes import FederatedAgent
@@ -46,8 +47,14 @@ class RoundPlayer(Protocol):
         """The agent whose actor is federated."""
         ...
 
-    def play_round(self) -> RoundOutcome:
-        """Play one episode and, unless learning is complete, optimise (Algorithm 2, lines 2–24)."""
+    @property
+    def completed(self) -> bool:
+        """The completion criterion has held (after this round's episodes, inside ``play_round``)."""
+        ...
+
+    def play_round(self, update: Callable[[], Any] | None = None) -> RoundOutcome:
+        """Play one episode and, unless learning is complete, optimise (Algorithm 2, lines 2–24); ``update``
+        replaces the agent's own update (a per-step scheme exchanges every step with the chief in it)."""
         ...
 
 

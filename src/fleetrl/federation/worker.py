@@ -35,11 +35,14 @@ import logging
 import math
 import time
 from collections.abc import Callable
+from typing import Any
+
+import numpy as np
 
 from fleetrl.federation.events import WorkerEvent
 from fleetrl.federation.messages import Layout, Message, MessageRejected, decode, encode
 from fleetrl.federation.rounds import RoundFigures, RoundOutcome, RoundPlayer, RoundRecord, WorkerSummary
-from fleetrl.federation.schemes import Granularity, Scheme, resolve_scheme
+from fleetrl.federation.schemes import COMPLETED, Granularity, Scheme, resolve_scheme
 from fleetrl.federation.shared_settings import SettingsRefused, SharedSettings, settings_difference
 from fleetrl.federation.signing import FleetKey, status_payload
 from fleetrl.federation.topics import (
@@ -122,11 +125,7 @@ class FederatedWorker:
         self.incarnation = time.time_ns()
         """This process's incarnation: newer than any earlier process with the same worker id."""
         self.scheme = resolve_scheme(scheme)
-        if self.scheme.granularity is not Granularity.ROUND:
-            raise ValueError(
-                f"scheme {self.scheme.name!r} sends per {self.scheme.granularity}: this worker "
-                "drives per-round schemes only"
-            )
+        self.per_step = self.scheme.granularity is Granularity.STEP
         self.settings: dict[str, str] = dict(settings or {})
         self.layout: Layout = list(self.scheme.layout(learner.agent))
         self._chief_topic = chief_topic(run_id)
@@ -172,16 +171,16 @@ class FederatedWorker:
         log.info("worker %s: welcomed at round %d (θ* of %s)", self.worker_id, welcome.round, welcome.origin)
         rnd = welcome.round if resume is None else resume
         while rnd <= self.max_rounds:
-            result = self.learner.play_round()  # lines 2-24
-            completed = bool(result.completed)
-            kind, flat = self.scheme.outgoing(agent, completed=completed)  # lines 8 and 25
-            metrics = {"score": float(result.score), "wma": float(result.wma), "steps": float(result.steps)}
-            message = Message(kind, self.run_id, self.worker_id, rnd, flat=flat, metrics=_finite(metrics))
-            payload = encode(message, layout=self.layout, key=self.key)
-            self.transport.publish(self._topic, payload)
-            log.debug("worker %s: sent %s for round %d", self.worker_id, kind, rnd)
-            reply = self._wait_for(_answer_for(rnd), f"the chief's answer for round {rnd}", payload)
-            event, peer, leave = self._apply(reply, completed)  # lines 28-31
+            if self.per_step:
+                stepped, reply = self._round_by_steps(rnd)
+                if stepped is None:  # the run ended (or went on without us) inside the round
+                    why = "run ended" if reply.type == "done" else "out of step with the fleet"
+                    return WorkerSummary(self.worker_id, rnd - 1, finished=False, reason=why)
+                result = stepped
+                event, peer, leave = self._step_outcome(reply, bool(result.completed))
+            else:
+                result, reply = self._round_then_send(rnd)
+                event, peer, leave = self._apply(reply, bool(result.completed))  # lines 28-31
             self._record(rnd, result, event, peer)
             if leave:
                 if reply.type == "average":  # the round in which the scheme's run completed
@@ -196,6 +195,61 @@ class FederatedWorker:
         return WorkerSummary(
             self.worker_id, self.max_rounds, finished=False, reason=f"reached M={self.max_rounds}"
         )
+
+    def _round_then_send(self, rnd: int) -> tuple[RoundOutcome, Message]:
+        """A per-round scheme: play the round (lines 2-24), send what the scheme shares, wait for the
+        answer."""
+        result = self.learner.play_round()
+        kind, flat = self.scheme.outgoing(self.learner.agent, completed=bool(result.completed))  # lines 8, 25
+        payload = self._send(rnd, 0, kind, flat, result)
+        return result, self._wait_for(_answer_for(rnd), f"the chief's answer for round {rnd}", payload)
+
+    def _round_by_steps(self, rnd: int) -> tuple[RoundOutcome | None, Message]:
+        """A per-step scheme: play the episodes, then every optimisation step through the chief (send this
+        worker's gradient of the step, apply the chief's combination); returns the round and the last
+        step's answer, or None and the ``done`` (or later answer) that cut the round short."""
+        answers: list[Message] = []
+
+        def update() -> Any:
+            agent = self.learner.agent
+            completed = bool(self.learner.completed)
+            kind = COMPLETED if completed else self.scheme.round_message
+            for k in range(agent.begin_update()):
+                payload = self._send(rnd, k, kind, agent.step_gradients(k), None)
+                what = f"the chief's answer for round {rnd} step {k}"
+                reply = self._wait_for(_answer_for(rnd, k), what, payload)
+                answers.append(reply)
+                if reply.type == "done" or (reply.round, reply.step) != (rnd, k):
+                    raise _LeftTheFleet(reply)
+                if reply.flat is None:
+                    raise AssertionError("decode guarantees tensors for an average")
+                self.scheme.apply_step_answer(agent, reply.flat)
+            return agent.end_update()
+
+        try:
+            result = self.learner.play_round(update=update)
+        except _LeftTheFleet as left:
+            return None, left.reply
+        return result, answers[-1]
+
+    def _step_outcome(self, reply: Message, completed: bool) -> tuple[WorkerEvent, str | None, bool]:
+        """The round's event for a per-step scheme (every step's answer is applied already)."""
+        if reply.type == "done":
+            return WorkerEvent.RUN_ENDED, None, True
+        event = WorkerEvent.COMPLETED if completed else WorkerEvent(self.scheme.round_message)
+        return event, None, self.worker_id in reply.finished
+
+    def _send(self, rnd: int, step: int, kind: str, flat: np.ndarray, result: RoundOutcome | None) -> bytes:
+        metrics: dict[str, float] = {}
+        if result is not None:
+            metrics = {"score": float(result.score), "wma": float(result.wma), "steps": float(result.steps)}
+        message = Message(
+            kind, self.run_id, self.worker_id, rnd, step=step, flat=flat, metrics=_finite(metrics)
+        )
+        payload = encode(message, layout=self.layout, key=self.key)
+        self.transport.publish(self._topic, payload)
+        log.debug("worker %s: sent %s for round %d step %d", self.worker_id, kind, rnd, step)
+        return payload
 
     def _resume_round(self, welcome_round: int) -> int | None:
         """The round a worker resumed from a checkpoint plays first; None: rejoin at the welcome's round."""
@@ -338,9 +392,18 @@ class FederatedWorker:
             self.on_record(record)
 
 
-def _answer_for(rnd: int) -> Callable[[Message], bool]:
-    """Accepts the chief's answer for round ``rnd`` or a later one (we missed ours), or ``done``."""
-    return lambda m: m.type == "done" or (m.type in ANSWERS and m.round >= rnd)
+def _answer_for(rnd: int, step: int = 0) -> Callable[[Message], bool]:
+    """Accepts the chief's answer for round ``rnd`` (step ``step``) or a later one (we missed ours), or
+    ``done``."""
+    return lambda m: m.type == "done" or (m.type in ANSWERS and (m.round, m.step) >= (rnd, step))
+
+
+class _LeftTheFleet(Exception):
+    """A per-step round cannot go on: the chief ended the run, or answered a later step than ours."""
+
+    def __init__(self, reply: Message) -> None:
+        super().__init__(reply.type)
+        self.reply = reply
 
 
 def _earliest(a: float | None, b: float | None) -> float | None:

@@ -21,13 +21,11 @@ from contextlib import contextmanager, suppress
 from pathlib import Path
 from typing import Any
 
-import gymnasium
-
-from fleetrl.agent.ppo import PPOAgent
 from fleetrl.envs.catalog import get_env_spec
 from fleetrl.federation.chief import Chief
 from fleetrl.federation.runner import ChiefSummary, run_chief
 from fleetrl.federation.schemes import get_scheme
+from fleetrl.runs.factory import probe_agent
 from fleetrl.runs.fleet import Fleet, ThreadFleet, follow
 from fleetrl.runs.live import LiveView
 from fleetrl.runs.processes import ProcessFleet
@@ -88,12 +86,12 @@ def worker_specs(settings: RunSettings, device_url: str | None, run_id: str) -> 
 def shared_layout(settings: LearningSettings) -> list[tuple[str, tuple[int, ...]]]:
     """Names and shapes of what the run's scheme shares for this env and preset (the scheme's
     :meth:`~fleetrl.federation.schemes.Scheme.layout`): the chief validates every message with it."""
-    env = gymnasium.make(get_env_spec(settings.env).gym_id)
-    obs_dim = int(env.observation_space.shape[0])  # type: ignore[index]
-    n_actions = int(env.action_space.n)  # type: ignore[attr-defined]
-    env.close()
-    agent = PPOAgent(obs_dim, n_actions, settings.ppo(), seed=0)
-    return list(get_scheme(settings.scheme).layout(agent))
+    return list(get_scheme(settings.scheme).layout(probe_agent(settings.env, settings.ppo())))
+
+
+def exchanges_per_round(settings: LearningSettings) -> int:
+    """The chief's ``steps_per_round``: 1, or the optimisation steps of an update for a per-step scheme."""
+    return get_scheme(settings.scheme).exchanges_per_round(probe_agent(settings.env, settings.ppo()))
 
 
 def train(settings: RunSettings) -> dict[str, Any]:
@@ -204,6 +202,7 @@ def train_federated(
         run_id=run_id,
         workers=[str(k) for k in specs],
         layout=shared_layout(settings),
+        steps_per_round=exchanges_per_round(settings),
         max_rounds=settings.max_rounds,
         aggregator=settings.aggregation,
         scheme=settings.scheme,

@@ -16,6 +16,7 @@ from fleetrl.runs.settings import (
     LearningSettings,
     RoundRules,
     as_setting_error,
+    check_scheme_quorum,
     path_text,
     positive,
 )
@@ -96,6 +97,7 @@ class ChiefSettings(RoleSettings, RoundRules):
         """Raise SettingError naming the first setting that cannot work; nothing is created."""
         self.validate_role()
         self.validate_rounds()
+        check_scheme_quorum(self.scheme, self.quorum)
         if self.workers < 1:
             raise SettingError(f"{label('workers')} = {self.workers}: must be at least 1")
         if self.fleet_seed < 0:

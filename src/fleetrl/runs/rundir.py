@@ -33,7 +33,7 @@ class WorkerProgress:
     events: list[str] = field(default_factory=list)
 
 
-PLAIN_EVENTS = frozenset({"", "gradient", "model"})
+PLAIN_EVENTS = frozenset({"", "gradient", "model", "step_gradient"})
 """metrics ``event`` values of rounds that only shared (not listed among a worker's events)"""
 
 

@@ -21,7 +21,7 @@ from typing import Any, get_type_hints
 from fleetrl.agent.config import PPOConfig, get_preset
 from fleetrl.envs.catalog import get_env_spec
 from fleetrl.federation.aggregation import get_aggregator
-from fleetrl.federation.schemes import get_scheme
+from fleetrl.federation.schemes import Granularity, get_scheme
 from fleetrl.runs.setting_values import (
     SettingError,
     check_readable_file,
@@ -55,6 +55,15 @@ def positive(name: str, value: float | None, *, allow_zero: bool = False) -> Non
     if value is not None and not (value >= 0 if allow_zero else value > 0):
         bound = "≥ 0" if allow_zero else "> 0"
         raise SettingError(f"{label(name)} = {value!r}: must be {bound}")
+
+
+def check_scheme_quorum(scheme: str, quorum: float) -> None:
+    """SettingError if a scheme that averages every optimisation step is given a quorum below 1."""
+    if quorum < 1.0 and get_scheme(scheme).granularity is Granularity.STEP:
+        raise SettingError(
+            f"{label('quorum')} = {quorum}: scheme {scheme} averages every optimisation step over every "
+            "worker; it needs quorum 1"
+        )
 
 
 def as_setting_error(name: str, check: Any, *args: Any) -> Any:
@@ -95,7 +104,10 @@ class LearningSettings:
         if self.max_rounds < 1:
             raise SettingError(f"{label('max_rounds')} = {self.max_rounds}: must be at least 1")
         self.overrides = self._typed_overrides()
-        self.ppo()
+        from fleetrl.runs.factory import probe_agent  # torch: only once the cheap checks passed
+
+        scheme = get_scheme(self.scheme)
+        as_setting_error("scheme", scheme.exchanges_per_round, probe_agent(self.env, self.ppo()))
 
     def _typed_overrides(self) -> dict[str, Any]:
         hints = get_type_hints(PPOConfig)
@@ -205,6 +217,7 @@ class RunSettings(LearningSettings, RoundRules, BrokerLogin):
         if self.mode == "individual" and self.scheme != "paper":
             raise SettingError(f"--scheme {self.scheme} is a federation scheme: it needs --mode federated")
         self.validate_rounds()
+        check_scheme_quorum(self.scheme, self.quorum)
         self.validate_broker()
         if self.units < 1:
             raise SettingError(f"{label('units')} = {self.units}: must be at least 1")

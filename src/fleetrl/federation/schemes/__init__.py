@@ -1,7 +1,8 @@
 """Federation schemes as strategy objects behind one interface (:class:`~.base.Scheme`), looked up by name.
 
 * ``paper`` (:mod:`.paper`) — the paper's gradient sharing with model transfer;
-* ``fedavg`` (:mod:`.fedavg`) — whole-model averaging, mature workers stay.
+* ``fedavg`` (:mod:`.fedavg`) — whole-model averaging, mature workers stay;
+* ``pergrad`` (:mod:`.pergrad`) — gradients averaged at every optimisation step (DD-PPO style).
 
 Adding a scheme: write one module here with a :class:`Scheme` subclass, add it to :data:`SCHEMES`, and test it
 on hand-computed arrays in tests/federation/test_schemes.py (no broker). Nothing else changes: the chief, the
@@ -22,6 +23,7 @@ from fleetrl.federation.schemes.base import (
 )
 from fleetrl.federation.schemes.fedavg import FedAvgScheme
 from fleetrl.federation.schemes.paper import PaperScheme
+from fleetrl.federation.schemes.pergrad import PerStepGradientScheme
 
 __all__ = [
     "COMPLETED",
@@ -35,7 +37,9 @@ __all__ = [
     "resolve_scheme",
 ]
 
-SCHEMES: dict[str, type[Scheme]] = {cls.name: cls for cls in (PaperScheme, FedAvgScheme)}
+SCHEMES: dict[str, type[Scheme]] = {
+    cls.name: cls for cls in (PaperScheme, FedAvgScheme, PerStepGradientScheme)
+}
 """Every registered scheme class by name."""
 
 

@@ -76,6 +76,30 @@ class FederatedAgent(Protocol):
         """Replace the whole actor-critic's parameters."""
         ...
 
+    def step_layout(self, k: int) -> list[tuple[str, tuple[int, ...]]]:
+        """Names and shapes of optimisation step ``k``'s flat gradient."""
+        ...
+
+    def update_step_count(self) -> int:
+        """How many optimisation steps each update takes."""
+        ...
+
+    def begin_update(self) -> int:
+        """Start the round's update; the number of optimisation steps it takes."""
+        ...
+
+    def step_gradients(self, k: int) -> np.ndarray:
+        """Step ``k``'s gradient, flat float32 in :meth:`step_layout` order, nothing stepped."""
+        ...
+
+    def apply_step(self, flat_grad: np.ndarray) -> None:
+        """Step the optimiser(s) with a gradient for the step last computed."""
+        ...
+
+    def end_update(self) -> Any:
+        """Finish the update (every step applied); its statistics."""
+        ...
+
 
 @dataclass(frozen=True)
 class RoundContext:
@@ -87,6 +111,10 @@ class RoundContext:
     """W when the round closes (sorted), including members that did not answer (stragglers)"""
     completed: Mapping[str, int]
     """worker → the first round its criterion held, this round's completions included"""
+    step: int = 0
+    """the exchange being closed within the round (0 for a scheme that sends once per round)"""
+    last_step: bool = True
+    """it is the round's last exchange: completions are counted and the run may end"""
 
 
 @dataclass(frozen=True)
@@ -127,7 +155,12 @@ class Scheme(ABC):
     """a worker whose criterion holds keeps learning in W (True) or transfers and leaves (False); the learner
     factory sets ``Learner.keep_learning`` from it"""
     granularity: ClassVar[Granularity] = Granularity.ROUND
-    """how often a worker sends; the chief and worker of this version drive ``round`` schemes"""
+    """how often a worker sends: once per round, or once per optimisation step (the chief is then built with
+    the round's number of steps, and the worker exchanges every step, sending the step's gradient and
+    applying the answer with :meth:`apply_step_answer`)"""
+    shared_start: ClassVar[bool] = False
+    """every worker starts from the same parameters (those drawn from the run's seed, not its own): a scheme
+    that averages gradients into identical models needs it"""
 
     def params(self) -> dict[str, Any]:
         """The scheme's parameters (JSON values), for the welcome's shared settings and checkpoints."""
@@ -161,6 +194,16 @@ class Scheme(ABC):
         :param contributed: this worker's message is among those averaged (False: the round closed without it,
             or the worker is catching up with rounds it missed).
         """
+
+    def exchanges_per_round(self, agent: FederatedAgent) -> int:
+        """How many messages a worker sends per round (the chief's ``steps_per_round``): 1, or for a per-step
+        scheme the steps of one update; a ValueError if the agent's settings do not fit the scheme."""
+        del agent
+        return 1
+
+    def apply_step_answer(self, agent: FederatedAgent, flat: np.ndarray) -> None:
+        """A per-step scheme: apply the chief's combination of the workers' gradients of the step."""
+        raise NotImplementedError(f"scheme {self.name!r} sends once per round")
 
     # -- chief side ----------------------------------------------------------------------------------------
 

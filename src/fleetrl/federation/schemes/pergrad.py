@@ -1,0 +1,90 @@
+"""``pergrad``: the workers' gradients averaged at every optimisation step (DD-PPO style, synchronous, through
+the chief).
+
+Every worker starts from the same parameters (drawn from the run's seed) and plays its round. Then, for each
+of the round's K optimisation steps, it computes the gradient of its minibatch (the whole actor-critic's loss,
+Eqs. 3 and 6, nothing stepped: ``PPOAgent.step_gradients``), sends it keyed (round, step), and applies the
+chief's average through its own Adam (``PPOAgent.apply_step``). Every worker applies the same averages to the
+same parameters with optimisers in the same state, so the fleet stays one policy, and each step sees the N
+workers' minibatches: an N× larger batch per step, with the units' differences in it. A worker whose
+criterion holds says so (its step messages are typed ``parameters``) and stays; the run ends after the round
+in which every member of W has completed, as with ``fedavg``.
+
+Per step the chief combines with the run's aggregation rule (mean by default; a robust rule also works). A
+per-step scheme needs every worker at every step: quorum 1, no rejoin with a model (a worker that restarts
+mid-run diverges from the fleet; it is refused nothing, but its updates then come from another model).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+
+import numpy as np
+
+from fleetrl.federation.messages import Layout, Message
+from fleetrl.federation.schemes.base import (
+    FederatedAgent,
+    Granularity,
+    RoundAnswer,
+    RoundContext,
+    Scheme,
+    flats,
+)
+
+
+class PerStepGradientScheme(Scheme):
+    """Synchronous per-step gradient averaging (Wijmans et al.'s DD-PPO, with the chief as the all-reduce)."""
+
+    name = "pergrad"
+    summary = "average the workers' minibatch gradients at every optimisation step; mature workers stay"
+    round_message = "step_gradient"
+    stays_after_completion = True
+    granularity = Granularity.STEP
+    shared_start = True
+
+    def layout(self, agent: FederatedAgent) -> Layout:
+        """One step's gradient: the whole actor-critic (every step moves the same parameters)."""
+        return agent.step_layout(0)
+
+    def outgoing(self, agent: FederatedAgent, *, completed: bool) -> tuple[str, np.ndarray]:
+        """Nothing is sent after the round: the steps carried it (the worker never calls this)."""
+        raise NotImplementedError("pergrad sends per step")
+
+    def take_parameters(self, agent: FederatedAgent, flat: np.ndarray) -> None:
+        """No parameters travel in this scheme (its workers never receive a transfer)."""
+        raise NotImplementedError("pergrad transfers no parameters")
+
+    def apply_average(
+        self, agent: FederatedAgent, flat: np.ndarray, *, completed: bool, contributed: bool
+    ) -> None:
+        """Averages arrive per step (:meth:`apply_step_answer`)."""
+        raise NotImplementedError("pergrad applies its averages per step")
+
+    def exchanges_per_round(self, agent: FederatedAgent) -> int:
+        """The steps of one update; every step must move the same parameters (one layout on the wire)."""
+        steps = agent.update_step_count()
+        first = agent.step_layout(0)
+        if any(agent.step_layout(k) != first for k in range(1, steps)):
+            raise ValueError(
+                "scheme pergrad averages one whole actor-critic gradient per step: it needs the PPO setting "
+                "optimisers = 'per_model' (this preset steps the critic and the actor in turn)"
+            )
+        return steps
+
+    def apply_step_answer(self, agent: FederatedAgent, flat: np.ndarray) -> None:
+        """Step the optimiser with the fleet's gradient of this step."""
+        agent.apply_step(flat)
+
+    def combine(self, answers: Mapping[str, Message], context: RoundContext) -> RoundAnswer:
+        """The step's gradients aggregated; at the last step of the round in which the last member of W
+        completed, every member is listed in ``finished`` and the run ends."""
+        ends = (
+            context.last_step and bool(context.members) and set(context.members).issubset(context.completed)
+        )
+        return RoundAnswer(
+            "average",
+            context.aggregate(flats(answers)),
+            contributors=tuple(answers),
+            finished=context.members if ends else (),
+            ends_run=ends,
+        )
