@@ -1,6 +1,7 @@
 """The per-step scheme end to end: the same seeded run gives the same scores over the in-process bus and
 over a real broker, every worker ends with the same policy, and settings that cannot work are refused
 first."""
+
 from __future__ import annotations
 
 import csv
