@@ -61,21 +61,26 @@ def arm(
 
 
 def fig5(budget: Budget) -> Plan:
-    """3 QUBE units: individual vs federated, with the paper's preset and with ``standard``, and fleetrl's
-    model-averaging scheme (``fedavg``)."""
+    """3 QUBE units: individual vs federated, with the paper's preset as written and as its code ran
+    (``paper-code``) and with ``standard``; fleetrl's schemes (``fedavg``, ``pergrad``) with ``standard``."""
     m = budget.qube_rounds
     ind_paper, fed_paper, ind_std, fed_std = (
         arm("qube", 3, mode, preset, m, f"{mode} · {preset}", fleet_seed=budget.fleet_seed)
         for preset in ("paper", "standard")
         for mode in ("individual", "federated")
     )
-    fedavg = arm(
-        "qube", 3, "federated", "standard", m, "federated · standard · fedavg", "fedavg", budget.fleet_seed
+    fedavg, pergrad = (
+        arm("qube", 3, "federated", "standard", m, f"federated · standard · {s}", s, budget.fleet_seed)
+        for s in ("fedavg", "pergrad")
+    )
+    ind_code, fed_code = (
+        arm("qube", 3, mode, "paper-code", m, f"{mode} · paper-code", fleet_seed=budget.fleet_seed)
+        for mode in ("individual", "federated")
     )
     return Plan(
         name="fig5",
         title="Fig. 5: 3 QUBE units, individual vs federated",
-        arms=[ind_paper, fed_paper, ind_std, fed_std, fedavg],
+        arms=[ind_paper, fed_paper, ind_code, fed_code, ind_std, fed_std, fedavg, pergrad],
         max_rounds=m,
         ratios=[
             Ratio(ind_paper, fed_paper, "the paper: ≈1.5× overall, 2.7× on the slowest unit"),
@@ -83,6 +88,9 @@ def fig5(budget: Budget) -> Plan:
             Ratio(ind_std, fedavg, "fleetrl's best scheme vs each unit alone (target ≥ 1.5×, aim 2.7×)"),
             Ratio(fed_std, fedavg, "fleetrl's best scheme vs the paper's scheme, same preset"),
             Ratio(fed_paper, fedavg, "fleetrl's best scheme vs the paper's scheme and preset"),
+            Ratio(ind_code, fed_code, "the paper's scheme as its code ran (paper-code preset)"),
+            Ratio(ind_std, pergrad, "per-step gradient averaging vs each unit alone (target 2.7×)"),
+            Ratio(fedavg, pergrad, "per-step gradient averaging vs model averaging"),
         ],
         side_by_side=(ind_std, fedavg),
         mqtt_check=fedavg,
@@ -93,7 +101,10 @@ def fig5(budget: Budget) -> Plan:
 def fig6(budget: Budget) -> Plan:
     """2 vs 3 QUBE workers, federated, with each scheme."""
     m = budget.qube_rounds
-    variants = (("paper", "paper"), ("standard", "paper"), ("standard", "fedavg"))
+    variants = (
+        ("paper", "paper"), ("paper-code", "paper"), ("standard", "paper"), ("standard", "fedavg"),
+        ("standard", "pergrad"),
+    )  # fmt: skip
     arms = {
         (n, preset, scheme): arm(
             "qube", n, "federated", preset, m, f"{n} workers · {preset} · {scheme}", scheme, budget.fleet_seed
@@ -128,7 +139,7 @@ def cartpole_scaling(budget: Budget) -> Plan:
             scheme,
             budget.fleet_seed,
         )
-        for scheme in ("paper", "fedavg")
+        for scheme in ("paper", "fedavg", "pergrad")
         for n in (1, 2, 4, 8)
     }
     return Plan(
@@ -138,7 +149,7 @@ def cartpole_scaling(budget: Budget) -> Plan:
         max_rounds=m,
         ratios=[
             Ratio(arms[1, scheme], arms[n, scheme], "the paper's earlier study: faster with more workers")
-            for scheme in ("paper", "fedavg")
+            for scheme in ("paper", "fedavg", "pergrad")
             for n in (2, 4, 8)
         ],
         mqtt_check=arms[4, "fedavg"],
@@ -173,6 +184,16 @@ def learning(budget: Budget) -> Plan:
         )
         arms[env, "standard", "fedavg"] = fedavg
         ratios.append(Ratio(arms[env, "standard", "individual"], fedavg, "federation, fedavg"))
+        pergrad = arm(
+            env, 3, "federated", "standard", rounds, f"{env} · federated · standard · pergrad", "pergrad",
+            budget.fleet_seed,
+        )  # fmt: skip
+        arms[env, "standard", "pergrad"] = pergrad
+        ratios.append(Ratio(arms[env, "standard", "individual"], pergrad, "federation, pergrad"))
+        arms[env, "paper-code", "individual"] = arm(
+            env, 3, "individual", "paper-code", rounds, f"{env} · individual · paper-code",
+            fleet_seed=budget.fleet_seed,
+        )  # fmt: skip
     return Plan(
         name="learning",
         title="Learning speed: 3 units of each env, individual and federated (both schemes), both presets",
