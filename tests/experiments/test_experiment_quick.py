@@ -1,5 +1,7 @@
-"""`fleetrl experiment all --quick`: every experiment's pipeline end to end (files, numbers that parse);
-the science is not asserted here (see docs/results.md for full runs)."""
+"""`fleetrl experiment … --quick`: the pipeline end to end (files, numbers that parse) on one training plan
+(fig5: ratios, the speed-up table, the side-by-side plot, the MQTT check), Table 2 and the SB3 peers; every
+other plan runs the same code (`run_plan`), and its arms are checked to be valid settings without running
+them. The science is not asserted here (see docs/results.md for full runs)."""
 
 import csv
 import json
@@ -10,32 +12,45 @@ from pathlib import Path
 import pytest
 
 from fleetrl.cli.main import main
-from fleetrl.experiments.catalog import EXPERIMENTS, PLANS
+from fleetrl.experiments.catalog import FULL, PLANS, QUICK
+from fleetrl.runs.settings import RunSettings
 
 pytestmark = [pytest.mark.slow, pytest.mark.mqtt]  # sweeps of real training runs, one arm over MQTT
+RUN = ("fig5", "table2", "peers")
+"""the experiments run end to end here"""
 
 
 @pytest.fixture(scope="module")
 def quick_report(tmp_path_factory: pytest.TempPathFactory) -> Path:
     out = tmp_path_factory.mktemp("experiments")
-    assert main(["experiment", "all", "--seeds", "1", "--quick", "--out", str(out)]) == 0
+    for name in RUN:
+        assert main(["experiment", name, "--seeds", "1", "--quick", "--out", str(out)]) == 0
     return out
 
 
-@pytest.mark.timeout(600)
+@pytest.mark.timeout(900)
 def test_report_has_every_section_with_its_command_and_seeds(quick_report: Path) -> None:
     report = (quick_report / "report.md").read_text()
-    assert report.count("Command: `fleetrl experiment ") == len(EXPERIMENTS)
-    for name in EXPERIMENTS:
+    assert report.count("Command: `fleetrl experiment ") == len(RUN)
+    for name in RUN:
         assert f"fleetrl experiment {name} --seeds 1 --first-seed 100" in report
     seeds = "Seeds: tuning seeds 0–9 on fleet seed 0; the figures below are on seed 100 (fleet seed 0), never"
-    assert report.count(seeds) == len(EXPERIMENTS)
+    assert report.count(seeds) == len(RUN)
     for image in re.findall(r"!\[[^\]]*\]\(([^)]+)\)", report):
         assert (quick_report / image).stat().st_size > 5_000
 
 
 @pytest.mark.parametrize("name", sorted(PLANS))
-def test_training_experiments_write_parseable_runs(quick_report: Path, name: str) -> None:
+@pytest.mark.parametrize("budget", [QUICK, FULL], ids=["quick", "full"])
+def test_every_plan_is_made_of_valid_runs(name: str, budget: object, tmp_path: Path) -> None:
+    plan = PLANS[name](budget)  # type: ignore[arg-type]
+    assert plan.arms and len({arm.key for arm in plan.arms}) == len(plan.arms)
+    for arm in plan.arms:
+        RunSettings(out=tmp_path, **arm.settings).validate()  # type: ignore[arg-type]
+
+
+def test_a_training_experiment_writes_parseable_runs(quick_report: Path) -> None:
+    name = "fig5"
     rows = list(csv.DictReader((quick_report / name / "runs.csv").open()))
     assert rows, name
     for row in rows:
