@@ -202,7 +202,7 @@ def cmd_chief(args: argparse.Namespace) -> int:
         run_id=settings.run_id,
         workers=[str(k) for k in range(settings.workers)],
         layout=shared_layout(settings),
-        scheme=settings.scheme,
+        scheme=settings.federation_scheme(),
         max_rounds=settings.max_rounds,
         aggregator=settings.aggregation,
         quorum=settings.quorum,
@@ -212,6 +212,7 @@ def cmd_chief(args: argparse.Namespace) -> int:
         settings=shared_settings(
             env=settings.env, fleet_seed=settings.fleet_seed, fleet_profile=settings.fleet_profile,
             preset=settings.preset, overrides=settings.overrides, scheme=settings.scheme,
+            scheme_params=settings.scheme_params,
         ),
     )  # fmt: skip
     if settings.out is None:
@@ -273,6 +274,7 @@ def cmd_worker(args: argparse.Namespace) -> int:
         settings.overrides,
         fleet_profile=settings.fleet_profile,
         scheme=settings.scheme,
+        scheme_params=settings.scheme_params,
     )
     config = worker_config(settings)
     checkpoints = worker_checkpoint_dir(settings.out, settings.worker_id)

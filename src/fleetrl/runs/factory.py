@@ -34,5 +34,5 @@ def make_learner(spec: WorkerSpec) -> Learner:
     n_actions = int(env.action_space.n)  # type: ignore[attr-defined]
     agent = PPOAgent(obs_dim, n_actions, config, seed=spec.worker_seed)
     criterion = CompletionCriterion(env_spec.completion_threshold)
-    keep_learning = get_scheme(spec.scheme).stays_after_completion
+    keep_learning = get_scheme(spec.scheme, **spec.scheme_params).stays_after_completion
     return Learner(env, agent, criterion, seed=spec.worker_seed, keep_learning=keep_learning)

@@ -27,7 +27,6 @@ from fleetrl.agent.ppo import PPOAgent
 from fleetrl.envs.catalog import get_env_spec
 from fleetrl.federation.chief import Chief
 from fleetrl.federation.runner import ChiefSummary, run_chief
-from fleetrl.federation.schemes import get_scheme
 from fleetrl.runs.fleet import Fleet, ThreadFleet, follow
 from fleetrl.runs.live import LiveView
 from fleetrl.runs.processes import ProcessFleet
@@ -80,6 +79,7 @@ def worker_specs(settings: RunSettings, device_url: str | None, run_id: str) -> 
             device_url=device_url,
             device_run_id=run_id,
             scheme=settings.scheme,
+            scheme_params=dict(settings.scheme_params),
         )
         for k in range(settings.units)
     }
@@ -93,7 +93,7 @@ def shared_layout(settings: LearningSettings) -> list[tuple[str, tuple[int, ...]
     n_actions = int(env.action_space.n)  # type: ignore[attr-defined]
     env.close()
     agent = PPOAgent(obs_dim, n_actions, settings.ppo(), seed=0)
-    return list(get_scheme(settings.scheme).layout(agent))
+    return list(settings.federation_scheme().layout(agent))
 
 
 def train(settings: RunSettings) -> dict[str, Any]:
@@ -206,12 +206,13 @@ def train_federated(
         layout=shared_layout(settings),
         max_rounds=settings.max_rounds,
         aggregator=settings.aggregation,
-        scheme=settings.scheme,
+        scheme=settings.federation_scheme(),
         quorum=settings.quorum,
         round_timeout=settings.round_timeout,
         settings=shared_settings(
             env=settings.env, fleet_seed=settings.fleet_seed, fleet_profile=settings.fleet_profile,
             preset=settings.preset, overrides=settings.overrides, scheme=settings.scheme,
+            scheme_params=settings.scheme_params,
         ),
     )  # fmt: skip
     make_transport, fleet_for = transports(settings, url, specs, run_id)
