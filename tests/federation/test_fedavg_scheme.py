@@ -115,8 +115,10 @@ def test_the_checkpoint_keeps_the_scheme_and_who_completed() -> None:
 
 
 def test_unknown_scheme_names_the_choices() -> None:
-    with pytest.raises(ValueError, match="unknown federation scheme 'fedvag' \\(choose paper or fedavg\\)"):
+    with pytest.raises(
+        ValueError, match=r"unknown federation scheme .fedvag. \(choose paper, fedavg, fedavgm or fedadam\)"
+    ):
         get_scheme("fedvag")
     with pytest.raises(ValueError, match="unknown federation scheme"):
         fedavg_chief().__class__(run_id=RUN, workers=("1",), layout=LAYOUT, max_rounds=1, scheme="x")
-    assert set(SCHEMES) == {"paper", "fedavg"}
+    assert set(SCHEMES) == {"paper", "fedavg", "fedavgm", "fedadam"}
