@@ -3,16 +3,18 @@
 from __future__ import annotations
 
 from collections.abc import Mapping
+from pathlib import Path
 
 import numpy as np
 import pytest
 
 from fleetrl.federation.aggregation import get_aggregator
 from fleetrl.federation.chief import Chief
-from fleetrl.federation.chief_state import chief_from_state, chief_to_state
+from fleetrl.federation.chief_state import chief_to_state
 from fleetrl.federation.messages import Message, encode
 from fleetrl.federation.schemes import RoundAnswer, RoundContext, Scheme, get_scheme
 from fleetrl.federation.schemes.fedavg import FedAvgScheme
+from fleetrl.runs.checkpoints import ChiefCheckpoint
 
 RUN = "opt"
 MEMBERS = ("1", "2")
@@ -87,14 +89,13 @@ def test_server_lr_one_without_momentum_is_fedavg_bit_for_bit(rule: str) -> None
 
 
 @pytest.mark.parametrize("name", ["fedavgm", "fedadam"])
-def test_a_chief_restored_from_its_checkpoint_continues_identically(name: str) -> None:
+def test_a_chief_restored_from_its_checkpoint_continues_identically(name: str, tmp_path: Path) -> None:
     layout = [("w", (2,))]
     params = {"momentum": 0.9} if name == "fedavgm" else {"server_lr": 0.05}
 
-    def chief() -> Chief:
-        return Chief(
-            run_id=RUN, workers=MEMBERS, layout=layout, max_rounds=9, scheme=get_scheme(name, **params)
-        )
+    def chief(**changes: float) -> Chief:
+        scheme = get_scheme(name, **(params | changes))
+        return Chief(run_id=RUN, workers=MEMBERS, layout=layout, max_rounds=9, scheme=scheme)
 
     def play(boss: Chief, rnd: int) -> np.ndarray:
         out = None
@@ -111,9 +112,12 @@ def test_a_chief_restored_from_its_checkpoint_continues_identically(name: str) -
     straight = chief()
     for rnd in (1, 2, 3):
         play(straight, rnd)
-    fields, tensors = chief_to_state(straight)
-    assert {"scheme.x", "scheme.v"} <= set(tensors)
-    resumed = chief_from_state(fields, tensors, now=0.0)
+    assert {"scheme.x", "scheme.v"} <= set(chief_to_state(straight)[1])
+    store = ChiefCheckpoint(tmp_path)
+    store.save(straight)
+    with pytest.raises(ValueError, match="scheme_params: checkpoint"):
+        store.load(now=0.0, expect=chief(server_lr=0.5))
+    resumed = store.load(now=0.0, expect=chief())
     assert resumed.scheme.params() == straight.scheme.params()
     for rnd in (4, 5):
         np.testing.assert_array_equal(play(resumed, rnd), play(straight, rnd))
