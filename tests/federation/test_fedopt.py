@@ -130,6 +130,8 @@ def test_a_chief_restored_from_its_checkpoint_continues_identically(name: str, t
         ("fedavgm", {"server_lr": 0}, "server_lr = 0.0: must be > 0"),
         ("fedavgm", {"server_lr": "fast"}, "server_lr = 'fast': expected float"),
         ("fedavgm", {"optimizer": "sgd"}, "optimizer 'sgd': choose momentum or adam"),
+        ("fedavgm", {"beta1": 0.5}, "beta1: not a parameter of the momentum optimizer"),
+        ("fedadam", {"momentum": 0.5}, "momentum: not a parameter of the adam optimizer"),
         ("fedadam", {"tau": -1}, "tau = -1.0: must be > 0"),
         ("fedadam", {"beta2": 1.5}, r"beta2 = 1.5: must be in \[0, 1\)"),
         ("fedadam", {"lr": 0.1}, r"scheme 'fedadam' has no parameter\(s\) lr \(its parameters: beta1"),

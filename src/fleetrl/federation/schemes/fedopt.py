@@ -30,15 +30,20 @@ OPTIMIZERS = ("momentum", "adam")
 """the server optimisers"""
 
 
+OWN_PARAMETERS = {"momentum": {"momentum": 0.0}, "adam": {"beta1": 0.9, "beta2": 0.99, "tau": 1e-3}}
+"""each optimiser's own parameters and their defaults (another optimiser's are refused, not ignored)"""
+
+
 class FedAvgMScheme(FedAvgScheme):
     """Model averaging whose average is a pseudo-gradient for a server optimiser (momentum by default).
 
     :param optimizer: ``momentum`` (FedAvgM) or ``adam`` (FedAdam).
     :param server_lr: η_s, the server learning rate (default 1.0 for momentum, 0.01 for adam).
-    :param momentum: β of ``momentum``, in [0, 1) (0 with η_s = 1: fedavg).
-    :param beta1: β₁ of ``adam``, in [0, 1).
-    :param beta2: β₂ of ``adam``, in [0, 1).
-    :param tau: τ of ``adam``, the adaptivity (> 0; larger is closer to momentum SGD).
+    :param momentum: β of ``momentum``, in [0, 1) (default 0; 0 with η_s = 1 is fedavg).
+    :param beta1: β₁ of ``adam``, in [0, 1) (default 0.9).
+    :param beta2: β₂ of ``adam``, in [0, 1) (default 0.99).
+    :param tau: τ of ``adam``, the adaptivity (> 0, default 0.001; larger is closer to momentum SGD).
+    :raises ValueError: an unknown optimiser, a value out of range, or a parameter of another optimiser.
     """
 
     name = "fedavgm"
@@ -53,28 +58,30 @@ class FedAvgMScheme(FedAvgScheme):
         *,
         optimizer: str | None = None,
         server_lr: float | None = None,
-        momentum: float = 0.0,
-        beta1: float = 0.9,
-        beta2: float = 0.99,
-        tau: float = 1e-3,
+        momentum: float | None = None,
+        beta1: float | None = None,
+        beta2: float | None = None,
+        tau: float | None = None,
     ) -> None:
         self.optimizer = self.default_optimizer if optimizer is None else optimizer
         if self.optimizer not in OPTIMIZERS:
             raise ValueError(f"optimizer {self.optimizer!r}: choose {' or '.join(OPTIMIZERS)}")
+        given = {"momentum": momentum, "beta1": beta1, "beta2": beta2, "tau": tau}
+        own = OWN_PARAMETERS[self.optimizer]
+        foreign = sorted(k for k, v in given.items() if v is not None and k not in own)
+        if foreign:
+            raise ValueError(f"{', '.join(foreign)}: not a parameter of the {self.optimizer} optimizer")
+        values = {k: float(default if (v := given[k]) is None else v) for k, default in own.items()}
         self.server_lr = self.default_server_lr[self.optimizer] if server_lr is None else float(server_lr)
-        self.momentum, self.beta1, self.beta2, self.tau = (
-            float(momentum),
-            float(beta1),
-            float(beta2),
-            float(tau),
-        )
         if not (np.isfinite(self.server_lr) and self.server_lr > 0):
             raise ValueError(f"server_lr = {self.server_lr!r}: must be > 0")
         for key in ("momentum", "beta1", "beta2"):
-            if not 0.0 <= getattr(self, key) < 1.0:
-                raise ValueError(f"{key} = {getattr(self, key)!r}: must be in [0, 1)")
-        if not self.tau > 0:
-            raise ValueError(f"tau = {self.tau!r}: must be > 0")
+            if key in values and not 0.0 <= values[key] < 1.0:
+                raise ValueError(f"{key} = {values[key]!r}: must be in [0, 1)")
+        if "tau" in values and not values["tau"] > 0:
+            raise ValueError(f"tau = {values['tau']!r}: must be > 0")
+        self.hyper: dict[str, float] = values
+        """the optimiser's own parameters (``momentum``, or ``beta1``, ``beta2``, ``tau``)"""
         self.x: np.ndarray | None = None
         """the global model (None until the first round closes)"""
         self.moments: dict[str, np.ndarray] = {}
@@ -82,15 +89,7 @@ class FedAvgMScheme(FedAvgScheme):
 
     def params(self) -> dict[str, Any]:
         """Every parameter the optimiser reads, defaults filled in (so equal settings give equal maps)."""
-        if self.optimizer == "momentum":
-            return {"optimizer": "momentum", "server_lr": self.server_lr, "momentum": self.momentum}
-        return {
-            "optimizer": "adam",
-            "server_lr": self.server_lr,
-            "beta1": self.beta1,
-            "beta2": self.beta2,
-            "tau": self.tau,
-        }
+        return {"optimizer": self.optimizer, "server_lr": self.server_lr, **self.hyper}
 
     def combine(self, answers: Mapping[str, Message], context: RoundContext) -> RoundAnswer:
         """fedavg's answer, but carrying x after one server step with Δ = aggregate − x."""
@@ -117,15 +116,16 @@ class FedAvgMScheme(FedAvgScheme):
         """x after one step (float64 arithmetic, float32 state)."""
         x64 = x.astype(np.float64)
         delta = aggregate.astype(np.float64) - x64
+        h = self.hyper
         if self.optimizer == "momentum":
-            v = self.momentum * self.moments["v"].astype(np.float64) + delta
+            v = h["momentum"] * self.moments["v"].astype(np.float64) + delta
             self.moments["v"] = v.astype(np.float32)
             step = v
         else:
-            m = self.beta1 * self.moments["m"].astype(np.float64) + (1.0 - self.beta1) * delta
-            v = self.beta2 * self.moments["v"].astype(np.float64) + (1.0 - self.beta2) * delta**2
+            m = h["beta1"] * self.moments["m"].astype(np.float64) + (1.0 - h["beta1"]) * delta
+            v = h["beta2"] * self.moments["v"].astype(np.float64) + (1.0 - h["beta2"]) * delta**2
             self.moments["m"], self.moments["v"] = m.astype(np.float32), v.astype(np.float32)
-            step = m / (np.sqrt(v) + self.tau)
+            step = m / (np.sqrt(v) + h["tau"])
         return np.asarray(x64 + self.server_lr * step, np.float32)
 
     def state(self) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
