@@ -21,7 +21,13 @@ from fleetrl.transport.local import LocalBus
 RUN = "shared"
 LAYOUT = [("w", (2,))]
 CHIEF_SETTINGS = shared_settings(
-    env="qube", fleet_seed=0, fleet_profile="table2", preset="standard", overrides={}, scheme="paper"
+    env="qube",
+    fleet_seed=0,
+    fleet_profile="table2",
+    preset="standard",
+    overrides={},
+    scheme="paper",
+    scheme_params={},
 )
 
 
@@ -37,6 +43,7 @@ def join(worker: str, **changes: object) -> bytes:
         "preset": "standard",
         "overrides": {},
         "scheme": "paper",
+        "scheme_params": {},
     } | changes
     settings = shared_settings(**values)  # type: ignore[arg-type]
     return encode(Message("join", RUN, worker, 1, settings=settings), layout=LAYOUT)
@@ -64,6 +71,7 @@ def test_equal_settings_give_equal_text_whatever_the_order_of_the_overrides() ->
         preset="paper",
         overrides={"lr": 0.1, "k": 2},
         scheme="paper",
+        scheme_params={},
     )
     b = shared_settings(
         env="qube",
@@ -72,8 +80,31 @@ def test_equal_settings_give_equal_text_whatever_the_order_of_the_overrides() ->
         preset="paper",
         overrides={"k": 2, "lr": 0.1},
         scheme="paper",
+        scheme_params={},
     )
     assert a == b and a["overrides"] == '{"k":2,"lr":0.1}' and a["fleet_seed"] == "3"
+
+
+def test_the_scheme_params_are_the_schemes_own_with_its_defaults_filled_in() -> None:
+    def params(**given: object) -> str:
+        values = dict(CHIEF_SETTINGS_ARGS, scheme="fedavgm", scheme_params=given)
+        return shared_settings(**values)["scheme_params"]  # type: ignore[arg-type]
+
+    assert (
+        params()
+        == params(momentum=0, server_lr=1)
+        == ('{"momentum":0.0,"optimizer":"momentum","server_lr":1.0}')
+    )
+    assert params(momentum=0.9) != params()
+
+
+CHIEF_SETTINGS_ARGS: dict[str, object] = {
+    "env": "qube",
+    "fleet_seed": 0,
+    "fleet_profile": "table2",
+    "preset": "standard",
+    "overrides": {},
+}
 
 
 def test_the_welcome_carries_the_chiefs_settings() -> None:
@@ -107,6 +138,18 @@ def test_a_worker_whose_settings_differ_is_refused_at_join_and_its_messages_reje
     late = c.receive_bytes(gradient("2"), topic_worker="2", now=0.0)
     assert [e.reason for e in late.events] == [Reason.REFUSED] and late.outgoing == ()
     assert c.round == 1 and c.answered == ("1",)  # the refused worker's gradient entered nothing
+
+
+def test_a_worker_whose_scheme_params_differ_is_refused_naming_them() -> None:
+    ours = shared_settings(**CHIEF_SETTINGS_ARGS, scheme="fedavgm", scheme_params={"momentum": 0.9})  # type: ignore[arg-type]
+    c = Chief(run_id=RUN, workers=("1", "2"), layout=LAYOUT, max_rounds=5, settings=ours)
+    theirs = shared_settings(**CHIEF_SETTINGS_ARGS, scheme="fedavgm", scheme_params={"momentum": 0.5})  # type: ignore[arg-type]
+    step = c.receive_bytes(
+        encode(Message("join", RUN, "2", 1, settings=theirs), layout=LAYOUT), topic_worker="2", now=0.0
+    )
+    (refusal,) = step.outgoing
+    assert refusal.type == "refused" and refusal.detail.startswith("setting 'scheme_params' differs")
+    assert '"momentum":0.9' in refusal.detail and '"momentum":0.5' in refusal.detail
 
 
 def test_a_matching_join_is_accepted_once_and_lifts_a_refusal() -> None:
@@ -154,6 +197,7 @@ def test_a_worker_with_another_scheme_or_preset_stops_with_the_chiefs_reason(
         "preset": "standard",
         "overrides": {},
         "scheme": "paper",
+        "scheme_params": {},
     } | change
     worker = FederatedWorker(
         learner, bus.client(), run_id=RUN, worker_id="1", max_rounds=5, reply_timeout=10,

@@ -4,16 +4,16 @@ import json
 from typing import Any
 
 
-def parse_overrides(items: list[str]) -> dict[str, Any]:
+def parse_overrides(items: list[str], flag: str = "--set") -> dict[str, Any]:
     """Turn ``["clip_eps=0.2", "normalise_advantages=true"]`` into a dict of JSON-typed values.
 
-    A value that is not JSON (e.g. ``tanh``) is kept as a string.
+    A value that is not JSON (e.g. ``tanh``) is kept as a string; ``flag`` names the option in errors.
     """
     result: dict[str, Any] = {}
     for item in items:
         key, sep, raw = item.partition("=")
         if not sep or not key.strip():
-            raise ValueError(f"--set takes KEY=VALUE, got {item!r}")
+            raise ValueError(f"{flag} takes KEY=VALUE, got {item!r}")
         try:
             value: Any = json.loads(raw)
         except json.JSONDecodeError:

@@ -203,7 +203,7 @@ def cmd_chief(args: argparse.Namespace) -> int:
         workers=[str(k) for k in range(settings.workers)],
         layout=shared_layout(settings),
         steps_per_round=exchanges_per_round(settings),
-        scheme=settings.scheme,
+        scheme=settings.federation_scheme(),
         max_rounds=settings.max_rounds,
         aggregator=settings.aggregation,
         quorum=settings.quorum,
@@ -213,6 +213,7 @@ def cmd_chief(args: argparse.Namespace) -> int:
         settings=shared_settings(
             env=settings.env, fleet_seed=settings.fleet_seed, fleet_profile=settings.fleet_profile,
             preset=settings.preset, overrides=settings.overrides, scheme=settings.scheme,
+            scheme_params=settings.scheme_params,
         ),
     )  # fmt: skip
     if settings.out is None:
@@ -274,6 +275,7 @@ def cmd_worker(args: argparse.Namespace) -> int:
         settings.overrides,
         fleet_profile=settings.fleet_profile,
         scheme=settings.scheme,
+        scheme_params=settings.scheme_params,
     )
     config = worker_config(settings)
     checkpoints = worker_checkpoint_dir(settings.out, settings.worker_id)

@@ -47,7 +47,16 @@ def add_learning_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--scheme",
         default=None,
-        help="federated: paper (default; gradient sharing + model transfer) or fedavg (model averaging)",
+        help="federated: paper (default; gradient sharing + model transfer), fedavg (model averaging), "
+        "fedavgm or fedadam (fedavg with a server optimiser)",
+    )
+    p.add_argument(
+        "--scheme-param",
+        dest="scheme_params",
+        action="append",
+        default=None,
+        metavar="KEY=VALUE",
+        help="one parameter of the scheme, e.g. --scheme-param momentum=0.9 (repeatable; all roles agree)",
     )
     p.add_argument(
         "--set",
@@ -119,6 +128,7 @@ def settings_from_args(cls: type[S], args: argparse.Namespace) -> S:
 
     file_values: dict[str, Any] = {} if args.config is None else load_toml(args.config)
     flags = {k: v for k, v in vars(args).items() if k not in NOT_SETTINGS}
-    if flags.get("overrides") is not None:
-        flags["overrides"] = parse_overrides(flags["overrides"])
+    for table, flag in (("overrides", "--set"), ("scheme_params", "--scheme-param")):
+        if flags.get(table) is not None:
+            flags[table] = parse_overrides(flags[table], flag)
     return build(cls, file_values, flags, source=str(args.config or ""))

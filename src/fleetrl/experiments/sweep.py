@@ -25,15 +25,16 @@ log = logging.getLogger(__name__)
 
 
 def train_args(settings: Mapping[str, Any]) -> list[str]:
-    """``fleetrl train`` arguments giving ``settings`` (RunSettings field → value; ``overrides`` → --set)."""
-    from fleetrl.runs.setting_values import flag
+    """``fleetrl train`` arguments giving ``settings`` (RunSettings field → value; a table such as
+    ``overrides`` → one ``--set KEY=VALUE`` per key)."""
+    from fleetrl.runs.setting_values import TABLE_FLAGS, flag
 
     args: list[str] = []
     for name, value in settings.items():
-        if name == "overrides":
-            for key, override in value.items():
-                text = override if isinstance(override, str) else json.dumps(override)
-                args += ["--set", f"{key}={text}"]
+        if name in TABLE_FLAGS:
+            for key, item in value.items():
+                text = item if isinstance(item, str) else json.dumps(item)
+                args += [TABLE_FLAGS[name], f"{key}={text}"]
         elif isinstance(value, bool):
             raise ValueError(f"setting {name}: a switch cannot be an arm's setting")
         else:

@@ -1,6 +1,7 @@
 """Chief and worker of Algorithms 1 and 2, the federation schemes, aggregation, and the wire format.
 
-* :mod:`.schemes` — one scheme per module (``paper``, ``fedavg``) behind one interface (``Scheme``);
+* :mod:`.schemes` — one scheme per module (``paper``, ``fedavg``, ``fedavgm``/``fedadam``) behind one
+  interface (``Scheme``);
 * :mod:`.chief` — the chief as a pure state machine; :mod:`.chief_state` — its checkpointable state;
 * :mod:`.runner` — the chief's loop over a transport; :mod:`.worker` — the worker's protocol and loop;
 * :mod:`.rounds` — a round's record and the learner protocols; :mod:`.events` — the roles' events;

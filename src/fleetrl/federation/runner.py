@@ -136,12 +136,14 @@ def run_chief(
         # after subscribing: workers may send once they see it
         transport.announce(own_status, status(ONLINE))
         members = ",".join(chief.members)
+        params = " ".join(f"{k}={v}" for k, v in chief.scheme.params().items())
         log.info(
-            "chief of run %s online: W={%s}, M=%d, scheme %s, %s",
+            "chief of run %s online: W={%s}, M=%d, scheme %s%s, %s",
             run_id,
             members,
             chief.max_rounds,
             chief.scheme.name,
+            f" ({params})" if params else "",
             chief.aggregator_name,
         )
         if first_step is not None:

@@ -34,7 +34,7 @@ def make_learner(spec: WorkerSpec) -> Learner:
     obs_dim = int(env.observation_space.shape[0])  # type: ignore[index]
     n_actions = int(env.action_space.n)  # type: ignore[attr-defined]
     agent = PPOAgent(obs_dim, n_actions, config, seed=spec.worker_seed)
-    scheme = get_scheme(spec.scheme)
+    scheme = get_scheme(spec.scheme, **spec.scheme_params)
     if scheme.shared_start:  # every worker from the same initial network: the run's, not its own
         agent.set_model_parameters(PPOAgent(obs_dim, n_actions, config, seed=spec.seed).model_parameters())
     criterion = CompletionCriterion(env_spec.completion_threshold)

@@ -24,7 +24,6 @@ from typing import Any
 from fleetrl.envs.catalog import get_env_spec
 from fleetrl.federation.chief import Chief
 from fleetrl.federation.runner import ChiefSummary, run_chief
-from fleetrl.federation.schemes import get_scheme
 from fleetrl.runs.factory import probe_agent
 from fleetrl.runs.fleet import Fleet, ThreadFleet, follow
 from fleetrl.runs.live import LiveView
@@ -78,6 +77,7 @@ def worker_specs(settings: RunSettings, device_url: str | None, run_id: str) -> 
             device_url=device_url,
             device_run_id=run_id,
             scheme=settings.scheme,
+            scheme_params=dict(settings.scheme_params),
         )
         for k in range(settings.units)
     }
@@ -86,12 +86,12 @@ def worker_specs(settings: RunSettings, device_url: str | None, run_id: str) -> 
 def shared_layout(settings: LearningSettings) -> list[tuple[str, tuple[int, ...]]]:
     """Names and shapes of what the run's scheme shares for this env and preset (the scheme's
     :meth:`~fleetrl.federation.schemes.Scheme.layout`): the chief validates every message with it."""
-    return list(get_scheme(settings.scheme).layout(probe_agent(settings.env, settings.ppo())))
+    return list(settings.federation_scheme().layout(probe_agent(settings.env, settings.ppo())))
 
 
 def exchanges_per_round(settings: LearningSettings) -> int:
     """The chief's ``steps_per_round``: 1, or the optimisation steps of an update for a per-step scheme."""
-    return get_scheme(settings.scheme).exchanges_per_round(probe_agent(settings.env, settings.ppo()))
+    return settings.federation_scheme().exchanges_per_round(probe_agent(settings.env, settings.ppo()))
 
 
 def train(settings: RunSettings) -> dict[str, Any]:
@@ -205,12 +205,13 @@ def train_federated(
         steps_per_round=exchanges_per_round(settings),
         max_rounds=settings.max_rounds,
         aggregator=settings.aggregation,
-        scheme=settings.scheme,
+        scheme=settings.federation_scheme(),
         quorum=settings.quorum,
         round_timeout=settings.round_timeout,
         settings=shared_settings(
             env=settings.env, fleet_seed=settings.fleet_seed, fleet_profile=settings.fleet_profile,
             preset=settings.preset, overrides=settings.overrides, scheme=settings.scheme,
+            scheme_params=settings.scheme_params,
         ),
     )  # fmt: skip
     make_transport, fleet_for = transports(settings, url, specs, run_id)

@@ -12,6 +12,7 @@ from typing import Protocol
 
 from fleetrl.agent.learner import Learner
 from fleetrl.federation import worker as federation_worker
+from fleetrl.federation.schemes import get_scheme
 from fleetrl.federation.signing import FleetKey
 from fleetrl.federation.worker import FederatedWorker, RoundFigures, WorkerSummary
 from fleetrl.runs.checkpoints import WorkerCheckpoint
@@ -130,7 +131,7 @@ def train_federated(
         key=key,
         start_round=start_round,
         on_round_done=None if store is None else lambda next_round: store.save(learner, next_round),
-        scheme=spec.scheme,
+        scheme=get_scheme(spec.scheme, **spec.scheme_params),
         settings=spec_shared_settings(spec),
     )
     try:

@@ -34,11 +34,13 @@ class SettingError(ValueError):
 
 NEGATED_FLAGS = {"live": "--no-live"}
 """settings whose flag switches them off (the key ``live = false``, the flag ``--no-live``)"""
+TABLE_FLAGS = {"overrides": "--set", "scheme_params": "--scheme-param"}
+"""table-valued settings whose repeatable ``KEY=VALUE`` flag has another name than the table"""
 
 
 def flag(name: str) -> str:
     """The command-line flag of setting ``name`` (``round_timeout`` → ``--round-timeout``)."""
-    return NEGATED_FLAGS.get(name, "--" + name.replace("_", "-"))
+    return NEGATED_FLAGS.get(name) or TABLE_FLAGS.get(name) or "--" + name.replace("_", "-")
 
 
 def label(name: str) -> str:

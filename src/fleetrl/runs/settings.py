@@ -21,7 +21,7 @@ from typing import Any, get_type_hints
 from fleetrl.agent.config import PPOConfig, get_preset
 from fleetrl.envs.catalog import get_env_spec
 from fleetrl.federation.aggregation import get_aggregator
-from fleetrl.federation.schemes import Granularity, get_scheme
+from fleetrl.federation.schemes import Granularity, Scheme, get_scheme
 from fleetrl.runs.setting_values import (
     SettingError,
     check_readable_file,
@@ -91,23 +91,32 @@ class LearningSettings:
     """the paper's M: the most rounds per worker (a round is one episode, or with the paper-code preset
     the episodes that fill the memory)"""
     scheme: str = "paper"
-    """federated: ``paper`` (Algorithms 1 and 2) or ``fedavg`` (:mod:`fleetrl.federation.schemes`)"""
+    """federated: ``paper`` (Algorithms 1 and 2), ``fedavg``, ``fedavgm``, ``fedadam`` or ``pergrad``
+    (:mod:`fleetrl.federation.schemes`)"""
+    scheme_params: dict[str, Any] = field(default_factory=dict)
+    """the scheme's parameters (``--scheme-param KEY=VALUE``; the ``[scheme_params]`` table); validation
+    fills in the scheme's defaults, so equal schemes have equal tables"""
     overrides: dict[str, Any] = field(default_factory=dict)
     """PPO config fields that replace the preset's (``--set KEY=VALUE``; the ``[overrides]`` table)"""
 
     def validate_learning(self) -> None:
-        """Env, preset, scheme, M and every PPO override (name, type, range)."""
+        """Env, preset, scheme and its parameters, M and every PPO override (name, type, range)."""
         env = as_setting_error("env", get_env_spec, self.env)
         self.fleet_profile = as_setting_error("fleet_profile", env.resolve_fleet_profile, self.fleet_profile)
         as_setting_error("preset", get_preset, self.preset)
         as_setting_error("scheme", get_scheme, self.scheme)
+        self.scheme_params = as_setting_error("scheme_params", self.federation_scheme).params()
         if self.max_rounds < 1:
             raise SettingError(f"{label('max_rounds')} = {self.max_rounds}: must be at least 1")
         self.overrides = self._typed_overrides()
         from fleetrl.runs.factory import probe_agent  # torch: only once the cheap checks passed
 
-        scheme = get_scheme(self.scheme)
+        scheme = self.federation_scheme()
         as_setting_error("scheme", scheme.exchanges_per_round, probe_agent(self.env, self.ppo()))
+
+    def federation_scheme(self) -> Scheme:
+        """A new scheme object of the run (its name and parameters); ValueError naming a bad one."""
+        return get_scheme(self.scheme, **self.scheme_params)
 
     def _typed_overrides(self) -> dict[str, Any]:
         hints = get_type_hints(PPOConfig)
@@ -214,7 +223,7 @@ class RunSettings(LearningSettings, RoundRules, BrokerLogin):
         choose("mode", self.mode, MODES)
         choose("transport", self.transport, TRANSPORTS)
         choose("device_link", self.device_link, DEVICE_LINKS)
-        if self.mode == "individual" and self.scheme != "paper":
+        if self.mode == "individual" and (self.scheme != "paper" or self.scheme_params):
             raise SettingError(f"--scheme {self.scheme} is a federation scheme: it needs --mode federated")
         self.validate_rounds()
         check_scheme_quorum(self.scheme, self.quorum)
@@ -247,9 +256,13 @@ class RunSettings(LearningSettings, RoundRules, BrokerLogin):
 
     def result_settings(self) -> dict[str, Any]:
         """Every setting that can change the run's result, as JSON-plain values (the fleet profile's default
-        name and the typed overrides filled in): two runs with equal result settings learn the same."""
+        name, the typed overrides and the scheme's parameters filled in): two runs with equal result settings
+        learn the same. A scheme without parameters (``paper``, ``fedavg``) has no ``scheme_params`` key, as
+        in the records made before schemes had parameters."""
         self.validate_learning()
         values = {k: v for k, v in asdict(self).items() if k not in NOT_RESULT_SETTINGS}
+        if not values["scheme_params"]:
+            del values["scheme_params"]
         plain: dict[str, Any] = json.loads(json.dumps(values, sort_keys=True, default=str))
         return plain
 

@@ -25,8 +25,10 @@ def shared_settings(
     preset: str,
     overrides: Mapping[str, Any],
     scheme: str,
+    scheme_params: Mapping[str, Any],
 ) -> dict[str, str]:
-    """The shared settings of a run as name → value text (validated settings in, so every value is known)."""
+    """The shared settings of a run as name → value text (validated settings in, so every value is known;
+    the scheme's parameters are written as the scheme object gives them, defaults filled in)."""
     return {
         "env": env,
         "fleet_seed": str(int(fleet_seed)),
@@ -34,7 +36,7 @@ def shared_settings(
         "preset": preset,
         "overrides": _canonical(dict(overrides)),
         "scheme": scheme,
-        "scheme_params": _canonical(get_scheme(scheme).params()),
+        "scheme_params": _canonical(get_scheme(scheme, **scheme_params).params()),
     }
 
 
@@ -51,4 +53,5 @@ def spec_shared_settings(spec: WorkerSpec) -> dict[str, str]:
         preset=spec.preset,
         overrides=spec.overrides,
         scheme=spec.scheme,
+        scheme_params=spec.scheme_params,
     )

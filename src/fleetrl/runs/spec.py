@@ -36,7 +36,9 @@ class WorkerSpec:
     fleet_profile: str | None = None
     """the simulated fleet's profile (QUBE; None: the default or a unit type with one fleet)"""
     scheme: str = "paper"
-    """federated mode: the federation scheme (``paper`` or ``fedavg``, :mod:`fleetrl.federation.schemes`)"""
+    """federated mode: the federation scheme (a name in :data:`fleetrl.federation.schemes.SCHEMES`)"""
+    scheme_params: dict[str, Any] = field(default_factory=dict)
+    """the scheme's parameters (``--scheme-param``)"""
 
     def to_json(self) -> str:
         """Serialise for a child process's command line."""

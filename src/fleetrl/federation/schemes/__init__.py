@@ -3,6 +3,7 @@
 * ``paper`` (:mod:`.paper`) — the paper's gradient sharing with model transfer;
 * ``fedavg`` (:mod:`.fedavg`) — whole-model averaging, mature workers stay;
 * ``pergrad`` (:mod:`.pergrad`) — gradients averaged at every optimisation step (DD-PPO style).
+* ``fedavgm``, ``fedadam`` (:mod:`.fedopt`) — fedavg with a server optimiser (momentum, Adam) on the average.
 
 Adding a scheme: write one module here with a :class:`Scheme` subclass, add it to :data:`SCHEMES`, and test it
 on hand-computed arrays in tests/federation/test_schemes.py (no broker). Nothing else changes: the chief, the
@@ -11,7 +12,9 @@ worker, the learner factory and the launcher only call the scheme object.
 
 from __future__ import annotations
 
-from typing import Any
+import inspect
+import types
+from typing import Any, Union, get_args, get_origin, get_type_hints
 
 from fleetrl.federation.schemes.base import (
     COMPLETED,
@@ -22,6 +25,7 @@ from fleetrl.federation.schemes.base import (
     Scheme,
 )
 from fleetrl.federation.schemes.fedavg import FedAvgScheme
+from fleetrl.federation.schemes.fedopt import FedAdamScheme, FedAvgMScheme
 from fleetrl.federation.schemes.paper import PaperScheme
 from fleetrl.federation.schemes.pergrad import PerStepGradientScheme
 
@@ -38,22 +42,55 @@ __all__ = [
 ]
 
 SCHEMES: dict[str, type[Scheme]] = {
-    cls.name: cls for cls in (PaperScheme, FedAvgScheme, PerStepGradientScheme)
+    cls.name: cls for cls in (PaperScheme, FedAvgScheme, FedAvgMScheme, FedAdamScheme, PerStepGradientScheme)
 }
 """Every registered scheme class by name."""
 
 
 def get_scheme(name: str, **params: Any) -> Scheme:
-    """A new scheme object called ``name`` with ``params``; ValueError naming the choices (or the bad
-    parameter) otherwise."""
+    """A new scheme object called ``name`` with ``params``, each typed from the scheme's constructor
+    annotations (an int where a float is expected is taken); ValueError naming the choices, the unknown
+    parameter or the bad value otherwise."""
     try:
         cls = SCHEMES[name]
     except KeyError:
-        raise ValueError(f"unknown federation scheme {name!r} (choose {' or '.join(SCHEMES)})") from None
+        names = list(SCHEMES)
+        choices = ", ".join(names[:-1]) + " or " + names[-1]
+        raise ValueError(f"unknown federation scheme {name!r} (choose {choices})") from None
+    accepted = scheme_parameters(cls)
+    unknown = sorted(set(params) - set(accepted))
+    if unknown:
+        known = ", ".join(sorted(accepted)) or "none"
+        raise ValueError(
+            f"scheme {name!r} has no parameter(s) {', '.join(unknown)} (its parameters: {known})"
+        )
+    typed = {key: _typed(name, key, value, accepted[key]) for key, value in params.items()}
     try:
-        return cls(**params)
-    except TypeError as err:
-        raise ValueError(f"scheme {name!r}: bad parameters {sorted(params)}: {err}") from None
+        return cls(**typed)
+    except ValueError as err:
+        raise ValueError(f"scheme {name!r}: {err}") from None
+
+
+def scheme_parameters(cls: type[Scheme]) -> dict[str, Any]:
+    """The keyword parameters of a scheme class's constructor and their annotated types."""
+    if cls.__init__ is object.__init__:
+        return {}
+    hints = get_type_hints(cls.__init__)
+    names = [p.name for p in inspect.signature(cls.__init__).parameters.values() if p.name != "self"]
+    return {n: hints.get(n, Any) for n in names}
+
+
+def _typed(scheme: str, key: str, value: Any, kind: Any) -> Any:
+    options = get_args(kind) if get_origin(kind) in (Union, types.UnionType) else (kind,)
+    for option in options:
+        if option is Any or (option is type(None) and value is None):
+            return value
+        if option is float and isinstance(value, int | float) and not isinstance(value, bool):
+            return float(value)
+        if option in (int, str, bool) and type(value) is option:
+            return value
+    wanted = " or ".join(getattr(o, "__name__", str(o)) for o in options if o is not type(None))
+    raise ValueError(f"scheme {scheme!r}: {key} = {value!r}: expected {wanted}")
 
 
 def resolve_scheme(scheme: str | Scheme) -> Scheme:
