@@ -379,10 +379,7 @@ class FederatedWorker:
                 log.debug("worker %s: ignoring %s of round %d", self.worker_id, message.type, message.round)
 
     def _record(self, rnd: int, result: RoundOutcome, event: WorkerEvent, peer: str | None) -> None:
-        record = RoundRecord(
-            self.worker_id, rnd, float(result.score), float(result.wma), int(result.steps),
-            float(result.actor_loss), float(result.critic_loss), float(result.entropy), event, peer,
-        )  # fmt: skip
+        record = RoundRecord(self.worker_id, rnd, result, event, peer)
         log.info(
             "worker %s round %d: score %g wma %.1f steps %d actor %.4g critic %.4g entropy %.3f: %s",
             self.worker_id, rnd, record.score, record.wma, record.steps,
