@@ -1,18 +1,21 @@
 """The worker's state machine without threads, transport or clock: rounds, resends, stale and later answers,
-``done``, refusal, timeouts, resume and the per-step exchange."""
+``done``, refusal, timeouts, resume and the per-step exchange; and the runner over an in-process chief."""
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 import pytest
 
+from fleetrl.federation.chief import Chief
 from fleetrl.federation.events import WorkerEvent
-from fleetrl.federation.messages import Message
+from fleetrl.federation.messages import Message, encode
 from fleetrl.federation.rounds import RoundRecord, WorkerSummary, resume_round
 from fleetrl.federation.schemes import resolve_scheme
+from fleetrl.federation.topics import chief_topic, worker_of_topic
+from fleetrl.federation.worker import FederatedWorker
 from fleetrl.federation.worker_actions import (
     Announce,
     ApplyAverage,
@@ -30,6 +33,7 @@ from fleetrl.federation.worker_actions import (
     WorkerStep,
 )
 from fleetrl.federation.worker_machine import WorkerMachine
+from fleetrl.transport.base import Received, Will
 
 RUN = "machine-run"
 FAKE_LAYOUT: list[tuple[str, tuple[int, ...]]] = [("trunk.weight", (4, 3)), ("head.bias", (3,))]
@@ -261,3 +265,75 @@ def test_done_or_a_later_step_mid_round_ends_without_a_record() -> None:
     assert sent.published[0].type == "parameters"
     m.receive(chief("average", 3, step=2, contributors=("2",)), now=0.0)
     assert m.summary is not None and (m.summary.rounds, m.summary.reason) == (2, "out of step with the fleet")
+
+
+# ---- the runner, over a chief in the same thread ----
+
+
+@dataclass
+class LoopbackTransport:
+    """A transport whose broker is a :class:`Chief` in the same thread; ``receive`` advances a fake clock."""
+
+    chief: Chief
+    now: list[float] = field(default_factory=lambda: [0.0])
+    inbox: list[Received] = field(default_factory=list)
+    sent: list[str] = field(default_factory=list)
+    drop_first: int = 0
+    """worker messages lost before the chief sees them"""
+
+    def connect(self, client_id: str, *, will: Will | None = None) -> None:
+        pass
+
+    def subscribe(self, topic_filter: str) -> None:
+        pass
+
+    def publish(self, topic: str, payload: bytes, *, retain: bool = False) -> None:
+        worker = worker_of_topic(RUN, topic)
+        if worker is None:
+            step = self.chief.status("1", payload, retained=retain, now=self.now[0])
+        elif self.drop_first > 0:
+            self.drop_first -= 1
+            return
+        else:
+            step = self.chief.receive_bytes(payload, topic_worker=worker, now=self.now[0])
+        for message in step.outgoing:
+            self.sent.append(message.type)
+            self.inbox.append(Received(chief_topic(RUN), encode(message, layout=self.chief.layout)))
+
+    def announce(self, topic: str, payload: bytes) -> None:
+        self.publish(topic, payload, retain=True)
+
+    def receive(self, timeout: float | None) -> Received | None:
+        if self.inbox:
+            return self.inbox.pop(0)
+        assert timeout is not None, "the worker would wait forever"
+        self.now[0] += timeout
+        return None
+
+    def close(self) -> None:
+        pass
+
+
+def test_the_runner_plays_a_run_over_an_in_process_chief_and_repairs_a_lost_message(
+    fake_learner: Any,
+) -> None:
+    learner = fake_learner(11, complete_at=3)
+    c = Chief(run_id=RUN, workers=["1"], layout=FAKE_LAYOUT, max_rounds=5)
+    transport = LoopbackTransport(c, drop_first=2)  # the join and round 1's gradient are lost
+    got: list[RoundRecord] = []
+    checkpoints: list[int] = []
+    worker = FederatedWorker(
+        learner,
+        transport,  # type: ignore[arg-type]
+        run_id=RUN,
+        worker_id="1",
+        max_rounds=5,
+        on_record=got.append,
+        on_round_done=checkpoints.append,
+        clock=lambda: transport.now[0],
+    )
+    summary = worker.run()
+    assert [r.event for r in got] == [WorkerEvent.GRADIENT, WorkerEvent.GRADIENT, WorkerEvent.TRANSFER_OUT]
+    assert (summary.rounds, summary.finished, learner.rounds) == (3, True, 3)
+    assert checkpoints == [2, 3]
+    assert transport.now[0] >= 5.0  # the lost gradient was re-sent after resend_interval
