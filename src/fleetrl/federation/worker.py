@@ -27,42 +27,51 @@ message (and, before the welcome, its ``online`` status) every ``resend_interval
 answer, so a message lost to a broker restart is repaired; the chief answers a resend for a closed round
 with its answer again. A worker that falls behind (a straggler under a quorum) applies every later answer it
 finds queued and continues at the chief's round.
+
+The rules live in the pure state machine :class:`~fleetrl.federation.worker_machine.WorkerMachine`; this
+module is its runner: the loop, the clock, the transport, and the learner (the machine's actions are executed
+here, on the agent through the scheme).
 """
 
 from __future__ import annotations
 
 import logging
-import math
 import time
+from collections import deque
 from collections.abc import Callable
 from typing import Any
 
-import numpy as np
-
-from fleetrl.federation.events import WorkerEvent
-from fleetrl.federation.messages import Layout, Message, MessageRejected, decode, encode
+from fleetrl.federation.messages import Layout
 from fleetrl.federation.rounds import RoundFigures, RoundOutcome, RoundPlayer, RoundRecord, WorkerSummary
-from fleetrl.federation.schemes import COMPLETED, Granularity, Scheme, resolve_scheme
-from fleetrl.federation.shared_settings import SettingsRefused, SharedSettings, settings_difference
-from fleetrl.federation.signing import FleetKey, status_payload
-from fleetrl.federation.topics import (
-    CHIEF_ID,
-    OFFLINE,
-    ONLINE,
-    chief_topic,
-    status_topic,
-    validate_id,
-    validate_worker_id,
-    worker_topic,
+from fleetrl.federation.schemes import Scheme, resolve_scheme
+from fleetrl.federation.shared_settings import SettingsRefused, SharedSettings
+from fleetrl.federation.signing import FleetKey
+from fleetrl.federation.topics import OFFLINE, validate_id, validate_worker_id
+from fleetrl.federation.worker_actions import (
+    Announce,
+    ApplyAverage,
+    ApplyStep,
+    Checkpoint,
+    ComputeStep,
+    EndUpdate,
+    Finish,
+    PlayRound,
+    Publish,
+    Record,
+    Refused,
+    TakeParameters,
+    TimedOut,
+    WorkerOutput,
 )
+from fleetrl.federation.worker_machine import WorkerMachine
 from fleetrl.transport.base import Transport, Will
 
 __all__ = ["FederatedWorker", "RoundFigures", "RoundOutcome", "RoundPlayer", "RoundRecord", "WorkerSummary"]
 
 log = logging.getLogger(__name__)
 
-ANSWERS = ("average", "transfer", "done")
-"""The chief's answers to a round."""
+MIN_WAIT = 0.001
+"""the shortest wait for a resend or timeout that is due (never a busy loop)"""
 
 
 class FederatedWorker:
@@ -91,6 +100,7 @@ class FederatedWorker:
     :param settings: this worker's shared settings (:mod:`fleetrl.federation.shared_settings`), sent in its
         ``join``; a ``welcome`` carrying others, or the chief's ``refused``, raises
         :class:`~fleetrl.federation.shared_settings.SettingsRefused`.
+    :param clock: the time source handed to the state machine (seconds).
     """
 
     def __init__(
@@ -109,6 +119,7 @@ class FederatedWorker:
         on_round_done: Callable[[int], None] | None = None,
         scheme: str | Scheme = "paper",
         settings: SharedSettings | None = None,
+        clock: Callable[[], float] = time.monotonic,
     ) -> None:
         """Prepare the worker; nothing is sent before :meth:`run`."""
         self.learner = learner
@@ -117,302 +128,134 @@ class FederatedWorker:
         self.worker_id = validate_worker_id(worker_id)
         self.max_rounds = max_rounds
         self.on_record = on_record
-        self.reply_timeout = reply_timeout
-        self.resend_interval = resend_interval
         self.key = key
-        self.start_round = start_round
         self.on_round_done = on_round_done
-        self.incarnation = time.time_ns()
-        """This process's incarnation: newer than any earlier process with the same worker id."""
+        self.clock = clock
         self.scheme = resolve_scheme(scheme)
-        self.per_step = self.scheme.granularity is Granularity.STEP
-        self.settings: dict[str, str] = dict(settings or {})
         self.layout: Layout = list(self.scheme.layout(learner.agent))
-        self._chief_topic = chief_topic(run_id)
-        self._chief_status = status_topic(run_id, CHIEF_ID)
-        self._own_status = status_topic(run_id, worker_id)
-        self._topic = worker_topic(run_id, worker_id)
+        self.machine = WorkerMachine(
+            run_id=self.run_id,
+            worker_id=self.worker_id,
+            max_rounds=max_rounds,
+            layout=self.layout,
+            scheme=self.scheme,
+            settings=settings,
+            key=key,
+            reply_timeout=reply_timeout,
+            resend_interval=resend_interval,
+            start_round=start_round,
+            incarnation=time.time_ns(),
+        )
+        self._queue: deque[WorkerOutput] = deque()
 
     def run(self) -> WorkerSummary:
         """Connect, wait for the chief's welcome, play rounds until finished, M rounds, or ``done``; close."""
+        machine = self.machine
         client_id = f"fleetrl-{self.run_id}-worker-{self.worker_id}"
-        self.transport.connect(client_id, will=Will(self._own_status, self._status(OFFLINE)))
+        self.transport.connect(client_id, will=Will(machine.own_status, machine.status(OFFLINE)))
         try:
-            self.transport.subscribe(self._chief_topic)
-            self.transport.subscribe(self._chief_status)
-            self.transport.announce(self._own_status, self._status(ONLINE))
-            join = Message("join", self.run_id, self.worker_id, 1, settings=self.settings)
-            join_payload = encode(join, layout=self.layout, key=self.key)
-            # retained: a chief that subscribes later (started after this worker) still checks it
-            self.transport.publish(self._topic, join_payload, retain=True)
-            welcome = self._wait_for(
-                lambda m: m.type in ("welcome", "done"), "the chief's welcome", join_payload, announce=True
-            )
-            self._check_settings(welcome)
-            summary = self._rounds(welcome)
-            self.transport.publish(self._own_status, self._status(OFFLINE), retain=True)
+            self.transport.subscribe(machine.chief_topic)
+            self.transport.subscribe(machine.chief_status)
+            self._queue.extend(machine.start(now=self.clock()).outputs)
+            finish = self._drive(Finish)
+            assert isinstance(finish, Finish)
+            summary = finish.summary
+            self.transport.publish(machine.own_status, machine.status(OFFLINE), retain=True)
         finally:
             self.transport.close()
         log.info("worker %s: %s after %d rounds", self.worker_id, summary.reason, summary.rounds)
         return summary
 
-    def _status(self, state: bytes) -> bytes:
-        return status_payload(
-            state, run_id=self.run_id, node=self.worker_id, incarnation=self.incarnation, key=self.key
-        )
+    def _drive(self, *until: type) -> WorkerOutput:
+        """Execute the machine's outputs, feeding it the transport and the clock, until one of the ``until``
+        types comes out (returned, not executed)."""
+        while True:
+            if not self._queue:
+                self._feed()
+                continue
+            output = self._queue.popleft()
+            if isinstance(output, until):
+                return output
+            self._execute(output)
 
-    def _rounds(self, welcome: Message) -> WorkerSummary:
+    def _feed(self) -> None:
+        """Wait for a chief message until the machine's next deadline; hand the machine what came, or the
+        time."""
+        deadline = self.machine.next_deadline()
+        # MIN_WAIT past a resend or timeout, so the tick finds it due; a catch-up (due at once) reads only
+        # what is already queued
+        timeout = None if deadline is None else max(0.0, deadline - self.clock() + MIN_WAIT)
+        received = self.transport.receive(timeout)
+        now = self.clock()
+        if received is None:
+            step = self.machine.tick(now=now)
+        else:
+            step = self.machine.receive_bytes(received.topic, received.payload, now=now)
+        self._queue.extend(step.outputs)
+
+    def _execute(self, output: WorkerOutput) -> None:
         agent = self.learner.agent
-        if welcome.type == "done":
-            return WorkerSummary(self.worker_id, 0, finished=False, reason="run ended")
-        resume = self._resume_round(welcome.round)
-        if welcome.flat is not None and resume is None:  # rejoining: start from θ* (fedavg: the fleet's)
-            self.scheme.take_parameters(agent, welcome.flat)
-        log.info("worker %s: welcomed at round %d (θ* of %s)", self.worker_id, welcome.round, welcome.origin)
-        rnd = welcome.round if resume is None else resume
-        while rnd <= self.max_rounds:
-            if self.per_step:
-                stepped, reply = self._round_by_steps(rnd)
-                if stepped is None:  # the run ended (or went on without us) inside the round
-                    why = "run ended" if reply.type == "done" else "out of step with the fleet"
-                    return WorkerSummary(self.worker_id, rnd - 1, finished=False, reason=why)
-                result = stepped
-                event, peer, leave = self._step_outcome(reply, bool(result.completed))
-            else:
-                result, reply = self._round_then_send(rnd)
-                event, peer, leave = self._apply(reply, bool(result.completed))  # lines 28-31
-            self._record(rnd, result, event, peer)
-            if leave:
-                if reply.type == "average":  # the round in which the scheme's run completed
-                    return WorkerSummary(self.worker_id, rnd, finished=True, reason="every unit completed")
-                reason = "run ended" if event is WorkerEvent.RUN_ENDED else event.value
-                return WorkerSummary(self.worker_id, rnd, finished=reply.type == "transfer", reason=reason)
-            rnd, stop = self._catch_up(reply.round)
-            if stop is not None:
-                return WorkerSummary(self.worker_id, rnd - 1, finished=False, reason=stop)
-            if self.on_round_done is not None:
-                self.on_round_done(rnd)
-        return WorkerSummary(
-            self.worker_id, self.max_rounds, finished=False, reason=f"reached M={self.max_rounds}"
-        )
+        match output:
+            case Publish(topic, payload, retain, _):
+                self.transport.publish(topic, payload, retain=retain)
+            case Announce(topic, payload):
+                self.transport.announce(topic, payload)
+            case TakeParameters(flat):
+                self.scheme.take_parameters(agent, flat)
+            case ApplyAverage(flat, completed, contributed):
+                self.scheme.apply_average(agent, flat, completed=completed, contributed=contributed)
+            case PlayRound():
+                self._play_round()
+            case Record(record):
+                if self.on_record is not None:
+                    self.on_record(record)
+            case Checkpoint(next_round):
+                if self.on_round_done is not None:
+                    self.on_round_done(next_round)
+            case Refused(reason):
+                raise SettingsRefused(reason)
+            case TimedOut(detail):
+                raise TimeoutError(detail)
+            case _:
+                raise AssertionError(f"worker {self.worker_id}: {output} out of turn")
 
-    def _round_then_send(self, rnd: int) -> tuple[RoundOutcome, Message]:
-        """A per-round scheme: play the round (lines 2-24), send what the scheme shares, wait for the
-        answer."""
-        result = self.learner.play_round()
-        kind, flat = self.scheme.outgoing(self.learner.agent, completed=bool(result.completed))  # lines 8, 25
-        payload = self._send(rnd, 0, kind, flat, result)
-        return result, self._wait_for(_answer_for(rnd), f"the chief's answer for round {rnd}", payload)
-
-    def _round_by_steps(self, rnd: int) -> tuple[RoundOutcome | None, Message]:
-        """A per-step scheme: play the episodes, then every optimisation step through the chief (send this
-        worker's gradient of the step, apply the chief's combination); returns the round and the last
-        step's answer, or None and the ``done`` (or later answer) that cut the round short."""
-        answers: list[Message] = []
+    def _play_round(self) -> None:
+        """Play the round the machine asked for and report it (a per-step scheme: every step through the
+        machine, inside the learner's update)."""
+        agent = self.learner.agent
+        if not self.machine.per_step:
+            result = self.learner.play_round()
+            share = self.scheme.outgoing(agent, completed=bool(result.completed))  # lines 8, 25
+            self._queue.extend(self.machine.round_played(result, now=self.clock(), share=share).outputs)
+            return
 
         def update() -> Any:
-            agent = self.learner.agent
-            completed = bool(self.learner.completed)
-            kind = COMPLETED if completed else self.scheme.round_message
-            for k in range(agent.begin_update()):
-                payload = self._send(rnd, k, kind, agent.step_gradients(k), None)
-                what = f"the chief's answer for round {rnd} step {k}"
-                reply = self._wait_for(_answer_for(rnd, k), what, payload)
-                answers.append(reply)
-                if reply.type == "done" or (reply.round, reply.step) != (rnd, k):
-                    raise _LeftTheFleet(reply)
-                if reply.flat is None:
-                    raise AssertionError("decode guarantees tensors for an average")
-                self.scheme.apply_step_answer(agent, reply.flat)
-            return agent.end_update()
+            steps = agent.begin_update()
+            begun = self.machine.update_begun(steps, completed=bool(self.learner.completed), now=self.clock())
+            self._queue.extend(begun.outputs)
+            while True:
+                match self._drive(ComputeStep, ApplyStep, EndUpdate, Finish):
+                    case ComputeStep(k):
+                        flat = agent.step_gradients(k)
+                        self._queue.extend(self.machine.step_computed(k, flat, now=self.clock()).outputs)
+                    case ApplyStep(flat):
+                        self.scheme.apply_step_answer(agent, flat)
+                    case EndUpdate():
+                        return agent.end_update()
+                    case finish:
+                        raise _LeftTheFleet(finish)
 
         try:
             result = self.learner.play_round(update=update)
-        except _LeftTheFleet as left:
-            return None, left.reply
-        return result, answers[-1]
-
-    def _step_outcome(self, reply: Message, completed: bool) -> tuple[WorkerEvent, str | None, bool]:
-        """The round's event for a per-step scheme (every step's answer is applied already)."""
-        if reply.type == "done":
-            return WorkerEvent.RUN_ENDED, None, True
-        event = WorkerEvent.COMPLETED if completed else WorkerEvent(self.scheme.round_message)
-        return event, None, self.worker_id in reply.finished
-
-    def _send(self, rnd: int, step: int, kind: str, flat: np.ndarray, result: RoundOutcome | None) -> bytes:
-        metrics: dict[str, float] = {}
-        if result is not None:
-            metrics = {"score": float(result.score), "wma": float(result.wma), "steps": float(result.steps)}
-        message = Message(
-            kind, self.run_id, self.worker_id, rnd, step=step, flat=flat, metrics=_finite(metrics)
-        )
-        payload = encode(message, layout=self.layout, key=self.key)
-        self.transport.publish(self._topic, payload)
-        log.debug("worker %s: sent %s for round %d step %d", self.worker_id, kind, rnd, step)
-        return payload
-
-    def _resume_round(self, welcome_round: int) -> int | None:
-        """The round a worker resumed from a checkpoint plays first; None: rejoin at the welcome's round."""
-        if self.start_round is None:
-            return None
-        if welcome_round < self.start_round:
-            raise RuntimeError(
-                f"worker {self.worker_id}: the chief is at round {welcome_round} but this worker's "
-                f"checkpoint is at round {self.start_round}: the chief lost rounds (resume it from its "
-                "checkpoint)"
-            )
-        if welcome_round <= self.start_round + 1:
-            # One round ahead: the message this worker sent before it died closed that round. Playing it again
-            # gives the same message (same state, same RNGs); the chief answers the copy with that round's
-            # answer, and the worker continues exactly as if it had never stopped.
-            return self.start_round
-        log.warning(
-            "worker %s: rounds %d-%d were played without this worker; rejoining at round %d",
-            self.worker_id, self.start_round, welcome_round - 1, welcome_round,
-        )  # fmt: skip
-        return None
-
-    def _apply(self, reply: Message, completed: bool) -> tuple[WorkerEvent, str | None, bool]:
-        """Act on the chief's answer; return (event, peer, whether this worker stops)."""
-        if reply.type == "done":
-            return WorkerEvent.RUN_ENDED, None, True
-        if reply.type == "transfer" and self.worker_id in reply.finished:
-            if reply.origin == self.worker_id:
-                return WorkerEvent.TRANSFER_OUT, None, True
-            return WorkerEvent.FINISHED, reply.origin, True
-        if reply.flat is None:
-            raise AssertionError("decode guarantees tensors for average and transfer")
-        if reply.type == "transfer":
-            self.scheme.take_parameters(self.learner.agent, reply.flat)  # line 29
-            return WorkerEvent.TRANSFER_IN, reply.origin, False
-        # the round may have closed without us (a straggler, or a resend): the fleet's update all the same
-        contributed = self.worker_id in reply.contributors
-        self.scheme.apply_average(
-            self.learner.agent, reply.flat, completed=completed, contributed=contributed
-        )
-        if not contributed:
-            event = WorkerEvent.LATE
-        else:
-            event = WorkerEvent.COMPLETED if completed else WorkerEvent(self.scheme.round_message)
-        return event, None, self.worker_id in reply.finished
-
-    def _catch_up(self, last: int) -> tuple[int, str | None]:
-        """Apply answers of later rounds already queued (the chief moved on without us); return (the next
-        round to play, why to stop or None)."""
-        while (received := self.transport.receive(0)) is not None:
-            message = self._decode(received.topic, received.payload)
-            if (
-                message is None
-                or message.type not in ANSWERS
-                or (message.type != "done" and message.round <= last)
-            ):
-                continue
-            if message.type == "done":
-                return message.round + 1, "run ended"
-            agent = self.learner.agent
-            if message.flat is not None and message.type == "transfer":
-                self.scheme.take_parameters(agent, message.flat)
-            elif message.flat is not None:
-                self.scheme.apply_average(agent, message.flat, completed=False, contributed=False)
-            log.info(
-                "worker %s: caught up with the %s of round %d", self.worker_id, message.type, message.round
-            )
-            last = message.round
-        return last + 1, None
-
-    def _check_settings(self, welcome: Message) -> None:
-        """SettingsRefused if the chief's welcome carries shared settings that differ from this worker's."""
-        why = settings_difference(welcome.settings, self.settings) if welcome.settings else None
-        if why is not None:
-            self._refused(why)
-
-    def _refused(self, why: str) -> None:
-        raise SettingsRefused(
-            f"worker {self.worker_id}: refused by the chief of run {self.run_id!r}: {why}; start it with the"
-            " chief's settings"
-        )
-
-    def _decode(self, topic: str, payload: bytes) -> Message | None:
-        if topic == self._chief_status:
-            if payload.startswith(OFFLINE):
-                log.warning("worker %s: the chief went offline; waiting", self.worker_id)
-            return None
-        try:
-            message = decode(
-                payload, run_id=self.run_id, known_senders=(CHIEF_ID,), layout=self.layout, key=self.key
-            )
-        except MessageRejected as exc:
-            log.warning("worker %s: rejected a chief message: %s", self.worker_id, exc)
-            return None
-        if message.type == "refused" and self.worker_id in message.finished:
-            self._refused(message.detail)
-        return None if message.type == "refused" else message
-
-    def _wait_for(
-        self, wanted: Callable[[Message], bool], what: str, resend: bytes, *, announce: bool = False
-    ) -> Message:
-        """The first chief message ``wanted`` accepts; re-send ``resend`` on the worker topic (and, if
-        ``announce``, the retained ``online`` status first) every ``resend_interval`` s; TimeoutError after
-        ``reply_timeout`` s."""
-        deadline = None if self.reply_timeout is None else time.monotonic() + self.reply_timeout
-        next_send = None if self.resend_interval is None else time.monotonic() + self.resend_interval
-        while True:
-            received = self.transport.receive(_remaining(_earliest(deadline, next_send)))
-            if received is None:
-                now = time.monotonic()
-                if deadline is not None and now >= deadline:
-                    raise TimeoutError(
-                        f"worker {self.worker_id}: nothing from the chief of run {self.run_id!r} for "
-                        f"{self.reply_timeout:g} s (--reply-timeout) while waiting for {what}"
-                    )
-                if next_send is not None and now >= next_send:
-                    log.info("worker %s: nothing yet; re-sending while waiting for %s", self.worker_id, what)
-                    if announce:
-                        self.transport.publish(self._own_status, self._status(ONLINE), retain=True)
-                    self.transport.publish(self._topic, resend, retain=announce)
-                    next_send = now + (self.resend_interval or 0.0)
-                continue
-            message = self._decode(received.topic, received.payload)
-            if message is not None and wanted(message):
-                return message
-            if message is not None:
-                log.debug("worker %s: ignoring %s of round %d", self.worker_id, message.type, message.round)
-
-    def _record(self, rnd: int, result: RoundOutcome, event: WorkerEvent, peer: str | None) -> None:
-        record = RoundRecord(
-            self.worker_id, rnd, float(result.score), float(result.wma), int(result.steps),
-            float(result.actor_loss), float(result.critic_loss), float(result.entropy), event, peer,
-        )  # fmt: skip
-        log.info(
-            "worker %s round %d: score %g wma %.1f steps %d actor %.4g critic %.4g entropy %.3f: %s",
-            self.worker_id, rnd, record.score, record.wma, record.steps,
-            record.actor_loss, record.critic_loss, record.entropy, event.describe(peer),
-        )  # fmt: skip
-        if self.on_record is not None:
-            self.on_record(record)
-
-
-def _answer_for(rnd: int, step: int = 0) -> Callable[[Message], bool]:
-    """Accepts the chief's answer for round ``rnd`` (step ``step``) or a later one (we missed ours), or
-    ``done``."""
-    return lambda m: m.type == "done" or (m.type in ANSWERS and (m.round, m.step) >= (rnd, step))
+        except _LeftTheFleet as left:  # the run ended (or went on without us) inside the round
+            self._queue.appendleft(left.finish)
+            return
+        self._queue.extend(self.machine.round_played(result, now=self.clock()).outputs)
 
 
 class _LeftTheFleet(Exception):
     """A per-step round cannot go on: the chief ended the run, or answered a later step than ours."""
 
-    def __init__(self, reply: Message) -> None:
-        super().__init__(reply.type)
-        self.reply = reply
-
-
-def _earliest(a: float | None, b: float | None) -> float | None:
-    return b if a is None else a if b is None else min(a, b)
-
-
-def _remaining(deadline: float | None) -> float | None:
-    return None if deadline is None else max(0.0, deadline - time.monotonic())
-
-
-def _finite(metrics: dict[str, float]) -> dict[str, float]:
-    return {k: v for k, v in metrics.items() if math.isfinite(v)}
+    def __init__(self, finish: WorkerOutput) -> None:
+        super().__init__("left the fleet")
+        self.finish = finish

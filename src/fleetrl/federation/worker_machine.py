@@ -1,0 +1,408 @@
+"""The worker of Algorithm 2 as a pure state machine: chief messages, time and the learner's reports in →
+messages to publish and actions for the runner out (:mod:`fleetrl.federation.worker_actions`).
+
+No transport, no threads, no clock: every input takes ``now`` (seconds, any monotonic origin), and
+:meth:`WorkerMachine.next_deadline` says when :meth:`WorkerMachine.tick` is due. The runner
+(:class:`fleetrl.federation.worker.FederatedWorker`) owns the learner: the machine never touches the agent.
+It asks for what the agent must do (:class:`~fleetrl.federation.worker_actions.PlayRound`,
+:class:`~fleetrl.federation.worker_actions.ComputeStep`, ``ApplyAverage`` …); the runner does it, on the
+agent through the scheme, and reports back (:meth:`round_played`, :meth:`update_begun`,
+:meth:`step_computed`).
+Of the scheme the machine reads only its granularity and its round message's name.
+
+The rules (docs/protocol.md):
+
+* Join: :meth:`start` announces ``online`` and publishes a retained ``join`` with the shared settings; until
+  the ``welcome`` (or ``done``) it re-sends both every ``resend_interval``. A ``welcome`` whose settings
+  differ, or a ``refused`` naming this worker (at any time), ends in
+  :class:`~fleetrl.federation.worker_actions.Refused`.
+* Resume (``start_round``): a welcome for that round or the next keeps the learner's state and plays
+  ``start_round``; a later one rejoins like a fresh worker (taking θ*); an earlier one is an error.
+* A round: play it, send what the scheme shares, wait for the chief's answer for that round (or a later
+  one's, or ``done``); earlier answers are stale and ignored. The answer is applied, the round recorded;
+  then every later answer already queued is applied (catch-up: the chief moved on without us) before the
+  next round. The round's message is re-sent every ``resend_interval``; nothing for ``reply_timeout``
+  seconds ends in :class:`~fleetrl.federation.worker_actions.TimedOut`.
+* A per-step scheme exchanges each of the update's K steps like a round, keyed (round, step); ``done`` or a
+  later step's answer inside the round ends the worker's run without a record.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+from collections.abc import Callable
+from dataclasses import dataclass
+from enum import Enum, auto
+
+import numpy as np
+
+from fleetrl.federation import worker_actions as act
+from fleetrl.federation.events import WorkerEvent
+from fleetrl.federation.messages import Layout, Message, MessageRejected, decode, encode
+from fleetrl.federation.rounds import (
+    ANSWERS,
+    RoundOutcome,
+    RoundRecord,
+    WorkerSummary,
+    answer_for,
+    resume_round,
+)
+from fleetrl.federation.schemes import COMPLETED, Granularity, Scheme
+from fleetrl.federation.shared_settings import SharedSettings, settings_difference
+from fleetrl.federation.signing import FleetKey, status_payload
+from fleetrl.federation.topics import CHIEF_ID, OFFLINE, ONLINE, chief_topic, status_topic, worker_topic
+from fleetrl.federation.worker_actions import WorkerOutput, WorkerStep
+
+__all__ = ["Phase", "WorkerMachine"]
+
+log = logging.getLogger(__name__)
+
+NOTHING = WorkerStep()
+
+
+class Phase(Enum):
+    """Where the worker is: waiting for the chief (``WELCOME``, ``ANSWER``, ``STEP_ANSWER``), for the runner
+    (``PLAYING`` a round, a per-step update's ``COMPUTING`` a step, ``STEPS_DONE``: finishing the round), or
+    applying later answers already queued (``CATCH_UP``)."""
+
+    NEW = auto()
+    WELCOME = auto()
+    PLAYING = auto()
+    COMPUTING = auto()
+    STEP_ANSWER = auto()
+    STEPS_DONE = auto()
+    ANSWER = auto()
+    CATCH_UP = auto()
+    DONE = auto()
+
+
+@dataclass
+class _Wait:
+    """Waiting for a chief message: what is wanted, what is re-sent, the deadlines."""
+
+    wanted: Callable[[Message], bool]
+    what: str
+    resend: act.Publish
+    """what was sent (retained: the join, re-sent with the ``online`` status)"""
+    deadline: float | None
+    next_send: float | None
+
+
+class WorkerMachine:
+    """Algorithm 2 for one worker, without its learner or its transport.
+
+    :param run_id: the run (validated by the caller).
+    :param worker_id: this worker's id.
+    :param max_rounds: M.
+    :param layout: what the scheme shares of the agent (``scheme.layout(agent)``).
+    :param scheme: the federation scheme (read for its granularity and round message).
+    :param settings: the shared settings sent in the ``join``.
+    :param key: the fleet key: sign what is sent, accept only what is signed with it.
+    :param reply_timeout: seconds to wait for the chief (at start, each round, each step); None: forever.
+    :param resend_interval: seconds without an answer before re-sending; None: never.
+    :param start_round: resuming from a checkpoint: the first round the learner's state has not played.
+    :param incarnation: this process's incarnation (newer than any earlier one with the same id).
+    """
+
+    def __init__(
+        self,
+        *,
+        run_id: str,
+        worker_id: str,
+        max_rounds: int,
+        layout: Layout,
+        scheme: Scheme,
+        settings: SharedSettings | None = None,
+        key: FleetKey | None = None,
+        reply_timeout: float | None = 600.0,
+        resend_interval: float | None = 5.0,
+        start_round: int | None = None,
+        incarnation: int = 0,
+    ) -> None:
+        """Prepare the machine; nothing happens before :meth:`start`."""
+        self.run_id = run_id
+        self.worker_id = worker_id
+        self.max_rounds = max_rounds
+        self.layout: Layout = list(layout)
+        self.round_message = scheme.round_message
+        self.per_step = scheme.granularity is Granularity.STEP
+        self.settings: dict[str, str] = dict(settings or {})
+        self.key = key
+        self.reply_timeout = reply_timeout
+        self.resend_interval = resend_interval
+        self.start_round = start_round
+        self.incarnation = incarnation
+        self.chief_topic = chief_topic(run_id)
+        self.chief_status = status_topic(run_id, CHIEF_ID)
+        self.own_status = status_topic(run_id, worker_id)
+        self.topic = worker_topic(run_id, worker_id)
+        self.phase = Phase.NEW
+        self.round = 0
+        """the round being played (or waited for)"""
+        self.summary: WorkerSummary | None = None
+        self._wait: _Wait | None = None
+        self._outcome: RoundOutcome | None = None
+        self._steps = 0
+        self._step = 0
+        self._step_kind = ""
+        self._last_answer: Message | None = None
+        self._caught_up_to = 0
+
+    # ---- inputs ----
+
+    def status(self, state: bytes) -> bytes:
+        """This worker's signed live status ``state`` (``online``/``offline``; the runner's last will)."""
+        return status_payload(
+            state, run_id=self.run_id, node=self.worker_id, incarnation=self.incarnation, key=self.key
+        )
+
+    def start(self, *, now: float) -> WorkerStep:
+        """Announce ``online`` and send the retained ``join``; wait for the welcome."""
+        self.phase = Phase.WELCOME
+        join = Message("join", self.run_id, self.worker_id, 1, settings=self.settings)
+        online = WorkerStep((act.Announce(self.own_status, self.status(ONLINE)),))
+        welcome = "the chief's welcome"
+        return online + self._send(join, lambda m: m.type in ("welcome", "done"), welcome, now, retain=True)
+
+    def receive_bytes(self, topic: str, payload: bytes, *, now: float) -> WorkerStep:
+        """A payload from the chief's topic or its status topic."""
+        if topic == self.chief_status:
+            if payload.startswith(OFFLINE):
+                log.warning("worker %s: the chief went offline; waiting", self.worker_id)
+            return NOTHING
+        try:
+            message = decode(
+                payload, run_id=self.run_id, known_senders=(CHIEF_ID,), layout=self.layout, key=self.key
+            )
+        except MessageRejected as exc:
+            log.warning("worker %s: rejected a chief message: %s", self.worker_id, exc)
+            return NOTHING
+        return self.receive(message, now=now)
+
+    def receive(self, message: Message, *, now: float) -> WorkerStep:
+        """A decoded chief message."""
+        if self.phase is Phase.DONE:
+            return NOTHING
+        if message.type == "refused":
+            return self._refused(message.detail) if self.worker_id in message.finished else NOTHING
+        if self.phase is Phase.CATCH_UP:
+            return self._catch_up(message)
+        if self._wait is None or not self._wait.wanted(message):
+            log.debug("worker %s: ignoring %s of round %d", self.worker_id, message.type, message.round)
+            return NOTHING
+        self._wait = None
+        if self.phase is Phase.WELCOME:
+            return self._welcomed(message)
+        if self.phase is Phase.STEP_ANSWER:
+            return self._step_answered(message)
+        return self._answered(message)
+
+    def tick(self, *, now: float) -> WorkerStep:
+        """Time passed with nothing received: re-send, time out, or (catching up) nothing more is queued."""
+        if self.phase is Phase.CATCH_UP:
+            nxt = self._caught_up_to + 1
+            return WorkerStep((act.Checkpoint(nxt),)) + self._begin_round(nxt)
+        wait = self._wait
+        if wait is None:
+            return NOTHING
+        if wait.deadline is not None and now >= wait.deadline:
+            self.phase = Phase.DONE
+            self._wait = None
+            return WorkerStep((act.TimedOut(
+                f"worker {self.worker_id}: nothing from the chief of run {self.run_id!r} for "
+                f"{self.reply_timeout:g} s (--reply-timeout) while waiting for {wait.what}"
+            ),))  # fmt: skip
+        if wait.next_send is None or now < wait.next_send:
+            return NOTHING
+        log.info("worker %s: nothing yet; re-sending while waiting for %s", self.worker_id, wait.what)
+        wait.next_send = now + (self.resend_interval or 0.0)
+        out: tuple[WorkerOutput, ...] = (wait.resend,)
+        if wait.resend.retain:
+            out = (act.Publish(self.own_status, self.status(ONLINE), True), *out)
+        return WorkerStep(out)
+
+    def next_deadline(self) -> float | None:
+        """When :meth:`tick` is due (None: only a message or a report moves the machine)."""
+        if self.phase is Phase.CATCH_UP:
+            return -math.inf  # due at once: only what is already queued is read
+        if self._wait is None:
+            return None
+        times = [t for t in (self._wait.deadline, self._wait.next_send) if t is not None]
+        return min(times, default=None)
+
+    @property
+    def finished(self) -> bool:
+        """The worker's run is over (finished, refused or timed out)."""
+        return self.phase is Phase.DONE
+
+    # ---- reports of the runner ----
+
+    def round_played(
+        self, outcome: RoundOutcome, *, now: float, share: tuple[str, np.ndarray] | None = None
+    ) -> WorkerStep:
+        """The round was played; ``share``: what a per-round scheme sends (``scheme.outgoing``)."""
+        if self.per_step:
+            if self.phase is not Phase.STEPS_DONE or self._last_answer is None:
+                raise RuntimeError(f"worker {self.worker_id}: round {self.round} ended without its steps")
+            return self._step_round_over(outcome, self._last_answer)
+        if self.phase is not Phase.PLAYING or share is None:
+            raise RuntimeError(f"worker {self.worker_id}: round {self.round} reported out of turn")
+        kind, flat = share
+        metrics = {"score": float(outcome.score), "wma": float(outcome.wma), "steps": float(outcome.steps)}
+        finite = {k: v for k, v in metrics.items() if math.isfinite(v)}
+        self._outcome, self.phase = outcome, Phase.ANSWER
+        message = Message(kind, self.run_id, self.worker_id, self.round, flat=flat, metrics=finite)
+        return self._send(message, answer_for(self.round), f"the chief's answer for round {self.round}", now)
+
+    def update_begun(self, steps: int, *, completed: bool, now: float) -> WorkerStep:
+        """A per-step scheme's update has ``steps`` steps; ``completed``: the criterion holds."""
+        if self.phase is not Phase.PLAYING:
+            raise RuntimeError(f"worker {self.worker_id}: an update began out of turn")
+        self._steps, self._step = steps, 0
+        self._step_kind = COMPLETED if completed else self.round_message
+        if steps == 0:
+            self.phase = Phase.STEPS_DONE
+            return WorkerStep((act.EndUpdate(),))
+        self.phase = Phase.COMPUTING
+        return WorkerStep((act.ComputeStep(0),))
+
+    def step_computed(self, step: int, flat: np.ndarray, *, now: float) -> WorkerStep:
+        """The gradients of step ``step``: send them and wait for the chief's answer."""
+        if self.phase is not Phase.COMPUTING or step != self._step:
+            raise RuntimeError(f"worker {self.worker_id}: step {step} reported out of turn")
+        self.phase = Phase.STEP_ANSWER
+        message = Message(self._step_kind, self.run_id, self.worker_id, self.round, step=step, flat=flat)
+        what = f"the chief's answer for round {self.round} step {step}"
+        return self._send(message, answer_for(self.round, step), what, now)
+
+    # ---- the rules ----
+
+    def _welcomed(self, welcome: Message) -> WorkerStep:
+        if welcome.type == "done":
+            return self._finish(WorkerSummary(self.worker_id, 0, finished=False, reason="run ended"))
+        why = settings_difference(welcome.settings, self.settings) if welcome.settings else None
+        if why is not None:
+            return self._refused(why)
+        resume = resume_round(self.start_round, welcome.round, self.worker_id)
+        out: tuple[WorkerOutput, ...] = ()
+        if welcome.flat is not None and resume is None:  # rejoining: start from θ* (fedavg: the fleet's)
+            out = (act.TakeParameters(welcome.flat),)
+        log.info("worker %s: welcomed at round %d (θ* of %s)", self.worker_id, welcome.round, welcome.origin)
+        return WorkerStep(out) + self._begin_round(welcome.round if resume is None else resume)
+
+    def _begin_round(self, rnd: int) -> WorkerStep:
+        if rnd > self.max_rounds:
+            reason = f"reached M={self.max_rounds}"
+            return self._finish(WorkerSummary(self.worker_id, self.max_rounds, finished=False, reason=reason))
+        self.round, self.phase, self._last_answer = rnd, Phase.PLAYING, None
+        return WorkerStep((act.PlayRound(rnd),))
+
+    def _answered(self, reply: Message) -> WorkerStep:
+        """A per-round scheme: act on the chief's answer (Algorithm 2, lines 28-31)."""
+        if self._outcome is None:
+            raise AssertionError("an answer is awaited only after the round was played")
+        completed = bool(self._outcome.completed)
+        if reply.type == "done":
+            return self._round_over(self._outcome, reply, WorkerEvent.RUN_ENDED, None, True)
+        if reply.type == "transfer" and self.worker_id in reply.finished:
+            if reply.origin == self.worker_id:
+                return self._round_over(self._outcome, reply, WorkerEvent.TRANSFER_OUT, None, True)
+            return self._round_over(self._outcome, reply, WorkerEvent.FINISHED, reply.origin, True)
+        if reply.flat is None:
+            raise AssertionError("decode guarantees tensors for average and transfer")
+        if reply.type == "transfer":  # line 29
+            taken = WorkerStep((act.TakeParameters(reply.flat),))
+            return taken + self._round_over(
+                self._outcome, reply, WorkerEvent.TRANSFER_IN, reply.origin, False
+            )
+        # the round may have closed without us (a straggler, or a resend): the fleet's update all the same
+        contributed = self.worker_id in reply.contributors
+        applied = WorkerStep((act.ApplyAverage(reply.flat, completed=completed, contributed=contributed),))
+        if not contributed:
+            event = WorkerEvent.LATE
+        else:
+            event = WorkerEvent.COMPLETED if completed else WorkerEvent(self.round_message)
+        return applied + self._round_over(self._outcome, reply, event, None, self.worker_id in reply.finished)
+
+    def _step_answered(self, reply: Message) -> WorkerStep:
+        if reply.type == "done" or (reply.round, reply.step) != (self.round, self._step):
+            # the run ended (or went on without us) inside the round
+            why = "run ended" if reply.type == "done" else "out of step with the fleet"
+            return self._finish(WorkerSummary(self.worker_id, self.round - 1, finished=False, reason=why))
+        if reply.flat is None:
+            raise AssertionError("decode guarantees tensors for an average")
+        self._last_answer = reply
+        self._step += 1
+        if self._step < self._steps:
+            self.phase = Phase.COMPUTING
+            return WorkerStep((act.ApplyStep(reply.flat), act.ComputeStep(self._step)))
+        self.phase = Phase.STEPS_DONE
+        return WorkerStep((act.ApplyStep(reply.flat), act.EndUpdate()))
+
+    def _step_round_over(self, outcome: RoundOutcome, reply: Message) -> WorkerStep:
+        """A per-step scheme's round (every step's answer is applied already)."""
+        if reply.type == "done":
+            return self._round_over(outcome, reply, WorkerEvent.RUN_ENDED, None, True)
+        event = WorkerEvent.COMPLETED if outcome.completed else WorkerEvent(self.round_message)
+        return self._round_over(outcome, reply, event, None, self.worker_id in reply.finished)
+
+    def _round_over(
+        self, outcome: RoundOutcome, reply: Message, event: WorkerEvent, peer: str | None, leave: bool
+    ) -> WorkerStep:
+        """Record the round; stop if this worker leaves, else catch up with what is queued."""
+        record = RoundRecord(self.worker_id, self.round, outcome, event, peer)
+        log.info(
+            "worker %s round %d: score %g wma %.1f steps %d actor %.4g critic %.4g entropy %.3f: %s",
+            self.worker_id, record.round, record.score, record.wma, record.steps,
+            record.actor_loss, record.critic_loss, record.entropy, event.describe(peer),
+        )  # fmt: skip
+        recorded = WorkerStep((act.Record(record),))
+        if leave:
+            rnd = self.round
+            if reply.type == "average":  # the round in which the scheme's run completed
+                summary = WorkerSummary(self.worker_id, rnd, finished=True, reason="every unit completed")
+            else:
+                reason = "run ended" if event is WorkerEvent.RUN_ENDED else event.value
+                summary = WorkerSummary(self.worker_id, rnd, finished=reply.type == "transfer", reason=reason)
+            return recorded + self._finish(summary)
+        self.phase, self._caught_up_to = Phase.CATCH_UP, reply.round
+        return recorded
+
+    def _catch_up(self, message: Message) -> WorkerStep:
+        """Apply an answer of a later round already queued (the chief moved on without us)."""
+        if message.type not in ANSWERS or (message.type != "done" and message.round <= self._caught_up_to):
+            return NOTHING
+        if message.type == "done":
+            return self._finish(WorkerSummary(self.worker_id, message.round, False, "run ended"))
+        log.info("worker %s: caught up with the %s of round %d", self.worker_id, message.type, message.round)
+        self._caught_up_to = message.round
+        if message.flat is None:
+            return NOTHING
+        if message.type == "transfer":
+            return WorkerStep((act.TakeParameters(message.flat),))
+        return WorkerStep((act.ApplyAverage(message.flat, completed=False, contributed=False),))
+
+    # ---- helpers ----
+
+    def _send(
+        self, message: Message, wanted: Callable[[Message], bool], what: str, now: float, retain: bool = False
+    ) -> WorkerStep:
+        """Publish ``message`` on the worker topic, then wait for what ``wanted`` accepts, re-sending it."""
+        log.debug("worker %s: sending %s of round %d", self.worker_id, message.type, message.round)
+        publish = act.Publish(self.topic, encode(message, layout=self.layout, key=self.key), retain, message)
+        deadline = None if self.reply_timeout is None else now + self.reply_timeout
+        next_send = None if self.resend_interval is None else now + self.resend_interval
+        self._wait = _Wait(wanted, what, publish, deadline, next_send)
+        return WorkerStep((publish,))
+
+    def _finish(self, summary: WorkerSummary) -> WorkerStep:
+        self.phase, self._wait, self.summary = Phase.DONE, None, summary
+        return WorkerStep((act.Finish(summary),))
+
+    def _refused(self, why: str) -> WorkerStep:
+        self.phase, self._wait = Phase.DONE, None
+        return WorkerStep((act.Refused(
+            f"worker {self.worker_id}: refused by the chief of run {self.run_id!r}: {why}; start it with the"
+            " chief's settings"
+        ),))  # fmt: skip

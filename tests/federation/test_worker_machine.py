@@ -1,0 +1,339 @@
+"""The worker's state machine without threads, transport or clock: rounds, resends, stale and later answers,
+``done``, refusal, timeouts, resume and the per-step exchange; and the runner over an in-process chief."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+import pytest
+
+from fleetrl.federation.chief import Chief
+from fleetrl.federation.events import WorkerEvent
+from fleetrl.federation.messages import Message, encode
+from fleetrl.federation.rounds import RoundRecord, WorkerSummary, resume_round
+from fleetrl.federation.schemes import resolve_scheme
+from fleetrl.federation.topics import chief_topic, worker_of_topic
+from fleetrl.federation.worker import FederatedWorker
+from fleetrl.federation.worker_actions import (
+    Announce,
+    ApplyAverage,
+    ApplyStep,
+    Checkpoint,
+    ComputeStep,
+    EndUpdate,
+    Finish,
+    PlayRound,
+    Publish,
+    Record,
+    Refused,
+    TakeParameters,
+    TimedOut,
+    WorkerStep,
+)
+from fleetrl.federation.worker_machine import WorkerMachine
+from fleetrl.transport.base import Received, Will
+
+RUN = "machine-run"
+FAKE_LAYOUT: list[tuple[str, tuple[int, ...]]] = [("trunk.weight", (4, 3)), ("head.bias", (3,))]
+"""the layout of the shared fake agent (conftest)"""
+FLAT = np.arange(15, dtype=np.float32)
+
+
+@dataclass(frozen=True)
+class Outcome:
+    """What a round reports (the fields of the learner's RoundResult the worker reads)."""
+
+    score: float
+    steps: int
+    wma: float
+    completed: bool
+    actor_loss: float = 0.1
+    critic_loss: float = 0.2
+    entropy: float = 1.0
+
+
+RESULT = Outcome(score=10.0, steps=3, wma=9.0, completed=False)
+DONE_RESULT = Outcome(20.0, 4, 15.0, True, float("nan"), float("nan"), float("nan"))
+
+
+def machine(scheme: str = "paper", **kwargs: Any) -> WorkerMachine:
+    options: dict[str, Any] = {"reply_timeout": 60.0, "resend_interval": 5.0, "max_rounds": 10}
+    options.update(kwargs)
+    return WorkerMachine(
+        run_id=RUN, worker_id="1", layout=FAKE_LAYOUT, scheme=resolve_scheme(scheme), **options
+    )
+
+
+def chief(kind: str, rnd: int, **fields: Any) -> Message:
+    """A message of the chief."""
+    if kind in ("average", "transfer") and "flat" not in fields:
+        fields["flat"] = FLAT
+    return Message(kind, RUN, "chief", rnd, **fields)
+
+
+def welcomed(m: WorkerMachine, rnd: int = 1, **fields: Any) -> WorkerStep:
+    m.start(now=0.0)
+    return m.receive(chief("welcome", rnd, **fields), now=0.0)
+
+
+def played(m: WorkerMachine, result: Outcome = RESULT, now: float = 0.0) -> WorkerStep:
+    return m.round_played(result, now=now, share=("gradient", FLAT))
+
+
+def records(step: WorkerStep) -> list[RoundRecord]:
+    return [o.record for o in step.outputs if isinstance(o, Record)]
+
+
+def test_join_then_a_round_end_to_end() -> None:
+    m = machine()
+    start = m.start(now=0.0)
+    assert isinstance(start.outputs[0], Announce)
+    join = start.outputs[1]
+    assert isinstance(join, Publish) and join.retain and join.message is not None
+    assert join.message.type == "join" and m.next_deadline() == 5.0
+    assert welcomed(machine(), 1).actions == (PlayRound(1),)
+    m.receive(chief("welcome", 1), now=0.0)
+    sent = played(m)
+    assert [(x.type, x.round, x.metrics["score"]) for x in sent.published] == [("gradient", 1, 10.0)]
+    answer = m.receive(chief("average", 1, contributors=("1", "2")), now=1.0)
+    apply, record = answer.actions
+    assert isinstance(apply, ApplyAverage) and apply.contributed and not apply.completed
+    assert isinstance(record, Record) and record.record.event is WorkerEvent.GRADIENT
+    assert record.record.outcome is RESULT and record.record.score == 10.0
+    assert m.next_deadline() == -np.inf  # catch-up: only what is queued
+    assert m.tick(now=1.0).actions == (Checkpoint(2), PlayRound(2))
+
+
+def test_resend_after_the_interval_without_an_answer() -> None:
+    m = machine()
+    m.start(now=0.0)
+    assert m.tick(now=4.9) == WorkerStep()
+    again = m.tick(now=5.0)
+    assert [type(o) for o in again.outputs] == [Publish, Publish]  # the online status, then the join
+    assert all(isinstance(o, Publish) and o.retain for o in again.outputs)
+    m.receive(chief("welcome", 1), now=6.0)
+    sent = played(m, now=10.0)
+    assert m.next_deadline() == 15.0
+    resent = m.tick(now=15.0)
+    original = sent.outputs[0]
+    assert isinstance(original, Publish) and resent.outputs == (original,)
+    assert m.next_deadline() == 20.0
+
+
+def test_a_stale_answer_is_ignored_and_a_late_round_is_applied_as_late() -> None:
+    m = machine()
+    welcomed(m, 3)
+    played(m)
+    assert m.receive(chief("average", 2, contributors=("1",)), now=1.0) == WorkerStep()
+    assert m.receive(chief("welcome", 3), now=1.0) == WorkerStep()
+    answer = m.receive(chief("average", 3, contributors=("2",)), now=2.0)
+    apply = answer.actions[0]
+    assert isinstance(apply, ApplyAverage) and (apply.completed, apply.contributed) == (False, False)
+    assert records(answer)[0].event is WorkerEvent.LATE
+
+
+def test_catch_up_with_later_answers_already_queued() -> None:
+    m = machine()
+    welcomed(m, 1)
+    played(m)
+    m.receive(chief("average", 1, contributors=("1",)), now=1.0)
+    assert m.receive(chief("average", 1, contributors=("1",)), now=1.0) == WorkerStep()  # a resent copy
+    later = m.receive(chief("transfer", 2, origin="3"), now=1.0)
+    assert [type(a) for a in later.actions] == [TakeParameters]
+    avg = m.receive(chief("average", 3, contributors=("2",)), now=1.0)
+    assert [type(a) for a in avg.actions] == [ApplyAverage]
+    assert m.tick(now=1.0).actions == (Checkpoint(4), PlayRound(4))
+
+
+def test_the_answer_for_a_later_round_closes_ours_and_done_while_catching_up_ends() -> None:
+    m = machine()
+    welcomed(m, 1)
+    played(m)
+    answer = m.receive(chief("average", 2, contributors=("2",)), now=1.0)  # we missed round 1's
+    assert records(answer)[0].round == 1 and records(answer)[0].event is WorkerEvent.LATE
+    done = m.receive(chief("done", 4), now=1.0)
+    assert m.summary is not None and done.actions == (Finish(m.summary),)
+    assert (m.summary.rounds, m.summary.reason, m.finished) == (4, "run ended", True)
+
+
+def test_done_while_waiting_for_the_answer_and_for_the_welcome() -> None:
+    m = machine()
+    welcomed(m, 2)
+    played(m)
+    done = m.receive(chief("done", 2), now=1.0)
+    assert records(done)[0].event is WorkerEvent.RUN_ENDED
+    assert m.summary is not None and (m.summary.rounds, m.summary.reason) == (2, "run ended")
+    fresh = machine()
+    fresh.start(now=0.0)
+    assert isinstance(fresh.receive(chief("done", 5), now=0.0).actions[0], Finish)
+    assert fresh.summary is not None and fresh.summary.rounds == 0
+
+
+def test_transfers_out_finished_and_in() -> None:
+    m = machine()
+    welcomed(m)
+    m.round_played(DONE_RESULT, now=0.0, share=("parameters", FLAT))
+    out = m.receive(chief("transfer", 1, origin="1", finished=("1",)), now=1.0)
+    assert records(out)[0].event is WorkerEvent.TRANSFER_OUT and m.summary is not None and m.summary.finished
+    m = machine()
+    welcomed(m)
+    m.round_played(DONE_RESULT, now=0.0, share=("parameters", FLAT))
+    fin = records(m.receive(chief("transfer", 1, origin="0", finished=("0", "1")), now=1.0))[0]
+    assert (fin.event, fin.peer) == (WorkerEvent.FINISHED, "0")
+    m = machine()
+    welcomed(m)
+    played(m)
+    step = m.receive(chief("transfer", 1, origin="2", finished=("2",)), now=1.0)
+    assert isinstance(step.actions[0], TakeParameters) and records(step)[0].peer == "2" and not m.finished
+
+
+def test_refusal_by_the_chief_or_by_the_welcome_s_settings() -> None:
+    m = machine(settings={"env": "cartpole"})
+    m.start(now=0.0)
+    assert m.receive(chief("refused", 1, finished=("2",), detail="not us"), now=0.0) == WorkerStep()
+    refused = m.receive(chief("refused", 1, finished=("1",), detail="env differs"), now=0.0)
+    assert isinstance(refused.actions[0], Refused) and "env differs" in refused.actions[0].reason
+    assert m.finished
+    m = machine(settings={"env": "cartpole"})
+    m.start(now=0.0)
+    step = m.receive(chief("welcome", 1, settings={"env": "qube"}), now=0.0)
+    assert isinstance(step.actions[0], Refused) and "env" in step.actions[0].reason
+
+
+def test_reply_timeout_before_the_welcome_and_in_a_round() -> None:
+    m = machine(reply_timeout=12.0, resend_interval=None)
+    m.start(now=0.0)
+    assert m.next_deadline() == 12.0 and m.tick(now=11.0) == WorkerStep()
+    out = m.tick(now=12.0).actions
+    assert isinstance(out[0], TimedOut) and "welcome" in out[0].detail
+    m = machine(reply_timeout=12.0)
+    welcomed(m, 1)
+    played(m, now=100.0)
+    assert m.tick(now=111.0).actions == ()  # resent twice by now, not timed out
+    assert isinstance(m.tick(now=112.0).actions[0], TimedOut)
+
+
+def test_resume_at_the_welcome_s_round() -> None:
+    assert resume_round(None, 7, "1") is None
+    assert resume_round(5, 5, "1") == 5 and resume_round(5, 6, "1") == 5  # keep the state, replay round 5
+    assert resume_round(5, 9, "1") is None  # rounds were played without it: rejoin
+    with pytest.raises(RuntimeError, match="lost rounds"):
+        resume_round(5, 4, "1")
+    kept = welcomed(machine(start_round=5), 6, flat=FLAT)
+    assert kept.actions == (PlayRound(5),)  # θ* is not taken: the state is the checkpoint's
+    rejoined = welcomed(machine(start_round=5), 9, flat=FLAT)
+    assert [type(a) for a in rejoined.actions] == [TakeParameters, PlayRound]
+    assert rejoined.actions[1] == PlayRound(9)
+    reached = WorkerSummary("1", 4, finished=False, reason="reached M=4")
+    assert welcomed(machine(max_rounds=4), 5).actions == (Finish(reached),)
+
+
+def test_the_per_step_exchange_keyed_by_step() -> None:
+    m = machine("pergrad")
+    assert welcomed(m, 2).actions == (PlayRound(2),)
+    assert m.update_begun(3, completed=False, now=0.0).actions == (ComputeStep(0),)
+    for k in range(3):
+        sent = m.step_computed(k, FLAT, now=0.0)
+        assert [(x.type, x.round, x.step) for x in sent.published] == [("step_gradient", 2, k)]
+        assert m.receive(chief("average", 1, step=k, contributors=("1",)), now=0.0) == WorkerStep()  # stale
+        answer = m.receive(chief("average", 2, step=k, contributors=("1",)), now=0.0)
+        following = ComputeStep(k + 1) if k < 2 else EndUpdate()
+        assert [type(a) for a in answer.actions] == [ApplyStep, type(following)]
+        assert answer.actions[1] == following
+    over = m.round_played(RESULT, now=0.0)
+    assert records(over)[0].event is WorkerEvent.STEP_GRADIENT and records(over)[0].round == 2
+    assert m.tick(now=0.0).actions == (Checkpoint(3), PlayRound(3))
+
+
+def test_done_or_a_later_step_mid_round_ends_without_a_record() -> None:
+    m = machine("pergrad")
+    welcomed(m, 1)
+    m.update_begun(4, completed=False, now=0.0)
+    m.step_computed(0, FLAT, now=0.0)
+    m.receive(chief("average", 1, step=0, contributors=("1",)), now=0.0)
+    m.step_computed(1, FLAT, now=0.0)
+    assert [x.step for x in m.tick(now=5.0).published] == [1]  # the step's gradient, re-sent
+    ended = m.receive(chief("done", 1), now=11.0)
+    assert not records(ended) and m.summary is not None
+    assert (m.summary.rounds, m.summary.reason) == (0, "run ended")
+    m = machine("pergrad")
+    welcomed(m, 3)
+    m.update_begun(4, completed=True, now=0.0)
+    sent = m.step_computed(0, FLAT, now=0.0)
+    assert sent.published[0].type == "parameters"
+    m.receive(chief("average", 3, step=2, contributors=("2",)), now=0.0)
+    assert m.summary is not None and (m.summary.rounds, m.summary.reason) == (2, "out of step with the fleet")
+
+
+# ---- the runner, over a chief in the same thread ----
+
+
+@dataclass
+class LoopbackTransport:
+    """A transport whose broker is a :class:`Chief` in the same thread; ``receive`` advances a fake clock."""
+
+    chief: Chief
+    now: list[float] = field(default_factory=lambda: [0.0])
+    inbox: list[Received] = field(default_factory=list)
+    sent: list[str] = field(default_factory=list)
+    drop_first: int = 0
+    """worker messages lost before the chief sees them"""
+
+    def connect(self, client_id: str, *, will: Will | None = None) -> None:
+        pass
+
+    def subscribe(self, topic_filter: str) -> None:
+        pass
+
+    def publish(self, topic: str, payload: bytes, *, retain: bool = False) -> None:
+        worker = worker_of_topic(RUN, topic)
+        if worker is None:
+            step = self.chief.status("1", payload, retained=retain, now=self.now[0])
+        elif self.drop_first > 0:
+            self.drop_first -= 1
+            return
+        else:
+            step = self.chief.receive_bytes(payload, topic_worker=worker, now=self.now[0])
+        for message in step.outgoing:
+            self.sent.append(message.type)
+            self.inbox.append(Received(chief_topic(RUN), encode(message, layout=self.chief.layout)))
+
+    def announce(self, topic: str, payload: bytes) -> None:
+        self.publish(topic, payload, retain=True)
+
+    def receive(self, timeout: float | None) -> Received | None:
+        if self.inbox:
+            return self.inbox.pop(0)
+        assert timeout is not None, "the worker would wait forever"
+        self.now[0] += timeout
+        return None
+
+    def close(self) -> None:
+        pass
+
+
+def test_the_runner_plays_a_run_over_an_in_process_chief_and_repairs_a_lost_message(
+    fake_learner: Any,
+) -> None:
+    learner = fake_learner(11, complete_at=3)
+    c = Chief(run_id=RUN, workers=["1"], layout=FAKE_LAYOUT, max_rounds=5)
+    transport = LoopbackTransport(c, drop_first=2)  # the join and round 1's gradient are lost
+    got: list[RoundRecord] = []
+    checkpoints: list[int] = []
+    worker = FederatedWorker(
+        learner,
+        transport,  # type: ignore[arg-type]
+        run_id=RUN,
+        worker_id="1",
+        max_rounds=5,
+        on_record=got.append,
+        on_round_done=checkpoints.append,
+        clock=lambda: transport.now[0],
+    )
+    summary = worker.run()
+    assert [r.event for r in got] == [WorkerEvent.GRADIENT, WorkerEvent.GRADIENT, WorkerEvent.TRANSFER_OUT]
+    assert (summary.rounds, summary.finished, learner.rounds) == (3, True, 3)
+    assert checkpoints == [2, 3]
+    assert transport.now[0] >= 5.0  # the lost gradient was re-sent after resend_interval
