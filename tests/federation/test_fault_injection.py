@@ -30,7 +30,10 @@ def test_kill_9_of_a_worker_then_rejoin_with_the_same_id(
     fake_learner: Any, line_process: Callable[[list[str]], Any]
 ) -> None:
     """The run completes; the summary records the dropout; the restarted worker rejoins at the open round."""
-    run_id, rounds = "kill9", 40
+    run_id, rounds = (
+        "kill9",
+        120,
+    )  # after the drop, ~115 rounds × 0.05 s: time for a new process to start and rejoin
     layout = fake_learner(0).agent.actor_layout()
     chief = Chief(run_id=run_id, workers=["1", "2", "3"], layout=layout, max_rounds=rounds)
     events: list[ChiefEvent] = []
