@@ -9,6 +9,7 @@ from fleetrl.federation.aggregation import get_aggregator
 from fleetrl.federation.chief import Chief
 from fleetrl.federation.messages import Message, Reason, encode
 from fleetrl.federation.schemes import COMPLETED, SCHEMES, Granularity, RoundContext, Scheme, get_scheme
+from fleetrl.federation.schemes.base import WrongGranularity
 
 RUN = "r1"
 
@@ -263,3 +264,17 @@ def test_a_per_round_chief_rejects_a_step_and_a_per_step_chief_needs_every_worke
             run_id=RUN, workers=("1", "2"), layout=LAYOUT2, max_rounds=3, scheme="pergrad", steps_per_round=2,
             quorum=0.5, round_timeout=1.0,
         )  # fmt: skip
+
+
+def test_a_method_of_the_other_granularity_is_a_clear_error() -> None:
+    pergrad, paper, agent = get_scheme("pergrad"), get_scheme("paper"), StepAgent()
+    flat = np.zeros(2, np.float32)
+    with pytest.raises(WrongGranularity, match="pergrad sends per step"):
+        pergrad.outgoing(agent, completed=False)
+    with pytest.raises(WrongGranularity, match="pergrad transfers no parameters"):
+        pergrad.take_parameters(agent, flat)
+    with pytest.raises(WrongGranularity, match="pergrad applies its averages per step"):
+        pergrad.apply_average(agent, flat, completed=False, contributed=True)
+    with pytest.raises(WrongGranularity, match="'paper' sends once per round"):
+        paper.apply_step_answer(agent, flat)
+    assert paper.exchanges_per_round(agent) == 1 and agent.stepped == []

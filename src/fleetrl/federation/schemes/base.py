@@ -32,6 +32,11 @@ COMPLETED = "parameters"
 """The message type a worker sends in a round in which its completion criterion holds (every scheme)."""
 
 
+class WrongGranularity(TypeError):
+    """A per-round method was called on a per-step scheme, or the reverse: a bug in the caller (the runner
+    calls each scheme only through the methods of its :class:`Granularity`), never a user's setting."""
+
+
 class Granularity(StrEnum):
     """How often a worker sends: once per round, or once per optimisation step of the round."""
 
@@ -203,7 +208,7 @@ class Scheme(ABC):
 
     def apply_step_answer(self, agent: FederatedAgent, flat: np.ndarray) -> None:
         """A per-step scheme: apply the chief's combination of the workers' gradients of the step."""
-        raise NotImplementedError(f"scheme {self.name!r} sends once per round")
+        raise WrongGranularity(f"scheme {self.name!r} sends once per round: it has no step answers")
 
     # -- chief side ----------------------------------------------------------------------------------------
 

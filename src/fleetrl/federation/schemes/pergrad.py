@@ -28,6 +28,7 @@ from fleetrl.federation.schemes.base import (
     RoundAnswer,
     RoundContext,
     Scheme,
+    WrongGranularity,
     flats,
 )
 
@@ -48,17 +49,17 @@ class PerStepGradientScheme(Scheme):
 
     def outgoing(self, agent: FederatedAgent, *, completed: bool) -> tuple[str, np.ndarray]:
         """Nothing is sent after the round: the steps carried it (the worker never calls this)."""
-        raise NotImplementedError("pergrad sends per step")
+        raise WrongGranularity("pergrad sends per step, nothing after the round")
 
     def take_parameters(self, agent: FederatedAgent, flat: np.ndarray) -> None:
         """No parameters travel in this scheme (its workers never receive a transfer)."""
-        raise NotImplementedError("pergrad transfers no parameters")
+        raise WrongGranularity("pergrad transfers no parameters")
 
     def apply_average(
         self, agent: FederatedAgent, flat: np.ndarray, *, completed: bool, contributed: bool
     ) -> None:
         """Averages arrive per step (:meth:`apply_step_answer`)."""
-        raise NotImplementedError("pergrad applies its averages per step")
+        raise WrongGranularity("pergrad applies its averages per step")
 
     def exchanges_per_round(self, agent: FederatedAgent) -> int:
         """The steps of one update; every step must move the same parameters (one layout on the wire)."""
