@@ -238,3 +238,21 @@ def flats(answers: Mapping[str, Message]) -> list[np.ndarray]:
             raise AssertionError(f"{message.type} from {sender} has no tensors")
         out.append(message.flat)
     return out
+
+
+def average_until_all_completed(
+    answers: Mapping[str, Message], context: RoundContext, *, fleet_model: bool
+) -> RoundAnswer:
+    """The answers aggregated with the run's rule; at the last exchange of the round in which the last member
+    of W has completed, every member is listed in ``finished`` and the run ends (the end rule of the schemes
+    whose mature workers stay)."""
+    members = set(context.members)
+    ends = context.last_step and bool(members) and members.issubset(context.completed)
+    return RoundAnswer(
+        "average",
+        context.aggregate(flats(answers)),
+        contributors=tuple(answers),
+        finished=context.members if ends else (),
+        fleet_model=fleet_model,
+        ends_run=ends,
+    )

@@ -21,7 +21,7 @@ from fleetrl.federation.schemes.base import (
     RoundAnswer,
     RoundContext,
     Scheme,
-    flats,
+    average_until_all_completed,
 )
 
 
@@ -54,12 +54,4 @@ class FedAvgScheme(Scheme):
     def combine(self, answers: Mapping[str, Message], context: RoundContext) -> RoundAnswer:
         """The aggregate of the models; in the round in which the last member of W completes, every member is
         listed in ``finished`` (so none starts another round before the ``done`` that follows)."""
-        ends = bool(context.members) and set(context.members).issubset(context.completed)
-        return RoundAnswer(
-            "average",
-            context.aggregate(flats(answers)),
-            contributors=tuple(answers),
-            finished=context.members if ends else (),
-            fleet_model=True,
-            ends_run=ends,
-        )
+        return average_until_all_completed(answers, context, fleet_model=True)

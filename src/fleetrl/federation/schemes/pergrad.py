@@ -29,7 +29,7 @@ from fleetrl.federation.schemes.base import (
     RoundContext,
     Scheme,
     WrongGranularity,
-    flats,
+    average_until_all_completed,
 )
 
 
@@ -79,13 +79,4 @@ class PerStepGradientScheme(Scheme):
     def combine(self, answers: Mapping[str, Message], context: RoundContext) -> RoundAnswer:
         """The step's gradients aggregated; at the last step of the round in which the last member of W
         completed, every member is listed in ``finished`` and the run ends."""
-        ends = (
-            context.last_step and bool(context.members) and set(context.members).issubset(context.completed)
-        )
-        return RoundAnswer(
-            "average",
-            context.aggregate(flats(answers)),
-            contributors=tuple(answers),
-            finished=context.members if ends else (),
-            ends_run=ends,
-        )
+        return average_until_all_completed(answers, context, fleet_model=False)
