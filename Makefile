@@ -57,7 +57,9 @@ bench: install
 	$(PY) benchmarks/learning.py
 
 results: install
-	$(VENV)/bin/fleetrl experiment all --out runs/experiments --records docs/results/records --publish docs/results.md
+	$(VENV)/bin/fleetrl experiment all --other-seeds 5 --out runs/experiments --records docs/results/records
+	$(VENV)/bin/fleetrl experiment fig5 --fleet-seed 1 --headline-only --out runs/experiments \
+		--records docs/results/records --publish docs/results.md
 
 clean:
 	rm -rf $(VENV) .lock-venv build *.egg-info src/*.egg-info

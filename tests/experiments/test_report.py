@@ -35,9 +35,10 @@ def test_a_section_from_records_alone_shows_medians_speed_ups_and_the_unseen_uni
         rows.setdefault(line.split(" | ")[0], line)
     # fleet rounds: alone 30/40/50, fedavg 10/20/25; per unit k completes at fleet - k
     assert rows["| each unit alone"].startswith("| each unit alone | 40 (30–50) | 39 (")
-    assert "| 3/3 | 310 | 50 % of 6 | 30.0 |" in rows["| each unit alone"]
+    assert "| 3/3 | 100–102 | 310 | 50 % of 6 | 30.0 |" in rows["| each unit alone"]
     assert rows["| fedavg"].startswith("| fedavg | 20 (10–25) | 19 (")
-    assert "| 3/3 | 350 | 50 % of 12 | 9.0 |" in rows["| fedavg"]  # 4 unseen episodes × 3 seeds, cap 500
+    # 4 unseen episodes × 3 seeds, cap 500
+    assert "| 3/3 | 100–102 | 350 | 50 % of 12 | 9.0 |" in rows["| fedavg"]
     speed_up = next(line for line in section.splitlines() if line.startswith("| fedavg | 3 |"))
     assert (
         speed_up.startswith("| fedavg | 3 | 2.00× (")
@@ -59,3 +60,40 @@ def test_the_report_states_both_seed_sets_and_warns_when_they_overlap() -> None:
         " never used while tuning."
     )
     assert "WARNING: seed(s) 8–9 are tuning seeds" in seeds_line(list(range(8, 12)), 1)
+
+
+def test_other_arms_run_on_fewer_seeds_and_the_report_says_so(tmp_path: Path) -> None:
+    places = Places(tmp_path / "runs", tmp_path / "committed")
+    write_records(places)
+    ratios = [Ratio(ALONE, FEDAVG, "the claim")]
+    plan = Plan("demo", "A demo", [ALONE, FEDAVG], 100, ratios, headline=[FEDAVG])
+    assert plan.seeds_of(FEDAVG, SEEDS, 1) == SEEDS and plan.seeds_of(ALONE, SEEDS, 1) == [100]
+    assert plan.seeds_of(ALONE, SEEDS, None) == SEEDS
+    line = seeds_line(SEEDS, 0, 1)
+    assert line.endswith("; arms other than the headline arms on seeds 100, never used while tuning.")
+    section = run_plan(plan, tmp_path / "out", places, SEEDS, [line, ""], other_seeds=1)
+    assert "| each unit alone | 30 (30–30) | 29 (" in section and "| 1/1 | 100 |" in section
+    assert "| fedavg | 20 (10–25) |" in section and "| 3/3 | 100–102 |" in section
+    csv_rows = (tmp_path / "out" / "demo" / "runs.csv").read_text().splitlines()
+    assert [row.split(",")[1] for row in csv_rows[1:]] == ["100", "100", "101", "102"]
+
+
+def test_a_headline_plan_keeps_the_headline_arms_and_their_comparisons_only() -> None:
+    pergrad = arm("cartpole", 3, "federated", "standard", 100, "pergrad", "pergrad")
+    ratios = [Ratio(ALONE, FEDAVG, "a"), Ratio(ALONE, pergrad, "b"), Ratio(FEDAVG, pergrad, "c")]
+    plan = Plan("demo", "A demo", [ALONE, FEDAVG, pergrad], 100, ratios, (ALONE, pergrad), pergrad,
+                headline=[ALONE, FEDAVG])  # fmt: skip
+    cut = plan.headline_only()
+    assert cut.name == "demo-headline" and cut.arms == [ALONE, FEDAVG]
+    assert [r.claim for r in cut.ratios] == ["a"]
+    assert cut.side_by_side is None and cut.mqtt_check is None
+
+
+def test_a_sweep_runs_seed_by_seed_across_the_arms(tmp_path: Path) -> None:
+    from fleetrl.experiments.plan import _seed_major
+
+    places = Places(tmp_path / "runs", tmp_path / "committed")
+    order = _seed_major([ALONE.runs(places, SEEDS), FEDAVG.runs(places, SEEDS[:2])])
+    assert [(run.labels["arm"], run.labels["seed"]) for run in order] == [
+        (ALONE.key, 100), (FEDAVG.key, 100), (ALONE.key, 101), (FEDAVG.key, 101), (ALONE.key, 102),
+    ]  # fmt: skip

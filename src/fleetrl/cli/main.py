@@ -81,7 +81,20 @@ def build_parser() -> argparse.ArgumentParser:
         "experiment", help="reproduce the paper's figures and tables; writes report.md"
     )
     experiment.add_argument("name", help="fig5, fig6, cartpole-scaling, learning, table2, peers, or all")
-    experiment.add_argument("--seeds", type=int, default=10, help="how many learning seeds (default 10)")
+    experiment.add_argument(
+        "--seeds", type=int, default=10, help="how many learning seeds the headline arms run on (default 10)"
+    )
+    experiment.add_argument(
+        "--other-seeds",
+        type=int,
+        default=None,
+        help="how many of those seeds the other arms run on (default: all; make results uses 5)",
+    )
+    experiment.add_argument(
+        "--headline-only",
+        action="store_true",
+        help="run only the headline arms (each unit alone, fedavg, pergrad), e.g. on another --fleet-seed",
+    )
     experiment.add_argument(
         "--first-seed",
         type=int,
@@ -199,7 +212,16 @@ def cmd_experiment(args: argparse.Namespace) -> int:
     from fleetrl.experiments.runner import run_experiment
 
     seeds = list(range(args.first_seed, args.first_seed + args.seeds))
-    report = run_experiment(args.name, args.out, seeds, args.quick, args.records, args.fleet_seed)
+    report = run_experiment(
+        args.name,
+        args.out,
+        seeds,
+        args.quick,
+        args.records,
+        args.fleet_seed,
+        args.other_seeds,
+        args.headline_only,
+    )
     print(f"report: {report}")
     if args.publish is not None:
         from fleetrl.experiments.runner import publish_report

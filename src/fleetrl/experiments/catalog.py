@@ -95,6 +95,7 @@ def fig5(budget: Budget) -> Plan:
         side_by_side=(ind_std, fedavg),
         mqtt_check=fedavg,
         notes="Paper (3 real units): ≈300 rounds federated vs 820 / 820 / 571 individual.",
+        headline=[ind_std, fedavg, pergrad],
     )
 
 
@@ -153,6 +154,7 @@ def cartpole_scaling(budget: Budget) -> Plan:
             for n in (2, 4, 8)
         ],
         mqtt_check=arms[4, "fedavg"],
+        headline=[a for (n, scheme), a in arms.items() if scheme != "paper" or n == 1],
     )
 
 
@@ -201,6 +203,7 @@ def learning(budget: Budget) -> Plan:
         max_rounds=max(budget.cartpole_rounds, budget.qube_rounds),
         ratios=ratios,
         notes="Rounds = episodes per unit. SB3 PPO on the same envs and criterion: see the Peers section.",
+        headline=[a for (_, preset, mode), a in arms.items() if preset == "standard" and mode != "federated"],
     )
 
 

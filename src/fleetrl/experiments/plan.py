@@ -3,7 +3,7 @@ report section."""
 
 import csv
 import logging
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import matplotlib
@@ -14,7 +14,7 @@ import matplotlib.pyplot as plt
 from fleetrl.experiments.arms import Arm, Places, completions, mean_score_curve, same_scores, wall_seconds
 from fleetrl.experiments.records import RunRecord
 from fleetrl.experiments.stats import bootstrap_median, bootstrap_ratio, markdown_table
-from fleetrl.experiments.sweep import run_all
+from fleetrl.experiments.sweep import Run, run_all
 from fleetrl.runs.plots import X_LABELS, by_worker, draw_worker
 
 log = logging.getLogger(__name__)
@@ -44,14 +44,52 @@ class Plan:
     mqtt_check: Arm | None = None
     """an arm run over the local bus that is run once more over MQTT, to show the numbers do not change"""
     notes: str = ""
+    headline: list[Arm] = field(default_factory=list)
+    """the arms run on every seed (each unit alone, fedavg, the best new scheme); the others may run on fewer
+    (``other_seeds`` of :func:`run_plan`)"""
+
+    def seeds_of(self, arm: Arm, seeds: list[int], other_seeds: int | None) -> list[int]:
+        """The seeds ``arm`` runs on: all of ``seeds`` if it is a headline arm (or ``other_seeds`` is None),
+        else the first ``other_seeds`` of them."""
+        if other_seeds is None or any(arm is h for h in self.headline):
+            return seeds
+        return seeds[:other_seeds]
+
+    def headline_only(self) -> "Plan":
+        """The plan cut down to its headline arms and the comparisons among them (e.g. to repeat the headline
+        on another fleet)."""
+        kept = self.headline or self.arms
+
+        def has(arm: Arm | None) -> bool:
+            return arm is not None and any(arm is k for k in kept)
+
+        return replace(
+            self,
+            name=f"{self.name}-headline",
+            title=f"{self.title}: headline arms",
+            arms=[a for a in self.arms if has(a)],
+            ratios=[r for r in self.ratios if has(r.slower) and has(r.faster)],
+            side_by_side=self.side_by_side if all(map(has, self.side_by_side or [None])) else None,
+            mqtt_check=self.mqtt_check if has(self.mqtt_check) else None,
+        )
 
 
 Records = dict[str, list[RunRecord]]
 """each arm's records (by arm key), one per seed"""
 
 
-def run_plan(plan: Plan, out: Path, places: Places, seeds: list[int], preamble: list[str]) -> str:
-    """Run every arm for every seed (runs not done yet) and return the report section (markdown).
+def run_plan(
+    plan: Plan,
+    out: Path,
+    places: Places,
+    seeds: list[int],
+    preamble: list[str],
+    other_seeds: int | None = None,
+) -> str:
+    """Run every arm for its seeds (runs not done yet) and return the report section (markdown).
+
+    Headline arms run on every seed, the others on the first ``other_seeds`` (None: on every seed). Runs go
+    seed by seed across the arms, so a sweep stopped part-way has the first seeds of every arm.
 
     Runs live in ``places.runs/<arm key>/seed-<seed>``, their records in ``places.records``, shared by every
     experiment (an arm two experiments have in common runs once). The section is computed from the records
@@ -59,12 +97,12 @@ def run_plan(plan: Plan, out: Path, places: Places, seeds: list[int], preamble: 
     """
     root = out / plan.name
     root.mkdir(parents=True, exist_ok=True)
-    runs = {arm.key: arm.runs(places, seeds) for arm in plan.arms}
+    runs = {arm.key: arm.runs(places, plan.seeds_of(arm, seeds, other_seeds)) for arm in plan.arms}
     mqtt_arm = plan.mqtt_check.with_settings(transport="mqtt") if plan.mqtt_check else None
     extra = [mqtt_arm.run(places, seeds[0])] if mqtt_arm else []
-    run_all([r for rs in runs.values() for r in rs] + extra)
+    run_all(_seed_major(list(runs.values())) + extra)
     records = {key: [run.result() for run in arm_runs] for key, arm_runs in runs.items()}
-    _write_csv(root / "runs.csv", records, seeds)
+    _write_csv(root / "runs.csv", records)
 
     lines = [f"## {plan.title}", "", *preamble]
     if plan.notes:
@@ -94,12 +132,19 @@ def run_plan(plan: Plan, out: Path, places: Places, seeds: list[int], preamble: 
     return "\n".join(lines) + "\n"
 
 
-def _write_csv(path: Path, records: Records, seeds: list[int]) -> None:
+def _seed_major(runs_by_arm: list[list[Run]]) -> list[Run]:
+    """Every arm's first run, then every arm's second, ...: the order a sweep runs them in."""
+    longest = max((len(runs) for runs in runs_by_arm), default=0)
+    return [runs[i] for i in range(longest) for runs in runs_by_arm if i < len(runs)]
+
+
+def _write_csv(path: Path, records: Records) -> None:
     with path.open("w", newline="") as f:
         writer = csv.writer(f)
         writer.writerow(["arm", "seed", "fleet_rounds", "all_completed", "worker_rounds", "wall_seconds"])
         for key, arm_records in records.items():
-            for seed, record in zip(seeds, arm_records, strict=True):
+            for record in arm_records:
+                seed = record.result_settings["seed"]
                 completion = record.completion()
                 rounds = ";".join(str(r) for r in completion.worker_rounds())
                 writer.writerow(
@@ -159,6 +204,7 @@ def _arms_table(plan: Plan, records: Records) -> str:
                 bootstrap_median(_fleet(done)).format(),
                 bootstrap_median(_per_unit(done)).format(),
                 f"{complete}/{len(done)}",
+                seed_list(done),
                 mean_unseen,
                 held,
                 f"{walls[len(walls) // 2]:.1f}",
@@ -169,11 +215,20 @@ def _arms_table(plan: Plan, records: Records) -> str:
         "rounds until the last unit completes: median (95 % CI)",
         "rounds per unit: median (95 % CI)",
         "runs complete within M",
+        "seeds",
         "unseen units: mean score",
         "unseen units: held to the cap",
         "wall s (median)",
     ]
     return markdown_table(header, rows)
+
+
+def seed_list(records: list[RunRecord]) -> str:
+    """The seeds of an arm's runs: ``100–109`` (or a list if they are not consecutive)."""
+    seeds = [int(r.result_settings["seed"]) for r in records]
+    if len(seeds) > 1 and seeds == list(range(seeds[0], seeds[0] + len(seeds))):
+        return f"{seeds[0]}–{seeds[-1]}"
+    return ", ".join(map(str, seeds))
 
 
 def alone_arm(plan: Plan, arm: Arm) -> Arm | None:

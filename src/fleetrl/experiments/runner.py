@@ -32,8 +32,9 @@ def seed_range(seeds: list[int] | range) -> str:
     return ", ".join(map(str, seeds))
 
 
-def seeds_line(seeds: list[int], fleet_seed: int) -> str:
-    """The report's statement of the tuning and the reported seed sets."""
+def seeds_line(seeds: list[int], fleet_seed: int, other_seeds: int | None = None) -> str:
+    """The report's statement of the tuning and the reported seed sets (``other_seeds``: how many of them the
+    arms other than the headline arms run on)."""
     tuning = f"tuning seeds {seed_range(TUNING_SEEDS)} on fleet seed {TUNING_FLEET_SEED}"
     used = sorted(set(seeds) & set(TUNING_SEEDS))
     honesty = (
@@ -43,15 +44,26 @@ def seeds_line(seeds: list[int], fleet_seed: int) -> str:
     )
     reported = f"the figures below are on seed{'s' if len(seeds) > 1 else ''} {seed_range(seeds)}"
     reported += f" (fleet seed {fleet_seed})"
+    if other_seeds is not None and other_seeds < len(seeds):
+        reported += f"; arms other than the headline arms on seeds {seed_range(seeds[:other_seeds])}"
     return f"Seeds: {tuning}; {reported}, {honesty}."
 
 
 def run_experiment(
-    name: str, out: Path, seeds: list[int], quick: bool, records: Path | None = None, fleet_seed: int = 0
+    name: str,
+    out: Path,
+    seeds: list[int],
+    quick: bool,
+    records: Path | None = None,
+    fleet_seed: int = 0,
+    other_seeds: int | None = None,
+    headline_only: bool = False,
 ) -> Path:
     """Run experiment ``name`` (or every one for ``all``) on fleet ``fleet_seed``; return the report's path.
 
-    Run directories go under ``out/runs``, run records under ``records`` (default ``out/records``).
+    Run directories go under ``out/runs``, run records under ``records`` (default ``out/records``). Headline
+    arms run on every seed, the others on the first ``other_seeds`` (None: every seed); ``headline_only``
+    runs the headline arms alone (e.g. to repeat them on another fleet).
     """
     names = list(EXPERIMENTS) if name == "all" else [name]
     for one in names:
@@ -61,17 +73,23 @@ def run_experiment(
         raise ValueError("--seeds must be at least 1")
     if fleet_seed < 0:
         raise ValueError(f"--fleet-seed must be a non-negative integer, got {fleet_seed}")
+    if other_seeds is not None and other_seeds < 1:
+        raise ValueError(f"--other-seeds must be at least 1, got {other_seeds}")
     budget = replace(QUICK if quick else FULL, fleet_seed=fleet_seed)
     places = Places(out / "runs", out / "records" if records is None else records, budget.unseen_units)
     for one in names:
-        command = experiment_command(one, out, seeds, quick, places.records, fleet_seed)
-        preamble = [f"Command: `{command}`", "", seeds_line(seeds, fleet_seed), ""]
-        where = section_name(one, fleet_seed)
+        command = experiment_command(
+            one, out, seeds, quick, places.records, fleet_seed, other_seeds, headline_only
+        )
+        preamble = [f"Command: `{command}`", "", seeds_line(seeds, fleet_seed, other_seeds), ""]
+        where = section_name(one, fleet_seed, headline_only and one in PLANS)
         if one in PLANS:
             plan = PLANS[one](budget)
+            if headline_only:
+                plan = plan.headline_only()
             if fleet_seed:
-                plan = replace(plan, name=where, title=f"{plan.title}, fleet seed {fleet_seed}")
-            section = run_plan(plan, out, places, seeds, preamble)
+                plan = replace(plan, title=f"{plan.title}, fleet seed {fleet_seed}")
+            section = run_plan(replace(plan, name=where), out, places, seeds, preamble, other_seeds)
         elif one == "table2":
             section = table2_section(out / where, seeds, preamble, fleet_seed)
         else:
@@ -81,19 +99,30 @@ def run_experiment(
     return assemble_report(out)
 
 
-def section_name(experiment: str, fleet_seed: int) -> str:
-    """The directory of an experiment's section: its name, with ``-fleet<n>`` off the tuning fleet."""
-    return experiment if fleet_seed == TUNING_FLEET_SEED else f"{experiment}-fleet{fleet_seed}"
+def section_name(experiment: str, fleet_seed: int, headline_only: bool = False) -> str:
+    """The directory of an experiment's section: its name, with ``-fleet<n>`` off the tuning fleet and
+    ``-headline`` for its headline arms alone."""
+    name = experiment if fleet_seed == TUNING_FLEET_SEED else f"{experiment}-fleet{fleet_seed}"
+    return f"{name}-headline" if headline_only else name
 
 
 def experiment_command(
-    name: str, out: Path, seeds: list[int], quick: bool, records: Path | None = None, fleet_seed: int = 0
+    name: str,
+    out: Path,
+    seeds: list[int],
+    quick: bool,
+    records: Path | None = None,
+    fleet_seed: int = 0,
+    other_seeds: int | None = None,
+    headline_only: bool = False,
 ) -> str:
     """The command line that regenerates an experiment."""
     words = ["fleetrl", "experiment", name, "--seeds", str(len(seeds)), "--first-seed", str(seeds[0])]
+    words += [] if other_seeds is None else ["--other-seeds", str(other_seeds)]
     words += ["--out", str(out)]
     words += [] if records is None or records == out / "records" else ["--records", str(records)]
     words += ["--fleet-seed", str(fleet_seed)] if fleet_seed else []
+    words += ["--headline-only"] if headline_only else []
     return shlex.join(words + (["--quick"] if quick else []))
 
 
@@ -102,7 +131,7 @@ def assemble_report(out: Path) -> Path:
     sections = [
         path
         for name in EXPERIMENTS
-        for path in [out / name / "section.md", *sorted(out.glob(f"{name}-fleet*/section.md"))]
+        for path in [out / name / "section.md", *sorted(out.glob(f"{name}-*/section.md"))]
     ]
     body = "\n".join(path.read_text() for path in sections if path.is_file())
     report = out / "report.md"
