@@ -138,7 +138,12 @@ class WorkerCheckpoint:
 
 
 def _identity(spec: WorkerSpec, run_id: str) -> dict[str, Any]:
-    return {
+    """What a worker's checkpoint must have been written with. The scheme and its parameters are named only
+    off their defaults (``paper``, none), so a checkpoint written before they were recorded still loads."""
+    scheme: dict[str, Any] = {} if spec.scheme == "paper" else {"scheme": spec.scheme}
+    if spec.scheme_params:
+        scheme["scheme_params"] = json.loads(json.dumps(spec.scheme_params, sort_keys=True))
+    return scheme | {
         "run_id": run_id,
         "worker": spec.worker,
         "unit": spec.unit,
