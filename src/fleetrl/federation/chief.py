@@ -17,22 +17,8 @@ Round semantics (docs/protocol.md has the full rules):
 * The run ends after the round the scheme calls complete, after the round in which W becomes empty, or after
   round M; ``done`` is then broadcast.
 
-Reliability (issue 7):
-
-* Dropout: a worker whose live status turns ``offline`` (its last will, or a goodbye) leaves W unless it
-  comes back (a message, or ``online``) within ``dropout_grace`` seconds — a broker that shuts down publishes
-  the wills of clients that only lose their connection; with a
-  ``round_timeout``, a worker silent past the deadline leaves W when too few answered to make the quorum.
-* Stragglers: with ``quorum`` q < 1, at the deadline the round closes with the answers so far if at least
-  ⌈q·|W|⌉ members answered; the others stay in W and their late messages are stale.
-* Rejoin: a dropped worker that comes back online (or sends a message for the open round) re-enters W; a
-  worker coming online gets a ``welcome`` with the open round and the last transferred parameters θ*, if any.
-* Join (:mod:`fleetrl.federation.shared_settings`): with ``settings``, a worker's ``join`` whose shared
-  settings differ is answered with ``refused`` naming the first differing key; until it joins with matching
-  settings (or a new incarnation comes online) its round messages are rejected and its ``online`` gets the
-  refusal again.
-* Idempotent resends: a message for a closed round makes the chief send its last answer again (at most once
-  per worker per ``resend_holdoff`` seconds, and not within that time of the original).
+Reliability (dropout and rejoin, deadlines and quorum, the join's settings check, idempotent resends):
+docs/protocol.md, "Reliability", whose rules the methods below implement.
 
 Every decision is returned as a :class:`ChiefEvent`, whose ``str()`` is a log line for people.
 """
@@ -44,9 +30,10 @@ from collections import Counter
 from collections.abc import Iterable
 
 from fleetrl.federation.aggregation import Aggregator, get_aggregator
+from fleetrl.federation.chief_answer import ClosedExchange, answer_event, answer_message, check_round_rules
 from fleetrl.federation.events import ChiefEvent, ChiefStep
 from fleetrl.federation.messages import Layout, Message, MessageRejected, Reason, decode
-from fleetrl.federation.schemes import COMPLETED, Granularity, RoundContext, Scheme, resolve_scheme
+from fleetrl.federation.schemes import COMPLETED, RoundContext, Scheme, resolve_scheme
 from fleetrl.federation.shared_settings import JoinGate, SharedSettings
 from fleetrl.federation.signing import FleetKey, parse_status
 from fleetrl.federation.topics import CHIEF_ID, sorted_workers, validate_id, validate_worker_id
@@ -105,26 +92,9 @@ class Chief:
         self.all_workers: tuple[str, ...] = tuple(sorted_workers({validate_worker_id(w) for w in workers}))
         if not self.all_workers:
             raise ValueError("a run needs at least one worker")
-        if max_rounds < 1:
-            raise ValueError(f"max_rounds must be >= 1, got {max_rounds}")
-        if not 0.0 < quorum <= 1.0:
-            raise ValueError(f"quorum must be in (0, 1], got {quorum}")
-        if round_timeout is not None and not round_timeout > 0:
-            raise ValueError(f"round_timeout must be > 0 seconds, got {round_timeout}")
-        if quorum < 1.0 and round_timeout is None:
-            raise ValueError("a quorum below 1 needs a round timeout (--round-timeout)")
         self.layout = list(layout)
         self.scheme: Scheme = resolve_scheme(scheme)
-        per_step = self.scheme.granularity is Granularity.STEP
-        if steps_per_round < 1 or (steps_per_round != 1 and not per_step):
-            raise ValueError(
-                f"steps_per_round = {steps_per_round}: scheme {self.scheme.name!r} sends "
-                + ("per step (at least 1)" if per_step else "once per round (1)")
-            )
-        if per_step and quorum < 1.0:
-            raise ValueError(
-                f"scheme {self.scheme.name!r} averages every step: it needs every worker (quorum 1)"
-            )
+        check_round_rules(self.scheme, max_rounds, quorum, round_timeout, steps_per_round)
         self.steps_per_round = steps_per_round
         self._gate = JoinGate(settings)
         self.max_rounds = max_rounds
@@ -409,24 +379,13 @@ class Chief:
         self._members.difference_update(answer.leave_w)
         self._left.update(answer.leave_w)
         remaining = self.members
-        reply = Message(
-            answer.kind, self.run_id, CHIEF_ID, rnd, flat=answer.flat, origin=answer.origin,
-            finished=answer.finished, contributors=answer.contributors, step=exchange,
-        )  # fmt: skip
+        reply = answer_message(answer, self.run_id, rnd, exchange)
         if answer.fleet_model:  # what a (re)joining worker starts from
             self._model = reply
         if answer.kind == "transfer":
             self.transfers.append((rnd, str(answer.origin), remaining))
-            event = ChiefEvent(
-                "transfer", rnd, answered=answered, dropped=tuple(answer.leave_w), origin=answer.origin,
-                remaining=remaining, scores=scores, late=late,
-            )  # fmt: skip
-        else:
-            detail = self.aggregator_name + (f"; completed: {','.join(completed)}" if completed else "")
-            event = ChiefEvent(
-                "averaged", rnd, answered=answered, averaged=answer.contributors, detail=detail,
-                remaining=remaining, scores=scores, late=late,
-            )  # fmt: skip
+        closed = ClosedExchange(rnd, answered, late, scores, completed, remaining)
+        event = answer_event(answer, closed, self.aggregator_name)
         self._pending = {}
         self._last_answer = (reply,)
         self._answer_sent = dict.fromkeys(self.all_workers, now)
