@@ -174,3 +174,27 @@ def test_the_critic_weight_scales_the_critic_gradient_only() -> None:
     n_critic = sum(sizes)
     np.testing.assert_allclose(g_half[:n_critic], 0.5 * g_unit[:n_critic], rtol=1e-6, atol=1e-9)
     assert np.array_equal(g_half[n_critic:], g_unit[n_critic:])
+
+
+def test_the_memory_scope_critic_chases_the_targets_fixed_at_the_rounds_start() -> None:
+    """With Â computed once over the memory (``gae_scope='memory'``, the standard preset), the λ-return target
+    is Â + V(s) of line 11 for all K steps: as the critic learns, its loss on the same window falls. (A target
+    of Â + the critic's current value would make the loss |Â| at every step, whatever the critic does.)"""
+    torch.set_num_threads(1)
+    agent = agent_with_memory("standard", batch_size=250, n=250, critic_loss="mse")
+    agent.begin_update()
+    update = agent._round_update
+    assert update is not None and update.memory_advantages is not None
+    fixed_targets = update.memory_advantages + update.memory_values
+    losses = []
+    for k in range(update.n_steps):
+        before = update._totals[1]
+        agent.apply_step(agent.step_gradients(k))
+        losses.append(update._totals[1] - before)
+    agent.end_update()
+    a = update.memory_advantages
+    assert losses[0] == pytest.approx(float((a**2).mean()) / 2, rel=1e-5)  # ½ Ê[(Â)²]: one window, all of it
+    assert losses[-1] < 0.9 * losses[0]  # the critic moved towards the fixed targets
+    with torch.no_grad():
+        _, values = agent.net(update.obs)
+    assert float(((values - fixed_targets) ** 2).mean()) / 2 < losses[0]

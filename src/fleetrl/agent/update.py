@@ -100,6 +100,9 @@ class RoundUpdate:
             else:
                 self.old_log_probs = _log_prob(logits, self.actions)
             self.memory_advantages = None
+            self.memory_values = values
+            """V_μ(s) at line 11: with ``gae_scope='memory'`` the λ-return target is Â + this, fixed for the
+            round like Â (not Â + the critic's current value, whose loss would not depend on the critic)"""
             if cfg.gae_scope == "memory":  # Eq. 2 once over the whole memory, critic frozen at line 11
                 next_values = net.value_of(self.next_obs)
                 self.memory_advantages = gae(
@@ -172,8 +175,10 @@ class RoundUpdate:
             adv = self.memory_advantages[w]
         if cfg.critic_target == "td":  # line 16, Eq. 3: V^target = r + γV(s'), bootstrapped at truncation
             targets = td_targets(self.rewards[w], v_next, self.terminated[w], cfg.gamma)
-        else:  # the λ-return Â + V(s)
+        elif self.memory_advantages is None:  # the λ-return Â + V(s), both at the current critic
             targets = adv + v.detach()
+        else:  # the λ-return of line 11: Â and V(s) both from the critic as the round began
+            targets = adv + self.memory_values[w]
         if cfg.normalise_advantages and adv.numel() > 1:
             adv = (adv - adv.mean()) / (adv.std() + 1e-8)
         l_v = critic_loss(v, targets, cfg.critic_loss)  # line 17, Eq. 3
