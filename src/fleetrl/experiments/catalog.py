@@ -51,9 +51,8 @@ def arm(
         "preset": preset,
         "max_rounds": rounds,
     }
-    if mode == "federated":
+    if mode == "federated":  # named even when it is the default, so a new default changes no arm
         settings["transport"] = "local"
-    if scheme != "paper":
         settings["scheme"] = scheme
     if fleet_seed:
         settings["fleet_seed"] = fleet_seed

@@ -21,7 +21,7 @@ from typing import Any, get_type_hints
 from fleetrl.agent.config import PPOConfig, get_preset
 from fleetrl.envs.catalog import get_env_spec
 from fleetrl.federation.aggregation import get_aggregator
-from fleetrl.federation.schemes import Granularity, Scheme, get_scheme
+from fleetrl.federation.schemes import DEFAULT_SCHEME, Granularity, Scheme, get_scheme
 from fleetrl.runs.setting_values import (
     SettingError,
     check_readable_file,
@@ -90,7 +90,7 @@ class LearningSettings:
     max_rounds: int = 1000
     """the paper's M: the most rounds per worker (a round is one episode, or with the paper-code preset
     the episodes that fill the memory)"""
-    scheme: str = "paper"
+    scheme: str = DEFAULT_SCHEME
     """federated: ``paper`` (Algorithms 1 and 2), ``fedavg``, ``fedavgm``, ``fedadam`` or ``pergrad``
     (:mod:`fleetrl.federation.schemes`)"""
     scheme_params: dict[str, Any] = field(default_factory=dict)

@@ -29,8 +29,13 @@ from fleetrl.federation.schemes.fedopt import FedAdamScheme, FedAvgMScheme
 from fleetrl.federation.schemes.paper import PaperScheme
 from fleetrl.federation.schemes.pergrad import PerStepGradientScheme
 
+DEFAULT_SCHEME = "paper"
+"""the scheme of ``fleetrl train --mode federated``, ``chief`` and ``worker`` when none is named (``fleetrl
+demo`` names its own)"""
+
 __all__ = [
     "COMPLETED",
+    "DEFAULT_SCHEME",
     "SCHEMES",
     "FederatedAgent",
     "Granularity",
