@@ -153,7 +153,8 @@ def cartpole_scaling(budget: Budget) -> Plan:
             for n in (2, 4, 8)
         ],
         mqtt_check=arms[4, "fedavg"],
-    )  # no headline arms: the 3-unit headline is fig5's and learning's; here every arm runs --other-seeds
+        headline=[a for (_, scheme), a in arms.items() if scheme != "paper"],
+    )
 
 
 def learning(budget: Budget) -> Plan:
