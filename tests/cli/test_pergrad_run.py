@@ -43,4 +43,5 @@ def test_pergrad_refuses_a_quorum_and_a_preset_whose_steps_differ_before_anythin
     assert quorum.returncode == 2 and "it needs quorum 1" in last_line(quorum), quorum.stderr
     preset = fleetrl(*RUN[:-1], "paper-code", "--out", str(out))
     assert preset.returncode == 2 and "optimisers = 'per_model'" in last_line(preset), preset.stderr
+    assert "--scheme fedavg or paper" in last_line(preset)  # what to do instead
     assert not out.exists()

@@ -68,7 +68,8 @@ class PerStepGradientScheme(Scheme):
         if any(agent.step_layout(k) != first for k in range(1, steps)):
             raise ValueError(
                 "scheme pergrad averages one whole actor-critic gradient per step: it needs the PPO setting "
-                "optimisers = 'per_model' (this preset steps the critic and the actor in turn)"
+                "optimisers = 'per_model' (this preset steps the critic and the actor in turn): choose "
+                "another scheme (--scheme fedavg or paper) or --set optimisers=per_model"
             )
         return steps
 
