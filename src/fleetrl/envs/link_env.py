@@ -26,10 +26,9 @@ def action_index(action: object, n_actions: int) -> int:
 def box_action(action: object, space: gymnasium.spaces.Box) -> np.ndarray:
     """``action`` as a float32 vector of the box's shape, clipped to its bounds; a ValueError that says what
     is allowed if it has another shape or a value that is not a finite number."""
-    try:
-        vector = np.asarray(action, dtype=np.float32)
-    except (TypeError, ValueError):
-        vector = np.full(1, np.nan, dtype=np.float32)
+    raw = np.asarray(action) if action is not None else np.asarray(np.nan)
+    numeric = np.issubdtype(raw.dtype, np.integer) or np.issubdtype(raw.dtype, np.floating)
+    vector = raw.astype(np.float32) if numeric else np.full(1, np.nan, dtype=np.float32)
     if vector.shape == () and space.shape == (1,):
         vector = vector.reshape(1)
     if vector.shape != space.shape or not np.all(np.isfinite(vector)):
