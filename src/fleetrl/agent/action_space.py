@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from functools import cached_property
 from typing import Any
 
 import gymnasium
@@ -115,9 +116,15 @@ class ActionSpace:
         """(high − low) / 2 per component, float64 (box only)."""
         return (np.asarray(self.high) - np.asarray(self.low)) / 2.0
 
+    @cached_property
+    def bounds32(self) -> tuple[np.ndarray, np.ndarray]:
+        """(low, high) as float32 arrays (box only; built once: the clip runs every step)."""
+        return np.asarray(self.low, dtype=np.float32), np.asarray(self.high, dtype=np.float32)
+
     def clip(self, action: np.ndarray) -> np.ndarray:
-        """A continuous action clipped to the bounds, float32 (what the env is sent)."""
-        return np.clip(action, self.low, self.high).astype(np.float32)
+        """A continuous action clipped to the bounds, float32 (what the env is sent; a new array)."""
+        low, high = self.bounds32
+        return np.minimum(np.maximum(np.asarray(action, dtype=np.float32), low), high)
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready description (what a model file records)."""
