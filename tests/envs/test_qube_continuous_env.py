@@ -28,7 +28,7 @@ def test_the_env_checkers_of_gymnasium_and_sb3_pass() -> None:
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         sb3_check_env(gymnasium.make(QUBE_BALANCE_CONTINUOUS_ID, unit=1))
-    # the one remark: SB3 recommends a [-1, 1] box; this one is in volts (docs/envs.md)
+    # the one remark: SB3 recommends a [-1, 1] box; this one is in volts (docs/devices.md, "Environments")
     assert all("normalized" in str(w.message) for w in caught), [str(w.message) for w in caught]
 
 

@@ -4,7 +4,7 @@ The same simulated units, observation, reward (+1 while |pendulum angle| ≤ 7.5
 arm limit and 2500-step cap as ``fleetrl/QubeBalance-v0``; only the action differs: a float32 vector
 ``[volts]`` in ``Box(-ACTION_VOLTS, +ACTION_VOLTS, (1,))`` instead of the three indices −1.44, 0, +1.44 V.
 Values beyond the box are clipped (as the amplifier would saturate); a wrong shape or a value that is not
-finite is a ValueError. docs/envs.md says why ±3 V.
+finite is a ValueError. docs/devices.md, "Environments" says why ±3 V.
 """
 
 import gymnasium
