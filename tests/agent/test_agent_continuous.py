@@ -12,9 +12,13 @@ import torch
 from fleetrl.agent.action_space import ActionSpace, UnsupportedActionSpace
 from fleetrl.agent.checkpoint import CheckpointError
 from fleetrl.agent.config import PPOConfig, get_preset
+from fleetrl.agent.criterion import CompletionCriterion
+from fleetrl.agent.learner import Learner
 from fleetrl.agent.memory import TrajectoryMemory
 from fleetrl.agent.network import ActorCritic
 from fleetrl.agent.ppo import PPOAgent
+from fleetrl.agent.state import learner_state, load_learner_state
+from fleetrl.agent.statestore import StateStore
 
 BOX = ActionSpace.box([-2.0, 0.0], [2.0, 10.0])  # centre (0, 5), half range (2, 5)
 OBS_DIM = 3
@@ -167,3 +171,21 @@ def test_action_space_round_trips_through_its_dict_and_rejects_others() -> None:
     assert ActionSpace.of(gymnasium.spaces.Discrete(3)) == ActionSpace.discrete(3)
     with pytest.raises(ValueError, match="unknown action space"):
         ActionSpace.from_dict({"kind": "tuple"})
+
+
+def test_a_continuous_learner_resumed_from_its_state_plays_the_same_rounds(tmp_path: Path) -> None:
+    def pendulum_learner() -> Learner:
+        env = gymnasium.make("Pendulum-v1", max_episode_steps=50)
+        agent = PPOAgent(3, ActionSpace.of(env.action_space), small_config(), seed=9)
+        return Learner(env, agent, CompletionCriterion(1e9), seed=9)
+
+    def fingerprint(learner: Learner) -> list[tuple[float, float]]:
+        return [(learner.play_round().score, float(learner.agent.actor_parameters().sum())) for _ in range(2)]
+
+    original = pendulum_learner()
+    fingerprint(original)
+    StateStore(tmp_path, "worker").save(*learner_state(original))
+    expected = fingerprint(original)
+    resumed = pendulum_learner()
+    load_learner_state(resumed, *StateStore(tmp_path, "worker").load())
+    assert fingerprint(resumed) == expected
