@@ -142,6 +142,14 @@ class ActionSpace:
             return cls.box(data["low"], data["high"])
         raise ValueError(f"unknown action space {data!r} (kind must be {DISCRETE!r} or {BOX!r})")
 
+    @classmethod
+    def from_architecture(cls, arch: dict[str, Any]) -> ActionSpace:
+        """The action space a model file's architecture records: its ``action_space``, or (any file without
+        one: every discrete model) ``n_actions`` discrete actions."""
+        if "action_space" in arch:
+            return cls.from_dict(arch["action_space"])
+        return cls.discrete(int(arch["n_actions"]))
+
     def __str__(self) -> str:
         if self.is_discrete:
             return f"Discrete({self.n})"

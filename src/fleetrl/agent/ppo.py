@@ -367,11 +367,7 @@ class PPOAgent:
         try:
             arch = metadata["architecture"]
             config = PPOConfig.from_dict(metadata["config"])
-            space = (
-                ActionSpace.from_dict(arch["action_space"])
-                if "action_space" in arch
-                else ActionSpace.discrete(int(arch["n_actions"]))
-            )
+            space = ActionSpace.from_architecture(arch)
             agent = cls(int(arch["obs_dim"]), space, config, int(metadata.get("seed", 0)))
         except (KeyError, TypeError, ValueError) as exc:
             raise CheckpointError(f"{path}: fleetrl metadata is incomplete or invalid ({exc})") from exc
