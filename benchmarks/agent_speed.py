@@ -3,7 +3,9 @@
     python benchmarks/agent_speed.py [--steps 20000] [--repeats 5]
 
 Target (issue: fast acting): a rollout of at least 25k steps/s per worker on this machine. Prints medians
-over repeats (the machine is shared; medians are steadier than single runs).
+over repeats (the machine is shared; medians are steadier than single runs). The acting cost is measured
+for the softmax head, for the Gaussian head on the numba path, and for the Gaussian head acting through
+torch instead (what the fast path saves a continuous task).
 """
 
 import argparse
@@ -19,14 +21,18 @@ import torch
 
 # isort: on
 from fleetrl import portable
+from fleetrl.agent.action_space import ActionSpace
 from fleetrl.agent.config import get_preset
 from fleetrl.agent.ppo import PPOAgent
-from fleetrl.envs.registration import CARTPOLE_UNIT_ID, QUBE_BALANCE_ID
+from fleetrl.envs.registration import CARTPOLE_UNIT_ID, QUBE_BALANCE_CONTINUOUS_ID, QUBE_BALANCE_ID
+
+BOX = ActionSpace.box([-3.0], [3.0])
+"""the continuous QUBE task's action box"""
 
 
-def act_and_remember(steps: int) -> float:
+def act_and_remember(steps: int, actions: int | ActionSpace = 3) -> float:
     """Seconds per step of act + remember on a fixed observation."""
-    agent = PPOAgent(4, 3, get_preset("standard"), seed=0)
+    agent = PPOAgent(4, actions, get_preset("standard"), seed=0)
     obs = np.zeros(4, dtype=np.float32)
     agent.act(obs)
     started = time.perf_counter()
@@ -35,17 +41,31 @@ def act_and_remember(steps: int) -> float:
     return (time.perf_counter() - started) / steps
 
 
+def act_through_torch(steps: int) -> float:
+    """Seconds per step of acting with the Gaussian head through torch (no fast path) + remember."""
+    agent = PPOAgent(4, BOX, get_preset("standard"), seed=0)
+    obs = np.zeros(4, dtype=np.float32)
+    generator = torch.Generator().manual_seed(0)
+    started = time.perf_counter()
+    for _ in range(steps):
+        with torch.no_grad():
+            head, _ = agent.net(torch.from_numpy(obs)[None])
+            mean, log_std = agent.net.gaussian(head)
+            action = (mean + log_std.exp() * torch.randn(mean.shape, generator=generator))[0].numpy()
+        agent.remember(obs, action, 1.0, obs, False, False)
+    return (time.perf_counter() - started) / steps
+
+
 def rollout(env_id: str, steps: int) -> float:
     """Steps per second of a worker's rollout (act, env step, remember), resets included."""
     env = gymnasium.make(env_id, unit=0, fleet_seed=0)
-    n_actions = int(env.action_space.n)  # type: ignore[attr-defined]
-    agent = PPOAgent(4, n_actions, get_preset("standard"), seed=0)
+    agent = PPOAgent(4, ActionSpace.of(env.action_space), get_preset("standard"), seed=0)
     obs, _ = env.reset(seed=0)
     agent.act(obs)
     started = time.perf_counter()
     for _ in range(steps):
         action = agent.act(obs)
-        next_obs, reward, terminated, truncated, _ = env.step(action)
+        next_obs, reward, terminated, truncated, _ = env.step(agent.env_action(action))
         agent.remember(obs, action, float(reward), next_obs, terminated, truncated)
         obs = env.reset()[0] if terminated or truncated else next_obs
     return steps / (time.perf_counter() - started)
@@ -76,7 +96,13 @@ def main() -> int:
     print(f"# {portable.describe_host()}")
     act = statistics.median(act_and_remember(args.steps) for _ in range(args.repeats))
     print(f"act + remember: {act * 1e6:.1f} µs per step (median of {args.repeats})")
-    for env_id in (CARTPOLE_UNIT_ID, QUBE_BALANCE_ID):
+    box = statistics.median(act_and_remember(args.steps, BOX) for _ in range(args.repeats))
+    print(f"act + remember, Gaussian head (numba): {box * 1e6:.1f} µs per step ({1 / box:,.0f} steps/s)")
+    slow = statistics.median(act_through_torch(args.steps // 4) for _ in range(args.repeats))
+    print(
+        f"act + remember, Gaussian head through torch: {slow * 1e6:.1f} µs per step ({1 / slow:,.0f} steps/s)"
+    )
+    for env_id in (CARTPOLE_UNIT_ID, QUBE_BALANCE_ID, QUBE_BALANCE_CONTINUOUS_ID):
         rate = statistics.median(rollout(env_id, args.steps) for _ in range(args.repeats))
         print(f"rollout {env_id}: {rate:,.0f} steps/s (median of {args.repeats}; target ≥ 25,000)")
     update = statistics.median(update_cost(10) for _ in range(args.repeats))

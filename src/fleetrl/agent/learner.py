@@ -65,7 +65,7 @@ class RoundResult:
 class Learner:
     """Plays rounds on one env; used by individual mode and inside the federated worker.
 
-    :param env: a Gymnasium env with a flat Box observation and a Discrete action space
+    :param env: a Gymnasium env with a flat Box observation and a Discrete or 1-D Box action space
     :param agent: the PPO agent that acts and learns
     :param criterion: decides when learning is complete
     :param seed: seeds the env at its first reset (later resets continue its random stream)
@@ -98,10 +98,13 @@ class Learner:
         seed = self.seed if self.episodes == 0 else None
         obs, _ = self.env.reset(seed=seed)
         act = self.agent.act_greedy if greedy else self.agent.act
+        # a box's sample goes to the env clipped, to the memory as drawn (PPOAgent.env_action)
+        to_env = None if self.agent.action_space.is_discrete else self.agent.env_action
         score, steps = 0.0, 0
         while True:
             action = act(obs)  # line 3
-            next_obs, reward, terminated, truncated, _ = self.env.step(action)  # line 4
+            sent = action if to_env is None else to_env(action)
+            next_obs, reward, terminated, truncated, _ = self.env.step(sent)  # line 4
             if learn:
                 self.agent.remember(obs, action, float(reward), next_obs, terminated, truncated)  # line 5
             score += float(reward)

@@ -14,7 +14,8 @@ class Transitions:
     obs: np.ndarray
     """s_t, float32 (n, obs_dim)"""
     actions: np.ndarray
-    """a_t, int64 (n,)"""
+    """a_t: discrete indices, int64 (n,), or continuous actions as sampled (before clipping), float32
+    (n, action_dim)"""
     rewards: np.ndarray
     """r_{t+1}, float32 (n,)"""
     next_obs: np.ndarray
@@ -54,16 +55,23 @@ class TrajectoryMemory:
     :param capacity: number of transitions kept (``grows``: the initial size, and what :meth:`filled` needs)
     :param obs_dim: length of an observation
     :param grows: keep every transition (double the buffer when full) instead of overwriting the oldest
+    :param action_dim: 0 for discrete action indices (int64), else the length of a continuous action
+        (float32 vectors)
     """
 
-    def __init__(self, capacity: int, obs_dim: int, grows: bool = False) -> None:
+    def __init__(self, capacity: int, obs_dim: int, grows: bool = False, action_dim: int = 0) -> None:
         if capacity < 1:
             raise ValueError(f"capacity must be >= 1, got {capacity}")
+        if action_dim < 0:
+            raise ValueError(f"action_dim must be >= 0 (0: discrete actions), got {action_dim}")
         self.capacity = capacity
         self.grows = grows
         self._obs = np.zeros((capacity, obs_dim), dtype=np.float32)
         self._next_obs = np.zeros((capacity, obs_dim), dtype=np.float32)
-        self._actions = np.zeros(capacity, dtype=np.int64)
+        if action_dim == 0:
+            self._actions = np.zeros(capacity, dtype=np.int64)
+        else:
+            self._actions = np.zeros((capacity, action_dim), dtype=np.float32)
         self._rewards = np.zeros(capacity, dtype=np.float32)
         self._terminated = np.zeros(capacity, dtype=np.float32)
         self._episode_end = np.zeros(capacity, dtype=np.float32)
@@ -78,7 +86,7 @@ class TrajectoryMemory:
     def add(
         self,
         obs: np.ndarray,
-        action: int,
+        action: int | np.ndarray,
         reward: float,
         next_obs: np.ndarray,
         terminated: bool,

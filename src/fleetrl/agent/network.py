@@ -1,4 +1,4 @@
-"""The actor-critic network: a shared trunk with a softmax actor head and a scalar critic head."""
+"""The actor-critic network: a shared trunk, an actor head (softmax or Gaussian) and a critic head."""
 
 from __future__ import annotations
 
@@ -7,19 +7,32 @@ import math
 
 import torch
 from torch import nn
+from torch.nn import functional
 
+from fleetrl.agent.action_space import ActionSpace, as_action_space
 from fleetrl.agent.config import PPOConfig
+
+INITIAL_LOG_STD = 0.0
+"""the Gaussian head's log-std at initialisation, in units of half the action range: σ starts at
+(high − low) / 2 in every component, so the first episodes explore the whole box"""
+_HALF_LOG_2PI = 0.5 * math.log(2.0 * math.pi)
 
 
 class ActorCritic(nn.Module):
     """MLP trunk (section 5.1: three hidden layers of 128) feeding two output layers.
 
     Parameter names are stable and form the wire layout: ``trunk.{i}.weight``, ``trunk.{i}.bias``,
-    ``policy.weight``, ``policy.bias`` (the actor head, logits of π_θ) and ``value.weight``,
+    ``policy.weight``, ``policy.bias`` (the actor head: logits of π_θ, or its Gaussian mean), for a box
+    ``policy_log_std`` (the state-independent log-std, one per action component), and ``value.weight``,
     ``value.bias`` (the critic head, V_μ).
 
+    A Gaussian head's output u is in units of the box: mean = centre + half_range·u and
+    σ = half_range·exp(policy_log_std), so one initialisation fits any bounds. The log-probability is the
+    density of the sampled (unclipped) action; the env is sent the action clipped to the box
+    (docs/algorithm.md, "Continuous actions").
+
     :param obs_dim: length of the observation vector
-    :param n_actions: number of discrete actions (the actor's softmax width)
+    :param actions: the action space (an int: that many discrete actions, the actor's softmax width)
     :param hidden: widths of the trunk layers
     :param activation: ``tanh`` or ``relu`` after each trunk layer
     :param generator: torch generator used for the (orthogonal) initialisation
@@ -28,38 +41,47 @@ class ActorCritic(nn.Module):
     def __init__(
         self,
         obs_dim: int,
-        n_actions: int,
+        actions: int | ActionSpace,
         hidden: tuple[int, ...],
         activation: str,
         generator: torch.Generator,
     ) -> None:
         super().__init__()
-        if obs_dim < 1 or n_actions < 2:
-            raise ValueError(f"need obs_dim >= 1 and n_actions >= 2, got {obs_dim}, {n_actions}")
+        space = as_action_space(actions)
+        if obs_dim < 1:
+            raise ValueError(f"need obs_dim >= 1, got {obs_dim}")
         self.obs_dim = obs_dim
-        self.n_actions = n_actions
+        self.action_space = space
+        self.n_actions = space.n
+        """number of discrete actions (0 for a box)"""
         self.activation = activation
         widths = [obs_dim, *hidden]
         layers = [nn.Linear(a, b) for a, b in itertools.pairwise(widths)]
         self.trunk = nn.ModuleList(layers)
         self.trunk_layers: list[nn.Linear] = layers
         """the trunk's layers, typed (the same modules as ``trunk``)"""
-        self.policy = nn.Linear(widths[-1], n_actions)
+        self.policy = nn.Linear(widths[-1], space.head_size)
         self.value = nn.Linear(widths[-1], 1)
         # CleanRL's initialisation: orthogonal, gain √2 in the trunk, 0.01 for the policy (near-uniform
-        # π at the start), 1 for the value; zero biases.
+        # π, or a mean near the box's centre, at the start), 1 for the value; zero biases.
         for layer in self.trunk_layers:
             _init(layer, math.sqrt(2.0), generator)
         _init(self.policy, 0.01, generator)
         _init(self.value, 1.0, generator)
+        self.policy_log_std: nn.Parameter | None = None
+        if not space.is_discrete:
+            self.policy_log_std = nn.Parameter(torch.full((space.dim,), INITIAL_LOG_STD))
+        # constants of the box, not parameters (nor in the state dict: the action space rebuilds them)
+        self._centre = torch.tensor(space.centre(), dtype=torch.float32)
+        self._half = torch.tensor(space.half_range(), dtype=torch.float32)
         self._act = torch.tanh if activation == "tanh" else torch.relu
 
     @classmethod
     def from_config(
-        cls, obs_dim: int, n_actions: int, config: PPOConfig, generator: torch.Generator
+        cls, obs_dim: int, actions: int | ActionSpace, config: PPOConfig, generator: torch.Generator
     ) -> ActorCritic:
         """Build the network a config describes."""
-        return cls(obs_dim, n_actions, config.hidden, config.activation, generator)
+        return cls(obs_dim, actions, config.hidden, config.activation, generator)
 
     def features(self, obs: torch.Tensor) -> torch.Tensor:
         """Output of the shared trunk (the three hidden layers)."""
@@ -69,7 +91,8 @@ class ActorCritic(nn.Module):
         return x
 
     def forward(self, obs: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
-        """Logits of π_θ(·|s) (batch, n_actions) and V_μ(s) (batch,)."""
+        """The actor head's output (batch, head_size): logits of π_θ(·|s), or the Gaussian mean in units
+        of the box (see :meth:`gaussian`); and V_μ(s) (batch,)."""
         h = self.features(obs)
         return self.policy(h), self.value(h).squeeze(-1)
 
@@ -77,14 +100,49 @@ class ActorCritic(nn.Module):
         """V_μ(s) alone (batch,)."""
         return self.value(self.features(obs)).squeeze(-1)
 
+    def gaussian(self, head: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        """Mean (batch, dim) and log σ (dim,) of π_θ(·|s) in the env's units, from the head's output."""
+        if self.policy_log_std is None:
+            raise TypeError("a discrete policy head has no Gaussian")
+        return self._centre + self._half * head, torch.log(self._half) + self.policy_log_std
+
+    def log_probs_and_entropy(
+        self, head: torch.Tensor, actions: torch.Tensor
+    ) -> tuple[torch.Tensor, torch.Tensor]:
+        """log π_θ(a_t|s_t) (batch,) of stored actions and the mean entropy of π_θ(·|s_t) (a scalar).
+
+        Discrete: log-softmax of the logits at the action index; entropy −Σ p·log p. Gaussian: the diagonal
+        normal's log-density summed over the action components,
+        Σ_d [−½((a_d − m_d)/σ_d)² − log σ_d − ½ log 2π], and its entropy Σ_d [½ + ½ log 2π + log σ_d].
+        """
+        if self.policy_log_std is None:
+            log_probs_all = functional.log_softmax(head, dim=-1)
+            log_probs = log_probs_all.gather(1, actions[:, None]).squeeze(1)
+            entropy = -(log_probs_all.exp() * log_probs_all).sum(-1).mean()
+            return log_probs, entropy
+        mean, log_std = self.gaussian(head)
+        z = (actions - mean) / log_std.exp()
+        log_probs = (-0.5 * z**2 - log_std - _HALF_LOG_2PI).sum(-1)
+        entropy = (0.5 + _HALF_LOG_2PI + log_std).sum()
+        return log_probs, entropy
+
+    def log_probs(self, obs: torch.Tensor, actions: torch.Tensor) -> torch.Tensor:
+        """log π_θ(a_t|s_t) (batch,) of stored actions at observations ``obs``."""
+        head, _ = self(obs)
+        return self.log_probs_and_entropy(head, actions)[0]
+
     def trunk_parameters(self) -> list[tuple[str, nn.Parameter]]:
         """Named parameters of the shared trunk, in layout order."""
         return [(f"trunk.{n}", p) for n, p in self.trunk.named_parameters()]
 
     def head_parameters(self, head: str) -> list[tuple[str, nn.Parameter]]:
-        """Named parameters of ``policy`` or ``value`` head, in layout order."""
+        """Named parameters of ``policy`` (with a Gaussian's ``policy_log_std`` last) or ``value`` head,
+        in layout order."""
         module = {"policy": self.policy, "value": self.value}[head]
-        return [(f"{head}.{n}", p) for n, p in module.named_parameters()]
+        named = [(f"{head}.{n}", p) for n, p in module.named_parameters()]
+        if head == "policy" and self.policy_log_std is not None:
+            named.append(("policy_log_std", self.policy_log_std))
+        return named
 
 
 def _init(layer: nn.Linear, gain: float, generator: torch.Generator) -> None:

@@ -1,7 +1,8 @@
 """Fast acting: a numba copy of the actor (trunk + policy head), so a rollout step never touches torch.
 
 The agent refreshes the copy after every change of θ (update, received gradient, received parameters).
-One call of :func:`_act_kernel` costs a few µs for the 3 x 128 trunk (docs/algorithm.md, "Fast acting").
+One call of :func:`_act_kernel` (discrete) or :func:`_gaussian_kernel` (a box) costs a few µs for the
+3 x 128 trunk (docs/algorithm.md, "Fast acting"; ``benchmarks/agent_speed.py`` measures both).
 """
 
 from __future__ import annotations
@@ -86,15 +87,53 @@ def _act_kernel(
     return n - 1
 
 
+@numba.njit(cache=True, fastmath=_FASTMATH)
+def _gaussian_kernel(
+    weights: np.ndarray,
+    biases: np.ndarray,
+    dims: np.ndarray,
+    activation: int,
+    obs: np.ndarray,
+    a: np.ndarray,
+    b: np.ndarray,
+    centre: np.ndarray,
+    half: np.ndarray,
+    std: np.ndarray,
+    z: np.ndarray,
+    low: np.ndarray,
+    high: np.ndarray,
+    out: np.ndarray,
+) -> None:
+    """A Gaussian action into ``out``: mean + σ·z for standard normal draws ``z`` (unclipped: what the
+    memory stores); with an empty ``z`` the mean clipped to [low, high] (greedy)."""
+    head = _logits_kernel(weights, biases, dims, activation, obs, a, b)
+    greedy = z.shape[0] == 0
+    for d in range(out.shape[0]):
+        mean = centre[d] + half[d] * head[d]
+        if greedy:
+            out[d] = min(max(mean, low[d]), high[d])
+        else:
+            out[d] = mean + std[d] * z[d]
+
+
 class NumpyPolicy:
     """A frozen float64 copy of π_θ for acting; call :meth:`refresh` after θ changes.
 
-    :param net: the torch network whose trunk and policy head are copied
+    :param net: the torch network whose trunk and policy head (and a Gaussian's log-std) are copied
     """
 
     def __init__(self, net: ActorCritic) -> None:
         self._activation = _TANH if net.activation == "tanh" else _RELU
-        widths = [net.obs_dim] + [layer.out_features for layer in net.trunk_layers] + [net.n_actions]
+        space = net.action_space
+        self.discrete = space.is_discrete
+        """True for an index-valued (softmax) policy, False for a Gaussian over a box"""
+        self._centre = space.centre()
+        self._half = space.half_range()
+        self._low = np.asarray(space.low, dtype=np.float64)
+        self._high = np.asarray(space.high, dtype=np.float64)
+        self._std = np.ones(space.dim, dtype=np.float64)
+        self._no_draw = np.zeros(0, dtype=np.float64)
+        widths = [net.obs_dim] + [layer.out_features for layer in net.trunk_layers] + [space.head_size]
         self._dims = np.asarray(widths, dtype=np.int64)
         self._a = np.zeros(max(widths), dtype=np.float64)
         self._b = np.zeros(max(widths), dtype=np.float64)
@@ -111,6 +150,9 @@ class NumpyPolicy:
             w = layer.weight.detach().cpu().numpy()
             self._weights[i, : w.shape[0], : w.shape[1]] = w
             self._biases[i, : w.shape[0]] = layer.bias.detach().cpu().numpy()
+        if net.policy_log_std is not None:
+            log_std = net.policy_log_std.detach().cpu().numpy().astype(np.float64)
+            self._std = self._half * np.exp(log_std)
 
     def _load_obs(self, obs: np.ndarray) -> np.ndarray:
         flat = np.asarray(obs, dtype=np.float64).reshape(-1)
@@ -119,7 +161,9 @@ class NumpyPolicy:
         return flat
 
     def act(self, obs: np.ndarray, u: float) -> int:
-        """Action sampled from π_θ(·|obs) using the uniform draw ``u`` in [0, 1)."""
+        """Action sampled from π_θ(·|obs) using the uniform draw ``u`` in [0, 1) (discrete)."""
+        if not self.discrete:
+            raise TypeError("a Gaussian policy acts with act_continuous(obs, z)")
         return int(
             _act_kernel(
                 self._weights,
@@ -134,11 +178,47 @@ class NumpyPolicy:
         )
 
     def act_greedy(self, obs: np.ndarray) -> int:
-        """The most probable action under π_θ(·|obs)."""
+        """The most probable action under π_θ(·|obs) (discrete)."""
         return self.act(obs, -1.0)  # the kernel takes a negative draw as "the arg-max, no sampling"
 
+    def act_continuous(self, obs: np.ndarray, z: np.ndarray | None) -> np.ndarray:
+        """A Gaussian action (float32, new array): mean + σ·``z`` for standard normal draws ``z`` (one per
+        component; not clipped), or for ``z=None`` the mean clipped to the box (greedy)."""
+        if self.discrete:
+            raise TypeError("a discrete policy acts with act(obs, u)")
+        draws = self._no_draw if z is None else np.asarray(z, dtype=np.float64)
+        if z is not None and draws.shape != self._std.shape:
+            raise ValueError(f"need {self._std.shape[0]} normal draws, got shape {draws.shape}")
+        out = np.empty(self._std.shape[0], dtype=np.float64)
+        _gaussian_kernel(
+            self._weights,
+            self._biases,
+            self._dims,
+            self._activation,
+            self._load_obs(obs),
+            self._a,
+            self._b,
+            self._centre,
+            self._half,
+            self._std,
+            draws,
+            self._low,
+            self._high,
+            out,
+        )
+        return out.astype(np.float32)
+
+    def gaussian(self, obs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Mean and σ of π_θ(·|obs) in the env's units, float64 (for tests and inspection)."""
+        head = _logits_kernel(
+            self._weights, self._biases, self._dims, self._activation, self._load_obs(obs), self._a, self._b
+        )
+        return self._centre + self._half * head, self._std.copy()
+
     def probabilities(self, obs: np.ndarray) -> np.ndarray:
-        """π_θ(·|obs) as a float64 vector (for tests and inspection)."""
+        """π_θ(·|obs) as a float64 vector (for tests and inspection; discrete)."""
+        if not self.discrete:
+            raise TypeError("a Gaussian policy has no probability vector: see gaussian(obs)")
         logits = _logits_kernel(
             self._weights, self._biases, self._dims, self._activation, self._load_obs(obs), self._a, self._b
         ).copy()

@@ -8,8 +8,8 @@ from typing import Any
 import numpy as np
 import torch
 from torch import nn
-from torch.nn import functional
 
+from fleetrl.agent.action_space import ActionSpace, as_action_space
 from fleetrl.agent.checkpoint import CheckpointError, read_checkpoint, write_checkpoint
 from fleetrl.agent.config import PPOConfig
 from fleetrl.agent.flat import Named, flatten, flatten_tensors, layout, split
@@ -24,25 +24,32 @@ __all__ = ["PPOAgent", "UpdateStats"]
 class PPOAgent:
     """Actor-Critic PPO with a shared trunk; θ = trunk + policy head, μ = value head (+ trunk if shared).
 
+    The actor head follows the action space: a softmax over ``n`` discrete actions, or for a box a
+    Gaussian (mean from the trunk, state-independent log-std) whose samples the env receives clipped to
+    the bounds (:meth:`env_action`); the memory keeps the unclipped sample, whose density is log π.
+
     :param obs_dim: length of an observation
-    :param n_actions: number of discrete actions
+    :param actions: the action space; an int is that many discrete actions
     :param config: hyper-parameters (a preset from :func:`fleetrl.agent.config.get_preset`, or a variant)
     :param seed: fixes the initial weights (torch generator), action sampling and window starts (numpy)
     """
 
-    def __init__(self, obs_dim: int, n_actions: int, config: PPOConfig, seed: int) -> None:
+    def __init__(self, obs_dim: int, actions: int | ActionSpace, config: PPOConfig, seed: int) -> None:
         config.validate()
+        self.action_space = as_action_space(actions)
         self.obs_dim = obs_dim
-        self.n_actions = n_actions
+        self.n_actions = self.action_space.n
+        """number of discrete actions (0 for a box)"""
         self.config = config
         self.seed = seed
         generator = torch.Generator().manual_seed(seed)
         act_seed, window_seed = np.random.SeedSequence(seed).spawn(2)
         self._act_rng = np.random.default_rng(act_seed)
         self._window_rng = np.random.default_rng(window_seed)
-        self.net = ActorCritic.from_config(obs_dim, n_actions, config, generator)
+        self.net = ActorCritic.from_config(obs_dim, self.action_space, config, generator)
         trunk = self.net.trunk_parameters()
-        # θ: the actor model — the shared trunk and the softmax head; this is what the federation shares.
+        # θ: the actor model — the shared trunk and the actor head (softmax, or Gaussian mean and log-std);
+        # this is what the federation shares.
         self._actor_named = trunk + self.net.head_parameters("policy")
         # μ: the critic model — the value head, plus the trunk when both optimisers step it ("shared").
         value_head = self.net.head_parameters("value")
@@ -57,27 +64,42 @@ class PPOAgent:
             shared = torch.optim.Adam([p for _, p in self._model_named()], lr=config.actor_lr)
             self.actor_optimizer = self.critic_optimizer = shared
         self.memory = TrajectoryMemory(
-            config.memory_size, obs_dim, grows=config.trajectory_memory == "per_round"
+            config.memory_size,
+            obs_dim,
+            grows=config.trajectory_memory == "per_round",
+            action_dim=self.action_space.dim,
         )
         self._policy = NumpyPolicy(self.net)
+        self._discrete = self.action_space.is_discrete
         self._last_actor_gradient: np.ndarray | None = None
         self._round_update: RoundUpdate | None = None
         self._pending_step: int | None = None
 
     # ---- acting (Algorithm 2, lines 3 and 5) ------------------------------------------------------------
 
-    def act(self, obs: np.ndarray) -> int:
-        """Sample a_t ~ π_θ(·|s_t) (line 3) on the numba copy of the actor."""
-        return self._policy.act(obs, float(self._act_rng.random()))
+    def act(self, obs: np.ndarray) -> Any:
+        """Sample a_t ~ π_θ(·|s_t) (line 3) on the numba copy of the actor: an action index, or for a box a
+        float32 vector as sampled (not clipped; send the env :meth:`env_action` of it, remember it as is)."""
+        if self._discrete:
+            return self._policy.act(obs, float(self._act_rng.random()))
+        return self._policy.act_continuous(obs, self._act_rng.standard_normal(self.action_space.dim))
 
-    def act_greedy(self, obs: np.ndarray) -> int:
-        """The most probable action under π_θ (evaluation)."""
-        return self._policy.act_greedy(obs)
+    def act_greedy(self, obs: np.ndarray) -> Any:
+        """The most probable action under π_θ (evaluation): the arg-max index, or the Gaussian's mean
+        clipped to the box."""
+        if self._discrete:
+            return self._policy.act_greedy(obs)
+        return self._policy.act_continuous(obs, None)
+
+    def env_action(self, action: Any) -> Any:
+        """What the env is sent for an action of :meth:`act`: the index itself, or the vector clipped to
+        the box (the clip belongs to the env's side: log π stays the Gaussian density of the sample)."""
+        return action if self._discrete else self.action_space.clip(action)
 
     def remember(
         self,
         obs: np.ndarray,
-        action: int,
+        action: int | np.ndarray,
         reward: float,
         next_obs: np.ndarray,
         terminated: bool,
@@ -208,9 +230,8 @@ class PPOAgent:
             return
         obs, actions = self.memory.slots(slots)
         with torch.no_grad():
-            logits, _ = self.net(torch.from_numpy(obs))
-            log_probs = functional.log_softmax(logits, dim=-1).gather(1, torch.from_numpy(actions)[:, None])
-        self.memory.score(slots, log_probs.squeeze(1).numpy())
+            log_probs = self.net.log_probs(torch.from_numpy(obs), torch.from_numpy(actions))
+        self.memory.score(slots, log_probs.numpy())
 
     def _apply(
         self, optimizer: torch.optim.Optimizer, params: list[nn.Parameter], grads: list[torch.Tensor]
@@ -309,13 +330,18 @@ class PPOAgent:
     # ---- checkpoints ------------------------------------------------------------------------------------
 
     def architecture(self) -> dict[str, Any]:
-        """What a model file must match to be loaded into this agent."""
-        return {
+        """What a model file must match to be loaded into this agent: for a box also ``action_space``
+        (its bounds; ``n_actions`` is 0). A discrete agent's is what it has always been, so the model
+        files written before continuous actions load unchanged."""
+        arch: dict[str, Any] = {
             "obs_dim": self.obs_dim,
             "n_actions": self.n_actions,
             "hidden": list(self.config.hidden),
             "activation": self.config.activation,
         }
+        if not self.action_space.is_discrete:
+            arch["action_space"] = self.action_space.to_dict()
+        return arch
 
     def save(self, path: str | Path) -> None:
         """Write the network weights (safetensors) with config, architecture and seed as JSON metadata."""
@@ -324,8 +350,15 @@ class PPOAgent:
         write_checkpoint(path, tensors, metadata)
 
     @classmethod
-    def load(cls, path: str | Path, obs_dim: int | None = None, n_actions: int | None = None) -> PPOAgent:
-        """An agent rebuilt from a model file; ``obs_dim``/``n_actions``, if given, must match it.
+    def load(
+        cls,
+        path: str | Path,
+        obs_dim: int | None = None,
+        n_actions: int | None = None,
+        action_space: ActionSpace | None = None,
+    ) -> PPOAgent:
+        """An agent rebuilt from a model file (its action space too: discrete when the file names none);
+        ``obs_dim``/``n_actions``/``action_space``, if given, must match it.
 
         :raises FileNotFoundError: no file at ``path``
         :raises CheckpointError: corrupt file, not a fleetrl model, or a model for another architecture
@@ -334,7 +367,8 @@ class PPOAgent:
         try:
             arch = metadata["architecture"]
             config = PPOConfig.from_dict(metadata["config"])
-            agent = cls(int(arch["obs_dim"]), int(arch["n_actions"]), config, int(metadata.get("seed", 0)))
+            space = ActionSpace.from_architecture(arch)
+            agent = cls(int(arch["obs_dim"]), space, config, int(metadata.get("seed", 0)))
         except (KeyError, TypeError, ValueError) as exc:
             raise CheckpointError(f"{path}: fleetrl metadata is incomplete or invalid ({exc})") from exc
         expected = {"obs_dim": obs_dim, "n_actions": n_actions}
@@ -344,6 +378,11 @@ class PPOAgent:
                     f"{path} is a model for {key}={agent.architecture()[key]}, but {want} is needed here "
                     "(a model trained for another environment or architecture)"
                 )
+        if action_space is not None and action_space != agent.action_space:
+            raise CheckpointError(
+                f"{path} is a model for actions {agent.action_space}, but {action_space} is needed here "
+                "(a model trained for another environment)"
+            )
         agent._load_tensors(tensors, str(path))
         return agent
 

@@ -16,7 +16,6 @@ from dataclasses import dataclass
 import numpy as np
 import torch
 from torch import nn
-from torch.nn import functional
 
 from fleetrl.agent.config import PPOConfig
 from fleetrl.agent.losses import clipped_surrogate, critic_loss, gae, td_targets
@@ -50,7 +49,8 @@ class _CriticTerms:
     """What the critic's half of an optimisation computed on its window."""
 
     window: slice
-    logits: torch.Tensor
+    head: torch.Tensor
+    """the actor head's output on the window (logits, or the Gaussian mean in units of the box)"""
     advantages: torch.Tensor
     loss: torch.Tensor
 
@@ -94,11 +94,11 @@ class RoundUpdate:
         # Line 11: π_θold ← π_θ — the log-probabilities of the stored actions under the policy as it is now,
         # or (old_policy 'behaviour') under the policy that acted.
         with torch.no_grad():
-            logits, values = net(self.obs)
+            head, values = net(self.obs)
             if cfg.old_policy == "behaviour":
                 self.old_log_probs = torch.from_numpy(data.behaviour_log_probs)
             else:
-                self.old_log_probs = _log_prob(logits, self.actions)
+                self.old_log_probs = net.log_probs_and_entropy(head, self.actions)[0]
             self.memory_advantages = None
             self.memory_values = values
             """V_μ(s) at line 11: with ``gae_scope='memory'`` the λ-return target is Â + this, fixed for the
@@ -141,8 +141,8 @@ class RoundUpdate:
             return [self._critic_gradient(self._critic_half)]
         assert self._critic_half is not None, "the actor's half follows its critic's half"
         half, self._critic_half = self._critic_half, None
-        logits, _ = self.net(self.obs[half.window])  # ... then π_θ at the parameters the critic's step left
-        half.logits = logits
+        head, _ = self.net(self.obs[half.window])  # ... then π_θ at the parameters the critic's step left
+        half.head = head
         objective = self._actor_objective(half)
         return [list(torch.autograd.grad(objective, self._actor_params))]
 
@@ -158,7 +158,7 @@ class RoundUpdate:
         cfg = self.config
         start, stop = self.windows[j]
         w = slice(start, stop)
-        logits, v = self.net(self.obs[w])
+        head, v = self.net(self.obs[w])
         with torch.no_grad():
             v_next = self.net.value_of(self.next_obs[w])
         if self.memory_advantages is None:  # line 15, Eq. 2: the sum runs to the end of the window
@@ -183,14 +183,16 @@ class RoundUpdate:
             adv = (adv - adv.mean()) / (adv.std() + 1e-8)
         l_v = critic_loss(v, targets, cfg.critic_loss)  # line 17, Eq. 3
         self._totals[1] += l_v.item()
-        return _CriticTerms(w, logits, adv, l_v)
+        return _CriticTerms(w, head, adv, l_v)
 
     def _actor_objective(self, half: _CriticTerms) -> torch.Tensor:
-        """Line 18: −L^CLIP (Eq. 6) − β·H, the quantity the actor descends (Eq. 7)."""
+        """Line 18: −L^CLIP (Eq. 6) − β·H, the quantity the actor descends (Eq. 7).
+
+        log π_θ(a_t|s_t) and H come from the actor head (softmax, or a Gaussian's log-density summed over
+        the action components); the ratio R_t = exp(log π_θ − log π_θold) (Eq. 5) and its clip are the same
+        for both."""
         cfg = self.config
-        log_probs_all = functional.log_softmax(half.logits, dim=-1)
-        log_probs = log_probs_all.gather(1, self.actions[half.window][:, None]).squeeze(1)
-        entropy = -(log_probs_all.exp() * log_probs_all).sum(-1).mean()
+        log_probs, entropy = self.net.log_probs_and_entropy(half.head, self.actions[half.window])
         old = self.old_log_probs[half.window]
         l_clip = clipped_surrogate(log_probs, old, half.advantages, cfg.clip_eps)
         with torch.no_grad():
@@ -229,7 +231,3 @@ def step_parts(config: PPOConfig, k: int) -> tuple[str, ...]:
     if config.optimisers == "per_model":
         return (CRITIC, ACTOR)
     return (CRITIC,) if k % 2 == 0 else (ACTOR,)
-
-
-def _log_prob(logits: torch.Tensor, actions: torch.Tensor) -> torch.Tensor:
-    return functional.log_softmax(logits, dim=-1).gather(1, actions[:, None]).squeeze(1)

@@ -1,5 +1,6 @@
-"""What both cyber environments share: a device link, seeded resets, action checking."""
+"""What the cyber environments share: a device link, seeded resets, action checking."""
 
+import math
 from abc import abstractmethod
 from collections.abc import Mapping
 from typing import Any
@@ -23,8 +24,31 @@ def action_index(action: object, n_actions: int) -> int:
     return index
 
 
-class LinkEnv(gymnasium.Env[np.ndarray, np.int64]):
-    """A Gymnasium env whose device sits behind a ``DeviceLink``; subclasses judge each observation."""
+def box_action(action: object, space: gymnasium.spaces.Box) -> np.ndarray:
+    """``action`` as a float32 vector of the box's shape, clipped to its bounds; a ValueError that says what
+    is allowed if it has another shape or a value that is not a finite number."""
+    if type(action) is np.ndarray and action.dtype == np.float32 and action.shape == space.shape:
+        vector = action  # the common case (an agent's action), checked in a few µs
+    else:
+        raw = np.asarray(action) if action is not None else np.asarray(np.nan)
+        numeric = np.issubdtype(raw.dtype, np.integer) or np.issubdtype(raw.dtype, np.floating)
+        vector = raw.astype(np.float32) if numeric else np.full(1, np.nan, dtype=np.float32)
+        if vector.shape == () and space.shape == (1,):
+            vector = vector.reshape(1)
+    if vector.shape != space.shape or not all(map(math.isfinite, vector.tolist())):
+        raise ValueError(
+            f"action {action!r} is not allowed (give {space.shape[0]} finite numbers, "
+            f"each within {space.low.tolist()} .. {space.high.tolist()}; values beyond are clipped)"
+        )
+    return np.minimum(np.maximum(vector, space.low), space.high)
+
+
+class LinkEnv(gymnasium.Env[np.ndarray, Any]):
+    """A Gymnasium env whose device sits behind a ``DeviceLink``; subclasses judge each observation.
+
+    Actions are discrete indices 0 .. ``n_actions`` − 1 checked by :func:`action_index`; a subclass with
+    another action space (a box) overrides :meth:`link_action`.
+    """
 
     metadata: dict[str, Any] = {"render_modes": ["rgb_array"], "render_fps": 50}  # noqa: RUF012 (gymnasium's convention)
 
@@ -50,6 +74,10 @@ class LinkEnv(gymnasium.Env[np.ndarray, np.int64]):
     def frame(self, obs: np.ndarray) -> np.ndarray:
         """An ``rgb_array`` picture of an observation; subclasses draw their unit."""
 
+    def link_action(self, action: object) -> Any:
+        """The action as the link takes it: a plain index in [0, n_actions), or a ValueError."""
+        return action_index(action, self._n_actions)
+
     def render(self) -> np.ndarray | None:
         """The last observation as an RGB frame with ``render_mode="rgb_array"``; None otherwise."""
         if self.render_mode != "rgb_array" or self._last_obs is None:
@@ -68,7 +96,7 @@ class LinkEnv(gymnasium.Env[np.ndarray, np.int64]):
     def step(self, action: object) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
         """Send the action, judge the new observation. Truncation is left to gymnasium's TimeLimit."""
         index = action if type(action) is int and 0 <= action < self._n_actions else None
-        obs, extra = self._link_step(action_index(action, self._n_actions) if index is None else index)
+        obs, extra = self._link_step(self.link_action(action) if index is None else index)
         reward, terminated = self.judge(obs)
         self._last_obs = obs = obs.copy()
         return obs, reward, terminated, False, _info(extra)

@@ -43,6 +43,9 @@ class QubeBalanceEnv(LinkEnv):
         ``quantise=True``, ``velocity_estimate="difference"``, ``actuation_delay=True``
     """
 
+    index_actions = 3
+    """how many action indices the env takes (0: none, a continuous task)"""
+
     def __init__(
         self,
         unit: int = 0,
@@ -58,14 +61,18 @@ class QubeBalanceEnv(LinkEnv):
             device = QubeDevice.from_fleet(
                 self.unit, self.fleet_seed, qube_config(**options), profile=fleet_profile
             )
-            link = InProcessLink(device)
+            link = self.in_process_link(device)
         elif options or fleet_profile is not None:
             given = sorted(options) + (["fleet_profile"] if fleet_profile is not None else [])
             raise ValueError(f"options {given} configure the in-process simulation; not with link=")
-        super().__init__(link, n_actions=3, render_mode=render_mode)
+        super().__init__(link, n_actions=self.index_actions, render_mode=render_mode)
         high = np.array([math.pi, VELOCITY_BOUND, 2.0 * math.pi, VELOCITY_BOUND], dtype=np.float32)
         self.observation_space = gymnasium.spaces.Box(-high, high, dtype=np.float32)
         self.action_space = gymnasium.spaces.Discrete(3)
+
+    def in_process_link(self, device: QubeDevice) -> DeviceLink:
+        """The link to a simulated unit: its action indices straight to the device."""
+        return InProcessLink(device)
 
     def judge(self, obs: np.ndarray) -> tuple[float, bool]:
         """+1 while the pendulum is within 7.5° and the arm within ±π/2; otherwise 0 and terminate."""

@@ -6,12 +6,16 @@ tell them apart. Observations are float32 arrays the link may reuse: copy one to
 
 from collections.abc import Mapping
 from types import MappingProxyType
-from typing import Protocol, runtime_checkable
+from typing import Any, Protocol, runtime_checkable
 
 import numpy as np
 
 NO_INFO: Mapping[str, float] = MappingProxyType({})
 """the (read-only, shared) info of a step that has nothing to report"""
+
+Action = Any
+"""what a link or device step takes: a discrete action index (int) for the discrete tasks, or a command
+vector (float32 ndarray, e.g. ``[volts]``) for a continuous one; each device declares which it takes"""
 
 
 @runtime_checkable
@@ -22,8 +26,8 @@ class Device(Protocol):
         """Bring the unit to the start of an episode; return its first observation."""
         ...
 
-    def step(self, action: int) -> np.ndarray:
-        """Apply action index ``action`` for one control period; return the observation."""
+    def step(self, action: Action) -> np.ndarray:
+        """Apply ``action`` (an index, or a command vector) for one control period; return the observation."""
         ...
 
     def close(self) -> None:
@@ -39,8 +43,9 @@ class DeviceLink(Protocol):
         """Device-side reset (for a QUBE: swing-up and settle), seeded; returns the first observation."""
         ...
 
-    def step(self, action: int) -> tuple[np.ndarray, Mapping[str, float]]:
-        """Send action index ``action``; return the next observation and small numeric extras."""
+    def step(self, action: Action) -> tuple[np.ndarray, Mapping[str, float]]:
+        """Send ``action`` (an index, or a command vector); return the next observation and small numeric
+        extras."""
         ...
 
     def close(self) -> None:

@@ -4,7 +4,7 @@ from collections.abc import Mapping
 
 import numpy as np
 
-from fleetrl.link.base import NO_INFO, Device
+from fleetrl.link.base import NO_INFO, Action, Device
 
 
 class InProcessLink:
@@ -18,7 +18,7 @@ class InProcessLink:
         """Reset the device with ``seed``; return its first observation."""
         return self.device.reset(seed)
 
-    def step(self, action: int) -> tuple[np.ndarray, Mapping[str, float]]:
+    def step(self, action: Action) -> tuple[np.ndarray, Mapping[str, float]]:
         """Step the device; the in-process link has no extras to report."""
         return self._step(action), NO_INFO
 

@@ -175,3 +175,26 @@ class QubeDevice:
 
     def close(self) -> None:
         """Nothing to release for a simulated unit."""
+
+
+class QubeVoltageUnit:
+    """A QUBE unit commanded in volts: ``step`` takes a command vector ``[volts]`` (a continuous action)
+    instead of an action index; the amplifier still saturates at ``config.max_volts``.
+
+    :param device: the simulated unit
+    """
+
+    def __init__(self, device: QubeDevice) -> None:
+        self.device = device
+
+    def reset(self, seed: int | None = None) -> np.ndarray:
+        """The device-side reset of :meth:`QubeDevice.reset`."""
+        return self.device.reset(seed)
+
+    def step(self, action: np.ndarray) -> np.ndarray:
+        """One control period with ``action[0]`` volts commanded; returns the observation buffer."""
+        return self.device.step_volts(float(action[0]))
+
+    def close(self) -> None:
+        """Close the unit."""
+        self.device.close()
