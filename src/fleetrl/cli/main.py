@@ -15,6 +15,7 @@ from fleetrl.cli import device_command, roles
 from fleetrl.cli.settings_args import (
     add_broker_arguments,
     add_config_argument,
+    add_env_argument,
     add_fleet_profile_argument,
     add_learning_arguments,
     add_round_arguments,
@@ -59,7 +60,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     evaluate = sub.add_parser("evaluate", help="run a saved policy greedily and print its mean score")
     evaluate.add_argument("model", type=Path, help="a models/worker-K.safetensors file")
-    evaluate.add_argument("--env", default="qube")
+    add_env_argument(evaluate, default="qube")
     evaluate.add_argument("--unit", type=int, default=0)
     evaluate.add_argument("--fleet-seed", type=int, default=0)
     add_fleet_profile_argument(evaluate)

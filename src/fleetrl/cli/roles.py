@@ -213,7 +213,7 @@ def cmd_chief(args: argparse.Namespace) -> int:
         settings=shared_settings(
             env=settings.env, fleet_seed=settings.fleet_seed, fleet_profile=settings.fleet_profile,
             preset=settings.preset, overrides=settings.overrides, scheme=settings.scheme,
-            scheme_params=settings.scheme_params,
+            scheme_params=settings.scheme_params, target_score=settings.target_score,
         ),
     )  # fmt: skip
     if settings.out is None:
@@ -276,6 +276,7 @@ def cmd_worker(args: argparse.Namespace) -> int:
         fleet_profile=settings.fleet_profile,
         scheme=settings.scheme,
         scheme_params=settings.scheme_params,
+        target_score=settings.target_score,
     )
     config = worker_config(settings)
     checkpoints = worker_checkpoint_dir(settings.out, settings.worker_id)

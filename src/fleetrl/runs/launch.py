@@ -21,7 +21,6 @@ from contextlib import contextmanager, suppress
 from pathlib import Path
 from typing import Any
 
-from fleetrl.envs.catalog import get_env_spec
 from fleetrl.federation.chief import Chief
 from fleetrl.federation.runner import ChiefSummary, run_chief
 from fleetrl.runs.factory import probe_agent
@@ -78,6 +77,7 @@ def worker_specs(settings: RunSettings, device_url: str | None, run_id: str) -> 
             device_run_id=run_id,
             scheme=settings.scheme,
             scheme_params=dict(settings.scheme_params),
+            target_score=settings.target_score,
         )
         for k in range(settings.units)
     }
@@ -115,7 +115,8 @@ def _train(settings: RunSettings) -> dict[str, Any]:
     (recorder.out / "config.toml").write_text(settings.to_toml())
     recorder.extra["run_id"] = run_id
     title = f"fleetrl {settings.mode} · {settings.env} × {settings.units} · preset {settings.preset}"
-    threshold = get_env_spec(settings.env).completion_threshold
+    threshold = settings.target_score
+    assert threshold is not None, "validation fills in the target score"
     try:
         with (
             run_logging(recorder.out / "logs" / "run.log", quiet=settings.live),
@@ -211,7 +212,7 @@ def train_federated(
         settings=shared_settings(
             env=settings.env, fleet_seed=settings.fleet_seed, fleet_profile=settings.fleet_profile,
             preset=settings.preset, overrides=settings.overrides, scheme=settings.scheme,
-            scheme_params=settings.scheme_params,
+            scheme_params=settings.scheme_params, target_score=settings.target_score,
         ),
     )  # fmt: skip
     make_transport, fleet_for = transports(settings, url, specs, run_id)
