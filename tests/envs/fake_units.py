@@ -64,6 +64,13 @@ def raising(unit: int, fleet_seed: int) -> gymnasium.Env[Any, Any]:
     raise RuntimeError(f"no unit {unit} on the bus")
 
 
+def only_unit_0(unit: int, fleet_seed: int) -> gymnasium.Env[Any, Any]:
+    """Builds unit 0 (the one settings validation checks) and fails on any other."""
+    if unit > 0:
+        raise RuntimeError(f"no unit {unit} on the bus")
+    return factory(unit, fleet_seed)
+
+
 def image_observations(unit: int, fleet_seed: int) -> SpacesEnv:
     """A 2-D observation."""
     return SpacesEnv(gymnasium.spaces.Box(0.0, 1.0, (8, 8), np.float32), gymnasium.spaces.Discrete(2))

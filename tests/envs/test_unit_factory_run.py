@@ -61,6 +61,19 @@ def test_a_factory_fleet_trains_in_worker_processes(tmp_path: Path) -> None:
     assert all(not str(info["state"]).startswith("failed") for info in summary["workers"].values())
 
 
+@pytest.mark.slow
+def test_a_unit_the_factory_cannot_build_fails_its_worker_naming_the_unit(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    out = tmp_path / "run"
+    argv = ["--env", "tests.envs.fake_units:only_unit_0", "--units", "2", "--mode", "individual"]
+    assert main(["train", *argv, "--max-rounds", "2", "--out", str(out), "--no-live"]) == 1
+    assert "worker 1 failed (see logs/)" in capsys.readouterr().err
+    logs = "".join(p.read_text() for p in (out / "logs").glob("*1*"))
+    assert "unit 1 could not be built: RuntimeError: no unit 1 on the bus" in logs
+    assert rounds(out) == [(0, 1), (0, 2)]
+
+
 def test_the_factory_builds_each_unit_of_the_fleet() -> None:
     built = get_env_spec(FACTORY).make(1, 7)
     assert built.env.unwrapped.length == pole_length(1, 7) != pole_length(0, 7)  # type: ignore[attr-defined]
