@@ -19,6 +19,7 @@ from fleetrl.cli.settings_args import (
     add_fleet_profile_argument,
     add_learning_arguments,
     add_round_arguments,
+    add_target_score_argument,
     settings_from_args,
 )
 
@@ -114,6 +115,14 @@ def build_parser() -> argparse.ArgumentParser:
         default=None,
         help="the runs' small JSON records, from which the report is computed (default OUT/records)",
     )
+    experiment.add_argument(
+        "--env",
+        default=None,
+        metavar="ENV",
+        help="learning and cartpole-scaling on your own unit type (package.module:factory) instead of the "
+        "built-ins, for the CartPole budget of rounds",
+    )
+    add_target_score_argument(experiment)
     experiment.add_argument("--quick", action="store_true", help="tiny budgets: checks the pipeline only")
     experiment.add_argument(
         "--publish", type=Path, default=None, help="also copy report.md (and its images) to this file"
@@ -222,6 +231,8 @@ def cmd_experiment(args: argparse.Namespace) -> int:
         args.fleet_seed,
         args.other_seeds,
         args.headline_only,
+        args.env,
+        args.target_score,
     )
     print(f"report: {report}")
     if args.publish is not None:
