@@ -104,3 +104,28 @@ def test_a_builtin_run_keeps_its_result_settings_key_set(tmp_path: Path) -> None
         "overrides", "preset", "quorum", "round_timeout", "scheme", "seed", "transport", "units",
     }  # fmt: skip
     assert settings.to_config()["completion_threshold"] == 475.0
+
+
+def role_settings(command: str, *argv: str) -> object:
+    from fleetrl.cli.main import build_parser
+    from fleetrl.cli.settings_args import settings_from_args
+    from fleetrl.runs.role_settings import ChiefSettings, WorkerSettings
+
+    cls = ChiefSettings if command == "chief" else WorkerSettings
+    common = ["--env", FACTORY, "--broker", "mqtt://127.0.0.1:1", "--run-id", "r"]
+    return settings_from_args(cls, build_parser().parse_args([command, *common, *argv]))
+
+
+def test_the_chief_and_a_worker_of_a_factory_run_agree_only_on_the_same_target(tmp_path: Path) -> None:
+    from fleetrl.runs.role_settings import ChiefSettings, WorkerSettings
+    from fleetrl.runs.shared import spec_shared_settings
+
+    chief = role_settings("chief", "--workers", "2", "--target-score", "50")
+    worker = role_settings("worker", "--worker-id", "1", "--out", str(tmp_path / "w"), "--target-score", "50")
+    assert isinstance(chief, ChiefSettings) and isinstance(worker, WorkerSettings)
+    ours = chief.shared_settings(chief.fleet_seed)
+    assert ours["env"] == FACTORY and ours["target_score"] == "50.0"
+    assert spec_shared_settings(worker.worker_spec()) == ours
+    default = role_settings("worker", "--worker-id", "1", "--out", str(tmp_path / "d"))
+    assert isinstance(default, WorkerSettings) and default.target_score == 475.0  # CartPole-v1's threshold
+    assert spec_shared_settings(default.worker_spec())["target_score"] != ours["target_score"]

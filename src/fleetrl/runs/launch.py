@@ -31,7 +31,6 @@ from fleetrl.runs.roles import Emit
 from fleetrl.runs.roles import train_federated as train_federated_worker
 from fleetrl.runs.rundir import RunDirectoryError, RunRecorder, write_json_atomic
 from fleetrl.runs.settings import LearningSettings, RunSettings
-from fleetrl.runs.shared import shared_settings
 from fleetrl.runs.spec import WorkerSpec
 from fleetrl.transport.base import Transport
 from fleetrl.transport.login import password_in_environment
@@ -209,12 +208,8 @@ def train_federated(
         scheme=settings.federation_scheme(),
         quorum=settings.quorum,
         round_timeout=settings.round_timeout,
-        settings=shared_settings(
-            env=settings.env, fleet_seed=settings.fleet_seed, fleet_profile=settings.fleet_profile,
-            preset=settings.preset, overrides=settings.overrides, scheme=settings.scheme,
-            scheme_params=settings.scheme_params, target_score=settings.target_score,
-        ),
-    )  # fmt: skip
+        settings=settings.shared_settings(settings.fleet_seed),
+    )
     make_transport, fleet_for = transports(settings, url, specs, run_id)
     outcome: dict[str, ChiefSummary | BaseException] = {}
     with open(recorder.out / "logs" / "chief.log", "w") as log_file:

@@ -143,6 +143,17 @@ class LearningSettings:
                 f"qube); unit factory {self.env!r} runs in-process (--device-link inprocess)"
             )
 
+    def shared_settings(self, fleet_seed: int) -> dict[str, str]:
+        """What every role of a run of these settings on fleet ``fleet_seed`` must share, as the chief's
+        ``welcome`` and a worker's ``join`` carry it (:mod:`fleetrl.runs.shared`)."""
+        from fleetrl.runs.shared import shared_settings
+
+        return shared_settings(
+            env=self.env, fleet_seed=fleet_seed, fleet_profile=self.fleet_profile, preset=self.preset,
+            overrides=self.overrides, scheme=self.scheme, scheme_params=self.scheme_params,
+            target_score=self.target_score,
+        )  # fmt: skip
+
     def federation_scheme(self) -> Scheme:
         """A new scheme object of the run (its name and parameters); ValueError naming a bad one."""
         return get_scheme(self.scheme, **self.scheme_params)
