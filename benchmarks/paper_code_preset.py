@@ -36,9 +36,9 @@ from fleetrl import portable
 from fleetrl.agent.config import get_preset
 from fleetrl.agent.criterion import CompletionCriterion
 from fleetrl.agent.learner import Learner
-from fleetrl.agent.ppo import PPOAgent
 from fleetrl.envs.catalog import get_env_spec
 from fleetrl.envs.qube_balance import ARM_LIMIT, PENDULUM_LIMIT
+from fleetrl.runs.factory import agent_for
 
 ENDINGS_WINDOW = 100
 """how many of the last rounds' episode endings are tallied"""
@@ -102,13 +102,12 @@ def train(
     env_name: str, preset: str, seed: int, max_rounds: int, progress: int, overrides: dict[str, Any]
 ) -> SeedOutcome:
     spec = get_env_spec(env_name)
-    env = EndingTally(gymnasium.make(spec.gym_id, unit=0, fleet_seed=0))
-    obs_dim = int(env.observation_space.shape[0])  # type: ignore[index]
-    n_actions = int(env.action_space.n)  # type: ignore[attr-defined]
+    unit_env, unit = spec.make(0, 0)
+    env = EndingTally(unit_env)
     config = dataclasses.replace(get_preset(preset), **overrides)
     config.validate()
-    agent = PPOAgent(obs_dim, n_actions, config, seed=seed)
-    learner = Learner(env, agent, CompletionCriterion(spec.completion_threshold), seed=seed)
+    agent = agent_for(unit, config, seed=seed)
+    learner = Learner(env, agent, CompletionCriterion(spec.default_target(unit)), seed=seed)
     started = time.process_time()
     best_wma, entropy = 0.0, float("nan")
     for _ in range(max_rounds):

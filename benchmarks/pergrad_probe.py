@@ -17,7 +17,6 @@ import json
 import sys
 import time
 
-import gymnasium
 import numpy as np
 import torch
 
@@ -25,9 +24,9 @@ import fleetrl  # noqa: F401
 from fleetrl.agent.config import get_preset
 from fleetrl.agent.criterion import CompletionCriterion
 from fleetrl.agent.learner import Learner
-from fleetrl.agent.ppo import PPOAgent
 from fleetrl.envs.catalog import get_env_spec
 from fleetrl.portable import describe_host
+from fleetrl.runs.factory import agent_for
 from fleetrl.runs.spec import derive_seed
 
 
@@ -61,15 +60,13 @@ def run(
     )
     learners = []
     for k in range(units):
-        env = gymnasium.make(spec.gym_id, unit=k, fleet_seed=fleet_seed)
-        agent = PPOAgent(
-            int(env.observation_space.shape[0]), int(env.action_space.n), config, seed=derive_seed(seed, k)
-        )
+        env, unit = spec.make(k, fleet_seed)
+        agent = agent_for(unit, config, seed=derive_seed(seed, k))
         learners.append(
             Learner(
                 env,
                 agent,
-                CompletionCriterion(spec.completion_threshold),
+                CompletionCriterion(spec.default_target(unit)),
                 seed=derive_seed(seed, k),
                 keep_learning=arm != "alone",
             )

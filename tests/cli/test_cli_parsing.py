@@ -25,7 +25,7 @@ def test_override_without_equals_is_refused() -> None:
 @pytest.mark.parametrize(
     ("argv", "message"),
     [
-        (["--env", "qbe"], "unknown env 'qbe' (choose cartpole or qube)"),
+        (["--env", "qbe"], "unknown env 'qbe' (choose cartpole or qube, or your own unit type as"),
         (["--preset", "fancy"], "fancy"),
         (["--mode", "solo"], "unknown mode 'solo'"),
         (["--units", "0"], "--units = 0: must be at least 1"),

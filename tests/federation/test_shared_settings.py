@@ -28,6 +28,7 @@ CHIEF_SETTINGS = shared_settings(
     overrides={},
     scheme="paper",
     scheme_params={},
+    target_score=2450.0,
 )
 
 
@@ -44,6 +45,7 @@ def join(worker: str, **changes: object) -> bytes:
         "overrides": {},
         "scheme": "paper",
         "scheme_params": {},
+        "target_score": 2450.0,
     } | changes
     settings = shared_settings(**values)  # type: ignore[arg-type]
     return encode(Message("join", RUN, worker, 1, settings=settings), layout=LAYOUT)
@@ -72,6 +74,7 @@ def test_equal_settings_give_equal_text_whatever_the_order_of_the_overrides() ->
         overrides={"lr": 0.1, "k": 2},
         scheme="paper",
         scheme_params={},
+        target_score=2450.0,
     )
     b = shared_settings(
         env="qube",
@@ -81,6 +84,7 @@ def test_equal_settings_give_equal_text_whatever_the_order_of_the_overrides() ->
         overrides={"k": 2, "lr": 0.1},
         scheme="paper",
         scheme_params={},
+        target_score=2450.0,
     )
     assert a == b and a["overrides"] == '{"k":2,"lr":0.1}' and a["fleet_seed"] == "3"
 
@@ -104,6 +108,7 @@ CHIEF_SETTINGS_ARGS: dict[str, object] = {
     "fleet_profile": "table2",
     "preset": "standard",
     "overrides": {},
+    "target_score": 2450.0,
 }
 
 
@@ -120,6 +125,7 @@ def test_the_welcome_carries_the_chiefs_settings() -> None:
         ({"scheme": "fedavg"}, "setting 'scheme' differs (chief 'paper', worker 'fedavg')"),
         ({"fleet_seed": 7}, "setting 'fleet_seed' differs (chief '0', worker '7')"),
         ({"fleet_profile": "v1"}, "setting 'fleet_profile' differs (chief 'table2', worker 'v1')"),
+        ({"target_score": 50}, "setting 'target_score' differs (chief '2450.0', worker '50.0')"),
         (
             {"overrides": {"clip_eps": 0.3}},
             "setting 'overrides' differs (chief '{}', worker '{\"clip_eps\":0.3}')",
@@ -198,6 +204,7 @@ def test_a_worker_with_another_scheme_or_preset_stops_with_the_chiefs_reason(
         "overrides": {},
         "scheme": "paper",
         "scheme_params": {},
+        "target_score": 2450.0,
     } | change
     worker = FederatedWorker(
         learner, bus.client(), run_id=RUN, worker_id="1", max_rounds=5, reply_timeout=10,

@@ -15,9 +15,11 @@ from fleetrl.cli import device_command, roles
 from fleetrl.cli.settings_args import (
     add_broker_arguments,
     add_config_argument,
+    add_env_argument,
     add_fleet_profile_argument,
     add_learning_arguments,
     add_round_arguments,
+    add_target_score_argument,
     settings_from_args,
 )
 
@@ -59,7 +61,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     evaluate = sub.add_parser("evaluate", help="run a saved policy greedily and print its mean score")
     evaluate.add_argument("model", type=Path, help="a models/worker-K.safetensors file")
-    evaluate.add_argument("--env", default="qube")
+    add_env_argument(evaluate, default="qube")
     evaluate.add_argument("--unit", type=int, default=0)
     evaluate.add_argument("--fleet-seed", type=int, default=0)
     add_fleet_profile_argument(evaluate)
@@ -113,6 +115,14 @@ def build_parser() -> argparse.ArgumentParser:
         default=None,
         help="the runs' small JSON records, from which the report is computed (default OUT/records)",
     )
+    experiment.add_argument(
+        "--env",
+        default=None,
+        metavar="ENV",
+        help="learning and cartpole-scaling on your own unit type (package.module:factory) instead of the "
+        "built-ins, for the CartPole budget of rounds",
+    )
+    add_target_score_argument(experiment)
     experiment.add_argument("--quick", action="store_true", help="tiny budgets: checks the pipeline only")
     experiment.add_argument(
         "--publish", type=Path, default=None, help="also copy report.md (and its images) to this file"
@@ -221,6 +231,8 @@ def cmd_experiment(args: argparse.Namespace) -> int:
         args.fleet_seed,
         args.other_seeds,
         args.headline_only,
+        args.env,
+        args.target_score,
     )
     print(f"report: {report}")
     if args.publish is not None:

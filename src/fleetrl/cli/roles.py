@@ -195,7 +195,6 @@ def cmd_chief(args: argparse.Namespace) -> int:
     from fleetrl.runs.launch import exchanges_per_round, shared_layout
     from fleetrl.runs.role_settings import ChiefSettings
     from fleetrl.runs.rundir import write_json_atomic
-    from fleetrl.runs.shared import shared_settings
 
     settings = settings_from_args(ChiefSettings, args)
     chief = Chief(
@@ -210,12 +209,8 @@ def cmd_chief(args: argparse.Namespace) -> int:
         round_timeout=settings.round_timeout,
         dropout_grace=settings.dropout_grace,
         key=settings.fleet_key(),
-        settings=shared_settings(
-            env=settings.env, fleet_seed=settings.fleet_seed, fleet_profile=settings.fleet_profile,
-            preset=settings.preset, overrides=settings.overrides, scheme=settings.scheme,
-            scheme_params=settings.scheme_params,
-        ),
-    )  # fmt: skip
+        settings=settings.shared_settings(settings.fleet_seed),
+    )
     if settings.out is None:
         summary = run_chief(chief, settings.transport(), idle_timeout=settings.idle_timeout)
     else:
@@ -260,23 +255,9 @@ def cmd_worker(args: argparse.Namespace) -> int:
     from fleetrl.runs.role_settings import WorkerSettings
     from fleetrl.runs.roles import train_federated
     from fleetrl.runs.rundir import RunRecorder
-    from fleetrl.runs.spec import WorkerSpec
 
     settings = settings_from_args(WorkerSettings, args)
-    spec = WorkerSpec(
-        settings.worker_id,
-        settings.device_unit,
-        settings.env,
-        settings.preset,
-        settings.seed,
-        settings.fleet_seed,
-        settings.max_rounds,
-        str(settings.out),
-        settings.overrides,
-        fleet_profile=settings.fleet_profile,
-        scheme=settings.scheme,
-        scheme_params=settings.scheme_params,
-    )
+    spec = settings.worker_spec()
     config = worker_config(settings)
     checkpoints = worker_checkpoint_dir(settings.out, settings.worker_id)
     resume = settings.resume

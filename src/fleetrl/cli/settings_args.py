@@ -34,7 +34,8 @@ def add_config_argument(p: argparse.ArgumentParser) -> None:
 
 def add_learning_arguments(p: argparse.ArgumentParser) -> None:
     """The learning options of ``train``, ``chief`` and ``worker`` (defaults: fleetrl.runs.settings)."""
-    p.add_argument("--env", default=None, help="qube (QUBE-Servo 2 balance; default) or cartpole")
+    add_env_argument(p, default=None)
+    add_target_score_argument(p)
     add_fleet_profile_argument(p)
     p.add_argument(
         "--preset",
@@ -68,13 +69,38 @@ def add_learning_arguments(p: argparse.ArgumentParser) -> None:
     )
 
 
+def add_env_argument(p: argparse.ArgumentParser, default: str | None) -> None:
+    """``--env``: a built-in unit type, or the user's own as ``package.module:factory``."""
+    p.add_argument(
+        "--env",
+        default=default,
+        metavar="ENV",
+        help="the unit type: qube (QUBE-Servo 2 balance; default), cartpole, or your own as "
+        "package.module:factory, where factory(unit: int, fleet_seed: int) -> gymnasium.Env builds unit "
+        "`unit` of your fleet (imported from the current directory or the installed packages)",
+    )
+
+
+def add_target_score_argument(p: argparse.ArgumentParser) -> None:
+    """``--target-score``: the completion criterion's target."""
+    p.add_argument(
+        "--target-score",
+        type=float,
+        default=None,
+        metavar="X",
+        help="learning is complete when the weighted moving average of the last 10 scores reaches X "
+        "(default: qube 2450, cartpole 475, a factory's env spec reward_threshold; all roles agree)",
+    )
+
+
 def add_fleet_profile_argument(p: argparse.ArgumentParser) -> None:
     """``--fleet-profile``: which per-unit variation the simulated QUBE fleet is drawn with."""
     p.add_argument(
         "--fleet-profile",
         default=None,
         metavar="NAME",
-        help="QUBE fleet profile: table2 (default; fitted to the paper's Table 2) or v1 (the first fleet)",
+        help="QUBE fleet profile: table2 (default; fitted to the paper's Table 2) or v1 (the first fleet); "
+        "other unit types have one fleet",
     )
 
 

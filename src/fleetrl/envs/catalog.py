@@ -1,46 +1,124 @@
-"""The environments a fleet can train on, by the short names the command line uses."""
+"""The unit types a fleet can train on: the built-ins by their short names, and a user's own unit type named
+``package.module:factory`` (:mod:`fleetrl.envs.unit_factory`).
 
+Both are an :class:`EnvSpec`: a builder of unit ``unit`` of fleet ``fleet_seed``, the target it declares (or
+none), and the fleet profiles it offers (or none). Every run builds its units through :meth:`EnvSpec.make`,
+which checks what the builder returned (:func:`fleetrl.envs.spaces.describe_unit`), so a built-in and a
+user's factory take one path.
+"""
+
+from __future__ import annotations
+
+import functools
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, NamedTuple
 
-from fleetrl.envs.registration import (
-    CARTPOLE_EPISODE_CAP,
-    CARTPOLE_UNIT_ID,
-    QUBE_BALANCE_ID,
-    QUBE_EPISODE_CAP,
-)
+import gymnasium
+
+from fleetrl.envs.registration import CARTPOLE_UNIT_ID, QUBE_BALANCE_ID
+from fleetrl.envs.spaces import UnitDescription, describe_unit
+from fleetrl.envs.unit_factory import FACTORY_FORM, UnitFactory, is_factory_reference, load_factory
+
+UnitBuilder = Callable[..., Any]
+"""``builder(unit, fleet_seed, **options)``: a unit's env; options (``fleet_profile``, ``link``) only for a
+unit type that offers them"""
+
+
+class BuiltUnit(NamedTuple):
+    """One unit's env, checked, and its description."""
+
+    env: gymnasium.Env[Any, Any]
+    description: UnitDescription
 
 
 @dataclass(frozen=True)
 class EnvSpec:
-    """What a run needs to know about one environment type."""
+    """One unit type: how to build its units and what a run of it needs to know."""
 
     name: str
-    """short name used on the command line (``qube``, ``cartpole``)"""
-    gym_id: str
-    """registered Gymnasium id"""
-    episode_cap: int
-    """steps after which an episode is truncated"""
-    completion_threshold: float
-    """weighted moving average of the last 10 scores at which a worker's learning is complete"""
+    """what ``--env`` names it by: a built-in's short name (``qube``, ``cartpole``) or
+    ``package.module:factory``"""
+    builder: UnitBuilder
+    """builds unit ``unit`` of fleet ``fleet_seed`` (with the options the type offers)"""
+    declared_target: float | None = None
+    """the weighted moving average of the last 10 scores at which a worker's learning is complete, as the
+    unit type declares it (None: the env spec's ``reward_threshold``, else ``--target-score`` is needed)"""
     fleet_profile: Callable[[str | None], str] | None = None
     """the name of the fleet profile chosen by a name (None: the default), with a ValueError for an unknown
     one; None if the unit type has a single fleet"""
+    builtin: bool = False
+    """a built-in unit type: its units can also be served by a device bridge (``--device-link mqtt``)"""
+
+    @property
+    def title(self) -> str:
+        """How errors name the unit type."""
+        return f"env {self.name!r}" if self.builtin else f"unit factory {self.name!r}"
 
     def resolve_fleet_profile(self, name: str | None) -> str | None:
         """The fleet profile a run of this env draws its units with (``name``, or the type's default); a
         ValueError if ``name`` is unknown or this unit type has no profiles."""
         if self.fleet_profile is not None:
             return self.fleet_profile(name)
-        if name is not None:
-            raise ValueError(f"{self.name} units have one fleet, no fleet profiles (got {name!r})")
-        return None
+        if name is None:
+            return None
+        if not self.builtin:
+            raise ValueError(
+                f"{self.title} has no fleet profiles (got {name!r}): a factory draws each unit from "
+                "(unit, fleet_seed) itself; vary the fleet with --fleet-seed"
+            )
+        raise ValueError(f"{self.name} units have one fleet, no fleet profiles (got {name!r})")
 
     def make_kwargs(self, fleet_profile: str | None) -> dict[str, Any]:
-        """The keyword arguments of ``gymnasium.make`` that pick the fleet profile (none for one fleet)."""
+        """The builder's keyword arguments that pick the fleet profile (none for one fleet)."""
         resolved = self.resolve_fleet_profile(fleet_profile)
         return {} if resolved is None else {"fleet_profile": resolved}
+
+    def make(
+        self, unit: int, fleet_seed: int, *, fleet_profile: str | None = None, link: Any = None
+    ) -> BuiltUnit:
+        """Unit ``unit`` of fleet ``fleet_seed`` (simulated in-process, or reached through ``link``),
+        checked: a ValueError names the unit and what is wrong with what the builder gave."""
+        if link is not None and not self.builtin:
+            raise ValueError(f"{self.title}: device bridges serve the built-in unit types only")
+        options = self.make_kwargs(fleet_profile) if link is None else {"link": link}
+        where = f"{self.title}: unit {unit}"
+        try:
+            env = self.builder(unit, fleet_seed, **options)
+        except Exception as err:  # the builder's own failure, named by unit (a setting error, exit 2)
+            raise ValueError(f"{where} could not be built: {type(err).__name__}: {err}") from None
+        return BuiltUnit(env, describe_unit(env, where))
+
+    def default_target(self, description: UnitDescription) -> float:
+        """The target score when none is given: the declared one, else the env spec's ``reward_threshold``;
+        a ValueError saying a target is needed otherwise."""
+        if self.declared_target is not None:
+            return self.declared_target
+        if description.reward_threshold is not None:
+            return description.reward_threshold
+        raise ValueError(
+            f"{self.title} declares no target score and its env spec has no reward_threshold: "
+            "give one with --target-score X (learning is complete when the weighted moving average of the "
+            "last 10 scores reaches X)"
+        )
+
+
+def _registered(gym_id: str) -> UnitBuilder:
+    """A built-in's builder: ``gymnasium.make`` of its registered id (its TimeLimit is the episode cap)."""
+
+    def build(unit: int, fleet_seed: int, **options: Any) -> Any:
+        return gymnasium.make(gym_id, unit=unit, fleet_seed=fleet_seed, **options)
+
+    return build
+
+
+def _factory_builder(factory: UnitFactory) -> UnitBuilder:
+    """A user's factory as a builder: ``factory(unit, fleet_seed)``, no options."""
+
+    def build(unit: int, fleet_seed: int) -> Any:
+        return factory(unit, fleet_seed)
+
+    return build
 
 
 def _qube_fleet_profile(name: str | None) -> str:
@@ -50,15 +128,31 @@ def _qube_fleet_profile(name: str | None) -> str:
 
 
 ENV_SPECS: dict[str, EnvSpec] = {
-    "qube": EnvSpec("qube", QUBE_BALANCE_ID, QUBE_EPISODE_CAP, 2450.0, _qube_fleet_profile),
-    "cartpole": EnvSpec("cartpole", CARTPOLE_UNIT_ID, CARTPOLE_EPISODE_CAP, 475.0),
+    "qube": EnvSpec("qube", _registered(QUBE_BALANCE_ID), 2450.0, _qube_fleet_profile, builtin=True),
+    "cartpole": EnvSpec("cartpole", _registered(CARTPOLE_UNIT_ID), 475.0, builtin=True),
 }
+"""the built-in unit types (a unit factory seam's instances like any user's)"""
 
 
 def get_env_spec(name: str) -> EnvSpec:
-    """Look up an environment by short name, with an error that lists the choices."""
-    try:
+    """A built-in by short name, or a user's unit type by ``package.module:factory``; a ValueError that
+    lists the choices (or says what is wrong with the factory) otherwise."""
+    if name in ENV_SPECS:
         return ENV_SPECS[name]
-    except KeyError:
-        choices = " or ".join(sorted(ENV_SPECS))
-        raise ValueError(f"unknown env {name!r} (choose {choices})") from None
+    if is_factory_reference(name):
+        return EnvSpec(name, _factory_builder(load_factory(name)))
+    choices = " or ".join(sorted(ENV_SPECS))
+    module, dot, attr = name.rpartition(".")
+    hint = f"; did you mean {module + ':' + attr!r}?" if dot and module and attr else ""
+    raise ValueError(
+        f"unknown env {name!r} (choose {choices}, or your own unit type as {FACTORY_FORM}){hint}"
+    )
+
+
+@functools.lru_cache(maxsize=16)
+def describe_env(name: str) -> UnitDescription:
+    """The description of unit 0 of fleet 0 of env ``name`` (built once per process and closed): its spaces,
+    episode cap and reward threshold. A ValueError if the env cannot be built or is not supported."""
+    built = get_env_spec(name).make(0, 0)
+    built.env.close()
+    return built.description

@@ -22,9 +22,11 @@ KEY_SETTINGS = ("env", "units", "mode", "preset", "max_rounds", "scheme", "fleet
 
 
 def arm_key(settings: dict[str, Any]) -> str:
-    """A directory name for ``settings``: ``qube-3-federated-standard-m1000-fedavg`` (``-fleet<n>`` off fleet
+    """A directory name for ``settings``: ``qube-3-federated-standard-m1000-fedavg`` (a factory's
+    ``package.module:factory`` as ``package.module-factory``; ``-fleet<n>`` off fleet
     seed 0, ``-mqtt`` over MQTT, ``-<digest>`` if anything else is set)."""
     env, units, mode, preset = (settings[k] for k in ("env", "units", "mode", "preset"))
+    env = str(env).replace(":", "-")  # a unit factory's package.module:factory
     key = f"{env}-{units}-{mode}-{preset}-m{settings['max_rounds']}"
     if settings.get("scheme", "paper") != "paper":
         key += f"-{settings['scheme']}"

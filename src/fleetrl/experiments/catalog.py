@@ -18,6 +18,11 @@ class Budget:
     """units of the generalisation row (each final policy, one greedy episode on each)"""
     fleet_seed: int = 0
     """the fleet every arm trains on"""
+    unit_type: str | None = None
+    """a user's unit type (``--env package.module:factory``) that the experiments not about the paper's rig
+    (:data:`UNIT_TYPE_EXPERIMENTS`) train instead of the built-ins, for ``cartpole_rounds`` rounds"""
+    target_score: float | None = None
+    """every arm's ``--target-score`` (None: the env's own)"""
 
 
 FULL = Budget(qube_rounds=1000, cartpole_rounds=400, unseen_units=10)
@@ -39,6 +44,7 @@ def arm(
     label: str,
     scheme: str = "paper",
     fleet_seed: int = 0,
+    target_score: float | None = None,
 ) -> Arm:
     """A training arm; its key names the configuration, so experiments that share one share its runs.
 
@@ -56,6 +62,8 @@ def arm(
         settings["scheme"] = scheme
     if fleet_seed:
         settings["fleet_seed"] = fleet_seed
+    if target_score is not None:
+        settings["target_score"] = target_score
     return Arm(label, settings)
 
 
@@ -128,9 +136,10 @@ def cartpole_scaling(budget: Budget) -> Plan:
     """1, 2, 4, 8 CartPole workers, federated, preset standard, with each scheme (the paper preset does not
     learn CartPole within the budget: see the learning experiment)."""
     m = budget.cartpole_rounds
+    env = budget.unit_type or "cartpole"
     arms = {
         (n, scheme): arm(
-            "cartpole",
+            env,
             n,
             "federated",
             "standard",
@@ -138,13 +147,15 @@ def cartpole_scaling(budget: Budget) -> Plan:
             f"{n} workers · standard · {scheme}",
             scheme,
             budget.fleet_seed,
+            budget.target_score,
         )
         for scheme in ("paper", "fedavg", "pergrad")
         for n in (1, 2, 4, 8)
     }
     return Plan(
         name="cartpole-scaling",
-        title="CartPole scaling: 1, 2, 4, 8 workers, federated (preset standard)",
+        title=f"{'CartPole' if env == 'cartpole' else env} scaling: 1, 2, 4, 8 workers, federated "
+        "(preset standard)",
         arms=list(arms.values()),
         max_rounds=m,
         ratios=[
@@ -162,12 +173,16 @@ def learning(budget: Budget) -> Plan:
     (benchmarks/learning.py)."""
     arms: dict[tuple[str, str, str], Arm] = {}
     ratios = []
-    for env, rounds in (("cartpole", budget.cartpole_rounds), ("qube", budget.qube_rounds)):
+    envs = [("cartpole", budget.cartpole_rounds), ("qube", budget.qube_rounds)]
+    if budget.unit_type is not None:
+        envs = [(budget.unit_type, budget.cartpole_rounds)]
+    target = budget.target_score
+    for env, rounds in envs:
         for preset in ("paper", "standard"):
             for mode in ("individual", "federated"):
                 label = f"{env} · {mode} · {preset}"
                 arms[env, preset, mode] = arm(
-                    env, 3, mode, preset, rounds, label, fleet_seed=budget.fleet_seed
+                    env, 3, mode, preset, rounds, label, fleet_seed=budget.fleet_seed, target_score=target
                 )
             alone = arms[env, preset, "individual"]
             ratios.append(Ratio(alone, arms[env, preset, "federated"], "federation, the paper's scheme"))
@@ -182,24 +197,25 @@ def learning(budget: Budget) -> Plan:
             f"{env} · federated · standard · fedavg",
             "fedavg",
             budget.fleet_seed,
+            target,
         )
         arms[env, "standard", "fedavg"] = fedavg
         ratios.append(Ratio(arms[env, "standard", "individual"], fedavg, "federation, fedavg"))
         pergrad = arm(
             env, 3, "federated", "standard", rounds, f"{env} · federated · standard · pergrad", "pergrad",
-            budget.fleet_seed,
+            budget.fleet_seed, target,
         )  # fmt: skip
         arms[env, "standard", "pergrad"] = pergrad
         ratios.append(Ratio(arms[env, "standard", "individual"], pergrad, "federation, pergrad"))
         arms[env, "paper-code", "individual"] = arm(
             env, 3, "individual", "paper-code", rounds, f"{env} · individual · paper-code",
-            fleet_seed=budget.fleet_seed,
+            fleet_seed=budget.fleet_seed, target_score=target,
         )  # fmt: skip
     return Plan(
         name="learning",
         title="Learning speed: 3 units of each env, individual and federated (both schemes), both presets",
         arms=list(arms.values()),
-        max_rounds=max(budget.cartpole_rounds, budget.qube_rounds),
+        max_rounds=max(rounds for _, rounds in envs),
         ratios=ratios,
         notes="Rounds = episodes per unit. SB3 PPO on the same envs and criterion: see the Peers section.",
         headline=[a for (_, preset, mode), a in arms.items() if preset == "standard" and mode != "federated"],
@@ -213,3 +229,5 @@ PLANS: dict[str, Callable[[Budget], Plan]] = {
     "learning": learning,
 }
 EXPERIMENTS = (*PLANS, "table2", "peers")
+UNIT_TYPE_EXPERIMENTS = ("learning", "cartpole-scaling")
+"""the experiments that are not about the paper's rig: they also train a user's unit type (``--env``)"""

@@ -15,7 +15,7 @@ from pathlib import Path
 from typing import Any
 
 from fleetrl.agent.criterion import CompletionCriterion
-from fleetrl.envs.catalog import get_env_spec
+from fleetrl.envs.catalog import describe_env, get_env_spec
 
 
 def train_sb3_unit(env: str, unit: int, fleet_seed: int, seed: int, max_steps: int) -> dict[str, Any]:
@@ -32,7 +32,7 @@ def train_sb3_unit(env: str, unit: int, fleet_seed: int, seed: int, max_steps: i
 
     torch.set_num_threads(1)
     spec = get_env_spec(env)
-    criterion = CompletionCriterion(spec.completion_threshold)
+    criterion = CompletionCriterion(spec.default_target(describe_env(env)))
     scores: list[float] = []
 
     class StopAtCriterion(BaseCallback):
@@ -45,12 +45,7 @@ def train_sb3_unit(env: str, unit: int, fleet_seed: int, seed: int, max_steps: i
                     criterion.add(scores[-1])
             return not criterion.done
 
-    vec_env = make_vec_env(
-        spec.gym_id,
-        n_envs=1,
-        seed=seed,
-        env_kwargs={"unit": unit, "fleet_seed": fleet_seed, "render_mode": None},
-    )
+    vec_env = make_vec_env(lambda: spec.make(unit, fleet_seed).env, n_envs=1, seed=seed)
     model = PPO("MlpPolicy", vec_env, seed=seed, device="cpu", verbose=0)
     started = time.monotonic()
     model.learn(total_timesteps=max_steps, callback=StopAtCriterion())

@@ -149,7 +149,7 @@ def unseen_units(trained: int, count: int) -> list[int]:
 
 def evaluate_unseen(run_dir: Path, settings: dict[str, Any], count: int) -> dict[str, Any]:
     """Each worker's final policy, greedily, one episode on each of ``count`` unseen units of its fleet."""
-    from fleetrl.envs.catalog import get_env_spec
+    from fleetrl.envs.catalog import describe_env
     from fleetrl.runs.evaluate import evaluate_model
 
     units = unseen_units(int(settings["units"]), count)
@@ -165,7 +165,7 @@ def evaluate_unseen(run_dir: Path, settings: dict[str, Any], count: int) -> dict
                 )
                 for unit in units
             ]
-    return {"units": units, "cap": get_env_spec(settings["env"]).episode_cap, "scores": scores}
+    return {"units": units, "cap": describe_env(settings["env"]).episode_cap, "scores": scores}
 
 
 def build_record(

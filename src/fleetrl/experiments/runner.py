@@ -7,7 +7,15 @@ from dataclasses import replace
 from pathlib import Path
 
 from fleetrl.experiments.arms import Places
-from fleetrl.experiments.catalog import EXPERIMENTS, FULL, PLANS, QUICK, TUNING_FLEET_SEED, TUNING_SEEDS
+from fleetrl.experiments.catalog import (
+    EXPERIMENTS,
+    FULL,
+    PLANS,
+    QUICK,
+    TUNING_FLEET_SEED,
+    TUNING_SEEDS,
+    UNIT_TYPE_EXPERIMENTS,
+)
 from fleetrl.experiments.plan import run_plan
 from fleetrl.experiments.sections import peers_section, table2_section
 
@@ -58,31 +66,40 @@ def run_experiment(
     fleet_seed: int = 0,
     other_seeds: int | None = None,
     headline_only: bool = False,
+    unit_type: str | None = None,
+    target_score: float | None = None,
 ) -> Path:
     """Run experiment ``name`` (or every one for ``all``) on fleet ``fleet_seed``; return the report's path.
 
     Run directories go under ``out/runs``, run records under ``records`` (default ``out/records``). Headline
     arms run on every seed, the others on the first ``other_seeds`` (None: every seed); ``headline_only``
-    runs the headline arms alone (e.g. to repeat them on another fleet).
+    runs the headline arms alone (e.g. to repeat them on another fleet). With ``unit_type`` (a user's
+    ``package.module:factory``, and its ``target_score``) the experiments that are not about the paper's rig
+    train it instead of the built-ins.
     """
     names = list(EXPERIMENTS) if name == "all" else [name]
     for one in names:
         if one not in EXPERIMENTS:
             raise ValueError(f"unknown experiment {one!r} (choose {', '.join(EXPERIMENTS)} or all)")
+    if unit_type is not None or target_score is not None:
+        names = check_unit_type(names, name, unit_type, target_score)
     if not seeds:
         raise ValueError("--seeds must be at least 1")
     if fleet_seed < 0:
         raise ValueError(f"--fleet-seed must be a non-negative integer, got {fleet_seed}")
     if other_seeds is not None and other_seeds < 1:
         raise ValueError(f"--other-seeds must be at least 1, got {other_seeds}")
-    budget = replace(QUICK if quick else FULL, fleet_seed=fleet_seed)
+    budget = replace(
+        QUICK if quick else FULL, fleet_seed=fleet_seed, unit_type=unit_type, target_score=target_score
+    )
     places = Places(out / "runs", out / "records" if records is None else records, budget.unseen_units)
     for one in names:
         command = experiment_command(
-            one, out, seeds, quick, places.records, fleet_seed, other_seeds, headline_only
-        )
+            one, out, seeds, quick, places.records, fleet_seed, other_seeds, headline_only, unit_type,
+            target_score,
+        )  # fmt: skip
         preamble = [f"Command: `{command}`", "", seeds_line(seeds, fleet_seed, other_seeds), ""]
-        where = section_name(one, fleet_seed, headline_only and one in PLANS)
+        where = section_name(one, fleet_seed, headline_only and one in PLANS, unit_type)
         if one in PLANS:
             plan = PLANS[one](budget)
             if headline_only:
@@ -99,10 +116,34 @@ def run_experiment(
     return assemble_report(out)
 
 
-def section_name(experiment: str, fleet_seed: int, headline_only: bool = False) -> str:
-    """The directory of an experiment's section: its name, with ``-fleet<n>`` off the tuning fleet and
-    ``-headline`` for its headline arms alone."""
-    name = experiment if fleet_seed == TUNING_FLEET_SEED else f"{experiment}-fleet{fleet_seed}"
+def check_unit_type(
+    names: list[str], name: str, unit_type: str | None, target_score: float | None
+) -> list[str]:
+    """The experiments to run on a user's unit type (``all``: those not about the paper's rig); a ValueError
+    for one that is, for a target without a unit type, or for a unit type that cannot be trained."""
+    from fleetrl.runs.settings import LearningSettings
+
+    if unit_type is None:
+        raise ValueError("--target-score needs --env: the built-ins' experiments use their own targets")
+    if name == "all":
+        names = list(UNIT_TYPE_EXPERIMENTS)
+    for one in names:
+        if one not in UNIT_TYPE_EXPERIMENTS:
+            raise ValueError(
+                f"experiment {one!r} is about the paper's rig: --env applies to "
+                f"{' and '.join(UNIT_TYPE_EXPERIMENTS)} only"
+            )
+    LearningSettings(env=unit_type, target_score=target_score).validate_learning()  # before any run starts
+    return names
+
+
+def section_name(
+    experiment: str, fleet_seed: int, headline_only: bool = False, unit_type: str | None = None
+) -> str:
+    """The directory of an experiment's section: its name, with ``-<unit type>`` for a user's unit type,
+    ``-fleet<n>`` off the tuning fleet and ``-headline`` for its headline arms alone."""
+    name = experiment if unit_type is None else f"{experiment}-{unit_type.replace(':', '-')}"
+    name = name if fleet_seed == TUNING_FLEET_SEED else f"{name}-fleet{fleet_seed}"
     return f"{name}-headline" if headline_only else name
 
 
@@ -115,6 +156,8 @@ def experiment_command(
     fleet_seed: int = 0,
     other_seeds: int | None = None,
     headline_only: bool = False,
+    unit_type: str | None = None,
+    target_score: float | None = None,
 ) -> str:
     """The command line that regenerates an experiment."""
     words = ["fleetrl", "experiment", name, "--seeds", str(len(seeds)), "--first-seed", str(seeds[0])]
@@ -123,6 +166,8 @@ def experiment_command(
     words += [] if records is None or records == out / "records" else ["--records", str(records)]
     words += ["--fleet-seed", str(fleet_seed)] if fleet_seed else []
     words += ["--headline-only"] if headline_only else []
+    words += [] if unit_type is None else ["--env", unit_type]
+    words += [] if target_score is None else ["--target-score", f"{target_score:g}"]
     return shlex.join(words + (["--quick"] if quick else []))
 
 

@@ -153,6 +153,7 @@ def _identity(spec: WorkerSpec, run_id: str) -> dict[str, Any]:
         "fleet_seed": spec.fleet_seed,
         "fleet_profile": spec.fleet_profile,
         "max_rounds": spec.max_rounds,
+        "target_score": spec.target_score,
         "overrides": json.loads(json.dumps(spec.overrides, sort_keys=True)),  # as the JSON record has it
     }
 

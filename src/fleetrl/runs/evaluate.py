@@ -2,7 +2,6 @@
 
 from pathlib import Path
 
-import gymnasium
 import torch
 
 from fleetrl.agent.ppo import PPOAgent
@@ -30,15 +29,14 @@ def evaluate_model(
         raise FileNotFoundError(f"no model file at {model}")
     torch.set_num_threads(1)
     spec = get_env_spec(env)
+    gym_env, description = spec.make(unit, fleet_seed, fleet_profile=fleet_profile)
     agent = PPOAgent.load(model)
-    fleet = spec.make_kwargs(fleet_profile)
-    gym_env = gymnasium.make(spec.gym_id, unit=unit, fleet_seed=fleet_seed, **fleet)
-    obs_shape = gym_env.observation_space.shape
-    n_actions = int(gym_env.action_space.n)  # type: ignore[attr-defined]
-    if (agent.obs_dim, agent.n_actions) != (obs_shape[0] if obs_shape else -1, n_actions):
+    actions = description.action
+    if (agent.obs_dim, f"Discrete({agent.n_actions})") != (description.obs_dim, str(actions)):
+        gym_env.close()
         raise ValueError(
-            f"{model} is a policy for {agent.obs_dim} observations and {agent.n_actions} actions; "
-            f"env {env!r} has {obs_shape} and {n_actions}"
+            f"{model} is a policy for {agent.obs_dim} observations and Discrete({agent.n_actions}) actions; "
+            f"env {env!r} has {description.obs_dim} and {actions}"
         )
     scores = []
     for episode in range(episodes):

@@ -21,7 +21,6 @@ from contextlib import contextmanager, suppress
 from pathlib import Path
 from typing import Any
 
-from fleetrl.envs.catalog import get_env_spec
 from fleetrl.federation.chief import Chief
 from fleetrl.federation.runner import ChiefSummary, run_chief
 from fleetrl.runs.factory import probe_agent
@@ -32,7 +31,6 @@ from fleetrl.runs.roles import Emit
 from fleetrl.runs.roles import train_federated as train_federated_worker
 from fleetrl.runs.rundir import RunDirectoryError, RunRecorder, write_json_atomic
 from fleetrl.runs.settings import LearningSettings, RunSettings
-from fleetrl.runs.shared import shared_settings
 from fleetrl.runs.spec import WorkerSpec
 from fleetrl.transport.base import Transport
 from fleetrl.transport.login import password_in_environment
@@ -78,6 +76,7 @@ def worker_specs(settings: RunSettings, device_url: str | None, run_id: str) -> 
             device_run_id=run_id,
             scheme=settings.scheme,
             scheme_params=dict(settings.scheme_params),
+            target_score=settings.target_score,
         )
         for k in range(settings.units)
     }
@@ -115,7 +114,8 @@ def _train(settings: RunSettings) -> dict[str, Any]:
     (recorder.out / "config.toml").write_text(settings.to_toml())
     recorder.extra["run_id"] = run_id
     title = f"fleetrl {settings.mode} · {settings.env} × {settings.units} · preset {settings.preset}"
-    threshold = get_env_spec(settings.env).completion_threshold
+    threshold = settings.target_score
+    assert threshold is not None, "validation fills in the target score"
     try:
         with (
             run_logging(recorder.out / "logs" / "run.log", quiet=settings.live),
@@ -208,12 +208,8 @@ def train_federated(
         scheme=settings.federation_scheme(),
         quorum=settings.quorum,
         round_timeout=settings.round_timeout,
-        settings=shared_settings(
-            env=settings.env, fleet_seed=settings.fleet_seed, fleet_profile=settings.fleet_profile,
-            preset=settings.preset, overrides=settings.overrides, scheme=settings.scheme,
-            scheme_params=settings.scheme_params,
-        ),
-    )  # fmt: skip
+        settings=settings.shared_settings(settings.fleet_seed),
+    )
     make_transport, fleet_for = transports(settings, url, specs, run_id)
     outcome: dict[str, ChiefSummary | BaseException] = {}
     with open(recorder.out / "logs" / "chief.log", "w") as log_file:

@@ -20,6 +20,7 @@ from fleetrl.runs.settings import (
     path_text,
     positive,
 )
+from fleetrl.runs.spec import WorkerSpec
 
 CONNECT_TIMEOUT = 60.0
 """default seconds a standalone role retries an unreachable broker before it gives up (exit 1)"""
@@ -147,3 +148,11 @@ class WorkerSettings(RoleSettings):
     def device_unit(self) -> int:
         """The unit this worker trains on."""
         return self.worker_id if self.unit is None else self.unit
+
+    def worker_spec(self) -> WorkerSpec:
+        """The spec this worker trains with (its unit simulated in-process)."""
+        return WorkerSpec(
+            self.worker_id, self.device_unit, self.env, self.preset, self.seed, self.fleet_seed,
+            self.max_rounds, str(self.out), self.overrides, fleet_profile=self.fleet_profile,
+            scheme=self.scheme, scheme_params=self.scheme_params, target_score=self.target_score,
+        )  # fmt: skip

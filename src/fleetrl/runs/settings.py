@@ -13,13 +13,14 @@ from __future__ import annotations
 import dataclasses
 import json
 import logging
+import math
 import platform
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any, get_type_hints
 
 from fleetrl.agent.config import PPOConfig, get_preset
-from fleetrl.envs.catalog import get_env_spec
+from fleetrl.envs.catalog import describe_env, get_env_spec
 from fleetrl.federation.aggregation import get_aggregator
 from fleetrl.federation.schemes import DEFAULT_SCHEME, Granularity, Scheme, get_scheme
 from fleetrl.runs.setting_values import (
@@ -81,10 +82,15 @@ class LearningSettings:
     """What every worker learns with (the chief needs it for the shape of what is shared)."""
 
     env: str = "qube"
-    """``qube`` (QUBE-Servo 2 balance) or ``cartpole``"""
+    """the unit type: ``qube`` (QUBE-Servo 2 balance), ``cartpole``, or your own as
+    ``package.module:factory`` with ``factory(unit, fleet_seed) -> gymnasium.Env``"""
     fleet_profile: str | None = None
     """the simulated fleet's profile (QUBE: ``table2``, the default, or ``v1``, the fleet before the
-    calibration; CartPole has one fleet); validation fills in the default's name"""
+    calibration; CartPole and unit factories have one fleet); validation fills in the default's name"""
+    target_score: float | None = None
+    """learning is complete when the weighted moving average of the last 10 scores reaches it (default: the
+    built-in's own target, QUBE 2450, CartPole 475; a factory's env spec ``reward_threshold``); validation
+    fills it in"""
     preset: str = "paper"
     """PPO preset: ``paper`` (Table 1), ``paper-code`` (what the authors' code ran) or ``standard``"""
     max_rounds: int = 1000
@@ -100,7 +106,8 @@ class LearningSettings:
     """PPO config fields that replace the preset's (``--set KEY=VALUE``; the ``[overrides]`` table)"""
 
     def validate_learning(self) -> None:
-        """Env, preset, scheme and its parameters, M and every PPO override (name, type, range)."""
+        """Env, preset, scheme and its parameters, M and every PPO override (name, type, range), then unit 0
+        of the env built once (its spaces checked) and the target score."""
         env = as_setting_error("env", get_env_spec, self.env)
         self.fleet_profile = as_setting_error("fleet_profile", env.resolve_fleet_profile, self.fleet_profile)
         as_setting_error("preset", get_preset, self.preset)
@@ -109,10 +116,43 @@ class LearningSettings:
         if self.max_rounds < 1:
             raise SettingError(f"{label('max_rounds')} = {self.max_rounds}: must be at least 1")
         self.overrides = self._typed_overrides()
+        if self.target_score is not None and not math.isfinite(self.target_score):
+            raise SettingError(f"{label('target_score')} = {self.target_score}: must be a finite number")
         from fleetrl.runs.factory import probe_agent  # torch: only once the cheap checks passed
 
-        scheme = self.federation_scheme()
-        as_setting_error("scheme", scheme.exchanges_per_round, probe_agent(self.env, self.ppo()))
+        unit = as_setting_error("env", describe_env, self.env)  # builds unit 0: a bad factory fails here
+        agent = as_setting_error("env", probe_agent, self.env, self.ppo())
+        if self.target_score is None:
+            self.target_score = as_setting_error("target_score", env.default_target, unit)
+        as_setting_error("scheme", self.federation_scheme().exchanges_per_round, agent)
+
+    def result_target_score(self) -> dict[str, float]:
+        """``target_score`` as a result setting: none for a built-in at its own target, so that the records of
+        built-in runs made before the setting existed keep their keys (like an empty ``scheme_params``)."""
+        spec = get_env_spec(self.env)
+        if spec.builtin and self.target_score == spec.declared_target:
+            return {}
+        assert self.target_score is not None, "validate_learning fills in the target score"
+        return {"target_score": self.target_score}
+
+    def check_device_link(self, device_link: str) -> None:
+        """SettingError if the units are to be served by device bridges but are not a built-in type."""
+        if device_link == "mqtt" and not get_env_spec(self.env).builtin:
+            raise SettingError(
+                f"{label('device_link')} mqtt: device bridges serve the built-in unit types only (cartpole, "
+                f"qube); unit factory {self.env!r} runs in-process (--device-link inprocess)"
+            )
+
+    def shared_settings(self, fleet_seed: int) -> dict[str, str]:
+        """What every role of a run of these settings on fleet ``fleet_seed`` must share, as the chief's
+        ``welcome`` and a worker's ``join`` carry it (:mod:`fleetrl.runs.shared`)."""
+        from fleetrl.runs.shared import shared_settings
+
+        return shared_settings(
+            env=self.env, fleet_seed=fleet_seed, fleet_profile=self.fleet_profile, preset=self.preset,
+            overrides=self.overrides, scheme=self.scheme, scheme_params=self.scheme_params,
+            target_score=self.target_score,
+        )  # fmt: skip
 
     def federation_scheme(self) -> Scheme:
         """A new scheme object of the run (its name and parameters); ValueError naming a bad one."""
@@ -223,6 +263,7 @@ class RunSettings(LearningSettings, RoundRules, BrokerLogin):
         choose("mode", self.mode, MODES)
         choose("transport", self.transport, TRANSPORTS)
         choose("device_link", self.device_link, DEVICE_LINKS)
+        self.check_device_link(self.device_link)
         if self.mode == "individual" and (self.scheme != "paper" or self.scheme_params):
             raise SettingError(f"--scheme {self.scheme} is a federation scheme: it needs --mode federated")
         self.validate_rounds()
@@ -257,12 +298,14 @@ class RunSettings(LearningSettings, RoundRules, BrokerLogin):
     def result_settings(self) -> dict[str, Any]:
         """Every setting that can change the run's result, as JSON-plain values (the fleet profile's default
         name, the typed overrides and the scheme's parameters filled in): two runs with equal result settings
-        learn the same. A scheme without parameters (``paper``, ``fedavg``) has no ``scheme_params`` key, as
-        in the records made before schemes had parameters."""
+        learn the same. A scheme without parameters (``paper``, ``fedavg``) has no ``scheme_params`` key, and
+        a built-in at its own target no ``target_score`` key, as in the records made before either existed."""
         self.validate_learning()
         values = {k: v for k, v in asdict(self).items() if k not in NOT_RESULT_SETTINGS}
         if not values["scheme_params"]:
             del values["scheme_params"]
+        del values["target_score"]
+        values |= self.result_target_score()
         plain: dict[str, Any] = json.loads(json.dumps(values, sort_keys=True, default=str))
         return plain
 
@@ -276,10 +319,10 @@ class RunSettings(LearningSettings, RoundRules, BrokerLogin):
         config["broker_password_file"] = path_text(self.broker_password_file)
         config["ppo"] = self.ppo_config()
         config["result_settings"] = self.result_settings()
-        spec = get_env_spec(self.env)
-        config["env_id"] = spec.gym_id
-        config["completion_threshold"] = spec.completion_threshold
-        config["episode_cap"] = spec.episode_cap
+        unit = describe_env(self.env)
+        config["env_id"] = unit.env_id
+        config["completion_threshold"] = self.target_score
+        config["episode_cap"] = unit.episode_cap
         config["versions"] = {"python": platform.python_version(), "torch": torch.__version__}
         return config
 

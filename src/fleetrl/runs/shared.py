@@ -26,6 +26,7 @@ def shared_settings(
     overrides: Mapping[str, Any],
     scheme: str,
     scheme_params: Mapping[str, Any],
+    target_score: float | None,
 ) -> dict[str, str]:
     """The shared settings of a run as name → value text (validated settings in, so every value is known;
     the scheme's parameters are written as the scheme object gives them, defaults filled in)."""
@@ -37,6 +38,7 @@ def shared_settings(
         "overrides": _canonical(dict(overrides)),
         "scheme": scheme,
         "scheme_params": _canonical(get_scheme(scheme, **scheme_params).params()),
+        "target_score": _canonical(None if target_score is None else float(target_score)),
     }
 
 
@@ -54,4 +56,5 @@ def spec_shared_settings(spec: WorkerSpec) -> dict[str, str]:
         overrides=spec.overrides,
         scheme=spec.scheme,
         scheme_params=spec.scheme_params,
+        target_score=spec.target_score,
     )

@@ -16,7 +16,7 @@ class WorkerSpec:
     unit: int
     """device unit index in the fleet"""
     env: str
-    """environment short name (``qube`` or ``cartpole``)"""
+    """the unit type: a built-in's short name (``qube``, ``cartpole``) or ``package.module:factory``"""
     preset: str
     """PPO preset name (``paper`` or ``standard``)"""
     seed: int
@@ -39,6 +39,8 @@ class WorkerSpec:
     """federated mode: the federation scheme (a name in :data:`fleetrl.federation.schemes.SCHEMES`)"""
     scheme_params: dict[str, Any] = field(default_factory=dict)
     """the scheme's parameters (``--scheme-param``)"""
+    target_score: float | None = None
+    """the completion criterion's target (the WMA of the last 10 scores); None: the unit type's default"""
 
     def to_json(self) -> str:
         """Serialise for a child process's command line."""
