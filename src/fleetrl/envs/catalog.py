@@ -16,7 +16,7 @@ from typing import Any, NamedTuple
 
 import gymnasium
 
-from fleetrl.envs.registration import CARTPOLE_UNIT_ID, QUBE_BALANCE_ID
+from fleetrl.envs.registration import CARTPOLE_UNIT_ID, QUBE_BALANCE_CONTINUOUS_ID, QUBE_BALANCE_ID
 from fleetrl.envs.spaces import UnitDescription, describe_unit
 from fleetrl.envs.unit_factory import FACTORY_FORM, UnitFactory, is_factory_reference, load_factory
 
@@ -129,6 +129,9 @@ def _qube_fleet_profile(name: str | None) -> str:
 
 ENV_SPECS: dict[str, EnvSpec] = {
     "qube": EnvSpec("qube", _registered(QUBE_BALANCE_ID), 2450.0, _qube_fleet_profile, builtin=True),
+    "qube-continuous": EnvSpec(
+        "qube-continuous", _registered(QUBE_BALANCE_CONTINUOUS_ID), 2450.0, _qube_fleet_profile, builtin=True
+    ),
     "cartpole": EnvSpec("cartpole", _registered(CARTPOLE_UNIT_ID), 475.0, builtin=True),
 }
 """the built-in unit types (a unit factory seam's instances like any user's)"""

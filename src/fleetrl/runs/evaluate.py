@@ -6,6 +6,7 @@ import torch
 
 from fleetrl.agent.ppo import PPOAgent
 from fleetrl.envs.catalog import get_env_spec
+from fleetrl.runs.factory import action_space_of
 
 
 def evaluate_model(
@@ -31,11 +32,11 @@ def evaluate_model(
     spec = get_env_spec(env)
     gym_env, description = spec.make(unit, fleet_seed, fleet_profile=fleet_profile)
     agent = PPOAgent.load(model)
-    actions = description.action
-    if (agent.obs_dim, f"Discrete({agent.n_actions})") != (description.obs_dim, str(actions)):
+    actions = action_space_of(description)
+    if (agent.obs_dim, agent.action_space) != (description.obs_dim, actions):
         gym_env.close()
         raise ValueError(
-            f"{model} is a policy for {agent.obs_dim} observations and Discrete({agent.n_actions}) actions; "
+            f"{model} is a policy for {agent.obs_dim} observations and {agent.action_space} actions; "
             f"env {env!r} has {description.obs_dim} and {actions}"
         )
     scores = []

@@ -4,6 +4,7 @@ import dataclasses
 
 import torch
 
+from fleetrl.agent.action_space import ActionSpace
 from fleetrl.agent.config import PPOConfig, get_preset
 from fleetrl.agent.criterion import CompletionCriterion
 from fleetrl.agent.learner import Learner
@@ -15,17 +16,20 @@ from fleetrl.link.mqtt import open_mqtt_link
 from fleetrl.runs.spec import WorkerSpec
 
 
-def agent_for(unit: UnitDescription, config: PPOConfig, seed: int) -> PPOAgent:
-    """A PPO agent of ``unit``'s shapes: the one place that says which action spaces the agent handles.
+def action_space_of(unit: UnitDescription) -> ActionSpace:
+    """The agent's action space for ``unit``'s: Discrete n (a softmax head) or a 1-D Box (a Gaussian head)."""
+    actions = unit.action
+    if actions.kind == "discrete":
+        return ActionSpace.discrete(actions.n)
+    return ActionSpace.box(actions.low, actions.high)
 
-    :raises ValueError: the unit's actions are continuous (a Box): not supported yet
+
+def agent_for(unit: UnitDescription, config: PPOConfig, seed: int) -> PPOAgent:
+    """A PPO agent of ``unit``'s shapes (the one place that maps a unit's spaces to the agent's).
+
+    :raises ValueError: the unit's actions are not a space the agent handles (named, with what is)
     """
-    if unit.action.kind != "discrete":
-        raise ValueError(
-            f"action space {unit.action}: not supported yet: continuous actions "
-            "(the agent's policy is a softmax over a Discrete action space)"
-        )
-    return PPOAgent(unit.obs_dim, unit.action.n, config, seed=seed)
+    return PPOAgent(unit.obs_dim, action_space_of(unit), config, seed=seed)
 
 
 def make_learner(spec: WorkerSpec) -> Learner:
