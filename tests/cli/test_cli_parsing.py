@@ -25,7 +25,10 @@ def test_override_without_equals_is_refused() -> None:
 @pytest.mark.parametrize(
     ("argv", "message"),
     [
-        (["--env", "qbe"], "unknown env 'qbe' (choose cartpole or qube, or your own unit type as"),
+        (
+            ["--env", "qbe"],
+            "unknown env 'qbe' (choose cartpole, qube or qube-continuous, or your own unit type as",
+        ),
         (["--preset", "fancy"], "fancy"),
         (["--mode", "solo"], "unknown mode 'solo'"),
         (["--units", "0"], "--units = 0: must be at least 1"),

@@ -37,7 +37,8 @@ BROKEN = "tests.envs.fake_units_missing_dependency"
 @pytest.mark.parametrize(
     ("env", "message"),
     [
-        (f"{UNITS}.factory", f"unknown env '{UNITS}.factory' (choose cartpole or qube, or your own"),
+        (f"{UNITS}.factory", f"unknown env '{UNITS}.factory' (choose cartpole, qube or qube-continuous, "
+         "or your own"),
         (f"{UNITS}.factory", f"package.module:factory); did you mean '{UNITS}:factory'?"),
         (f"{UNITS}:", f"unit factory '{UNITS}:' {NOT_FACTORY_FORM}"),
         ("a:b:c", f"unit factory 'a:b:c' {NOT_FACTORY_FORM}"),
@@ -55,7 +56,7 @@ BROKEN = "tests.envs.fake_units_missing_dependency"
         (f"{UNITS}:integer_observations", "has observation space Box(0, 9, (4,), int64): not supported"),
         (f"{UNITS}:multi_discrete_actions", "has action space MultiDiscrete([2 3]): not supported "
          "(supported: Discrete (at least 2 actions) or a 1-D Box of floats)"),
-        (f"{UNITS}:continuous_actions", "action space Box(1,): not supported yet: continuous actions"),
+        (f"{UNITS}:unbounded_actions", "a box needs finite bounds, got low [-inf], high [inf] (supported: "),
         (f"{UNITS}:no_threshold", f"--target-score: unit factory '{UNITS}:no_threshold' declares no "
          "target score and its env spec has no reward_threshold: give one with --target-score X"),
     ],

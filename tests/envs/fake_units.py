@@ -86,9 +86,9 @@ def multi_discrete_actions(unit: int, fleet_seed: int) -> SpacesEnv:
     return SpacesEnv(FLOATS, gymnasium.spaces.MultiDiscrete([2, 3]))
 
 
-def continuous_actions(unit: int, fleet_seed: int) -> SpacesEnv:
-    """A 1-D Box action: a space the seam describes, which the agent does not handle yet."""
-    return SpacesEnv(FLOATS, gymnasium.spaces.Box(-1.0, 1.0, (1,), np.float32))
+def unbounded_actions(unit: int, fleet_seed: int) -> SpacesEnv:
+    """A 1-D Box action without bounds: the Gaussian head scales its mean to the box, so it needs one."""
+    return SpacesEnv(FLOATS, gymnasium.spaces.Box(-np.inf, np.inf, (1,), np.float32))
 
 
 NOT_CALLABLE = 42

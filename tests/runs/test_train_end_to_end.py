@@ -65,7 +65,7 @@ def test_federated_run_writes_the_same_files_as_an_individual_run(
 ) -> None:
     assert listing(local_run) - {"chief.json"} == listing(individual_run)
     rows = list(csv.DictReader((local_run / "metrics.csv").open()))
-    assert {r["event"] for r in rows} == {"gradient"}
+    assert {r["event"] for r in rows} == {"step_gradient"}  # the default scheme, pergrad: gradients per step
     chief = json.loads((local_run / "chief.json").read_text())
     assert chief["rounds"] == ROUNDS and chief["rejections"] == {}
 

@@ -52,7 +52,8 @@ class ActionSpace:
             bounds = (*self.low, *self.high)
             if not all(math.isfinite(b) for b in bounds):
                 raise UnsupportedActionSpace(
-                    f"a box needs finite bounds, got {self!r} (supported: {SUPPORTED})"
+                    f"a box needs finite bounds, got low {list(self.low)}, high {list(self.high)} "
+                    f"(supported: {SUPPORTED})"
                 )
             if not all(lo < hi for lo, hi in zip(self.low, self.high, strict=True)):
                 raise UnsupportedActionSpace(f"a box needs low < high in every component, got {self!r}")

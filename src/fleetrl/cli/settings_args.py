@@ -48,8 +48,9 @@ def add_learning_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--scheme",
         default=None,
-        help="federated: paper (default; gradient sharing + model transfer), fedavg (model averaging), "
-        "fedavgm or fedadam (fedavg with a server optimiser)",
+        help="federated: pergrad (default; gradients averaged at every optimisation step), paper (the "
+        "paper's: gradient sharing + model transfer), fedavg (model averaging), fedavgm or fedadam (fedavg "
+        "with a server optimiser)",
     )
     p.add_argument(
         "--scheme-param",

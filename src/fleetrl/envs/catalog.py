@@ -144,7 +144,8 @@ def get_env_spec(name: str) -> EnvSpec:
         return ENV_SPECS[name]
     if is_factory_reference(name):
         return EnvSpec(name, _factory_builder(load_factory(name)))
-    choices = " or ".join(sorted(ENV_SPECS))
+    *others, last = sorted(ENV_SPECS)
+    choices = f"{', '.join(others)} or {last}"
     module, dot, attr = name.rpartition(".")
     hint = f"; did you mean {module + ':' + attr!r}?" if dot and module and attr else ""
     raise ValueError(

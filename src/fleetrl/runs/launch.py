@@ -23,6 +23,7 @@ from typing import Any
 
 from fleetrl.federation.chief import Chief
 from fleetrl.federation.runner import ChiefSummary, run_chief
+from fleetrl.federation.schemes import DEFAULT_SCHEME
 from fleetrl.runs.factory import probe_agent
 from fleetrl.runs.fleet import Fleet, ThreadFleet, follow
 from fleetrl.runs.live import LiveView
@@ -45,13 +46,13 @@ TRAIN_CONNECT_WINDOW = 10.0
 
 def demo_settings(out: Path, seed: int = 0) -> RunSettings:
     """The main job: a simulated 3-unit QUBE fleet trained federated through an embedded MQTT broker, with
-    fleetrl's best scheme (``fedavg``; docs/results.md measures it against the paper's)."""
+    fleetrl's best scheme (the default, ``pergrad``; docs/results.md measures it against the paper's)."""
     return RunSettings(
         mode="federated",
         env="qube",
         units=3,
         preset="standard",
-        scheme="fedavg",
+        scheme=DEFAULT_SCHEME,
         seed=seed,
         max_rounds=DEMO_MAX_ROUNDS,
         out=out,
@@ -74,7 +75,7 @@ def worker_specs(settings: RunSettings, device_url: str | None, run_id: str) -> 
             overrides=dict(settings.overrides),
             device_url=device_url,
             device_run_id=run_id,
-            scheme=settings.scheme,
+            scheme=settings.scheme_name,
             scheme_params=dict(settings.scheme_params),
             target_score=settings.target_score,
         )

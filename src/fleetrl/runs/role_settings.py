@@ -98,7 +98,7 @@ class ChiefSettings(RoleSettings, RoundRules):
         """Raise SettingError naming the first setting that cannot work; nothing is created."""
         self.validate_role()
         self.validate_rounds()
-        check_scheme_quorum(self.scheme, self.quorum)
+        check_scheme_quorum(self.scheme_name, self.quorum)
         if self.workers < 1:
             raise SettingError(f"{label('workers')} = {self.workers}: must be at least 1")
         if self.fleet_seed < 0:
@@ -154,5 +154,5 @@ class WorkerSettings(RoleSettings):
         return WorkerSpec(
             self.worker_id, self.device_unit, self.env, self.preset, self.seed, self.fleet_seed,
             self.max_rounds, str(self.out), self.overrides, fleet_profile=self.fleet_profile,
-            scheme=self.scheme, scheme_params=self.scheme_params, target_score=self.target_score,
+            scheme=self.scheme_name, scheme_params=self.scheme_params, target_score=self.target_score,
         )  # fmt: skip

@@ -96,9 +96,10 @@ class LearningSettings:
     max_rounds: int = 1000
     """the paper's M: the most rounds per worker (a round is one episode, or with the paper-code preset
     the episodes that fill the memory)"""
-    scheme: str = DEFAULT_SCHEME
-    """federated: ``paper`` (Algorithms 1 and 2), ``fedavg``, ``fedavgm``, ``fedadam`` or ``pergrad``
-    (:mod:`fleetrl.federation.schemes`)"""
+    scheme: str | None = None
+    """federated: ``pergrad`` (the default), ``paper`` (Algorithms 1 and 2), ``fedavg``, ``fedavgm`` or
+    ``fedadam`` (:mod:`fleetrl.federation.schemes`); None: the default, which validation fills in
+    (:meth:`default_scheme`)"""
     scheme_params: dict[str, Any] = field(default_factory=dict)
     """the scheme's parameters (``--scheme-param KEY=VALUE``; the ``[scheme_params]`` table); validation
     fills in the scheme's defaults, so equal schemes have equal tables"""
@@ -111,6 +112,8 @@ class LearningSettings:
         env = as_setting_error("env", get_env_spec, self.env)
         self.fleet_profile = as_setting_error("fleet_profile", env.resolve_fleet_profile, self.fleet_profile)
         as_setting_error("preset", get_preset, self.preset)
+        if self.scheme is None:
+            self.scheme = self.default_scheme()
         as_setting_error("scheme", get_scheme, self.scheme)
         self.scheme_params = as_setting_error("scheme_params", self.federation_scheme).params()
         if self.max_rounds < 1:
@@ -150,13 +153,22 @@ class LearningSettings:
 
         return shared_settings(
             env=self.env, fleet_seed=fleet_seed, fleet_profile=self.fleet_profile, preset=self.preset,
-            overrides=self.overrides, scheme=self.scheme, scheme_params=self.scheme_params,
+            overrides=self.overrides, scheme=self.scheme_name, scheme_params=self.scheme_params,
             target_score=self.target_score,
         )  # fmt: skip
 
+    def default_scheme(self) -> str:
+        """The scheme a run takes when none is named: :data:`~fleetrl.federation.schemes.DEFAULT_SCHEME`."""
+        return DEFAULT_SCHEME
+
+    @property
+    def scheme_name(self) -> str:
+        """The run's scheme: the one named, else :meth:`default_scheme`."""
+        return self.scheme or self.default_scheme()
+
     def federation_scheme(self) -> Scheme:
         """A new scheme object of the run (its name and parameters); ValueError naming a bad one."""
-        return get_scheme(self.scheme, **self.scheme_params)
+        return get_scheme(self.scheme_name, **self.scheme_params)
 
     def _typed_overrides(self) -> dict[str, Any]:
         hints = get_type_hints(PPOConfig)
@@ -257,6 +269,12 @@ class RunSettings(LearningSettings, RoundRules, BrokerLogin):
     live: bool = True
     """show the live terminal view"""
 
+    def default_scheme(self) -> str:
+        """Federated: :data:`~fleetrl.federation.schemes.DEFAULT_SCHEME`; each unit alone: ``paper``, whose
+        learners stop at completion (the scheme is otherwise unused, and the result settings stay those of
+        the individual runs made before the default changed)."""
+        return "paper" if self.mode == "individual" else DEFAULT_SCHEME
+
     def validate(self) -> None:
         """Raise SettingError naming the first setting that cannot work; nothing is created."""
         self.validate_learning()
@@ -267,7 +285,7 @@ class RunSettings(LearningSettings, RoundRules, BrokerLogin):
         if self.mode == "individual" and (self.scheme != "paper" or self.scheme_params):
             raise SettingError(f"--scheme {self.scheme} is a federation scheme: it needs --mode federated")
         self.validate_rounds()
-        check_scheme_quorum(self.scheme, self.quorum)
+        check_scheme_quorum(self.scheme_name, self.quorum)
         self.validate_broker()
         if self.units < 1:
             raise SettingError(f"{label('units')} = {self.units}: must be at least 1")
