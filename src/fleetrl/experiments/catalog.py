@@ -92,15 +92,20 @@ def fig5(budget: Budget) -> Plan:
         ratios=[
             Ratio(ind_paper, fed_paper, "the paper: ≈1.5× overall, 2.7× on the slowest unit"),
             Ratio(ind_std, fed_std, "the paper's scheme with the standard preset"),
-            Ratio(ind_std, fedavg, "fleetrl's best scheme vs each unit alone (target ≥ 1.5×, aim 2.7×)"),
-            Ratio(fed_std, fedavg, "fleetrl's best scheme vs the paper's scheme, same preset"),
-            Ratio(fed_paper, fedavg, "fleetrl's best scheme vs the paper's scheme and preset"),
+            Ratio(ind_std, fedavg, "model averaging vs each unit alone"),
+            Ratio(fed_std, fedavg, "model averaging vs the paper's scheme, same preset"),
+            Ratio(fed_paper, pergrad, "fleetrl's default scheme vs the paper's scheme and preset"),
             Ratio(ind_code, fed_code, "the paper's scheme as its code ran (paper-code preset)"),
-            Ratio(ind_std, pergrad, "per-step gradient averaging vs each unit alone (target 2.7×)"),
+            Ratio(
+                ind_std,
+                pergrad,
+                "fleetrl's default scheme (per-step gradient averaging) vs each unit alone "
+                "(target: 2.7× for the fleet, 2× per unit)",
+            ),
             Ratio(fedavg, pergrad, "per-step gradient averaging vs model averaging"),
         ],
-        side_by_side=(ind_std, fedavg),
-        mqtt_check=fedavg,
+        side_by_side=(ind_std, pergrad),
+        mqtt_check=pergrad,
         notes="Paper (3 real units): ≈300 rounds federated vs 820 / 820 / 571 individual.",
         headline=[ind_std, fedavg, pergrad],
     )
