@@ -9,7 +9,7 @@ from pathlib import Path
 import pytest
 
 from fleetrl.experiments.catalog import FULL, PLANS, QUICK
-from fleetrl.experiments.runner import experiment_command, run_experiment, section_name
+from fleetrl.experiments.runner import ExperimentRequest, experiment_command, run_experiment, section_name
 from fleetrl.runs.setting_values import SettingError
 
 REPO = Path(__file__).resolve().parents[2]
@@ -38,7 +38,8 @@ def test_the_builtins_arms_keep_their_keys() -> None:
 
 def test_the_section_and_the_command_name_the_unit_type(tmp_path: Path) -> None:
     assert section_name("learning", 0, unit_type=FACTORY) == "learning-tests.envs.fake_units-factory"
-    command = experiment_command("learning", tmp_path, [100], True, None, 0, None, False, FACTORY, 50.0)
+    request = ExperimentRequest(tmp_path, [100], True, unit_type=FACTORY, target_score=50.0)
+    command = experiment_command("learning", request)
     assert command.endswith(f"--env {FACTORY} --target-score 50 --quick")
 
 

@@ -3,7 +3,7 @@
 import re
 import shlex
 import shutil
-from dataclasses import replace
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 from fleetrl.experiments.arms import Places
@@ -94,10 +94,10 @@ def run_experiment(
     )
     places = Places(out / "runs", out / "records" if records is None else records, budget.unseen_units)
     for one in names:
-        command = experiment_command(
-            one, out, seeds, quick, places.records, fleet_seed, other_seeds, headline_only, unit_type,
-            target_score,
-        )  # fmt: skip
+        request = ExperimentRequest(
+            out, seeds, quick, places.records, fleet_seed, other_seeds, headline_only, unit_type, target_score
+        )
+        command = experiment_command(one, request)
         preamble = [f"Command: `{command}`", "", seeds_line(seeds, fleet_seed, other_seeds), ""]
         where = section_name(one, fleet_seed, headline_only and one in PLANS, unit_type)
         if one in PLANS:
@@ -147,28 +147,33 @@ def section_name(
     return f"{name}-headline" if headline_only else name
 
 
-def experiment_command(
-    name: str,
-    out: Path,
-    seeds: list[int],
-    quick: bool,
-    records: Path | None = None,
-    fleet_seed: int = 0,
-    other_seeds: int | None = None,
-    headline_only: bool = False,
-    unit_type: str | None = None,
-    target_score: float | None = None,
-) -> str:
-    """The command line that regenerates an experiment."""
-    words = ["fleetrl", "experiment", name, "--seeds", str(len(seeds)), "--first-seed", str(seeds[0])]
-    words += [] if other_seeds is None else ["--other-seeds", str(other_seeds)]
-    words += ["--out", str(out)]
-    words += [] if records is None or records == out / "records" else ["--records", str(records)]
-    words += ["--fleet-seed", str(fleet_seed)] if fleet_seed else []
-    words += ["--headline-only"] if headline_only else []
-    words += [] if unit_type is None else ["--env", unit_type]
-    words += [] if target_score is None else ["--target-score", f"{target_score:g}"]
-    return shlex.join(words + (["--quick"] if quick else []))
+@dataclass(frozen=True)
+class ExperimentRequest:
+    """What ``fleetrl experiment`` was asked for besides the experiment's name (:func:`run_experiment`)."""
+
+    out: Path
+    seeds: list[int]
+    quick: bool = False
+    records: Path | None = None
+    fleet_seed: int = 0
+    other_seeds: int | None = None
+    headline_only: bool = False
+    unit_type: str | None = None
+    target_score: float | None = None
+
+
+def experiment_command(name: str, request: ExperimentRequest) -> str:
+    """The command line that regenerates experiment ``name`` as ``request`` asked for it."""
+    r = request
+    words = ["fleetrl", "experiment", name, "--seeds", str(len(r.seeds)), "--first-seed", str(r.seeds[0])]
+    words += [] if r.other_seeds is None else ["--other-seeds", str(r.other_seeds)]
+    words += ["--out", str(r.out)]
+    words += [] if r.records is None or r.records == r.out / "records" else ["--records", str(r.records)]
+    words += ["--fleet-seed", str(r.fleet_seed)] if r.fleet_seed else []
+    words += ["--headline-only"] if r.headline_only else []
+    words += [] if r.unit_type is None else ["--env", r.unit_type]
+    words += [] if r.target_score is None else ["--target-score", f"{r.target_score:g}"]
+    return shlex.join(words + (["--quick"] if r.quick else []))
 
 
 def assemble_report(out: Path) -> Path:
