@@ -41,7 +41,7 @@ def parse(*argv: str) -> object:
 def test_flags_override_the_file_and_the_file_overrides_the_defaults(tmp_path: Path) -> None:
     config = tmp_path / "run.toml"
     config.write_text(
-        'env = "cartpole"\nunits = 2\nquorum = 0.5\nround_timeout = 3\nout = "from-file"\n'
+        'env = "cartpole"\nunits = 2\nscheme = "fedavg"\nquorum = 0.5\nround_timeout = 3\nout = "from-file"\n'
         "[overrides]\nclip_eps = 0.3\nhidden = [16, 16]\n"
     )
     settings = parse("train", "--config", str(config), "--units", "4", "--set", "clip_eps=0.25")

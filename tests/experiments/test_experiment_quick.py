@@ -15,7 +15,8 @@ from fleetrl.cli.main import main
 from fleetrl.experiments.catalog import FULL, PLANS, QUICK
 from fleetrl.runs.settings import RunSettings
 
-pytestmark = [pytest.mark.slow, pytest.mark.mqtt]  # sweeps of real training runs, one arm over MQTT
+# real training sweeps, one arm over MQTT; the module fixture that runs them needs more than the default timeout
+pytestmark = [pytest.mark.slow, pytest.mark.mqtt, pytest.mark.timeout(900)]
 RUN = ("fig5", "table2", "peers")
 """the experiments run end to end here"""
 

@@ -69,12 +69,12 @@ class GatedLearner:
 
     def play_round(self) -> Any:
         if self.inner.rounds + 1 == self.gate_round:
-            assert self.gate.wait(60), "the injection never finished"
+            assert self.gate.wait(150), "the injection never finished"  # slow on a loaded 2-core machine
         return self.inner.play_round()
 
 
 @pytest.mark.mqtt
-@pytest.mark.timeout(120)
+@pytest.mark.timeout(300)
 def test_fuzzed_forged_replayed_unsigned_and_oversized_messages_change_nothing(
     fleet_runner: Callable[..., Any], fake_fleet: Callable[..., dict[str, Any]]
 ) -> None:

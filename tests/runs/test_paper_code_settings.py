@@ -12,6 +12,7 @@ from fleetrl.runs.settings import RunSettings
 def test_paper_code_and_its_overrides_reach_the_run_config(tmp_path: Path) -> None:
     flags = {
         "preset": "paper-code",
+        "scheme": "paper",  # the default scheme, pergrad, refuses a preset whose steps alternate
         "out": str(tmp_path / "run"),
         "overrides": {"critic_coef": 1, "trajectory_memory": "ring", "critic_loss": "mse"},
     }
