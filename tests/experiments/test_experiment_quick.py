@@ -15,7 +15,7 @@ from fleetrl.cli.main import main
 from fleetrl.experiments.catalog import FULL, PLANS, QUICK
 from fleetrl.runs.settings import RunSettings
 
-# real training sweeps, one arm over MQTT; the module fixture that runs them needs more than the default timeout
+# real training sweeps, one arm over MQTT; the module fixture that runs them needs more than 300 s
 pytestmark = [pytest.mark.slow, pytest.mark.mqtt, pytest.mark.timeout(900)]
 RUN = ("fig5", "table2", "peers")
 """the experiments run end to end here"""
