@@ -227,11 +227,48 @@ def learning(budget: Budget) -> Plan:
     )
 
 
+def continuous(budget: Budget) -> Plan:
+    """3 QUBE units with the motor voltage as a continuous action (``qube-continuous``: a Gaussian policy)
+    next to the paper's three actions (``qube``): alone, ``fedavg`` and ``pergrad``, preset ``standard``."""
+    m, fleet_seed = budget.qube_rounds, budget.fleet_seed
+
+    def one(env: str, scheme: str) -> Arm:
+        if scheme == "alone":
+            return arm(env, 3, "individual", "standard", m, f"{env} · alone", fleet_seed=fleet_seed)
+        return arm(env, 3, "federated", "standard", m, f"{env} · federated · {scheme}", scheme, fleet_seed)
+
+    schemes = ("alone", "fedavg", "pergrad")
+    arms = {(env, s): one(env, s) for env in ("qube", "qube-continuous") for s in schemes}
+    continuous_alone = arms["qube-continuous", "alone"]
+    return Plan(
+        name="continuous",
+        title="Continuous actions: 3 QUBE units, motor voltage in [−3, 3] V vs the paper's three actions",
+        arms=list(arms.values()),
+        max_rounds=m,
+        ratios=[
+            *(
+                Ratio(arms["qube-continuous", s], arms["qube", s], f"continuous vs three actions: {s}")
+                for s in schemes
+            ),
+            *(
+                Ratio(continuous_alone, arms["qube-continuous", s], "continuous: federated vs alone")
+                for s in schemes[1:]
+            ),
+        ],
+        side_by_side=(continuous_alone, arms["qube-continuous", "pergrad"]),
+        mqtt_check=arms["qube-continuous", "pergrad"],
+        notes="In the first three ratios a figure above 1 means the three-action task completed sooner. The "
+        "unseen-unit columns score each final policy greedily (the Gaussian's mean) on units no worker "
+        "trained on.",
+    )
+
+
 PLANS: dict[str, Callable[[Budget], Plan]] = {
     "fig5": fig5,
     "fig6": fig6,
     "cartpole-scaling": cartpole_scaling,
     "learning": learning,
+    "continuous": continuous,
 }
 EXPERIMENTS = (*PLANS, "table2", "peers")
 UNIT_TYPE_EXPERIMENTS = ("learning", "cartpole-scaling")

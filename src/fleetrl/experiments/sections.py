@@ -49,12 +49,12 @@ def table2_section(
     return "\n".join(lines) + "\n"
 
 
-PEER_STEPS = {"cartpole": 200_000, "qube": 100_000}
+PEER_STEPS = {"cartpole": 200_000, "qube": 100_000, "qube-continuous": 100_000}
 """SB3's step budget per unit run. SB3 takes minutes per 100k QUBE steps here, so each seed s trains one unit
 (s mod 3) instead of all three."""
 
 
-OUR_ARMS = ("individual", "paper", "fedavg")
+OUR_ARMS = ("individual", "paper", "fedavg", "pergrad")
 """fleetrl's arms next to SB3 (preset standard): each unit alone, federated with each scheme"""
 
 
@@ -71,7 +71,7 @@ def ours_arm(env: str, name: str, rounds: int, fleet_seed: int = 0) -> Arm:
 def peers_section(places: Places, seeds: list[int], preamble: list[str], budget: Budget, quick: bool) -> str:
     """SB3 PPO (defaults) per unit vs fleetrl on the same envs and criterion: episodes per unit (SB3's results
     are records too, under ``places.records/peers``)."""
-    envs = ["cartpole"] if quick else ["cartpole", "qube"]
+    envs = ["cartpole"] if quick else list(PEER_STEPS)
     steps = {env: (5_000 if quick else PEER_STEPS[env]) for env in envs}
     fleet_seed = budget.fleet_seed
     where = places.records / "peers" / (f"fleet-{fleet_seed}" if fleet_seed else "")
@@ -82,7 +82,7 @@ def peers_section(places: Places, seeds: list[int], preamble: list[str], budget:
         ]
         for env in envs
     }
-    rounds = {"cartpole": budget.cartpole_rounds, "qube": budget.qube_rounds}
+    rounds = {env: budget.cartpole_rounds if env == "cartpole" else budget.qube_rounds for env in envs}
     ours = {
         (env, scheme): ours_arm(env, scheme, rounds[env], fleet_seed) for env in envs for scheme in OUR_ARMS
     }
