@@ -97,3 +97,18 @@ def test_a_sweep_runs_seed_by_seed_across_the_arms(tmp_path: Path) -> None:
     assert [(run.labels["arm"], run.labels["seed"]) for run in order] == [
         (ALONE.key, 100), (FEDAVG.key, 100), (ALONE.key, 101), (FEDAVG.key, 101), (ALONE.key, 102),
     ]  # fmt: skip
+
+
+def test_a_report_from_the_records_alone_runs_nothing_and_names_what_is_missing(tmp_path: Path) -> None:
+    places = Places(tmp_path / "runs", tmp_path / "committed")
+    for seed, fed in zip(SEEDS[:2], (10, 20), strict=True):  # fedavg has 2 of 3 seeds, alone none
+        write_record_of(FEDAVG.run(places, seed), record(FEDAVG.run(places, seed), fed))
+    paper = arm("cartpole", 3, "federated", "standard", 100, "paper")
+    plan = Plan("demo", "A demo", [ALONE, FEDAVG, paper], 100, [Ratio(ALONE, FEDAVG, "the claim")])
+    section = run_plan(plan, tmp_path / "out", places, SEEDS, [seeds_line(SEEDS, 0), ""], run=False)
+    assert not places.runs.exists()  # nothing was started
+    assert "| each unit alone | not run yet | - |" in section
+    assert "| fedavg | 15 (10–20) |" in section and "| 0/2 | 100–101 |" not in section
+    assert "| 2/2 | 100–101 |" in section
+    assert "- **each unit alone → fedavg**: not run yet; the claim" in section
+    assert "| fedavg | 3 |" not in section  # no speed-up without the arm it is measured against

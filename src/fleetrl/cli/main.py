@@ -127,6 +127,12 @@ def build_parser() -> argparse.ArgumentParser:
     add_target_score_argument(experiment)
     experiment.add_argument("--quick", action="store_true", help="tiny budgets: checks the pipeline only")
     experiment.add_argument(
+        "--from-records",
+        action="store_true",
+        help="run nothing: build the report from the records there are (missing seeds are left out, an arm "
+        "without any is shown as not run yet)",
+    )
+    experiment.add_argument(
         "--publish", type=Path, default=None, help="also copy report.md (and its images) to this file"
     )
     experiment.set_defaults(handler=cmd_experiment)
@@ -235,6 +241,7 @@ def cmd_experiment(args: argparse.Namespace) -> int:
         args.headline_only,
         args.env,
         args.target_score,
+        run=not args.from_records,
     )
     print(f"report: {report}")
     if args.publish is not None:

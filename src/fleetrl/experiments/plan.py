@@ -74,6 +74,9 @@ class Plan:
         )
 
 
+NOT_RUN = "not run yet"
+"""what a report built from the records alone says of an arm that has none"""
+
 Records = dict[str, list[RunRecord]]
 """each arm's records (by arm key), one per seed"""
 
@@ -85,8 +88,12 @@ def run_plan(
     seeds: list[int],
     preamble: list[str],
     other_seeds: int | None = None,
+    run: bool = True,
 ) -> str:
     """Run every arm for its seeds (runs not done yet) and return the report section (markdown).
+
+    With ``run`` False nothing runs: the section is built from the records there are, and an arm's missing
+    seeds are left out (an arm with none is shown as not run yet), so a sweep under way can be reported.
 
     Headline arms run on every seed, the others on the first ``other_seeds`` (None: on every seed). Runs go
     seed by seed across the arms, so a sweep stopped part-way has the first seeds of every arm.
@@ -100,7 +107,11 @@ def run_plan(
     runs = {arm.key: arm.runs(places, plan.seeds_of(arm, seeds, other_seeds)) for arm in plan.arms}
     mqtt_arm = plan.mqtt_check.with_settings(transport="mqtt") if plan.mqtt_check else None
     extra = [mqtt_arm.run(places, seeds[0])] if mqtt_arm else []
-    run_all(_seed_major(list(runs.values())) + extra)
+    if run:
+        run_all(_seed_major(list(runs.values())) + extra)
+    else:
+        runs = {key: [r for r in arm_runs if r.done] for key, arm_runs in runs.items()}
+        extra = [r for r in extra if r.done]
     records = {key: [run.result() for run in arm_runs] for key, arm_runs in runs.items()}
     _write_csv(root / "runs.csv", records)
 
@@ -112,8 +123,9 @@ def run_plan(
     if speed:
         lines += [speed, ""]
     lines += [_ratio_line(ratio, records) for ratio in plan.ratios]
-    if extra and plan.mqtt_check:
-        identical = same_scores(records[plan.mqtt_check.key][0], extra[0].result())
+    local = records[plan.mqtt_check.key] if plan.mqtt_check else []
+    if extra and plan.mqtt_check and local and local[0].result_settings["seed"] == seeds[0]:
+        identical = same_scores(local[0], extra[0].result())
         lines.append(
             f"- Transport check: seed {seeds[0]} of {plan.mqtt_check.label} over MQTT (embedded broker): "
             f"scores {'identical' if identical else 'DIFFERENT'} to the in-process bus."
@@ -123,10 +135,11 @@ def run_plan(
     curves = root / "mean_score.png"
     _plot_curves(plan, records, curves)
     lines += ["", f"![mean score per round]({curves.relative_to(out)})"]
-    if plan.side_by_side:
+    if plan.side_by_side and all(records[arm.key] for arm in plan.side_by_side):
         fig = root / "workers.png"
         _plot_side_by_side(plan, records, fig)
-        lines += ["", f"![per-worker curves, seed {seeds[0]}]({fig.relative_to(out)})"]
+        first = records[plan.side_by_side[0].key][0].result_settings["seed"]
+        lines += ["", f"![per-worker curves, seed {first}]({fig.relative_to(out)})"]
     lines += ["", f"Regenerate one arm (SEEDS: {' '.join(map(str, seeds))}):", ""]
     lines += [f"    {arm.command(places.runs)}" for arm in plan.arms]
     return "\n".join(lines) + "\n"
@@ -171,6 +184,8 @@ def _per_unit(records: list[RunRecord]) -> list[int]:
 
 def _ratio_line(ratio: Ratio, records: Records) -> str:
     slower, faster = records[ratio.slower.key], records[ratio.faster.key]
+    if not slower or not faster:
+        return f"- **{ratio.slower.label} → {ratio.faster.label}**: {NOT_RUN}; {ratio.claim}"
     point, low, high = bootstrap_ratio(_fleet(slower), _fleet(faster))
     unit, unit_low, unit_high = bootstrap_ratio(_per_unit(slower), _per_unit(faster))
     bound = _bound(slower, faster)
@@ -195,6 +210,9 @@ def _arms_table(plan: Plan, records: Records) -> str:
     rows = []
     for arm in plan.arms:
         done = records[arm.key]
+        if not done:
+            rows.append([arm.label, NOT_RUN, *["-"] * 6])
+            continue
         complete = sum(c.complete for c in completions(done))
         walls = sorted(wall_seconds(done))
         mean_unseen, held = unseen_summary(done)
@@ -252,6 +270,8 @@ def _speed_up_table(plan: Plan, records: Records) -> str:
         if alone is None:
             continue
         slower, faster = records[alone.key], records[arm.key]
+        if not slower or not faster:
+            continue
         bound = _bound(slower, faster)
         point, low, high = bootstrap_ratio(_fleet(slower), _fleet(faster))
         unit, unit_low, unit_high = bootstrap_ratio(_per_unit(slower), _per_unit(faster))
@@ -278,7 +298,7 @@ def _speed_up_table(plan: Plan, records: Records) -> str:
 
 def _plot_curves(plan: Plan, records: Records, path: Path) -> None:
     fig, ax = plt.subplots(figsize=(8, 4))
-    for arm in plan.arms:
+    for arm in (a for a in plan.arms if records[a.key]):
         ax.plot(mean_score_curve(records[arm.key], plan.max_rounds), label=arm.label, lw=1.2)
     ax.set_xlabel(X_LABELS["rounds"])
     ax.set_ylabel("mean score (all workers, all seeds)")

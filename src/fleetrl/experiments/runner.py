@@ -68,6 +68,7 @@ def run_experiment(
     headline_only: bool = False,
     unit_type: str | None = None,
     target_score: float | None = None,
+    run: bool = True,
 ) -> Path:
     """Run experiment ``name`` (or every one for ``all``) on fleet ``fleet_seed``; return the report's path.
 
@@ -75,7 +76,8 @@ def run_experiment(
     arms run on every seed, the others on the first ``other_seeds`` (None: every seed); ``headline_only``
     runs the headline arms alone (e.g. to repeat them on another fleet). With ``unit_type`` (a user's
     ``package.module:factory``, and its ``target_score``) the experiments that are not about the paper's rig
-    train it instead of the built-ins.
+    train it instead of the built-ins. With ``run`` False nothing is run: the report is built from the records
+    there are (a sweep under way, or one regenerated from committed records).
     """
     names = list(EXPERIMENTS) if name == "all" else [name]
     for one in names:
@@ -106,11 +108,11 @@ def run_experiment(
                 plan = plan.headline_only()
             if fleet_seed:
                 plan = replace(plan, title=f"{plan.title}, fleet seed {fleet_seed}")
-            section = run_plan(replace(plan, name=where), out, places, seeds, preamble, other_seeds)
+            section = run_plan(replace(plan, name=where), out, places, seeds, preamble, other_seeds, run)
         elif one == "table2":
             section = table2_section(out / where, seeds, preamble, fleet_seed)
         else:
-            section = peers_section(places, seeds, preamble, budget, quick)
+            section = peers_section(places, seeds, preamble, budget, quick, run)
         (out / where).mkdir(parents=True, exist_ok=True)
         (out / where / "section.md").write_text(section)
     return assemble_report(out)

@@ -8,6 +8,7 @@ from fleetrl.devices.homogeneity import format_tables, homogeneity_test, write_c
 from fleetrl.experiments.arms import Arm, Places, completions
 from fleetrl.experiments.catalog import Budget, arm
 from fleetrl.experiments.peers import PeerRun
+from fleetrl.experiments.plan import NOT_RUN
 from fleetrl.experiments.stats import bootstrap_ratio, markdown_table, spread
 from fleetrl.experiments.sweep import run_all
 
@@ -68,9 +69,12 @@ def ours_arm(env: str, name: str, rounds: int, fleet_seed: int = 0) -> Arm:
     return arm(env, 3, "federated", "standard", rounds, label, name, fleet_seed)
 
 
-def peers_section(places: Places, seeds: list[int], preamble: list[str], budget: Budget, quick: bool) -> str:
+def peers_section(
+    places: Places, seeds: list[int], preamble: list[str], budget: Budget, quick: bool, run: bool = True
+) -> str:
     """SB3 PPO (defaults) per unit vs fleetrl on the same envs and criterion: episodes per unit (SB3's results
-    are records too, under ``places.records/peers``)."""
+    are records too, under ``places.records/peers``). With ``run`` False nothing runs: the section is built
+    from the results there are."""
     envs = ["cartpole"] if quick else list(PEER_STEPS)
     steps = {env: (5_000 if quick else PEER_STEPS[env]) for env in envs}
     fleet_seed = budget.fleet_seed
@@ -87,7 +91,11 @@ def peers_section(places: Places, seeds: list[int], preamble: list[str], budget:
         (env, scheme): ours_arm(env, scheme, rounds[env], fleet_seed) for env in envs for scheme in OUR_ARMS
     }
     our_runs = {key: ours[key].runs(places, seeds) for key in ours}
-    run_all([r for env in envs for r in peer_runs[env]] + [r for runs in our_runs.values() for r in runs])
+    if run:
+        run_all([r for env in envs for r in peer_runs[env]] + [r for runs in our_runs.values() for r in runs])
+    else:
+        peer_runs = {env: [r for r in runs if r.done] for env, runs in peer_runs.items()}
+        our_runs = {key: [r for r in runs if r.done] for key, runs in our_runs.items()}
 
     lines = ["## Peers: Stable-Baselines3 PPO (defaults) per unit", "", *preamble]
     lines += [
@@ -101,10 +109,16 @@ def peers_section(places: Places, seeds: list[int], preamble: list[str], budget:
     rows = []
     for env in envs:
         results = [r.result() for r in peer_runs[env]]
+        if not results:
+            rows.append([env, "SB3 PPO (defaults)", NOT_RUN, "-", "-"])
+            continue
         sb3 = [r["episodes_to_completion"] or r["episodes"] for r in results]
         sb3_done = sum(r["episodes_to_completion"] is not None for r in results)
         rows.append([env, "SB3 PPO (defaults)", f"{spread(sb3)}", f"{sb3_done}/{len(results)}", "1"])
         for scheme in OUR_ARMS:
+            if not our_runs[env, scheme]:
+                rows.append([env, ours[env, scheme].label, NOT_RUN, "-", "-"])
+                continue
             done = completions([run.result() for run in our_runs[env, scheme]])
             fleet = [r for c in done for r in c.worker_rounds()]
             complete = sum(r is not None for c in done for r in c.per_worker.values())
@@ -131,5 +145,8 @@ def peers_section(places: Places, seeds: list[int], preamble: list[str], budget:
             rows,
         )
     )
-    lines += ["", "Regenerate one SB3 unit:", "", f"    {peer_runs[envs[0]][0].command()}"]
+    example = PeerRun(
+        where / envs[0] / "unit-0-seed-0.json", envs[0], 0, seeds[0], steps[envs[0]], fleet_seed
+    )
+    lines += ["", "Regenerate one SB3 unit:", "", f"    {example.command()}"]
     return "\n".join(lines) + "\n"
