@@ -99,7 +99,7 @@ def train_argv(seed: int, args: argparse.Namespace, broker: str, out: Path) -> l
     """The command line of one seed's federated run."""
     return [
         "train", "--env", FACTORY, "--units", str(args.units), "--mode", "federated", "--preset", PRESET,
-        f"--target-score={args.target:g}", "--seed", str(seed), "--max-rounds", str(args.max_rounds),
+        "--target-score", f"{args.target:g}", "--seed", str(seed), "--max-rounds", str(args.max_rounds),
         "--broker", broker, "--no-live", "--out", str(out),
     ]  # fmt: skip
 

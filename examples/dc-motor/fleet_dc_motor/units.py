@@ -74,7 +74,8 @@ class MotorSpeedEnv(gymnasium.Env[np.ndarray, np.ndarray]):
         rng = self.np_random
         low, high = SETPOINT_RANGE
         signs = rng.choice([-1.0, 1.0], size=2)
-        self.setpoints = tuple(float(s * rng.uniform(low, high) * RATED_SPEED) for s in signs)  # type: ignore[assignment]
+        first, second = (float(sign * rng.uniform(low, high) * RATED_SPEED) for sign in signs)
+        self.setpoints = (first, second)
         self.steps = 0
         self.setpoint = self.setpoints[0]
         measured = self.motor.reset(seed=int(rng.integers(2**63)))
