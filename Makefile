@@ -9,7 +9,7 @@ STAMP := $(VENV)/.installed
 LOCK := requirements.lock
 PIP_VERSION := 26.3
 
-.PHONY: install lock demo test test-fast lint bench results report clean
+.PHONY: install lock demo example test test-fast lint bench results report clean
 
 install: $(STAMP)
 
@@ -37,6 +37,13 @@ lock:
 demo: install
 	$(VENV)/bin/fleetrl demo
 
+# Your own unit type, worked through (examples/dc-motor, docs/byod.md): the example package installed into the
+# venv, then a federated fleet of 3 DC motors trained on an embedded MQTT broker.
+example: install
+	$(PY) -m pip install --quiet --no-deps --no-build-isolation -e examples/dc-motor
+	$(VENV)/bin/fleetrl train --env fleet_dc_motor.units:factory --units 3 --mode federated --preset standard \
+		--target-score -10 --out runs/motor-$$(date +%Y%m%d-%H%M%S)
+
 # Two test processes per two cores (pytest-xdist): the suite is mostly child processes and brokers waiting.
 test: install
 	$(PY) -m pytest -q -n 2
@@ -46,8 +53,8 @@ test-fast: install
 	$(PY) -m pytest -q -m "not slow and not mqtt and not mosquitto"
 
 lint: install
-	$(VENV)/bin/ruff check src tests benchmarks
-	$(VENV)/bin/ruff format --check src tests benchmarks
+	$(VENV)/bin/ruff check src tests benchmarks examples
+	$(VENV)/bin/ruff format --check src tests benchmarks examples
 	$(VENV)/bin/mypy
 
 bench: install
