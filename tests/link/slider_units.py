@@ -24,7 +24,7 @@ from fleetrl.link.inprocess import InProcessLink
 FACTORY = "tests.link.slider_units:factory"
 DRIVER = "tests.link.slider_units:driver"
 SLIDER_ID = "fleetrl-tests/Slider-v0"
-PERIOD = 0.02
+PERIOD = 0.05
 """seconds of one control period"""
 BAND = 0.5
 """|x| within which a step earns its reward"""
@@ -88,7 +88,7 @@ class SliderEnv(LinkEnv):
 
 
 if SLIDER_ID not in gymnasium.registry:
-    gymnasium.register(SLIDER_ID, entry_point=SliderEnv, max_episode_steps=60, reward_threshold=55.0)
+    gymnasium.register(SLIDER_ID, entry_point=SliderEnv, max_episode_steps=100, reward_threshold=95.0)
 
 
 def factory(unit: int, fleet_seed: int, link: DeviceLink | None = None) -> gymnasium.Env[Any, Any]:
