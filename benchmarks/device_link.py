@@ -23,9 +23,10 @@ import numpy as np
 from fleetrl.envs.cartpole_unit import CartPoleUnitEnv
 from fleetrl.envs.qube_balance import QubeBalanceEnv
 from fleetrl.link.base import DeviceLink
-from fleetrl.link.bridge import DeviceBridge, request_realtime_priority
+from fleetrl.link.bridge import DeviceBridge
 from fleetrl.link.driver import simulated_driver
 from fleetrl.link.mqtt import open_mqtt_link
+from fleetrl.link.realtime import request_realtime_priority
 from fleetrl.transport.broker import EmbeddedBroker, find_mosquitto
 from fleetrl.transport.mqtt import MqttTransport
 

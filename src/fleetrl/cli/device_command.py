@@ -77,7 +77,8 @@ def register(subparsers: Any) -> None:
 def cmd_device(args: argparse.Namespace) -> int:
     """Run the bridge until interrupted (Ctrl-C or SIGTERM); the motor is off and ``offline`` announced
     when it returns."""
-    from fleetrl.link.bridge import DeviceBridge, request_realtime_priority
+    from fleetrl.link.bridge import DeviceBridge
+    from fleetrl.link.realtime import request_realtime_priority
     from fleetrl.runs.settings import BrokerLogin
     from fleetrl.transport.broker import EmbeddedBroker
     from fleetrl.transport.mqtt import MqttTransport

@@ -28,7 +28,6 @@ from __future__ import annotations
 
 import collections
 import logging
-import os
 import threading
 import time
 from dataclasses import dataclass
@@ -36,7 +35,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from fleetrl.devices.qube.device import DeviceResetError
-from fleetrl.link.driver import SPIN_SECONDS, DeviceDriver
+from fleetrl.link.driver import DeviceDriver
+from fleetrl.link.realtime import SPIN_SECONDS
 from fleetrl.link.wire import (
     FLAG_PROTECTIVE_STOP,
     FLAG_WATCHDOG,
@@ -61,20 +61,6 @@ IDLE_POLL = 0.1
 _EMPTY = np.zeros(0, dtype=np.float32)
 TICK_HISTORY = 100_000
 """real-time tick times kept for jitter measurements"""
-
-
-def request_realtime_priority(priority: int = 10) -> bool:
-    """Put this process under the SCHED_FIFO real-time policy at ``priority`` (as ``chrt -f`` would), so a
-    real-time bridge's ticks are not delayed by ordinary processes; threads started afterwards (the MQTT
-    client's) inherit it. Needs root or CAP_SYS_NICE; returns False (and logs why) where not permitted.
-    Call it before the bridge opens its transport."""
-    try:
-        os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(priority))
-    except (AttributeError, OSError) as err:
-        log.warning("no real-time priority (%s); ticks may jitter under load", err)
-        return False
-    log.info("real-time priority SCHED_FIFO %d", priority)
-    return True
 
 
 @dataclass

@@ -35,10 +35,9 @@ from fleetrl.devices.cartpole import X_LIMIT, CartPoleDevice, CartPoleForceUnit
 from fleetrl.devices.factory import DEVICE_TYPES, make_device
 from fleetrl.devices.qube.device import ACTION_VOLTS, QubeDevice, QubeVoltageUnit
 from fleetrl.link.base import Device
+from fleetrl.link.realtime import precise_sleep_until
 from fleetrl.link.wire import MAX_VECTOR
 
-SPIN_SECONDS = 0.0005
-"""``precise_sleep_until`` sleeps in the OS until this close to the deadline, then spins"""
 QUBE_SAFE_VOLTS = 10.0
 """Quanser's recommended amplifier range (±10 V; ±15 V is the absolute maximum): every QUBE driver clamps
 its command to this"""
@@ -177,16 +176,6 @@ class DeviceDriver(Protocol):
     def close(self) -> None:
         """Switch the motor off and release the hardware."""
         ...
-
-
-def precise_sleep_until(deadline: float) -> None:
-    """Sleep until ``time.perf_counter() >= deadline``: the OS sleeps most of it, a spin does the last bit."""
-    while True:
-        remaining = deadline - time.perf_counter()
-        if remaining <= 0.0:
-            return
-        if remaining > SPIN_SECONDS:
-            time.sleep(remaining - SPIN_SECONDS)
 
 
 class SimulatedDriver:
