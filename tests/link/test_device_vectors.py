@@ -140,3 +140,22 @@ def test_an_observation_of_another_size_than_the_env_declares_is_an_error(
 def test_a_simulated_device_without_a_spec_is_refused() -> None:
     with pytest.raises(ValueError, match="a simulated SliderDevice needs its DriverSpec"):
         SimulatedDriver(SliderDevice(1.0))
+
+
+class ShortSensors(SimulatedDriver):
+    """A faulty driver: its spec declares 2 sensor values, it reads 1."""
+
+    def read_sensors(self) -> np.ndarray:
+        return super().read_sensors()[:1]
+
+
+def test_a_driver_reading_another_sensor_size_than_declared_is_refused(bus: LocalBus) -> None:
+    faulty = ShortSensors(SliderDevice.from_fleet(0, 0), driver_of(driver, 0, 0).spec)
+    bridge = serve(bus, faulty)
+    try:
+        link = MqttLink(bus.client(), RUN, 0)
+        link.reset(1)  # the reset's observation comes from home(), which is right
+        with pytest.raises(DeviceLinkError, match="driver read 1 sensor values, its spec declares 2"):
+            link.step(np.array([0.5], dtype=np.float32))
+    finally:
+        bridge.close()
