@@ -34,27 +34,39 @@ def _from_the_repository(monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.chdir(REPO)  # the slider's modules are imported from the current directory
 
 
-def train_over_bridges(out: Path, mode: str, rounds: int, *argv: str) -> None:
-    """Train 2 units, each behind a device bridge; check the rounds and the bridges' clean shutdown."""
-    argv = ("train", "--units", "2", "--mode", mode, "--preset", "standard", "--device-link", "mqtt",
-            "--max-rounds", str(rounds), "--no-live", "--out", str(out), *argv)  # fmt: skip
+def train(out: Path, mode: str, rounds: int, *argv: str) -> list[tuple[int, int, float]]:
+    """Train 2 units; every worker's (worker, round, score), sorted."""
+    argv = ("train", "--units", "2", "--mode", mode, "--preset", "standard", "--max-rounds", str(rounds),
+            "--no-live", "--out", str(out), *argv)  # fmt: skip
     assert main(list(argv)) == 0
     with (out / "metrics.csv").open(newline="") as f:
-        recorded = sorted((int(r["worker"]), int(r["round"])) for r in csv.DictReader(f))
-    assert recorded == [(w, r) for w in (0, 1) for r in range(1, rounds + 1)]
+        return sorted((int(r["worker"]), int(r["round"]), float(r["score"])) for r in csv.DictReader(f))
+
+
+def train_over_bridges(out: Path, mode: str, rounds: int, *argv: str) -> list[tuple[int, int, float]]:
+    """Train 2 units, each behind a device bridge; check the rounds and the bridges' clean shutdown."""
+    scores = train(out, mode, rounds, "--device-link", "mqtt", *argv)
+    assert [(w, r) for w, r, _ in scores] == [(w, r) for w in (0, 1) for r in range(1, rounds + 1)]
     closed = {int(unit): (int(n), int(rejected)) for unit, n, rejected in CLOSED.findall(
         (out / "logs" / "run.log").read_text())}  # fmt: skip
     assert sorted(closed) == [0, 1] and all(n > rounds and rejected == 0 for n, rejected in closed.values())
     assert not [t.name for t in threading.enumerate() if t.name.startswith("fleetrl-bridge")]
     assert json.loads((out / "config.json").read_text())["device_link"] == "mqtt"
+    return scores
 
 
 def test_the_continuous_qube_task_trains_federated_behind_bridges(tmp_path: Path) -> None:
-    train_over_bridges(tmp_path / "run", "federated", 3, "--env", "qube-continuous", "--transport", "local")
+    argv = ("--env", "qube-continuous", "--transport", "local")
+    over_bridges = train_over_bridges(tmp_path / "run", "federated", 3, *argv)
+    assert over_bridges == train(tmp_path / "in-process", "federated", 3, *argv)  # lockstep: the same units
 
 
 def test_a_user_unit_type_trains_federated_behind_bridges(tmp_path: Path) -> None:
-    train_over_bridges(tmp_path / "run", "federated", 3, *SLIDER, "--transport", "local")
+    over_bridges = train_over_bridges(tmp_path / "run", "federated", 3, *SLIDER, "--transport", "local")
+    in_process = train(
+        tmp_path / "in-process", "federated", 3, *SLIDER[:2], *SLIDER[4:], "--transport", "local"
+    )
+    assert over_bridges == in_process
     config = json.loads((tmp_path / "run" / "config.json").read_text())
     assert config["result_settings"]["device_driver"] == DRIVER
 
