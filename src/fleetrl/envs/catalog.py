@@ -142,19 +142,12 @@ def _qube_fleet_profile(name: str | None) -> str:
 
 
 ENV_SPECS: dict[str, EnvSpec] = {
-    "qube": EnvSpec(
-        "qube", _registered(QUBE_BALANCE_ID), 2450.0, _qube_fleet_profile, True, "qube", takes_link=True
-    ),
-    "qube-continuous": EnvSpec(
-        "qube-continuous",
-        _registered(QUBE_BALANCE_CONTINUOUS_ID),
-        2450.0,
-        _qube_fleet_profile,
-        True,
-        "qube",
-        takes_link=True,
-    ),
-    "cartpole": EnvSpec("cartpole", _registered(CARTPOLE_UNIT_ID), 475.0, None, True, "cartpole", True),
+    name: EnvSpec(name, _registered(gym_id), target, profiles, builtin=True, device=device, takes_link=True)
+    for name, gym_id, target, profiles, device in [
+        ("qube", QUBE_BALANCE_ID, 2450.0, _qube_fleet_profile, "qube"),
+        ("qube-continuous", QUBE_BALANCE_CONTINUOUS_ID, 2450.0, _qube_fleet_profile, "qube"),
+        ("cartpole", CARTPOLE_UNIT_ID, 475.0, None, "cartpole"),
+    ]
 }
 """the built-in unit types (a unit factory seam's instances like any user's)"""
 

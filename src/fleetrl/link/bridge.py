@@ -270,7 +270,7 @@ class DeviceBridge:
         if command.action is not None:
             self.driver.write_command(self._commands[command.action])
         else:
-            self.driver.write_command(self._spec.clamp(np.array(command.command, dtype=np.float32)))
+            self.driver.write_command(self._spec.clamp(np.array(command.command)))
         self.motor_on = True
 
     def _accept(self, message: Received) -> Command | None:

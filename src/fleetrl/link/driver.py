@@ -23,6 +23,7 @@ A unit type's device side is a *driver function* ``driver(unit, fleet_seed, *, r
 
 from __future__ import annotations
 
+import functools
 import math
 import time
 from collections.abc import Callable
@@ -115,9 +116,14 @@ class DriverSpec:
         vector = np.asarray(command, dtype=self.command_dtype).reshape(-1)
         if vector.size != self.command_size:
             raise ValueError(f"a {self.kind} command holds {self.command_size} values, got {vector.size}")
-        if not np.all(np.isfinite(vector)):
+        if not all(map(math.isfinite, vector.tolist())):  # a few µs faster than numpy on a short vector
             raise ValueError(f"a {self.kind} command must be finite, got {vector.tolist()}")
-        return np.clip(vector, self.command_low, self.command_high)
+        low, high = self._bounds
+        return np.minimum(np.maximum(vector, low), high)
+
+    @functools.cached_property
+    def _bounds(self) -> tuple[np.ndarray, np.ndarray]:
+        return np.array(self.command_low), np.array(self.command_high)
 
 
 def cartpole_spec(tau: float) -> DriverSpec:

@@ -211,10 +211,10 @@ def _command_vector(data: bytes, size: int) -> tuple[float, ...]:
             f"command vector of {len(data)} bytes: this unit takes {size} little-endian float32 values "
             f"({4 * size} bytes)"
         )
-    values = np.frombuffer(data, dtype="<f4")
-    if not np.all(np.isfinite(values)):
+    values = tuple(np.frombuffer(data, dtype="<f4").tolist())
+    if not all(map(math.isfinite, values)):
         raise WireError("command vector holds a value that is not finite")
-    return tuple(values.tolist())
+    return values
 
 
 def decode_state(payload: bytes) -> State:
