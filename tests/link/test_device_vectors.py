@@ -6,11 +6,13 @@ an observation of another size than the env declares is an error."""
 from __future__ import annotations
 
 import logging
+import warnings
 from collections.abc import Iterator
 
+import gymnasium
 import numpy as np
 import pytest
-from slider_units import SliderDevice, SliderEnv, driver
+from slider_units import SLIDER_ID, SliderDevice, SliderEnv, driver
 from trajectory_helpers import assert_same, run_episodes
 
 from fleetrl.envs.qube_continuous import QubeBalanceContinuousEnv
@@ -159,3 +161,14 @@ def test_a_driver_reading_another_sensor_size_than_declared_is_refused(bus: Loca
             link.step(np.array([0.5], dtype=np.float32))
     finally:
         bridge.close()
+
+
+def test_a_registered_env_over_a_link_reads_its_spec_without_copying_the_link(
+    bus: LocalBus, slider: DeviceBridge
+) -> None:
+    link = MqttLink(bus.client(), RUN, 0)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # gymnasium warns when it cannot deep-copy the spec's kwargs
+        env = gymnasium.make(SLIDER_ID, link=link)
+        assert env.spec is not None and env.spec.kwargs["link"] is link
+    env.close()

@@ -123,6 +123,11 @@ class MqttLink:
         """Disconnect (the bridge's watchdog switches the motor off)."""
         self._transport.close()
 
+    def __deepcopy__(self, memo: dict[int, object]) -> MqttLink:
+        """The link itself: it is the handle of one connection to one unit, not a value (gymnasium copies an
+        env's spec, the ``link=`` it was made with included, whenever the spec is read)."""
+        return self
+
     def _call(self, command: Command, timeout: float) -> State:
         self.seq = command.seq
         self._transport.publish(self.cmd_topic, encode_command(command), qos=0)
