@@ -69,7 +69,6 @@ def _episodes_of(learner: Learner) -> int:
 
 def train_alone(spec: WorkerSpec, emit: Emit, learner: Learner | None = None) -> None:
     """Individual mode: play rounds until the criterion holds or M rounds pass; save the model."""
-    owned = learner is None
     learner = learner or make_learner(spec)
     started = time.monotonic()
     try:
@@ -81,8 +80,6 @@ def train_alone(spec: WorkerSpec, emit: Emit, learner: Learner | None = None) ->
                 break
     finally:
         learner.agent.save(model_path(Path(spec.out), spec.worker))
-        if owned:  # a device link disconnects now, not when the process ends (after the broker is gone)
-            learner.env.close()
 
 
 def train_federated(
@@ -105,7 +102,6 @@ def train_federated(
     :param resume: first restore the state committed in ``checkpoint_dir`` (if there is one) and continue
         from its round; a worker whose run was already over returns at once.
     """
-    owned = learner is None
     learner = learner or make_learner(spec)
     started = time.monotonic()
     store = None if checkpoint_dir is None else WorkerCheckpoint(checkpoint_dir, spec, run_id)
@@ -145,5 +141,3 @@ def train_federated(
         return summary
     finally:
         learner.agent.save(model_path(Path(spec.out), spec.worker))
-        if owned:  # a device link disconnects now, not when the process ends (after the broker is gone)
-            learner.env.close()
