@@ -4,7 +4,8 @@ Run: ``.venv/bin/python benchmarks/device_link.py`` (``--quick`` for a smoke run
 own process (the Raspberry Pi's role), the worker's side in this one, both on an embedded broker on loopback.
 
 * round trip: one lockstep ``MqttLink.step`` (command → broker → bridge, one simulated 6 ms period, state →
-  broker → worker), p50/p99, mosquitto and amqtt;
+  broker → worker), p50/p99, mosquitto and amqtt; with an action index, and with a command vector ``[volts]``
+  (the continuous task's);
 * jitter: a real-time bridge at 6 ms driven by a worker stepping as fast as the bridge answers; the
   intervals between the bridge's ticks (encoder reads), p99 of |interval − 6 ms|;
 * episodes/s: ``QubeBalanceEnv`` and ``CartPoleUnitEnv`` with random actions over an MQTT link (lockstep)
@@ -23,9 +24,10 @@ import numpy as np
 from fleetrl.envs.cartpole_unit import CartPoleUnitEnv
 from fleetrl.envs.qube_balance import QubeBalanceEnv
 from fleetrl.link.base import DeviceLink
-from fleetrl.link.bridge import DeviceBridge, request_realtime_priority
+from fleetrl.link.bridge import DeviceBridge
 from fleetrl.link.driver import simulated_driver
 from fleetrl.link.mqtt import open_mqtt_link
+from fleetrl.link.realtime import request_realtime_priority
 from fleetrl.transport.broker import EmbeddedBroker, find_mosquitto
 from fleetrl.transport.mqtt import MqttTransport
 
@@ -73,22 +75,26 @@ class BridgeProcess:
         self._proc.join(timeout=30)
 
 
-def step_round_trips(link: DeviceLink, n: int) -> np.ndarray:
-    """Seconds per step; full power back towards the centre keeps the arm inside its limit."""
+def step_round_trips(link: DeviceLink, n: int, vector: bool = False) -> np.ndarray:
+    """Seconds per step; full power back towards the centre keeps the arm inside its limit (``vector``: sent
+    as the command vector ``[±1.44 V]`` instead of the action index 0 or 2)."""
     obs = link.reset(0)
     times = np.empty(n + 200)
+    volts = [np.array([-1.44], dtype=np.float32), np.array([1.44], dtype=np.float32)]
     for i in range(n + 200):  # the first 200 are a warm-up
+        back = obs[2] > 0.0
+        action = volts[0 if back else 1] if vector else (0 if back else 2)
         start = time.perf_counter()
-        obs, _ = link.step(0 if obs[2] > 0.0 else 2)
+        obs, _ = link.step(action)
         times[i] = time.perf_counter() - start
     return times[200:]
 
 
-def round_trip(url: str, n: int) -> dict[str, float]:
+def round_trip(url: str, n: int, vector: bool = False) -> dict[str, float]:
     """p50/p99 of a lockstep control step over MQTT (µs)."""
     with BridgeProcess(url):
         link = open_mqtt_link(url, RUN_ID, 0)
-        times = step_round_trips(link, n)
+        times = step_round_trips(link, n, vector)
         link.close()
     return {"p50_us": 1e6 * np.percentile(times, 50), "p99_us": 1e6 * np.percentile(times, 99)}
 
@@ -155,11 +161,12 @@ def main() -> None:
     brokers = (["mosquitto"] if find_mosquitto() else []) + ["amqtt"]
     for kind in brokers:
         with EmbeddedBroker(kind) as broker:
-            rt = round_trip(broker.url, n)
-            print(
-                f"[{kind}] control-step round trip over {n} steps: p50 {rt['p50_us']:.0f} µs, "
-                f"p99 {rt['p99_us']:.0f} µs"
-            )
+            for what, vector in [("action index", False), ("command vector", True)]:
+                rt = round_trip(broker.url, n, vector)
+                print(
+                    f"[{kind}] control-step round trip over {n} steps, {what}: p50 {rt['p50_us']:.0f} µs, "
+                    f"p99 {rt['p99_us']:.0f} µs"
+                )
             jit = realtime_jitter(broker.url, seconds)
             print(
                 f"[{kind}] real-time 6 ms: {jit['ticks']:.0f} ticks, mean interval "

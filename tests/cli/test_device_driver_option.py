@@ -4,6 +4,7 @@ traceback, non-zero exit) where the hardware or its package is missing or the op
 from __future__ import annotations
 
 import sys
+from pathlib import Path
 
 import pytest
 
@@ -46,3 +47,27 @@ def test_bad_qube_spi_options_are_one_clear_line(
     assert main(["device", "--unit", "0", "--driver", "qube-spi", *options, *BROKER]) == 2
     err = capsys.readouterr().err
     assert message in err and "Traceback" not in err
+
+
+@pytest.mark.parametrize(
+    ("options", "message"),
+    [
+        (["--driver", "tests.link.no_such_module:driver"], "device driver "
+         "'tests.link.no_such_module:driver': cannot import module 'tests.link.no_such_module'"),
+        (["--driver", "tests.link.slider_units:NOT_CALLABLE"], "'NOT_CALLABLE' is a int, not callable"),
+        (["--driver", "tests.link.slider_units:not_a_driver"], "returned a dict for unit 0, "
+         "not a DeviceDriver"),
+        (["--driver", "simulated"], "--driver 'simulated': choose sim, qube-spi or your own as "
+         "package.module:function"),
+        (["--driver", "tests.link.slider_units:driver", "--env", "qube", "--period-ms", "5"],
+         "--env, --period-ms configure built-in simulated units; driver 'tests.link.slider_units:driver' "
+         "builds its own unit"),
+    ],
+)  # fmt: skip
+def test_a_bad_user_driver_is_one_clear_line(
+    options: list[str], message: str, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.chdir(Path(__file__).resolve().parents[2])  # the driver's module from the current directory
+    assert main(["device", "--unit", "0", *options, *BROKER]) == 2
+    err = capsys.readouterr().err
+    assert message in err and "Traceback" not in err and len(err.strip().splitlines()) == 1

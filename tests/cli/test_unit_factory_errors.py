@@ -29,7 +29,7 @@ def refused(tmp_path: Path, capsys: pytest.CaptureFixture[str], *argv: str) -> s
 
 
 NOT_FACTORY_FORM = "is not in package.module:factory form"
-SIGNATURE = "(it must be factory(unit: int, fleet_seed: int) -> gymnasium.Env)"
+SIGNATURE = "(it must be factory(unit: int, fleet_seed: int, link=None) -> gymnasium.Env)"
 MISSING = "tests.envs.no_such_module"
 BROKEN = "tests.envs.fake_units_missing_dependency"
 
@@ -74,11 +74,6 @@ def test_a_fleet_profile_with_a_factory_says_why_not(
     line = refused(tmp_path, capsys, "--env", f"{UNITS}:factory", "--fleet-profile", "v1")
     assert f"--fleet-profile: unit factory '{UNITS}:factory' has no fleet profiles (got 'v1')" in line
     assert "draws each unit from (unit, fleet_seed) itself" in line
-
-
-def test_device_bridges_serve_built_in_units_only(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
-    line = refused(tmp_path, capsys, "--env", f"{UNITS}:factory", "--device-link", "mqtt")
-    assert "--device-link mqtt: device bridges serve the built-in unit types only" in line
 
 
 def test_a_target_score_must_be_a_finite_number(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:

@@ -94,7 +94,7 @@ def test_bad_actions_are_clear_errors(action: object) -> None:
         ({"action_volts": 12.0}, r"action_volts must be a number in \(0, 10.0\]"),
         ({"action_volts": 0.0}, "action_volts must be"),
         ({"action_volts": 5.0, "max_volts": 4.0}, r"in \(0, 4.0\]"),
-        ({"link": InProcessLink(QubeBalanceEnv().link)}, "in-process only"),  # type: ignore[arg-type]
+        ({"link": InProcessLink(QubeBalanceEnv().link), "quantise": True}, "not with link="),  # type: ignore[arg-type]
     ],
 )
 def test_bad_arguments_are_clear_errors(kwargs: dict[str, object], message: str) -> None:

@@ -111,7 +111,7 @@ class FakeBridge:
 
     def loop(self) -> None:
         while (message := self.transport.receive(1.0)) is not None:
-            cmd = decode_command(message.payload, 3)
+            cmd = decode_command(message.payload, 3, 1)
             fresh = State(cmd.sid, cmd.seq, 0.0, np.full(4, cmd.seq, dtype=np.float32))
             stale = [
                 State(cmd.sid, cmd.seq - 1, 0.0, np.full(4, -1.0, dtype=np.float32)),

@@ -109,7 +109,7 @@ def test_device_command_line_parses() -> None:
         "mqtt://127.0.0.1:1",
         "r",
         2,
-        "qube",
+        None,  # the simulated driver's default, qube
         True,
         6.0,
     )

@@ -1,6 +1,7 @@
 """``fleetrl device``: serve one unit over MQTT through a device bridge (the Raspberry Pi's role): a
-simulated unit (``--driver sim``, the default) or a QUBE-Servo 2 on the Pi's SPI bus (``--driver qube-spi``,
-always in real time; needs ``pip install 'fleetrl[pi]'``).
+simulated unit (``--driver sim``, the default), a QUBE-Servo 2 on the Pi's SPI bus (``--driver qube-spi``,
+always in real time; needs ``pip install 'fleetrl[pi]'``), or a user's own unit type (``--driver
+package.module:function`` with ``driver(unit, fleet_seed, *, realtime) -> DeviceDriver``).
 
 Registered on the main parser by ``register(subparsers)``. Without ``--broker`` an embedded broker is
 started and its URL printed (the one line this command prints).
@@ -32,16 +33,23 @@ def register(subparsers: Any) -> None:
     add_broker_arguments(p, "default: an embedded broker")
     p.add_argument("--run-id", default="default", help="run whose device topics to serve (default: default)")
     p.add_argument("--unit", type=int, required=True, help="index of the unit in the fleet")
-    p.add_argument("--env", default="qube", choices=("qube", "cartpole"), help="unit type (default qube)")
+    p.add_argument(
+        "--env",
+        default=None,
+        choices=("qube", "cartpole"),
+        help="--driver sim: the built-in unit type (default qube; a qube bridge serves the discrete and the "
+        "continuous QUBE task)",
+    )
     p.add_argument("--fleet-seed", type=int, default=0, help="seed of the fleet's per-unit dynamics")
     add_fleet_profile_argument(p)
     p.add_argument("--realtime", action="store_true", help="fixed control period, last command held")
     p.add_argument(
         "--driver",
         default="sim",
-        choices=DRIVERS,
+        metavar="{sim,qube-spi,PKG.MOD:FUNCTION}",
         help="sim: a simulated unit of the fleet (default); qube-spi: a QUBE-Servo 2 on the Raspberry Pi's "
-        "SPI bus (implies --realtime; pip install 'fleetrl[pi]')",
+        "SPI bus (implies --realtime; pip install 'fleetrl[pi]'); PKG.MOD:FUNCTION: your own unit type's "
+        "driver(unit, fleet_seed, *, realtime) -> DeviceDriver",
     )
     p.add_argument("--spi-bus", type=int, default=0, help="qube-spi: SPI bus number (default 0)")
     p.add_argument("--spi-device", type=int, default=0, help="qube-spi: chip select (default 0: spidev0.0)")
@@ -69,7 +77,8 @@ def register(subparsers: Any) -> None:
 def cmd_device(args: argparse.Namespace) -> int:
     """Run the bridge until interrupted (Ctrl-C or SIGTERM); the motor is off and ``offline`` announced
     when it returns."""
-    from fleetrl.link.bridge import DeviceBridge, request_realtime_priority
+    from fleetrl.link.bridge import DeviceBridge
+    from fleetrl.link.realtime import request_realtime_priority
     from fleetrl.runs.settings import BrokerLogin
     from fleetrl.transport.broker import EmbeddedBroker
     from fleetrl.transport.mqtt import MqttTransport
@@ -115,9 +124,12 @@ def make_driver(args: argparse.Namespace, realtime: bool) -> DeviceDriver:
     from fleetrl.link.driver import simulated_driver
 
     period = None if args.period_ms is None else args.period_ms / 1e3
+    if args.driver not in DRIVERS:
+        return user_driver(args, realtime)
+    env = args.env or "qube"
     if args.driver == "sim":
         return simulated_driver(
-            args.env,
+            env,
             args.unit,
             args.fleet_seed,
             fleet_profile=args.fleet_profile,
@@ -126,8 +138,8 @@ def make_driver(args: argparse.Namespace, realtime: bool) -> DeviceDriver:
         )
     from fleetrl.link.qube_spi import QubeSpiDriver
 
-    if args.env != "qube":
-        raise ValueError(f"--driver qube-spi drives a qube unit, not {args.env!r} (use --env qube)")
+    if env != "qube":
+        raise ValueError(f"--driver qube-spi drives a qube unit, not {env!r} (use --env qube)")
     if args.spi_bus < 0 or args.spi_device < 0:
         raise ValueError(f"--spi-bus and --spi-device must be >= 0, got {args.spi_bus} and {args.spi_device}")
     if period is not None and not period > 0:
@@ -138,6 +150,23 @@ def make_driver(args: argparse.Namespace, realtime: bool) -> DeviceDriver:
         control_period=0.006 if period is None else period,
         expected_id=None if args.spi_device_id is None else device_id(args.spi_device_id),
     )
+
+
+def user_driver(args: argparse.Namespace, realtime: bool) -> DeviceDriver:
+    """The driver a user's driver function (``--driver package.module:function``) returns for ``--unit`` of
+    ``--fleet-seed``; a ValueError (exit 2) for a reference that names no such function, for what it returns,
+    or for options that configure the built-in units."""
+    from fleetrl.envs.unit_factory import DRIVER_FORM, is_factory_reference, load_driver_function
+    from fleetrl.link.driver import driver_of
+
+    if not is_factory_reference(args.driver):
+        raise ValueError(f"--driver {args.driver!r}: choose sim, qube-spi or your own as {DRIVER_FORM}")
+    given = [flag for flag, value in [("--env", args.env), ("--fleet-profile", args.fleet_profile),
+                                      ("--period-ms", args.period_ms)] if value is not None]  # fmt: skip
+    if given:
+        what = f"{', '.join(given)} configure built-in simulated units"
+        raise ValueError(f"{what}; driver {args.driver!r} builds its own unit")
+    return driver_of(load_driver_function(args.driver), args.unit, args.fleet_seed, realtime=realtime)
 
 
 def device_id(text: str) -> int:

@@ -42,6 +42,13 @@ def add_train_arguments(p: argparse.ArgumentParser) -> None:
         default=None,
         help="inprocess (default) or mqtt: each unit served by a device bridge over the broker",
     )
+    p.add_argument(
+        "--device-driver",
+        default=None,
+        metavar="PKG.MOD:FUNCTION",
+        help="with --device-link mqtt: what the bridges serve, driver(unit, fleet_seed, *, realtime) -> "
+        "DeviceDriver (needed for your own unit type; a built-in's bridges serve its simulated units)",
+    )
 
 
 def build_parser() -> argparse.ArgumentParser:

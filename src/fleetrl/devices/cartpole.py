@@ -100,3 +100,32 @@ class CartPoleDevice:
 
     def close(self) -> None:
         """Nothing to release."""
+
+
+class CartPoleForceUnit:
+    """A CartPole unit commanded by a vector ``[force fraction]``: a positive value pushes right, a negative
+    one left, each with full force; 0 is the motor off, and the simulated cart is then braked (its state
+    held: a CartPole has no "off" action).
+
+    :param device: the simulated unit
+    """
+
+    def __init__(self, device: CartPoleDevice) -> None:
+        self.device = device
+        self._obs = np.zeros(4, dtype=np.float32)
+
+    def reset(self, seed: int | None = None) -> np.ndarray:
+        """The unit's reset."""
+        self._obs = self.device.reset(seed)
+        return self._obs
+
+    def step(self, action: np.ndarray) -> np.ndarray:
+        """One period pushed the way ``action[0]``'s sign says (0: braked); returns the observation."""
+        value = float(action[0])
+        if value != 0.0:
+            self._obs = self.device.step(1 if value > 0.0 else 0)
+        return self._obs
+
+    def close(self) -> None:
+        """Close the unit."""
+        self.device.close()

@@ -18,7 +18,13 @@ import gymnasium
 
 from fleetrl.envs.registration import CARTPOLE_UNIT_ID, QUBE_BALANCE_CONTINUOUS_ID, QUBE_BALANCE_ID
 from fleetrl.envs.spaces import UnitDescription, describe_unit
-from fleetrl.envs.unit_factory import FACTORY_FORM, UnitFactory, is_factory_reference, load_factory
+from fleetrl.envs.unit_factory import (
+    FACTORY_FORM,
+    UnitFactory,
+    is_factory_reference,
+    load_factory,
+    takes_link,
+)
 
 UnitBuilder = Callable[..., Any]
 """``builder(unit, fleet_seed, **options)``: a unit's env; options (``fleet_profile``, ``link``) only for a
@@ -48,7 +54,12 @@ class EnvSpec:
     """the name of the fleet profile chosen by a name (None: the default), with a ValueError for an unknown
     one; None if the unit type has a single fleet"""
     builtin: bool = False
-    """a built-in unit type: its units can also be served by a device bridge (``--device-link mqtt``)"""
+    """a built-in unit type"""
+    device: str | None = None
+    """a built-in's simulated device type a bridge serves (``qube`` for both QUBE tasks, ``cartpole``); None:
+    a user's unit type, whose bridges serve what its ``--device-driver`` function returns"""
+    takes_link: bool = False
+    """whether the builder takes a ``link`` (its units can be reached through a device bridge)"""
 
     @property
     def title(self) -> str:
@@ -79,8 +90,11 @@ class EnvSpec:
     ) -> BuiltUnit:
         """Unit ``unit`` of fleet ``fleet_seed`` (simulated in-process, or reached through ``link``),
         checked: a ValueError names the unit and what is wrong with what the builder gave."""
-        if link is not None and not self.builtin:
-            raise ValueError(f"{self.title}: device bridges serve the built-in unit types only")
+        if link is not None and not self.takes_link:
+            raise ValueError(
+                f"{self.title} takes no link keyword: to put its units behind a device bridge, define it as "
+                "factory(unit, fleet_seed, link=None) and build the env over the link it is given"
+            )
         options = self.make_kwargs(fleet_profile) if link is None else {"link": link}
         where = f"{self.title}: unit {unit}"
         try:
@@ -113,10 +127,10 @@ def _registered(gym_id: str) -> UnitBuilder:
 
 
 def _factory_builder(factory: UnitFactory) -> UnitBuilder:
-    """A user's factory as a builder: ``factory(unit, fleet_seed)``, no options."""
+    """A user's factory as a builder: ``factory(unit, fleet_seed)``, or with ``link=`` when given one."""
 
-    def build(unit: int, fleet_seed: int) -> Any:
-        return factory(unit, fleet_seed)
+    def build(unit: int, fleet_seed: int, **link: Any) -> Any:
+        return factory(unit, fleet_seed, **link)
 
     return build
 
@@ -128,11 +142,12 @@ def _qube_fleet_profile(name: str | None) -> str:
 
 
 ENV_SPECS: dict[str, EnvSpec] = {
-    "qube": EnvSpec("qube", _registered(QUBE_BALANCE_ID), 2450.0, _qube_fleet_profile, builtin=True),
-    "qube-continuous": EnvSpec(
-        "qube-continuous", _registered(QUBE_BALANCE_CONTINUOUS_ID), 2450.0, _qube_fleet_profile, builtin=True
-    ),
-    "cartpole": EnvSpec("cartpole", _registered(CARTPOLE_UNIT_ID), 475.0, builtin=True),
+    name: EnvSpec(name, _registered(gym_id), target, profiles, builtin=True, device=device, takes_link=True)
+    for name, gym_id, target, profiles, device in [
+        ("qube", QUBE_BALANCE_ID, 2450.0, _qube_fleet_profile, "qube"),
+        ("qube-continuous", QUBE_BALANCE_CONTINUOUS_ID, 2450.0, _qube_fleet_profile, "qube"),
+        ("cartpole", CARTPOLE_UNIT_ID, 475.0, None, "cartpole"),
+    ]
 }
 """the built-in unit types (a unit factory seam's instances like any user's)"""
 
@@ -143,7 +158,8 @@ def get_env_spec(name: str) -> EnvSpec:
     if name in ENV_SPECS:
         return ENV_SPECS[name]
     if is_factory_reference(name):
-        return EnvSpec(name, _factory_builder(load_factory(name)))
+        factory = load_factory(name)
+        return EnvSpec(name, _factory_builder(factory), takes_link=takes_link(factory))
     *others, last = sorted(ENV_SPECS)
     choices = f"{', '.join(others)} or {last}"
     module, dot, attr = name.rpartition(".")

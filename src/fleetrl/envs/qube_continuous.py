@@ -4,7 +4,9 @@ The same simulated units, observation, reward (+1 while |pendulum angle| ≤ 7.5
 arm limit and 2500-step cap as ``fleetrl/QubeBalance-v0``; only the action differs: a float32 vector
 ``[volts]`` in ``Box(-ACTION_VOLTS, +ACTION_VOLTS, (1,))`` instead of the three indices −1.44, 0, +1.44 V.
 Values beyond the box are clipped (as the amplifier would saturate); a wrong shape or a value that is not
-finite is a ValueError. docs/devices.md, "Environments" says why ±3 V.
+finite is a ValueError. docs/devices.md, "Environments" says why ±3 V. Over a device link each step sends
+the command vector ``[volts]``: a QUBE device bridge clamps it to the amplifier's ±10 V and serves this task
+and the discrete one alike.
 """
 
 import gymnasium
@@ -27,8 +29,8 @@ class QubeBalanceContinuousEnv(QubeBalanceEnv):
     Takes the arguments of :class:`~fleetrl.envs.qube_balance.QubeBalanceEnv` and:
 
     :param action_volts: the bound of the action box (V), at most the amplifier's ``max_volts`` (10 V)
-    :param link: not supported yet: the MQTT device link carries discrete action indices (issue 15,
-        item 5, gives it command vectors); the units are simulated in-process
+    :param link: reach the device through this link (each step sends ``[volts]``) instead of simulating it
+        in-process
     """
 
     index_actions = 0
@@ -44,11 +46,6 @@ class QubeBalanceContinuousEnv(QubeBalanceEnv):
         action_volts: float = ACTION_VOLTS,
         **options: object,
     ) -> None:
-        if link is not None:
-            raise ValueError(
-                "QubeBalanceContinuous-v0 simulates its units in-process only: a device link carries "
-                "discrete action indices today (use fleetrl/QubeBalance-v0 over a link)"
-            )
         max_volts = qube_config(**options).max_volts
         if not (isinstance(action_volts, int | float) and 0.0 < action_volts <= max_volts):
             raise ValueError(
@@ -56,7 +53,7 @@ class QubeBalanceContinuousEnv(QubeBalanceEnv):
                 f"got {action_volts!r}"
             )
         super().__init__(
-            unit, fleet_seed, fleet_profile=fleet_profile, link=None, render_mode=render_mode, **options
+            unit, fleet_seed, fleet_profile=fleet_profile, link=link, render_mode=render_mode, **options
         )
         bound = np.array([action_volts], dtype=np.float32)
         self.action_space = gymnasium.spaces.Box(-bound, bound, dtype=np.float32)

@@ -1,25 +1,33 @@
-"""A user's unit type, named on the command line as ``--env package.module:factory``.
+"""A user's unit type, named on the command line as ``--env package.module:factory``, and its device side,
+``--device-driver package.module:function``.
 
-``factory(unit: int, fleet_seed: int) -> gymnasium.Env`` builds unit ``unit`` of the user's fleet (its
-per-unit parameters drawn from ``fleet_seed``). The module is imported like ``python -m`` would: from the
-current directory or the installed packages. Every way the text can fail to name such a callable is a
-ValueError of one line that names the text and the problem.
+``factory(unit: int, fleet_seed: int, link=None) -> gymnasium.Env`` builds unit ``unit`` of the user's fleet
+(its per-unit parameters drawn from ``fleet_seed``); the ``link`` keyword is optional, needed only to put the
+unit behind a device bridge (the env then reaches its device through that ``DeviceLink``; without one it
+simulates the unit in-process). ``driver(unit: int, fleet_seed: int, *, realtime: bool) -> DeviceDriver`` is
+the device side a bridge serves (``fleetrl.link.driver``). The module is imported like ``python -m`` would:
+from the current directory or the installed packages. Every way the text can fail to name such a callable is
+a ValueError of one line that names the text and the problem.
 """
 
 from __future__ import annotations
 
 import importlib
+import inspect
 import os
 import re
 import sys
 from collections.abc import Callable
 from typing import Any
 
-UnitFactory = Callable[[int, int], Any]
-"""``factory(unit, fleet_seed)``: builds unit ``unit`` of fleet ``fleet_seed`` (it must be a gymnasium.Env)"""
+UnitFactory = Callable[..., Any]
+"""``factory(unit, fleet_seed, link=None)``: builds unit ``unit`` of fleet ``fleet_seed`` (it must be a
+gymnasium.Env); the ``link`` keyword is optional"""
 
 FACTORY_FORM = "package.module:factory"
-SIGNATURE = "factory(unit: int, fleet_seed: int) -> gymnasium.Env"
+SIGNATURE = "factory(unit: int, fleet_seed: int, link=None) -> gymnasium.Env"
+DRIVER_FORM = "package.module:function"
+DRIVER_SIGNATURE = "driver(unit: int, fleet_seed: int, *, realtime: bool) -> DeviceDriver"
 _DOTTED = r"[A-Za-z_]\w*(\.[A-Za-z_]\w*)*"
 _REFERENCE = re.compile(rf"(?P<module>{_DOTTED}):(?P<attr>{_DOTTED})")
 
@@ -32,10 +40,34 @@ def is_factory_reference(text: str) -> bool:
 def load_factory(text: str) -> UnitFactory:
     """The callable ``text`` (``package.module:factory``) names; otherwise a ValueError saying what is
     wrong."""
-    what = f"unit factory {text!r}"
+    factory: UnitFactory = load_callable(text, f"unit factory {text!r}", FACTORY_FORM, SIGNATURE)
+    return factory
+
+
+def load_driver_function(text: str) -> Callable[..., Any]:
+    """The driver function ``text`` (``package.module:function``) names; otherwise a ValueError saying what
+    is wrong."""
+    return load_callable(text, f"device driver {text!r}", DRIVER_FORM, DRIVER_SIGNATURE)
+
+
+def takes_link(factory: Callable[..., Any]) -> bool:
+    """Whether ``factory`` accepts a ``link`` keyword (or any keyword): it can build a unit over a link."""
+    try:
+        parameters = inspect.signature(factory).parameters.values()
+    except (TypeError, ValueError):  # no signature to read (some builtins): assume not
+        return False
+    return any(
+        (p.name == "link" and p.kind in (p.POSITIONAL_OR_KEYWORD, p.KEYWORD_ONLY)) or p.kind is p.VAR_KEYWORD
+        for p in parameters
+    )
+
+
+def load_callable(text: str, what: str, form: str, signature: str) -> Any:
+    """The callable ``text`` (``package.module:attr``) names, described as ``what`` in errors; otherwise a
+    ValueError that says what is wrong (the expected ``form`` and ``signature`` in it)."""
     match = _REFERENCE.fullmatch(text)
     if match is None:
-        raise ValueError(f"{what} is not in {FACTORY_FORM} form")
+        raise ValueError(f"{what} is not in {form} form")
     module_name, attr = match["module"], match["attr"]
     module = _import(module_name, what)
     target: Any = module
@@ -45,10 +77,9 @@ def load_factory(text: str) -> UnitFactory:
         target = getattr(target, part)
     if not callable(target):
         raise ValueError(
-            f"{what}: {attr!r} is a {type(target).__name__}, not callable (it must be {SIGNATURE})"
+            f"{what}: {attr!r} is a {type(target).__name__}, not callable (it must be {signature})"
         )
-    factory: UnitFactory = target
-    return factory
+    return target
 
 
 def _import(module_name: str, what: str) -> Any:

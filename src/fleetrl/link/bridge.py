@@ -8,9 +8,12 @@ its last will), and keeps the unit safe on its own:
 * **protective stop**: when the arm (cart) passes its limit the motor is switched off and steps are refused
   until the next reset.
 
-A step command carries a discrete action index; the bridge turns it into the driver's actuator command
-vector (``DriverSpec.command_of``: QUBE ``[volts]``, CartPole ``[force fraction]``), so the driver never sees
-an index.
+A step command carries a discrete action index or a command vector (``fleetrl.link.wire``). The bridge turns
+an index into the driver's actuator command vector (``DriverSpec.command_of``: QUBE ``[volts]``, CartPole
+``[force fraction]``) and clamps a vector to the spec's bounds (``DriverSpec.clamp``: the QUBE's ±10 V), so
+the driver never sees an index nor an out-of-bound value; a vector of another size, or with a value that is
+not finite, is refused with its reason. A QUBE bridge thus serves both the discrete and the continuous QUBE
+task.
 
 Two modes. *Lockstep* (simulation): each step command applies its command for one control period and
 answers with the observation at its end — exactly what an in-process step does. *Real time* (as on the rig):
@@ -25,7 +28,6 @@ from __future__ import annotations
 
 import collections
 import logging
-import os
 import threading
 import time
 from dataclasses import dataclass
@@ -33,7 +35,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from fleetrl.devices.qube.device import DeviceResetError
-from fleetrl.link.driver import SPIN_SECONDS, DeviceDriver
+from fleetrl.link.driver import DeviceDriver
+from fleetrl.link.realtime import SPIN_SECONDS
 from fleetrl.link.wire import (
     FLAG_PROTECTIVE_STOP,
     FLAG_WATCHDOG,
@@ -58,20 +61,6 @@ IDLE_POLL = 0.1
 _EMPTY = np.zeros(0, dtype=np.float32)
 TICK_HISTORY = 100_000
 """real-time tick times kept for jitter measurements"""
-
-
-def request_realtime_priority(priority: int = 10) -> bool:
-    """Put this process under the SCHED_FIFO real-time policy at ``priority`` (as ``chrt -f`` would), so a
-    real-time bridge's ticks are not delayed by ordinary processes; threads started afterwards (the MQTT
-    client's) inherit it. Needs root or CAP_SYS_NICE; returns False (and logs why) where not permitted.
-    Call it before the bridge opens its transport."""
-    try:
-        os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(priority))
-    except (AttributeError, OSError) as err:
-        log.warning("no real-time priority (%s); ticks may jitter under load", err)
-        return False
-    log.info("real-time priority SCHED_FIFO %d", priority)
-    return True
 
 
 @dataclass
@@ -276,8 +265,12 @@ class DeviceBridge:
         self._answer(command, obs, reset=True)
 
     def _actuate(self, command: Command) -> None:
-        """Hold the actuator command vector of ``command``'s action index (validated on decoding)."""
-        self.driver.write_command(self._commands[command.action])
+        """Hold ``command``'s actuator command vector: its action index's, or its vector clamped to the
+        bounds (both validated on decoding)."""
+        if command.action is not None:
+            self.driver.write_command(self._commands[command.action])
+        else:
+            self.driver.write_command(self._spec.clamp(np.array(command.command)))
         self.motor_on = True
 
     def _accept(self, message: Received) -> Command | None:
@@ -285,7 +278,7 @@ class DeviceBridge:
         if message.topic != self.cmd_topic:
             return None
         try:
-            command = decode_command(message.payload, self._spec.n_actions)
+            command = decode_command(message.payload, self._spec.n_actions, self._spec.command_size)
         except WireError as err:
             self._reject(f"malformed command: {err}")
             if err.sid is not None and err.seq is not None:
@@ -313,6 +306,11 @@ class DeviceBridge:
         self._publish(State(command.sid, command.seq, self.driver.time(), _EMPTY, error=reason))
 
     def _answer(self, command: Command, obs: np.ndarray, *, reset: bool = False) -> None:
+        if obs.size != self._spec.sensor_size:  # a driver fault: never passed on as an observation
+            self._refuse(
+                command, f"driver read {obs.size} sensor values, its spec declares {self._spec.sensor_size}"
+            )
+            return
         if reset:
             self.stopped = False
             self.motor_on = False

@@ -1,37 +1,44 @@
 """The hardware seam of the device bridge: ``DeviceDriver`` (read the sensors, write an actuator command
-vector, time), with the simulated units as one implementation and the QUBE-Servo 2 over SPI
+vector, time), with simulated units as one implementation (``SimulatedDriver``: a built-in unit, or any
+simulated ``fleetrl.link.base.Device`` a user declares a ``DriverSpec`` for) and the QUBE-Servo 2 over SPI
 (``fleetrl.link.qube_spi``) as another.
 
 The bridge (``fleetrl.link.bridge``) knows only this interface. A driver declares in its ``DriverSpec`` the
 actuator command it takes (``command_size`` floats of ``command_dtype``, each inside its
 ``command_low``/``command_high`` bound: QUBE ``[volts]`` within ±10 V, CartPole ``[force fraction]`` within
-±1) and the sensor vector it returns. A discrete task's action index is mapped to a command vector by
-``spec.discrete_commands`` in the bridge; a continuous task would pass its vector straight through
-``spec.clamp``. One agent step on the bridge is::
+±1) and the sensor vector it returns. A step's discrete action index is mapped to a command vector by
+``spec.discrete_commands`` in the bridge; a step's command vector goes through ``spec.clamp``. One agent step
+on the bridge is::
 
-    driver.write_command(spec.command_of(action))  # held until the next write
+    driver.write_command(spec.command_of(action))  # or spec.clamp(vector); held until the next write
     driver.wait_until(driver.time() + period)      # hardware: sleep; simulator: integrate
     obs = driver.read_sensors()
 
 ``motor_off()`` is the safe state (the watchdog, the protective stop, shutdown): on hardware it also
 disables the amplifier; the next ``write_command`` enables it again.
+
+A unit type's device side is a *driver function* ``driver(unit, fleet_seed, *, realtime) -> DeviceDriver``
+(:data:`DriverFunction`): ``fleetrl device --driver package.module:function`` serves what it returns.
 """
 
 from __future__ import annotations
 
+import functools
 import math
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Protocol, runtime_checkable
 
 import numpy as np
 
-from fleetrl.devices.cartpole import X_LIMIT, CartPoleDevice
+from fleetrl.devices.cartpole import X_LIMIT, CartPoleDevice, CartPoleForceUnit
 from fleetrl.devices.factory import DEVICE_TYPES, make_device
-from fleetrl.devices.qube.device import ACTION_VOLTS, QubeDevice
+from fleetrl.devices.qube.device import ACTION_VOLTS, QubeDevice, QubeVoltageUnit
+from fleetrl.link.base import Device
+from fleetrl.link.realtime import precise_sleep_until
+from fleetrl.link.wire import MAX_VECTOR
 
-SPIN_SECONDS = 0.0005
-"""``precise_sleep_until`` sleeps in the OS until this close to the deadline, then spins"""
 QUBE_SAFE_VOLTS = 10.0
 """Quanser's recommended amplifier range (±10 V; ±15 V is the absolute maximum): every QUBE driver clamps
 its command to this"""
@@ -45,14 +52,15 @@ QUBE_ARM_INDEX = 2
 class DriverSpec:
     """What the bridge must know about a unit type.
 
-    :param kind: the unit type (``qube`` or ``cartpole``)
+    :param kind: the unit type (``qube``, ``cartpole``, or a user's name for theirs; for logs and errors)
     :param command_low: lower bound of each actuator command component (its length is the command size)
     :param command_high: upper bound of each component
     :param discrete_commands: the command vector of each discrete action index (empty: no discrete actions)
     :param control_period: seconds of one agent step
     :param limit_index: the sensor component the protective stop watches (QUBE: arm angle)
     :param limit: the protective stop trips when ``abs(sensors[limit_index]) > limit``
-    :param sensor_size: length of the sensor vector ``read_sensors`` returns (float32)
+    :param sensor_size: length of the sensor vector ``read_sensors`` returns (float32; at most
+        ``MAX_VECTOR``, like the command size)
     :param command_dtype: numpy dtype name of a command vector
     """
 
@@ -70,6 +78,11 @@ class DriverSpec:
         size = len(self.command_low)
         if size < 1 or len(self.command_high) != size:
             raise ValueError(f"command bounds must be two equal non-empty tuples, got {self!r}")
+        if size > MAX_VECTOR or not 1 <= self.sensor_size <= MAX_VECTOR:
+            raise ValueError(
+                f"a command of {size} and a sensor vector of {self.sensor_size} values: the wire carries "
+                f"1 to {MAX_VECTOR} values each way"
+            )
         if not all(lo < hi for lo, hi in zip(self.command_low, self.command_high, strict=True)):
             raise ValueError(f"each command_low must be below its command_high, got {self!r}")
         for command in self.discrete_commands:
@@ -103,9 +116,22 @@ class DriverSpec:
         vector = np.asarray(command, dtype=self.command_dtype).reshape(-1)
         if vector.size != self.command_size:
             raise ValueError(f"a {self.kind} command holds {self.command_size} values, got {vector.size}")
-        if not np.all(np.isfinite(vector)):
+        if not all(map(math.isfinite, vector.tolist())):  # a few µs faster than numpy on a short vector
             raise ValueError(f"a {self.kind} command must be finite, got {vector.tolist()}")
-        return np.clip(vector, self.command_low, self.command_high)
+        low, high = self._bounds
+        return np.minimum(np.maximum(vector, low), high)
+
+    @functools.cached_property
+    def _bounds(self) -> tuple[np.ndarray, np.ndarray]:
+        return np.array(self.command_low), np.array(self.command_high)
+
+
+def cartpole_spec(tau: float) -> DriverSpec:
+    """The spec of a simulated CartPole: command ``[force fraction]`` within ±1 (the cart pushes with full
+    force the way its sign says), the two actions push left / right, the track's end as the limit on
+    observation [x, x_dot, theta, theta_dot] (beyond the env's own termination band: it never cuts an
+    episode short)."""
+    return DriverSpec("cartpole", (-1.0,), (1.0,), ((-1.0,), (1.0,)), tau, 0, 2.0 * X_LIMIT)
 
 
 def qube_spec(control_period: float, max_volts: float = QUBE_SAFE_VOLTS) -> DriverSpec:
@@ -158,16 +184,6 @@ class DeviceDriver(Protocol):
         ...
 
 
-def precise_sleep_until(deadline: float) -> None:
-    """Sleep until ``time.perf_counter() >= deadline``: the OS sleeps most of it, a spin does the last bit."""
-    while True:
-        remaining = deadline - time.perf_counter()
-        if remaining <= 0.0:
-            return
-        if remaining > SPIN_SECONDS:
-            time.sleep(remaining - SPIN_SECONDS)
-
-
 class SimulatedDriver:
     """A simulated unit behind the driver interface, bit-identical to stepping the device in-process.
 
@@ -175,28 +191,38 @@ class SimulatedDriver:
     real time the clock is ``time.perf_counter`` and ``wait_until`` sleeps until the deadline, then
     integrates every control period that elapsed under the held command.
 
-    :param device: the simulated unit (``QubeDevice`` or ``CartPoleDevice``)
+    :param device: the simulated unit: a ``QubeDevice`` or ``CartPoleDevice`` (its built-in spec applies), or
+        any ``fleetrl.link.base.Device`` whose ``step`` takes a command vector of ``spec`` (a user's
+        simulated physics; ``reset`` is its device-side reset; the zero command is "motor off")
+    :param spec: what the unit takes and returns (required unless ``device`` is a built-in)
     :param realtime: pace the simulation by the wall clock
     """
 
-    def __init__(self, device: QubeDevice | CartPoleDevice, *, realtime: bool = False) -> None:
+    def __init__(self, device: Device, spec: DriverSpec | None = None, *, realtime: bool = False) -> None:
         self.device = device
+        """the simulated unit as given"""
         self.realtime = realtime
+        unit: Device = device
         if isinstance(device, QubeDevice):
-            self.spec = qube_spec(device.config.control_period, device.config.max_volts)
-        else:
-            # command [force fraction]: the simulated cart pushes with full force the way its sign says;
-            # the limit is the track's end, beyond the env's own termination band, so it never cuts an
-            # episode short
-            self.spec = DriverSpec(
-                "cartpole", (-1.0,), (1.0,), ((-1.0,), (1.0,)), device.params.tau, 0, 2.0 * X_LIMIT
+            spec = spec or qube_spec(device.config.control_period, device.config.max_volts)
+            unit = QubeVoltageUnit(device)
+        elif isinstance(device, CartPoleDevice):
+            spec = spec or cartpole_spec(device.params.tau)
+            unit = CartPoleForceUnit(device)
+        elif spec is None:
+            raise ValueError(
+                f"a simulated {type(device).__name__} needs its DriverSpec (the command and sensor vectors "
+                "it takes and returns): SimulatedDriver(device, spec)"
             )
+        self.spec = spec
         self.command = self.spec.off_command()
         """the command the motor holds"""
         self.periods = 0
         """control periods simulated since the last reset"""
+        self._unit = unit
+        self._step = unit.step
         self._origin = time.perf_counter()
-        self._obs = np.zeros(4, dtype=np.float32)
+        self._obs = np.zeros(spec.sensor_size, dtype=np.float32)
 
     def time(self) -> float:
         """Wall seconds since the last reset in real time; simulated seconds in lockstep."""
@@ -226,21 +252,13 @@ class SimulatedDriver:
             self._period()
 
     def _period(self) -> None:
-        device = self.device
-        value = float(self.command[0])
-        if isinstance(device, QubeDevice):
-            obs = device.step_volts(value)
-        elif value != 0.0:
-            obs = device.step(1 if value > 0.0 else 0)
-        else:  # a CartPole unit has no "off" action: with the motor off the simulated cart is braked
-            obs = self._obs
-        self._obs[:] = obs
+        self._obs[:] = self._step(self.command)
         self.periods += 1
 
     def home(self, seed: int | None) -> np.ndarray:
         """The device's own reset (QUBE: swing-up and settle, simulated instantly). In lockstep the
         simulated clock restarts at 0; in real time the clock runs on and the period count catches up."""
-        self._obs[:] = self.device.reset(seed)
+        self._obs[:] = self._unit.reset(seed)
         self.motor_off()
         self.periods = math.floor(self.time() / self.spec.control_period) if self.realtime else 0
         return self._obs
@@ -248,7 +266,7 @@ class SimulatedDriver:
     def close(self) -> None:
         """Motor off; close the simulated unit."""
         self.motor_off()
-        self.device.close()
+        self._unit.close()
 
 
 def simulated_driver(
@@ -277,3 +295,26 @@ def simulated_driver(
         options["control_period"] = period
     device = make_device(env, unit, fleet_seed, fleet_profile=fleet_profile, **options)
     return SimulatedDriver(device, realtime=realtime)
+
+
+DriverFunction = Callable[..., DeviceDriver]
+"""``driver(unit: int, fleet_seed: int, *, realtime: bool) -> DeviceDriver``: the device side of a unit type,
+unit ``unit`` of fleet ``fleet_seed`` (lockstep when ``realtime`` is False)"""
+
+
+def driver_of(
+    function: DriverFunction, unit: int, fleet_seed: int, *, realtime: bool = False
+) -> DeviceDriver:
+    """What ``function(unit, fleet_seed, realtime=realtime)`` returns, checked to be a ``DeviceDriver``; a
+    ValueError naming the unit and what is wrong otherwise (the function's own failure included)."""
+    name = getattr(function, "__qualname__", repr(function))
+    try:
+        driver = function(unit, fleet_seed, realtime=realtime)
+    except Exception as err:
+        raise ValueError(f"driver function {name}: unit {unit}: {type(err).__name__}: {err}") from None
+    if not isinstance(driver, DeviceDriver) or not isinstance(getattr(driver, "spec", None), DriverSpec):
+        raise ValueError(
+            f"driver function {name} returned a {type(driver).__name__} for unit {unit}, not a DeviceDriver "
+            "(spec: DriverSpec, time, read_sensors, write_command, motor_off, wait_until, home, close)"
+        )
+    return driver

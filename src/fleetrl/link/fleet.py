@@ -7,6 +7,8 @@ For process isolation run ``fleetrl device --unit K …`` per unit instead; the 
 
     with start_bridges(url, run_id, "qube", range(3), fleet_seed=0) as bridges:
         env = QubeBalanceEnv(unit, fleet_seed, link=open_mqtt_link(url, run_id, unit))
+
+A user's unit type is served the same way, its driver function in place of the built-in's name.
 """
 
 from __future__ import annotations
@@ -15,7 +17,7 @@ from collections.abc import Iterable
 from types import TracebackType
 
 from fleetrl.link.bridge import WATCHDOG_SECONDS, DeviceBridge
-from fleetrl.link.driver import simulated_driver
+from fleetrl.link.driver import DeviceDriver, DriverFunction, driver_of, simulated_driver
 
 
 class BridgeFleet:
@@ -43,7 +45,7 @@ class BridgeFleet:
 def start_bridges(
     url: str,
     run_id: str,
-    env: str,
+    env: str | DriverFunction,
     units: Iterable[int],
     fleet_seed: int = 0,
     *,
@@ -52,28 +54,37 @@ def start_bridges(
     period: float | None = None,
     watchdog: float = WATCHDOG_SECONDS,
 ) -> BridgeFleet:
-    """Serve each of ``units`` (of fleet ``fleet_seed``, type ``env``) from a bridge thread on ``url``.
+    """Serve each of ``units`` (of fleet ``fleet_seed``) from a bridge thread on ``url``.
 
     Returns once every bridge has announced ``online``, so links opened afterwards find them.
 
     :param url: broker URL (``mqtt://host:port``)
     :param run_id: the run whose device topics to serve
-    :param env: ``qube`` or ``cartpole``
+    :param env: a built-in unit type's simulated units (``qube`` or ``cartpole``), or a driver function
+        ``driver(unit, fleet_seed, *, realtime) -> DeviceDriver`` (a user's unit type)
     :param units: unit indices
     :param fleet_seed: seed of the fleet's per-unit dynamics (must match the workers' envs)
     :param fleet_profile: the QUBE fleet profile (None: the default; must match the workers' envs)
     :param realtime: real-time mode instead of lockstep
-    :param period: control period in seconds (QUBE only; default 6 ms)
+    :param period: control period in seconds (QUBE only; default 6 ms; not with a driver function)
     :param watchdog: seconds without a command before a bridge switches its motor off
     """
     from fleetrl.transport.mqtt import MqttTransport
 
+    if callable(env) and (fleet_profile is not None or period is not None):
+        raise ValueError(
+            "fleet_profile and period configure the built-in simulated units, not a driver function"
+        )
     bridges: list[DeviceBridge] = []
     try:
         for unit in units:
-            driver = simulated_driver(
-                env, unit, fleet_seed, fleet_profile=fleet_profile, period=period, realtime=realtime
-            )
+            driver: DeviceDriver
+            if callable(env):
+                driver = driver_of(env, unit, fleet_seed, realtime=realtime)
+            else:
+                driver = simulated_driver(
+                    env, unit, fleet_seed, fleet_profile=fleet_profile, period=period, realtime=realtime
+                )
             bridge = DeviceBridge(
                 MqttTransport(url), driver, run_id, unit, realtime=realtime, watchdog=watchdog
             )

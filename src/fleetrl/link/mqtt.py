@@ -4,7 +4,11 @@ Each command carries the link's session id (random, one per link) and the next s
 then waits for the state carrying the same pair. Anything else on the state topic — an answer to an earlier
 command that timed out, another link's traffic, garbage — is counted in ``stale`` and dropped, never taken
 as fresh. No answer in time raises ``DeviceTimeoutError``; a refusal by the bridge raises ``DeviceLinkError``
-with its reason; so does the bridge going offline while the link waits.
+with its reason; so does the bridge going offline while the link waits, and (when the link knows the size
+its env declares) an observation of another size.
+
+A step carries what the unit takes: a discrete action index (an int) or a command vector (floats, sent as
+float32); the bridge refuses what its unit does not take, with the reason.
 """
 
 from __future__ import annotations
@@ -17,7 +21,7 @@ from types import MappingProxyType
 
 import numpy as np
 
-from fleetrl.link.base import NO_INFO
+from fleetrl.link.base import NO_INFO, Action
 from fleetrl.link.wire import (
     FLAG_PROTECTIVE_STOP,
     FLAG_WATCHDOG,
@@ -65,6 +69,8 @@ class MqttLink:
     :param step_timeout: seconds to wait for a step's state
     :param reset_timeout: seconds to wait for a reset's state
     :param online_timeout: seconds to wait for the bridge to be online when opening
+    :param obs_size: the observation size the env declares: every observation of another size is a
+        ``DeviceLinkError`` (None: not checked)
     """
 
     def __init__(
@@ -76,8 +82,11 @@ class MqttLink:
         step_timeout: float = STEP_TIMEOUT,
         reset_timeout: float = RESET_TIMEOUT,
         online_timeout: float = ONLINE_TIMEOUT,
+        obs_size: int | None = None,
     ) -> None:
         self.unit = unit
+        self.obs_size = obs_size
+        """the observation size the env declares (None: not checked)"""
         self.cmd_topic = device_topic(run_id, unit, "cmd")
         self.state_topic = device_topic(run_id, unit, "state")
         self.status_topic = device_topic(run_id, unit, "status")
@@ -103,15 +112,21 @@ class MqttLink:
         state = self._call(Command(self.session, self.seq + 1, "reset", seed=seed), self.reset_timeout)
         return state.obs
 
-    def step(self, action: int) -> tuple[np.ndarray, Mapping[str, float]]:
-        """Send action ``action``; return the fresh observation and extras (``protective_stop``,
-        ``watchdog`` = 1.0 when the bridge's safety acted)."""
-        state = self._call(Command(self.session, self.seq + 1, "step", action=action), self.step_timeout)
+    def step(self, action: Action) -> tuple[np.ndarray, Mapping[str, float]]:
+        """Send ``action`` (an action index, or a vector of floats: a command vector); return the fresh
+        observation and extras (``protective_stop``, ``watchdog`` = 1.0 when the bridge's safety acted).
+        A ValueError for an action that is neither, before anything is sent."""
+        state = self._call(Command.step(self.session, self.seq + 1, action), self.step_timeout)
         return state.obs, _EXTRAS.get(state.flags, NO_INFO)
 
     def close(self) -> None:
         """Disconnect (the bridge's watchdog switches the motor off)."""
         self._transport.close()
+
+    def __deepcopy__(self, memo: dict[int, object]) -> MqttLink:
+        """The link itself: it is the handle of one connection to one unit, not a value (gymnasium copies an
+        env's spec, the ``link=`` it was made with included, whenever the spec is read)."""
+        return self
 
     def _call(self, command: Command, timeout: float) -> State:
         self.seq = command.seq
@@ -119,6 +134,11 @@ class MqttLink:
         state = self._await(command.seq, timeout)
         if state.error is not None:
             raise DeviceLinkError(f"unit {self.unit} refused {command.op} seq {command.seq}: {state.error}")
+        if self.obs_size is not None and state.obs.size != self.obs_size:
+            raise DeviceLinkError(
+                f"unit {self.unit}'s bridge sent {state.obs.size} observation values, the env declares "
+                f"{self.obs_size} (is the bridge serving this unit type?)"
+            )
         self.last_state = state
         return state
 
@@ -166,9 +186,11 @@ class MqttLink:
                 self._note_status(message.payload)
 
 
-def open_mqtt_link(url: str, run_id: str, unit: int, **options: float) -> MqttLink:
-    """An ``MqttLink`` over a new ``MqttTransport`` to the broker at ``url`` (options: ``MqttLink``'s
-    timeouts)."""
+def open_mqtt_link(
+    url: str, run_id: str, unit: int, *, obs_size: int | None = None, **timeouts: float
+) -> MqttLink:
+    """An ``MqttLink`` over a new ``MqttTransport`` to the broker at ``url`` (``timeouts``: ``MqttLink``'s;
+    ``obs_size``: the observation size the env declares)."""
     from fleetrl.transport.mqtt import MqttTransport
 
-    return MqttLink(MqttTransport(url), run_id, unit, **options)
+    return MqttLink(MqttTransport(url), run_id, unit, obs_size=obs_size, **timeouts)

@@ -6,10 +6,15 @@ Topics, one set per unit under the run: ``fleetrl/<run_id>/device/<unit>/cmd``, 
 the decoders check every field (version, types, ranges, size) and raise :class:`WireError` with a reason, so
 a bad message is rejected and logged, never acted on. No pickle.
 
-Command: ``{"v": 1, "sid": session, "seq": n, "op": "step", "a": action}`` or
-``{"v": 1, "sid": session, "seq": n, "op": "reset", "seed": seed | None}``.
-State: ``{"v": 1, "sid": session, "seq": n, "t": device seconds, "obs": float32 LE bytes, "flags": bits}``
+Command: ``{"v": 2, "sid": session, "seq": n, "op": "step", "a": action}`` or
+``{"v": 2, "sid": session, "seq": n, "op": "reset", "seed": seed | None}``, where a step's action is either a
+discrete action index (an integer, for a unit whose driver declares discrete commands) or a command vector
+(float32 little-endian bytes of the unit's declared command size).
+State: ``{"v": 2, "sid": session, "seq": n, "t": device seconds, "obs": float32 LE bytes, "flags": bits}``
 plus ``"err": reason`` when the bridge refused the command.
+
+Sizes follow from the unit's declared spaces (``DriverSpec.command_size``, ``sensor_size``) under one absolute
+cap, :data:`MAX_VECTOR` components each way; :data:`MAX_PAYLOAD` is derived from it.
 """
 
 from __future__ import annotations
@@ -22,20 +27,23 @@ from typing import Any
 import msgpack
 import numpy as np
 
-VERSION = 1
-"""wire version of both messages"""
-MAX_PAYLOAD = 512
-"""bytes; anything longer is refused before it is decoded"""
+VERSION = 2
+"""wire version of both messages (1: an action index only, at most 16 observation values)"""
+MAX_VECTOR = 64
+"""most components of an observation or a command vector any unit may declare (float32 each)"""
+MAX_ERROR = 200
+"""characters of a refusal reason kept on the wire"""
+HEADER_BYTES = 64
+"""msgpack bytes of a message's map, keys, scalar fields and length prefixes (at most 60)"""
+MAX_PAYLOAD = HEADER_BYTES + 4 * MAX_VECTOR + 4 * MAX_ERROR
+"""bytes (a full vector plus a refusal reason of up to 4 UTF-8 bytes a character); anything longer is refused
+before it is decoded"""
 MAX_SEQ = 2**63 - 1
 """sequence numbers are non-negative 63-bit integers"""
 MAX_SID = 2**32 - 1
 """session ids are unsigned 32-bit integers (one per link instance)"""
 MAX_SEED = 2**64 - 1
 """a reset seed fits numpy's SeedSequence entropy of one 64-bit word"""
-MAX_OBS = 16
-"""most observation components a state may carry"""
-MAX_ERROR = 200
-"""characters of a refusal reason kept on the wire"""
 
 FLAG_PROTECTIVE_STOP = 1
 """the arm (cart) went past its limit; the motor is off until the next reset"""
@@ -83,16 +91,34 @@ class Command:
 
     :param sid: the sending link's session id (a new link takes the unit over)
     :param seq: the sequence number the state answering it will carry
-    :param op: ``step`` (apply action ``action`` for one control period) or ``reset`` (device-side reset)
-    :param action: action index of a step
+    :param op: ``step`` (apply ``action`` or ``command`` for one control period) or ``reset`` (device-side
+        reset)
+    :param action: a step's discrete action index (None: the step carries ``command``)
+    :param command: a step's command vector (float32 values; None: the step carries ``action``)
     :param seed: seed of a reset (None: unseeded)
     """
 
     sid: int
     seq: int
     op: str
-    action: int = 0
+    action: int | None = None
+    command: tuple[float, ...] | None = None
     seed: int | None = None
+
+    @classmethod
+    def step(cls, sid: int, seq: int, action: object) -> Command:
+        """A step carrying ``action``: an integer is an action index, a vector of floats a command vector
+        (sent as float32); a ValueError for anything else (a bool, an integer vector, text)."""
+        if isinstance(action, int | np.integer) and not isinstance(action, bool | np.bool_):
+            return cls(sid, seq, "step", action=int(action))
+        vector = (
+            np.asarray(action)
+            if isinstance(action, np.ndarray | list | tuple | float | np.floating)
+            else None
+        )
+        if vector is None or not np.issubdtype(vector.dtype, np.floating) or vector.ndim > 1:
+            raise ValueError(f"a step takes an action index (int) or a 1-D vector of floats, got {action!r}")
+        return cls(sid, seq, "step", command=tuple(vector.reshape(-1).astype(np.float32).tolist()))
 
 
 @dataclass(frozen=True)
@@ -119,7 +145,10 @@ def encode_command(command: Command) -> bytes:
     """The msgpack bytes of ``command``."""
     body: dict[str, Any] = {"v": VERSION, "sid": command.sid, "seq": command.seq, "op": command.op}
     if command.op == "step":
-        body["a"] = command.action
+        if command.command is not None:
+            body["a"] = np.asarray(command.command, dtype="<f4").tobytes()
+        else:
+            body["a"] = command.action
     else:
         body["seed"] = command.seed
     return bytes(msgpack.packb(body))
@@ -140,17 +169,18 @@ def encode_state(state: State) -> bytes:
     return bytes(msgpack.packb(body))
 
 
-def decode_command(payload: bytes, n_actions: int) -> Command:
-    """Validate and decode a command for a device with ``n_actions`` actions; WireError otherwise."""
+def decode_command(payload: bytes, n_actions: int, command_size: int) -> Command:
+    """Validate and decode a command for a unit with ``n_actions`` discrete action indices (0: it takes
+    command vectors only) and command vectors of ``command_size`` float32 values; WireError otherwise."""
     body = _unpack(payload)
     sid, seq = _header(body)
     try:
-        return _command(body, sid, seq, n_actions)
+        return _command(body, sid, seq, n_actions, command_size)
     except WireError as err:
         raise WireError(str(err), sid, seq) from None
 
 
-def _command(body: dict[str, Any], sid: int, seq: int, n_actions: int) -> Command:
+def _command(body: dict[str, Any], sid: int, seq: int, n_actions: int, command_size: int) -> Command:
     op = body.get("op")
     if op not in OPS:
         raise WireError(f"unknown op {op!r} (choose step or reset)")
@@ -161,9 +191,30 @@ def _command(body: dict[str, Any], sid: int, seq: int, n_actions: int) -> Comman
             raise WireError(f"seed {seed!r} is not None or an integer 0 to 2**64-1")
         return Command(sid, seq, "reset", seed=seed)
     action = body["a"]
+    if isinstance(action, bytes):
+        return Command(sid, seq, "step", command=_command_vector(action, command_size))
+    vector = f"a command vector of {command_size} float32 values as bytes"
+    if not isinstance(action, int) or isinstance(action, bool):
+        raise WireError(f"action {action!r} is neither an action index (an integer) nor {vector}")
+    if n_actions == 0:
+        raise WireError(f"this unit takes no action index, got {action!r} (send {vector})")
     if not _int_in(action, 0, n_actions - 1):
-        raise WireError(f"action {action!r} is out of range (choose an integer 0 to {n_actions - 1})")
+        raise WireError(
+            f"action {action!r} is out of range (choose an integer 0 to {n_actions - 1}, or send {vector})"
+        )
     return Command(sid, seq, "step", action=action)
+
+
+def _command_vector(data: bytes, size: int) -> tuple[float, ...]:
+    if len(data) != 4 * size:
+        raise WireError(
+            f"command vector of {len(data)} bytes: this unit takes {size} little-endian float32 values "
+            f"({4 * size} bytes)"
+        )
+    values = tuple(np.frombuffer(data, dtype="<f4").tolist())
+    if not all(map(math.isfinite, values)):
+        raise WireError("command vector holds a value that is not finite")
+    return values
 
 
 def decode_state(payload: bytes) -> State:
@@ -177,8 +228,8 @@ def decode_state(payload: bytes) -> State:
         raise WireError(f"device time {t!r} is not a finite number")
     if not _int_in(flags, 0, 255):
         raise WireError(f"flags {flags!r} are not an integer 0 to 255")
-    if not isinstance(obs, bytes) or len(obs) % 4 or len(obs) > 4 * MAX_OBS:
-        raise WireError(f"obs must be at most {MAX_OBS} little-endian float32 values as bytes")
+    if not isinstance(obs, bytes) or len(obs) % 4 or len(obs) > 4 * MAX_VECTOR:
+        raise WireError(f"obs must be at most {MAX_VECTOR} little-endian float32 values as bytes")
     values = np.frombuffer(obs, dtype="<f4").astype(np.float32)
     if not np.all(np.isfinite(values)):
         raise WireError("obs holds a value that is not finite")

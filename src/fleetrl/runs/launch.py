@@ -154,8 +154,9 @@ def device_bridges(settings: RunSettings, url: str | None, run_id: str) -> Itera
 
     assert url is not None, "a device link over MQTT needs a broker"
     units = range(settings.units)
-    profile = settings.fleet_profile
-    with start_bridges(url, run_id, settings.env, units, settings.fleet_seed, fleet_profile=profile):
+    driver = settings.bridge_driver()  # a built-in's device type, or the user's driver function
+    profile = settings.fleet_profile if isinstance(driver, str) else None
+    with start_bridges(url, run_id, driver, units, settings.fleet_seed, fleet_profile=profile):
         yield
 
 

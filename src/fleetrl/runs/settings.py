@@ -138,14 +138,6 @@ class LearningSettings:
         assert self.target_score is not None, "validate_learning fills in the target score"
         return {"target_score": self.target_score}
 
-    def check_device_link(self, device_link: str) -> None:
-        """SettingError if the units are to be served by device bridges but are not a built-in type."""
-        if device_link == "mqtt" and not get_env_spec(self.env).builtin:
-            raise SettingError(
-                f"{label('device_link')} mqtt: device bridges serve the built-in unit types only (cartpole, "
-                f"qube); unit factory {self.env!r} runs in-process (--device-link inprocess)"
-            )
-
     def shared_settings(self, fleet_seed: int) -> dict[str, str]:
         """What every role of a run of these settings on fleet ``fleet_seed`` must share, as the chief's
         ``welcome`` and a worker's ``join`` carry it (:mod:`fleetrl.runs.shared`)."""
@@ -266,6 +258,10 @@ class RunSettings(LearningSettings, RoundRules, BrokerLogin):
     """federated: ``mqtt`` (a real broker, workers in processes) or ``local`` (in-process bus, threads)"""
     device_link: str = "inprocess"
     """how workers reach their devices: ``inprocess`` or ``mqtt`` (one device bridge per unit)"""
+    device_driver: str | None = None
+    """with ``device_link = "mqtt"``: the device side the bridges serve, ``package.module:function`` with
+    ``driver(unit, fleet_seed, *, realtime) -> DeviceDriver`` (needed for a unit factory; a built-in's
+    bridges serve its simulated units)"""
     live: bool = True
     """show the live terminal view"""
 
@@ -281,7 +277,6 @@ class RunSettings(LearningSettings, RoundRules, BrokerLogin):
         choose("mode", self.mode, MODES)
         choose("transport", self.transport, TRANSPORTS)
         choose("device_link", self.device_link, DEVICE_LINKS)
-        self.check_device_link(self.device_link)
         if self.mode == "individual" and (self.scheme != "paper" or self.scheme_params):
             raise SettingError(f"--scheme {self.scheme} is a federation scheme: it needs --mode federated")
         self.validate_rounds()
@@ -291,9 +286,35 @@ class RunSettings(LearningSettings, RoundRules, BrokerLogin):
             raise SettingError(f"{label('units')} = {self.units}: must be at least 1")
         if self.seed < 0 or self.fleet_seed < 0:
             raise SettingError(f"{label('seed')}, {label('fleet_seed')}: must be non-negative integers")
+        self.validate_device_link()
         if (self.out / "metrics.csv").exists():
             raise SettingError(f"{label('out')} = {str(self.out)!r} already holds a run; choose another")
         check_writable_dir("out", self.out)
+
+    def validate_device_link(self) -> None:
+        """With device bridges: the unit type can be reached through a link, and its driver function (a
+        user's, named by ``device_driver``) loads, builds unit 0 and fits the env's spaces. Without: no
+        driver is named."""
+        if self.device_link != "mqtt":
+            if self.device_driver is not None:
+                raise SettingError(
+                    f"{label('device_driver')} names what device bridges serve: it needs "
+                    f"{label('device_link')} mqtt"
+                )
+            return
+        from fleetrl.envs.device_side import bridge_driver, check_bridge_driver
+
+        env = get_env_spec(self.env)
+        name = "device_link" if self.device_driver is None or not env.takes_link else "device_driver"
+        driver = as_setting_error(name, bridge_driver, env, self.device_driver)
+        unit = describe_env(self.env)
+        as_setting_error("device_driver", check_bridge_driver, driver, unit, self.fleet_seed)
+
+    def bridge_driver(self) -> Any:
+        """What the run's device bridges serve (:func:`fleetrl.envs.device_side.bridge_driver`)."""
+        from fleetrl.envs.device_side import bridge_driver
+
+        return bridge_driver(get_env_spec(self.env), self.device_driver)
 
     @property
     def needs_broker(self) -> bool:
@@ -322,6 +343,8 @@ class RunSettings(LearningSettings, RoundRules, BrokerLogin):
         values = {k: v for k, v in asdict(self).items() if k not in NOT_RESULT_SETTINGS}
         if not values["scheme_params"]:
             del values["scheme_params"]
+        if values["device_driver"] is None:  # as in the records made before the setting existed
+            del values["device_driver"]
         del values["target_score"]
         values |= self.result_target_score()
         plain: dict[str, Any] = json.loads(json.dumps(values, sort_keys=True, default=str))

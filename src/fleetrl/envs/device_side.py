@@ -1,0 +1,62 @@
+"""The device side of a unit type behind device bridges: which driver a bridge serves, and whether it fits the
+env's spaces.
+
+A built-in's bridges serve its simulated units (``qube`` for both QUBE tasks, ``cartpole``); a user's unit
+type names its driver function, ``driver(unit, fleet_seed, *, realtime) -> DeviceDriver``, as
+``package.module:function`` (:func:`fleetrl.envs.unit_factory.load_driver_function`). A driver fits an env
+when its sensor vector is the env's observation and its commands are the env's actions: as many discrete
+commands as a ``Discrete(n)`` env has actions, or a command vector of a ``Box`` env's action size.
+"""
+
+from __future__ import annotations
+
+from fleetrl.envs.catalog import EnvSpec
+from fleetrl.envs.spaces import UnitDescription
+from fleetrl.envs.unit_factory import DRIVER_FORM, load_driver_function
+from fleetrl.link.driver import DriverFunction, DriverSpec, driver_of
+
+
+def bridge_driver(env: EnvSpec, device_driver: str | None) -> str | DriverFunction:
+    """What the bridges of ``env``'s units serve: the driver function ``device_driver`` names, else the
+    built-in's simulated device type; a ValueError saying what is missing or wrong otherwise."""
+    if not env.takes_link:
+        raise ValueError(
+            f"{env.title} takes no link keyword: to put its units behind device bridges, define it as "
+            "factory(unit, fleet_seed, link=None) and build the env over the link it is given"
+        )
+    if device_driver is not None:
+        function: DriverFunction = load_driver_function(device_driver)
+        return function
+    if env.device is None:
+        raise ValueError(
+            f"{env.title} needs --device-driver {DRIVER_FORM} for its device bridges: the function "
+            "driver(unit, fleet_seed, *, realtime) -> DeviceDriver that serves one unit"
+        )
+    return env.device
+
+
+def check_driver_fits(spec: DriverSpec, unit: UnitDescription, where: str) -> None:
+    """A ValueError naming ``where`` if a driver of ``spec`` cannot serve an env described by ``unit``."""
+    if spec.sensor_size != unit.obs_dim:
+        raise ValueError(
+            f"{where} declares {spec.sensor_size} sensor values; the env observes {unit.obs_dim}"
+        )
+    action = unit.action
+    if action.kind == "discrete" and spec.n_actions != action.n:
+        raise ValueError(f"{where} declares {spec.n_actions} discrete commands; the env has {action} actions")
+    if action.kind == "box" and (spec.command_size,) != action.shape:
+        raise ValueError(
+            f"{where} takes a command vector of {spec.command_size}; the env's actions are Box{action.shape}"
+        )
+
+
+def check_bridge_driver(driver: str | DriverFunction, unit: UnitDescription, fleet_seed: int = 0) -> None:
+    """Build unit 0's driver of a user's ``driver`` function (lockstep), check it fits ``unit`` and close
+    it; a ValueError that says what is wrong. A built-in's (a name) fits by construction."""
+    if isinstance(driver, str):
+        return
+    served = driver_of(driver, 0, fleet_seed, realtime=False)
+    try:
+        check_driver_fits(served.spec, unit, f"device driver {served.spec.kind!r} (unit 0)")
+    finally:
+        served.close()
