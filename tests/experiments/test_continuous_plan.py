@@ -1,4 +1,4 @@
-"""The continuous-actions experiment: its discrete arms are Fig. 5's runs, its continuous arms the Box task."""
+"""The continuous experiment: its discrete arms are Fig. 5's runs, its continuous arms the Box task."""
 
 from fleetrl.experiments.catalog import FULL, PLANS
 
