@@ -45,8 +45,10 @@ example: install
 		--target-score -10 --out runs/motor-$$(date +%Y%m%d-%H%M%S)
 
 # Two test processes per two cores (pytest-xdist): the suite is mostly child processes and brokers waiting.
+# Whole modules go to a process (a module's shared fixtures run once), the longest first (tests/conftest.py,
+# START_FIRST); the 15 slowest tests are listed at the end.
 test: install
-	$(PY) -m pytest -q -n 2
+	$(PY) -m pytest -q -n 2 --dist loadfile --no-loadscope-reorder --durations=15
 
 # The edit-run loop: unit tests only (no broker, no training), well under a minute.
 test-fast: install

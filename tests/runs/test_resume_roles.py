@@ -23,7 +23,8 @@ from fleetrl.transport.broker import EmbeddedBroker
 pytestmark = pytest.mark.slow  # chief and worker processes training CartPole
 
 ROUNDS = 8
-RUN = ["--env", "cartpole", "--preset", "standard", "--max-rounds", str(ROUNDS)]
+# The paper's scheme (one exchange per round): resume of the roles is tested here, not a scheme's steps.
+RUN = ["--env", "cartpole", "--preset", "standard", "--scheme", "paper", "--max-rounds", str(ROUNDS)]
 
 
 def start(role: str, url: str, run_id: str, out: Path, *extra: str) -> subprocess.Popen[bytes]:
