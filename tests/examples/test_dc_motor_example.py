@@ -44,9 +44,9 @@ def test_the_example_is_imported_from_its_directory() -> None:
 
 
 def test_units_differ_by_unit_and_fleet_seed_and_are_equal_for_equal_seeds() -> None:
-    params = {(u, s): unit_env(u, s).motor.params for u in (0, 1, 2) for s in (0, 1)}
+    params = {(u, s): unit_env(u, s).link.device.params for u in (0, 1, 2) for s in (0, 1)}
     assert len(set(params.values())) == 6  # every (unit, fleet seed) its own motor
-    assert unit_env(1, 1).motor.params == params[1, 1]
+    assert unit_env(1, 1).link.device.params == params[1, 1]
     from fleet_dc_motor.motor import NOMINAL, SPREAD
 
     for p in params.values():  # each varying constant within its spread of the nominal motor
@@ -82,7 +82,7 @@ def test_the_motor_settles_at_the_speed_its_equations_give() -> None:
     motor = DCMotor(p)
     motor.reset(seed=0)
     for _ in range(300):  # 3 s: dozens of time constants
-        measured = motor.step(0.5)
+        measured = motor.step(np.array([0.5], np.float32))
     k, r, volts = p.torque_constant, p.resistance, 0.5 * p.supply_volts
     # k·V/R = (k²/R + b)·ω + τc·tanh(ω): solved by bisection on [0, V/k]
     low, high = 0.0, volts / k
