@@ -53,6 +53,9 @@ class MotorParams:
         return self.inertia * r / (k * k + self.viscous_friction * r)
 
 
+CONTROL_PERIOD = 0.01
+"""seconds of one control period: the duty cycle is held this long, and the encoder counted over it"""
+
 NOMINAL = MotorParams()
 """the datasheet motor every unit deviates from"""
 
@@ -105,7 +108,7 @@ class DCMotor:
         self,
         params: MotorParams = NOMINAL,
         *,
-        period: float = 0.01,
+        period: float = CONTROL_PERIOD,
         substeps: int = 10,
         counts_per_rev: int = 1024,
         start_speed: float = 10.0,

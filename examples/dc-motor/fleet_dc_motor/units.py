@@ -23,7 +23,7 @@ from typing import Any
 import gymnasium
 import numpy as np
 
-from fleet_dc_motor.motor import DCMotor, unit_params
+from fleet_dc_motor.motor import CONTROL_PERIOD, DCMotor, unit_params
 from fleetrl.link.base import DeviceLink
 from fleetrl.link.driver import DeviceDriver, DriverSpec, SimulatedDriver
 from fleetrl.link.inprocess import InProcessLink
@@ -49,7 +49,7 @@ SPEC = DriverSpec(
     command_low=(-1.0,),
     command_high=(1.0,),
     discrete_commands=(),
-    control_period=0.01,
+    control_period=CONTROL_PERIOD,
     limit_index=0,
     limit=1.5 * RATED_SPEED,
     sensor_size=2,
@@ -58,7 +58,7 @@ SPEC = DriverSpec(
 """what a device bridge must know of a motor: the command ``[duty]`` within ±1 (continuous only), a control
 period of 10 ms, the sensor vector ``[speed, current]``, and the protective stop: the bridge switches the
 motor off when ``|speed|`` passes 300 rad/s, which no unit reaches on its supply (no-load speeds are at most
-about 245 rad/s), so only a fault or a runaway trips it"""
+246 rad/s), so only a fault or a runaway trips it"""
 
 
 class MotorSpeedEnv(gymnasium.Env[np.ndarray, np.ndarray]):
