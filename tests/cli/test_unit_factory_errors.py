@@ -57,6 +57,8 @@ BROKEN = "tests.envs.fake_units_missing_dependency"
         (f"{UNITS}:multi_discrete_actions", "has action space MultiDiscrete([2 3]): not supported "
          "(supported: Discrete (at least 2 actions) or a 1-D Box of floats)"),
         (f"{UNITS}:unbounded_actions", "a box needs finite bounds, got low [-inf], high [inf] (supported: "),
+        (f"{UNITS}:fractional_sensor_size", "declares sensor_size 2.5: give the length of the sensor vector "
+         "its device link returns, an int 1 to 64 (or no sensor_size when the observation is that vector)"),
         (f"{UNITS}:no_threshold", f"--target-score: unit factory '{UNITS}:no_threshold' declares no "
          "target score and its env spec has no reward_threshold: give one with --target-score X"),
     ],

@@ -91,5 +91,12 @@ def unbounded_actions(unit: int, fleet_seed: int) -> SpacesEnv:
     return SpacesEnv(FLOATS, gymnasium.spaces.Box(-np.inf, np.inf, (1,), np.float32))
 
 
+def fractional_sensor_size(unit: int, fleet_seed: int) -> SpacesEnv:
+    """Declares the length of its device's sensor vector as something that is not a length."""
+    env = SpacesEnv(FLOATS, gymnasium.spaces.Discrete(2))
+    env.sensor_size = 2.5  # type: ignore[attr-defined]
+    return env
+
+
 NOT_CALLABLE = 42
 """not a factory"""

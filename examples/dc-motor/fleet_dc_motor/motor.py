@@ -1,4 +1,5 @@
-"""The physics of one DC motor unit, knowing nothing of rewards or learning: what a device bridge would wrap.
+"""The physics of one DC motor unit, knowing nothing of rewards or learning: the device, which the env reaches
+through a link (in-process, or a device bridge serving it: :func:`fleet_dc_motor.units.driver`).
 
 A permanent-magnet DC motor driving a flywheel from an H-bridge. The armature inductance is neglected (its
 time constant, ~0.25 ms, is far below the 10 ms control period), so the current follows the voltage at once:
@@ -52,6 +53,9 @@ class MotorParams:
         return self.inertia * r / (k * k + self.viscous_friction * r)
 
 
+CONTROL_PERIOD = 0.01
+"""seconds of one control period: the duty cycle is held this long, and the encoder counted over it"""
+
 NOMINAL = MotorParams()
 """the datasheet motor every unit deviates from"""
 
@@ -84,10 +88,13 @@ def unit_params(unit: int, fleet_seed: int) -> MotorParams:
 
 
 class DCMotor:
-    """One simulated DC motor: ``reset(seed)`` → measurement, ``step(duty)`` → measurement, ``close()``.
+    """One simulated DC motor, a ``fleetrl.link.base.Device``: ``reset(seed)`` → measurement,
+    ``step(command)`` → measurement, ``close()``.
 
-    A measurement is ``[speed, current]`` (rad/s, A; float64). ``step`` holds the duty cycle for one
-    control period (zero-order hold) and integrates with ``substeps`` classical RK4 steps.
+    A command is the vector ``[duty]`` (the zero command: no voltage, the motor coasts); a measurement is the
+    sensor vector ``[speed, current]`` (rad/s, A; float32, as a device bridge carries it). ``step`` holds
+    the duty cycle for one control period (zero-order hold) and integrates with ``substeps`` classical RK4
+    steps.
 
     :param params: the unit's constants
     :param period: the control period (s)
@@ -101,7 +108,7 @@ class DCMotor:
         self,
         params: MotorParams = NOMINAL,
         *,
-        period: float = 0.01,
+        period: float = CONTROL_PERIOD,
         substeps: int = 10,
         counts_per_rev: int = 1024,
         start_speed: float = 10.0,
@@ -133,15 +140,16 @@ class DCMotor:
         self.volts = 0.0
         return self._measure(self.speed)
 
-    def step(self, duty: float) -> np.ndarray:
-        """Apply ``duty`` × the supply voltage for one period (beyond ±1 the bridge saturates); the
-        measurement at the period's end.
+    def step(self, command: np.ndarray) -> np.ndarray:
+        """Apply ``command[0]`` (the duty cycle) × the supply voltage for one period (beyond ±1 the H-bridge
+        saturates); the measurement at the period's end.
 
-        :raises ValueError: a duty cycle that is not a finite number
+        :raises ValueError: a command that is not one finite duty cycle
         """
-        duty = float(duty)
-        if not math.isfinite(duty):
-            raise ValueError(f"the duty cycle must be a finite number, got {duty}")
+        vector = np.asarray(command, dtype=np.float64).reshape(-1)
+        if vector.shape != (1,) or not math.isfinite(vector[0]):
+            raise ValueError(f"a motor command is one finite duty cycle [duty], got {command!r}")
+        duty = float(vector[0])
         self.volts = min(1.0, max(-1.0, duty)) * self.params.supply_volts
         counts_before = math.floor(self.angle / self.count_angle)
         h = self.period / self.substeps
@@ -175,4 +183,4 @@ class DCMotor:
         self.speed = w + (h / 6) * (k1 + 2 * k2 + 2 * k3 + k4)
 
     def _measure(self, speed: float) -> np.ndarray:
-        return np.array([speed, self.current(self.speed)], dtype=np.float64)
+        return np.array([speed, self.current(self.speed)], dtype=np.float32)

@@ -1,9 +1,12 @@
-"""The speed-loop task on a fleet of DC motors, as a Gymnasium env, and the fleet's unit factory.
+"""The speed-loop task on a fleet of DC motors, as a Gymnasium env; the fleet's unit factory; the driver a
+device bridge serves.
 
-``factory(unit, fleet_seed)`` is what ``fleetrl train --env fleet_dc_motor.units:factory`` calls to build
-each worker's unit. The env owns the task — the speed setpoints, the observation it composes, the reward and
-the episode's end; the motor's physics is :class:`fleet_dc_motor.motor.DCMotor`, which it only commands
-(duty cycle) and reads (speed, current).
+``factory(unit, fleet_seed, link=None)`` is what ``fleetrl train --env fleet_dc_motor.units:factory`` calls
+to build each worker's unit. The env owns the task — the speed setpoints, the observation it composes, the
+reward and the episode's end; the motor's physics is :class:`fleet_dc_motor.motor.DCMotor`, which the env
+only commands (``[duty]``) and reads (``[speed, current]``) through a ``fleetrl.link.base.DeviceLink``:
+in-process by default, or a device bridge over MQTT serving ``driver(unit, fleet_seed, realtime=...)``
+(``--device-link mqtt --device-driver fleet_dc_motor.units:driver``). Both give the same scores.
 
 Each episode lasts :data:`EPISODE_STEPS` control periods of 10 ms (2 s). The setpoint is drawn at the
 reset, and again at :data:`SWITCH_STEP` (a step change), each of a random sign and a magnitude of
@@ -20,7 +23,10 @@ from typing import Any
 import gymnasium
 import numpy as np
 
-from fleet_dc_motor.motor import DCMotor, unit_params
+from fleet_dc_motor.motor import CONTROL_PERIOD, DCMotor, unit_params
+from fleetrl.link.base import DeviceLink
+from fleetrl.link.driver import DeviceDriver, DriverSpec, SimulatedDriver
+from fleetrl.link.inprocess import InProcessLink
 
 ENV_ID = "fleet_dc_motor/MotorSpeed-v0"
 EPISODE_STEPS = 200
@@ -38,6 +44,22 @@ tracking error of 5 % of the rated speed, transients included (the untrained age
 SPEED_BOUND, ERROR_BOUND = 2.0, 3.0
 """the observation's bounds on the scaled speed and error (a measurement beyond is clipped)"""
 
+SPEC = DriverSpec(
+    "dc-motor",
+    command_low=(-1.0,),
+    command_high=(1.0,),
+    discrete_commands=(),
+    control_period=CONTROL_PERIOD,
+    limit_index=0,
+    limit=1.5 * RATED_SPEED,
+    sensor_size=2,
+    command_dtype="float32",
+)
+"""what a device bridge must know of a motor: the command ``[duty]`` within ±1 (continuous only), a control
+period of 10 ms, the sensor vector ``[speed, current]``, and the protective stop: the bridge switches the
+motor off when ``|speed|`` passes 300 rad/s, which no unit reaches on its supply (no-load speeds are at most
+246 rad/s), so only a fault or a runaway trips it"""
+
 
 class MotorSpeedEnv(gymnasium.Env[np.ndarray, np.ndarray]):
     """Hold one DC motor of a seeded fleet at a speed setpoint.
@@ -49,14 +71,18 @@ class MotorSpeedEnv(gymnasium.Env[np.ndarray, np.ndarray]):
 
     :param unit: which unit of the fleet (its constants drawn from ``(unit, fleet_seed)``)
     :param fleet_seed: the fleet
+    :param link: how to reach the motor (None: simulate unit ``unit`` of fleet ``fleet_seed`` in-process)
     """
 
     metadata: dict[str, Any] = {"render_modes": []}  # noqa: RUF012 (gymnasium's own attribute)
+    sensor_size = SPEC.sensor_size
+    """the length of the measurement the link returns (the observation is composed from it: fleetrl checks a
+    driver's sensor vector against this)"""
 
-    def __init__(self, unit: int = 0, fleet_seed: int = 0) -> None:
+    def __init__(self, unit: int = 0, fleet_seed: int = 0, link: DeviceLink | None = None) -> None:
         self.unit = unit
         self.fleet_seed = fleet_seed
-        self.motor = DCMotor(unit_params(unit, fleet_seed))
+        self.link = link or InProcessLink(DCMotor(unit_params(unit, fleet_seed)))
         low = np.array([-SPEED_BOUND, -1.0, -ERROR_BOUND], dtype=np.float32)
         self.observation_space = gymnasium.spaces.Box(low, -low, dtype=np.float32)
         self.action_space = gymnasium.spaces.Box(-1.0, 1.0, (1,), dtype=np.float32)
@@ -78,24 +104,24 @@ class MotorSpeedEnv(gymnasium.Env[np.ndarray, np.ndarray]):
         self.setpoints = (first, second)
         self.steps = 0
         self.setpoint = self.setpoints[0]
-        measured = self.motor.reset(seed=int(rng.integers(2**63)))
+        measured = self.link.reset(int(rng.integers(2**63)))
         return self._observe(measured), self._info(measured)
 
     def step(self, action: np.ndarray) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
-        """One control period at duty ``action[0]`` (clipped to [−1, 1]); the reward judges the speed reached
-        against the setpoint the agent saw."""
-        duty = np.asarray(action, dtype=np.float64).reshape(-1)
+        """One control period at duty ``action[0]`` (beyond ±1 the H-bridge saturates); the reward judges the
+        speed reached against the setpoint the agent saw."""
+        duty = np.asarray(action, dtype=np.float32).reshape(-1)
         if duty.shape != (1,) or not math.isfinite(duty[0]):
             raise ValueError(f"the action must be one finite duty cycle, got {action!r}")
-        measured = self.motor.step(float(duty[0]))
+        measured, extras = self.link.step(duty)
         reward = -abs(self.setpoint - float(measured[0])) / RATED_SPEED
         self.steps += 1
         self.setpoint = self.setpoints[1] if self.steps >= SWITCH_STEP else self.setpoints[0]
-        return self._observe(measured), reward, False, False, self._info(measured)
+        return self._observe(measured), reward, False, False, {**extras, **self._info(measured)}
 
     def close(self) -> None:
-        """Release the motor."""
-        self.motor.close()
+        """Release the motor (over a bridge: disconnect; its watchdog switches the motor off)."""
+        self.link.close()
 
     def _observe(self, measured: np.ndarray) -> np.ndarray:
         speed = float(np.clip(measured[0] / RATED_SPEED, -SPEED_BOUND, SPEED_BOUND))
@@ -118,8 +144,18 @@ def register() -> None:
         )
 
 
-def factory(unit: int, fleet_seed: int) -> gymnasium.Env[np.ndarray, np.ndarray]:
-    """Unit ``unit`` of fleet ``fleet_seed``: the speed-loop env on that unit's motor, capped at
-    :data:`EPISODE_STEPS` steps (``fleetrl train --env fleet_dc_motor.units:factory``)."""
+def factory(
+    unit: int, fleet_seed: int, link: DeviceLink | None = None
+) -> gymnasium.Env[np.ndarray, np.ndarray]:
+    """Unit ``unit`` of fleet ``fleet_seed``: the speed-loop env on that unit's motor, simulated in-process or
+    reached through ``link``, capped at :data:`EPISODE_STEPS` steps (``fleetrl train --env
+    fleet_dc_motor.units:factory``)."""
     register()
-    return gymnasium.make(ENV_ID, unit=unit, fleet_seed=fleet_seed)
+    return gymnasium.make(ENV_ID, unit=unit, fleet_seed=fleet_seed, link=link)
+
+
+def driver(unit: int, fleet_seed: int, *, realtime: bool = False) -> DeviceDriver:
+    """The device side a bridge serves (``--device-driver fleet_dc_motor.units:driver``, ``fleetrl device
+    --driver ...``): unit ``unit`` of fleet ``fleet_seed`` simulated, in lockstep or paced by the wall clock
+    (``realtime``). A real motor's driver function would open its hardware here instead."""
+    return SimulatedDriver(DCMotor(unit_params(unit, fleet_seed)), SPEC, realtime=realtime)

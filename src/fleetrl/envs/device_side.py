@@ -4,7 +4,8 @@ env's spaces.
 A built-in's bridges serve its simulated units (``qube`` for both QUBE tasks, ``cartpole``); a user's unit
 type names its driver function, ``driver(unit, fleet_seed, *, realtime) -> DeviceDriver``, as
 ``package.module:function`` (:func:`fleetrl.envs.unit_factory.load_driver_function`). A driver fits an env
-when its sensor vector is the env's observation and its commands are the env's actions: as many discrete
+when its sensor vector is what the env reads from its link (the env's observation, or the ``sensor_size`` an
+env that composes its observation declares) and its commands are the env's actions: as many discrete
 commands as a ``Discrete(n)`` env has actions, or a command vector of a ``Box`` env's action size.
 """
 
@@ -37,10 +38,13 @@ def bridge_driver(env: EnvSpec, device_driver: str | None) -> str | DriverFuncti
 
 def check_driver_fits(spec: DriverSpec, unit: UnitDescription, where: str) -> None:
     """A ValueError naming ``where`` if a driver of ``spec`` cannot serve an env described by ``unit``."""
-    if spec.sensor_size != unit.obs_dim:
-        raise ValueError(
-            f"{where} declares {spec.sensor_size} sensor values; the env observes {unit.obs_dim}"
+    if spec.sensor_size != unit.sensor_dim:
+        reads = (
+            f"observes {unit.obs_dim}"
+            if unit.sensor_size is None
+            else f"reads {unit.sensor_size} (its sensor_size)"
         )
+        raise ValueError(f"{where} declares {spec.sensor_size} sensor values; the env {reads}")
     action = unit.action
     if action.kind == "discrete" and spec.n_actions != action.n:
         raise ValueError(f"{where} declares {spec.n_actions} discrete commands; the env has {action} actions")

@@ -13,6 +13,8 @@ from typing import Any, Literal
 import gymnasium
 import numpy as np
 
+from fleetrl.link.wire import MAX_VECTOR
+
 SUPPORTED_OBSERVATIONS = "a 1-D Box of floats"
 SUPPORTED_ACTIONS = "Discrete (at least 2 actions) or a 1-D Box of floats"
 
@@ -50,11 +52,20 @@ class UnitDescription:
     """``env.spec.reward_threshold``: the env's own idea of a solved task (None: it has none)"""
     env_id: str | None
     """``env.spec.id`` (None: the env was not made from a registered id)"""
+    sensor_size: int | None = None
+    """``env.unwrapped.sensor_size``: what an env that composes its observation from its device's sensor
+    vector and its own task state declares as that vector's length (None: the observation is the vector)"""
 
     @property
     def obs_dim(self) -> int:
         """Length of the observation vector."""
         return self.obs_shape[0]
+
+    @property
+    def sensor_dim(self) -> int:
+        """Length of the sensor vector the env reads from its device link: the declared ``sensor_size``,
+        else the observation's length."""
+        return self.obs_dim if self.sensor_size is None else self.sensor_size
 
 
 def describe_unit(env: object, where: str) -> UnitDescription:
@@ -70,6 +81,12 @@ def describe_unit(env: object, where: str) -> UnitDescription:
         raise ValueError(
             f"{where} has observation space {obs}: not supported (supported: {SUPPORTED_OBSERVATIONS})"
         )
+    sensor_size = getattr(env.unwrapped, "sensor_size", None)
+    if sensor_size is not None and (type(sensor_size) is not int or not 1 <= sensor_size <= MAX_VECTOR):
+        raise ValueError(
+            f"{where} declares sensor_size {sensor_size!r}: give the length of the sensor vector its device "
+            f"link returns, an int 1 to {MAX_VECTOR} (or no sensor_size when the observation is that vector)"
+        )
     spec = env.spec
     threshold = None if spec is None or spec.reward_threshold is None else float(spec.reward_threshold)
     return UnitDescription(
@@ -78,6 +95,7 @@ def describe_unit(env: object, where: str) -> UnitDescription:
         episode_cap=None if spec is None else spec.max_episode_steps,
         reward_threshold=threshold,
         env_id=None if spec is None else spec.id,
+        sensor_size=sensor_size,
     )
 
 

@@ -45,7 +45,7 @@ def make_learner(spec: WorkerSpec) -> Learner:
     if spec.device_url is None:
         env, unit = env_spec.make(spec.unit, spec.fleet_seed, fleet_profile=spec.fleet_profile)
     else:  # the device bridge draws the unit (with the same fleet profile)
-        obs_size = describe_env(spec.env).obs_dim  # what the env declares: the link checks every state
+        obs_size = describe_env(spec.env).sensor_dim  # what the env reads: the link checks every state
         link = open_mqtt_link(spec.device_url, spec.device_run_id, spec.unit, obs_size=obs_size)
         env, unit = env_spec.make(spec.unit, spec.fleet_seed, link=link)
     agent = agent_for(unit, config, seed=spec.worker_seed)
