@@ -3,11 +3,11 @@ pytest's order and put a long module at the end of the run again."""
 
 from pathlib import Path
 
-from conftest import START_FIRST
+from module_order import START_FIRST
 
 
 def test_every_module_started_first_exists() -> None:
     here = Path(__file__).resolve().parent
     assert len(set(START_FIRST)) == len(START_FIRST)
     missing = [module for module in START_FIRST if not (here / module).is_file()]
-    assert not missing, f"tests/conftest.py START_FIRST names modules that are not there: {missing}"
+    assert not missing, f"tests/module_order.py START_FIRST names modules that are not there: {missing}"
