@@ -158,11 +158,6 @@ class Chief:
         return tuple(sorted_workers(self._pending))
 
     @property
-    def last_answer(self) -> tuple[Message, ...]:
-        """The last answer broadcast (and ``done`` after the end): what a restored chief re-sends."""
-        return self._answers.last
-
-    @property
     def finished(self) -> bool:
         """True once the run has ended."""
         return self._end_reason is not None
@@ -269,6 +264,10 @@ class Chief:
         if inc is not None:
             if known is None or inc > known:  # a new process: it joins afresh
                 self._gate.new_incarnation(worker)
+                if (
+                    known is not None
+                ):  # what the dead process sent for the open exchange: the new one re-sends
+                    self._pending.pop(worker, None)
             self._incarnation[worker] = inc
         if status.state == "offline":
             if retained or worker not in self._members:

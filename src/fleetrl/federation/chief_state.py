@@ -56,7 +56,7 @@ def chief_config(chief: Chief) -> dict[str, Any]:
 
 def chief_fields(chief: Chief) -> dict[str, Any]:
     """The JSON part of the chief's state (cheap: the runner compares it after every input)."""
-    answers = [_message_fields(m, f"answer.{i}") for i, m in enumerate(chief.last_answer)]
+    answers = [_message_fields(m, f"answer.{i}") for i, m in enumerate(chief._answers.last)]
     model = chief._model
     return {
         "version": STATE_VERSION,
@@ -81,7 +81,7 @@ def chief_fields(chief: Chief) -> dict[str, Any]:
 
 def chief_tensors(chief: Chief) -> dict[str, np.ndarray]:
     """The tensors of the chief's state: the last answer's and θ*'s flat vectors."""
-    tensors = {f"answer.{i}": m.flat for i, m in enumerate(chief.last_answer) if m.flat is not None}
+    tensors = {f"answer.{i}": m.flat for i, m in enumerate(chief._answers.last) if m.flat is not None}
     if chief._model is not None and chief._model.flat is not None:
         tensors["model"] = chief._model.flat
     tensors |= {SCHEME_TENSOR + name: flat for name, flat in chief.scheme.state()[1].items()}
@@ -142,10 +142,10 @@ def replay_last_answer(chief: Chief) -> ChiefStep:
     A chief may die after committing a round but before its answer left; workers that got the answer ignore
     the copy (they are past that round), those that did not take it.
     """
-    if not chief.last_answer:
+    if not chief._answers.last:
         return ChiefStep()
-    detail = f"answer of round {chief.last_answer[0].round} after resume"
-    return ChiefStep(chief.last_answer, (ChiefEvent("resent", chief.round, sender="*", detail=detail),))
+    detail = f"answer of round {chief._answers.last[0].round} after resume"
+    return ChiefStep(chief._answers.last, (ChiefEvent("resent", chief.round, sender="*", detail=detail),))
 
 
 def _message_fields(message: Message, tensor: str) -> dict[str, Any]:
