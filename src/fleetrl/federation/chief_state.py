@@ -5,7 +5,8 @@ restarted chief needs to continue a run with no round lost or counted twice (doc
 and resume"): its configuration, the open round, W, the workers that left, the last transfer θ*, the last
 answer (re-sent to workers that ask again), the first completion of each worker, dropouts, rejoins,
 rejections, suspects and the newest incarnation seen of each worker. Answers received for the open round are
-not kept: the workers re-send them.
+not kept: the workers re-send them; nor are the earlier answers of the round that a running chief keeps for a
+worker replaying it (docs/protocol.md says what a double failure in one round does).
 
 Times are not kept either (they are seconds of a monotonic clock of a dead process): a restored chief opens
 its round, re-arms the grace of suspected workers at the ``now`` it is given, and answers the first re-send of
