@@ -135,8 +135,9 @@ def test_a_restarted_worker_withdraws_what_its_dead_process_sent_for_the_open_ro
     c.status("1", status("1", b"online", 1), now=0.0)
     send(c, grad("1", 1, [9, 9]))  # then process 1 is killed
     c.status("1", status("1", b"online", 1), now=0.0)  # a reconnect of the same process withdraws nothing
+    c.status("1", status("1", b"offline", 2), now=0.0)  # nor a new process that died before it came online
     assert c.answered == ("1",)
-    c.status("1", status("1", b"online", 2), now=0.0)  # the restarted process
+    c.status("1", status("1", b"online", 3), now=0.0)  # the restarted process
     assert c.answered == () and send(c, grad("2", 1, [3, 3])).outgoing == ()
     (reply,) = send(c, grad("1", 1, [1, 1])).outgoing
     np.testing.assert_array_equal(reply.flat, [2, 2])

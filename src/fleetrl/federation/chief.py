@@ -264,10 +264,8 @@ class Chief:
         if inc is not None:
             if known is None or inc > known:  # a new process: it joins afresh
                 self._gate.new_incarnation(worker)
-                if (
-                    known is not None
-                ):  # what the dead process sent for the open exchange: the new one re-sends
-                    self._pending.pop(worker, None)
+                if known is not None and status.state == "online":  # a restart: the new process re-sends
+                    self._pending.pop(worker, None)  # what the dead one sent for the open exchange
             self._incarnation[worker] = inc
         if status.state == "offline":
             if retained or worker not in self._members:
