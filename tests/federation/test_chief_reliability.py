@@ -128,6 +128,21 @@ def test_rejoin_gets_the_open_round_and_the_last_transferred_parameters() -> Non
     assert reply.contributors == ("1", "3")
 
 
+def test_a_restarted_worker_withdraws_what_its_dead_process_sent_for_the_open_round() -> None:
+    """The new process (resumed: it replays the same round) sends its own message; the old one must not close
+    the round behind its back while it replays."""
+    c = make(workers=("1", "2"))
+    c.status("1", status("1", b"online", 1), now=0.0)
+    send(c, grad("1", 1, [9, 9]))  # then process 1 is killed
+    c.status("1", status("1", b"online", 1), now=0.0)  # a reconnect of the same process withdraws nothing
+    c.status("1", status("1", b"offline", 2), now=0.0)  # nor a new process that died before it came online
+    assert c.answered == ("1",)
+    c.status("1", status("1", b"online", 3), now=0.0)  # the restarted process
+    assert c.answered == () and send(c, grad("2", 1, [3, 3])).outgoing == ()
+    (reply,) = send(c, grad("1", 1, [1, 1])).outgoing
+    np.testing.assert_array_equal(reply.flat, [2, 2])
+
+
 def test_welcome_before_any_transfer_has_no_tensors_and_a_late_will_is_ignored() -> None:
     c = make()
     step = c.status("2", status("2", b"online", 5), retained=True, now=0.0)

@@ -223,3 +223,85 @@ def test_bad_configuration_is_refused(kwargs: dict[str, Any], match: str) -> Non
     args.update(kwargs)
     with pytest.raises(ValueError, match=match):
         Chief(**args)
+
+
+# ---- a per-step scheme: a resumed worker replays its round, the chief answers each step again ----
+
+K = 5
+
+
+def step_grad(sender: str, rnd: int, step: int, value: float) -> Message:
+    return Message("step_gradient", RUN, sender, rnd, step=step, flat=np.full(2, value, np.float32))
+
+
+def pergrad_chief(**kwargs: Any) -> Chief:
+    return Chief(
+        run_id=RUN,
+        workers=("1", "2"),
+        layout=LAYOUT,
+        max_rounds=3,
+        scheme="pergrad",
+        steps_per_round=K,
+        **kwargs,
+    )
+
+
+def play_steps(c: Chief, rnd: int, steps: range, now: float = 0.0) -> list[Message]:
+    """Both workers send each of ``steps`` of round ``rnd``: the answers, in order."""
+    answers = []
+    for k in steps:
+        c.receive(step_grad("1", rnd, k, k), now=now)
+        (answer,) = c.receive(step_grad("2", rnd, k, 10 * rnd + k), now=now).outgoing
+        answers.append(answer)
+    return answers
+
+
+def test_a_replayed_step_is_answered_with_that_steps_answer_one_step_after_the_other() -> None:
+    c = pergrad_chief()
+    closed = play_steps(c, 1, range(3))  # steps 0..2 closed, step 3 open
+    assert [(a.round, a.step) for a in closed] == [(1, 0), (1, 1), (1, 2)]
+    for k in range(3):  # worker 1, resumed, replays round 1 from step 0
+        step = c.receive(step_grad("1", 1, k, k), now=10.0)
+        assert step.outgoing == (closed[k],) and rejected(step) is Reason.STALE_ROUND
+        assert step.events[-1].detail == ("answer of round 1" if k == 0 else f"answer of round 1 step {k}")
+    assert (c.round, c.answered) == (1, ())  # nothing changed: step 3 is open, and is played as usual
+    (last,) = play_steps(c, 1, range(3, 4), now=10.0)
+    assert (last.round, last.step, last.contributors) == (1, 3, ("1", "2"))
+
+
+def test_a_worker_replaying_the_round_the_chief_just_closed_gets_its_answers() -> None:
+    c = pergrad_chief()
+    round1 = play_steps(c, 1, range(K))
+    play_steps(c, 2, range(1))  # round 2's step 0 closed too: round 1's answers are still kept
+    replies = [c.receive(step_grad("1", 1, k, k), now=10.0).outgoing for k in range(K)]
+    assert replies == [(a,) for a in round1]
+    play_steps(c, 2, range(1, K))
+    play_steps(c, 3, range(1))
+    (fallback,) = c.receive(step_grad("1", 1, 0, 0), now=20.0).outgoing
+    assert (fallback.round, fallback.step) == (3, 0)  # round 1 is forgotten: the last answer
+
+
+def test_the_resend_holdoff_counts_per_answer() -> None:
+    c = pergrad_chief(resend_holdoff=1.0)
+    closed = play_steps(c, 1, range(3), now=0.0)
+    assert c.receive(step_grad("1", 1, 2, 2), now=0.5).outgoing == ()  # crossed step 2's answer in flight
+    assert c.receive(step_grad("1", 1, 0, 0), now=5.0).outgoing == (closed[0],)
+    assert (
+        c.receive(step_grad("1", 1, 0, 0), now=5.5).outgoing == ()
+    )  # a flood of one message: once per holdoff
+    assert c.receive(step_grad("2", 1, 0, 0), now=5.5).outgoing == (closed[0],)  # another worker's
+    assert c.receive(step_grad("1", 1, 1, 1), now=5.5).outgoing == (closed[1],)  # the next step: at once
+    assert c.receive(step_grad("1", 1, 0, 0), now=6.0).outgoing == (closed[0],)
+
+
+def test_after_the_end_the_last_step_is_answered_with_done_and_earlier_steps_without() -> None:
+    c = pergrad_chief()
+    for rnd in (1, 2):
+        play_steps(c, rnd, range(K))
+    *_, last = play_steps(c, 3, range(K - 1))
+    c.receive(step_grad("1", 3, K - 1, 0), now=0.0)
+    final, done = c.receive(step_grad("2", 3, K - 1, 0), now=0.0).outgoing
+    assert c.finished and done.type == "done"
+    assert c.receive(step_grad("1", 3, K - 2, 0), now=5.0).outgoing == (last,)
+    step = c.receive(step_grad("1", 3, K - 1, 0), now=5.0)
+    assert step.outgoing == (final, done) and rejected(step) is Reason.RUN_OVER

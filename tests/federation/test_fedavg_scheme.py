@@ -62,7 +62,7 @@ def test_the_run_ends_once_every_unit_has_completed_at_least_once() -> None:
     feed(c, model("1", 1, [1, 1], "parameters"), model("2", 1, [1, 1]), model("3", 1, [1, 1]))
     feed(c, model("1", 2, [1, 1]), model("2", 2, [1, 1], "parameters"), model("3", 2, [1, 1]))
     assert not c.finished  # 1 completed in round 1 and counts, though its criterion no longer holds
-    assert c._last_answer[0].finished == ()
+    assert c._answers.last[0].finished == ()
     steps = feed(c, model("1", 3, [1, 1]), model("2", 3, [1, 1]), model("3", 3, [2, 2], "parameters"))
     kinds = [m.type for m in replies(steps)]
     assert kinds == ["average", "done"]

@@ -267,6 +267,56 @@ def test_done_or_a_later_step_mid_round_ends_without_a_record() -> None:
     assert m.summary is not None and (m.summary.rounds, m.summary.reason) == (2, "out of step with the fleet")
 
 
+def test_a_worker_resumed_mid_round_replays_the_closed_steps_and_goes_on_at_the_open_one() -> None:
+    """Killed after the chief closed steps 0-1 of round 1: the resumed worker plays round 1 again (same state,
+    same gradients); the chief answers each re-sent step with its own answer; step 2 is played as usual."""
+    steps = 4
+    c = Chief(
+        run_id=RUN,
+        workers=("1", "2"),
+        layout=FAKE_LAYOUT,
+        max_rounds=10,
+        scheme="pergrad",
+        steps_per_round=steps,
+    )
+    grads = {w: [np.full(15, 10 * int(w) + k, np.float32) for k in range(steps)] for w in ("1", "2")}
+
+    def step_of(worker: str, k: int) -> Message:
+        return Message("step_gradient", RUN, worker, 1, step=k, flat=grads[worker][k])
+
+    for k in range(2):  # before the kill: both workers' steps 0 and 1
+        c.receive(step_of("1", k), now=0.0)
+        c.receive(step_of("2", k), now=0.0)
+    m = machine("pergrad", start_round=1)
+    assert welcomed(m, 1).actions == (PlayRound(1),)
+    assert m.update_begun(steps, completed=False, now=10.0).actions == (ComputeStep(0),)
+    applied = []
+    for k in range(steps):
+        (sent,) = m.step_computed(k, grads["1"][k], now=10.0).published
+        answers = c.receive(sent, now=10.0).outgoing
+        if k >= 2:  # the open steps: closed when worker 2 sends too
+            assert answers == ()
+            answers = c.receive(step_of("2", k), now=10.0).outgoing
+        (answer,) = answers
+        assert (answer.round, answer.step) == (1, k)
+        got = m.receive(answer, now=10.0)
+        assert type(got.actions[0]) is ApplyStep and got.actions[1] == (
+            ComputeStep(k + 1) if k < 3 else EndUpdate()
+        )
+        applied.append(got.actions[0].flat)
+    expected = [(grads["1"][k] + grads["2"][k]) / 2 for k in range(steps)]
+    np.testing.assert_array_equal(np.stack(applied), np.stack(expected))
+    (record,) = records(m.round_played(RESULT, now=10.0))
+    assert (record.round, record.event, m.summary) == (1, WorkerEvent.STEP_GRADIENT, None)
+    # a later step's answer while replaying still means the fleet went on without this worker
+    m = machine("pergrad", start_round=1)
+    welcomed(m, 1)
+    m.update_begun(steps, completed=False, now=0.0)
+    m.step_computed(0, grads["1"][0], now=0.0)
+    m.receive(chief("average", 1, step=2, contributors=("2",)), now=0.0)
+    assert m.summary is not None and m.summary.reason == "out of step with the fleet"
+
+
 # ---- the runner, over a chief in the same thread ----
 
 

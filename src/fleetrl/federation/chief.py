@@ -28,12 +28,20 @@ from __future__ import annotations
 import math
 from collections import Counter
 from collections.abc import Iterable
+from dataclasses import replace
 
 from fleetrl.federation.aggregation import Aggregator, get_aggregator
-from fleetrl.federation.chief_answer import ClosedExchange, answer_event, answer_message, check_round_rules
+from fleetrl.federation.chief_answer import (
+    AnswerBook,
+    ClosedExchange,
+    answer_event,
+    answer_message,
+    check_round_rules,
+    where,
+)
 from fleetrl.federation.events import ChiefEvent, ChiefStep
 from fleetrl.federation.messages import Layout, Message, MessageRejected, Reason, decode
-from fleetrl.federation.schemes import COMPLETED, RoundContext, Scheme, resolve_scheme
+from fleetrl.federation.schemes import RoundContext, Scheme, resolve_scheme
 from fleetrl.federation.shared_settings import JoinGate, SharedSettings
 from fleetrl.federation.signing import FleetKey, parse_status
 from fleetrl.federation.topics import CHIEF_ID, sorted_workers, validate_id, validate_worker_id
@@ -57,7 +65,8 @@ class Chief:
     :param quorum: fraction of W whose answers close a round at its deadline (needs ``round_timeout`` if < 1).
     :param round_timeout: seconds a round may stay open before the deadline rules apply; None waits forever
         (the paper's fully synchronous rule).
-    :param resend_holdoff: least seconds between two re-sends of the last answer to one worker.
+    :param resend_holdoff: least seconds between two re-sends of one answer to one worker (and after its
+        broadcast).
     :param dropout_grace: seconds an ``offline`` worker has to come back before it leaves W (0: at once).
     :param key: the fleet key; if given, only messages and statuses signed with it are accepted.
     :param scheme: the federation scheme, or its name with default parameters (see
@@ -114,8 +123,7 @@ class Chief:
         self._opened_at: float | None = None
         self._pending: dict[str, Message] = {}
         self._end_reason: str | None = None
-        self._last_answer: tuple[Message, ...] = ()
-        self._answer_sent: dict[str, float] = {}  # worker → when the last answer was (re)sent for it
+        self._answers = AnswerBook(resend_holdoff)  # for re-sends: the last two rounds' answers
         self._incarnation: dict[str, int] = {}
         self._model: Message | None = None  # θ* of the last transfer (fedavg: the last average) for joiners
         self.rejections: Counter[Reason] = Counter()
@@ -212,16 +220,17 @@ class Chief:
         at = (rnd, message.step)
         open_at = (self._round, self.steps_per_round if self.finished else self._step)
         if at < open_at:
-            # a resend after a lost answer, or a straggler: answer again, change nothing
+            # a resend after a lost answer, a straggler, a resumed worker replaying its round: answer that
+            # exchange again, change nothing
             reason = Reason.RUN_OVER if self.finished else Reason.STALE_ROUND
-            step = self._reject(sender, reason, f"{_where(*at)} before the open {_where(*open_at)}")
-            return step + self._resend(sender, now)
+            step = self._reject(sender, reason, f"{where(*at)} before the open {where(*open_at)}")
+            return step + self._resend(sender, at, now)
         if self.finished:
             return self._reject(sender, Reason.RUN_OVER, f"round {rnd}")
         if sender in self._left:
             return self._reject(sender, Reason.NOT_IN_W, f"round {rnd}")
         if at > open_at:
-            return self._reject(sender, Reason.FUTURE_ROUND, f"{_where(*at)} > open {_where(*open_at)}")
+            return self._reject(sender, Reason.FUTURE_ROUND, f"{where(*at)} > open {where(*open_at)}")
         if sender in self._pending:
             return self._reject(sender, Reason.DUPLICATE, f"{message.type} for round {rnd}")
         step = self._rejoin(sender, f"sent {message.type} for round {rnd}")
@@ -255,6 +264,8 @@ class Chief:
         if inc is not None:
             if known is None or inc > known:  # a new process: it joins afresh
                 self._gate.new_incarnation(worker)
+                if known is not None and status.state == "online":  # a restart: the new process re-sends
+                    self._pending.pop(worker, None)  # what the dead one sent for the open exchange
             self._incarnation[worker] = inc
         if status.state == "offline":
             if retained or worker not in self._members:
@@ -323,15 +334,12 @@ class Chief:
             events=(ChiefEvent("rejected", self._round, sender=sender, reason=reason, detail=detail),)
         )
 
-    def _resend(self, worker: str, now: float) -> ChiefStep:
-        last = self._answer_sent.get(worker)
-        if not self._last_answer or last is None or now < last + self.resend_holdoff:
+    def _resend(self, worker: str, at: tuple[int, int], now: float) -> ChiefStep:
+        answer = self._answers.resend(worker, at, now)
+        if not answer:
             return ChiefStep()
-        self._answer_sent[worker] = now
-        detail = f"answer of round {self._last_answer[0].round}"
-        return ChiefStep(
-            self._last_answer, (ChiefEvent("resent", self._round, sender=worker, detail=detail),)
-        )
+        detail = f"answer of {where(answer[0].round, answer[0].step)}"
+        return ChiefStep(answer, (ChiefEvent("resent", self._round, sender=worker, detail=detail),))
 
     def _drop(self, workers: Iterable[str], reason: str) -> ChiefStep:
         events = []
@@ -363,19 +371,14 @@ class Chief:
     def _close_round(self, now: float) -> ChiefStep:
         rnd, exchange = self._round, self._step
         last_step = exchange == self.steps_per_round - 1
-        answered = tuple(sorted_workers(self._pending))
-        late = tuple(sorted_workers(self._members - set(answered)))
-        scores = {
-            w: self._pending[w].metrics["score"] for w in answered if "score" in self._pending[w].metrics
-        }
-        completed = tuple(w for w in answered if self._pending[w].type == COMPLETED)
+        closed = ClosedExchange.of(rnd, self._pending, self._members)
         if last_step:
-            for worker in completed:
+            for worker in closed.completed:
                 self.completed.setdefault(worker, rnd)
         context = RoundContext(
             self._aggregate, self.members, dict(self.completed), step=exchange, last_step=last_step
         )
-        answer = self.scheme.combine({w: self._pending[w] for w in answered}, context)
+        answer = self.scheme.combine({w: self._pending[w] for w in closed.answered}, context)
         self._members.difference_update(answer.leave_w)
         self._left.update(answer.leave_w)
         remaining = self.members
@@ -384,11 +387,9 @@ class Chief:
             self._model = reply
         if answer.kind == "transfer":
             self.transfers.append((rnd, str(answer.origin), remaining))
-        closed = ClosedExchange(rnd, answered, late, scores, completed, remaining)
-        event = answer_event(answer, closed, self.aggregator_name)
+        event = answer_event(answer, replace(closed, remaining=remaining), self.aggregator_name)
         self._pending = {}
-        self._last_answer = (reply,)
-        self._answer_sent = dict.fromkeys(self.all_workers, now)
+        self._answers.broadcast(reply, self.all_workers, now)
         step = ChiefStep((reply,), (event,))
         if not last_step and not answer.ends_run:  # the round's next exchange
             self._step = exchange + 1
@@ -408,10 +409,6 @@ class Chief:
     def _end(self, reason: str) -> ChiefStep:
         self._end_reason = reason
         done = Message("done", self.run_id, CHIEF_ID, self._round)
-        self._last_answer = (*self._last_answer, done)
+        self._answers.end(done)
         event = ChiefEvent("run_ended", self._round, detail=reason, remaining=self.members)
         return ChiefStep((done,), (event,))
-
-
-def _where(rnd: int, step: int) -> str:
-    return f"round {rnd}" if step == 0 else f"round {rnd} step {step}"

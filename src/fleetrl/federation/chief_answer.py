@@ -1,14 +1,16 @@
-"""The chief's round rules that need none of its state: which configurations can run, and how a scheme's
-answer to a closed exchange becomes the broadcast message and the event people read."""
+"""The chief's answers: which configurations can run, how a scheme's answer to a closed exchange becomes the
+broadcast message and the event people read, and the answers kept to answer re-sends (:class:`AnswerBook`)."""
 
 from __future__ import annotations
 
+import math
+from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
 
 from fleetrl.federation.events import ChiefEvent
 from fleetrl.federation.messages import Message
-from fleetrl.federation.schemes import Granularity, RoundAnswer, Scheme
-from fleetrl.federation.topics import CHIEF_ID
+from fleetrl.federation.schemes import COMPLETED, Granularity, RoundAnswer, Scheme
+from fleetrl.federation.topics import CHIEF_ID, sorted_workers
 
 
 def check_round_rules(
@@ -46,8 +48,22 @@ class ClosedExchange:
     """each answering worker's round score, if it sent one"""
     completed: tuple[str, ...]
     """answering workers whose criterion holds"""
-    remaining: tuple[str, ...]
+    remaining: tuple[str, ...] = ()
     """W after the answer"""
+
+    @classmethod
+    def of(cls, rnd: int, pending: Mapping[str, Message], members: Iterable[str]) -> ClosedExchange:
+        """Round ``rnd``'s exchange closing with the ``pending`` answers while W is ``members``."""
+        answered = tuple(sorted_workers(pending))
+        late = tuple(sorted_workers(set(members) - set(answered)))
+        scores = {w: pending[w].metrics["score"] for w in answered if "score" in pending[w].metrics}
+        completed = tuple(w for w in answered if pending[w].type == COMPLETED)
+        return cls(rnd, answered, late, scores, completed)
+
+
+def where(rnd: int, step: int) -> str:
+    """An exchange for people: ``round 4``, or ``round 4 step 3``."""
+    return f"round {rnd}" if step == 0 else f"round {rnd} step {step}"
 
 
 def answer_message(answer: RoundAnswer, run_id: str, rnd: int, step: int) -> Message:
@@ -70,3 +86,55 @@ def answer_event(answer: RoundAnswer, closed: ClosedExchange, aggregator: str) -
         "averaged", closed.round, answered=closed.answered, averaged=answer.contributors,
         detail=aggregator + completed, remaining=closed.remaining, scores=closed.scores, late=closed.late,
     )  # fmt: skip
+
+
+class AnswerBook:
+    """The answers the chief broadcast, kept to answer re-sends (docs/protocol.md, "Broker loss and idempotent
+    resends").
+
+    It keeps the answer of every exchange of the open round and of the round before it, and the last answer
+    (followed by ``done`` once the run ended). A worker resumed from its checkpoint replays its round from
+    step 0 and re-sends each step's message; each is answered with the answer of exactly that (round, step),
+    so the worker continues as if it had never stopped. A re-send of an exchange no longer kept (older, or
+    lost with a restarted chief, which keeps only the last answer) gets the last answer.
+
+    :param holdoff: least seconds between two re-sends of one answer to one worker, counted from its
+        broadcast too (a flood of one stale message, or a re-send crossing the broadcast, is answered at most
+        once per hold-off).
+    :param last: the last answer of a restored chief (re-sent to each worker's first re-send at once).
+    """
+
+    def __init__(self, holdoff: float, last: tuple[Message, ...] = ()) -> None:
+        """An empty book (or a restored chief's, holding only ``last``)."""
+        self.holdoff = holdoff
+        self.last = last
+        """the last answer broadcast (and ``done`` after the end)"""
+        self._kept: dict[tuple[int, int], tuple[Message, ...]] = {}  # (round, step) → its answer
+        self._sent: dict[tuple[str, int, int], float] = {}  # (worker, round, step) → last sent
+
+    def broadcast(self, reply: Message, workers: Iterable[str], now: float) -> None:
+        """Keep ``reply``, broadcast to ``workers`` at ``now``; forget answers of rounds before the last."""
+        rnd, step = reply.round, reply.step
+        self.last = (reply,)
+        self._kept = {at: answer for at, answer in self._kept.items() if at[0] >= rnd - 1}
+        self._kept[rnd, step] = self.last
+        self._sent = {key: t for key, t in self._sent.items() if key[1] >= rnd - 1}
+        self._sent.update(((worker, rnd, step), now) for worker in workers)
+
+    def end(self, done: Message) -> None:
+        """The run ended: ``done`` follows the last answer whenever it is sent again."""
+        if self.last:
+            self._kept[self.last[0].round, self.last[0].step] = (*self.last, done)
+        self.last = (*self.last, done)
+
+    def resend(self, worker: str, at: tuple[int, int], now: float) -> tuple[Message, ...]:
+        """The answer to send again for ``worker``'s stale message of (round, step) ``at``: that exchange's,
+        else the last; nothing if there is none yet or within the hold-off of its last sending."""
+        answer = self._kept.get(at, self.last)
+        if not answer:
+            return ()
+        key = (worker, answer[0].round, answer[0].step)
+        if now < self._sent.get(key, -math.inf) + self.holdoff:
+            return ()
+        self._sent[key] = now
+        return answer

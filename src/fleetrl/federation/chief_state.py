@@ -5,7 +5,8 @@ restarted chief needs to continue a run with no round lost or counted twice (doc
 and resume"): its configuration, the open round, W, the workers that left, the last transfer θ*, the last
 answer (re-sent to workers that ask again), the first completion of each worker, dropouts, rejoins,
 rejections, suspects and the newest incarnation seen of each worker. Answers received for the open round are
-not kept: the workers re-send them.
+not kept: the workers re-send them; nor are the earlier answers of the round that a running chief keeps for a
+worker replaying it (docs/protocol.md says what a double failure in one round does).
 
 Times are not kept either (they are seconds of a monotonic clock of a dead process): a restored chief opens
 its round, re-arms the grace of suspected workers at the ``now`` it is given, and answers the first re-send of
@@ -14,13 +15,13 @@ every worker at once. This module reads the chief's private attributes; it is th
 
 from __future__ import annotations
 
-import math
 from collections import Counter
 from typing import Any
 
 import numpy as np
 
 from fleetrl.federation.chief import Chief
+from fleetrl.federation.chief_answer import AnswerBook
 from fleetrl.federation.events import ChiefEvent, ChiefStep
 from fleetrl.federation.messages import Message, Reason
 from fleetrl.federation.schemes import get_scheme
@@ -56,7 +57,7 @@ def chief_config(chief: Chief) -> dict[str, Any]:
 
 def chief_fields(chief: Chief) -> dict[str, Any]:
     """The JSON part of the chief's state (cheap: the runner compares it after every input)."""
-    answers = [_message_fields(m, f"answer.{i}") for i, m in enumerate(chief._last_answer)]
+    answers = [_message_fields(m, f"answer.{i}") for i, m in enumerate(chief._answers.last)]
     model = chief._model
     return {
         "version": STATE_VERSION,
@@ -81,7 +82,7 @@ def chief_fields(chief: Chief) -> dict[str, Any]:
 
 def chief_tensors(chief: Chief) -> dict[str, np.ndarray]:
     """The tensors of the chief's state: the last answer's and θ*'s flat vectors."""
-    tensors = {f"answer.{i}": m.flat for i, m in enumerate(chief._last_answer) if m.flat is not None}
+    tensors = {f"answer.{i}": m.flat for i, m in enumerate(chief._answers.last) if m.flat is not None}
     if chief._model is not None and chief._model.flat is not None:
         tensors["model"] = chief._model.flat
     tensors |= {SCHEME_TENSOR + name: flat for name, flat in chief.scheme.state()[1].items()}
@@ -123,8 +124,10 @@ def chief_from_state(
     chief._opened_at = now
     chief._suspects = {w: now + chief.dropout_grace for w in fields["suspects"]}
     chief._incarnation = {w: int(i) for w, i in fields["incarnations"].items()}
-    chief._last_answer = tuple(_message(chief.run_id, m, tensors) for m in fields["last_answer"])
-    chief._answer_sent = dict.fromkeys(chief.all_workers, -math.inf)  # answer the first re-send at once
+    # only the last answer: each worker's first re-send gets it at once (docs/protocol.md, "Checkpoints and
+    # resume", on a worker replaying a round the restarted chief had half answered)
+    last = tuple(_message(chief.run_id, m, tensors) for m in fields["last_answer"])
+    chief._answers = AnswerBook(chief.resend_holdoff, last)
     chief._model = None if fields["model"] is None else _message(chief.run_id, fields["model"], tensors)
     chief.rejections = Counter({Reason(r): int(n) for r, n in fields["rejections"].items()})
     chief.transfers = [(int(r), str(o), tuple(to)) for r, o, to in fields["transfers"]]
@@ -140,10 +143,10 @@ def replay_last_answer(chief: Chief) -> ChiefStep:
     A chief may die after committing a round but before its answer left; workers that got the answer ignore
     the copy (they are past that round), those that did not take it.
     """
-    if not chief._last_answer:
+    if not chief._answers.last:
         return ChiefStep()
-    detail = f"answer of round {chief._last_answer[0].round} after resume"
-    return ChiefStep(chief._last_answer, (ChiefEvent("resent", chief.round, sender="*", detail=detail),))
+    detail = f"answer of round {chief._answers.last[0].round} after resume"
+    return ChiefStep(chief._answers.last, (ChiefEvent("resent", chief.round, sender="*", detail=detail),))
 
 
 def _message_fields(message: Message, tensor: str) -> dict[str, Any]:

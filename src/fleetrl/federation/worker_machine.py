@@ -24,7 +24,8 @@ The rules (docs/protocol.md):
   next round. The round's message is re-sent every ``resend_interval``; nothing for ``reply_timeout``
   seconds ends in :class:`~fleetrl.federation.worker_actions.TimedOut`.
 * A per-step scheme exchanges each of the update's K steps like a round, keyed (round, step); ``done`` or a
-  later step's answer inside the round ends the worker's run without a record.
+  later step's answer inside the round ends the worker's run without a record. A worker resumed mid-round
+  replays the round by the same rules: the chief answers each re-sent step with that step's answer.
 """
 
 from __future__ import annotations
