@@ -1,10 +1,13 @@
-"""Helpers for tests that run the real ``fleetrl`` command line in a child process."""
+"""Helpers for tests of the real ``fleetrl`` command line (mostly in a child process)."""
 
 from __future__ import annotations
 
 import subprocess
 import sys
 from collections.abc import Callable
+from pathlib import Path
+
+import pytest
 
 Fleetrl = Callable[..., subprocess.CompletedProcess[str]]
 
@@ -24,3 +27,16 @@ def last_line(done: subprocess.CompletedProcess[str]) -> str:
     """The last line the command printed on stderr."""
     lines = done.stderr.strip().splitlines()
     return lines[-1] if lines else ""
+
+
+def refused_in_process(tmp_path: Path, capsys: pytest.CaptureFixture[str], *argv: str) -> str:
+    """The one line ``fleetrl train ARGV`` (run in this process) printed when it refused its settings (and
+    created nothing)."""
+    from fleetrl.cli.main import main
+
+    out = tmp_path / "run"
+    assert main(["train", "--out", str(out), "--no-live", "--transport", "local", *argv]) == 2
+    err = capsys.readouterr().err
+    assert "Traceback" not in err and len(err.strip().splitlines()) == 1, err
+    assert not out.exists()
+    return err.strip()

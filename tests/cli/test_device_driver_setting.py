@@ -7,8 +7,8 @@ from __future__ import annotations
 from pathlib import Path
 
 import pytest
+from cli_helpers import refused_in_process as refused
 
-from fleetrl.cli.main import main
 from fleetrl.runs.settings import RunSettings
 
 REPO = Path(__file__).resolve().parents[2]
@@ -19,16 +19,6 @@ BRIDGES = ["--env", f"{SLIDER}:factory", "--device-link", "mqtt", "--target-scor
 @pytest.fixture(autouse=True)
 def _from_the_repository(monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.chdir(REPO)  # the modules are imported from the current directory
-
-
-def refused(tmp_path: Path, capsys: pytest.CaptureFixture[str], *argv: str) -> str:
-    """The one line ``fleetrl train ARGV`` printed when it refused its settings (and created nothing)."""
-    out = tmp_path / "run"
-    assert main(["train", "--out", str(out), "--no-live", "--transport", "local", *argv]) == 2
-    err = capsys.readouterr().err
-    assert "Traceback" not in err and len(err.strip().splitlines()) == 1, err
-    assert not out.exists()
-    return err.strip()
 
 
 @pytest.mark.parametrize(

@@ -6,6 +6,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import pytest
+from cli_helpers import refused_in_process as refused
 
 from fleetrl.cli.main import main
 
@@ -16,16 +17,6 @@ UNITS = "tests.envs.fake_units"
 @pytest.fixture(autouse=True)
 def _from_the_repository(monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.chdir(REPO)  # a factory's module is imported from the current directory
-
-
-def refused(tmp_path: Path, capsys: pytest.CaptureFixture[str], *argv: str) -> str:
-    """The one line ``fleetrl train ARGV`` printed when it refused its settings (and created nothing)."""
-    out = tmp_path / "run"
-    assert main(["train", "--out", str(out), "--no-live", "--transport", "local", *argv]) == 2
-    err = capsys.readouterr().err
-    assert "Traceback" not in err and len(err.strip().splitlines()) == 1, err
-    assert not out.exists()
-    return err.strip()
 
 
 NOT_FACTORY_FORM = "is not in package.module:factory form"
