@@ -169,7 +169,9 @@ def test_protective_stop_when_the_arm_passes_its_limit(bus: LocalBus, bridge: De
 
 
 def test_realtime_bridge_paces_steps_and_its_watchdog_stops_a_dead_worker(bus: LocalBus) -> None:
-    bridge = serve(bus, realtime=True, watchdog=0.05)
+    # 0.2 s: a test process stalled for 50 ms on a loaded machine tripped a 50 ms watchdog mid-run, and the
+    # arm then went past its limit
+    bridge = serve(bus, realtime=True, watchdog=0.2)
     try:
         worker = bus.client()
         link = MqttLink(worker, RUN, 0)
@@ -188,7 +190,7 @@ def test_realtime_bridge_paces_steps_and_its_watchdog_stops_a_dead_worker(bus: L
         while bridge.motor_on and time.perf_counter() - died < 1.0:
             time.sleep(0.001)
         assert not bridge.motor_on and not driver.command.any()
-        assert time.perf_counter() - died < 0.05 + 0.5  # the watchdog's doing (precise figures: benchmarks)
+        assert time.perf_counter() - died < 0.2 + 0.5  # the watchdog's doing (precise figures: benchmarks)
         assert bridge.stats.watchdog_trips == 1
     finally:
         bridge.close()
