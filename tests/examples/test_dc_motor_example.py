@@ -11,9 +11,6 @@ import csv
 import json
 import math
 import re
-import signal
-import subprocess
-import sys
 import threading
 from collections.abc import Callable, Iterator
 from pathlib import Path
@@ -21,6 +18,7 @@ from typing import Any
 
 import numpy as np
 import pytest
+from device_process import device_process
 from gymnasium.utils.env_checker import check_env
 
 from fleetrl.cli.main import main
@@ -205,23 +203,14 @@ def test_fleetrl_device_serves_a_motor_to_an_env_in_another_process() -> None:
     fleet 4; the env over an MQTT link to it sees what the in-process env sees, step for step."""
     from fleet_dc_motor.units import MotorSpeedEnv
 
-    with EmbeddedBroker() as broker:
-        argv = [sys.executable, "-m", "fleetrl.cli.main", "device", "--driver", DRIVER, "--unit", "2",
-                "--fleet-seed", "4", "--broker", broker.url, "--run-id", "motors"]  # fmt: skip
-        bridge = subprocess.Popen(argv, cwd=EXAMPLE, stderr=subprocess.PIPE, text=True)
-        try:
-            link = open_mqtt_link(broker.url, "motors", 2, obs_size=2, online_timeout=30.0)
-            envs = (MotorSpeedEnv(2, 4, link=link), MotorSpeedEnv(2, 4))
-            firsts = [env.reset(seed=3)[0] for env in envs]
-            assert np.array_equal(*firsts)
-            for t in range(120):  # past the setpoint's step at 100
-                action = np.array([0.8 * math.sin(t / 9)], dtype=np.float32)
-                (obs, reward, *_), (obs_in, reward_in, *_) = (env.step(action) for env in envs)
-                assert np.array_equal(obs, obs_in) and reward == reward_in
-            for env in envs:
-                env.close()
-        finally:
-            bridge.send_signal(signal.SIGTERM)  # motor off, offline announced, exit 0
-            _, err = bridge.communicate(timeout=30)
-    assert bridge.returncode == 0, err
-    assert "Traceback" not in err
+    with EmbeddedBroker() as broker, device_process(broker.url, "motors", DRIVER, 2, 4, EXAMPLE):
+        link = open_mqtt_link(broker.url, "motors", 2, obs_size=2, online_timeout=30.0)
+        envs = (MotorSpeedEnv(2, 4, link=link), MotorSpeedEnv(2, 4))
+        firsts = [env.reset(seed=3)[0] for env in envs]
+        assert np.array_equal(*firsts)
+        for t in range(120):  # past the setpoint's step at 100
+            action = np.array([0.8 * math.sin(t / 9)], dtype=np.float32)
+            (obs, reward, *_), (obs_in, reward_in, *_) = (env.step(action) for env in envs)
+            assert np.array_equal(obs, obs_in) and reward == reward_in
+        for env in envs:
+            env.close()

@@ -8,14 +8,12 @@ from __future__ import annotations
 import csv
 import json
 import re
-import signal
-import subprocess
-import sys
 import threading
 from pathlib import Path
 
 import numpy as np
 import pytest
+from device_process import device_process
 from slider_units import DRIVER, FACTORY, SliderEnv
 
 from fleetrl.cli.main import main
@@ -76,21 +74,12 @@ def test_a_user_unit_type_trains_in_worker_processes_behind_bridges(tmp_path: Pa
 
 
 def test_fleetrl_device_serves_a_user_driver(tmp_path: Path) -> None:
-    with EmbeddedBroker() as broker:
-        argv = [sys.executable, "-m", "fleetrl.cli.main", "device", "--driver", DRIVER, "--unit", "1",
-                "--fleet-seed", "4", "--broker", broker.url, "--run-id", "own"]  # fmt: skip
-        bridge = subprocess.Popen(argv, cwd=REPO, stderr=subprocess.PIPE, text=True)
-        try:
-            env = SliderEnv(1, 4, link=open_mqtt_link(broker.url, "own", 1, obs_size=2, online_timeout=30.0))
-            in_process = SliderEnv(1, 4)
-            for over in (env, in_process):
-                over.reset(seed=3)
-            for force in (1.0, -0.5, 0.25):
-                action = np.array([force], dtype=np.float32)
-                assert np.array_equal(env.step(action)[0], in_process.step(action)[0])
-            env.close()
-        finally:
-            bridge.send_signal(signal.SIGTERM)  # motor off, offline announced, exit 0
-            _, err = bridge.communicate(timeout=30)
-    assert bridge.returncode == 0, err
-    assert "Traceback" not in err
+    with EmbeddedBroker() as broker, device_process(broker.url, "own", DRIVER, 1, 4, REPO):
+        env = SliderEnv(1, 4, link=open_mqtt_link(broker.url, "own", 1, obs_size=2, online_timeout=30.0))
+        in_process = SliderEnv(1, 4)
+        for over in (env, in_process):
+            over.reset(seed=3)
+        for force in (1.0, -0.5, 0.25):
+            action = np.array([force], dtype=np.float32)
+            assert np.array_equal(env.step(action)[0], in_process.step(action)[0])
+        env.close()
