@@ -87,7 +87,9 @@ def test_published_report_carries_its_images(quick_report: Path, tmp_path: Path)
 
 
 def test_table2_and_peers_write_their_numbers(quick_report: Path) -> None:
-    matrix = list(csv.reader((quick_report / "table2" / "seed-100" / "motor_correlation.csv").open()))
+    matrix = list(
+        csv.reader((quick_report / "table2" / "fleet-0" / "seed-100" / "motor_correlation.csv").open())
+    )
     assert any(float(cell) == pytest.approx(1.0) for cell in matrix[1][1:])
     results = [
         json.loads(p.read_text()) for p in (quick_report / "records" / "peers" / "cartpole").glob("*.json")
