@@ -45,6 +45,7 @@ def arm(
     scheme: str = "paper",
     fleet_seed: int = 0,
     target_score: float | None = None,
+    scheme_params: dict[str, float] | None = None,
 ) -> Arm:
     """A training arm; its key names the configuration, so experiments that share one share its runs.
 
@@ -64,6 +65,8 @@ def arm(
         settings["fleet_seed"] = fleet_seed
     if target_score is not None:
         settings["target_score"] = target_score
+    if scheme_params:
+        settings["scheme_params"] = scheme_params
     return Arm(label, settings)
 
 
@@ -173,9 +176,20 @@ def cartpole_scaling(budget: Budget) -> Plan:
     )
 
 
+SERVER_OPTIMISERS = {
+    "fedavgm": {"server_lr": 1.0, "momentum": 0.5},
+    "fedadam": {"server_lr": 0.03},
+}
+"""the server optimisers' best settings on the tuning seeds (docs/tuning.md, CartPole, 3 units)"""
+
+
+HEADLINE_MODES = ("individual", "fedavg", "pergrad")
+"""the learning experiment's headline arms (preset standard): each unit alone, fedavg, pergrad"""
+
+
 def learning(budget: Budget) -> Plan:
-    """3 units of each env, individual and federated, both presets; fedavg with ``standard``
-    (benchmarks/learning.py)."""
+    """3 units of each env, individual and federated, both presets; fedavg, pergrad and (CartPole and a user's
+    unit type) the server optimisers with ``standard`` (benchmarks/learning.py)."""
     arms: dict[tuple[str, str, str], Arm] = {}
     ratios = []
     envs = [("cartpole", budget.cartpole_rounds), ("qube", budget.qube_rounds)]
@@ -212,6 +226,15 @@ def learning(budget: Budget) -> Plan:
         )  # fmt: skip
         arms[env, "standard", "pergrad"] = pergrad
         ratios.append(Ratio(arms[env, "standard", "individual"], pergrad, "federation, pergrad"))
+        if env != "qube":  # tuned on CartPole; not run on QUBE (each QUBE arm costs ~15 min per seed here)
+            for scheme, params in SERVER_OPTIMISERS.items():
+                values = ", ".join(f"{k} {v:g}" for k, v in params.items())
+                label = f"{env} · federated · standard · {scheme} ({values})"
+                optimised = arm(
+                    env, 3, "federated", "standard", rounds, label, scheme, budget.fleet_seed, target, params
+                )
+                arms[env, "standard", scheme] = optimised
+                ratios.append(Ratio(fedavg, optimised, f"server optimiser: {scheme} vs fedavg"))
         arms[env, "paper-code", "individual"] = arm(
             env, 3, "individual", "paper-code", rounds, f"{env} · individual · paper-code",
             fleet_seed=budget.fleet_seed, target_score=target,
@@ -223,7 +246,9 @@ def learning(budget: Budget) -> Plan:
         max_rounds=max(rounds for _, rounds in envs),
         ratios=ratios,
         notes="Rounds = episodes per unit. SB3 PPO on the same envs and criterion: see the Peers section.",
-        headline=[a for (_, preset, mode), a in arms.items() if preset == "standard" and mode != "federated"],
+        headline=[
+            a for (_, preset, how), a in arms.items() if preset == "standard" and how in HEADLINE_MODES
+        ],
     )
 
 

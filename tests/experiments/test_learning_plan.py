@@ -1,0 +1,29 @@
+"""The learning experiment's arms: the server optimisers run with their tuned settings on CartPole, next to
+fedavg, and stay out of the headline arms."""
+
+from pathlib import Path
+
+from fleetrl.experiments.catalog import FULL, SERVER_OPTIMISERS, learning
+
+
+def test_server_optimisers_run_on_cartpole_with_their_tuned_settings() -> None:
+    plan = learning(FULL)
+    optimised = [a for a in plan.arms if a.settings.get("scheme") in SERVER_OPTIMISERS]
+    assert sorted(a.settings["scheme"] for a in optimised) == ["fedadam", "fedavgm"]
+    assert all(a.settings["env"] == "cartpole" for a in optimised)
+    fedavgm = next(a for a in optimised if a.settings["scheme"] == "fedavgm")
+    command = fedavgm.command(Path("out"))
+    assert "--scheme fedavgm --scheme-param server_lr=1.0 --scheme-param momentum=0.5" in command
+    # the parameters are part of the key, so a run with other parameters is never reused for this arm
+    assert fedavgm.key.startswith("cartpole-3-federated-standard-m400-fedavgm-")
+    assert fedavgm.key != fedavgm.with_settings(scheme_params={"server_lr": 1.0, "momentum": 0.9}).key
+
+
+def test_each_server_optimiser_is_compared_with_fedavg_and_is_no_headline_arm() -> None:
+    plan = learning(FULL)
+    versus_fedavg = {
+        r.faster.settings["scheme"] for r in plan.ratios if r.slower.settings.get("scheme") == "fedavg"
+    }
+    assert versus_fedavg == set(SERVER_OPTIMISERS)
+    headline = {(a.settings["env"], a.settings.get("scheme", "alone")) for a in plan.headline}
+    assert headline == {(env, s) for env in ("cartpole", "qube") for s in ("alone", "fedavg", "pergrad")}
