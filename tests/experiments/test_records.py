@@ -5,7 +5,7 @@ import json
 from pathlib import Path
 
 import pytest
-from experiment_fakes import record, write_run_dir
+from experiment_fakes import record, write_record_of, write_run_dir
 
 from fleetrl.experiments.arms import Places
 from fleetrl.experiments.catalog import arm
@@ -57,3 +57,23 @@ def test_anything_else_is_not_a_record(tmp_path: Path, text: str) -> None:
 def test_unseen_units_follow_the_trained_ones() -> None:
     assert unseen_units(3, 2) == [10, 11]
     assert unseen_units(12, 3) == [12, 13, 14]
+
+
+def test_episodes_to_completion_counts_a_units_episodes_until_its_criterion_held(tmp_path: Path) -> None:
+    run = ALONE.run(Places(tmp_path / "runs", tmp_path / "records"), 100)
+    write_run_dir(run, {0: [9.0, 20.0, 500.0], 1: [8.0, 7.0, 6.0]}, {0: 2, 1: None}, episodes=True)
+    kept = read_record(
+        write_record_of(run, build_record(run.out, run.command(), run.expected, "h", unseen=0))
+    )
+    assert kept is not None
+    # two episodes per round: unit 0 held at round 2 (4 episodes), unit 1 never (all 6 it played)
+    assert kept.episodes_to_completion() == {0: (4, True), 1: (6, False)}
+
+
+def test_a_run_of_one_episode_per_round_has_no_episode_count(tmp_path: Path) -> None:
+    run = ALONE.run(Places(tmp_path / "runs", tmp_path / "records"), 100)
+    write_run_dir(run, {0: [9.0, 500.0]}, {0: 2}, episodes=False)
+    kept = read_record(
+        write_record_of(run, build_record(run.out, run.command(), run.expected, "h", unseen=0))
+    )
+    assert kept is not None and kept.episodes_to_completion() is None

@@ -7,6 +7,7 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import matplotlib
+import numpy as np
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt
@@ -118,7 +119,7 @@ def run_plan(
     lines = [f"## {plan.title}", "", *preamble]
     if plan.notes:
         lines += [plan.notes, ""]
-    lines += [_arms_table(plan, records), ""]
+    lines += [_arms_table(plan, records), "", *episode_lines(plan, records)]
     speed = _speed_up_table(plan, records)
     if speed:
         lines += [speed, ""]
@@ -239,6 +240,24 @@ def _arms_table(plan: Plan, records: Records) -> str:
         "wall s (median)",
     ]
     return markdown_table(header, rows)
+
+
+def episode_lines(plan: Plan, records: Records) -> list[str]:
+    """For each arm whose rounds hold several episodes (``paper-code``): its units complete and the
+    episodes per unit to completion (an incomplete unit counts what it played: a lower bound)."""
+    lines = []
+    for arm in plan.arms:
+        units = [u for r in records[arm.key] if (per := r.episodes_to_completion()) for u in per.values()]
+        if not units:
+            continue
+        episodes = sorted(n for n, _ in units)
+        done = sum(held for _, held in units)
+        lines.append(
+            f"- **{arm.label}**: {done} of {len(units)} units complete within M; episodes per unit to "
+            f"completion: median {float(np.median(episodes)):.0f} (range {episodes[0]}–{episodes[-1]}"
+            f"{'' if done == len(units) else '; an incomplete unit counts the episodes it played'})"
+        )
+    return [*lines, ""] if lines else []
 
 
 def seed_list(records: list[RunRecord]) -> str:

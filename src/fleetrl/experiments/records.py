@@ -63,6 +63,19 @@ class RunRecord:
         per_worker = {k: workers[k]["completed_at_round"] for k in sorted(workers, key=int)}
         return Completion(per_worker, int(self.data["max_rounds"]))
 
+    def episodes_to_completion(self) -> dict[int, tuple[int, bool]] | None:
+        """Per worker, the episodes it played until its criterion held (all it played if it never held) and
+        whether it held; None if every round of the run was one episode (rounds are episodes then)."""
+        workers = self.data["workers"]
+        if not any("episodes" in w for w in workers.values()):
+            return None
+        result = {}
+        for key, worker in workers.items():
+            played = worker.get("episodes") or [1] * len(worker["score"])
+            done = worker["completed_at_round"]
+            result[int(key)] = (sum(played if done is None else played[:done]), done is not None)
+        return result
+
     def scores(self) -> dict[int, list[float]]:
         """Each worker's score per round (round 1 first)."""
         return {int(k): list(v["score"]) for k, v in sorted(self.data["workers"].items())}
