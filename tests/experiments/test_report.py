@@ -112,3 +112,22 @@ def test_a_report_from_the_records_alone_runs_nothing_and_names_what_is_missing(
     assert "| 2/2 | 100–101 |" in section
     assert "- **each unit alone → fedavg**: not run yet; the claim" in section
     assert "| fedavg | 3 |" not in section  # no speed-up without the arm it is measured against
+
+
+def test_the_transport_check_compares_runs_of_one_machine_only(tmp_path: Path) -> None:
+    from fleetrl.experiments.plan import transport_check_line
+    from fleetrl.experiments.records import RunRecord
+
+    fed = arm("qube", 3, "federated", "standard", 20, "fed", "pergrad")
+    data = record(fed.run(Places(tmp_path / "runs", tmp_path / "records"), 100), fleet=12)
+    other_scores = {
+        **data,
+        "workers": {**data["workers"], "0": {**data["workers"]["0"], "score": [9.0] * 12}},
+    }
+    line = transport_check_line("fed", 100, RunRecord(data), RunRecord(data))
+    assert line.endswith("scores identical to the in-process bus.")
+    line = transport_check_line("fed", 100, RunRecord(data), RunRecord(other_scores))
+    assert line.endswith("scores DIFFERENT to the in-process bus.")
+    elsewhere = RunRecord({**data, "host": "another CPU"})
+    line = transport_check_line("fed", 100, RunRecord(data), elsewhere)
+    assert "not compared: the in-process run was made on `test host`, this one on `another CPU`" in line

@@ -126,11 +126,7 @@ def run_plan(
     lines += [_ratio_line(ratio, records) for ratio in plan.ratios]
     local = records[plan.mqtt_check.key] if plan.mqtt_check else []
     if extra and plan.mqtt_check and local and local[0].result_settings["seed"] == seeds[0]:
-        identical = same_scores(local[0], extra[0].result())
-        lines.append(
-            f"- Transport check: seed {seeds[0]} of {plan.mqtt_check.label} over MQTT (embedded broker): "
-            f"scores {'identical' if identical else 'DIFFERENT'} to the in-process bus."
-        )
+        lines.append(transport_check_line(plan.mqtt_check.label, seeds[0], local[0], extra[0].result()))
     hosts = sorted({r.host for rs in records.values() for r in rs})
     lines += ["", "Runs made on: " + "; ".join(f"`{h}`" for h in hosts) + "."]
     curves = root / "mean_score.png"
@@ -240,6 +236,18 @@ def _arms_table(plan: Plan, records: Records) -> str:
         "wall s (median)",
     ]
     return markdown_table(header, rows)
+
+
+def transport_check_line(label: str, seed: int, local: RunRecord, mqtt: RunRecord) -> str:
+    """Whether one seed gave the same scores over MQTT as over the in-process bus; runs made on different
+    machines are not compared (numba and PyTorch pick code paths by CPU, so a seed fixes a run on one
+    machine only)."""
+    head = f"- Transport check: seed {seed} of {label} over MQTT (embedded broker): "
+    if local.host != mqtt.host:
+        return (
+            head + f"not compared: the in-process run was made on `{local.host}`, this one on `{mqtt.host}`."
+        )
+    return head + f"scores {'identical' if same_scores(local, mqtt) else 'DIFFERENT'} to the in-process bus."
 
 
 def episode_lines(plan: Plan, records: Records) -> list[str]:
