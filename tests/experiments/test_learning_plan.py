@@ -27,3 +27,12 @@ def test_each_server_optimiser_is_compared_with_fedavg_and_is_no_headline_arm() 
     assert versus_fedavg == set(SERVER_OPTIMISERS)
     headline = {(a.settings["env"], a.settings.get("scheme", "alone")) for a in plan.headline}
     assert headline == {(env, s) for env in ("cartpole", "qube") for s in ("alone", "fedavg", "pergrad")}
+
+
+def test_a_server_optimiser_is_compared_with_each_unit_alone_too() -> None:
+    from fleetrl.experiments.plan import alone_arm
+
+    plan = learning(FULL)
+    for optimised in (a for a in plan.arms if a.settings.get("scheme") in SERVER_OPTIMISERS):
+        alone = alone_arm(plan, optimised)
+        assert alone is not None and alone.key == "cartpole-3-individual-standard-m400"

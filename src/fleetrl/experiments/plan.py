@@ -283,8 +283,8 @@ def alone_arm(plan: Plan, arm: Arm) -> Arm | None:
         return None
     for other in plan.arms:
         expected = {**arm.settings, "mode": "individual"}
-        expected.pop("transport", None)
-        expected.pop("scheme", None)
+        for federation_only in ("transport", "scheme", "scheme_params"):
+            expected.pop(federation_only, None)
         if other.settings == expected:
             return other
     return None
