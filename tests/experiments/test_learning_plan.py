@@ -1,9 +1,11 @@
-"""The learning experiment's arms: the server optimisers run with their tuned settings on CartPole, next to
-fedavg, and stay out of the headline arms."""
+"""The experiments' arms of the server optimisers: their tuned settings, next to fedavg, out of the headline
+arms; the learning experiment runs both on CartPole, the figures the one that won there."""
 
 from pathlib import Path
 
-from fleetrl.experiments.catalog import FULL, SERVER_OPTIMISERS, learning
+import pytest
+
+from fleetrl.experiments.catalog import FIG_SERVER_OPTIMISER, FULL, PLANS, SERVER_OPTIMISERS, learning
 
 
 def test_server_optimisers_run_on_cartpole_with_their_tuned_settings() -> None:
@@ -36,3 +38,15 @@ def test_a_server_optimiser_is_compared_with_each_unit_alone_too() -> None:
     for optimised in (a for a in plan.arms if a.settings.get("scheme") in SERVER_OPTIMISERS):
         alone = alone_arm(plan, optimised)
         assert alone is not None and alone.key == "cartpole-3-individual-standard-m400"
+
+
+@pytest.mark.parametrize("name", ["fig5", "fig6", "cartpole-scaling"])
+def test_the_figures_run_the_server_optimiser_that_won_with_its_settings(name: str) -> None:
+    plan = PLANS[name](FULL)
+    optimised = [a for a in plan.arms if a.settings.get("scheme") == FIG_SERVER_OPTIMISER]
+    assert optimised and all(
+        a.settings["scheme_params"] == SERVER_OPTIMISERS[FIG_SERVER_OPTIMISER] for a in optimised
+    )
+    assert not set(optimised) & set(plan.headline)
+    assert all(any(a in (r.faster, r.slower) for r in plan.ratios) for a in optimised)  # each compared
+    assert not any(a.settings.get("scheme") == "fedadam" for a in plan.arms)  # lost on CartPole: dropped
