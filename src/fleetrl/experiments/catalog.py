@@ -259,7 +259,7 @@ def learning(budget: Budget) -> Plan:
             )  # fmt: skip
     return Plan(
         name="learning",
-        title="Learning speed: 3 units of each env, individual and federated (both schemes), both presets",
+        title="Learning speed: 3 units of each env, each alone and federated with each scheme, each preset",
         arms=list(arms.values()),
         max_rounds=max(rounds for _, rounds in envs),
         ratios=ratios,
