@@ -97,3 +97,5 @@ def test_table2_and_peers_write_their_numbers(quick_report: Path) -> None:
     assert len(results) == 1 and all(r["episodes"] >= 1 for r in results)  # --seeds 1: unit 100 mod 3
     section = (quick_report / "peers" / "section.md").read_text()
     assert "SB3 PPO (defaults)" in section and re.findall(r"\| (?:≤ )?\d+\.\d+× \(", section)
+    # the regenerate command is the first seed's own unit run, writing the record the table read
+    assert re.search(r"--unit 1 --seed 100 .*/peers/cartpole/unit-1-seed-100\.json", section)

@@ -129,13 +129,11 @@ def peers_section(
     steps = {env: (5_000 if quick else PEER_STEPS[env]) for env in envs}
     fleet_seed = budget.fleet_seed
     where = places.records / "peers" / (f"fleet-{fleet_seed}" if fleet_seed else "")
-    peer_runs = {
-        env: [
-            PeerRun(where / env / f"unit-{s % 3}-seed-{s}.json", env, s % 3, s, steps[env], fleet_seed)
-            for s in seeds
-        ]
-        for env in envs
-    }
+
+    def peer_run(env: str, s: int) -> PeerRun:
+        return PeerRun(where / env / f"unit-{s % 3}-seed-{s}.json", env, s % 3, s, steps[env], fleet_seed)
+
+    peer_runs = {env: [peer_run(env, s) for s in seeds] for env in envs}
     rounds = {env: budget.cartpole_rounds if env == "cartpole" else budget.qube_rounds for env in envs}
     ours = {
         (env, scheme): ours_arm(env, scheme, rounds[env], fleet_seed) for env in envs for scheme in OUR_ARMS
@@ -195,8 +193,6 @@ def peers_section(
             rows,
         )
     )
-    example = PeerRun(
-        where / envs[0] / "unit-0-seed-0.json", envs[0], 0, seeds[0], steps[envs[0]], fleet_seed
-    )
+    example = peer_run(envs[0], seeds[0])
     lines += ["", "Regenerate one SB3 unit:", "", f"    {example.command()}"]
     return "\n".join(lines) + "\n"
