@@ -249,9 +249,8 @@ def learning(budget: Budget) -> Plan:
             env, 3, "individual", "paper-code", rounds, f"{env} · individual · paper-code",
             fleet_seed=budget.fleet_seed, target_score=target,
         )  # fmt: skip
-        if (
-            env == "cartpole"
-        ):  # the authors' CartPole logs needed 367-464 rounds per worker: a longer budget too
+        # the authors' CartPole logs needed 367-464 rounds per worker: their preset gets a longer budget too
+        if env == "cartpole":
             long = PAPER_CODE_BUDGET * rounds
             arms[env, "paper-code", "long"] = arm(
                 env, 3, "individual", "paper-code", long, f"{env} · individual · paper-code · M {long}",
