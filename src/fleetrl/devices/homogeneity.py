@@ -106,6 +106,8 @@ class PooledHomogeneity:
     """motor-angle correlations of every unit pair of every (fleet seed, impulse seed)"""
     pendulum: np.ndarray
     """pendulum-angle correlations, in the same order"""
+    results: tuple[HomogeneityResult, ...] = ()
+    """every test, fleet seed major (for its matrices and raw changes)"""
 
     @property
     def motor_median(self) -> float:
@@ -133,20 +135,20 @@ def pooled_homogeneity(
     """
     fleets, seeds = tuple(fleet_seeds), tuple(impulse_seeds)
     pairs = np.triu_indices(units, 1)
-    motor, pendulum = [], []
-    for fleet_seed in fleets:
-        for seed in seeds:
-            result = homogeneity_test(units, fleet_seed, impulses, seed, profile=profile)
-            motor.append(result.motor[pairs])
-            pendulum.append(result.pendulum[pairs])
-    if not motor:
+    results = tuple(
+        homogeneity_test(units, fleet_seed, impulses, seed, profile=profile)
+        for fleet_seed in fleets
+        for seed in seeds
+    )
+    if not results:
         raise ValueError("give at least one fleet seed and one impulse seed")
     return PooledHomogeneity(
         profile=fleet_profile(profile).name,
         fleet_seeds=fleets,
         impulse_seeds=seeds,
-        motor=np.concatenate(motor),
-        pendulum=np.concatenate(pendulum),
+        motor=np.concatenate([r.motor[pairs] for r in results]),
+        pendulum=np.concatenate([r.pendulum[pairs] for r in results]),
+        results=results,
     )
 
 

@@ -4,7 +4,7 @@ from pathlib import Path
 
 import numpy as np
 
-from fleetrl.devices.homogeneity import format_tables, homogeneity_test, write_csv
+from fleetrl.devices.homogeneity import format_tables, pooled_homogeneity, write_csv
 from fleetrl.experiments.arms import Arm, Places, completions
 from fleetrl.experiments.catalog import Budget, arm
 from fleetrl.experiments.peers import PeerRun
@@ -40,39 +40,23 @@ def table2_section(
         f"{units} units each, default fleet profile; one test per (fleet, impulse seed).",
         "",
     ]
-    pooled: dict[str, list[float]] = {"motor": [], "pendulum": []}
-    rows = []
-    for fleet in fleets:
-        per_fleet: dict[str, list[float]] = {"motor": [], "pendulum": []}
-        for seed in seeds:
-            result = homogeneity_test(units, fleet, impulses, seed)
+    per_fleet = [pooled_homogeneity([fleet], seeds, units=units, impulses=impulses) for fleet in fleets]
+    first = per_fleet[0].results[0]
+    lines += [f"Fleet seed {fleets[0]}, impulse seed {seeds[0]}:", "", "```", format_tables(first), "```", ""]
+    for fleet, tests in zip(fleets, per_fleet, strict=True):
+        for seed, result in zip(seeds, tests.results, strict=True):
             write_csv(result, directory / f"fleet-{fleet}" / f"seed-{seed}")
-            for name in per_fleet:
-                per_fleet[name] += list(getattr(result, name)[np.triu_indices(units, 1)])
-            if fleet == fleets[0] and seed == seeds[0]:
-                lines += [
-                    f"Fleet seed {fleet}, impulse seed {seed}:",
-                    "",
-                    "```",
-                    format_tables(result),
-                    "```",
-                    "",
-                ]
-        rows.append(
-            [str(fleet), *(f"{np.median(v):.3f} ({min(v):.2f}–{max(v):.2f})" for v in per_fleet.values())]
-        )
-        for name, values in per_fleet.items():
-            pooled[name] += values
-    verdicts = {
-        name: paper_range_verdict(float(np.median(values)), PAPER_RANGES[name])
-        for name, values in pooled.items()
-    }
+    pooled = {name: np.concatenate([getattr(t, name) for t in per_fleet]) for name in PAPER_RANGES}
+    rows = [
+        [str(fleet), *(_spread(getattr(t, name)) for name in PAPER_RANGES)]
+        for fleet, t in zip(fleets, per_fleet, strict=True)
+    ]
     rows.append(
         [
             "**pooled**",
             *(
-                f"**{np.median(v):.3f}** ({min(v):.2f}–{max(v):.2f}), {verdicts[n]}"
-                for n, v in pooled.items()
+                f"{_spread(v, bold=True)}, {paper_range_verdict(float(np.median(v)), PAPER_RANGES[name])}"
+                for name, v in pooled.items()
             ),
         ]
     )
@@ -90,6 +74,12 @@ def table2_section(
 
 PAPER_RANGES = {"motor": (0.75, 0.86), "pendulum": (0.96, 0.98)}
 """Table 2 of the paper: the range of its off-diagonal correlations"""
+
+
+def _spread(values: np.ndarray, bold: bool = False) -> str:
+    """``median (min–max)`` of correlations, the median in bold if asked."""
+    median = f"**{np.median(values):.3f}**" if bold else f"{np.median(values):.3f}"
+    return f"{median} ({values.min():.2f}–{values.max():.2f})"
 
 
 def paper_range_verdict(median: float, paper: tuple[float, float]) -> str:
