@@ -163,6 +163,7 @@ def fig6(budget: Budget) -> Plan:
             Ratio(arms[2, *v], arms[3, *v], "the paper: 3 workers ≈ 1.38× faster than 2") for v in variants
         ],
         mqtt_check=arms[3, "standard", "fedavg"],
+        headline=[a for (_, preset, scheme), a in arms.items() if scheme in ("fedavg", "pergrad")],
     )
 
 
