@@ -69,7 +69,9 @@ def test_mqtt_run_gives_the_same_results_as_the_local_bus(
     remote = fleet_runner(make, fake_fleet(), run_id=f"e2e-{broker.kind}", max_rounds=10)
     assert remote.records == {w: rs for w, rs in local.records.items()}
     assert remote.chief.transfers == local.chief.transfers
-    assert remote.chief.rejections == {}
+    # nothing refused but copies: a worker re-sends a round's message after 5 s without an answer (a loaded
+    # machine), and the chief drops the copy of a message it has (at-least-once delivery is harmless)
+    assert set(remote.chief.rejections) <= {Reason.DUPLICATE}
 
 
 @pytest.mark.mqtt
