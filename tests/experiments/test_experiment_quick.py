@@ -95,7 +95,11 @@ def test_table2_and_peers_write_their_numbers(quick_report: Path) -> None:
         json.loads(p.read_text()) for p in (quick_report / "records" / "peers" / "cartpole").glob("*.json")
     ]
     assert len(results) == 1 and all(r["episodes"] >= 1 for r in results)  # --seeds 1: unit 100 mod 3
+    assert all(r["host"] for r in results)  # the machine it ran on, as a training record names it
+    assert not list((quick_report / "records").rglob("*.log"))  # process output stays with the runs
+    assert (quick_report / "runs" / "peers" / "cartpole" / "unit-1-seed-100.log").is_file()
     section = (quick_report / "peers" / "section.md").read_text()
+    assert "Runs made on: `" in section and "not recorded" not in section
     assert "SB3 PPO (defaults)" in section and re.findall(r"\| (?:≤ )?\d+\.\d+× \(", section)
     # the regenerate command is the first seed's own unit run, writing the record the table read
     assert re.search(r"--unit 1 --seed 100 .*/peers/cartpole/unit-1-seed-100\.json", section)

@@ -30,6 +30,8 @@ def train_sb3_unit(env: str, unit: int, fleet_seed: int, seed: int, max_steps: i
             "the peers experiment needs Stable-Baselines3: pip install 'fleetrl[bench]'"
         ) from err
 
+    from fleetrl.portable import describe_host
+
     torch.set_num_threads(1)
     spec = get_env_spec(env)
     criterion = CompletionCriterion(spec.default_target(describe_env(env)))
@@ -60,6 +62,7 @@ def train_sb3_unit(env: str, unit: int, fleet_seed: int, seed: int, max_steps: i
         "steps": int(model.num_timesteps),
         "final_wma": criterion.wma,
         "wall_seconds": round(time.monotonic() - started, 2),
+        "host": describe_host(),
     }
 
 
@@ -68,6 +71,9 @@ class PeerRun:
     """One SB3 training of one unit, as a process (so two run at once)."""
 
     out: Path
+    """its result (a small JSON record, committed)"""
+    log: Path
+    """its process's output (not committed)"""
     env: str
     unit: int
     seed: int

@@ -120,8 +120,13 @@ def peers_section(
     fleet_seed = budget.fleet_seed
     where = places.records / "peers" / (f"fleet-{fleet_seed}" if fleet_seed else "")
 
+    logs = places.runs / "peers" / (f"fleet-{fleet_seed}" if fleet_seed else "")
+
     def peer_run(env: str, s: int) -> PeerRun:
-        return PeerRun(where / env / f"unit-{s % 3}-seed-{s}.json", env, s % 3, s, steps[env], fleet_seed)
+        name = f"unit-{s % 3}-seed-{s}"
+        return PeerRun(
+            where / env / f"{name}.json", logs / env / f"{name}.log", env, s % 3, s, steps[env], fleet_seed
+        )
 
     peer_runs = {env: [peer_run(env, s) for s in seeds] for env in envs}
     rounds = {env: budget.cartpole_rounds if env == "cartpole" else budget.qube_rounds for env in envs}
@@ -183,6 +188,9 @@ def peers_section(
             rows,
         )
     )
+    hosts = {str(r.result().get("host", "not recorded")) for runs in peer_runs.values() for r in runs}
+    hosts |= {r.result().host for runs in our_runs.values() for r in runs}
+    lines += ["", "Runs made on: " + "; ".join(f"`{h}`" for h in sorted(hosts)) + "."]
     example = peer_run(envs[0], seeds[0])
     lines += ["", "Regenerate one SB3 unit:", "", f"    {example.command()}"]
     return "\n".join(lines) + "\n"

@@ -69,6 +69,11 @@ class Run:
         """How progress lines name it."""
         return f"{self.labels.get('arm', self.out.parent.name)} seed {self.settings.get('seed', '?')}"
 
+    @property
+    def log(self) -> Path:
+        """Its process's output: beside its run directory."""
+        return self.out.parent / f"{self.out.name}.log"
+
     def args(self) -> list[str]:
         """``fleetrl train`` arguments other than ``--out``."""
         return train_args(self.settings)
@@ -143,6 +148,11 @@ class Runnable(Protocol):
         """Whether its result is already there."""
         ...
 
+    @property
+    def log(self) -> Path:
+        """Where its process's output goes (not beside a committed record)."""
+        ...
+
     def reusable(self) -> bool:
         """Whether a finished result on disk only needs :meth:`finish`."""
         ...
@@ -186,8 +196,8 @@ def run_all(
                 run.out.parent.mkdir(parents=True, exist_ok=True)
                 if run.out.is_dir():  # an interrupted run or one made with other settings: start afresh
                     shutil.rmtree(run.out)
-                log_path = run.out.parent / f"{run.out.name}.log"
-                with log_path.open("wb") as log_file:
+                run.log.parent.mkdir(parents=True, exist_ok=True)
+                with run.log.open("wb") as log_file:
                     child = subprocess.Popen(run.argv(), stdout=log_file, stderr=subprocess.STDOUT)
                 log.debug("started %s", run.command())
                 progress.start(run.name)
@@ -199,9 +209,7 @@ def run_all(
                 if code is None:
                     still.append((run, child))
                 elif code != 0:
-                    failures.append(
-                        f"{run.command()} exited {code} (see {run.out.parent / run.out.name}.log)"
-                    )
+                    failures.append(f"{run.command()} exited {code} (see {run.log})")
                     progress.finish(run.name, failed=True)
                 else:
                     run.finish()
