@@ -82,17 +82,22 @@ def test_scheme_params_need_a_federated_run(tmp_path: Path, capsys: pytest.Captu
 
 
 RUN = ["--env", "cartpole", "--units", "2", "--preset", "standard", "--max-rounds", "4", "--seed", "1"]
-RUN += [*FEDAVGM, "--scheme-param", "server_lr=1.0", "--scheme-param", "momentum=0.9", "--no-live"]
+RUN += ["--no-live"]
+SERVER_OPTIMISERS = {"fedavgm": {"server_lr": 1.0, "momentum": 0.9}, "fedadam": {"server_lr": 0.03}}
 
 
 @pytest.mark.slow
 @pytest.mark.mosquitto
 @pytest.mark.timeout(300)
-def test_fedavgm_over_mosquitto_scores_as_over_the_local_bus(tmp_path: Path) -> None:
+@pytest.mark.parametrize("scheme", sorted(SERVER_OPTIMISERS))
+def test_a_server_optimiser_over_mosquitto_scores_as_over_the_local_bus(tmp_path: Path, scheme: str) -> None:
+    params = SERVER_OPTIMISERS[scheme]
+    run = [*RUN, "--mode", "federated", "--scheme", scheme]
+    run += [arg for key, value in params.items() for arg in ("--scheme-param", f"{key}={value}")]
     local, mqtt = tmp_path / "local", tmp_path / "mqtt"
-    assert main(["train", *RUN, "--transport", "local", "--out", str(local)]) == 0
+    assert main(["train", *run, "--transport", "local", "--out", str(local)]) == 0
     with EmbeddedBroker("mosquitto") as broker:
-        assert main(["train", *RUN, "--transport", "mqtt", "--broker", broker.url, "--out", str(mqtt)]) == 0
+        assert main(["train", *run, "--transport", "mqtt", "--broker", broker.url, "--out", str(mqtt)]) == 0
     config = json.loads((mqtt / "config.json").read_text())
-    assert config["scheme"] == "fedavgm" and config["scheme_params"]["momentum"] == 0.9
+    assert config["scheme"] == scheme and params.items() <= config["scheme_params"].items()
     assert metrics(mqtt) == metrics(local) and len(metrics(local)) == 8
