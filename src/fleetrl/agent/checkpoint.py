@@ -60,3 +60,21 @@ def read_checkpoint(path: str | Path) -> tuple[dict[str, np.ndarray], dict[str, 
     if not isinstance(metadata, dict):
         raise CheckpointError(f"{source} has fleetrl metadata that is not a JSON object")
     return tensors, metadata
+
+
+def check_tensors_fit(
+    tensors: dict[str, np.ndarray], shapes: dict[str, tuple[int, ...]], source: str
+) -> None:
+    """Refuse ``tensors`` unless they are exactly the named ``shapes`` (no tensor missing, none extra).
+
+    :raises CheckpointError: naming every missing, unexpected or wrongly shaped tensor of ``source``
+    """
+    problems = [f"missing {k}" for k in shapes if k not in tensors]
+    problems += [f"unexpected {k}" for k in tensors if k not in shapes]
+    problems += [
+        f"{k} has shape {tuple(tensors[k].shape)}, expected {shape}"
+        for k, shape in shapes.items()
+        if k in tensors and tuple(tensors[k].shape) != shape
+    ]
+    if problems:
+        raise CheckpointError(f"{source} does not fit this architecture: " + "; ".join(problems))

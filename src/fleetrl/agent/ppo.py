@@ -10,7 +10,12 @@ import torch
 from torch import nn
 
 from fleetrl.agent.action_space import ActionSpace, as_action_space
-from fleetrl.agent.checkpoint import CheckpointError, read_checkpoint, write_checkpoint
+from fleetrl.agent.checkpoint import (
+    CheckpointError,
+    check_tensors_fit,
+    read_checkpoint,
+    write_checkpoint,
+)
 from fleetrl.agent.config import PPOConfig
 from fleetrl.agent.flat import Named, flatten, flatten_tensors, layout, split
 from fleetrl.agent.memory import TrajectoryMemory
@@ -397,16 +402,7 @@ class PPOAgent:
         self._load_tensors(tensors, str(path))
 
     def _load_tensors(self, tensors: dict[str, np.ndarray], source: str) -> None:
-        state = self.net.state_dict()
-        problems = [f"missing {k}" for k in state if k not in tensors]
-        problems += [f"unexpected {k}" for k in tensors if k not in state]
-        problems += [
-            f"{k} has shape {tuple(tensors[k].shape)}, expected {tuple(state[k].shape)}"
-            for k in state
-            if k in tensors and tuple(tensors[k].shape) != tuple(state[k].shape)
-        ]
-        if problems:
-            raise CheckpointError(f"{source} does not fit this architecture: " + "; ".join(problems))
+        check_tensors_fit(tensors, {k: tuple(t.shape) for k, t in self.net.state_dict().items()}, source)
         self._score_new_transitions()
         self.net.load_state_dict(
             {k: torch.from_numpy(np.asarray(v, dtype=np.float32)) for k, v in tensors.items()}
