@@ -6,7 +6,8 @@ unit by itself. Prints one JSON line: rounds until the last unit completes and p
     python benchmarks/pergrad_probe.py --env cartpole --units 3 --seeds 0-4 --arm pergrad [--k-scale 3]
 
 Use tuning seeds (0-9) only; docs/tuning.md keeps what was tried. ``--lr-scale``, ``--k-scale`` and
-``--b-scale`` multiply the preset's learning rates, K and the minibatch U (the memory grows to fit).
+``--b-scale`` multiply the preset's learning rates, K and the minibatch U (the memory grows to fit);
+``--set KEY=VALUE`` (repeatable) replaces a field of the preset first, as ``fleetrl train --set`` does.
 """
 
 from __future__ import annotations
@@ -46,10 +47,12 @@ def run(
     m: int,
     preset: str,
     fleet_seed: int,
+    overrides: dict[str, object],
 ) -> dict:
     torch.set_num_threads(1)
     spec = get_env_spec(env_name)
-    base = get_preset(preset)
+    base = dataclasses.replace(get_preset(preset), **overrides)
+    base.validate()
     config = dataclasses.replace(
         base,
         actor_lr=base.actor_lr * lr_scale,
@@ -109,6 +112,14 @@ def run(
     }
 
 
+def override_arg(text: str) -> tuple[str, object]:
+    key, _, value = text.partition("=")
+    try:
+        return key, json.loads(value)
+    except json.JSONDecodeError:
+        return key, value
+
+
 def main() -> None:
     p = argparse.ArgumentParser()
     p.add_argument("--env", default="cartpole")
@@ -121,9 +132,23 @@ def main() -> None:
     p.add_argument("--max-rounds", type=int, default=400)
     p.add_argument("--preset", default="standard")
     p.add_argument("--fleet-seed", type=int, default=0)
+    p.add_argument("--set", type=override_arg, action="append", default=[], metavar="KEY=VALUE")
     a = p.parse_args()
+    overrides = dict(a.set)
     results = [
-        run(a.env, a.units, s, a.arm, a.lr_scale, a.k_scale, a.b_scale, a.max_rounds, a.preset, a.fleet_seed)
+        run(
+            a.env,
+            a.units,
+            s,
+            a.arm,
+            a.lr_scale,
+            a.k_scale,
+            a.b_scale,
+            a.max_rounds,
+            a.preset,
+            a.fleet_seed,
+            overrides,
+        )
         for s in a.seeds
     ]
     fleet = [r["fleet"] for r in results]
