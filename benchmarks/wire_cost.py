@@ -6,8 +6,9 @@ The real chief (``fleetrl.federation.chief`` driven by ``run_chief``) and the re
 (``FederatedWorker``) talk through a real mosquitto, each over its own MQTT connection; the chief and the
 workers are threads of this process. Only the learning is left out: each worker's learner plays no episode
 and its agent hands over a fixed gradient of the standard preset's QUBE step layout (the whole actor-critic)
-at once, so a round's wall time is its messaging alone — K = 10 exchanges for ``pergrad`` (every worker sends
-its step gradient, the chief averages N of them and broadcasts the average), one for ``fedavg`` (the model).
+at once, so a round's wall time is its messaging alone — the preset's K = 20 exchanges for ``pergrad``
+(every worker sends its step gradient, the chief averages N of them and broadcasts the average), one for
+``fedavg`` (the model).
 The figure is set next to a QUBE episode's real-time length: 2500 steps × 6 ms = 15 s at the cap, and the
 short episodes of early learning (50 steps: 0.3 s). Target: ≤ 5 % of a full episode.
 """
@@ -89,8 +90,8 @@ class WireLearner:
         return Outcome()
 
 
-def round_seconds(url: str, scheme: str, workers: int, rounds: int) -> float:
-    """Median wall seconds of one round (all its exchanges), measured on worker 0."""
+def round_seconds(url: str, scheme: str, workers: int, rounds: int) -> tuple[float, int]:
+    """Median wall seconds of one round (all its exchanges), measured on worker 0, and its exchanges."""
     agent0 = probe_agent("qube", get_preset("standard"))
     layout = agent0.step_layout(0) if scheme == "pergrad" else agent0.model_layout()
     steps = agent0.update_step_count() if scheme == "pergrad" else 1
@@ -115,7 +116,7 @@ def round_seconds(url: str, scheme: str, workers: int, rounds: int) -> float:
         t.start()
     for t in threads:
         t.join(600)
-    return float(np.median(np.diff(stamps)))
+    return float(np.median(np.diff(stamps))), steps
 
 
 def main() -> None:
@@ -128,14 +129,14 @@ def main() -> None:
     print(describe_host())
     size = sum(int(np.prod(s)) for _, s in probe_agent("qube", get_preset("standard")).model_layout())
     print(f"message: {size} float32 ({4 * size / 1024:.0f} KiB); mosquitto; {args.rounds} rounds per figure")
-    print("scheme   workers  round s   share of a 15 s episode   share of a 0.3 s episode")
+    print("scheme   workers  exchanges  round s   share of a 15 s episode   share of a 0.3 s episode")
     with EmbeddedBroker("mosquitto") as broker:
         for scheme in ("fedavg", "pergrad"):
             for n in args.workers:
-                seconds = round_seconds(broker.url, scheme, n, args.rounds)
+                seconds, exchanges = round_seconds(broker.url, scheme, n, args.rounds)
                 print(
-                    f"{scheme:8} {n:7d}  {seconds:7.3f}   {100 * seconds / EPISODE_AT_CAP:22.2f} %"
-                    f"   {100 * seconds / EARLY_EPISODE:21.1f} %"
+                    f"{scheme:8} {n:7d}  {exchanges:9d}  {seconds:7.3f}"
+                    f"   {100 * seconds / EPISODE_AT_CAP:22.2f} %   {100 * seconds / EARLY_EPISODE:21.1f} %"
                 )
 
 
