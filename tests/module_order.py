@@ -15,6 +15,7 @@ START_FIRST = (
     "envs/test_unit_factory_run.py",
     "cli/test_unreachable_broker.py",  # waits out connect timeouts
     "cli/test_pergrad_run.py",
+    "cli/test_worker_device_link.py",  # two 2-worker runs of role processes, one through bridges
     "federation/test_federated_ppo.py",
     "runs/test_idle_cpu.py",
     "agent/test_agent_api.py",

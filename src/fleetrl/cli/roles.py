@@ -110,6 +110,12 @@ def register(sub: Any) -> None:
         default=None,
         help="re-send the round's message after this many seconds without an answer (5)",
     )
+    worker.add_argument(
+        "--device-link",
+        default=None,
+        help="inprocess (default: the unit simulated here) or mqtt: drive the unit through its device bridge "
+        "(fleetrl device --run-id RUN --unit K) on the same broker",
+    )
     worker.set_defaults(handler=cmd_worker)
 
 
@@ -252,6 +258,7 @@ def _serve_with_checkpoints(chief: Any, settings: Any) -> Any:
 def cmd_worker(args: argparse.Namespace) -> int:
     """Serve as one worker; its run directory gets the same files as a ``fleetrl train`` run."""
     from fleetrl.runs.checkpoints import WorkerCheckpoint, worker_checkpoint_dir
+    from fleetrl.runs.factory import make_learner
     from fleetrl.runs.role_settings import WorkerSettings
     from fleetrl.runs.roles import train_federated
     from fleetrl.runs.rundir import RunRecorder
@@ -263,6 +270,7 @@ def cmd_worker(args: argparse.Namespace) -> int:
     resume = settings.resume
     where = WorkerCheckpoint(checkpoints, spec, settings.run_id).where() if resume else None
     resume_from = {settings.worker_id: 1 if where is None else where.next_round} if resume else None
+    learner = make_learner(spec, settings.device_transport())  # a device bridge is reached before any file
     recorder = RunRecorder(settings.out, config, [settings.worker_id], resume_from=resume_from)
     try:
         outcome = train_federated(
@@ -270,6 +278,7 @@ def cmd_worker(args: argparse.Namespace) -> int:
             settings.transport(),
             settings.run_id,
             recorder.add,
+            learner=learner,
             reply_timeout=settings.reply_timeout,
             resend_interval=settings.resend_interval,
             key=settings.fleet_key(),

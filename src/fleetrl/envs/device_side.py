@@ -17,14 +17,19 @@ from fleetrl.envs.unit_factory import DRIVER_FORM, load_driver_function
 from fleetrl.link.driver import DriverFunction, DriverSpec, driver_of
 
 
-def bridge_driver(env: EnvSpec, device_driver: str | None) -> str | DriverFunction:
-    """What the bridges of ``env``'s units serve: the driver function ``device_driver`` names, else the
-    built-in's simulated device type; a ValueError saying what is missing or wrong otherwise."""
+def check_takes_link(env: EnvSpec) -> None:
+    """A ValueError saying how to fix it unless ``env``'s units can be built over a device link."""
     if not env.takes_link:
         raise ValueError(
             f"{env.title} takes no link keyword: to put its units behind device bridges, define it as "
             "factory(unit, fleet_seed, link=None) and build the env over the link it is given"
         )
+
+
+def bridge_driver(env: EnvSpec, device_driver: str | None) -> str | DriverFunction:
+    """What the bridges of ``env``'s units serve: the driver function ``device_driver`` names, else the
+    built-in's simulated device type; a ValueError saying what is missing or wrong otherwise."""
+    check_takes_link(env)
     if device_driver is not None:
         function: DriverFunction = load_driver_function(device_driver)
         return function

@@ -12,8 +12,9 @@ from fleetrl.agent.ppo import PPOAgent
 from fleetrl.envs.catalog import describe_env, get_env_spec
 from fleetrl.envs.spaces import UnitDescription
 from fleetrl.federation.schemes import get_scheme
-from fleetrl.link.mqtt import open_mqtt_link
+from fleetrl.link.mqtt import MqttLink, open_mqtt_link
 from fleetrl.runs.spec import WorkerSpec
+from fleetrl.transport.base import Transport
 
 
 def action_space_of(unit: UnitDescription) -> ActionSpace:
@@ -32,8 +33,11 @@ def agent_for(unit: UnitDescription, config: PPOConfig, seed: int) -> PPOAgent:
     return PPOAgent(unit.obs_dim, action_space_of(unit), config, seed=seed)
 
 
-def make_learner(spec: WorkerSpec) -> Learner:
+def make_learner(spec: WorkerSpec, device_transport: Transport | None = None) -> Learner:
     """The learner for one worker: its unit's env, a seeded agent with the preset (and overrides).
+
+    With ``spec.device_url`` the unit is driven through its device bridge, over ``device_transport`` (a
+    role's login and TLS files) or else a plain transport to that URL.
 
     Under a scheme whose mature workers stay in the federation (``fedavg``) the learner keeps learning after
     its criterion holds; under one that needs a shared start (``pergrad``) every worker's network starts from
@@ -46,7 +50,10 @@ def make_learner(spec: WorkerSpec) -> Learner:
         env, unit = env_spec.make(spec.unit, spec.fleet_seed, fleet_profile=spec.fleet_profile)
     else:  # the device bridge draws the unit (with the same fleet profile)
         obs_size = describe_env(spec.env).sensor_dim  # what the env reads: the link checks every state
-        link = open_mqtt_link(spec.device_url, spec.device_run_id, spec.unit, obs_size=obs_size)
+        if device_transport is None:
+            link = open_mqtt_link(spec.device_url, spec.device_run_id, spec.unit, obs_size=obs_size)
+        else:
+            link = MqttLink(device_transport, spec.device_run_id, spec.unit, obs_size=obs_size)
         env, unit = env_spec.make(spec.unit, spec.fleet_seed, link=link)
     agent = agent_for(unit, config, seed=spec.worker_seed)
     scheme = get_scheme(spec.scheme, **spec.scheme_params)

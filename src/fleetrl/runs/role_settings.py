@@ -8,15 +8,18 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from fleetrl.envs.catalog import get_env_spec
 from fleetrl.federation.signing import FleetKey
 from fleetrl.federation.topics import validate_id
 from fleetrl.runs.setting_values import SettingError, check_readable_file, check_writable_dir, label
 from fleetrl.runs.settings import (
+    DEVICE_LINKS,
     BrokerLogin,
     LearningSettings,
     RoundRules,
     as_setting_error,
     check_scheme_quorum,
+    choose,
     path_text,
     positive,
 )
@@ -61,8 +64,9 @@ class RoleSettings(LearningSettings, BrokerLogin):
             return None
         return as_setting_error("fleet_key_file", FleetKey.from_file, self.fleet_key_file)
 
-    def transport(self) -> Any:
-        """An unconnected MQTT transport to the broker (a persistent session under the role's client id)."""
+    def transport(self, *, clean_session: bool = False) -> Any:
+        """An unconnected MQTT transport to the broker with the role's login (by default a persistent
+        session under the role's client id)."""
         from fleetrl.transport.mqtt import MqttTransport
 
         assert self.broker is not None, "validate() requires a broker"
@@ -71,7 +75,7 @@ class RoleSettings(LearningSettings, BrokerLogin):
             ca_file=path_text(self.ca_file),
             cert_file=path_text(self.client_cert),
             key_file=path_text(self.client_key),
-            clean_session=False,
+            clean_session=clean_session,
             connect_timeout=self.connect_timeout,
             password=self.broker_password,
         )
@@ -132,10 +136,18 @@ class WorkerSettings(RoleSettings):
     """give up (exit 1) after this many seconds without the chief's answer"""
     resend_interval: float = 5.0
     """re-send the round's message after this many seconds without an answer"""
+    device_link: str = "inprocess"
+    """``inprocess``: the unit is simulated in this process; ``mqtt``: the unit is driven through its device
+    bridge (``fleetrl device --run-id RUN --unit K``) on the same broker, with this worker's login"""
 
     def validate(self) -> None:
         """Raise SettingError naming the first setting that cannot work; nothing is created."""
         self.validate_role()
+        choose("device_link", self.device_link, DEVICE_LINKS)
+        if self.device_link == "mqtt":
+            from fleetrl.envs.device_side import check_takes_link
+
+            as_setting_error("device_link", check_takes_link, get_env_spec(self.env))
         if self.worker_id < 0 or (self.unit is not None and self.unit < 0):
             raise SettingError(f"{label('worker_id')} and {label('unit')}: must be non-negative")
         if self.seed < 0 or self.fleet_seed < 0:
@@ -150,9 +162,15 @@ class WorkerSettings(RoleSettings):
         return self.worker_id if self.unit is None else self.unit
 
     def worker_spec(self) -> WorkerSpec:
-        """The spec this worker trains with (its unit simulated in-process)."""
+        """The spec this worker trains with (with a device link: its unit served under this run's id)."""
         return WorkerSpec(
             self.worker_id, self.device_unit, self.env, self.preset, self.seed, self.fleet_seed,
             self.max_rounds, str(self.out), self.overrides, fleet_profile=self.fleet_profile,
             scheme=self.scheme_name, scheme_params=self.scheme_params, target_score=self.target_score,
+            device_url=self.public_broker if self.device_link == "mqtt" else None, device_run_id=self.run_id,
         )  # fmt: skip
+
+    def device_transport(self) -> Any:
+        """With ``device_link = "mqtt"``: an unconnected transport for the device link (its own connection
+        and a clean session, this worker's login and TLS files); None without."""
+        return self.transport(clean_session=True) if self.device_link == "mqtt" else None
