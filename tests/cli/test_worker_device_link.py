@@ -1,10 +1,12 @@
 """``fleetrl worker --device-link mqtt``: a standalone worker drives its unit through the unit's own device
 bridge (``fleetrl device``, another process: the machine at the rig) over the run's broker, and learns what
-the same worker with its unit simulated in-process learns."""
+the same worker with its unit simulated in-process learns; ``fleetrl evaluate --broker`` runs the policy
+on that bridge's unit."""
 
 from __future__ import annotations
 
 import csv
+import json
 import re
 import subprocess
 import sys
@@ -14,7 +16,7 @@ import pytest
 from cli_helpers import Fleetrl, last_line
 from device_process import device_process
 
-from fleetrl.cli.main import build_parser
+from fleetrl.cli.main import build_parser, main
 from fleetrl.cli.settings_args import settings_from_args
 from fleetrl.runs.role_settings import WorkerSettings
 from fleetrl.runs.setting_values import SettingError
@@ -86,7 +88,9 @@ def federated_run(url: str, run_id: str, tmp_path: Path, *link: str) -> list[Pat
 @pytest.mark.slow
 @pytest.mark.mosquitto
 @pytest.mark.timeout(600)
-def test_workers_reach_their_units_bridges_and_learn_as_with_simulated_units(tmp_path: Path) -> None:
+def test_workers_reach_their_units_bridges_and_learn_as_with_simulated_units(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
     with EmbeddedBroker("mosquitto") as broker:
         simulated = federated_run(broker.url, "sim", tmp_path)
         with (
@@ -94,13 +98,31 @@ def test_workers_reach_their_units_bridges_and_learn_as_with_simulated_units(tmp
             device_process(broker.url, "rig", "sim", 1, FLEET_SEED, tmp_path, env="cartpole") as log1,
         ):
             bridged = federated_run(broker.url, "rig", tmp_path, "--device-link", "mqtt")
+            capsys.readouterr()
+            model = str(bridged[1] / "models" / "worker-1.safetensors")
+            evaluate = [
+                "evaluate",
+                model,
+                "--env",
+                "cartpole",
+                "--unit",
+                "1",
+                "--fleet-seed",
+                str(FLEET_SEED),
+            ]
+            assert main([*evaluate, "--episodes", "2", "--broker", broker.url, "--run-id", "rig"]) == 0
+            on_bridge = json.loads(capsys.readouterr().out)
+    assert main([*evaluate, "--episodes", "2"]) == 0
+    assert on_bridge["scores"] == json.loads(capsys.readouterr().out)["scores"]
     for over_bridge, in_process, log in zip(bridged, simulated, (log0, log1), strict=True):
         assert len(scores(over_bridge)) == 3
         assert scores(over_bridge) == scores(in_process)
-        # each step of the worker's 3 episodes (CartPole scores 1 a step) and 3 resets reached its bridge
+        # each step of the worker's 3 episodes (CartPole scores 1 a step) and 3 resets reached its bridge, and
+        # for unit 1 the 2 greedy episodes of evaluate too
         served = re.search(r"closed \(BridgeStats\(commands=(\d+), rejected=0", log[0])
         assert served is not None, log[0]
-        assert int(served[1]) == sum(float(score) for _, score in scores(over_bridge)) + 3
+        evaluated = sum(on_bridge["scores"]) + 2 if log is log1 else 0
+        assert int(served[1]) == sum(float(score) for _, score in scores(over_bridge)) + 3 + evaluated
 
 
 @pytest.mark.mosquitto
@@ -115,3 +137,21 @@ def test_a_worker_whose_bridge_is_not_there_fails_before_its_run_directory(
     assert done.returncode == 1 and "Traceback" not in done.stderr, done.stderr
     assert "no bridge online for unit 0" in last_line(done)
     assert not (tmp_path / "w0").exists()
+
+
+def test_evaluate_on_a_bridge_refuses_what_cannot_work_before_connecting(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    model = str(tmp_path / "missing.safetensors")
+    assert main(["evaluate", model, "--env", "cartpole", "--broker", "mqtt://127.0.0.1:1", "--fleet-profile",
+                 "v1"]) == 2  # fmt: skip
+    assert "--fleet-profile: the bridge's unit has its own dynamics" in capsys.readouterr().err
+    assert (
+        main(["evaluate", model, "--env", "tests.envs.fake_units:factory", "--broker", "mqtt://127.0.0.1:1"])
+        == 2
+    )
+    assert "takes no link keyword" in capsys.readouterr().err
+    assert (
+        main(["evaluate", model, "--env", "cartpole", "--broker", "mqtt://127.0.0.1:1"]) == 2
+    )  # nobody listens
+    assert f"no model file at {model}" in capsys.readouterr().err

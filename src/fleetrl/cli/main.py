@@ -74,6 +74,10 @@ def build_parser() -> argparse.ArgumentParser:
     add_fleet_profile_argument(evaluate)
     evaluate.add_argument("--episodes", type=int, default=10)
     evaluate.add_argument("--seed", type=int, default=0)
+    add_broker_arguments(evaluate, "given: run on the unit that `fleetrl device --unit K` serves there")
+    evaluate.add_argument(
+        "--run-id", default="default", help="with --broker: the run id the unit's bridge serves (default)"
+    )
     evaluate.set_defaults(handler=cmd_evaluate)
 
     homogeneity = sub.add_parser(
@@ -202,8 +206,16 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
     """``fleetrl evaluate``."""
     from fleetrl.runs.evaluate import evaluate_model
 
+    open_link = None if args.broker is None else bridge_link(args)
     scores = evaluate_model(
-        args.model, args.env, args.unit, args.fleet_seed, args.episodes, args.seed, args.fleet_profile
+        args.model,
+        args.env,
+        args.unit,
+        args.fleet_seed,
+        args.episodes,
+        args.seed,
+        args.fleet_profile,
+        open_link,
     )
     mean = sum(scores) / len(scores)
     print(
@@ -219,6 +231,34 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
         )
     )
     return 0
+
+
+def bridge_link(args: argparse.Namespace) -> Callable[[], Any]:
+    """``evaluate --broker URL``: its settings checked now (exit 2), and what opens a device link to the
+    bridge of ``--unit`` under ``--run-id`` (no bridge online within 10 s: a TimeoutError naming the unit)."""
+    from fleetrl.envs.catalog import describe_env, get_env_spec
+    from fleetrl.envs.device_side import check_takes_link
+    from fleetrl.federation.topics import validate_id
+    from fleetrl.link.mqtt import MqttLink
+    from fleetrl.runs.setting_values import SettingError
+    from fleetrl.runs.settings import BrokerLogin, as_setting_error
+    from fleetrl.transport.mqtt import MqttTransport
+
+    login = BrokerLogin(broker=args.broker, broker_password_file=args.broker_password_file)
+    login.validate_broker()
+    as_setting_error("run_id", validate_id, args.run_id, "run id")
+    as_setting_error("broker", check_takes_link, get_env_spec(args.env))
+    if args.fleet_profile is not None:
+        raise SettingError(
+            "--fleet-profile: the bridge's unit has its own dynamics; give it without --broker"
+        )
+    obs_size = describe_env(args.env).sensor_dim  # what the env reads: the link checks every state
+
+    def open_link() -> Any:
+        transport = MqttTransport(args.broker, password=login.broker_password)
+        return MqttLink(transport, args.run_id, args.unit, obs_size=obs_size)
+
+    return open_link
 
 
 def cmd_homogeneity(args: argparse.Namespace) -> int:

@@ -1,11 +1,13 @@
 """Running a saved policy greedily on one unit."""
 
+from collections.abc import Callable
 from pathlib import Path
 
 import torch
 
 from fleetrl.agent.ppo import PPOAgent
-from fleetrl.envs.catalog import get_env_spec
+from fleetrl.envs.catalog import describe_env, get_env_spec
+from fleetrl.link.base import DeviceLink
 from fleetrl.runs.factory import action_space_of
 
 
@@ -17,9 +19,11 @@ def evaluate_model(
     episodes: int,
     seed: int = 0,
     fleet_profile: str | None = None,
+    open_link: Callable[[], DeviceLink] | None = None,
 ) -> list[float]:
     """Scores of ``episodes`` greedy episodes of the saved policy on ``unit`` (of fleet ``fleet_seed`` drawn
-    with ``fleet_profile``; None: the env's default).
+    with ``fleet_profile``; None: the env's default), or on the device at the other end of the link
+    ``open_link`` opens once the model is checked (e.g. the unit's device bridge: a real QUBE).
 
     :raises FileNotFoundError: no such model file
     :raises ValueError: the file is not a fleetrl model, or it was made for another env's shapes
@@ -30,15 +34,18 @@ def evaluate_model(
         raise FileNotFoundError(f"no model file at {model}")
     torch.set_num_threads(1)
     spec = get_env_spec(env)
-    gym_env, description = spec.make(unit, fleet_seed, fleet_profile=fleet_profile)
+    description = describe_env(env)  # every unit of a type has the same spaces; a bad factory fails here
     agent = PPOAgent.load(model)
     actions = action_space_of(description)
     if (agent.obs_dim, agent.action_space) != (description.obs_dim, actions):
-        gym_env.close()
         raise ValueError(
             f"{model} is a policy for {agent.obs_dim} observations and {agent.action_space} actions; "
             f"env {env!r} has {description.obs_dim} and {actions}"
         )
+    if open_link is None:
+        gym_env, _ = spec.make(unit, fleet_seed, fleet_profile=fleet_profile)
+    else:
+        gym_env, _ = spec.make(unit, fleet_seed, link=open_link())
     scores = []
     for episode in range(episodes):
         obs, _ = gym_env.reset(seed=seed + episode)
