@@ -8,8 +8,10 @@ from __future__ import annotations
 import csv
 import json
 import re
+import signal
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 import pytest
@@ -155,3 +157,38 @@ def test_evaluate_on_a_bridge_refuses_what_cannot_work_before_connecting(
         main(["evaluate", model, "--env", "cartpole", "--broker", "mqtt://127.0.0.1:1"]) == 2
     )  # nobody listens
     assert f"no model file at {model}" in capsys.readouterr().err
+
+
+@pytest.mark.slow
+@pytest.mark.mosquitto
+@pytest.mark.timeout(300)
+def test_a_worker_whose_bridge_goes_away_mid_run_exits_1_in_one_line(tmp_path: Path) -> None:
+    with EmbeddedBroker("mosquitto") as broker:
+        common = ("--broker", broker.url, "--run-id", "lost", "--env", "cartpole", "--max-rounds", "400")
+        bridge = fleetrl_process("device", "--driver", "sim", "--env", "cartpole", "--unit", "0",
+                                 "--broker", broker.url, "--run-id", "lost")  # fmt: skip
+        chief = fleetrl_process("chief", *common, "--workers", "1", "--idle-timeout", "60")
+        out = tmp_path / "w0"
+        worker = fleetrl_process(
+            "worker", *common, "--worker-id", "0", "--device-link", "mqtt", "--out", str(out)
+        )
+        try:
+            deadline = time.monotonic() + 120
+            while time.monotonic() < deadline and len(rows(out)) < 3:
+                time.sleep(0.1)
+            assert len(rows(out)) >= 3, "the worker did not get going"
+            bridge.send_signal(signal.SIGTERM)  # the rig's bridge stops: motor off, offline announced
+            _, err = worker.communicate(timeout=60)
+        finally:
+            for process in (bridge, chief, worker):
+                process.kill()
+                process.communicate()
+    assert worker.returncode == 1 and "Traceback" not in err, err
+    assert err.strip().splitlines()[-1].startswith("fleetrl worker: error: ")
+    assert "unit 0" in err.strip().splitlines()[-1]
+    assert (out / "summary.json").is_file()  # what it learned so far is kept
+
+
+def rows(out: Path) -> list[dict[str, str]]:
+    metrics = out / "metrics.csv"
+    return list(csv.DictReader(metrics.open())) if metrics.is_file() else []

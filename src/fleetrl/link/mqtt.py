@@ -52,8 +52,9 @@ _EXTRAS = {
 }
 
 
-class DeviceLinkError(RuntimeError):
-    """The bridge refused a command, or went away."""
+class DeviceLinkError(ConnectionError):
+    """The bridge refused a command, or went away: the unit cannot be driven. An ``OSError``, so a command
+    that meets it (``fleetrl worker``, ``evaluate``) exits 1 with this one line, not a traceback."""
 
 
 class DeviceTimeoutError(DeviceLinkError, TimeoutError):
