@@ -10,10 +10,9 @@ Round semantics (docs/protocol.md has the full rules):
   round is from the future, one from a worker that left W is rejected — none of them changes anything.
 * Round i closes when every worker in W has answered. Answers are read in sorted worker-id order, never
   arrival order, so the same inputs give bit-identical outputs on any transport.
-* The scheme (:mod:`fleetrl.federation.schemes`) combines the answers into one ``average`` or ``transfer``
-  (``paper``: the mean of the actor gradients, Algorithm 1 lines 11–13, or the lowest completed worker's θ,
-  lines 6–9; ``fedavg``: the mean model), says who leaves W and whether the run is complete; the chief
-  broadcasts the answer.
+* The scheme (:mod:`fleetrl.federation.schemes`: ``paper``, Algorithm 1 lines 6–13; ``fedavg``; ``pergrad``;
+  …) combines the answers into one answer, says who leaves W and whether the run is complete; the chief
+  broadcasts it.
 * The run ends after the round the scheme calls complete, after the round in which W becomes empty, or after
   round M; ``done`` is then broadcast.
 
@@ -37,6 +36,8 @@ from fleetrl.federation.chief_answer import (
     answer_event,
     answer_message,
     check_round_rules,
+    refusal_step,
+    welcome_step,
     where,
 )
 from fleetrl.federation.events import ChiefEvent, ChiefStep
@@ -275,16 +276,7 @@ class Chief:
         if self._gate.refusal(worker) is not None:  # no welcome until a join that matches
             return self._refusal(worker)
         step = ChiefStep() if retained else self._rejoin(worker, "came back online")
-        model = self._model
-        welcome = Message(
-            "welcome", self.run_id, CHIEF_ID, self._round,
-            flat=model.flat if model else None, origin=model.origin if model else None,
-            settings=self.settings or {},
-        )  # fmt: skip
-        detail = f"of round {self._round}" + (f" with θ* of {welcome.origin}" if welcome.origin else "")
-        return step + ChiefStep(
-            (welcome,), (ChiefEvent("welcome", self._round, sender=worker, detail=detail),)
-        )
+        return step + welcome_step(self.run_id, worker, self._round, self._model, self.settings or {})
 
     def tick(self, now: float) -> ChiefStep:
         """Apply the deadlines at time ``now``: offline workers whose grace ran out leave W; then the round
@@ -320,9 +312,7 @@ class Chief:
         return self._refusal(message.sender)
 
     def _refusal(self, worker: str) -> ChiefStep:
-        why = self._gate.refusal(worker) or ""
-        refusal = Message("refused", self.run_id, CHIEF_ID, self._round, finished=(worker,), detail=why)
-        return ChiefStep((refusal,), (ChiefEvent("refused", self._round, sender=worker, detail=why),))
+        return refusal_step(self.run_id, worker, self._round, self._gate.refusal(worker) or "")
 
     def _start_clock(self, now: float) -> None:
         if self._opened_at is None:

@@ -1,5 +1,6 @@
 """The chief's answers: which configurations can run, how a scheme's answer to a closed exchange becomes the
-broadcast message and the event people read, and the answers kept to answer re-sends (:class:`AnswerBook`)."""
+broadcast message and the event people read, the welcome or refusal of a joining worker, and the answers
+kept to answer re-sends (:class:`AnswerBook`)."""
 
 from __future__ import annotations
 
@@ -7,7 +8,7 @@ import math
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
 
-from fleetrl.federation.events import ChiefEvent
+from fleetrl.federation.events import ChiefEvent, ChiefStep
 from fleetrl.federation.messages import Message
 from fleetrl.federation.schemes import COMPLETED, Granularity, RoundAnswer, Scheme
 from fleetrl.federation.topics import CHIEF_ID, sorted_workers
@@ -72,6 +73,25 @@ def answer_message(answer: RoundAnswer, run_id: str, rnd: int, step: int) -> Mes
         answer.kind, run_id, CHIEF_ID, rnd, flat=answer.flat, origin=answer.origin,
         finished=answer.finished, contributors=answer.contributors, step=step,
     )  # fmt: skip
+
+
+def welcome_step(
+    run_id: str, worker: str, rnd: int, model: Message | None, settings: Mapping[str, str]
+) -> ChiefStep:
+    """The ``welcome`` to ``worker`` for the open round ``rnd``: the fleet model θ* (``model``'s vector and
+    origin) if there is one, and the settings every worker must share; with its event."""
+    welcome = Message(
+        "welcome", run_id, CHIEF_ID, rnd,
+        flat=model.flat if model else None, origin=model.origin if model else None, settings=dict(settings),
+    )  # fmt: skip
+    detail = f"of round {rnd}" + (f" with θ* of {welcome.origin}" if welcome.origin else "")
+    return ChiefStep((welcome,), (ChiefEvent("welcome", rnd, sender=worker, detail=detail),))
+
+
+def refusal_step(run_id: str, worker: str, rnd: int, why: str) -> ChiefStep:
+    """The ``refused`` to ``worker`` (its settings differ from the run's: ``why``), with its event."""
+    refusal = Message("refused", run_id, CHIEF_ID, rnd, finished=(worker,), detail=why)
+    return ChiefStep((refusal,), (ChiefEvent("refused", rnd, sender=worker, detail=why),))
 
 
 def answer_event(answer: RoundAnswer, closed: ClosedExchange, aggregator: str) -> ChiefEvent:
