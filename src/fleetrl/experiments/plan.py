@@ -137,7 +137,8 @@ def run_plan(
         _plot_side_by_side(plan, records, fig)
         first = records[plan.side_by_side[0].key][0].result_settings["seed"]
         lines += ["", f"![per-worker curves, seed {first}]({fig.relative_to(out)})"]
-    lines += ["", f"Regenerate one arm (SEEDS: {' '.join(map(str, seeds))}):", ""]
+    listed = " ".join(map(str, seeds))
+    lines += ["", f"Regenerate one arm (SEEDS: the arm's seeds in the table above, of {listed}):", ""]
     lines += [f"    {arm.command(places.runs)}" for arm in plan.arms]
     return "\n".join(lines) + "\n"
 
