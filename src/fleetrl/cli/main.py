@@ -236,10 +236,10 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
 def bridge_link(args: argparse.Namespace) -> Callable[[], Any]:
     """``evaluate --broker URL``: its settings checked now (exit 2), and what opens a device link to the
     bridge of ``--unit`` under ``--run-id`` (no bridge online within 10 s: a TimeoutError naming the unit)."""
-    from fleetrl.envs.catalog import describe_env, get_env_spec
+    from fleetrl.envs.catalog import get_env_spec
     from fleetrl.envs.device_side import check_takes_link
     from fleetrl.federation.topics import validate_id
-    from fleetrl.link.mqtt import MqttLink
+    from fleetrl.runs.factory import bridge_link as open_bridge_link
     from fleetrl.runs.setting_values import SettingError
     from fleetrl.runs.settings import BrokerLogin, as_setting_error
     from fleetrl.transport.mqtt import MqttTransport
@@ -252,13 +252,8 @@ def bridge_link(args: argparse.Namespace) -> Callable[[], Any]:
         raise SettingError(
             "--fleet-profile: the bridge's unit has its own dynamics; give it without --broker"
         )
-    obs_size = describe_env(args.env).sensor_dim  # what the env reads: the link checks every state
-
-    def open_link() -> Any:
-        transport = MqttTransport(args.broker, password=login.broker_password)
-        return MqttLink(transport, args.run_id, args.unit, obs_size=obs_size)
-
-    return open_link
+    transport = MqttTransport(args.broker, password=login.broker_password)
+    return lambda: open_bridge_link(args.env, args.broker, args.run_id, args.unit, transport)
 
 
 def cmd_homogeneity(args: argparse.Namespace) -> int:

@@ -33,6 +33,18 @@ def agent_for(unit: UnitDescription, config: PPOConfig, seed: int) -> PPOAgent:
     return PPOAgent(unit.obs_dim, action_space_of(unit), config, seed=seed)
 
 
+def bridge_link(env: str, url: str, run_id: str, unit: int, transport: Transport | None = None) -> MqttLink:
+    """A device link to the bridge serving ``unit`` of run ``run_id``: over ``transport`` (a role's login and
+    TLS files), else over a plain transport to ``url``. Every state must have the size ``env`` reads.
+
+    :raises DeviceTimeoutError: no bridge announced itself in time (a ``TimeoutError`` naming the unit)
+    """
+    obs_size = describe_env(env).sensor_dim
+    if transport is None:
+        return open_mqtt_link(url, run_id, unit, obs_size=obs_size)
+    return MqttLink(transport, run_id, unit, obs_size=obs_size)
+
+
 def make_learner(spec: WorkerSpec, device_transport: Transport | None = None) -> Learner:
     """The learner for one worker: its unit's env, a seeded agent with the preset (and overrides).
 
@@ -49,11 +61,7 @@ def make_learner(spec: WorkerSpec, device_transport: Transport | None = None) ->
     if spec.device_url is None:
         env, unit = env_spec.make(spec.unit, spec.fleet_seed, fleet_profile=spec.fleet_profile)
     else:  # the device bridge draws the unit (with the same fleet profile)
-        obs_size = describe_env(spec.env).sensor_dim  # what the env reads: the link checks every state
-        if device_transport is None:
-            link = open_mqtt_link(spec.device_url, spec.device_run_id, spec.unit, obs_size=obs_size)
-        else:
-            link = MqttLink(device_transport, spec.device_run_id, spec.unit, obs_size=obs_size)
+        link = bridge_link(spec.env, spec.device_url, spec.device_run_id, spec.unit, device_transport)
         env, unit = env_spec.make(spec.unit, spec.fleet_seed, link=link)
     agent = agent_for(unit, config, seed=spec.worker_seed)
     scheme = get_scheme(spec.scheme, **spec.scheme_params)
