@@ -1,18 +1,29 @@
 """A digest of short seeded runs, to show that a refactoring of the learning code changed no number.
 
-    python benchmarks/run_fingerprint.py [--rounds 30]
+    python benchmarks/run_fingerprint.py [--rounds 30] [--fleet-rounds 10] [--part alone|fleet|all]
 
-For each preset that exists in both versions compared (``paper``, ``standard``) and each env (CartPoleUnit,
-QubeBalance; unit 0, fleet seed 0, seed 3), plays ``--rounds`` rounds alone and prints the SHA-256 of the
-round scores and of the final network parameters. Run it before and after a change on the same machine
-(``git stash`` or an exported copy of the old tree on PYTHONPATH): equal digests mean bit-identical runs.
+Alone: for each preset (``paper``, ``paper-code``, ``standard``) and each env (CartPoleUnit, QubeBalance;
+unit 0, fleet seed 0, seed 3), plays ``--rounds`` rounds with one learner and prints the SHA-256 of the round
+scores and of the final network parameters.
+
+Fleet: for each preset × every federation scheme × env (cartpole, qube), runs ``fleetrl train --units 3 --mode
+federated --transport local --seed 3`` for ``--fleet-rounds`` rounds through the command line (so a
+refactoring of settings, schemes, chief or worker is covered as a user runs them) and prints the SHA-256 of
+metrics.csv's (round, worker, score) rows and of every worker's final model.
+
+Run it before and after a change on the same machine (``git stash`` or a worktree of the old commit): equal
+digests mean bit-identical runs.
 """
 
 from __future__ import annotations
 
 import argparse
+import csv
 import hashlib
+import subprocess
 import sys
+import tempfile
+from pathlib import Path
 
 # isort: off
 import fleetrl  # noqa: F401  (first: it applies FLEETRL_PORTABLE before numpy and torch load)
@@ -43,18 +54,58 @@ def fingerprint(preset: str, env_id: str, rounds: int) -> tuple[str, str]:
     ]
 
 
+PRESETS = ("paper", "paper-code", "standard")
+SCHEMES = ("paper", "fedavg", "pergrad", "fedavgm", "fedadam")
+
+
+def fleet_fingerprint(preset: str, scheme: str, env: str, rounds: int) -> tuple[str, str]:
+    """Digests of a 3-unit federated run on the in-process bus, run as a user runs it."""
+    with tempfile.TemporaryDirectory() as tmp:
+        out = Path(tmp) / "run"
+        command = [sys.executable, "-m", "fleetrl.cli.main", "train", "--env", env, "--units", "3"]
+        command += ["--mode", "federated", "--transport", "local", "--scheme", scheme, "--preset", preset]
+        command += ["--seed", str(SEED), "--max-rounds", str(rounds), "--no-live", "--out", str(out)]
+        done = subprocess.run(command, capture_output=True, text=True)
+        if done.returncode != 0:
+            return f"failed({done.returncode})", done.stderr.strip().splitlines()[-1][:60]
+        with (out / "metrics.csv").open() as f:
+            rows = sorted((int(r["round"]), r["worker"], r["score"]) for r in csv.DictReader(f))
+        scores = hashlib.sha256(repr(rows).encode()).hexdigest()[:16]
+        params = hashlib.sha256()
+        for model in sorted((out / "models").glob("*.safetensors")):
+            from safetensors.numpy import load_file
+
+            tensors = load_file(str(model))
+            for name in sorted(tensors):
+                params.update(name.encode() + tensors[name].tobytes())
+        return scores, params.hexdigest()[:16]
+
+
 def main() -> int:
     parser = argparse.ArgumentParser(
         description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
     )
-    parser.add_argument("--rounds", type=int, default=30)
+    parser.add_argument("--rounds", type=int, default=30, help="rounds of each run alone")
+    parser.add_argument("--fleet-rounds", type=int, default=10, help="rounds of each federated run")
+    parser.add_argument("--part", choices=("alone", "fleet", "all"), default="all")
     args = parser.parse_args()
     torch.set_num_threads(1)
-    print(f"# {args.rounds} rounds, seed {SEED}; {portable.describe_host()}")
-    for env_id in (CARTPOLE_UNIT_ID, QUBE_BALANCE_ID):
-        for preset in ("paper", "standard"):
-            scores, params = fingerprint(preset, env_id, args.rounds)
-            print(f"{env_id:26s} {preset:9s} scores {scores} parameters {params}", flush=True)
+    print(f"# seed {SEED}; {portable.describe_host()}")
+    if args.part in ("alone", "all"):
+        print(f"# alone, {args.rounds} rounds")
+        for env_id in (CARTPOLE_UNIT_ID, QUBE_BALANCE_ID):
+            for preset in PRESETS:
+                scores, params = fingerprint(preset, env_id, args.rounds)
+                print(f"{env_id:26s} {preset:10s} scores {scores} parameters {params}", flush=True)
+    if args.part in ("fleet", "all"):
+        print(f"# 3 units federated on the in-process bus, {args.fleet_rounds} rounds")
+        for env in ("cartpole", "qube"):
+            for preset in PRESETS:
+                for scheme in SCHEMES:
+                    scores, params = fleet_fingerprint(preset, scheme, env, args.fleet_rounds)
+                    print(
+                        f"{env:8s} {preset:10s} {scheme:8s} scores {scores} parameters {params}", flush=True
+                    )
     return 0
 
 

@@ -52,7 +52,7 @@ def test_flags_override_the_file_and_the_file_overrides_the_defaults(tmp_path: P
         0.5,
         3.0,
     )
-    assert settings.out == Path("from-file") and settings.preset == "paper"  # the dataclass default
+    assert settings.out == Path("from-file") and settings.preset == "standard"  # the dataclass default
     assert settings.overrides == {"clip_eps": 0.25, "hidden": (16, 16)}  # merged key by key
 
 

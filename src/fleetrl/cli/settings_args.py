@@ -40,7 +40,8 @@ def add_learning_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--preset",
         default=None,
-        help="PPO preset: paper (Table 1; default), paper-code (the authors' code) or standard",
+        help="PPO preset: standard (default; learns on every unit type measured), paper (Table 1 as "
+        "written, to reproduce the paper) or paper-code (what the authors' code ran)",
     )
     p.add_argument(
         "--max-rounds", type=int, default=None, help="the paper's M: most rounds per worker (1000)"

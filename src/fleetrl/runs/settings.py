@@ -91,8 +91,9 @@ class LearningSettings:
     """learning is complete when the weighted moving average of the last 10 scores reaches it (default: the
     built-in's own target, QUBE 2450, CartPole 475; a factory's env spec ``reward_threshold``); validation
     fills it in"""
-    preset: str = "paper"
-    """PPO preset: ``paper`` (Table 1), ``paper-code`` (what the authors' code ran) or ``standard``"""
+    preset: str = "standard"
+    """PPO preset: ``standard`` (the default: the settings that learn on every unit type measured),
+    ``paper`` (Table 1 as written, to reproduce the paper) or ``paper-code`` (what the authors' code ran)"""
     max_rounds: int = 1000
     """the paper's M: the most rounds per worker (a round is one episode, or with the paper-code preset
     the episodes that fill the memory)"""
