@@ -55,7 +55,8 @@ def fingerprint(preset: str, env_id: str, rounds: int) -> tuple[str, str]:
 
 
 PRESETS = ("paper", "paper-code", "standard")
-SCHEMES = ("paper", "fedavg", "pergrad", "fedavgm", "fedadam")
+SCHEMES = ("paper", "fedavg", "pergrad", "fedavgm", "fedavgm:momentum=0.5", "fedadam")
+"""each scheme with its defaults (fedavgm's momentum 0 is fedavg), and fedavgm with momentum"""
 
 
 def fleet_fingerprint(preset: str, scheme: str, env: str, rounds: int) -> tuple[str, str]:
@@ -63,7 +64,9 @@ def fleet_fingerprint(preset: str, scheme: str, env: str, rounds: int) -> tuple[
     with tempfile.TemporaryDirectory() as tmp:
         out = Path(tmp) / "run"
         command = [sys.executable, "-m", "fleetrl.cli.main", "train", "--env", env, "--units", "3"]
-        command += ["--mode", "federated", "--transport", "local", "--scheme", scheme, "--preset", preset]
+        name, _, param = scheme.partition(":")
+        command += ["--mode", "federated", "--transport", "local", "--scheme", name, "--preset", preset]
+        command += ["--scheme-param", param] if param else []
         command += ["--seed", str(SEED), "--max-rounds", str(rounds), "--no-live", "--out", str(out)]
         done = subprocess.run(command, capture_output=True, text=True)
         if done.returncode != 0:
