@@ -48,6 +48,15 @@ def test_recorder_writes_metrics_summary_and_plot(tmp_path) -> None:
     assert on_disk["workers"]["0"]["completed_at_round"] == 2
     assert on_disk["workers"]["1"]["completed_at_round"] is None
     assert on_disk["workers"]["1"]["final_wma"] == 15.0
+    # each unit alone on CartPole rigs (20 ms a step): unit 0 played 10 + 500 steps, unit 1 20 + 30
+    rig = {
+        "period": 0.02,
+        "rule": "alone",
+        "fleet": 10.2,
+        "per_unit": {"0": 10.2, "1": 1.0},
+        "complete": False,
+    }
+    assert on_disk["rig_seconds"] == rig
     assert json.loads((out / "config.json").read_text())["env"] == "cartpole"
     assert (out / "scores.png").stat().st_size > 10_000
     assert any((out / "tensorboard").iterdir())

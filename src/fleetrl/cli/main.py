@@ -190,6 +190,13 @@ def cmd_demo(args: argparse.Namespace) -> int:
     return exit_code(summary)
 
 
+def duration(seconds: float) -> str:
+    """``42.0 s``, ``3.5 min`` or ``2.1 h``."""
+    if seconds < 120:
+        return f"{seconds:.1f} s"
+    return f"{seconds / 60:.1f} min" if seconds < 7200 else f"{seconds / 3600:.1f} h"
+
+
 def print_summary(summary: dict[str, Any], out: Path) -> None:
     """What a person wants to see when a run ends."""
     print(f"run directory: {out}  ({summary['wall_seconds']:.1f} s, {summary['rounds']} rounds)")
@@ -199,6 +206,15 @@ def print_summary(summary: dict[str, Any], out: Path) -> None:
         wma_text = "-" if wma is None else f"{wma:.1f}"
         status = f"completed at round {done}" if done is not None else f"not completed ({info['state']})"
         print(f"  worker {worker}: {status}, final WMA {wma_text}")
+    rig = summary.get("rig_seconds")
+    if rig:
+        bound = "" if rig["complete"] else "at least "
+        units = sorted(rig["per_unit"].values())
+        print(
+            f"  time on real-time rigs ({rig['rule']}, {1000 * rig['period']:g} ms a step): {bound}"
+            f"{duration(rig['fleet'])} until the last unit completed, median "
+            f"{duration(units[len(units) // 2])} per unit"
+        )
     print(f"  plot: {out / 'scores.png'}   metrics: {out / 'metrics.csv'}   tensorboard --logdir {out}")
 
 

@@ -60,6 +60,9 @@ class EnvSpec:
     a user's unit type, whose bridges serve what its ``--device-driver`` function returns"""
     takes_link: bool = False
     """whether the builder takes a ``link`` (its units can be reached through a device bridge)"""
+    control_period: float | None = None
+    """seconds per step on the real unit (a built-in's control period; None: not known), for the time a
+    fleet would spend on real-time rigs (:mod:`fleetrl.runs.rig_time`)"""
 
     @property
     def title(self) -> str:
@@ -141,12 +144,33 @@ def _qube_fleet_profile(name: str | None) -> str:
     return fleet_profile(name).name
 
 
+QUBE_CONTROL_PERIOD = 0.006
+"""the QUBE-Servo 2 rig's control period (``QubeConfig.control_period``: 6 ms)"""
+CARTPOLE_CONTROL_PERIOD = 0.02
+"""CartPole's step (``CartPoleParams.tau``: 20 ms)"""
+
 ENV_SPECS: dict[str, EnvSpec] = {
-    name: EnvSpec(name, _registered(gym_id), target, profiles, builtin=True, device=device, takes_link=True)
-    for name, gym_id, target, profiles, device in [
-        ("qube", QUBE_BALANCE_ID, 2450.0, _qube_fleet_profile, "qube"),
-        ("qube-continuous", QUBE_BALANCE_CONTINUOUS_ID, 2450.0, _qube_fleet_profile, "qube"),
-        ("cartpole", CARTPOLE_UNIT_ID, 475.0, None, "cartpole"),
+    name: EnvSpec(
+        name,
+        _registered(gym_id),
+        target,
+        profiles,
+        builtin=True,
+        device=device,
+        takes_link=True,
+        control_period=period,
+    )
+    for name, gym_id, target, profiles, device, period in [
+        ("qube", QUBE_BALANCE_ID, 2450.0, _qube_fleet_profile, "qube", QUBE_CONTROL_PERIOD),
+        (
+            "qube-continuous",
+            QUBE_BALANCE_CONTINUOUS_ID,
+            2450.0,
+            _qube_fleet_profile,
+            "qube",
+            QUBE_CONTROL_PERIOD,
+        ),
+        ("cartpole", CARTPOLE_UNIT_ID, 475.0, None, "cartpole", CARTPOLE_CONTROL_PERIOD),
     ]
 }
 """the built-in unit types (a unit factory seam's instances like any user's)"""

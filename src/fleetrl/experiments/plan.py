@@ -119,7 +119,7 @@ def run_plan(
     lines = [f"## {plan.title}", "", *preamble]
     if plan.notes:
         lines += [plan.notes, ""]
-    lines += [_arms_table(plan, records), "", *episode_lines(plan, records)]
+    lines += [_arms_table(plan, records), "", RIG_TIME_NOTE, "", *episode_lines(plan, records)]
     speed = _speed_up_table(plan, records)
     if speed:
         lines += [speed, ""]
@@ -180,6 +180,37 @@ def _per_unit(records: list[RunRecord]) -> list[int]:
     return [r for c in completions(records) for r in c.worker_rounds()]
 
 
+RIG_TIME_NOTE = (
+    "Time on the rigs: what the episodes would take on real-time units (QUBE 6 ms a step, CartPole 20 ms),"
+    " under each arm's waiting rule — a federated round lasts as long as its longest episode, each unit alone"
+    " plays back to back — until the last unit completes and until each unit does; resets and updates are"
+    " left out (`fleetrl.runs.rig_time`). Records made before runs kept their steps read each round's steps"
+    " from its score (reward 1 per step, at most one step short per episode)."
+)
+
+
+def _rig_minutes(records: list[RunRecord]) -> tuple[list[float], list[float]] | None:
+    """Minutes on real-time rigs of an arm's runs: until each run's last unit completed, and per unit
+    (None if a run's unit type has no known control period)."""
+    times = [r.rig_time() for r in records]
+    if not times or any(t is None for t in times):
+        return None
+    fleet = [t.fleet / 60 for t in times if t is not None]
+    per_unit = [s / 60 for t in times if t is not None for s in t.per_unit.values()]
+    return fleet, per_unit
+
+
+def _rig_ratio(slower: list[RunRecord], faster: list[RunRecord]) -> str:
+    """Speed-up in time on the rigs, fleet and per unit, with 95 % bootstrap intervals ("-" if unknown)."""
+    a, b = _rig_minutes(slower), _rig_minutes(faster)
+    if a is None or b is None:
+        return "-"
+    bound = _bound(slower, faster)
+    point, low, high = bootstrap_ratio(a[0], b[0])
+    unit, unit_low, unit_high = bootstrap_ratio(a[1], b[1])
+    return f"{bound}{point:.2f}× ({low:.2f}–{high:.2f}) / {bound}{unit:.2f}× ({unit_low:.2f}–{unit_high:.2f})"
+
+
 def _ratio_line(ratio: Ratio, records: Records) -> str:
     slower, faster = records[ratio.slower.key], records[ratio.faster.key]
     if not slower or not faster:
@@ -209,16 +240,19 @@ def _arms_table(plan: Plan, records: Records) -> str:
     for arm in plan.arms:
         done = records[arm.key]
         if not done:
-            rows.append([arm.label, NOT_RUN, *["-"] * 6])
+            rows.append([arm.label, NOT_RUN, *["-"] * 8])
             continue
         complete = sum(c.complete for c in completions(done))
         walls = sorted(wall_seconds(done))
         mean_unseen, held = unseen_summary(done)
+        rig = _rig_minutes(done)
         rows.append(
             [
                 arm.label,
                 bootstrap_median(_fleet(done)).format(),
                 bootstrap_median(_per_unit(done)).format(),
+                "-" if rig is None else bootstrap_median(rig[0]).format(1),
+                "-" if rig is None else bootstrap_median(rig[1]).format(1),
                 f"{complete}/{len(done)}",
                 seed_list(done),
                 mean_unseen,
@@ -230,6 +264,8 @@ def _arms_table(plan: Plan, records: Records) -> str:
         "arm",
         "rounds until the last unit completes: median (95 % CI)",
         "rounds per unit: median (95 % CI)",
+        "time on the rigs until the last unit completes, min: median (95 % CI)",
+        "time on the rigs per unit, min: median (95 % CI)",
         "runs complete within M",
         "seeds",
         "unseen units: mean score",
@@ -310,6 +346,7 @@ def _speed_up_table(plan: Plan, records: Records) -> str:
                 f"{bound}{point:.2f}× ({low:.2f}–{high:.2f})",
                 f"{bound}{unit:.2f}× ({unit_low:.2f}–{unit_high:.2f})",
                 f"{bound}{point / arm.units:.2f}",
+                _rig_ratio(slower, faster),
             ]
         )
     if not rows:
@@ -320,6 +357,7 @@ def _speed_up_table(plan: Plan, records: Records) -> str:
         "speed-up, rounds until the last unit completes (95 % CI)",
         "speed-up, rounds per unit (95 % CI)",
         "efficiency (speed-up / N)",
+        "speed-up, time on the rigs: fleet / per unit (95 % CI)",
     ]
     return markdown_table(header, rows)
 

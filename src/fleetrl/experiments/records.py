@@ -14,7 +14,7 @@ carries the run's result settings: a sweep reuses it only while they equal what 
      "wall_seconds": 412.3,
      "max_rounds": 1000,
      "workers": {"0": {"completed_at_round": 91, "score": [9,14,...], "wma": [9.0,11.8,...],
-                       "events": {"91": "completed"}}, ...},
+                       "steps": [10,15,...], "events": {"91": "completed"}}, ...},
      "generalisation": {"units": [10,...,19], "cap": 2500, "scores": {"0": [2500,1830,...]}}
     }
 """
@@ -28,6 +28,7 @@ from typing import Any
 
 from fleetrl.experiments.stats import Completion
 from fleetrl.runs.records import RoundRecord
+from fleetrl.runs.rig_time import RigTime, rig_time, waiting_rule
 from fleetrl.runs.rundir import PLAIN_EVENTS, model_path
 
 FORMAT = 1
@@ -75,6 +76,25 @@ class RunRecord:
             done = worker["completed_at_round"]
             result[int(key)] = (sum(played if done is None else played[:done]), done is not None)
         return result
+
+    def rig_time(self) -> RigTime | None:
+        """The time the run would take on real-time rigs under its mode's waiting rule
+        (:mod:`fleetrl.runs.rig_time`); None for a unit type without a known control period, or a record
+        whose rounds held several episodes and kept no steps. Records made before the steps were kept read
+        each round's steps from its score (reward 1 per step: at most one step short per episode)."""
+        from fleetrl.envs.catalog import get_env_spec
+
+        settings = self.result_settings
+        try:
+            period = get_env_spec(str(settings["env"])).control_period
+        except ValueError:
+            return None
+        workers = self.data["workers"]
+        if period is None or any("steps" not in w and "episodes" in w for w in workers.values()):
+            return None
+        steps = {k: w.get("steps") or [round(s or 0) for s in w["score"]] for k, w in workers.items()}
+        completed = {k: w["completed_at_round"] for k, w in workers.items()}
+        return rig_time(steps, completed, period, waiting_rule(settings.get("mode")))
 
     def scores(self) -> dict[int, list[float]]:
         """Each worker's score per round (round 1 first)."""
@@ -133,8 +153,8 @@ def _compact(value: float) -> float | int | None:
 
 
 def read_worker_rows(run_dir: Path) -> dict[str, dict[str, Any]]:
-    """Per worker, from metrics.csv: score, WMA, events other than plain sharing, and the episodes of each
-    round where a round held more than one (older files have no such column).
+    """Per worker, from metrics.csv: score, WMA, steps, events other than plain sharing, and the episodes of
+    each round where a round held more than one (older files have no such column).
 
     Read by column name, so columns added later do not break it.
     """
@@ -142,8 +162,9 @@ def read_worker_rows(run_dir: Path) -> dict[str, dict[str, Any]]:
     with (run_dir / "metrics.csv").open(newline="") as f:
         rows = sorted(csv.DictReader(f), key=lambda r: (int(r["worker"]), int(r["round"])))
     for row in rows:
-        worker = workers.setdefault(row["worker"], {"score": [], "wma": [], "events": {}})
+        worker = workers.setdefault(row["worker"], {"score": [], "wma": [], "events": {}, "steps": []})
         worker["score"].append(_compact(float(row["score"] or "nan")))
+        worker["steps"].append(int(row["steps"]))
         worker["wma"].append(_compact(float(row["wma"] or "nan")))
         if row.get("event", "") not in PLAIN_EVENTS:  # rounds that only shared are not kept
             worker["events"][row["round"]] = row["event"]

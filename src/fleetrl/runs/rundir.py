@@ -16,6 +16,7 @@ from typing import Any
 from torch.utils.tensorboard import SummaryWriter
 
 from fleetrl.runs.records import CSV_COLUMNS, RoundRecord, read_metrics
+from fleetrl.runs.rig_time import rig_time, waiting_rule
 
 
 @dataclass
@@ -160,8 +161,30 @@ class RunRecorder:
                 }
                 for w, p in sorted(self.progress.items())
             },
+            "rig_seconds": self.rig_seconds(),
             **self.extra,
         }
+
+    def rig_seconds(self) -> dict[str, Any] | None:
+        """The time the rounds played so far would take on real-time rigs (:mod:`fleetrl.runs.rig_time`),
+        under the run's waiting rule; None before any round, or for a unit type whose control period is not
+        known."""
+        from fleetrl.envs.catalog import get_env_spec
+
+        if not self.records:
+            return None
+        try:
+            period = get_env_spec(str(self.config.get("env"))).control_period
+        except ValueError:
+            return None
+        if period is None:
+            return None
+        steps: dict[str, list[int]] = {}
+        for record in sorted(self.records, key=lambda r: (r.worker, r.round)):
+            steps.setdefault(str(record.worker), []).append(record.steps)
+        completed = {w: self.progress[int(w)].completed_at_round for w in steps}
+        rule = waiting_rule(self.config.get("mode"))
+        return {"period": period, "rule": rule, **rig_time(steps, completed, period, rule).to_dict()}
 
     def finish(self) -> dict[str, Any]:
         """Close the files, write summary.json and the plot; returns the summary."""

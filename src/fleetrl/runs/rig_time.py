@@ -1,0 +1,91 @@
+"""Time on the rigs: what a fleet would spend on real-time hardware until its units complete.
+
+A simulated run costs rounds; a fleet of real units costs time, each step one control period of its unit
+(QUBE-Servo 2: 6 ms; CartPole: 20 ms). How rounds become time depends on who waits for whom:
+
+* **synchronous** (every federation scheme of fleetrl today): a round closes when its last member has played
+  its episode, so round r lasts as long as the longest episode played in it, ``max_w steps[w][r] × period``;
+  a unit has spent the rounds up to the one in which its criterion held;
+* **alone** (each unit trains by itself): a unit plays its episodes back to back, ``Σ_r steps[u][r] ×
+  period``; the fleet is done when its slowest unit is.
+
+Only the episodes count: the device-side reset between episodes (the QUBE's swing-up) and the learner's
+updates are left out, the same for every rule. A unit that never completed counts all the rounds it played
+(a lower bound, flagged by :attr:`RigTime.complete`).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from typing import Literal
+
+WaitingRule = Literal["synchronous", "alone"]
+"""how a fleet's units wait for each other (see the module docstring)"""
+
+
+@dataclass(frozen=True)
+class RigTime:
+    """Seconds on real-time rigs until the fleet, and each unit, completed."""
+
+    fleet: float
+    """until the last unit completed (or played its last round)"""
+    per_unit: dict[str, float]
+    """unit → until its own criterion held (or it played its last round)"""
+    complete: bool
+    """every unit completed (False: the figures are lower bounds)"""
+
+    def to_dict(self) -> dict[str, object]:
+        """A JSON-ready account, rounded to milliseconds."""
+        return {
+            "fleet": round(self.fleet, 3),
+            "per_unit": {unit: round(s, 3) for unit, s in self.per_unit.items()},
+            "complete": self.complete,
+        }
+
+
+def rig_time(
+    steps: Mapping[str, Sequence[int]],
+    completed_at: Mapping[str, int | None],
+    period: float,
+    rule: WaitingRule,
+) -> RigTime:
+    """The time on the rigs of one run.
+
+    :param steps: unit → the steps of each round it played (round 1 first; a unit that left the fleet has
+        fewer rounds than the others).
+    :param completed_at: unit → the round in which its criterion held, None if it never did.
+    :param period: seconds per step (the unit type's control period).
+    :param rule: who waits for whom.
+    """
+    if period <= 0:
+        raise ValueError(f"control period {period!r}: must be > 0")
+    if set(steps) != set(completed_at):
+        raise ValueError(f"units with steps {sorted(steps)} != units with completions {sorted(completed_at)}")
+    last: dict[str, int] = {}
+    for unit, played in steps.items():
+        done = completed_at[unit]
+        last[unit] = len(played) if done is None else done
+        if last[unit] > len(played):
+            raise ValueError(f"unit {unit} completed at round {last[unit]} but played {len(played)} rounds")
+    if rule == "alone":
+        per_unit = {u: sum(rounds[: last[u]]) * period for u, rounds in steps.items()}
+        fleet = max(per_unit.values(), default=0.0)
+    elif rule == "synchronous":
+        rounds = max(last.values(), default=0)
+        durations = [max((r[i] for r in steps.values() if i < len(r)), default=0) for i in range(rounds)]
+        elapsed = [0.0]
+        for duration in durations:
+            elapsed.append(elapsed[-1] + duration * period)
+        per_unit = {u: elapsed[last[u]] for u in steps}
+        fleet = elapsed[-1]
+    else:
+        raise ValueError(f"unknown waiting rule {rule!r} (choose synchronous or alone)")
+    complete = all(c is not None for c in completed_at.values())
+    return RigTime(fleet, per_unit, complete)
+
+
+def waiting_rule(mode: str | None) -> WaitingRule:
+    """The waiting rule of a run's mode: ``individual`` units play alone, a federated fleet waits for each
+    round's slowest member."""
+    return "alone" if mode == "individual" else "synchronous"
