@@ -385,6 +385,7 @@ def _plot_side_by_side(plan: Plan, records: Records, path: Path) -> None:
         axes[0, col].set_title(arm.label, fontsize=10)
         for row, (worker, rows) in enumerate(groups.items()):
             draw_worker(axes[row, col], rows, f"worker {worker}")
+        axes[-1, col].set_xlabel(X_LABELS["rounds"], fontsize=8)
     axes[0, 0].legend(loc="upper left", fontsize=7)
     fig.tight_layout()
     fig.savefig(path, dpi=100)

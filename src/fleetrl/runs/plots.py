@@ -1,11 +1,13 @@
 """Figure-5-style plots: per worker, the score per round (blue), its WMA (red), the actor loss (green
-dotted, right axis), and model transfers as vertical lines.
+dotted, right axis, where the rows carry it), and model transfers as vertical lines.
 
 The x-axis counts rounds (one update each) or, with ``x_axis="episodes"``, the episodes played by the end
-of each round; the two differ with the ``paper-code`` preset, whose rounds play several episodes.
+of each round; the two differ with the ``paper-code`` preset, whose rounds play several episodes. Every
+axis carries a label naming its quantity and unit.
 """
 
 import itertools
+import math
 from collections import defaultdict
 from pathlib import Path
 from typing import Literal
@@ -15,6 +17,7 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 from matplotlib.axes import Axes
+from matplotlib.figure import Figure
 
 from fleetrl.runs.records import RoundRecord
 
@@ -24,6 +27,10 @@ X_LABELS: dict[str, str] = {
     "episodes": "episodes played",
 }
 """the axis label for each choice of x-axis"""
+SCORE_LABEL = "score (episode return)"
+"""the left axis of a worker's panel: the score (blue) and its WMA (red) share it"""
+LOSS_LABEL = r"actor loss $-L^{\mathrm{CLIP}}$ (dotted)"
+"""the right axis of a worker's panel: the PPO actor loss, a dimensionless objective"""
 
 
 def by_worker(records: list[RoundRecord]) -> dict[int, list[RoundRecord]]:
@@ -42,13 +49,16 @@ def x_values(rows: list[RoundRecord], x_axis: XAxis = "rounds") -> list[int]:
 
 
 def draw_worker(ax: Axes, rows: list[RoundRecord], label: str, x_axis: XAxis = "rounds") -> None:
-    """One worker's panel: score, WMA, actor loss (right axis), transfers and completion."""
+    """One worker's panel: score, WMA, actor loss (right axis, drawn only where a row carries one),
+    transfers and completion; ``label`` names the worker above the score axis's label."""
     rounds = x_values(rows, x_axis)
     ax.plot(rounds, [r.score for r in rows], color="tab:blue", lw=0.8, label="score")
     ax.plot(rounds, [r.wma for r in rows], color="tab:red", lw=1.5, label="WMA (last 10)")
-    loss_ax = ax.twinx()
-    loss_ax.plot(rounds, [r.actor_loss for r in rows], "g:", lw=0.8, label="actor loss")
-    loss_ax.tick_params(axis="y", labelsize=7, colors="tab:green")
+    if any(math.isfinite(r.actor_loss) for r in rows):
+        loss_ax = ax.twinx()
+        loss_ax.plot(rounds, [r.actor_loss for r in rows], "g:", lw=0.8, label="actor loss")
+        loss_ax.tick_params(axis="y", labelsize=7, colors="tab:green")
+        loss_ax.set_ylabel(LOSS_LABEL, fontsize=8, color="tab:green")
     completed_at = None  # the first round the criterion held (under fedavg it may hold again later)
     for x, r in zip(rounds, rows, strict=True):
         events = r.event.split("+")
@@ -66,20 +76,42 @@ def draw_worker(ax: Axes, rows: list[RoundRecord], label: str, x_axis: XAxis = "
         if completed_at is None and any(e.startswith("completed") for e in events):
             completed_at = x
             ax.axvline(x, color="black", lw=0.8)
-    ax.set_ylabel(label)
+    ax.set_ylabel(f"{label}\n{SCORE_LABEL}")
     ax.grid(alpha=0.3)
 
 
-def plot_run(records: list[RoundRecord], path: Path, title: str = "", x_axis: XAxis = "rounds") -> None:
-    """Draw one panel per worker against rounds or episodes (``x_axis``) and save a PNG at ``path``."""
+def scores_figure(records: list[RoundRecord], title: str = "", x_axis: XAxis = "rounds") -> Figure:
+    """One panel per worker against rounds or episodes (``x_axis``); the caller saves and closes it."""
     groups = by_worker(records) or {0: []}
     fig, axes = plt.subplots(len(groups), 1, figsize=(9, 2.6 * len(groups)), sharex=True, squeeze=False)
     for ax, (worker, rows) in zip(axes[:, 0], groups.items(), strict=True):
-        draw_worker(ax, rows, f"worker {worker}\nscore", x_axis)
+        draw_worker(ax, rows, f"worker {worker}", x_axis)
     axes[0, 0].legend(loc="upper left", fontsize=8)
     axes[-1, 0].set_xlabel(X_LABELS[x_axis])
     if title:
         fig.suptitle(title, fontsize=10)
     fig.tight_layout()
+    return fig
+
+
+def plot_run(records: list[RoundRecord], path: Path, title: str = "", x_axis: XAxis = "rounds") -> None:
+    """Draw one panel per worker against rounds or episodes (``x_axis``) and save a PNG at ``path``."""
+    fig = scores_figure(records, title, x_axis)
     fig.savefig(path, dpi=110)
     plt.close(fig)
+
+
+def unlabelled_axes(fig: Figure) -> list[str]:
+    """Every shown axis of ``fig`` that has no label, named as "panel N x|y" (empty when all are labelled).
+
+    An axis counts as shown when it is visible and draws tick labels (a shared x-axis hidden above the
+    bottom panel, or a twin's hidden x-axis, needs no label). Draws the figure's canvas to lay out ticks.
+    """
+    fig.canvas.draw()
+    missing = []
+    for i, ax in enumerate(fig.axes):
+        for name, axis in (("x", ax.xaxis), ("y", ax.yaxis)):
+            ticks = [t for t in axis.get_ticklabels() if t.get_visible() and t.get_text()]
+            if axis.get_visible() and ticks and not axis.get_label_text().strip():
+                missing.append(f"panel {i} {name}")
+    return missing
