@@ -6,6 +6,7 @@ from pathlib import Path
 import torch
 
 from fleetrl.agent.ppo import PPOAgent
+from fleetrl.control.episodes import greedy_scores
 from fleetrl.envs.catalog import describe_env, get_env_spec
 from fleetrl.link.base import DeviceLink
 from fleetrl.runs.factory import action_space_of
@@ -46,14 +47,7 @@ def evaluate_model(
         gym_env, _ = spec.make(unit, fleet_seed, fleet_profile=fleet_profile)
     else:
         gym_env, _ = spec.make(unit, fleet_seed, link=open_link())
-    scores = []
-    for episode in range(episodes):
-        obs, _ = gym_env.reset(seed=seed + episode)
-        score, done = 0.0, False
-        while not done:
-            obs, reward, terminated, truncated, _ = gym_env.step(agent.act_greedy(obs))
-            score += float(reward)
-            done = terminated or truncated
-        scores.append(score)
-    gym_env.close()
-    return scores
+    try:
+        return greedy_scores(gym_env, agent.act_greedy, episodes, seed)
+    finally:
+        gym_env.close()
