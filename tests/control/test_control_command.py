@@ -17,6 +17,7 @@ from onnx import TensorProto, helper
 
 from fleetrl.cli.main import main
 from fleetrl.control.export import export_policy
+from fleetrl.runs.evaluate import evaluate_model
 
 HERE = Path(__file__).resolve().parent
 SRC = HERE.parents[1] / "src"
@@ -33,12 +34,15 @@ def child_env(**extra: str) -> dict[str, str]:
 
 
 def test_each_episode_s_score_is_printed(models: dict[str, Path], capsys: pytest.CaptureFixture[str]) -> None:
-    assert main(["control", str(models["balancing"]), "--episodes", "2", "--unit", "1"]) == 0
+    want = evaluate_model(models["fresh"], "qube", 1, 0, 3, 5)  # fleetrl evaluate's scores, unit 1, seed 5
+    assert main(["control", str(models["fresh"]), "--episodes", "3", "--unit", "1", "--seed", "5"]) == 0
     lines = capsys.readouterr().out.splitlines()
-    assert lines[0].startswith("unit 1: ") and "(sim, lockstep), 2 episodes" in lines[0]
-    assert lines[1:] == ["episode 1: score 2500", "episode 2: score 2500", "mean score 2500 over 2 episodes"]
+    assert lines[0].startswith("unit 1: ") and "on qube (sim, lockstep), 3 episodes" in lines[0]
+    assert lines[1:4] == [f"episode {k + 1}: score {score:g}" for k, score in enumerate(want)]
+    assert lines[4:] == [f"mean score {sum(want) / 3:g} over 3 episodes"] and len(set(want)) > 1
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("kind", ["model file", "onnx"])
 def test_the_controller_s_path_imports_no_torch(models: dict[str, Path], tmp_path: Path, kind: str) -> None:
     model = models["balancing"]

@@ -39,6 +39,7 @@ def spi_driver(qube: EmulatedQube) -> tuple[QubeSpiDriver, FakeSpiDev]:
     return driver, spi
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("kind", ["model file", "onnx"])
 def test_a_saved_policy_holds_the_pendulum_on_the_emulated_qube(
     models: dict[str, Path], tmp_path: Path, qube: EmulatedQube, kind: str

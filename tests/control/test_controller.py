@@ -76,9 +76,9 @@ def on_unit(policy: GreedyPolicy, env: str, episodes: int) -> tuple[list[float],
 @pytest.mark.parametrize(
     ("name", "env", "episodes"),
     [
-        ("balancing", "qube", 2),
+        pytest.param("balancing", "qube", 2, marks=pytest.mark.slow),
         ("fresh", "qube", 6),
-        ("balancing-continuous", "qube-continuous", 2),
+        pytest.param("balancing-continuous", "qube-continuous", 2, marks=pytest.mark.slow),
         ("fresh-continuous", "qube-continuous", 6),
     ],
 )
@@ -98,7 +98,7 @@ def test_the_controller_plays_evaluate_s_episodes_step_for_step(
     assert np.array_equal(np.stack(seen), np.stack(reference_seen))  # every observation, bit for bit
 
 
-@pytest.mark.parametrize("name", ["balancing", "fresh"])
+@pytest.mark.parametrize("name", [pytest.param("balancing", marks=pytest.mark.slow), "fresh"])
 def test_the_onnx_export_plays_the_same_episodes(models: dict[str, Path], tmp_path: Path, name: str) -> None:
     """The graph computes in float32, fleetrl in float64: where the balance law's bang-bang decision is a
     near tie (|V| ≈ 0, every few steps while it holds the pendulum) the two may choose differently, and the
