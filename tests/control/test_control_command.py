@@ -137,3 +137,19 @@ def test_bad_input_is_one_clear_line_and_exit_2(
     assert main(["control", *argv]) == 2
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1 and err.startswith("fleetrl control: error: ") and message in err, err
+
+
+def test_your_own_unit_type_runs_through_its_own_driver(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """``--env package.module:factory --driver package.module:function`` (tests/link/slider_units.py, a
+    continuous unit of 2 observations): the scores of ``fleetrl evaluate`` on the in-process unit."""
+    from control_models import fresh_model
+
+    monkeypatch.chdir(HERE.parents[1])  # the user's modules, from the current directory
+    env, driver = "tests.link.slider_units:factory", "tests.link.slider_units:driver"
+    model = fresh_model(tmp_path / "slider.safetensors", env, seed=2)
+    want = evaluate_model(model, env, 0, 0, 3, 0)
+    assert main(["control", str(model), "--env", env, "--driver", driver, "--episodes", "3"]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    assert lines[1:4] == [f"episode {k + 1}: score {score:g}" for k, score in enumerate(want)]

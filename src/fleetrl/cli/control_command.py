@@ -42,7 +42,7 @@ def register(subparsers: Any) -> None:
     control.add_argument("model", type=Path, help="a models/worker-K.safetensors file or an exported .onnx")
     add_model_env_argument(control)
     control.add_argument("--unit", type=int, default=0, help="index of the unit in the fleet (default 0)")
-    control.add_argument("--episodes", type=int, default=10)
+    control.add_argument("--episodes", type=int, default=10, help="episodes to play (default 10)")
     control.add_argument("--seed", type=int, default=0, help="episode k resets with seed SEED + k")
     add_driver_arguments(control)
     control.set_defaults(handler=cmd_control)
