@@ -97,7 +97,7 @@ def run_on_unit(
         spec = get_env_spec(env)
         check_takes_link(spec)
         description = describe_env(env)
-        check_fits(policy, description, env)
+        check_fits(policy.obs_dim, policy.action_space, description, env)
         check_driver_fits(driver.spec, description, f"driver {driver.spec.kind!r}")
         bus = LocalBus()
         bridge = DeviceBridge(bus.client(), driver, RUN_ID, unit, realtime=realtime, watchdog=watchdog)

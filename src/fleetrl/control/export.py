@@ -60,22 +60,17 @@ class ExportCheck:
         return f"check {verdict}: {agree} observations ({how})"
 
 
-def check_fits(policy: PolicyFile | Any, description: UnitDescription, env: str) -> None:
-    """A ValueError unless ``policy``'s observation size and actions are ``env``'s."""
-    actions = action_space_of(description)
-    if (policy.obs_dim, policy.action_space) != (description.obs_dim, actions):
+def check_fits(
+    obs_dim: int, actions: ActionSpace, description: UnitDescription, env: str, source: object = "the policy"
+) -> None:
+    """A ValueError, naming ``source``, unless a policy of ``obs_dim`` observations and ``actions`` fits
+    ``env``'s units."""
+    wanted = ActionSpace.of_unit(description.action)
+    if (obs_dim, actions) != (description.obs_dim, wanted):
         raise ValueError(
-            f"the policy takes {policy.obs_dim} observations and gives {policy.action_space} actions; "
-            f"env {env!r} has {description.obs_dim} and {actions} (choose the env it was trained on: --env)"
+            f"{source} is a policy for {obs_dim} observations and {actions} actions; env {env!r} has "
+            f"{description.obs_dim} and {wanted} (choose the env it was trained on: --env)"
         )
-
-
-def action_space_of(description: UnitDescription) -> ActionSpace:
-    """The agent's action space for a unit's (as ``fleetrl.runs.factory.action_space_of``, without torch)."""
-    action = description.action
-    if action.kind == "discrete":
-        return ActionSpace.discrete(action.n)
-    return ActionSpace.box(action.low, action.high)
 
 
 def export_policy(
@@ -104,7 +99,7 @@ def export_policy(
     if not out.parent.is_dir():
         raise FileNotFoundError(f"--out {out}: no directory {out.parent}")
     policy = read_policy_file(model)
-    check_fits(policy, describe_env(env), env)
+    check_fits(policy.obs_dim, policy.action_space, describe_env(env), env, model)
     graph = policy_graph(policy, env)
     partial = out.with_name(out.name + ".partial")
     partial.write_bytes(graph.SerializeToString())

@@ -7,9 +7,9 @@ import torch
 
 from fleetrl.agent.ppo import PPOAgent
 from fleetrl.control.episodes import greedy_scores
+from fleetrl.control.export import check_fits
 from fleetrl.envs.catalog import describe_env, get_env_spec
 from fleetrl.link.base import DeviceLink
-from fleetrl.runs.factory import action_space_of
 
 
 def evaluate_model(
@@ -37,12 +37,7 @@ def evaluate_model(
     spec = get_env_spec(env)
     description = describe_env(env)  # every unit of a type has the same spaces; a bad factory fails here
     agent = PPOAgent.load(model)
-    actions = action_space_of(description)
-    if (agent.obs_dim, agent.action_space) != (description.obs_dim, actions):
-        raise ValueError(
-            f"{model} is a policy for {agent.obs_dim} observations and {agent.action_space} actions; "
-            f"env {env!r} has {description.obs_dim} and {actions}"
-        )
+    check_fits(agent.obs_dim, agent.action_space, description, env, model)
     if open_link is None:
         gym_env, _ = spec.make(unit, fleet_seed, fleet_profile=fleet_profile)
     else:
