@@ -118,3 +118,21 @@ def test_in_real_time_the_controller_ticks_the_spi_driver_on_the_wall_clock(qube
     assert scores[0] > 0 and policy.steps >= scores[0]
     assert time.perf_counter() - started > policy.steps * PERIOD * 0.8  # paced by the 6 ms ticks
     assert spi.closed
+
+
+def test_ctrl_c_during_the_device_side_reset_leaves_the_amplifier_off(
+    models: dict[str, Path], qube: EmulatedQube
+) -> None:
+    """Ctrl-C reaches the bridge's thread (the main one) wherever it is: here mid swing-up, amplifier on."""
+    driver, spi = spi_driver(qube)
+    sleep_until = qube.sleep_until
+
+    def interrupted_mid_reset(deadline: float) -> None:
+        sleep_until(deadline)
+        if qube.now > 1.0 and qube.amplifier:  # the swing-up is pumping
+            raise KeyboardInterrupt
+
+    driver._sleep_until = interrupted_mid_reset
+    with pytest.raises(KeyboardInterrupt):
+        run_on_unit(load_policy(models["balancing"]), "qube", driver, 1)
+    assert spi.closed  # and the fixture: the amplifier off, the last word sent 0x0000

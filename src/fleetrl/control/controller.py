@@ -9,7 +9,9 @@ keeps every safety of the bridge, in the same code:
 * the protective stop: the arm past its limit switches the motor off and refuses steps until a reset;
 * any driver fault (the QUBE's ``QubeFault``: a wrong device id, a stuck encoder, a dead bus) ends the run
   with the amplifier disabled and the fault's own message;
-* Ctrl-C or SIGTERM, or any error, stops the bridge: motor off, driver closed.
+* Ctrl-C or SIGTERM, or any error, stops the bridge: motor off, driver closed. The bridge runs in the
+  calling (main) thread, as under ``fleetrl device``, so an interrupt reaches it wherever it is — in a
+  device-side reset too; the policy plays its episodes in a second thread.
 
 In lockstep (a simulated unit, default) each step holds its command for one period of simulated time,
 exactly as an in-process step does: the scores are ``fleetrl evaluate``'s. In real time (``--realtime``,
@@ -30,7 +32,7 @@ from fleetrl.envs.catalog import describe_env, get_env_spec
 from fleetrl.envs.device_side import check_driver_fits, check_takes_link
 from fleetrl.link.bridge import WATCHDOG_SECONDS, DeviceBridge
 from fleetrl.link.driver import DeviceDriver
-from fleetrl.link.mqtt import DeviceLinkError, MqttLink
+from fleetrl.link.mqtt import MqttLink
 from fleetrl.transport.local import LocalBus
 
 log = logging.getLogger(__name__)
@@ -38,37 +40,32 @@ log = logging.getLogger(__name__)
 RUN_ID = "control"
 """the run id of the in-process bus's device topics"""
 JOIN_SECONDS = 5.0
-"""how long closing waits for the bridge's thread to switch the motor off and return"""
+"""how long the controller waits for the policy's thread once the bridge has closed"""
 
 
-class _ServedUnit:
-    """The bridge serving the driver in a thread; whatever ends it (a fault included) closes it at once:
-    motor off, ``offline`` announced (so the link stops waiting), driver closed."""
+class _Episodes:
+    """The policy's side, in a thread: the unit's env over a link to the bridge, ``greedy_scores`` on it;
+    when the episodes end (or fail) it asks the bridge to stop."""
 
-    def __init__(self, bridge: DeviceBridge) -> None:
-        self.bridge = bridge
+    def __init__(self, bridge: DeviceBridge, play: Callable[[], list[float]]) -> None:
+        self.scores: list[float] = []
         self.error: BaseException | None = None
-        """what ended the bridge's loop, if not a stop request"""
-        bridge.open()
-        name = f"fleetrl-control-{bridge.unit}"
-        self._thread = threading.Thread(target=self._serve, name=name, daemon=True)
+        """what ended the episodes early"""
+        self._bridge, self._play = bridge, play
+        self._thread = threading.Thread(target=self._run, name="fleetrl-control-policy", daemon=True)
         self._thread.start()
 
-    def _serve(self) -> None:
+    def _run(self) -> None:
         try:
-            self.bridge.serve()  # its finally switches the motor off
+            self.scores = self._play()
         except BaseException as err:
             self.error = err
-            log.error("unit %d: the bridge stopped on a fault: %s", self.bridge.unit, err)
         finally:
-            self.bridge.close()
+            self._bridge.stop()
 
-    def close(self) -> None:
-        """Stop the bridge and wait for it to have switched the motor off and closed the driver."""
-        self.bridge.stop()
+    def join(self) -> None:
+        """Wait for the thread (the closed bridge's ``offline`` ends any wait of its link at once)."""
         self._thread.join(JOIN_SECONDS)
-        if self._thread.is_alive():
-            log.error("unit %d: the bridge did not stop within %.0f s", self.bridge.unit, JOIN_SECONDS)
 
 
 def run_on_unit(
@@ -104,17 +101,24 @@ def run_on_unit(
     except BaseException:
         driver.close()
         raise
-    served = _ServedUnit(bridge)
-    try:
+
+    def play() -> list[float]:
         link = MqttLink(bus.client(), RUN_ID, unit, obs_size=description.sensor_dim)
         gym_env, _ = spec.make(unit, fleet_seed, link=link)
         try:
             return greedy_scores(gym_env, policy.act, episodes, seed, report)
         finally:
             gym_env.close()
-    except DeviceLinkError:
-        if served.error is not None:  # the bridge went offline because the driver failed: say why
-            raise served.error from None
-        raise
+
+    # The bridge runs in this (the main) thread, as under `fleetrl device`: Ctrl-C and SIGTERM interrupt it
+    # wherever it is — a device-side reset included — and it switches the motor off on the way out.
+    try:
+        bridge.open()
+        played = _Episodes(bridge, play)
+        bridge.serve()  # until the episodes end; a driver fault or an interrupt raises here, motor off
     finally:
-        served.close()
+        bridge.close()  # motor off, offline (which ends the policy's wait), driver closed
+    played.join()
+    if played.error is not None:
+        raise played.error
+    return played.scores
