@@ -26,8 +26,7 @@ import threading
 from collections.abc import Callable
 
 from fleetrl.control.episodes import greedy_scores
-from fleetrl.control.export import check_fits
-from fleetrl.control.policies import GreedyPolicy
+from fleetrl.control.policies import GreedyPolicy, check_fits
 from fleetrl.envs.catalog import describe_env, get_env_spec
 from fleetrl.envs.device_side import check_driver_fits, check_takes_link
 from fleetrl.link.bridge import WATCHDOG_SECONDS, DeviceBridge

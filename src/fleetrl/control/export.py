@@ -17,11 +17,9 @@ from typing import Any
 
 import numpy as np
 
-from fleetrl.agent.action_space import ActionSpace
 from fleetrl.agent.policy_file import PolicyFile, read_policy_file
-from fleetrl.control.policies import ModelPolicy, OnnxPolicy
+from fleetrl.control.policies import ModelPolicy, OnnxPolicy, check_fits
 from fleetrl.envs.catalog import describe_env, get_env_spec
-from fleetrl.envs.spaces import UnitDescription
 
 CHECK_OBSERVATIONS = 1000
 """observations ``fleetrl export`` checks the exported file on"""
@@ -58,19 +56,6 @@ class ExportCheck:
         else:
             how = "action indices, exact"
         return f"check {verdict}: {agree} observations ({how})"
-
-
-def check_fits(
-    obs_dim: int, actions: ActionSpace, description: UnitDescription, env: str, source: object = "the policy"
-) -> None:
-    """A ValueError, naming ``source``, unless a policy of ``obs_dim`` observations and ``actions`` fits
-    ``env``'s units."""
-    wanted = ActionSpace.of_unit(description.action)
-    if (obs_dim, actions) != (description.obs_dim, wanted):
-        raise ValueError(
-            f"{source} is a policy for {obs_dim} observations and {actions} actions; env {env!r} has "
-            f"{description.obs_dim} and {wanted} (choose the env it was trained on: --env)"
-        )
 
 
 def export_policy(

@@ -11,6 +11,7 @@ import numpy as np
 
 from fleetrl.agent.action_space import ActionSpace
 from fleetrl.agent.policy_file import PolicyFile, read_policy_file
+from fleetrl.envs.spaces import UnitDescription
 
 ONNX_HINT = "pip install 'fleetrl[onnx]'"
 MODEL_SUFFIXES = (".safetensors", ".onnx")
@@ -110,3 +111,16 @@ def load_policy(path: str | Path) -> GreedyPolicy:
             f"{source}: give a fleetrl model file (models/worker-K.safetensors) or an exported policy (.onnx)"
         )
     return ModelPolicy(read_policy_file(source))
+
+
+def check_fits(
+    obs_dim: int, actions: ActionSpace, description: UnitDescription, env: str, source: object = "the policy"
+) -> None:
+    """A ValueError, naming ``source``, unless a policy of ``obs_dim`` observations and ``actions`` fits
+    ``env``'s units."""
+    wanted = ActionSpace.of_unit(description.action)
+    if (obs_dim, actions) != (description.obs_dim, wanted):
+        raise ValueError(
+            f"{source} is a policy for {obs_dim} observations and {actions} actions; env {env!r} has "
+            f"{description.obs_dim} and {wanted} (choose the env it was trained on: --env)"
+        )

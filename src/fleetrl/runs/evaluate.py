@@ -7,7 +7,7 @@ import torch
 
 from fleetrl.agent.ppo import PPOAgent
 from fleetrl.control.episodes import greedy_scores
-from fleetrl.control.export import check_fits
+from fleetrl.control.policies import check_fits
 from fleetrl.envs.catalog import describe_env, get_env_spec
 from fleetrl.link.base import DeviceLink
 
