@@ -150,8 +150,8 @@ def test_the_watchdog_switches_the_motor_off_while_the_policy_stalls(models: dic
     from fleetrl.devices.factory import make_device
 
     driver = WatchedDriver(make_device("qube", UNIT, FLEET_SEED))
-    stalling = Stalling(load_policy(models["balancing"]), driver, at=50, seconds=0.5)
-    run_on_unit(stalling, "qube", driver, 1, seed=SEED, unit=UNIT, watchdog=0.1)
+    stalling = Stalling(load_policy(models["balancing"]), driver, at=50, seconds=1.0)
+    run_on_unit(stalling, "qube", driver, 1, seed=SEED, unit=UNIT, watchdog=0.25)
     assert stalling.offs_during_stall == 1
     assert stalling.command_after_stall is not None and np.all(stalling.command_after_stall == 0.0)
 
