@@ -168,6 +168,26 @@ def test_protective_stop_when_the_arm_passes_its_limit(bus: LocalBus, bridge: De
     assert bridge.stats.protective_stops == 1
 
 
+def test_in_real_time_the_step_that_meets_the_stop_gets_the_reading_that_tripped_it(bus: LocalBus) -> None:
+    """The tripping reading may come at a tick with no command waiting (a loaded machine): the next step is
+    still answered with it, flagged, so the env ends its episode instead of meeting a refusal."""
+    bridge = serve(bus, realtime=True, watchdog=30.0)
+    try:
+        link = MqttLink(bus.client(), RUN, 0)
+        link.reset(5)
+        extras: object = {}
+        for _ in range(2000):  # full power one way: the arm runs past pi/2
+            obs, extras = link.step(2)
+            if extras:
+                break
+        assert extras == {"protective_stop": 1.0} and abs(obs[2]) > np.pi / 2
+        with pytest.raises(DeviceLinkError, match="protective stop"):
+            link.step(2)
+        assert bridge.stats.protective_stops == 1 and not bridge.motor_on
+    finally:
+        bridge.close()
+
+
 def test_realtime_bridge_paces_steps(bus: LocalBus) -> None:
     # 0 V steps: a test process descheduled for half a second while full power is held drives the real-time
     # plant past its arm limit (0.53 s from rest), which is the plant's doing, not the pacing's

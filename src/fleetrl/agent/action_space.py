@@ -11,10 +11,13 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 from functools import cached_property
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import gymnasium
 import numpy as np
+
+if TYPE_CHECKING:
+    from fleetrl.envs.spaces import ActionSpec
 
 DISCRETE = "discrete"
 BOX = "box"
@@ -93,6 +96,14 @@ class ActionSpace:
                 raise UnsupportedActionSpace(f"action space {space} is not supported ({SUPPORTED})")
             return cls.box(space.low, space.high)
         raise UnsupportedActionSpace(f"action space {space} is not supported ({SUPPORTED})")
+
+    @classmethod
+    def of_unit(cls, action: ActionSpec) -> ActionSpace:
+        """The agent's action space for a unit's (``UnitDescription.action``): Discrete n (a softmax head)
+        or a 1-D Box (a Gaussian head)."""
+        if action.kind == DISCRETE:
+            return cls.discrete(action.n)
+        return cls.box(action.low, action.high)
 
     @property
     def is_discrete(self) -> bool:

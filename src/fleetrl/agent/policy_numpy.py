@@ -3,15 +3,26 @@
 The agent refreshes the copy after every change of θ (update, received gradient, received parameters).
 One call of :func:`_act_kernel` (discrete) or :func:`_gaussian_kernel` (a box) costs a few µs for the
 3 x 128 trunk (docs/algorithm.md, "Fast acting"; ``benchmarks/agent_speed.py`` measures both).
+:meth:`NumpyPolicy.from_layers` builds one from plain arrays (a model file read without torch:
+``fleetrl.agent.policy_file``); this module imports no torch.
 """
 
 from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import TYPE_CHECKING
 
 import numba
 import numpy as np
 
 from fleetrl import portable
-from fleetrl.agent.network import ActorCritic
+from fleetrl.agent.action_space import ActionSpace
+
+if TYPE_CHECKING:  # torch only where a network is given: a policy read from a file runs without it
+    from fleetrl.agent.network import ActorCritic
+
+Layer = tuple[np.ndarray, np.ndarray]
+"""one linear layer as (weight (out, in), bias (out,))"""
 
 _TANH = 0
 _RELU = 1
@@ -123,8 +134,28 @@ class NumpyPolicy:
     """
 
     def __init__(self, net: ActorCritic) -> None:
-        self._activation = _TANH if net.activation == "tanh" else _RELU
-        space = net.action_space
+        widths = [net.obs_dim, *(layer.out_features for layer in net.trunk_layers)]
+        self._setup([*widths, net.action_space.head_size], net.activation, net.action_space)
+        self.refresh(net)
+
+    @classmethod
+    def from_layers(
+        cls,
+        layers: Sequence[Layer],
+        activation: str,
+        space: ActionSpace,
+        log_std: np.ndarray | None = None,
+    ) -> NumpyPolicy:
+        """A policy from plain arrays: the trunk's layers then the policy head's (``layers``), the trunk's
+        ``activation`` (``tanh`` or ``relu``), the action ``space`` and a Gaussian's ``log_std``."""
+        policy = cls.__new__(cls)
+        widths = [int(layers[0][0].shape[1])] + [int(weight.shape[0]) for weight, _ in layers]
+        policy._setup(widths, activation, space)
+        policy._load(layers, log_std)
+        return policy
+
+    def _setup(self, widths: list[int], activation: str, space: ActionSpace) -> None:
+        self._activation = _TANH if activation == "tanh" else _RELU
         self.discrete = space.is_discrete
         """True for an index-valued (softmax) policy, False for a Gaussian over a box"""
         self._centre = space.centre()
@@ -133,26 +164,27 @@ class NumpyPolicy:
         self._high = np.asarray(space.high, dtype=np.float64)
         self._std = np.ones(space.dim, dtype=np.float64)
         self._no_draw = np.zeros(0, dtype=np.float64)
-        widths = [net.obs_dim] + [layer.out_features for layer in net.trunk_layers] + [space.head_size]
         self._dims = np.asarray(widths, dtype=np.int64)
         self._a = np.zeros(max(widths), dtype=np.float64)
         self._b = np.zeros(max(widths), dtype=np.float64)
-        self._obs = np.zeros(net.obs_dim, dtype=np.float64)
+        self._obs = np.zeros(widths[0], dtype=np.float64)
         n_layers, width = len(widths) - 1, max(widths)
         self._weights = np.zeros((n_layers, width, width), dtype=np.float64)
         self._biases = np.zeros((n_layers, width), dtype=np.float64)
-        self.refresh(net)
 
     def refresh(self, net: ActorCritic) -> None:
         """Copy the current trunk and policy-head weights out of ``net``."""
         layers = [*net.trunk_layers, net.policy]
-        for i, layer in enumerate(layers):
-            w = layer.weight.detach().cpu().numpy()
+        arrays = [(lin.weight.detach().cpu().numpy(), lin.bias.detach().cpu().numpy()) for lin in layers]
+        log_std = None if net.policy_log_std is None else net.policy_log_std.detach().cpu().numpy()
+        self._load(arrays, log_std)
+
+    def _load(self, layers: Sequence[Layer], log_std: np.ndarray | None) -> None:
+        for i, (w, bias) in enumerate(layers):
             self._weights[i, : w.shape[0], : w.shape[1]] = w
-            self._biases[i, : w.shape[0]] = layer.bias.detach().cpu().numpy()
-        if net.policy_log_std is not None:
-            log_std = net.policy_log_std.detach().cpu().numpy().astype(np.float64)
-            self._std = self._half * np.exp(log_std)
+            self._biases[i, : w.shape[0]] = bias
+        if log_std is not None:
+            self._std = self._half * np.exp(np.asarray(log_std).astype(np.float64))
 
     def _load_obs(self, obs: np.ndarray) -> np.ndarray:
         flat = np.asarray(obs, dtype=np.float64).reshape(-1)

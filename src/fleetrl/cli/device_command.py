@@ -24,11 +24,7 @@ def register(subparsers: Any) -> None:
     p: argparse.ArgumentParser = subparsers.add_parser(
         "device", help="serve one unit (simulated, or a QUBE on SPI) over MQTT through a device bridge"
     )
-    from fleetrl.cli.settings_args import (
-        add_broker_arguments,
-        add_connect_timeout,
-        add_fleet_profile_argument,
-    )
+    from fleetrl.cli.settings_args import add_broker_arguments, add_connect_timeout
 
     add_broker_arguments(p, "default: an embedded broker")
     p.add_argument("--run-id", default="default", help="run whose device topics to serve (default: default)")
@@ -40,6 +36,17 @@ def register(subparsers: Any) -> None:
         help="--driver sim: the built-in unit type (default qube; a qube bridge serves the discrete and the "
         "continuous QUBE task)",
     )
+    add_driver_arguments(p)
+    add_connect_timeout(p)
+    p.set_defaults(handler=cmd_device)
+
+
+def add_driver_arguments(p: argparse.ArgumentParser) -> None:
+    """The options that choose and configure a unit's driver and its safety (``fleetrl device`` and
+    ``fleetrl control`` take the same): ``--driver``, the simulated unit's fleet, the SPI bus, the period,
+    real time, the watchdog."""
+    from fleetrl.cli.settings_args import add_fleet_profile_argument
+
     p.add_argument("--fleet-seed", type=int, default=0, help="seed of the fleet's per-unit dynamics")
     add_fleet_profile_argument(p)
     p.add_argument("--realtime", action="store_true", help="fixed control period, last command held")
@@ -70,8 +77,6 @@ def register(subparsers: Any) -> None:
         default=10,
         help="with --realtime: SCHED_FIFO priority of the bridge process (needs root/CAP_SYS_NICE; 0: none)",
     )
-    add_connect_timeout(p)
-    p.set_defaults(handler=cmd_device)
 
 
 def cmd_device(args: argparse.Namespace) -> int:

@@ -11,7 +11,7 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
-from fleetrl.cli import device_command, roles
+from fleetrl.cli import control_command, device_command, roles
 from fleetrl.cli.settings_args import (
     add_broker_arguments,
     add_config_argument,
@@ -149,6 +149,7 @@ def build_parser() -> argparse.ArgumentParser:
     experiment.set_defaults(handler=cmd_experiment)
     roles.register(sub)
     device_command.register(sub)
+    control_command.register(sub)
     return parser
 
 

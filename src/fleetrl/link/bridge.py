@@ -6,7 +6,9 @@ its last will), and keeps the unit safe on its own:
 
 * **watchdog**: when no command has arrived for ``watchdog`` seconds the motor is switched off (0 V);
 * **protective stop**: when the arm (cart) passes its limit the motor is switched off and steps are refused
-  until the next reset.
+  until the next reset; the step that meets the stop first is answered with the reading that tripped it,
+  flagged (not acted on), so the env sees the arm past its limit and ends its episode — in real time too,
+  where the tripping reading may come at a tick with no command waiting.
 
 A step command carries a discrete action index or a command vector (``fleetrl.link.wire``). The bridge turns
 an index into the driver's actuator command vector (``DriverSpec.command_of``: QUBE ``[volts]``, CartPole
@@ -117,6 +119,7 @@ class DeviceBridge:
         """whether a command is being held (the watchdog's concern)"""
         self.stopped = False
         """protective stop in force (cleared by a reset)"""
+        self._trip_reading: np.ndarray | None = None
         self._spec = driver.spec
         self._commands = [driver.spec.command_of(action) for action in range(driver.spec.n_actions)]
         self._session = -1
@@ -231,7 +234,7 @@ class DeviceBridge:
         if command is None:
             return
         if self.stopped:
-            self._refuse(command, "protective stop in force: the arm passed its limit; reset first")
+            self._answer_stopped(command)
             return
         self._answer(command, obs)
         self._actuate(command)
@@ -242,7 +245,7 @@ class DeviceBridge:
             self._home(command)
             return
         if self.stopped:
-            self._refuse(command, "protective stop in force: the arm passed its limit; reset first")
+            self._answer_stopped(command)
             return
         self._actuate(command)
         driver.wait_until(driver.time() + self._spec.control_period)
@@ -305,7 +308,16 @@ class DeviceBridge:
         self._reject(f"seq {command.seq}: {reason}")
         self._publish(State(command.sid, command.seq, self.driver.time(), _EMPTY, error=reason))
 
+    def _answer_stopped(self, command: Command) -> None:
+        """A step while the protective stop is in force: the first one after the trip learns of it with the
+        reading that tripped it (flagged), the later ones are refused; none is acted on."""
+        if self._trip_reading is not None:
+            self._answer(command, self._trip_reading)
+        else:
+            self._refuse(command, "protective stop in force: the arm passed its limit; reset first")
+
     def _answer(self, command: Command, obs: np.ndarray, *, reset: bool = False) -> None:
+        self._trip_reading = None  # an answer carries the stop's flag: later steps are refused
         if obs.size != self._spec.sensor_size:  # a driver fault: never passed on as an observation
             self._refuse(
                 command, f"driver read {obs.size} sensor values, its spec declares {self._spec.sensor_size}"
@@ -328,6 +340,7 @@ class DeviceBridge:
             self.driver.motor_off()
             self.motor_on = False
             self.stopped = True
+            self._trip_reading = obs.copy()
             self.stats.protective_stops += 1
             log.warning(
                 "unit %d protective stop: |obs[%d]| = %.3f > %.3f; motor off until reset",

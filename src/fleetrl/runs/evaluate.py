@@ -6,9 +6,10 @@ from pathlib import Path
 import torch
 
 from fleetrl.agent.ppo import PPOAgent
+from fleetrl.control.episodes import greedy_scores
+from fleetrl.control.policies import check_fits
 from fleetrl.envs.catalog import describe_env, get_env_spec
 from fleetrl.link.base import DeviceLink
-from fleetrl.runs.factory import action_space_of
 
 
 def evaluate_model(
@@ -36,24 +37,12 @@ def evaluate_model(
     spec = get_env_spec(env)
     description = describe_env(env)  # every unit of a type has the same spaces; a bad factory fails here
     agent = PPOAgent.load(model)
-    actions = action_space_of(description)
-    if (agent.obs_dim, agent.action_space) != (description.obs_dim, actions):
-        raise ValueError(
-            f"{model} is a policy for {agent.obs_dim} observations and {agent.action_space} actions; "
-            f"env {env!r} has {description.obs_dim} and {actions}"
-        )
+    check_fits(agent.obs_dim, agent.action_space, description, env, model)
     if open_link is None:
         gym_env, _ = spec.make(unit, fleet_seed, fleet_profile=fleet_profile)
     else:
         gym_env, _ = spec.make(unit, fleet_seed, link=open_link())
-    scores = []
-    for episode in range(episodes):
-        obs, _ = gym_env.reset(seed=seed + episode)
-        score, done = 0.0, False
-        while not done:
-            obs, reward, terminated, truncated, _ = gym_env.step(agent.act_greedy(obs))
-            score += float(reward)
-            done = terminated or truncated
-        scores.append(score)
-    gym_env.close()
-    return scores
+    try:
+        return greedy_scores(gym_env, agent.act_greedy, episodes, seed)
+    finally:
+        gym_env.close()

@@ -19,10 +19,7 @@ from fleetrl.transport.base import Transport
 
 def action_space_of(unit: UnitDescription) -> ActionSpace:
     """The agent's action space for ``unit``'s: Discrete n (a softmax head) or a 1-D Box (a Gaussian head)."""
-    actions = unit.action
-    if actions.kind == "discrete":
-        return ActionSpace.discrete(actions.n)
-    return ActionSpace.box(actions.low, actions.high)
+    return ActionSpace.of_unit(unit.action)
 
 
 def agent_for(unit: UnitDescription, config: PPOConfig, seed: int) -> PPOAgent:

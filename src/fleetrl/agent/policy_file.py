@@ -1,0 +1,92 @@
+"""A saved policy read without torch: the actor of a model file (``models/worker-K.safetensors``) as arrays.
+
+A model file holds the whole network (trunk, policy head, value head) and, as JSON metadata, its
+architecture: observation size, action space, hidden widths and activation (``PPOAgent.save``). That is
+all it takes to rebuild the actor, so a unit runs its policy with numpy (and numba) alone — the same
+kernels ``PPOAgent.act_greedy`` runs, on the same float64 copy of the same float32 weights, so it picks
+the same actions. The ONNX export (``fleetrl.control.onnx_graph``) builds its graph from these arrays.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from fleetrl.agent.action_space import ActionSpace
+from fleetrl.agent.checkpoint import CheckpointError, check_tensors_fit, read_checkpoint
+from fleetrl.agent.policy_numpy import Layer, NumpyPolicy
+
+ACTIVATIONS = ("tanh", "relu")
+
+
+@dataclass(frozen=True)
+class PolicyFile:
+    """The actor of one model file: its layers (the trunk's, then the policy head's), as float32 arrays."""
+
+    source: str
+    """where it was read from (for messages)"""
+    obs_dim: int
+    """length of an observation"""
+    action_space: ActionSpace
+    """the actions: discrete indices (argmax of the logits) or a box (the Gaussian's mean, clipped)"""
+    activation: str
+    """the trunk's non-linearity: ``tanh`` or ``relu``"""
+    layers: tuple[Layer, ...]
+    """(weight (out, in), bias (out,)) of each trunk layer, then of the policy head"""
+    log_std: np.ndarray | None
+    """a Gaussian's state-independent log-std (None: discrete)"""
+
+    def numpy_policy(self) -> NumpyPolicy:
+        """The numba acting copy of this actor (what ``PPOAgent`` acts with)."""
+        return NumpyPolicy.from_layers(self.layers, self.activation, self.action_space, self.log_std)
+
+
+def read_policy_file(path: str | Path) -> PolicyFile:
+    """The actor of the model file at ``path``, every tensor's shape checked against its architecture.
+
+    :raises FileNotFoundError: no file at ``path``
+    :raises CheckpointError: not a readable fleetrl model, incomplete metadata, or tensors that do not fit
+    """
+    tensors, metadata = read_checkpoint(path)
+    try:
+        arch = metadata["architecture"]
+        obs_dim = int(arch["obs_dim"])
+        hidden = [int(width) for width in arch["hidden"]]
+        activation = str(arch["activation"])
+        space = ActionSpace.from_architecture(arch)
+    except (KeyError, TypeError, ValueError) as exc:
+        raise CheckpointError(f"{path}: fleetrl metadata is incomplete or invalid ({exc})") from exc
+    if obs_dim < 1 or not hidden or min(hidden) < 1 or activation not in ACTIVATIONS:
+        raise CheckpointError(f"{path}: fleetrl metadata describes no network this version builds: {arch}")
+    check_tensors_fit(tensors, network_shapes(obs_dim, hidden, space), str(path))
+    names = [f"trunk.{i}" for i in range(len(hidden))] + ["policy"]
+    layers = tuple(_layer(tensors, name) for name in names)
+    log_std = None if space.is_discrete else np.asarray(tensors["policy_log_std"], dtype=np.float32)
+    arrays = [array for layer in layers for array in layer] + ([] if log_std is None else [log_std])
+    if not all(np.all(np.isfinite(array)) for array in arrays):
+        raise CheckpointError(f"{path}: the policy's weights hold values that are not finite")
+    return PolicyFile(str(path), obs_dim, space, activation, layers, log_std)
+
+
+def network_shapes(obs_dim: int, hidden: list[int], space: ActionSpace) -> dict[str, tuple[int, ...]]:
+    """Every tensor a model file of this architecture holds, with its shape (``ActorCritic``'s state dict)."""
+    widths = [obs_dim, *hidden]
+    shapes: dict[str, tuple[int, ...]] = {}
+    for i in range(len(hidden)):
+        shapes[f"trunk.{i}.weight"] = (widths[i + 1], widths[i])
+        shapes[f"trunk.{i}.bias"] = (widths[i + 1],)
+    shapes["policy.weight"] = (space.head_size, widths[-1])
+    shapes["policy.bias"] = (space.head_size,)
+    if not space.is_discrete:
+        shapes["policy_log_std"] = (space.dim,)
+    shapes["value.weight"] = (1, widths[-1])
+    shapes["value.bias"] = (1,)
+    return shapes
+
+
+def _layer(tensors: dict[str, Any], name: str) -> Layer:
+    weight = np.asarray(tensors[f"{name}.weight"], dtype=np.float32)
+    return weight, np.asarray(tensors[f"{name}.bias"], dtype=np.float32)

@@ -1,0 +1,157 @@
+"""``fleetrl export``: a model file's greedy policy written as ONNX, then checked — onnxruntime must pick
+fleetrl's actions on observations drawn from the unit's own episodes and around them.
+
+The check's observations: half are states the unit visits (episodes of the simulated unit under the
+policy's own sampled actions, so a mature policy's states and an untrained one's both appear), half are
+drawn uniformly from a box around them (their range widened by half on each side, within the observation
+space's finite bounds), so states a real unit reaches off the training distribution are covered too.
+Discrete actions must be equal; a box's within ``tolerance`` (the graph computes in float32, fleetrl in
+float64 from the same float32 weights).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from fleetrl.agent.policy_file import PolicyFile, read_policy_file
+from fleetrl.control.policies import ModelPolicy, OnnxPolicy, check_fits
+from fleetrl.envs.catalog import describe_env, get_env_spec
+
+CHECK_OBSERVATIONS = 1000
+"""observations ``fleetrl export`` checks the exported file on"""
+RELATIVE_TOLERANCE = 1e-5
+"""a box's actions agree when they differ by at most this fraction of the half range (float32 rounding)"""
+STEPS_PER_OBSERVATION = 4
+"""the unit's episodes run for up to this many steps per observation wanted (then half are picked)"""
+
+
+@dataclass(frozen=True)
+class ExportCheck:
+    """How the exported graph's actions compared with fleetrl's."""
+
+    observations: int
+    """observations checked"""
+    agreeing: int
+    """how many got the same action (a box's: within the tolerance)"""
+    max_difference: float
+    """a box's largest absolute difference in any component (0 for discrete actions)"""
+    tolerance: float
+    """a box's allowed absolute difference (0: discrete, exact)"""
+
+    @property
+    def passed(self) -> bool:
+        """Every action agreed."""
+        return self.agreeing == self.observations
+
+    def describe(self) -> str:
+        """One line for a person."""
+        verdict = "passed" if self.passed else "FAILED"
+        agree = f"onnxruntime's actions equal fleetrl's on {self.agreeing} of {self.observations}"
+        if self.tolerance > 0:
+            how = f"max difference {self.max_difference:.2g}, tolerance {self.tolerance:.2g}"
+        else:
+            how = "action indices, exact"
+        return f"check {verdict}: {agree} observations ({how})"
+
+
+def export_policy(
+    model: Path,
+    out: Path,
+    env: str,
+    *,
+    observations: int = CHECK_OBSERVATIONS,
+    seed: int = 0,
+    unit: int = 0,
+    fleet_seed: int = 0,
+    fleet_profile: str | None = None,
+) -> ExportCheck:
+    """Write ``model``'s greedy policy to ``out`` as ONNX and check it on ``observations`` observations of
+    ``unit`` of fleet ``fleet_seed`` of ``env``; a file that fails the check is not left at ``out``.
+
+    :raises FileNotFoundError: no model file
+    :raises ValueError: not a fleetrl model, not one for ``env``, or a bad setting
+    """
+    from fleetrl.control.onnx_graph import policy_graph
+
+    if observations < 1:
+        raise ValueError(f"--check must be at least 1 observation, got {observations}")
+    if out.suffix != ".onnx":
+        raise ValueError(f"--out {out}: name the file .onnx")
+    if not out.parent.is_dir():
+        raise FileNotFoundError(f"--out {out}: no directory {out.parent}")
+    policy = read_policy_file(model)
+    check_fits(policy.obs_dim, policy.action_space, describe_env(env), env, model)
+    graph = policy_graph(policy, env)
+    partial = out.with_name(out.name + ".partial")
+    partial.write_bytes(graph.SerializeToString())
+    try:
+        drawn = draw_observations(env, policy, observations, seed, unit, fleet_seed, fleet_profile)
+        check = compare(ModelPolicy(policy), OnnxPolicy(partial), drawn)
+        if check.passed:
+            partial.replace(out)
+        return check
+    finally:
+        partial.unlink(missing_ok=True)
+
+
+def compare(reference: ModelPolicy, exported: OnnxPolicy, observations: np.ndarray) -> ExportCheck:
+    """The exported policy's actions on ``observations`` against the reference's, one by one."""
+    ours = np.stack([np.asarray(reference.act(obs)) for obs in observations])
+    theirs = exported.act_batch(observations)
+    if reference.action_space.is_discrete:
+        agreeing = int(np.sum(ours == theirs.reshape(ours.shape)))
+        return ExportCheck(len(observations), agreeing, 0.0, 0.0)
+    tolerance = RELATIVE_TOLERANCE * float(np.max(reference.action_space.half_range()))
+    difference = np.abs(ours.astype(np.float64) - theirs.reshape(ours.shape)).max(axis=1)
+    agreeing = int(np.sum(difference <= tolerance))
+    return ExportCheck(len(observations), agreeing, float(difference.max()), tolerance)
+
+
+def draw_observations(
+    env: str,
+    policy: PolicyFile,
+    n: int,
+    seed: int = 0,
+    unit: int = 0,
+    fleet_seed: int = 0,
+    fleet_profile: str | None = None,
+) -> np.ndarray:
+    """``n`` float32 observations: half visited by the simulated unit under the policy's sampled actions,
+    half uniform in a box around those (module docstring); seeded by ``seed``."""
+    rng = np.random.default_rng(seed)
+    built = get_env_spec(env).make(unit, fleet_seed, fleet_profile=fleet_profile)
+    gym_env, acting, space = built.env, policy.numpy_policy(), policy.action_space
+    visited: list[np.ndarray] = []
+    budget, episode = STEPS_PER_OBSERVATION * n, 0
+    try:
+        while len(visited) < budget:
+            obs, _ = gym_env.reset(seed=seed + episode)
+            episode += 1
+            for _ in range(n):  # a mature policy's episode is long: several episodes, several resets
+                visited.append(np.array(obs, dtype=np.float32))
+                if space.is_discrete:
+                    action: Any = acting.act(obs, float(rng.random()))
+                else:
+                    action = space.clip(acting.act_continuous(obs, rng.standard_normal(space.dim)))
+                obs, _, terminated, truncated, _ = gym_env.step(action)
+                if terminated or truncated:
+                    break
+            visited.append(np.array(obs, dtype=np.float32))
+    finally:
+        gym_env.close()
+    states = np.stack(visited)
+    on_path = states[rng.choice(len(states), size=n - n // 2, replace=False)]
+    low, high = states.min(axis=0), states.max(axis=0)
+    span = np.maximum(high - low, 1e-3)
+    low, high = low - span / 2, high + span / 2
+    box = gym_env.observation_space
+    bounds_low = np.asarray(getattr(box, "low", low), dtype=np.float64)
+    bounds_high = np.asarray(getattr(box, "high", high), dtype=np.float64)
+    low = np.where(np.isfinite(bounds_low), np.maximum(low, bounds_low), low)
+    high = np.where(np.isfinite(bounds_high), np.minimum(high, bounds_high), high)
+    around = rng.uniform(low, high, size=(n // 2, states.shape[1]))
+    return np.concatenate([on_path, around]).astype(np.float32)
