@@ -9,7 +9,8 @@ federated      threads of this process          a thread, on the in-process bus 
 =============  ===============================  =============================================
 
 Every worker reports its rounds as :class:`~fleetrl.runs.records.RoundRecord` objects; this process
-owns the run directory and the live view.
+owns the run directory and the live view. Worker processes are forked from this one where the OS can
+(:mod:`fleetrl.runs.processes`: torch and fleetrl are imported once), before the chief's thread starts.
 """
 
 import logging
