@@ -96,7 +96,9 @@ def test_a_run_logs_in_without_the_password_in_any_argv_or_file(
     tmp_path: Path, login_broker: str, how: str
 ) -> None:
     out = tmp_path / "run"
-    url, extra, env = login_broker, [], dict(os.environ)
+    # worker processes as new interpreters, whose command lines fleetrl writes (a forked worker's is the
+    # launcher's own, the user's command line)
+    url, extra, env = login_broker, [], dict(os.environ, FLEETRL_WORKER_START="spawn")
     if how == "password-file":
         secret = tmp_path / "broker.pw"
         secret.write_text(PASSWORD + "\n")

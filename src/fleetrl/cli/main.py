@@ -332,6 +332,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         format="%(asctime)s %(levelname)s %(name)s: %(message)s",
     )
     handler: Callable[[argparse.Namespace], int] = args.handler
+    logging.getLogger("fleetrl").debug("fleetrl %s: command line read", args.command)
     threading.excepthook = _thread_failed
     logging.raiseExceptions = False  # a log file on a full disk must not print tracebacks over the real error
     # SIGTERM unwinds like Ctrl-C: brokers, bridges and worker processes this command started are stopped.

@@ -9,11 +9,11 @@ federated      threads of this process          a thread, on the in-process bus 
 =============  ===============================  =============================================
 
 Every worker reports its rounds as :class:`~fleetrl.runs.records.RoundRecord` objects; this process
-owns the run directory and the live view.
+owns the run directory and the live view. Worker processes are forked from this one where the OS can
+(:mod:`fleetrl.runs.processes`: torch and fleetrl are imported once), before the chief's thread starts.
 """
 
 import logging
-import sys
 import threading
 import uuid
 from collections.abc import Callable, Iterator
@@ -21,13 +21,16 @@ from contextlib import contextmanager, suppress
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
+from fleetrl.envs.catalog import ENV_SPECS, describe_env
 from fleetrl.federation.chief import Chief
 from fleetrl.federation.runner import ChiefSummary, run_chief
 from fleetrl.federation.schemes import DEFAULT_SCHEME
-from fleetrl.runs.factory import probe_agent
+from fleetrl.runs.factory import make_learner, probe_agent
 from fleetrl.runs.fleet import Fleet, ThreadFleet, follow
 from fleetrl.runs.live import LiveView
-from fleetrl.runs.processes import ProcessFleet
+from fleetrl.runs.processes import ProcessFleet, fork_available
 from fleetrl.runs.roles import Emit
 from fleetrl.runs.roles import train_federated as train_federated_worker
 from fleetrl.runs.rundir import RunDirectoryError, RunRecorder, write_json_atomic
@@ -114,6 +117,7 @@ def _train(settings: RunSettings) -> dict[str, Any]:
     recorder = RunRecorder(Path(settings.out), settings.to_config(), list(range(settings.units)))
     (recorder.out / "config.toml").write_text(settings.to_toml())
     recorder.extra["run_id"] = run_id
+    log.debug("run directory %s ready", recorder.out)
     title = f"fleetrl {settings.mode} · {settings.env} × {settings.units} · preset {settings.preset}"
     threshold = settings.target_score
     assert threshold is not None, "validation fills in the target score"
@@ -129,8 +133,8 @@ def _train(settings: RunSettings) -> dict[str, Any]:
             if url is not None:
                 recorder.extra["broker"] = url
             if settings.mode == "individual":
-                commands = {k: worker_command(s) for k, s in specs.items()}
-                follow(ProcessFleet(commands, recorder.out / "logs"), recorder, view)
+                commands = {k: worker_args(s) for k, s in specs.items()}
+                follow(process_fleet(settings, commands), recorder, view)
             else:
                 fed_url = url if settings.transport == "mqtt" else None
                 train_federated(settings, specs, run_id, fed_url, recorder, view)
@@ -186,9 +190,35 @@ def run_logging(path: Path, quiet: bool) -> Iterator[None]:
             console.setLevel(level)
 
 
-def worker_command(spec: WorkerSpec, *extra: str) -> list[str]:
-    """argv of a worker process."""
-    return [sys.executable, "-m", "fleetrl.runs.worker_main", spec.to_json(), *extra]
+def process_fleet(settings: RunSettings, commands: dict[int, list[str]]) -> ProcessFleet:
+    """The run's worker processes (:func:`worker_args` each); forked ones start with the kernels loaded."""
+    if fork_available():
+        load_kernels(settings)
+    return ProcessFleet(commands, Path(settings.out) / "logs")
+
+
+def load_kernels(settings: RunSettings) -> None:
+    """Load (or compile) the numba kernels of a step once in this process: the agent's acting and, for a
+    built-in unit type on an in-process link, the unit's physics and reset. Worker processes forked from here
+    start with them loaded (each would otherwise spend ~0.4 s of CPU on its first step, more on a cold cache);
+    a user's unit is not stepped here."""
+    agent = probe_agent(settings.env, settings.ppo())
+    description = describe_env(settings.env)
+    if settings.env not in ENV_SPECS or settings.device_link != "inprocess":
+        agent.act(np.zeros(description.obs_dim, dtype=np.float32))
+        return
+    built = ENV_SPECS[settings.env].make(0, settings.fleet_seed, fleet_profile=settings.fleet_profile)
+    try:
+        obs, _ = built.env.reset(seed=0)
+        action = agent.act(obs)
+        built.env.step(action if agent.action_space.is_discrete else agent.env_action(action))
+    finally:
+        built.env.close()
+
+
+def worker_args(spec: WorkerSpec, *extra: str) -> list[str]:
+    """The arguments of a worker process's :mod:`fleetrl.runs.worker_main` (its spec as JSON first)."""
+    return [spec.to_json(), *extra]
 
 
 def train_federated(
@@ -229,8 +259,9 @@ def train_federated(
                 outcome["chief"] = err
 
         chief_thread = threading.Thread(target=chief_body, name="chief", daemon=True)
+        fleet = fleet_for()  # worker processes are forked before the chief's thread exists (runs.processes)
         chief_thread.start()
-        follow(fleet_for(), recorder, view)
+        follow(fleet, recorder, view)
         chief_thread.join(timeout=10)
     result = outcome.get("chief")
     if isinstance(result, ChiefSummary):
@@ -268,11 +299,11 @@ def transports(
 
     from fleetrl.transport.mqtt import MqttTransport
 
-    def process_fleet() -> Fleet:
-        commands = {k: worker_command(s, "--broker", url, "--run-id", run_id) for k, s in specs.items()}
-        return ProcessFleet(commands, Path(settings.out) / "logs")
+    def federated_fleet() -> Fleet:
+        commands = {k: worker_args(s, "--broker", url, "--run-id", run_id) for k, s in specs.items()}
+        return process_fleet(settings, commands)
 
-    return (lambda: MqttTransport(url, clean_session=False)), process_fleet
+    return (lambda: MqttTransport(url, clean_session=False)), federated_fleet
 
 
 def federated_thread(
@@ -281,6 +312,10 @@ def federated_thread(
     """The body of a worker thread on the in-process bus."""
 
     def body(emit: Emit) -> None:
-        train_federated_worker(spec, make_transport(), run_id, emit, reply_timeout=CHIEF_IDLE_TIMEOUT)
+        learner = make_learner(spec)
+        log.info("worker %d: learner ready", spec.worker)
+        train_federated_worker(
+            spec, make_transport(), run_id, emit, reply_timeout=CHIEF_IDLE_TIMEOUT, learner=learner
+        )
 
     return body

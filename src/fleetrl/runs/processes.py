@@ -1,9 +1,16 @@
 """Worker processes that report their rounds as JSON lines on stdout.
 
-Each child prints one :class:`RoundRecord` per line on stdout and logs to stderr (kept in
-``<run>/logs/worker-K.log``). The parent reads every child's stdout on a thread and hands the parsed records
-to one queue, so the main thread owns the run directory and the live view. Nothing crosses the process
-boundary but text.
+Each child runs :mod:`fleetrl.runs.worker_main` with its arguments (its spec as JSON), prints one
+:class:`RoundRecord` per line on stdout and logs to stderr (kept in ``<run>/logs/worker-K.log``). The parent
+reads every child's stdout on a thread and hands the parsed records to one queue, so the main thread owns the
+run directory and the live view. Nothing crosses the process boundary but text.
+
+Where the OS has ``fork`` a child is forked from this process: it starts with torch, numba and fleetrl
+already imported (a new interpreter spends 2-3 s of CPU importing them, benchmarks/startup.py), and runs
+``worker_main.main`` with the same arguments a new interpreter would get. The fleet must then be started
+before this process starts threads that the children could need (the run's chief), and before torch runs a
+multi-threaded operation here (an OpenMP pool does not survive a fork). ``FLEETRL_WORKER_START=spawn`` starts
+new interpreters instead (``python -m fleetrl.runs.worker_main``).
 """
 
 import logging
@@ -11,15 +18,24 @@ import os
 import queue
 import signal
 import subprocess
+import sys
 import threading
+import time
+import traceback
 from collections.abc import Mapping, Sequence
+from contextlib import suppress
 from dataclasses import dataclass
 from pathlib import Path
-from typing import IO
+from typing import IO, NoReturn, Protocol
 
 from fleetrl.runs.records import RoundRecord
 
 log = logging.getLogger(__name__)
+
+WORKER_MODULE = "fleetrl.runs.worker_main"
+START_ENV = "FLEETRL_WORKER_START"
+"""``fork`` (the default where the OS has it) or ``spawn``: how worker processes are started"""
+CHILD_ENV = {"PYTHONUNBUFFERED": "1", "OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
 
 
 @dataclass
@@ -33,42 +49,156 @@ class WorkerExit:
 FleetEvent = RoundRecord | WorkerExit
 
 
+class Child(Protocol):
+    """What the fleet uses of a child process (a ``subprocess.Popen`` or a :class:`ForkedChild`)."""
+
+    pid: int
+
+    def poll(self) -> int | None: ...
+    def wait(self, timeout: float | None = None) -> int: ...
+    def send_signal(self, sig: int) -> None: ...
+    def kill(self) -> None: ...
+
+
+class ForkedChild:
+    """A child forked from this process, with the part of ``subprocess.Popen``'s interface the fleet uses."""
+
+    def __init__(self, pid: int) -> None:
+        self.pid = pid
+        self.returncode: int | None = None
+        self._lock = threading.Lock()
+
+    def poll(self) -> int | None:
+        """The exit code if the child has ended (a signal: its negative number), else None."""
+        with self._lock:
+            if self.returncode is None:
+                pid, status = os.waitpid(self.pid, os.WNOHANG)
+                if pid:
+                    self.returncode = os.waitstatus_to_exitcode(status)
+            return self.returncode
+
+    def wait(self, timeout: float | None = None) -> int:
+        """Wait for the child's end (``subprocess.TimeoutExpired`` after ``timeout`` seconds)."""
+        deadline = None if timeout is None else time.monotonic() + timeout
+        while (code := self.poll()) is None:
+            if deadline is not None and time.monotonic() >= deadline:
+                raise subprocess.TimeoutExpired(str(self.pid), timeout or 0.0)
+            time.sleep(0.02)
+        return code
+
+    def send_signal(self, sig: int) -> None:
+        """Signal the child unless it has ended."""
+        if self.poll() is None:
+            os.kill(self.pid, sig)
+
+    def kill(self) -> None:
+        """SIGKILL."""
+        self.send_signal(signal.SIGKILL)
+
+
+def fork_available() -> bool:
+    """Whether worker processes are forked (see the module's docstring)."""
+    how = os.environ.get(START_ENV, "fork").strip().lower()
+    if how not in ("fork", "spawn"):
+        raise ValueError(f"{START_ENV}={how!r}: use fork or spawn")
+    return how == "fork" and hasattr(os, "fork")
+
+
+def _run_forked_worker(args: Sequence[str], stdout_fd: int, log_path: Path) -> NoReturn:
+    """The forked child: a new session, stdout to the parent's pipe, stderr to its log, the parent's log
+    handlers dropped; run the worker and exit without returning into the parent's code."""
+    code = 1
+    try:
+        os.setsid()
+        os.dup2(stdout_fd, 1)
+        os.close(stdout_fd)
+        log_fd = os.open(log_path, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o644)
+        os.dup2(log_fd, 2)
+        os.close(log_fd)
+        # new streams over fds 1 and 2: the inherited ones may write elsewhere (a test's capture)
+        sys.stdout = open(1, "w", encoding="utf-8", buffering=1, closefd=False)  # noqa: SIM115
+        sys.stderr = open(2, "w", encoding="utf-8", buffering=1, closefd=False)  # noqa: SIM115
+        os.environ.update(CHILD_ENV)
+        root = logging.getLogger()
+        for handler in list(root.handlers):  # the parent's console and run.log: worker_main sets its own
+            root.removeHandler(handler)
+        from fleetrl.runs import worker_main
+
+        code = worker_main.main(list(args))
+    except KeyboardInterrupt:
+        code = 130
+    except SystemExit as stop:
+        code = stop.code if isinstance(stop.code, int) else 1
+    except BaseException:
+        traceback.print_exc()
+    finally:
+        for stream in (sys.stdout, sys.stderr):
+            with suppress(OSError, ValueError):
+                stream.flush()
+        os._exit(code)
+
+
 class ProcessFleet:
     """Starts one child per worker and streams their records.
 
-    :param commands: worker id → argv of its process
+    :param commands: worker id → the arguments of its :mod:`fleetrl.runs.worker_main`
     :param log_dir: where each child's stderr goes
     """
 
     def __init__(self, commands: Mapping[int, Sequence[str]], log_dir: Path) -> None:
         log_dir.mkdir(parents=True, exist_ok=True)
         self.events: queue.Queue[FleetEvent] = queue.Queue()
-        self.children: dict[int, subprocess.Popen[str]] = {}
+        self.children: dict[int, Child] = {}
         self._threads: list[threading.Thread] = []
-        env = dict(os.environ, PYTHONUNBUFFERED="1", OMP_NUM_THREADS="1", MKL_NUM_THREADS="1")
-        for worker, argv in commands.items():
-            stderr = (log_dir / f"worker-{worker}.log").open("w")
-            child = subprocess.Popen(
-                list(argv), stdout=subprocess.PIPE, stderr=stderr, text=True, env=env, start_new_session=True
-            )
-            stderr.close()
+        fork = fork_available()
+        for worker, args in commands.items():
+            log_path = log_dir / f"worker-{worker}.log"
+            child, stdout = self._fork(args, log_path) if fork else self._spawn(args, log_path)
             self.children[worker] = child
-            assert child.stdout is not None
-            thread = threading.Thread(target=self._read, args=(worker, child, child.stdout), daemon=True)
+            log.debug("worker %d: process %d %s", worker, child.pid, "forked" if fork else "started")
+            thread = threading.Thread(target=self._read, args=(worker, child, stdout), daemon=True)
             thread.start()
             self._threads.append(thread)
 
-    def _read(self, worker: int, child: "subprocess.Popen[str]", stdout: IO[str]) -> None:
-        for line in stdout:
-            line = line.strip()
-            if not line:
-                continue
-            try:
-                self.events.put(RoundRecord.from_json(line))
-            except (ValueError, TypeError) as err:
-                log.warning(
-                    "worker %d printed a line that is not a round record (%s): %.200s", worker, err, line
-                )
+    @staticmethod
+    def _spawn(args: Sequence[str], log_path: Path) -> tuple[Child, IO[str]]:
+        env = dict(os.environ, **CHILD_ENV)
+        with log_path.open("w") as stderr:
+            child = subprocess.Popen(
+                [sys.executable, "-m", WORKER_MODULE, *args],
+                stdout=subprocess.PIPE,
+                stderr=stderr,
+                text=True,
+                env=env,
+                start_new_session=True,
+            )
+        assert child.stdout is not None
+        return child, child.stdout
+
+    @staticmethod
+    def _fork(args: Sequence[str], log_path: Path) -> tuple[Child, IO[str]]:
+        read_fd, write_fd = os.pipe()
+        for stream in (sys.stdout, sys.stderr):  # nothing buffered here is printed twice
+            stream.flush()
+        pid = os.fork()
+        if pid == 0:
+            os.close(read_fd)
+            _run_forked_worker(args, write_fd, log_path)
+        os.close(write_fd)
+        return ForkedChild(pid), open(read_fd, encoding="utf-8")  # closed by _read
+
+    def _read(self, worker: int, child: Child, stdout: IO[str]) -> None:
+        with stdout:
+            for line in stdout:
+                line = line.strip()
+                if not line:
+                    continue
+                try:
+                    self.events.put(RoundRecord.from_json(line))
+                except (ValueError, TypeError) as err:
+                    log.warning(
+                        "worker %d printed a line that is not a round record (%s): %.200s", worker, err, line
+                    )
         self.events.put(WorkerExit(worker, child.wait()))
 
     def size(self) -> int:

@@ -11,12 +11,13 @@ import os
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
-
-from torch.utils.tensorboard import SummaryWriter
+from typing import TYPE_CHECKING, Any
 
 from fleetrl.runs.records import CSV_COLUMNS, RoundRecord, read_metrics
 from fleetrl.runs.rig_time import rig_time, waiting_rule
+
+if TYPE_CHECKING:
+    from torch.utils.tensorboard import SummaryWriter
 
 
 @dataclass
@@ -103,7 +104,15 @@ class RunRecorder:
             self._progress(record)
         self._csv_file = metrics.open("a", newline="")
         self._csv = csv.writer(self._csv_file)
-        self._tb = SummaryWriter(log_dir=str(self.out / "tensorboard"))
+        self._tb: SummaryWriter | None = None
+
+    def _board(self) -> "SummaryWriter":
+        """The TensorBoard writer, made on the first round (its imports, ~0.3 s, stay out of the start-up)."""
+        if self._tb is None:
+            from torch.utils.tensorboard import SummaryWriter
+
+            self._tb = SummaryWriter(log_dir=str(self.out / "tensorboard"))
+        return self._tb
 
     def elapsed(self) -> float:
         """Seconds since the run started."""
@@ -116,12 +125,13 @@ class RunRecorder:
         self._csv_file.flush()
         self._progress(record)
         tag = f"worker_{record.worker}"
-        self._tb.add_scalar(f"rollout/score/{tag}", record.score, record.round)
-        self._tb.add_scalar(f"rollout/wma/{tag}", record.wma, record.round)
+        board = self._board()
+        board.add_scalar(f"rollout/score/{tag}", record.score, record.round)
+        board.add_scalar(f"rollout/wma/{tag}", record.wma, record.round)
         for name in ("actor_loss", "critic_loss", "entropy"):
             value = getattr(record, name)
             if math.isfinite(value):
-                self._tb.add_scalar(f"train/{name}/{tag}", value, record.round)
+                board.add_scalar(f"train/{name}/{tag}", value, record.round)
 
     def _progress(self, record: RoundRecord) -> None:
         progress = self.progress.setdefault(record.worker, WorkerProgress())
@@ -190,7 +200,7 @@ class RunRecorder:
         """Close the files, write summary.json and the plot; returns the summary."""
         self.finished = True
         self._csv_file.close()
-        self._tb.close()
+        self._board().close()  # a run without a round has its (empty) events file too
         summary = self.summary()
         write_json_atomic(self.out / "summary.json", summary)
         from fleetrl.runs.plots import plot_run  # matplotlib loads only when a run ends

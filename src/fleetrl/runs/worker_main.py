@@ -12,6 +12,7 @@ import signal
 import sys
 from pathlib import Path
 
+from fleetrl.runs.factory import make_learner
 from fleetrl.runs.records import RoundRecord
 from fleetrl.runs.roles import train_alone, train_federated
 from fleetrl.runs.spec import WorkerSpec
@@ -38,9 +39,13 @@ def main(argv: list[str] | None = None) -> int:
     signal.signal(signal.SIGINT, signal.default_int_handler)
     logging.basicConfig(level=logging.INFO, format="%(asctime)s %(name)s %(levelname)s %(message)s")
     spec = WorkerSpec.from_json(args.spec)
+    log = logging.getLogger(__name__)
+    log.info("worker %d: process up", spec.worker)
     try:
+        learner = make_learner(spec)
+        log.info("worker %d: learner ready", spec.worker)
         if args.broker is None:
-            train_alone(spec, print_record)
+            train_alone(spec, print_record, learner)
         else:
             from fleetrl.transport.mqtt import MqttTransport
 
@@ -52,9 +57,10 @@ def main(argv: list[str] | None = None) -> int:
                 reply_timeout=args.reply_timeout,
                 checkpoint_dir=args.checkpoint_dir,
                 resume=args.resume,
+                learner=learner,
             )
     except KeyboardInterrupt:
-        logging.getLogger(__name__).info("interrupted; the model was saved")
+        log.info("interrupted; the model was saved")
         return 130
     return 0
 
