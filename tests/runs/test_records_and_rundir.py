@@ -60,16 +60,23 @@ def test_recorder_refuses_to_overwrite_a_run(tmp_path) -> None:
 
 
 def test_records_carry_the_episodes_of_a_round_and_older_rows_read_as_one() -> None:
-    record = RoundRecord(2, 0, 25.5, 20.0, 0.1, 0.2, 0.6, 204, 1.5, "", episodes=8)
-    assert RoundRecord.from_json(record.to_json()).episodes == 8
+    record = RoundRecord(2, 0, 25.5, 20.0, 0.1, 0.2, 0.6, 204, 1.5, "", episodes=8, approx_kl=0.01,
+                         clip_fraction=0.25)  # fmt: skip
+    assert RoundRecord.from_json(record.to_json()) == record
     row = dict(zip(CSV_COLUMNS, (str(v) for v in record.csv_row()), strict=True))
     assert RoundRecord.from_csv_row(row) == record
-    old = {k: v for k, v in row.items() if k != "episodes"}  # a metrics.csv written before the column
+    # a metrics.csv written before the columns: the old columns keep their places, the new ones read as NaN
+    old = {k: v for k, v in row.items() if k not in ("episodes", "approx_kl", "clip_fraction")}
     assert RoundRecord.from_csv_row(old).episodes == 1
-    assert CSV_COLUMNS.index("episodes") == len(CSV_COLUMNS) - 1  # the old columns keep their places
+    assert math.isnan(RoundRecord.from_csv_row(old).approx_kl)
+    assert math.isnan(RoundRecord.from_csv_row(old).clip_fraction)
+    assert CSV_COLUMNS[-3:] == ("episodes", "approx_kl", "clip_fraction")
+    assert CSV_COLUMNS.index("episodes") == 10
     old_json = json.loads(record.to_json())
-    del old_json["episodes"]
-    assert RoundRecord.from_json(json.dumps(old_json)).episodes == 1
+    for name in ("episodes", "approx_kl", "clip_fraction"):
+        del old_json[name]
+    from_old = RoundRecord.from_json(json.dumps(old_json))
+    assert from_old.episodes == 1 and math.isnan(from_old.approx_kl) and math.isnan(from_old.clip_fraction)
 
 
 def test_the_x_axis_counts_rounds_or_episodes_and_says_which() -> None:

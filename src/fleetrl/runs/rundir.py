@@ -117,7 +117,7 @@ class RunRecorder:
         tag = f"worker_{record.worker}"
         self._tb.add_scalar(f"rollout/score/{tag}", record.score, record.round)
         self._tb.add_scalar(f"rollout/wma/{tag}", record.wma, record.round)
-        for name in ("actor_loss", "critic_loss", "entropy"):
+        for name in ("actor_loss", "critic_loss", "entropy", "approx_kl", "clip_fraction"):
             value = getattr(record, name)
             if math.isfinite(value):
                 self._tb.add_scalar(f"train/{name}/{tag}", value, record.round)
