@@ -99,3 +99,19 @@ def test_summary_counts_episodes_to_completion(tmp_path) -> None:
     assert worker["completed_at_round"] == 3 and worker["completed_at_episode"] == 18
     assert worker["episodes"] == 18
     assert (tmp_path / "run" / "scores-by-episode.png").is_file()
+
+
+def test_resuming_a_run_whose_metrics_predate_the_update_diagnostics(tmp_path) -> None:
+    out = tmp_path / "run"
+    out.mkdir()
+    old_columns = CSV_COLUMNS[: CSV_COLUMNS.index("episodes")]  # a file written before the later columns
+    with (out / "metrics.csv").open("w", newline="") as f:
+        rows = [r.csv_row()[: len(old_columns)] for r in (make_record(0, 1, 10.0), make_record(0, 2, 12.0))]
+        csv.writer(f).writerows([old_columns, *rows])
+    recorder = RunRecorder(out, {"mode": "individual"}, [0], resume_from={0: 2})
+    recorder.add(dataclasses.replace(make_record(0, 2, 14.0), approx_kl=0.02, clip_fraction=0.1))
+    recorder.finish()
+    on_disk = list(csv.DictReader((out / "metrics.csv").open()))
+    assert [row["score"] for row in on_disk] == ["10.0", "14.0"]
+    assert on_disk[0]["approx_kl"] == "nan" and on_disk[1]["approx_kl"] == "0.02"
+    assert tuple(on_disk[0]) == CSV_COLUMNS
