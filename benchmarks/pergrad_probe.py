@@ -91,7 +91,7 @@ def run(
         if arm == "alone":
             for i in active:
                 if done_at[i] is None:
-                    learners[i].update_steps()
+                    learners[i].agent.update()
             continue
         agents = [learners[i].agent for i in active]
         (n_steps,) = {a.begin_update() for a in agents}  # every agent begins; all take the same K

@@ -71,22 +71,27 @@ class WireAgent:
 
 
 class Outcome:
-    score = wma = actor_loss = critic_loss = entropy = 0.0
+    score = wma = actor_loss = critic_loss = entropy = approx_kl = clip_fraction = 0.0
     steps = 1
     completed = False
 
 
 class WireLearner:
-    """Plays nothing; runs the scheme's update (the per-step exchanges) when asked."""
+    """Plays nothing; every round updates (the worker drives a per-step scheme's exchanges)."""
 
     completed = False
+    updates = True
 
     def __init__(self, agent: WireAgent) -> None:
         self.agent = agent
 
-    def play_round(self, update: Any = None) -> Outcome:
-        if update is not None:
-            update()
+    def play_round(self) -> Outcome:
+        return Outcome()
+
+    def begin_round(self) -> WireLearner:
+        return self
+
+    def end_round(self, played: Any, stats: Any) -> Outcome:
         return Outcome()
 
 

@@ -34,7 +34,7 @@ def test_layout_is_trunk_then_policy_head() -> None:
     ]  # fmt: skip
     assert layout[0][1] == (128, OBS_DIM) and layout[-2][1] == (N_ACTIONS, 128)
     size = sum(int(np.prod(shape)) for _, shape in layout)
-    assert size == agent.actor_size() == agent.actor_parameters().shape[0]
+    assert size == agent.actor_parameters().shape[0]
     assert agent.actor_parameters().dtype == np.float32
 
 
@@ -50,7 +50,7 @@ def test_update_returns_finite_stats_and_a_flat_gradient(preset: str) -> None:
     stats = agent.update()
     assert all(np.isfinite([stats.actor_loss, stats.critic_loss, stats.entropy]))
     grad = agent.actor_gradient()
-    assert grad.dtype == np.float32 and grad.shape == (agent.actor_size(),)
+    assert grad.dtype == np.float32 and grad.shape == (agent.actor_parameters().size,)
     assert np.any(grad != 0.0)
     assert not np.array_equal(before, agent.actor_parameters())
 
@@ -73,7 +73,7 @@ def test_apply_gradient_leaves_the_critic_head_alone_and_refreshes_acting() -> N
     value_before = agent.net.value.weight.detach().clone()
     obs = np.ones(OBS_DIM, dtype=np.float32)
     probs_before = agent._policy.probabilities(obs)
-    agent.apply_actor_gradient(np.full(agent.actor_size(), 0.5, dtype=np.float32))
+    agent.apply_actor_gradient(np.full(agent.actor_parameters().size, 0.5, dtype=np.float32))
     assert torch.equal(agent.net.value.weight, value_before)
     assert not np.allclose(agent._policy.probabilities(obs), probs_before)
 
@@ -111,7 +111,7 @@ def test_model_vector_is_the_actor_then_the_value_head() -> None:
     assert layout[: len(agent.actor_layout())] == agent.actor_layout()
     assert layout[-2:] == [("value.weight", (1, 128)), ("value.bias", (1,))]
     assert sum(p.numel() for p in agent.net.parameters()) == agent.model_parameters().shape[0]
-    assert np.array_equal(agent.model_parameters()[: agent.actor_size()], agent.actor_parameters())
+    assert np.array_equal(agent.model_parameters()[: agent.actor_parameters().size], agent.actor_parameters())
 
 
 def test_set_model_parameters_moves_both_heads_and_keeps_each_adam() -> None:
@@ -139,7 +139,7 @@ def test_wrong_vectors_are_rejected(bad: np.ndarray) -> None:
         agent.set_actor_parameters(bad)
     with pytest.raises(ValueError, match="flat with"):
         agent.apply_actor_gradient(bad)
-    nan = np.full(agent.actor_size(), np.nan, dtype=np.float32)
+    nan = np.full(agent.actor_parameters().size, np.nan, dtype=np.float32)
     with pytest.raises(ValueError, match="non-finite"):
         agent.apply_actor_gradient(nan)
 

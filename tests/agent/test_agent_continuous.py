@@ -125,7 +125,7 @@ def test_update_moves_the_log_std_and_the_federation_sees_it_in_the_actor_layout
 
 def test_a_continuous_agent_round_trips_through_its_model_file(tmp_path: Path) -> None:
     agent = PPOAgent(OBS_DIM, BOX, small_config(), seed=5)
-    agent.apply_actor_gradient(np.ones(agent.actor_size(), dtype=np.float32))
+    agent.apply_actor_gradient(np.ones(agent.actor_parameters().size, dtype=np.float32))
     path = tmp_path / "box.safetensors"
     agent.save(path)
     loaded = PPOAgent.load(path, obs_dim=OBS_DIM, action_space=BOX)

@@ -12,7 +12,9 @@ from fleetrl.agent.ppo import PPOAgent
 def test_numba_policy_matches_torch(activation: Activation) -> None:
     config = PPOConfig(activation=activation)
     agent = PPOAgent(5, 3, config, seed=0)
-    agent.apply_actor_gradient(np.random.default_rng(0).normal(size=agent.actor_size()).astype(np.float32))
+    agent.apply_actor_gradient(
+        np.random.default_rng(0).normal(size=agent.actor_parameters().size).astype(np.float32)
+    )
     rng = np.random.default_rng(1)
     for _ in range(20):
         obs = rng.normal(size=5).astype(np.float32)
@@ -25,7 +27,7 @@ def test_numba_policy_matches_torch(activation: Activation) -> None:
 
 def test_sampling_follows_the_policy() -> None:
     agent = PPOAgent(4, 3, get_preset("paper"), seed=0)
-    agent.apply_actor_gradient(np.linspace(-1, 1, agent.actor_size()).astype(np.float32))
+    agent.apply_actor_gradient(np.linspace(-1, 1, agent.actor_parameters().size).astype(np.float32))
     obs = np.array([0.5, -0.5, 1.0, 0.0], dtype=np.float32)
     probs = agent._policy.probabilities(obs)
     counts = np.bincount([agent.act(obs) for _ in range(20000)], minlength=3) / 20000

@@ -35,7 +35,7 @@ def test_a_paper_code_round_plays_whole_episodes_until_200_transitions() -> None
     assert episodes.score == pytest.approx(np.mean(episodes.scores))
     assert learner.criterion.history() == [episodes.score] and learner.rounds == 1
     assert learner.episodes == len(episodes.scores)
-    learner.update_steps()
+    learner.agent.update()
     assert len(memory) == 0  # cleared after the update: nothing is kept across rounds
 
 

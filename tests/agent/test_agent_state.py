@@ -31,7 +31,7 @@ def fingerprint(learner: Learner, rounds: int) -> list[tuple[float, int, float]]
 def test_a_learner_resumed_from_its_state_plays_the_same_rounds(tmp_path: Path) -> None:
     original = make_learner(SPEC)
     fingerprint(original, 3)
-    original.agent.apply_actor_gradient(np.full(original.agent.actor_size(), 0.01, np.float32))
+    original.agent.apply_actor_gradient(np.full(original.agent.actor_parameters().size, 0.01, np.float32))
     store = StateStore(tmp_path, "worker")
     store.save(*learner_state(original))
     expected = fingerprint(original, 4)

@@ -9,6 +9,7 @@ import pytest
 import torch
 
 from fleetrl.agent.config import get_preset
+from fleetrl.agent.losses import gae
 from fleetrl.agent.ppo import PPOAgent
 
 OBS_DIM, N_ACTIONS = 4, 3
@@ -151,7 +152,11 @@ def test_one_adam_steps_the_critic_then_the_actor_at_the_stepped_parameters() ->
     assert agent.net.value.weight in adam.state and agent.net.policy.weight in adam.state
     trunk_steps = adam.state[agent.net.trunk_layers[0].weight]["step"].item()
     assert trunk_steps == 2 and adam.state[agent.net.policy.weight]["step"].item() == 1
-    assert np.array_equal(agent.actor_gradient(), actor_gradient)  # line 25: the last actor gradient
+    for k in range(2, agent.update_step_count()):
+        gradient = agent.step_gradients(k)
+        agent.apply_step(gradient)
+    agent.end_update()
+    assert np.array_equal(agent.actor_gradient(), gradient)  # line 25: the last actor gradient applied
 
 
 @pytest.mark.parametrize(("memory", "left"), [("ring", 200), ("per_round", 0)])
@@ -178,23 +183,23 @@ def test_the_critic_weight_scales_the_critic_gradient_only() -> None:
 
 def test_the_memory_scope_critic_chases_the_targets_fixed_at_the_rounds_start() -> None:
     """With Â computed once over the memory (``gae_scope='memory'``, the standard preset), the λ-return target
-    is Â + V(s) of line 11 for all K steps: as the critic learns, its loss on the same window falls. (A target
-    of Â + the critic's current value would make the loss |Â| at every step, whatever the critic does.)"""
+    is Â + V(s) of line 11 for all K steps: the first step's critic loss is ½Ê[Â²], and as the critic learns,
+    its loss against those fixed targets falls."""
     torch.set_num_threads(1)
     agent = agent_with_memory("standard", batch_size=250, n=250, critic_loss="mse")
-    agent.begin_update()
-    update = agent._round_update
-    assert update is not None and update.memory_advantages is not None
-    fixed_targets = update.memory_advantages + update.memory_values
-    losses = []
-    for k in range(update.n_steps):
-        before = update._totals[1]
-        agent.apply_step(agent.step_gradients(k))
-        losses.append(update._totals[1] - before)
-    agent.end_update()
-    a = update.memory_advantages
-    assert losses[0] == pytest.approx(float((a**2).mean()) / 2, rel=1e-5)  # ½ Ê[(Â)²]: one window, all of it
-    assert losses[-1] < 0.9 * losses[0]  # the critic moved towards the fixed targets
+    data = agent.memory.transitions()
+    obs, next_obs = torch.from_numpy(data.obs), torch.from_numpy(data.next_obs)
     with torch.no_grad():
-        _, values = agent.net(update.obs)
-    assert float(((values - fixed_targets) ** 2).mean()) / 2 < losses[0]
+        values, next_values = agent.net.value_of(obs), agent.net.value_of(next_obs)
+    cfg = agent.config
+    rewards, terminated, ends = (torch.from_numpy(data.rewards), torch.from_numpy(data.terminated),
+                                 torch.from_numpy(data.episode_end))  # fmt: skip
+    advantages = gae(rewards, values, next_values, terminated, ends, cfg.gamma, cfg.gae_lambda)
+    fixed_targets = advantages + values
+    # the same network and memory, one optimisation: its loss is the first step's
+    first = agent_with_memory("standard", batch_size=250, n=250, critic_loss="mse", n_optimisations=1)
+    assert first.update().critic_loss == pytest.approx(float((advantages**2).mean()) / 2, rel=1e-5)
+    agent.update()
+    with torch.no_grad():
+        after = float(((agent.net.value_of(obs) - fixed_targets) ** 2).mean()) / 2
+    assert after < 0.9 * float((advantages**2).mean()) / 2  # the critic moved towards the fixed targets

@@ -36,7 +36,7 @@ def test_linearisation_at_upright_matches_reference() -> None:
 
 def test_energy_conserved_without_damping_or_input() -> None:
     """Zero viscous damping and an open-circuit motor (km = 0: no current, no back-EMF), V = 0."""
-    c = NOMINAL.with_damping(0.0, 0.0).coefficients()
+    c = replace(NOMINAL, Dr=0.0, Dp=0.0).coefficients()
     c[d.C_KM] = 0.0
     x = np.array([0.0, 2.5, 3.0, -4.0])  # a large, fast swing with the arm moving
     start = d.energy(x, c)
@@ -49,7 +49,7 @@ def test_energy_conserved_without_damping_or_input() -> None:
 
 def test_back_emf_damps_the_arm() -> None:
     """With V = 0 and no viscous damping the back-EMF alone must slow a spinning arm (the known trap)."""
-    c = NOMINAL.with_damping(0.0, 0.0).coefficients()
+    c = replace(NOMINAL, Dr=0.0, Dp=0.0).coefficients()
     x = np.array([0.0, math.pi, 10.0, 0.0])  # pendulum hanging, arm spinning
     for _ in range(1000):
         d.rk4_step(x, 0.0, c, 0.001)
@@ -109,7 +109,7 @@ def test_finite_difference_velocity_is_reading_change_over_period() -> None:
 
 def test_energy_with_a_cable_torque_counts_its_spring() -> None:
     """Zero damping, open-circuit motor, a cable torque −Kc·θ: energy incl. ½·Kc·θ² is conserved."""
-    c = replace(NOMINAL, cable_stiffness=5e-3).with_damping(0.0, 0.0).coefficients()
+    c = replace(NOMINAL, cable_stiffness=5e-3, Dr=0.0, Dp=0.0).coefficients()
     c[d.C_KM] = 0.0
     x = np.array([0.8, 2.5, 3.0, -4.0])
     start = d.energy(x, c)

@@ -2,9 +2,9 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import time
-from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
@@ -60,6 +60,20 @@ class RoundResult:
     """mean policy entropy over the windows (NaN when no update was made)"""
     seconds: float
     """wall time of the round (episode and update)"""
+    approx_kl: float = math.nan
+    """the update's estimate of KL(π_θold ‖ π_θ), averaged over the K optimisations (NaN without an update)"""
+    clip_fraction: float = math.nan
+    """share of the update's samples whose ratio R_t lay outside [1 − ε, 1 + ε] (NaN without an update)"""
+
+
+@dataclass(frozen=True)
+class PlayedEpisodes:
+    """The first half of a round: its episodes, and whether the round goes on with an update (line 7)."""
+
+    episodes: Episodes
+    updates: bool
+    started: float
+    """``time.perf_counter()`` as the round began"""
 
 
 class Learner:
@@ -133,21 +147,25 @@ class Learner:
         """Line 7: update unless learning is finished (the worker then sends θ); always if keep_learning."""
         return not self.criterion.done or self.keep_learning
 
-    def update_steps(self) -> UpdateStats:
-        """The second half of a round: the agent's update (lines 11-24), step by step (PPOAgent.update)."""
-        return self.agent.update()
+    def play_round(self) -> RoundResult:
+        """A whole round alone (Algorithm 2, lines 2-24 without messaging): :meth:`begin_round`, the agent's
+        update unless the criterion now holds, :meth:`end_round`."""
+        played = self.begin_round()
+        return self.end_round(played, self.agent.update() if played.updates else None)
 
-    def play_round(self, update: Callable[[], UpdateStats] | None = None) -> RoundResult:
-        """:meth:`play_episodes`, then :meth:`update_steps` unless the criterion now holds (lines 2-24
-        without messaging). ``update`` runs instead of :meth:`update_steps` (it drives the agent's update step
-        by step, e.g. combining every step's gradient with other learners')."""
+    def begin_round(self) -> PlayedEpisodes:
+        """:meth:`play_episodes` and line 7's decision; the caller then updates the agent, or not (a
+        per-step scheme's worker drives the update through the fleet), and hands its statistics to
+        :meth:`end_round`."""
         started = time.perf_counter()
         episodes = self.play_episodes()
-        nan = math.nan
-        losses = (nan, nan, nan)
-        if self.wants_update():
-            stats = self.update_steps() if update is None else update()
-            losses = (stats.actor_loss, stats.critic_loss, stats.entropy)
+        return PlayedEpisodes(episodes, self.wants_update(), started)
+
+    def end_round(self, played: PlayedEpisodes, stats: UpdateStats | None) -> RoundResult:
+        """The round's result from its episodes and its update's statistics (None: no update was made)."""
+        episodes, nan = played.episodes, math.nan
+        losses = (nan,) * 5 if stats is None else dataclasses.astuple(stats)
+        actor_loss, critic_loss, entropy, approx_kl, clip_fraction = losses
         self.last_round = RoundResult(
             self.rounds,
             episodes.score,
@@ -155,8 +173,12 @@ class Learner:
             len(episodes.scores),
             self.criterion.wma,
             self.criterion.done,
-            *losses,
-            time.perf_counter() - started,
+            actor_loss,
+            critic_loss,
+            entropy,
+            time.perf_counter() - played.started,
+            approx_kl,
+            clip_fraction,
         )
         return self.last_round
 

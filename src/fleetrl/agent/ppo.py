@@ -2,12 +2,12 @@
 
 from __future__ import annotations
 
+from collections.abc import Generator
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 import torch
-from torch import nn
 
 from fleetrl.agent.action_space import ActionSpace, as_action_space
 from fleetrl.agent.checkpoint import (
@@ -21,7 +21,18 @@ from fleetrl.agent.flat import Named, flatten, flatten_tensors, layout, split
 from fleetrl.agent.memory import TrajectoryMemory
 from fleetrl.agent.network import ActorCritic
 from fleetrl.agent.policy_numpy import NumpyPolicy
-from fleetrl.agent.update import ACTOR, CRITIC, RoundUpdate, UpdateStats, step_parts
+from fleetrl.agent.update import (
+    ACTOR,
+    CRITIC,
+    ExtraLoss,
+    Gradient,
+    Model,
+    StepExchange,
+    UpdateStats,
+    choose_variants,
+    hand_back,
+    ppo_update,
+)
 
 __all__ = ["PPOAgent", "UpdateStats"]
 
@@ -59,9 +70,6 @@ class PPOAgent:
         # μ: the critic model — the value head, plus the trunk when both optimisers step it ("shared").
         value_head = self.net.head_parameters("value")
         self._critic_named = (trunk if config.trunk_split == "shared" else []) + value_head
-        # The critic loss is differentiated w.r.t. trunk and value head in both splits (see _step).
-        self._critic_grad_params = [p for _, p in trunk + value_head]
-        self._n_trunk = len(trunk)
         if config.optimisers == "per_model":
             self.actor_optimizer = torch.optim.Adam([p for _, p in self._actor_named], lr=config.actor_lr)
             self.critic_optimizer = torch.optim.Adam([p for _, p in self._critic_named], lr=config.critic_lr)
@@ -76,9 +84,21 @@ class PPOAgent:
         )
         self._policy = NumpyPolicy(self.net)
         self._discrete = self.action_space.is_discrete
-        self._last_actor_gradient: np.ndarray | None = None
-        self._round_update: RoundUpdate | None = None
-        self._pending_step: int | None = None
+        self._model = Model(
+            self.net,
+            [p for _, p in self._actor_named],
+            [p for _, p in self._critic_named],
+            [p for _, p in trunk + value_head],  # L^V is differentiated w.r.t. both in either split
+            len(trunk),
+            self.actor_optimizer,
+            self.critic_optimizer,
+            config,
+            choose_variants(config),  # the preset's variants, chosen once
+        )
+        self._parts = self._model.variants.parts
+        self._last_actor_gradient: Gradient | None = None
+        """line 25's gradient: the last actor gradient the update applied (as applied, i.e. clipped)"""
+        self._exchange: StepExchange | None = None
 
     # ---- acting (Algorithm 2, lines 3 and 5) ------------------------------------------------------------
 
@@ -120,113 +140,106 @@ class PPOAgent:
         round is one episode); for ``per_round`` until the memory holds ``memory_size`` transitions."""
         return self.config.trajectory_memory == "per_round" and not self.memory.filled()
 
+    def set_extra_loss(self, fn: ExtraLoss | None) -> None:
+        """Add ``fn(model)``, a scalar tensor of the network, to each minibatch's loss (FedProx's proximal
+        term μ/2·‖θ − θ_global‖², say): every step's gradient gains ∇fn over the parameters the step moves.
+        None (the default) adds nothing, and every number is as without the hook."""
+        self._model.extra_loss = fn
+
     def update(self) -> UpdateStats:
-        """K optimisations on contiguous windows of U transitions (lines 11-24); keeps line 25's gradient.
+        """K optimisations on contiguous windows of U transitions (lines 11-24), every step applying its own
+        gradient (:func:`~fleetrl.agent.update.hand_back`); keeps line 25's gradient."""
+        return hand_back(self.update_steps())
 
-        The same steps as :meth:`begin_update`, then :meth:`step_gradients` and :meth:`apply_step` for
-        each step, then :meth:`end_update`.
+    def update_steps(self) -> Generator[Gradient, Gradient, UpdateStats]:
+        """The update as a generator (:func:`~fleetrl.agent.update.ppo_update`): it yields each step's
+        gradient and applies the gradient sent back; then the acting copy follows θ, a ``per_round`` memory
+        is emptied, and it returns the statistics.
+
+        :raises RuntimeError: (at the first step) the trajectory memory is empty
         """
-        for k in range(self.begin_update()):
-            self.apply_step(self.step_gradients(k))
-        return self.end_update()
-
-    # ---- the update as single steps (for schemes that combine workers' gradients at every step) -------
-
-    def begin_update(self) -> int:
-        """Line 11: score the new transitions, fix π_θold and draw the K windows; returns the number of
-        steps (K, or 2K with ``optimisers='one_sequential'``: each optimisation's critic step, then its
-        actor step).
-
-        :raises RuntimeError: the trajectory memory is empty, or an update is already under way
-        """
-        if self._round_update is not None:
-            raise RuntimeError("an update is already under way: finish it with end_update()")
         if len(self.memory) == 0:
             raise RuntimeError("update() needs at least one transition in the trajectory memory")
         self._score_new_transitions()
-        self._round_update = RoundUpdate(
-            self.net,
-            self.config,
-            self.memory.transitions(),
-            self._window_rng,
-            [p for _, p in self._actor_named],
-            self._critic_grad_params,
-            self._n_trunk,
-        )
-        return self._round_update.n_steps
+        finished = yield from ppo_update(self._model, self.memory.transitions(), self._window_rng)
+        self._last_actor_gradient = finished.actor_gradient
+        self._policy.refresh(self.net)
+        if self.config.trajectory_memory == "per_round":
+            self.memory.clear()
+        return finished.stats
+
+    # ---- the update as flat vectors, step by step (a scheme that combines the fleet's step gradients) ----
 
     def update_step_count(self) -> int:
-        """How many steps :meth:`begin_update` will return: K, or 2K with ``optimisers='one_sequential'``."""
-        return self.config.n_optimisations * (2 if self.config.optimisers == "one_sequential" else 1)
+        """How many steps an update takes: K, or 2K with ``optimisers='one_sequential'``."""
+        return self.config.n_optimisations * len(self._parts)
 
     def step_layout(self, k: int) -> list[tuple[str, tuple[int, ...]]]:
         """Names and shapes of step ``k``'s flat gradient: ``critic:<name>`` over the critic optimiser's
         parameters, then ``actor:<name>`` over θ, for the parts the step moves (both with ``per_model``;
         the critic's at even, the actor's at odd steps with ``one_sequential``); needs no update under way."""
         return [
-            (f"{part}:{name}", shape) for part, named in self._step_parts(k) for name, shape in layout(named)
+            (f"{part}:{name}", shape) for part, named in self._step_named(k) for name, shape in layout(named)
         ]
 
+    def begin_update(self) -> int:
+        """Start :meth:`update_steps` (line 11 and step 0's gradient); the number of steps it takes.
+
+        :raises RuntimeError: the trajectory memory is empty, or an update is already under way
+        """
+        if self._exchange is not None:
+            raise RuntimeError("an update is already under way: finish it with end_update()")
+        self._exchange = StepExchange(self.update_steps())
+        return self.update_step_count()
+
     def step_gradients(self, k: int) -> np.ndarray:
-        """Lines 14-22 for step ``k``: its gradient as flat float32 in :meth:`step_layout` order, nothing
-        stepped. Steps go in order, each gradient applied (:meth:`apply_step`) before the next is taken.
+        """Step ``k``'s gradient as flat float32 in :meth:`step_layout` order, nothing stepped. Steps go in
+        order, each applied (:meth:`apply_step`) before the next is asked for.
 
         :raises RuntimeError: no update under way, ``k`` is not the next step, or the last gradient was
             not applied yet
         """
-        update = self._update_under_way()
-        if self._pending_step is not None:
-            raise RuntimeError(f"step {self._pending_step}'s gradient is not applied yet: call apply_step()")
-        if k != update.applied or k >= update.n_steps:
-            raise RuntimeError(f"step {k} requested, but step {update.applied} of {update.n_steps} is next")
-        gradients = update.gradients(k)
-        self._pending_step = k
-        return flatten_tensors([g for part in gradients for g in part])
+        exchange = self._exchange_under_way()
+        if exchange.taken:
+            raise RuntimeError(f"step {exchange.step}'s gradient is not applied yet: call apply_step()")
+        if exchange.gradient is None or k != exchange.step:
+            n = self.update_step_count()
+            raise RuntimeError(f"step {k} requested, but step {exchange.step} of {n} is next")
+        exchange.taken = True
+        return flatten_tensors(exchange.gradient)
 
     def apply_step(self, flat_grad: np.ndarray) -> None:
-        """Lines 21 and 23: step the optimiser(s) with a gradient for the step last computed (its own, or
-        a combination of several workers' in the same layout); an actor part becomes line 25's gradient.
+        """Lines 21 and 23: step the optimiser(s) with a gradient for the step last asked for (its own, or
+        a combination of several workers' in the same layout); then the next step's gradient is taken.
 
         :raises RuntimeError: no step's gradient is waiting to be applied
         :raises ValueError: the vector does not fit :meth:`step_layout` or is not finite
         """
-        update = self._update_under_way()
-        if self._pending_step is None:
+        exchange = self._exchange_under_way()
+        if not exchange.taken:
             raise RuntimeError("no step gradient to apply: call step_gradients(k) first")
-        parts = self._step_parts(self._pending_step)
-        chunks = split(flat_grad, [item for _, named in parts for item in named], "step gradient")
-        offset = 0
-        for part, named in parts:
-            grads, offset = chunks[offset : offset + len(named)], offset + len(named)
-            optimizer = self.actor_optimizer if part == ACTOR else self.critic_optimizer
-            self._apply(optimizer, [p for _, p in named], grads)
-            if part == ACTOR:  # line 25 sends the last of these (as applied, i.e. after clipping)
-                self._last_actor_gradient = flatten_tensors(grads)
-        update.applied += 1
-        self._pending_step = None
+        named = [item for _, part in self._step_named(exchange.step) for item in part]
+        exchange.send(split(flat_grad, named, "step gradient"))
 
     def end_update(self) -> UpdateStats:
-        """The update's statistics; the acting copy follows θ, and a ``per_round`` memory is emptied.
+        """The update's statistics (the acting copy follows θ, a ``per_round`` memory is emptied).
 
         :raises RuntimeError: no update under way, or not every step was applied
         """
-        update = self._update_under_way()
-        if update.applied != update.n_steps:
-            raise RuntimeError(f"end_update() after {update.applied} of {update.n_steps} steps")
-        self._round_update = None
-        self._policy.refresh(self.net)
-        if self.config.trajectory_memory == "per_round":
-            self.memory.clear()
-        return update.stats()
+        exchange = self._exchange_under_way()
+        if exchange.stats is None:
+            raise RuntimeError(f"end_update() after {exchange.step} of {self.update_step_count()} steps")
+        self._exchange = None
+        return exchange.stats
 
-    def _update_under_way(self) -> RoundUpdate:
-        if self._round_update is None:
+    def _exchange_under_way(self) -> StepExchange:
+        if self._exchange is None:
             raise RuntimeError("no update under way: call begin_update() first")
-        return self._round_update
+        return self._exchange
 
-    def _step_parts(self, k: int) -> list[tuple[str, Named]]:
+    def _step_named(self, k: int) -> list[tuple[str, Named]]:
         named = {CRITIC: self._critic_named, ACTOR: self._actor_named}
-        return [(part, named[part]) for part in step_parts(self.config, k)]
+        return [(part, named[part]) for part in self._parts[k % len(self._parts)]]
 
     def _score_new_transitions(self) -> None:
         """Record log π(a|s) of the acting policy for transitions stored since θ last changed."""
@@ -238,32 +251,17 @@ class PPOAgent:
             log_probs = self.net.log_probs(torch.from_numpy(obs), torch.from_numpy(actions))
         self.memory.score(slots, log_probs.numpy())
 
-    def _apply(
-        self, optimizer: torch.optim.Optimizer, params: list[nn.Parameter], grads: list[torch.Tensor]
-    ) -> None:
-        for p, g in zip(params, grads, strict=True):
-            p.grad = g
-        if self.config.max_grad_norm > 0.0:
-            nn.utils.clip_grad_norm_(params, self.config.max_grad_norm)  # in place: ``grads`` see it too
-        optimizer.step()
-        for p in params:
-            p.grad = None
-
     # ---- what the federation exchanges (lines 8, 25, 29, 31) -------------------------------------------
 
     def actor_layout(self) -> list[tuple[str, tuple[int, ...]]]:
         """Names and shapes of θ, in the order of every flat actor vector (gradient or parameters)."""
         return layout(self._actor_named)
 
-    def actor_size(self) -> int:
-        """Length of a flat actor vector."""
-        return sum(p.numel() for _, p in self._actor_named)
-
     def actor_gradient(self) -> np.ndarray:
         """The actor's last gradient of the round (line 25) as flat float32, in :meth:`actor_layout` order."""
         if self._last_actor_gradient is None:
             raise RuntimeError("no actor gradient yet: call update() first")
-        return self._last_actor_gradient.copy()
+        return flatten_tensors(self._last_actor_gradient)
 
     def apply_actor_gradient(self, flat: np.ndarray) -> None:
         """Line 31: update π_θ with a received (average) gradient ḡ through the actor's Adam."""
@@ -390,16 +388,6 @@ class PPOAgent:
             )
         agent._load_tensors(tensors, str(path))
         return agent
-
-    def load_weights(self, path: str | Path) -> None:
-        """Replace this agent's weights with a model file of the same architecture."""
-        tensors, metadata = read_checkpoint(path)
-        if metadata.get("architecture") != self.architecture():
-            raise CheckpointError(
-                f"{path} is a model for architecture {metadata.get('architecture')}, "
-                f"this agent is {self.architecture()}"
-            )
-        self._load_tensors(tensors, str(path))
 
     def _load_tensors(self, tensors: dict[str, np.ndarray], source: str) -> None:
         check_tensors_fit(tensors, {k: tuple(t.shape) for k, t in self.net.state_dict().items()}, source)

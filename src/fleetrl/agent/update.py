@@ -1,24 +1,28 @@
-"""One round's PPO update (Algorithm 2, lines 11-24) cut into steps, each a gradient and the optimiser steps
-that take it.
+"""One round's PPO update (Algorithm 2, lines 11-24), read top to bottom in :func:`ppo_update`.
 
-:class:`RoundUpdate` is built at line 11 (π_θold fixed, the K windows of line 13 drawn) and then gives one
-step's gradients at a time; :class:`~fleetrl.agent.ppo.PPOAgent` applies them through its Adam optimisers.
-With ``optimisers='per_model'`` step j is optimisation j: the critic's and the actor's gradients taken at
-the same parameters (lines 20 and 22), applied critic first (lines 21, 23). With ``'one_sequential'``
-(the authors' code) optimisation j is two steps: 2j the critic's gradient, 2j+1 the actor's, taken at the
-parameters the critic's step left.
+The update is a generator: it yields each optimisation step's gradient and steps the optimisers with what is
+sent back. A worker alone sends every gradient straight back (:func:`hand_back`: the same tensors, no copy);
+a scheme that averages the fleet's gradients at every step sends back the fleet's average instead
+(``PPOAgent.begin_update`` ... ``end_update`` drive it with flat vectors, the only place numpy enters).
+
+The preset variants are small functions chosen once (:func:`choose_variants`): how Â is scoped, what the
+critic chases, which policy is π_θold and how an optimisation is cut into steps. Those only the ``paper`` and
+``paper-code`` presets use live in :mod:`fleetrl.agent.paper_variants`.
 """
 
 from __future__ import annotations
 
+from collections.abc import Callable, Generator
 from dataclasses import dataclass
+from typing import TypeVar
 
 import numpy as np
 import torch
 from torch import nn
 
+from fleetrl.agent import paper_variants as paper
 from fleetrl.agent.config import PPOConfig
-from fleetrl.agent.losses import clipped_surrogate, critic_loss, gae, td_targets
+from fleetrl.agent.losses import clipped_surrogate, critic_loss, gae
 from fleetrl.agent.memory import Transitions, sample_window
 from fleetrl.agent.network import ActorCritic
 
@@ -26,6 +30,12 @@ CRITIC = "critic"
 """the part of a step that moves μ (lines 20-21)"""
 ACTOR = "actor"
 """the part of a step that moves θ (lines 22-23)"""
+
+Gradient = list[torch.Tensor]
+"""one optimisation step's gradient: a tensor per parameter the step moves, critic part first (its layout is
+``PPOAgent.step_layout``)"""
+ExtraLoss = Callable[[nn.Module], torch.Tensor]
+"""a scalar added to each minibatch's loss (FedProx's μ/2·‖θ − θ_global‖², say), given the network"""
 
 
 @dataclass(frozen=True)
@@ -44,190 +54,269 @@ class UpdateStats:
     """share of samples whose ratio R_t lay outside [1 − ε, 1 + ε] (diagnostic)"""
 
 
-@dataclass
-class _CriticTerms:
-    """What the critic's half of an optimisation computed on its window."""
+@dataclass(frozen=True)
+class Finished:
+    """What an update returns: its statistics and line 25's gradient (the last actor gradient applied)."""
 
-    window: slice
-    head: torch.Tensor
-    """the actor head's output on the window (logits, or the Gaussian mean in units of the box)"""
-    advantages: torch.Tensor
-    loss: torch.Tensor
+    stats: UpdateStats
+    actor_gradient: Gradient
 
 
-class RoundUpdate:
-    """The update of one round, step by step (see the module docstring for what a step is).
+T = TypeVar("T")
+UpdateSteps = Generator[Gradient, Gradient, Finished]
+"""an update under way: yields a step's gradient, is sent the gradient to apply, returns :class:`Finished`"""
 
-    :param net: the actor-critic being trained
-    :param config: the agent's hyper-parameters
-    :param data: the trajectory memory's transitions, behaviour log-probabilities recorded
-    :param window_rng: draws the K window starts (line 13), all of them here, in order
-    :param actor_params: θ, in the order of an actor gradient (trunk, policy head)
-    :param critic_grad_params: what L^V is differentiated against (trunk, value head)
-    :param n_trunk: how many of ``critic_grad_params`` are the trunk's
-    """
 
-    def __init__(
-        self,
-        net: ActorCritic,
-        config: PPOConfig,
-        data: Transitions,
-        window_rng: np.random.Generator,
-        actor_params: list[nn.Parameter],
-        critic_grad_params: list[nn.Parameter],
-        n_trunk: int,
-    ) -> None:
-        cfg = config
-        self.net, self.config = net, config
-        self._actor_params, self._critic_grad_params, self._n_trunk = (
-            actor_params,
-            critic_grad_params,
-            n_trunk,
-        )
-        self.obs = torch.from_numpy(data.obs)
-        self.actions = torch.from_numpy(data.actions)
-        self.rewards = torch.from_numpy(data.rewards)
-        self.next_obs = torch.from_numpy(data.next_obs)
-        self.terminated = torch.from_numpy(data.terminated)
-        self.episode_end = torch.from_numpy(data.episode_end)
+def ppo_update(model: Model, data: Transitions, window_rng: np.random.Generator) -> UpdateSteps:
+    """Algorithm 2, lines 11-24: K optimisations of the actor and the critic on windows of the memory
+    ``data``; ``window_rng`` draws the K window starts (line 13), all of them at line 11, in order."""
+    cfg, net, memory, variants = model.config, model.net, Batch.of(data), model.variants
+    # Line 11: π_θold ← π_θ. Its log-probabilities of the stored actions (or the acting policy's, standard
+    # PPO), and V_μ(s) of the whole memory as the round begins.
+    with torch.no_grad():
+        head, values = net(memory.obs)
+        old_log_probs = variants.old_policy(net, head, memory)
+        advantages = variants.advantages(net, memory, values, cfg)  # Eq. 2 now, or on each window
+    # Line 13, K times: a contiguous window of U transitions from a random start (Figure 3).
+    windows = [sample_window(len(data), cfg.batch_size, window_rng) for _ in range(cfg.n_optimisations)]
+    totals = np.zeros(5)  # actor loss, critic loss, entropy, approx KL, clip fraction
 
-        # Line 11: π_θold ← π_θ — the log-probabilities of the stored actions under the policy as it is now,
-        # or (old_policy 'behaviour') under the policy that acted.
+    def actor_objective(batch: Minibatch, head: torch.Tensor) -> torch.Tensor:
+        """Line 18: −L^CLIP (Eq. 6) − β·H, what the actor descends (Eq. 7); R_t = π_θ / π_θold (Eq. 5)."""
+        w = batch.window
+        log_probs, entropy = net.log_probs_and_entropy(head, memory.actions[w])
+        l_clip = clipped_surrogate(log_probs, old_log_probs[w], batch.advantages, cfg.clip_eps)
         with torch.no_grad():
-            head, values = net(self.obs)
-            if cfg.old_policy == "behaviour":
-                self.old_log_probs = torch.from_numpy(data.behaviour_log_probs)
-            else:
-                self.old_log_probs = net.log_probs_and_entropy(head, self.actions)[0]
-            self.memory_advantages = None
-            self.memory_values = values
-            """V_μ(s) at line 11: with ``gae_scope='memory'`` the λ-return target is Â + this, fixed for the
-            round like Â (not Â + the critic's current value, whose loss would not depend on the critic)"""
-            if cfg.gae_scope == "memory":  # Eq. 2 once over the whole memory, critic frozen at line 11
-                next_values = net.value_of(self.next_obs)
-                self.memory_advantages = gae(
-                    self.rewards,
-                    values,
-                    next_values,
-                    self.terminated,
-                    self.episode_end,
-                    cfg.gamma,
-                    cfg.gae_lambda,
-                )
-        # Line 13, K times: a contiguous window of U transitions from a random start (Figure 3).
-        self.windows = [
-            sample_window(len(data), cfg.batch_size, window_rng) for _ in range(cfg.n_optimisations)
-        ]
-        self.sequential = cfg.optimisers == "one_sequential"
-        self.n_steps = cfg.n_optimisations * (2 if self.sequential else 1)
-        """how many steps the update has (K, or 2K when the critic and the actor step in turn)"""
-        self.applied = 0
-        """how many steps were applied so far"""
-        self._critic_half: _CriticTerms | None = None
-        self._totals = np.zeros(5)  # actor loss, critic loss, entropy, approx KL, clip fraction
-
-    def parts(self, k: int) -> tuple[str, ...]:
-        """What step ``k`` moves, in the order its optimiser steps are taken (:func:`step_parts`)."""
-        return step_parts(self.config, k)
-
-    def gradients(self, k: int) -> list[list[torch.Tensor]]:
-        """Step ``k``'s gradients, one list per part of :meth:`parts` (g_μ over the critic optimiser's
-        parameters, g_θ over θ); accumulates the step's losses into :meth:`stats`."""
-        if not self.sequential:  # lines 14-22 at one set of parameters
-            half = self._critic_terms(k)
-            return [*reversed(self._actor_and_critic(half))]
-        if k % 2 == 0:  # the authors' order: the critic's gradient and step first ...
-            self._critic_half = self._critic_terms(k // 2)
-            return [self._critic_gradient(self._critic_half)]
-        assert self._critic_half is not None, "the actor's half follows its critic's half"
-        half, self._critic_half = self._critic_half, None
-        head, _ = self.net(self.obs[half.window])  # ... then π_θ at the parameters the critic's step left
-        half.head = head
-        objective = self._actor_objective(half)
-        return [list(torch.autograd.grad(objective, self._actor_params))]
-
-    def stats(self) -> UpdateStats:
-        """The losses and diagnostics averaged over the K optimisations."""
-        means = self._totals / self.config.n_optimisations
-        return UpdateStats(*(float(m) for m in means))
-
-    # ---- one optimisation on window j (lines 14-18) ---------------------------------------------------
-
-    def _critic_terms(self, j: int) -> _CriticTerms:
-        """Lines 14-17: π_θ(·|s_t), V_μ(s_t), Â (Eq. 2), V^target and L^V (Eq. 3) on window j."""
-        cfg = self.config
-        start, stop = self.windows[j]
-        w = slice(start, stop)
-        head, v = self.net(self.obs[w])
-        with torch.no_grad():
-            v_next = self.net.value_of(self.next_obs[w])
-        if self.memory_advantages is None:  # line 15, Eq. 2: the sum runs to the end of the window
-            adv = gae(
-                self.rewards[w],
-                v.detach(),
-                v_next,
-                self.terminated[w],
-                self.episode_end[w],
-                cfg.gamma,
-                cfg.gae_lambda,
-            )
-        else:
-            adv = self.memory_advantages[w]
-        if cfg.critic_target == "td":  # line 16, Eq. 3: V^target = r + γV(s'), bootstrapped at truncation
-            targets = td_targets(self.rewards[w], v_next, self.terminated[w], cfg.gamma)
-        elif self.memory_advantages is None:  # the λ-return Â + V(s), both at the current critic
-            targets = adv + v.detach()
-        else:  # the λ-return of line 11: Â and V(s) both from the critic as the round began
-            targets = adv + self.memory_values[w]
-        if cfg.normalise_advantages and adv.numel() > 1:
-            adv = (adv - adv.mean()) / (adv.std() + 1e-8)
-        l_v = critic_loss(v, targets, cfg.critic_loss)  # line 17, Eq. 3
-        self._totals[1] += l_v.item()
-        return _CriticTerms(w, head, adv, l_v)
-
-    def _actor_objective(self, half: _CriticTerms) -> torch.Tensor:
-        """Line 18: −L^CLIP (Eq. 6) − β·H, the quantity the actor descends (Eq. 7).
-
-        log π_θ(a_t|s_t) and H come from the actor head (softmax, or a Gaussian's log-density summed over
-        the action components); the ratio R_t = exp(log π_θ − log π_θold) (Eq. 5) and its clip are the same
-        for both."""
-        cfg = self.config
-        log_probs, entropy = self.net.log_probs_and_entropy(half.head, self.actions[half.window])
-        old = self.old_log_probs[half.window]
-        l_clip = clipped_surrogate(log_probs, old, half.advantages, cfg.clip_eps)
-        with torch.no_grad():
-            log_ratio = log_probs - old
+            log_ratio = log_probs - old_log_probs[w]
             ratio = log_ratio.exp()
             kl = ((ratio - 1.0) - log_ratio).mean()
             clipped = ((ratio - 1.0).abs() > cfg.clip_eps).float().mean()
-        self._totals[[0, 2, 3, 4]] += [-l_clip.item(), entropy.item(), kl.item(), clipped.item()]
+        totals[[0, 2, 3, 4]] += [-l_clip.item(), entropy.item(), kl.item(), clipped.item()]
         return -l_clip - cfg.entropy_coef * entropy
 
-    def _critic_gradient(self, half: _CriticTerms) -> list[torch.Tensor]:
-        """Line 20: g_μ = ∇(c·L^V) over the trunk and the value head."""
-        return list(torch.autograd.grad(self.config.critic_coef * half.loss, self._critic_grad_params))
+    actor_gradient: Gradient = []
+    for start, stop in windows:  # line 12: for k = 1 … K
+        w = slice(start, stop)
+        head, v = net(memory.obs[w])  # line 14: π_θ(·|s_t) and V_μ(s_t)
+        with torch.no_grad():
+            v_next = net.value_of(memory.next_obs[w])
+        adv, baseline = advantages(w, v.detach(), v_next)  # line 15: Â_t (Eq. 2)
+        # line 16: V^target (Eq. 3: r + γV(s'); or the λ-return Â + V)
+        targets = variants.critic_target(memory, w, v_next, adv, baseline, cfg.gamma)
+        if cfg.normalise_advantages and adv.numel() > 1:
+            adv = (adv - adv.mean()) / (adv.std() + 1e-8)
+        l_v = critic_loss(v, targets, cfg.critic_loss)  # line 17: L^V (Eq. 3)
+        totals[1] += l_v.item()
+        # Lines 19-23: the gradients and the optimisers' steps (one step, or the critic's then the actor's).
+        batch = Minibatch(w, memory.obs[w], head, adv, l_v)
+        actor_gradient = yield from variants.schedule(model, batch, actor_objective)
+    means = totals / cfg.n_optimisations
+    return Finished(UpdateStats(*(float(m) for m in means)), actor_gradient)
 
-    def _actor_and_critic(self, half: _CriticTerms) -> tuple[list[torch.Tensor], list[torch.Tensor]]:
-        """Lines 20 and 22 at the same parameters: (g_θ, g_μ).
 
-        With ``trunk_split == 'actor'`` the critic loss's trunk gradient, times ``critic_trunk_coef``, joins
-        g_θ, so the actor optimiser alone moves the trunk and the shared gradient carries the critic's say.
-        """
-        cfg = self.config
-        objective = self._actor_objective(half)
-        g_theta = list(torch.autograd.grad(objective, self._actor_params, retain_graph=True))
-        g_v = self._critic_gradient(half)
-        trunk_grads, head_grads = g_v[: self._n_trunk], g_v[self._n_trunk :]
-        if cfg.trunk_split == "shared":
-            return g_theta, trunk_grads + head_grads
-        for i, g in enumerate(trunk_grads):
+@dataclass
+class Model:
+    """What an update trains: the network, its two parameter groups and their Adam optimisers."""
+
+    net: ActorCritic
+    actor: list[nn.Parameter]
+    """θ: the trunk and the actor head (what the federation shares)"""
+    critic: list[nn.Parameter]
+    """μ: what the critic's optimiser steps (the value head, and the trunk with ``trunk_split='shared'``)"""
+    critic_grad: list[nn.Parameter]
+    """what L^V is differentiated against: the trunk and the value head (both splits)"""
+    n_trunk: int
+    """how many of ``critic_grad`` are the trunk's"""
+    actor_optimiser: torch.optim.Optimizer
+    critic_optimiser: torch.optim.Optimizer
+    """the same Adam as ``actor_optimiser`` with ``optimisers='one_sequential'``"""
+    config: PPOConfig
+    variants: Variants
+    """the functions ``config`` names (:func:`choose_variants`)"""
+    extra_loss: ExtraLoss | None = None
+    """added to each minibatch's loss (``PPOAgent.set_extra_loss``)"""
+
+    def step(self, part: str, gradient: Gradient) -> None:
+        """Lines 21 / 23: one optimiser's step with ``gradient`` over its parameters (clipped in place to
+        ``max_grad_norm`` first, if set)."""
+        params, optimiser = (
+            (self.actor, self.actor_optimiser) if part == ACTOR else (self.critic, self.critic_optimiser)
+        )
+        for p, g in zip(params, gradient, strict=True):
+            p.grad = g
+        if self.config.max_grad_norm > 0.0:
+            nn.utils.clip_grad_norm_(params, self.config.max_grad_norm)  # in place: ``gradient`` sees it too
+        optimiser.step()
+        for p in params:
+            p.grad = None
+
+    def with_extra_loss(self, gradient: Gradient, params: list[nn.Parameter]) -> Gradient:
+        """``gradient`` over ``params`` plus the gradient of :attr:`extra_loss` (unchanged without one)."""
+        if self.extra_loss is None:
+            return gradient
+        unique = list({id(p): p for p in params}.values())
+        extra = torch.autograd.grad(self.extra_loss(self.net), unique, allow_unused=True)
+        by_id = {id(p): e for p, e in zip(unique, extra, strict=True)}
+        return [
+            g if by_id[id(p)] is None else g + by_id[id(p)] for g, p in zip(gradient, params, strict=True)
+        ]
+
+
+@dataclass(frozen=True)
+class Batch:
+    """The trajectory memory as tensors (no copy), and the window an optimisation takes from it."""
+
+    obs: torch.Tensor
+    actions: torch.Tensor
+    rewards: torch.Tensor
+    next_obs: torch.Tensor
+    terminated: torch.Tensor
+    episode_end: torch.Tensor
+    behaviour_log_probs: torch.Tensor
+
+    @classmethod
+    def of(cls, data: Transitions) -> Batch:
+        """The memory's transitions as tensors sharing their arrays."""
+        return cls(*(torch.from_numpy(a) for a in (
+            data.obs, data.actions, data.rewards, data.next_obs, data.terminated, data.episode_end,
+            data.behaviour_log_probs,
+        )))  # fmt: skip
+
+
+@dataclass
+class Minibatch:
+    """One optimisation's window j and what lines 14-17 computed on it."""
+
+    window: slice
+    obs: torch.Tensor
+    """s_t on the window"""
+    head: torch.Tensor
+    """the actor head's output on the window (logits, or the Gaussian mean in units of the box)"""
+    advantages: torch.Tensor
+    critic_loss: torch.Tensor
+
+
+Advantages = Callable[[slice, torch.Tensor, torch.Tensor], tuple[torch.Tensor, torch.Tensor]]
+"""(window, V(s_t), V(s_{t+1}) at the current critic) → (Â on the window, the V(s_t) Â was measured from)"""
+CriticTarget = Callable[[Batch, slice, torch.Tensor, torch.Tensor, torch.Tensor, float], torch.Tensor]
+"""(memory, window, V(s_{t+1}), Â, the V(s_t) of Â, γ) → V^target on the window"""
+Objective = Callable[[Minibatch, torch.Tensor], torch.Tensor]
+"""(window, actor head output) → the actor's objective, −L^CLIP − β·H"""
+Schedule = Callable[[Model, Minibatch, Objective], Generator[Gradient, Gradient, Gradient]]
+"""how an optimisation is cut into steps; returns the actor gradient it applied"""
+
+
+@dataclass(frozen=True)
+class Variants:
+    """The preset's choices, made once."""
+
+    old_policy: Callable[[ActorCritic, torch.Tensor, Batch], torch.Tensor]
+    advantages: Callable[[ActorCritic, Batch, torch.Tensor, PPOConfig], Advantages]
+    critic_target: CriticTarget
+    schedule: Schedule
+    parts: tuple[tuple[str, ...], ...]
+    """what each step of an optimisation moves, in the order its optimisers step"""
+
+
+def hand_back(steps: Generator[Gradient, Gradient, T]) -> T:
+    """Run an update alone: every step applies its own gradient, the very tensors it yielded."""
+    try:
+        gradient = next(steps)
+        while True:
+            gradient = steps.send(gradient)
+    except StopIteration as done:
+        result: T = done.value
+        return result
+
+
+class StepExchange:
+    """An update driven one step at a time from outside (a fleet's step averages): :attr:`gradient` is the
+    step's gradient awaiting what to apply, :meth:`send` applies it and takes the next, :attr:`stats` is set
+    once the last step was applied.
+
+    :param steps: the update (``PPOAgent.update_steps``); its first step is computed here
+    """
+
+    def __init__(self, steps: Generator[Gradient, Gradient, UpdateStats]) -> None:
+        self._steps = steps
+        self.step = 0
+        """the index of the step whose gradient is :attr:`gradient`"""
+        self.taken = False
+        """the step's gradient was handed out and awaits :meth:`send`"""
+        self.stats: UpdateStats | None = None
+        self.gradient: Gradient | None = None
+        self._advance(lambda: next(steps))
+
+    def send(self, applied: Gradient) -> None:
+        """Apply ``applied`` for the current step and compute the next step's gradient (or finish)."""
+        self._advance(lambda: self._steps.send(applied))
+        self.step += 1
+
+    def _advance(self, resume: Callable[[], Gradient]) -> None:
+        self.taken = False
+        try:
+            self.gradient = resume()
+        except StopIteration as done:
+            self.gradient, self.stats = None, done.value
+
+
+# ---- the variants the ``standard`` preset uses (the paper's: fleetrl.agent.paper_variants) ----------------
+
+
+def behaviour_policy(net: ActorCritic, head: torch.Tensor, memory: Batch) -> torch.Tensor:
+    """π_θold = the policy that acted: log π of each stored action as it was drawn (importance sampling)."""
+    del net, head
+    return memory.behaviour_log_probs
+
+
+def memory_advantages(net: ActorCritic, memory: Batch, values: torch.Tensor, cfg: PPOConfig) -> Advantages:
+    """Eq. 2 once over the whole memory with the critic of line 11; a window takes its slice, and V(s_t) of
+    line 11 with it (the λ-return target Â + V is then fixed for the round like Â)."""
+    next_values = net.value_of(memory.next_obs)
+    gamma, lam = cfg.gamma, cfg.gae_lambda
+    adv = gae(memory.rewards, values, next_values, memory.terminated, memory.episode_end, gamma, lam)
+    return lambda w, v, v_next: (adv[w], values[w])
+
+
+def lambda_return(
+    memory: Batch, w: slice, next_values: torch.Tensor, adv: torch.Tensor, values: torch.Tensor, gamma: float
+) -> torch.Tensor:
+    """V^target = Â + V(s_t): the λ-return, from the values Â was measured against."""
+    del memory, w, next_values, gamma
+    return adv + values
+
+
+def both_models_at_once(
+    model: Model, batch: Minibatch, objective: Objective
+) -> Generator[Gradient, Gradient, Gradient]:
+    """Lines 19-23 as printed: g_θ (line 22) and g_μ (line 20) at the same parameters, one step; μ's
+    optimiser steps (line 21), then θ's (line 23).
+
+    With ``trunk_split='actor'`` the critic loss's trunk gradient, times ``critic_trunk_coef``, joins g_θ, so
+    the actor's optimiser alone moves the trunk and the shared gradient carries the critic's say."""
+    cfg, n = model.config, model.n_trunk
+    g_theta = list(torch.autograd.grad(objective(batch, batch.head), model.actor, retain_graph=True))
+    g_v = list(torch.autograd.grad(cfg.critic_coef * batch.critic_loss, model.critic_grad))
+    if cfg.trunk_split == "shared":  # the trunk is in μ too: each optimiser steps it with its own loss
+        g_mu = g_v
+    else:
+        g_mu = g_v[n:]
+        for i, g in enumerate(g_v[:n]):
             g_theta[i] = g_theta[i] + cfg.critic_trunk_coef * g
-        return g_theta, head_grads
+    params = model.critic + model.actor
+    applied = yield model.with_extra_loss([*g_mu, *g_theta], params)
+    model.step(CRITIC, applied[: len(model.critic)])
+    model.step(ACTOR, applied[len(model.critic) :])
+    return applied[len(model.critic) :]
 
 
-def step_parts(config: PPOConfig, k: int) -> tuple[str, ...]:
-    """What step ``k`` of an update moves, in order: the critic and the actor (``per_model``), or the critic
-    at even and the actor at odd steps (``one_sequential``)."""
-    if config.optimisers == "per_model":
-        return (CRITIC, ACTOR)
-    return (CRITIC,) if k % 2 == 0 else (ACTOR,)
+def choose_variants(cfg: PPOConfig) -> Variants:
+    """The functions ``cfg`` names, chosen once for the update."""
+    sequential = cfg.optimisers == "one_sequential"
+    return Variants(
+        old_policy=paper.round_start_policy if cfg.old_policy == "round_start" else behaviour_policy,
+        advantages=paper.window_advantages if cfg.gae_scope == "window" else memory_advantages,
+        critic_target=paper.td_target if cfg.critic_target == "td" else lambda_return,
+        schedule=paper.critic_then_actor if sequential else both_models_at_once,
+        parts=((CRITIC,), (ACTOR,)) if sequential else ((CRITIC, ACTOR),),
+    )

@@ -37,6 +37,10 @@ class RoundFigures(Protocol):
     def critic_loss(self) -> float: ...
     @property
     def entropy(self) -> float: ...
+    @property
+    def approx_kl(self) -> float: ...
+    @property
+    def clip_fraction(self) -> float: ...
 
 
 class RoundOutcome(RoundFigures, Protocol):
@@ -59,9 +63,17 @@ class RoundPlayer(Protocol):
         """The completion criterion has held (after this round's episodes, inside ``play_round``)."""
         ...
 
-    def play_round(self, update: Callable[[], Any] | None = None) -> RoundOutcome:
-        """Play one episode and, unless learning is complete, optimise (Algorithm 2, lines 2–24); ``update``
-        replaces the agent's own update (a per-step scheme exchanges every step with the chief in it)."""
+    def play_round(self) -> RoundOutcome:
+        """Play one episode and, unless learning is complete, optimise (Algorithm 2, lines 2–24)."""
+        ...
+
+    def begin_round(self) -> Any:
+        """The round's episodes alone; the result's ``updates`` says whether an update follows (a per-step
+        scheme's worker then drives it, exchanging every step with the chief)."""
+        ...
+
+    def end_round(self, played: Any, stats: Any) -> RoundOutcome:
+        """The round's outcome from :meth:`begin_round`'s result and the update's statistics (None: none)."""
         ...
 
 
@@ -112,6 +124,16 @@ class RoundRecord:
     def entropy(self) -> float:
         """The update's mean policy entropy (NaN without an update)."""
         return float(self.outcome.entropy)
+
+    @property
+    def approx_kl(self) -> float:
+        """The update's approximate KL(π_θold ‖ π_θ) (NaN without an update)."""
+        return float(self.outcome.approx_kl)
+
+    @property
+    def clip_fraction(self) -> float:
+        """The update's share of clipped ratios (NaN without an update)."""
+        return float(self.outcome.clip_fraction)
 
 
 @dataclass(frozen=True)

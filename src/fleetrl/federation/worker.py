@@ -147,6 +147,8 @@ class FederatedWorker:
             incarnation=time.time_ns(),
         )
         self._queue: deque[WorkerOutput] = deque()
+        self._played: Any = None
+        """a per-step round under way: what ``learner.begin_round`` returned"""
 
     def run(self) -> WorkerSummary:
         """Connect, wait for the chief's welcome, play rounds until finished, M rounds, or ``done``; close."""
@@ -206,6 +208,13 @@ class FederatedWorker:
                 self.scheme.apply_average(agent, flat, completed=completed, contributed=contributed)
             case PlayRound():
                 self._play_round()
+            case ComputeStep(k):  # a per-step round: step k's gradient to the chief
+                flat = agent.step_gradients(k)
+                self._queue.extend(self.machine.step_computed(k, flat, now=self.clock()).outputs)
+            case ApplyStep(flat):  # the chief's combination: the agent steps and takes the next gradient
+                self.scheme.apply_step_answer(agent, flat)
+            case EndUpdate():
+                self._end_round()
             case Record(record):
                 if self.on_record is not None:
                     self.on_record(record)
@@ -220,42 +229,22 @@ class FederatedWorker:
                 raise AssertionError(f"worker {self.worker_id}: {output} out of turn")
 
     def _play_round(self) -> None:
-        """Play the round the machine asked for and report it (a per-step scheme: every step through the
-        machine, inside the learner's update)."""
+        """Play the round the machine asked for and report it; a per-step scheme's round plays its episodes
+        here and reports its update's steps as the machine asks for them (:meth:`_execute`)."""
         agent = self.learner.agent
         if not self.machine.per_step:
             result = self.learner.play_round()
             share = self.scheme.outgoing(agent, completed=bool(result.completed))  # lines 8, 25
             self._queue.extend(self.machine.round_played(result, now=self.clock(), share=share).outputs)
             return
+        self._played = self.learner.begin_round()
+        steps = agent.begin_update() if self._played.updates else 0
+        begun = self.machine.update_begun(steps, completed=bool(self.learner.completed), now=self.clock())
+        self._queue.extend(begun.outputs)
 
-        def update() -> Any:
-            steps = agent.begin_update()
-            begun = self.machine.update_begun(steps, completed=bool(self.learner.completed), now=self.clock())
-            self._queue.extend(begun.outputs)
-            while True:
-                match self._drive(ComputeStep, ApplyStep, EndUpdate, Finish):
-                    case ComputeStep(k):
-                        flat = agent.step_gradients(k)
-                        self._queue.extend(self.machine.step_computed(k, flat, now=self.clock()).outputs)
-                    case ApplyStep(flat):
-                        self.scheme.apply_step_answer(agent, flat)
-                    case EndUpdate():
-                        return agent.end_update()
-                    case finish:
-                        raise _LeftTheFleet(finish)
-
-        try:
-            result = self.learner.play_round(update=update)
-        except _LeftTheFleet as left:  # the run ended (or went on without us) inside the round
-            self._queue.appendleft(left.finish)
-            return
+    def _end_round(self) -> None:
+        """Every step of a per-step round was applied: finish the update and report the round."""
+        played, self._played = self._played, None
+        stats = self.learner.agent.end_update() if played.updates else None
+        result = self.learner.end_round(played, stats)
         self._queue.extend(self.machine.round_played(result, now=self.clock()).outputs)
-
-
-class _LeftTheFleet(Exception):
-    """A per-step round cannot go on: the chief ended the run, or answered a later step than ours."""
-
-    def __init__(self, finish: WorkerOutput) -> None:
-        super().__init__("left the fleet")
-        self.finish = finish

@@ -19,8 +19,10 @@ CSV_COLUMNS = (
     "wall_time",
     "event",
     "episodes",
+    "approx_kl",
+    "clip_fraction",
 )
-"""metrics.csv's columns (``episodes`` came last, so older files keep their columns' positions)"""
+"""metrics.csv's columns (later ones were added at the end, so older files keep their columns' positions)"""
 
 
 @dataclass
@@ -44,6 +46,10 @@ class RoundRecord:
     wall_time: float
     event: str = ""
     episodes: int = 1
+    approx_kl: float = math.nan
+    """the update's estimate of KL(π_θold ‖ π_θ) (NaN: no update, or a row written before the column)"""
+    clip_fraction: float = math.nan
+    """the update's share of clipped probability ratios (NaN: no update, or an older row)"""
 
     def to_json(self) -> str:
         """One line of JSON (non-finite floats become null)."""
@@ -57,6 +63,8 @@ class RoundRecord:
             raise ValueError("a round record must be a JSON object")
         names = {f.name for f in fields(cls)}
         data.setdefault("episodes", 1)  # written before rounds of several episodes
+        data.setdefault("approx_kl", None)  # written before the update's diagnostics were kept
+        data.setdefault("clip_fraction", None)
         if set(data) != names:
             raise ValueError(f"round record fields {sorted(data)} != {sorted(names)}")
         values: dict[str, Any] = {k: (math.nan if v is None else v) for k, v in data.items()}
@@ -67,7 +75,7 @@ class RoundRecord:
         """Parse one row of metrics.csv (as ``csv.DictReader`` gives it); empty losses become NaN."""
 
         def number(name: str) -> float:
-            return float(row[name]) if row[name] else math.nan
+            return float(row[name]) if row.get(name) else math.nan  # a column older files lack: NaN
 
         return cls(
             round=int(row["round"]),
@@ -81,6 +89,8 @@ class RoundRecord:
             wall_time=number("wall_time"),
             event=row["event"],
             episodes=int(row.get("episodes") or 1),  # older files have no such column
+            approx_kl=number("approx_kl"),
+            clip_fraction=number("clip_fraction"),
         )
 
     def csv_row(self) -> list[object]:

@@ -54,6 +54,8 @@ def metrics_row(
         wall_time=round(time.monotonic() - started, 4),
         event=event,
         episodes=episodes,
+        approx_kl=figures.approx_kl,
+        clip_fraction=figures.clip_fraction,
     )
 
 

@@ -128,7 +128,7 @@ class RunRecorder:
         board = self._board()
         board.add_scalar(f"rollout/score/{tag}", record.score, record.round)
         board.add_scalar(f"rollout/wma/{tag}", record.wma, record.round)
-        for name in ("actor_loss", "critic_loss", "entropy"):
+        for name in ("actor_loss", "critic_loss", "entropy", "approx_kl", "clip_fraction"):
             value = getattr(record, name)
             if math.isfinite(value):
                 board.add_scalar(f"train/{name}/{tag}", value, record.round)

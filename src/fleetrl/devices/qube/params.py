@@ -5,7 +5,7 @@ value with its source and the per-unit deviation drawn for it.
 """
 
 import math
-from dataclasses import dataclass, fields, replace
+from dataclasses import dataclass, fields
 
 import numpy as np
 
@@ -60,10 +60,6 @@ class QubeParams:
     def Jp(self) -> float:
         """Pendulum moment of inertia about its centre of mass (kg·m²)."""
         return self.mp * self.Lp**2 / 12.0
-
-    def with_damping(self, Dr: float, Dp: float) -> "QubeParams":
-        """A copy with other damping coefficients (e.g. zero, for the energy test)."""
-        return replace(self, Dr=Dr, Dp=Dp)
 
     def coefficients(self) -> np.ndarray:
         """The constants the compiled dynamics use, in the order ``dynamics.C_*`` names them."""
