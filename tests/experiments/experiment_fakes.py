@@ -15,7 +15,7 @@ def write_run_dir(
     """A finished run directory of ``run`` (metrics.csv, summary.json, config.json), as ``fleetrl train``
     leaves one; ``episodes`` adds the column another scheme's rounds carry."""
     run.out.mkdir(parents=True)
-    single = [c for c in CSV_COLUMNS if c != "episodes"]  # the columns before rounds of several episodes
+    single = list(CSV_COLUMNS[: CSV_COLUMNS.index("episodes")])  # the columns of files before that column
     columns = [*single, "episodes"] if episodes else single
     with (run.out / "metrics.csv").open("w", newline="") as f:
         writer = csv.writer(f)
