@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from fleetrl.federation.chief import Chief
-from fleetrl.federation.events import WorkerEvent
+from fleetrl.federation.events import Sent, WorkerEvent
 from fleetrl.federation.messages import Message, encode
 from fleetrl.federation.rounds import RoundRecord, WorkerSummary, resume_round
 from fleetrl.federation.schemes import resolve_scheme
@@ -100,7 +100,7 @@ def test_join_then_a_round_end_to_end() -> None:
     answer = m.receive(chief("average", 1, contributors=("1", "2")), now=1.0)
     apply, record = answer.actions
     assert isinstance(apply, ApplyAverage) and apply.contributed and not apply.completed
-    assert isinstance(record, Record) and record.record.event is WorkerEvent.GRADIENT
+    assert isinstance(record, Record) and record.record.event == Sent("gradient")
     assert record.record.outcome is RESULT and record.record.score == 10.0
     assert m.next_deadline() == -np.inf  # catch-up: only what is queued
     assert m.tick(now=1.0).actions == (Checkpoint(2), PlayRound(2))
@@ -243,7 +243,7 @@ def test_the_per_step_exchange_keyed_by_step() -> None:
         assert [type(a) for a in answer.actions] == [ApplyStep, type(following)]
         assert answer.actions[1] == following
     over = m.round_played(RESULT, now=0.0)
-    assert records(over)[0].event is WorkerEvent.STEP_GRADIENT and records(over)[0].round == 2
+    assert records(over)[0].event == Sent("step_gradient") and records(over)[0].round == 2
     assert m.tick(now=0.0).actions == (Checkpoint(3), PlayRound(3))
 
 
@@ -307,7 +307,7 @@ def test_a_worker_resumed_mid_round_replays_the_closed_steps_and_goes_on_at_the_
     expected = [(grads["1"][k] + grads["2"][k]) / 2 for k in range(steps)]
     np.testing.assert_array_equal(np.stack(applied), np.stack(expected))
     (record,) = records(m.round_played(RESULT, now=10.0))
-    assert (record.round, record.event, m.summary) == (1, WorkerEvent.STEP_GRADIENT, None)
+    assert (record.round, record.event, m.summary) == (1, Sent("step_gradient"), None)
     # a later step's answer while replaying still means the fleet went on without this worker
     m = machine("pergrad", start_round=1)
     welcomed(m, 1)
@@ -383,7 +383,7 @@ def test_the_runner_plays_a_run_over_an_in_process_chief_and_repairs_a_lost_mess
         clock=lambda: transport.now[0],
     )
     summary = worker.run()
-    assert [r.event for r in got] == [WorkerEvent.GRADIENT, WorkerEvent.GRADIENT, WorkerEvent.TRANSFER_OUT]
+    assert [r.event for r in got] == [Sent("gradient"), Sent("gradient"), WorkerEvent.TRANSFER_OUT]
     assert (summary.rounds, summary.finished, learner.rounds) == (3, True, 3)
     assert checkpoints == [2, 3]
     assert transport.now[0] >= 5.0  # the lost gradient was re-sent after resend_interval

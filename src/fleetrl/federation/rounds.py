@@ -12,7 +12,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any, Protocol
 
-from fleetrl.federation.events import WorkerEvent
+from fleetrl.federation.events import RoundEvent
 from fleetrl.federation.messages import Message
 from fleetrl.federation.schemes import FederatedAgent
 
@@ -72,14 +72,16 @@ class RoundRecord:
     place) with what the federation made of it.
 
     ``round`` is the federation's round (a resumed or rejoining worker's learner counts its own);
-    ``event`` is a :class:`~fleetrl.federation.events.WorkerEvent`; ``peer`` the other worker of a transfer.
+    ``event`` is a :class:`~fleetrl.federation.events.WorkerEvent`, or a
+    :class:`~fleetrl.federation.events.Sent` naming the scheme's message; ``peer`` the other worker of a
+    transfer.
     """
 
     worker_id: str
     round: int
     outcome: RoundFigures
     """the learner's report of the round (score, steps, wma, losses, entropy)"""
-    event: WorkerEvent
+    event: RoundEvent
     peer: str | None = None
     """the other worker of a transfer (``transfer_in``: the origin; ``finished``: the one forwarded)"""
 

@@ -7,11 +7,11 @@ input of the machine returns one :class:`WorkerStep`, whose outputs are executed
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
-from fleetrl.federation.messages import Message
+from fleetrl.federation.messages import Message, RoundConfig
 from fleetrl.federation.rounds import RoundRecord, WorkerSummary
 
 
@@ -36,7 +36,8 @@ class Announce:
 
 @dataclass(frozen=True)
 class TakeParameters:
-    """``scheme.take_parameters(agent, flat)``: a transfer's parameters (or a rejoining worker's θ*)."""
+    """``scheme.take_parameters(agent, flat)``: a transfer's parameters, or a joining worker's from the
+    welcome (the fleet's model θ*, or the fleet's start)."""
 
     flat: np.ndarray
 
@@ -55,9 +56,11 @@ class PlayRound:
     """Play round ``round`` (``learner.play_round``) and report it with
     :meth:`~fleetrl.federation.worker_machine.WorkerMachine.round_played` — for a per-round scheme with what
     ``scheme.outgoing`` shares; a per-step scheme's update reports through ``update_begun`` and
-    ``step_computed`` first."""
+    ``step_computed`` first. A per-round scheme's ``local_loss(agent, config)`` is installed before it."""
 
     round: int
+    config: RoundConfig = field(default_factory=dict)
+    """what the chief asks of every worker for this round (its scheme's ``configure``)"""
 
 
 @dataclass(frozen=True)

@@ -8,7 +8,8 @@ It asks for what the agent must do (:class:`~fleetrl.federation.worker_actions.P
 :class:`~fleetrl.federation.worker_actions.ComputeStep`, ``ApplyAverage`` …); the runner does it, on the
 agent through the scheme, and reports back (:meth:`round_played`, :meth:`update_begun`,
 :meth:`step_computed`).
-Of the scheme the machine reads only its granularity and its round message's name.
+Of the scheme the machine reads only its granularity and its round message's name; the chief's configuration
+for a round (from the welcome, or the answer that opens it) goes to the runner with :class:`PlayRound`.
 
 The rules (docs/protocol.md):
 
@@ -39,8 +40,8 @@ from enum import Enum, auto
 import numpy as np
 
 from fleetrl.federation import worker_actions as act
-from fleetrl.federation.events import WorkerEvent
-from fleetrl.federation.messages import Layout, Message, MessageRejected, decode, encode
+from fleetrl.federation.events import RoundEvent, Sent, WorkerEvent
+from fleetrl.federation.messages import Layout, Message, MessageRejected, RoundConfig, decode, encode
 from fleetrl.federation.rounds import (
     ANSWERS,
     RoundOutcome,
@@ -97,6 +98,7 @@ class WorkerMachine:
     :param worker_id: this worker's id.
     :param max_rounds: M.
     :param layout: what the scheme shares of the agent (``scheme.layout(agent)``).
+    :param welcome_layout: what a welcome hands out (``scheme.welcome_layout(agent)``; default ``layout``).
     :param scheme: the federation scheme (read for its granularity and round message).
     :param settings: the shared settings sent in the ``join``.
     :param key: the fleet key: sign what is sent, accept only what is signed with it.
@@ -114,6 +116,7 @@ class WorkerMachine:
         max_rounds: int,
         layout: Layout,
         scheme: Scheme,
+        welcome_layout: Layout | None = None,
         settings: SharedSettings | None = None,
         key: FleetKey | None = None,
         reply_timeout: float | None = 600.0,
@@ -126,6 +129,7 @@ class WorkerMachine:
         self.worker_id = worker_id
         self.max_rounds = max_rounds
         self.layout: Layout = list(layout)
+        self.welcome_layout: Layout = list(layout if welcome_layout is None else welcome_layout)
         self.round_message = scheme.round_message
         self.per_step = scheme.granularity is Granularity.STEP
         self.settings: dict[str, str] = dict(settings or {})
@@ -149,6 +153,7 @@ class WorkerMachine:
         self._step_kind = ""
         self._last_answer: Message | None = None
         self._caught_up_to = 0
+        self._config: RoundConfig = {}  # the chief's configuration for the next round played
 
     # ---- inputs ----
 
@@ -174,8 +179,9 @@ class WorkerMachine:
             return NOTHING
         try:
             message = decode(
-                payload, run_id=self.run_id, known_senders=(CHIEF_ID,), layout=self.layout, key=self.key
-            )
+                payload, run_id=self.run_id, known_senders=(CHIEF_ID,), layout=self.layout, key=self.key,
+                layouts={"welcome": self.welcome_layout},
+            )  # fmt: skip
         except MessageRejected as exc:
             log.warning("worker %s: rejected a chief message: %s", self.worker_id, exc)
             return NOTHING
@@ -253,7 +259,15 @@ class WorkerMachine:
         metrics = {"score": float(outcome.score), "wma": float(outcome.wma), "steps": float(outcome.steps)}
         finite = {k: v for k, v in metrics.items() if math.isfinite(v)}
         self._outcome, self.phase = outcome, Phase.ANSWER
-        message = Message(kind, self.run_id, self.worker_id, self.round, flat=flat, metrics=finite)
+        message = Message(  # it stands for the round's transitions of this worker's one unit
+            kind,
+            self.run_id,
+            self.worker_id,
+            self.round,
+            flat=flat,
+            metrics=finite,
+            samples=int(outcome.steps),
+        )
         return self._send(message, answer_for(self.round), f"the chief's answer for round {self.round}", now)
 
     def update_begun(self, steps: int, *, completed: bool, now: float) -> WorkerStep:
@@ -287,8 +301,9 @@ class WorkerMachine:
             return self._refused(why)
         resume = resume_round(self.start_round, welcome.round, self.worker_id)
         out: tuple[WorkerOutput, ...] = ()
-        if welcome.flat is not None and resume is None:  # rejoining: start from θ* (fedavg: the fleet's)
+        if welcome.flat is not None and resume is None:  # joining: start from the fleet's model or start
             out = (act.TakeParameters(welcome.flat),)
+        self._config = dict(welcome.config)
         log.info("worker %s: welcomed at round %d (θ* of %s)", self.worker_id, welcome.round, welcome.origin)
         return WorkerStep(out) + self._begin_round(welcome.round if resume is None else resume)
 
@@ -297,7 +312,7 @@ class WorkerMachine:
             reason = f"reached M={self.max_rounds}"
             return self._finish(WorkerSummary(self.worker_id, self.max_rounds, finished=False, reason=reason))
         self.round, self.phase, self._last_answer = rnd, Phase.PLAYING, None
-        return WorkerStep((act.PlayRound(rnd),))
+        return WorkerStep((act.PlayRound(rnd, self._config),))
 
     def _answered(self, reply: Message) -> WorkerStep:
         """A per-round scheme: act on the chief's answer (Algorithm 2, lines 28-31)."""
@@ -320,10 +335,9 @@ class WorkerMachine:
         # the round may have closed without us (a straggler, or a resend): the fleet's update all the same
         contributed = self.worker_id in reply.contributors
         applied = WorkerStep((act.ApplyAverage(reply.flat, completed=completed, contributed=contributed),))
-        if not contributed:
-            event = WorkerEvent.LATE
-        else:
-            event = WorkerEvent.COMPLETED if completed else WorkerEvent(self.round_message)
+        event: RoundEvent = WorkerEvent.LATE
+        if contributed:
+            event = WorkerEvent.COMPLETED if completed else Sent(self.round_message)
         return applied + self._round_over(self._outcome, reply, event, None, self.worker_id in reply.finished)
 
     def _step_answered(self, reply: Message) -> WorkerStep:
@@ -345,13 +359,14 @@ class WorkerMachine:
         """A per-step scheme's round (every step's answer is applied already)."""
         if reply.type == "done":
             return self._round_over(outcome, reply, WorkerEvent.RUN_ENDED, None, True)
-        event = WorkerEvent.COMPLETED if outcome.completed else WorkerEvent(self.round_message)
+        event = WorkerEvent.COMPLETED if outcome.completed else Sent(self.round_message)
         return self._round_over(outcome, reply, event, None, self.worker_id in reply.finished)
 
     def _round_over(
-        self, outcome: RoundOutcome, reply: Message, event: WorkerEvent, peer: str | None, leave: bool
+        self, outcome: RoundOutcome, reply: Message, event: RoundEvent, peer: str | None, leave: bool
     ) -> WorkerStep:
         """Record the round; stop if this worker leaves, else catch up with what is queued."""
+        self._config = dict(reply.config)  # what the chief asks for the round this answer opens
         record = RoundRecord(self.worker_id, self.round, outcome, event, peer)
         log.info(
             "worker %s round %d: score %g wma %.1f steps %d actor %.4g critic %.4g entropy %.3f: %s",
@@ -377,7 +392,7 @@ class WorkerMachine:
         if message.type == "done":
             return self._finish(WorkerSummary(self.worker_id, message.round, False, "run ended"))
         log.info("worker %s: caught up with the %s of round %d", self.worker_id, message.type, message.round)
-        self._caught_up_to = message.round
+        self._caught_up_to, self._config = message.round, dict(message.config)
         if message.flat is None:
             return NOTHING
         if message.type == "transfer":
