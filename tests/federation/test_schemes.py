@@ -328,7 +328,9 @@ class Configured(RoundScheme):
 def test_the_chief_weighs_answers_by_their_units_and_configures_each_round() -> None:
     layout = [("pi", (2,))]
     chief = Chief(run_id=RUN, workers=("1", "2"), layout=layout, max_rounds=3, scheme=Configured())
-    (welcome,) = chief.status("1", status_payload(b"online", run_id=RUN, node="1", incarnation=1), now=0.0).outgoing
+    (welcome,) = chief.status(
+        "1", status_payload(b"online", run_id=RUN, node="1", incarnation=1), now=0.0
+    ).outgoing
     assert welcome.config == {"round": 1.0, "members": "1,2"}
 
     def model(worker: str, values: list[float], units: int, samples: int) -> bytes:
