@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -79,6 +80,7 @@ class PPOAgent:
         self._last_actor_gradient: np.ndarray | None = None
         self._round_update: RoundUpdate | None = None
         self._pending_step: int | None = None
+        self._extra_loss: Callable[[nn.Module], torch.Tensor] | None = None
 
     # ---- acting (Algorithm 2, lines 3 and 5) ------------------------------------------------------------
 
@@ -155,6 +157,11 @@ class PPOAgent:
         )
         return self._round_update.n_steps
 
+    def set_extra_loss(self, fn: Callable[[nn.Module], torch.Tensor] | None) -> None:
+        """Add ``fn(net)``, a scalar, to the loss of every optimisation step from now on (a federation
+        scheme's term in local training, e.g. FedProx's μ/2‖θ − θ_global‖²); None: nothing is added."""
+        self._extra_loss = fn
+
     def update_step_count(self) -> int:
         """How many steps :meth:`begin_update` will return: K, or 2K with ``optimisers='one_sequential'``."""
         return self.config.n_optimisations * (2 if self.config.optimisers == "one_sequential" else 1)
@@ -180,6 +187,12 @@ class PPOAgent:
         if k != update.applied or k >= update.n_steps:
             raise RuntimeError(f"step {k} requested, but step {update.applied} of {update.n_steps} is next")
         gradients = update.gradients(k)
+        if self._extra_loss is not None:  # its gradient joins each part's: each optimiser's loss has the term
+            extra = self._extra_loss(self.net)
+            for (_, named), grads in zip(self._step_parts(k), gradients, strict=True):
+                params = [p for _, p in named]
+                terms = torch.autograd.grad(extra, params, retain_graph=True, allow_unused=True)
+                grads[:] = [g if t is None else g + t for g, t in zip(grads, terms, strict=True)]
         self._pending_step = k
         return flatten_tensors([g for part in gradients for g in part])
 
