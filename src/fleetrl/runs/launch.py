@@ -104,7 +104,14 @@ def fleet_start(settings: LearningSettings) -> FleetStart | None:
     scheme = settings.federation_scheme()
     if not scheme.shared_start:
         return None
-    agent = agent_for(describe_env(settings.env), settings.ppo(), seed=getattr(settings, "seed", 0))
+    import torch
+
+    threads = torch.get_num_threads()
+    torch.set_num_threads(1)  # as make_learner draws it: the initialisation's QR differs with the threads
+    try:
+        agent = agent_for(describe_env(settings.env), settings.ppo(), seed=getattr(settings, "seed", 0))
+    finally:
+        torch.set_num_threads(threads)
     return FleetStart(scheme.welcome_layout(agent), scheme.start_parameters(agent))
 
 
