@@ -33,7 +33,17 @@ from typing import Any
 import msgpack
 import numpy as np
 
-from fleetrl.federation.rejections import MessageRejected, Reason
+from fleetrl.federation.rejections import (
+    MAX_TEXT,
+    MessageRejected,
+    Reason,
+    check_config,
+    check_count,
+    check_metrics,
+    check_names,
+    check_settings,
+    short,
+)
 from fleetrl.federation.signing import OVERHEAD as SIGNATURE_OVERHEAD
 from fleetrl.federation.signing import FleetKey
 
@@ -79,14 +89,6 @@ SCHEME_TYPE = re.compile(r"[a-z][a-z0-9_]{0,31}")
 OPTIONAL_TENSORS = frozenset({"welcome"})
 """Types that carry either no tensors or the whole layout."""
 
-MAX_METRICS = 32
-"""Most metrics one message may carry."""
-MAX_NAME = 64
-"""Longest metric name or id accepted."""
-MAX_TEXT = 1024
-"""Longest setting value or detail text accepted."""
-MAX_COUNT = 2**31 - 1
-"""Largest ``samples`` or ``units`` accepted."""
 HEADER_ALLOWANCE = 64 * 1024
 """Bytes allowed beyond the tensors' own size by :func:`default_max_bytes`."""
 _MAX_ROUND = 2**31 - 1
@@ -236,7 +238,7 @@ def encode(message: Message, *, layout: Layout, key: FleetKey | None = None) -> 
         raise ValueError(f"refusing to send a {message.type!r} message with NaN or Inf values")
     if not all(math.isfinite(v) for v in env["metrics"].values()):
         raise ValueError("refusing to send non-finite metrics")
-    _config(env["config"], error=ValueError)
+    check_config(env["config"], error=ValueError)
     packed = bytes(msgpack.packb(env, use_bin_type=True))
     return packed if key is None else key.sign(packed)
 
@@ -284,34 +286,34 @@ def decode(
     if not isinstance(env, dict):
         raise MessageRejected(Reason.MALFORMED, f"top level is {type(env).__name__}, not a map")
     if env.get("version") != VERSION or isinstance(env.get("version"), bool):
-        raise MessageRejected(Reason.WRONG_VERSION, f"{_short(env.get('version'))} (expected {VERSION})")
+        raise MessageRejected(Reason.WRONG_VERSION, f"{short(env.get('version'))} (expected {VERSION})")
     if set(env) != _KEYS:
         raise MessageRejected(
             Reason.MALFORMED, f"keys {sorted(map(str, env))[:20]} (expected {sorted(_KEYS)})"
         )
     mtype = env["type"]
     if not isinstance(mtype, str) or (mtype not in MESSAGE_TYPES and mtype not in scheme_types):
-        raise MessageRejected(Reason.UNKNOWN_TYPE, _short(mtype))
+        raise MessageRejected(Reason.UNKNOWN_TYPE, short(mtype))
     if env["run_id"] != run_id:
-        raise MessageRejected(Reason.WRONG_RUN_ID, _short(env["run_id"]))
+        raise MessageRejected(Reason.WRONG_RUN_ID, short(env["run_id"]))
     sender = env["sender"]
     if not isinstance(sender, str) or sender not in known_senders:
-        raise MessageRejected(Reason.UNKNOWN_SENDER, _short(sender))
+        raise MessageRejected(Reason.UNKNOWN_SENDER, short(sender))
     rnd = env["round"]
     if not isinstance(rnd, int) or isinstance(rnd, bool) or not 1 <= rnd <= _MAX_ROUND:
-        raise MessageRejected(Reason.BAD_ROUND, _short(rnd))
-    metrics = _metrics(env["metrics"])
+        raise MessageRejected(Reason.BAD_ROUND, short(rnd))
+    metrics = check_metrics(env["metrics"])
     origin = env["origin"]
     if origin is not None and not isinstance(origin, str):
         raise MessageRejected(Reason.MALFORMED, "origin is not a string")
     step = env["step"]
     if not isinstance(step, int) or isinstance(step, bool) or not 0 <= step <= _MAX_ROUND:
-        raise MessageRejected(Reason.MALFORMED, f"step {_short(step)}")
+        raise MessageRejected(Reason.MALFORMED, f"step {short(step)}")
     detail = env["detail"]
     if not isinstance(detail, str) or len(detail) > MAX_TEXT:
         raise MessageRejected(Reason.MALFORMED, "detail is not a short string")
-    samples, units = _count(env["samples"], "samples"), _count(env["units"], "units")
-    config = _config(env["config"], error=None)
+    samples, units = check_count(env["samples"], "samples"), check_count(env["units"], "units")
+    config = check_config(env["config"], error=None)
     carries = MESSAGE_TYPES.get(mtype, True) or (mtype in OPTIONAL_TENSORS and env["tensors"] != [])
     flat = _tensors(env["tensors"], env["data"], layouts.get(mtype, layout) if carries else ())
     return Message(
@@ -322,10 +324,10 @@ def decode(
         flat=flat if carries else None,
         metrics=metrics,
         origin=origin,
-        finished=_names(env["finished"], "finished"),
-        contributors=_names(env["contributors"], "contributors"),
+        finished=check_names(env["finished"], "finished"),
+        contributors=check_names(env["contributors"], "contributors"),
         step=step,
-        settings=_settings(env["settings"]),
+        settings=check_settings(env["settings"]),
         detail=detail,
         samples=samples,
         units=units,
@@ -333,75 +335,12 @@ def decode(
     )
 
 
-def _short(value: object) -> str:
-    """A bounded, recursion-free description of a decoded value for a rejection detail."""
-    if isinstance(value, str | bytes | int | float | bool) or value is None:
-        return repr(value)[:MAX_NAME]
-    return f"<{type(value).__name__}>"
-
-
-def _names(value: object, what: str) -> tuple[str, ...]:
-    if not isinstance(value, list) or len(value) > 4096 or not all(isinstance(v, str) for v in value):
-        raise MessageRejected(Reason.MALFORMED, f"{what} is not a list of strings")
-    return tuple(value)
-
-
-def _count(value: object, what: str) -> int:
-    if not isinstance(value, int) or isinstance(value, bool) or not 0 <= value <= MAX_COUNT:
-        raise MessageRejected(Reason.MALFORMED, f"{what} {_short(value)}")
-    return value
-
-
-def _config(value: object, error: type[ValueError] | None) -> dict[str, float | str]:
-    """The ``config`` map checked: on decode a defect is a MALFORMED rejection, on encode ``error``."""
-    why = None
-    if not isinstance(value, dict) or len(value) > MAX_METRICS:
-        why = f"config is not a map of at most {MAX_METRICS} entries"
-    else:
-        for key, val in value.items():
-            number = isinstance(val, int | float) and not isinstance(val, bool) and math.isfinite(val)
-            text = isinstance(val, str) and len(val) <= MAX_TEXT
-            if not (isinstance(key, str) and len(key) <= MAX_NAME and (number or text)):
-                why = f"config entry {_short(key)}: not a finite number or a short text"
-                break
-    if why is not None:
-        if error is not None:
-            raise error(f"refusing to send: {why}")
-        raise MessageRejected(Reason.MALFORMED, why)
-    assert isinstance(value, dict)
-    return {k: v if isinstance(v, str) else float(v) for k, v in value.items()}
-
-
-def _settings(value: object) -> dict[str, str]:
-    if not isinstance(value, dict) or len(value) > MAX_METRICS:
-        raise MessageRejected(Reason.MALFORMED, f"settings is not a map of at most {MAX_METRICS} entries")
-    for key, val in value.items():
-        if not (
-            isinstance(key, str) and len(key) <= MAX_NAME and isinstance(val, str) and len(val) <= MAX_TEXT
-        ):
-            raise MessageRejected(Reason.MALFORMED, f"setting {_short(key)}")
-    return dict(value)
-
-
-def _metrics(value: object) -> dict[str, float]:
-    if not isinstance(value, dict) or len(value) > MAX_METRICS:
-        raise MessageRejected(Reason.BAD_METRICS, f"not a map of at most {MAX_METRICS} entries")
-    out: dict[str, float] = {}
-    for key, val in value.items():
-        if not isinstance(key, str) or len(key) > MAX_NAME:
-            raise MessageRejected(Reason.BAD_METRICS, f"bad name {_short(key)}")
-        if not isinstance(val, int | float) or isinstance(val, bool) or not math.isfinite(val):
-            raise MessageRejected(Reason.BAD_METRICS, f"{key}={_short(val)}")
-        out[key] = float(val)
-    return out
-
-
 def _tensors(tensors: object, data: object, layout: Layout) -> np.ndarray:
     expected = [[name, list(shape)] for name, shape in layout]
     if tensors != expected:
         raise MessageRejected(
             Reason.LAYOUT_MISMATCH,
-            f"got {_short(tensors)} of {len(tensors) if isinstance(tensors, list) else '?'} entries",
+            f"got {short(tensors)} of {len(tensors) if isinstance(tensors, list) else '?'} entries",
         )
     if not isinstance(data, bytes) or len(data) != 4 * layout_size(layout):
         size = len(data) if isinstance(data, bytes) else type(data).__name__

@@ -11,22 +11,14 @@ agent through the scheme, and reports back (:meth:`round_played`, :meth:`update_
 Of the scheme the machine reads only its granularity and its round message's name; the chief's configuration
 for a round (from the welcome, or the answer that opens it) goes to the runner with :class:`PlayRound`.
 
-The rules (docs/protocol.md):
-
-* Join: :meth:`start` announces ``online`` and publishes a retained ``join`` with the shared settings; until
-  the ``welcome`` (or ``done``) it re-sends both every ``resend_interval``. A ``welcome`` whose settings
-  differ, or a ``refused`` naming this worker (at any time), ends in
-  :class:`~fleetrl.federation.worker_actions.Refused`.
-* Resume (``start_round``): a welcome for that round or the next keeps the learner's state and plays
-  ``start_round``; a later one rejoins like a fresh worker (taking θ*); an earlier one is an error.
-* A round: play it, send what the scheme shares, wait for the chief's answer for that round (or a later
-  one's, or ``done``); earlier answers are stale and ignored. The answer is applied, the round recorded;
-  then every later answer already queued is applied (catch-up: the chief moved on without us) before the
-  next round. The round's message is re-sent every ``resend_interval``; nothing for ``reply_timeout``
-  seconds ends in :class:`~fleetrl.federation.worker_actions.TimedOut`.
-* A per-step scheme exchanges each of the update's K steps like a round, keyed (round, step); ``done`` or a
-  later step's answer inside the round ends the worker's run without a record. A worker resumed mid-round
-  replays the round by the same rules: the chief answers each re-sent step with that step's answer.
+The rules (docs/protocol.md): join (``online`` and a retained ``join``, re-sent until the ``welcome``; a
+welcome whose settings differ, or a ``refused`` naming this worker, ends in ``Refused``); resume
+(``start_round``: a welcome for that round or the next keeps the learner's state, a later one rejoins taking
+the welcome's parameters, an earlier one is an error); a round (play, send, wait for the answer of that round
+or a later one, apply it, record, then catch up with later answers already queued; re-send every
+``resend_interval``, ``TimedOut`` after ``reply_timeout``); a per-step scheme exchanges each of the update's
+K steps like a round, keyed (round, step), and ``done`` or a later step's answer inside the round ends the
+worker's run without a record.
 """
 
 from __future__ import annotations
