@@ -12,11 +12,7 @@ import pytest
 from fleetrl.federation.chief import Chief
 from fleetrl.federation.events import Sent, WorkerEvent
 from fleetrl.federation.messages import Message, encode
-from fleetrl.federation.rounds import RoundRecord, WorkerSummary, resume_round
-from fleetrl.federation.schemes import resolve_scheme
-from fleetrl.federation.topics import chief_topic, worker_of_topic
-from fleetrl.federation.worker import FederatedWorker
-from fleetrl.federation.worker_actions import (
+from fleetrl.federation.rounds import (
     Announce,
     ApplyAverage,
     ApplyStep,
@@ -28,10 +24,16 @@ from fleetrl.federation.worker_actions import (
     Publish,
     Record,
     Refused,
+    RoundRecord,
     TakeParameters,
     TimedOut,
     WorkerStep,
+    WorkerSummary,
+    resume_round,
 )
+from fleetrl.federation.schemes import resolve_scheme
+from fleetrl.federation.topics import chief_topic, worker_of_topic
+from fleetrl.federation.worker import FederatedWorker
 from fleetrl.federation.worker_machine import WorkerMachine
 from fleetrl.transport.base import Received, Will
 

@@ -42,13 +42,7 @@ from collections.abc import Callable
 from typing import Any
 
 from fleetrl.federation.messages import Layout, RoundConfig
-from fleetrl.federation.rounds import RoundFigures, RoundOutcome, RoundPlayer, RoundRecord, WorkerSummary
-from fleetrl.federation.schemes import RoundScheme, Scheme, StepScheme, resolve_scheme
-from fleetrl.federation.schemes.base import LocalTraining
-from fleetrl.federation.shared_settings import SettingsRefused, SharedSettings
-from fleetrl.federation.signing import FleetKey
-from fleetrl.federation.topics import OFFLINE, validate_id, validate_worker_id
-from fleetrl.federation.worker_actions import (
+from fleetrl.federation.rounds import (
     Announce,
     ApplyAverage,
     ApplyStep,
@@ -60,10 +54,20 @@ from fleetrl.federation.worker_actions import (
     Publish,
     Record,
     Refused,
+    RoundFigures,
+    RoundOutcome,
+    RoundPlayer,
+    RoundRecord,
     TakeParameters,
     TimedOut,
     WorkerOutput,
+    WorkerSummary,
 )
+from fleetrl.federation.schemes import RoundScheme, Scheme, StepScheme, resolve_scheme
+from fleetrl.federation.schemes.base import LocalTraining
+from fleetrl.federation.shared_settings import SettingsRefused, SharedSettings
+from fleetrl.federation.signing import FleetKey
+from fleetrl.federation.topics import OFFLINE, validate_id, validate_worker_id
 from fleetrl.federation.worker_machine import WorkerMachine
 from fleetrl.transport.base import Transport, Will
 

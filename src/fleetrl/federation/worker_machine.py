@@ -1,11 +1,11 @@
 """The worker of Algorithm 2 as a pure state machine: chief messages, time and the learner's reports in →
-messages to publish and actions for the runner out (:mod:`fleetrl.federation.worker_actions`).
+messages to publish and actions for the runner out (:mod:`fleetrl.federation.rounds`).
 
 No transport, no threads, no clock: every input takes ``now`` (seconds, any monotonic origin), and
 :meth:`WorkerMachine.next_deadline` says when :meth:`WorkerMachine.tick` is due. The runner
 (:class:`fleetrl.federation.worker.FederatedWorker`) owns the learner: the machine never touches the agent.
-It asks for what the agent must do (:class:`~fleetrl.federation.worker_actions.PlayRound`,
-:class:`~fleetrl.federation.worker_actions.ComputeStep`, ``ApplyAverage`` …); the runner does it, on the
+It asks for what the agent must do (:class:`~fleetrl.federation.rounds.PlayRound`,
+:class:`~fleetrl.federation.rounds.ComputeStep`, ``ApplyAverage`` …); the runner does it, on the
 agent through the scheme, and reports back (:meth:`round_played`, :meth:`update_begun`,
 :meth:`step_computed`).
 Of the scheme the machine reads only its granularity and its round message's name; the chief's configuration
@@ -31,13 +31,15 @@ from enum import Enum, auto
 
 import numpy as np
 
-from fleetrl.federation import worker_actions as act
+from fleetrl.federation import rounds as act
 from fleetrl.federation.events import RoundEvent, Sent, WorkerEvent
 from fleetrl.federation.messages import Layout, Message, MessageRejected, RoundConfig, decode, encode
 from fleetrl.federation.rounds import (
     ANSWERS,
     RoundOutcome,
     RoundRecord,
+    WorkerOutput,
+    WorkerStep,
     WorkerSummary,
     answer_for,
     resume_round,
@@ -46,7 +48,6 @@ from fleetrl.federation.schemes import COMPLETED, Granularity, Scheme
 from fleetrl.federation.shared_settings import SharedSettings, settings_difference
 from fleetrl.federation.signing import FleetKey, status_payload
 from fleetrl.federation.topics import CHIEF_ID, OFFLINE, ONLINE, chief_topic, status_topic, worker_topic
-from fleetrl.federation.worker_actions import WorkerOutput, WorkerStep
 
 __all__ = ["Phase", "WorkerMachine"]
 
