@@ -389,3 +389,16 @@ def test_the_runner_plays_a_run_over_an_in_process_chief_and_repairs_a_lost_mess
     assert (summary.rounds, summary.finished, learner.rounds) == (3, True, 3)
     assert checkpoints == [2, 3]
     assert transport.now[0] >= 5.0  # the lost gradient was re-sent after resend_interval
+
+
+def test_the_fleet_s_start_is_taken_by_a_joining_worker_and_its_config_goes_to_the_round() -> None:
+    start = {"flat": FLAT, "origin": "chief", "config": {"mu": 0.5}}
+    fresh = welcomed(machine(), 1, **start)
+    assert fresh.actions[0] == TakeParameters(FLAT) and fresh.actions[1] == PlayRound(1, {"mu": 0.5})
+    # resumed with its own state (rounds went on without it): it keeps what it learned, not the start
+    late = welcomed(machine(start_round=2), 5, **start)
+    assert not any(isinstance(a, TakeParameters) for a in late.actions) and late.actions[-1] == PlayRound(
+        5, {"mu": 0.5}
+    )
+    # a transfer's θ* is taken all the same
+    assert isinstance(welcomed(machine(start_round=2), 5, flat=FLAT, origin="2").actions[0], TakeParameters)

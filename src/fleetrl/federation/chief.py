@@ -124,7 +124,11 @@ class Chief:
         self.dropout_grace = dropout_grace
         self.key = key
         if state is None:
-            model = None if start is None else Message("welcome", run_id, CHIEF_ID, 1, flat=start.flat)
+            model = (
+                None
+                if start is None
+                else Message("welcome", run_id, CHIEF_ID, 1, flat=start.flat, origin=CHIEF_ID)
+            )
             members = set(self.all_workers)
             config = dict(self.scheme.configure(1, tuple(sorted_workers(members))))
             state = ChiefState(members, AnswerBook(resend_holdoff), model=model, config=config)

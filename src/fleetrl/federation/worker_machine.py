@@ -294,7 +294,9 @@ class WorkerMachine:
             return self._refused(why)
         resume = resume_round(self.start_round, welcome.round, self.worker_id)
         out: tuple[WorkerOutput, ...] = ()
-        if welcome.flat is not None and resume is None:  # joining: start from the fleet's model or start
+        # joining: start from the fleet's model, or its start (origin: the chief) unless resumed with its own
+        fleet_start = welcome.origin == CHIEF_ID and self.start_round is not None
+        if welcome.flat is not None and resume is None and not fleet_start:
             out = (act.TakeParameters(welcome.flat),)
         self._config = dict(welcome.config)
         log.info("worker %s: welcomed at round %d (θ* of %s)", self.worker_id, welcome.round, welcome.origin)
