@@ -3,17 +3,22 @@ end with identical models: the chief's welcome hands every joining worker the fl
 
 from __future__ import annotations
 
+import subprocess
+import sys
 from collections.abc import Callable
+from pathlib import Path
 from typing import Any
 
 import numpy as np
 import pytest
+from safetensors.numpy import load_file
 
 from fleetrl.federation.schemes.base import FleetStart
 from fleetrl.runs.factory import make_learner
 from fleetrl.runs.launch import exchanges_per_round, fleet_start
 from fleetrl.runs.settings import LearningSettings
 from fleetrl.runs.spec import WorkerSpec
+from fleetrl.transport.broker import EmbeddedBroker
 from fleetrl.transport.local import LocalBus
 
 FleetRunner = Callable[..., Any]
@@ -68,3 +73,36 @@ def _one_thread() -> None:
     import torch
 
     torch.set_num_threads(1)
+
+
+@pytest.mark.slow
+@pytest.mark.mqtt
+@pytest.mark.mosquitto
+def test_standalone_workers_of_seeds_40_41_42_end_as_one_model_over_mosquitto(tmp_path: Path) -> None:
+    """``fleetrl chief`` and three ``fleetrl worker --seed 40/41/42`` processes on one mosquitto broker."""
+    run = ["--run-id", "seeds", "--env", "cartpole", "--preset", "standard", "--max-rounds", "3"]
+    base = [sys.executable, "-m", "fleetrl.cli.main"]
+    with EmbeddedBroker("mosquitto") as broker:
+        url = ["--broker", broker.url]
+        roles = [[*base, "chief", *url, *run, "--workers", "3", "--out", str(tmp_path / "chief")]]
+        roles += [
+            [
+                *base,
+                "worker",
+                *url,
+                *run,
+                "--worker-id",
+                w,
+                "--seed",
+                str(s),
+                "--out",
+                str(tmp_path / f"w{w}"),
+            ]
+            for w, s in SEEDS.items()
+        ]
+        procs = [subprocess.Popen(argv, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE) for argv in roles]
+        codes = [p.wait(timeout=600) for p in procs]
+    assert codes == [0, 0, 0, 0], [p.stderr.read()[-500:] if p.stderr else b"" for p in procs]
+    models = [load_file(str(tmp_path / f"w{w}" / "models" / f"worker-{w}.safetensors")) for w in SEEDS]
+    assert all(set(m) == set(models[0]) for m in models)
+    assert all(np.array_equal(models[0][name], m[name]) for m in models for name in models[0])
