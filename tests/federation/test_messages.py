@@ -15,6 +15,7 @@ from fleetrl.federation.messages import (
     Message,
     MessageRejected,
     Reason,
+    check_scheme_type,
     decode,
     default_max_bytes,
     encode,
@@ -35,7 +36,7 @@ def gradient(**changes: Any) -> Message:
 
 
 def dec(payload: bytes, **kw: Any) -> Message:
-    args: dict[str, Any] = dict(run_id="r1", known_senders=SENDERS, layout=LAYOUT)
+    args: dict[str, Any] = dict(run_id="r1", known_senders=SENDERS, layout=LAYOUT, scheme_types=("gradient",))
     args.update(kw)
     return decode(payload, **args)
 
@@ -141,7 +142,38 @@ def test_encode_refuses_what_receivers_reject() -> None:
     with pytest.raises(ValueError, match="layout"):
         encode(gradient(flat=np.zeros(4, np.float32)), layout=LAYOUT)
     with pytest.raises(ValueError, match="unknown message type"):
-        encode(gradient(type="hello"), layout=LAYOUT)
+        encode(gradient(type="Hello World"), layout=LAYOUT)
+    with pytest.raises(ValueError, match="config entry 'mu'"):
+        encode(gradient(config={"mu": float("inf")}), layout=LAYOUT)
+
+
+def test_a_scheme_s_own_type_is_taken_only_by_a_receiver_that_expects_it() -> None:
+    payload = encode(gradient(type="model_delta"), layout=LAYOUT)
+    assert reason_of(payload) == Reason.UNKNOWN_TYPE  # the receiver expects "gradient" only
+    assert dec(payload, scheme_types=("model_delta",)).type == "model_delta"
+    with pytest.raises(ValueError, match="not one of the protocol's types"):
+        check_scheme_type("average")
+    assert check_scheme_type("model_delta") == "model_delta"
+
+
+def test_what_a_message_stands_for_and_the_round_s_config_travel() -> None:
+    sent = gradient(samples=812, units=3, config={"mu": 0.01, "phase": "warm-up"})
+    back = dec(encode(sent, layout=LAYOUT))
+    assert (back.samples, back.units, back.config) == (812, 3, {"mu": 0.01, "phase": "warm-up"})
+    assert reason_of(packed(samples=-1)) == Reason.MALFORMED
+    assert reason_of(packed(units=True)) == Reason.MALFORMED
+    assert reason_of(packed(config={"mu": [1]})) == Reason.MALFORMED
+    assert reason_of(packed(config={"mu": float("nan")})) == Reason.MALFORMED
+
+
+def test_a_welcome_carries_the_tensors_of_its_own_layout() -> None:
+    start = [("theta", (4,))]
+    welcome = Message("welcome", "r1", "chief", 1, flat=np.ones(4, np.float32))
+    payload = encode(welcome, layout=start)
+    back = decode(payload, run_id="r1", known_senders=("chief",), layout=LAYOUT, layouts={"welcome": start})
+    assert back.flat is not None and back.flat.tolist() == [1.0] * 4
+    with pytest.raises(MessageRejected):
+        decode(payload, run_id="r1", known_senders=("chief",), layout=LAYOUT)
 
 
 def _only_rejections(payload: bytes) -> None:

@@ -8,8 +8,19 @@ import pytest
 from fleetrl.federation.aggregation import get_aggregator
 from fleetrl.federation.chief import Chief
 from fleetrl.federation.messages import Message, Reason, encode
-from fleetrl.federation.schemes import COMPLETED, SCHEMES, Granularity, RoundContext, Scheme, get_scheme
-from fleetrl.federation.schemes.base import WrongGranularity
+from fleetrl.federation.schemes import (
+    COMPLETED,
+    SCHEMES,
+    Granularity,
+    RoundAnswer,
+    RoundContext,
+    RoundScheme,
+    Scheme,
+    StepScheme,
+    get_scheme,
+)
+from fleetrl.federation.schemes.base import aggregate
+from fleetrl.federation.signing import status_payload
 
 RUN = "r1"
 
@@ -59,12 +70,12 @@ def context(
     return RoundContext(get_aggregator(rule), members, completed or {})
 
 
-def test_the_registry_builds_each_scheme_and_names_the_choices() -> None:
-    assert {name: type(get_scheme(name)).name for name in SCHEMES} == {
-        n: n for n in ("paper", "fedavg", "fedavgm", "fedadam", "pergrad")
-    }
-    choices = r"\(choose paper, fedavg, fedavgm, fedadam or pergrad\)"
-    with pytest.raises(ValueError, match=r"unknown federation scheme 'fedsgd' " + choices):
+def test_the_registry_finds_each_scheme_module_and_names_the_choices() -> None:
+    assert {name: type(get_scheme(name)).name for name in SCHEMES} == {n: n for n in SCHEMES}
+    assert set(SCHEMES) >= {"paper", "fedavg", "fedavgm", "fedadam", "pergrad"}
+    with pytest.raises(
+        ValueError, match=r"unknown federation scheme 'fedsgd' \(choose fedavg, .* or pergrad, or"
+    ):
         get_scheme("fedsgd")
     with pytest.raises(
         ValueError, match=r"scheme 'paper' has no parameter\(s\) momentum \(its parameters: none\)"
@@ -266,15 +277,70 @@ def test_a_per_round_chief_rejects_a_step_and_a_per_step_chief_needs_every_worke
         )  # fmt: skip
 
 
-def test_a_method_of_the_other_granularity_is_a_clear_error() -> None:
-    pergrad, paper, agent = get_scheme("pergrad"), get_scheme("paper"), StepAgent()
-    flat = np.zeros(2, np.float32)
-    with pytest.raises(WrongGranularity, match="pergrad sends per step"):
-        pergrad.outgoing(agent, completed=False)
-    with pytest.raises(WrongGranularity, match="pergrad transfers no parameters"):
-        pergrad.take_parameters(agent, flat)
-    with pytest.raises(WrongGranularity, match="pergrad applies its averages per step"):
-        pergrad.apply_average(agent, flat, completed=False, contributed=True)
-    with pytest.raises(WrongGranularity, match="'paper' sends once per round"):
-        paper.apply_step_answer(agent, flat)
-    assert paper.exchanges_per_round(agent) == 1 and agent.stepped == []
+def test_each_scheme_is_one_protocol_and_has_no_method_of_the_other() -> None:
+    for name, cls in SCHEMES.items():
+        assert issubclass(cls, RoundScheme) != issubclass(cls, StepScheme), name
+        assert cls.granularity is (Granularity.ROUND if issubclass(cls, RoundScheme) else Granularity.STEP)
+    pergrad, paper = get_scheme("pergrad"), get_scheme("paper")
+    assert not any(hasattr(pergrad, m) for m in ("outgoing", "apply_average", "local_loss"))
+    assert not any(hasattr(paper, m) for m in ("apply_step_answer",))
+    assert paper.exchanges_per_round(StepAgent()) == 1
+
+
+def test_pergrad_workers_take_the_fleet_s_start_as_their_whole_model() -> None:
+    pergrad, agent = get_scheme("pergrad"), StepAgent()
+    assert pergrad.welcome_layout(agent) == agent.model_layout()
+    pergrad.take_parameters(agent, np.array([7.0, 8.0, 9.0], np.float32))
+    assert agent.model_parameters().tolist() == [7.0, 8.0, 9.0]
+    assert pergrad.start_parameters(agent).tolist() == [7.0, 8.0, 9.0]
+    paper = get_scheme("paper")
+    assert paper.welcome_layout(agent) == agent.actor_layout()
+    assert paper.start_parameters(agent).tolist() == [7.0, 8.0]
+
+
+class Configured(RoundScheme):
+    """fedavg-like, asking every worker for its round number (a stand-in for a learning-rate schedule)."""
+
+    name = "configured"
+    summary = "test scheme"
+    round_message = "model"
+    stays_after_completion = True
+
+    def layout(self, agent: object) -> list[tuple[str, tuple[int, ...]]]:
+        return [("pi", (2,))]
+
+    def take_parameters(self, agent: object, flat: np.ndarray) -> None: ...
+
+    def outgoing(self, agent: object, *, completed: bool) -> tuple[str, np.ndarray]:
+        raise NotImplementedError
+
+    def apply_average(
+        self, agent: object, flat: np.ndarray, *, completed: bool, contributed: bool
+    ) -> None: ...
+
+    def configure(self, round: int, members: tuple[str, ...]) -> dict[str, float | str]:
+        return {"round": float(round), "members": ",".join(members)}
+
+    def combine(self, answers: dict[str, Message], context: RoundContext) -> RoundAnswer:  # type: ignore[override]
+        return RoundAnswer("average", aggregate(answers, context), contributors=tuple(answers))
+
+
+def test_the_chief_weighs_answers_by_their_units_and_configures_each_round() -> None:
+    layout = [("pi", (2,))]
+    chief = Chief(run_id=RUN, workers=("1", "2"), layout=layout, max_rounds=3, scheme=Configured())
+    (welcome,) = chief.status(
+        "1", status_payload(b"online", run_id=RUN, node="1", incarnation=1), now=0.0
+    ).outgoing
+    assert welcome.config == {"round": 1.0, "members": "1,2"}
+
+    def model(worker: str, values: list[float], units: int, samples: int) -> bytes:
+        sent = Message(
+            "model", RUN, worker, 1, flat=np.array(values, np.float32), units=units, samples=samples
+        )
+        return encode(sent, layout=layout)
+
+    chief.receive_bytes(model("1", [1.0, 2.0], 1, 200), topic_worker="1", now=0.0)
+    (answer,) = chief.receive_bytes(model("2", [4.0, 8.0], 2, 300), topic_worker="2", now=0.0).outgoing
+    assert answer.flat is not None and answer.flat.tolist() == [3.0, 6.0]  # (1·[1,2] + 2·[4,8]) / 3
+    assert (answer.units, answer.samples) == (3, 500)
+    assert answer.config == {"round": 2.0, "members": "1,2"}  # it opens round 2

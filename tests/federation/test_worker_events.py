@@ -4,7 +4,7 @@ were (metrics.csv's ``event`` column)."""
 from __future__ import annotations
 
 from fleetrl.agent.learner import RoundResult
-from fleetrl.federation.events import WorkerEvent
+from fleetrl.federation.events import RoundEvent, Sent, WorkerEvent
 from fleetrl.federation.rounds import RoundRecord
 from fleetrl.runs.roles import federated_event, metrics_row
 
@@ -12,20 +12,20 @@ RESULT = RoundResult(2, 10.0, 10, 1, 9.0, False, 0.1, 0.2, 1.0, 0.5)
 """the learner's round 2, which the federation played as its round 4 (a resumed worker)"""
 
 
-def record(event: WorkerEvent, peer: str | None = None) -> RoundRecord:
+def record(event: RoundEvent, peer: str | None = None) -> RoundRecord:
     return RoundRecord("1", 4, RESULT, event, peer)
 
 
 def test_the_record_reads_its_figures_from_the_learner_s_result() -> None:
-    row = metrics_row(1, record(WorkerEvent.GRADIENT), 0.0, "gradient")
+    row = metrics_row(1, record(Sent("gradient")), 0.0, "gradient")
     figures = (row.round, row.score, row.wma, row.steps, row.actor_loss, row.critic_loss, row.entropy)
     assert figures == (4, 10.0, 9.0, 10, 0.1, 0.2, 1.0)
 
 
 def test_metrics_labels_are_those_of_the_metrics_files() -> None:
     labels = {
-        WorkerEvent.GRADIENT: "gradient",
-        WorkerEvent.MODEL: "model",
+        Sent("gradient"): "gradient",
+        Sent("model"): "model",
         WorkerEvent.COMPLETED: "completed",
         WorkerEvent.LATE: "late",
         WorkerEvent.RUN_ENDED: "run_ended",
@@ -38,4 +38,4 @@ def test_metrics_labels_are_those_of_the_metrics_files() -> None:
 
 def test_log_lines_name_the_peer_of_a_transfer() -> None:
     assert WorkerEvent.TRANSFER_IN.describe("2") == "transfer_in from 2"
-    assert WorkerEvent.GRADIENT.describe() == "gradient"
+    assert Sent("gradient").describe() == "gradient"

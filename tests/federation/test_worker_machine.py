@@ -10,13 +10,9 @@ import numpy as np
 import pytest
 
 from fleetrl.federation.chief import Chief
-from fleetrl.federation.events import WorkerEvent
+from fleetrl.federation.events import Sent, WorkerEvent
 from fleetrl.federation.messages import Message, encode
-from fleetrl.federation.rounds import RoundRecord, WorkerSummary, resume_round
-from fleetrl.federation.schemes import resolve_scheme
-from fleetrl.federation.topics import chief_topic, worker_of_topic
-from fleetrl.federation.worker import FederatedWorker
-from fleetrl.federation.worker_actions import (
+from fleetrl.federation.rounds import (
     Announce,
     ApplyAverage,
     ApplyStep,
@@ -28,10 +24,16 @@ from fleetrl.federation.worker_actions import (
     Publish,
     Record,
     Refused,
+    RoundRecord,
     TakeParameters,
     TimedOut,
     WorkerStep,
+    WorkerSummary,
+    resume_round,
 )
+from fleetrl.federation.schemes import resolve_scheme
+from fleetrl.federation.topics import chief_topic, worker_of_topic
+from fleetrl.federation.worker import FederatedWorker
 from fleetrl.federation.worker_machine import WorkerMachine
 from fleetrl.transport.base import Received, Will
 
@@ -100,7 +102,7 @@ def test_join_then_a_round_end_to_end() -> None:
     answer = m.receive(chief("average", 1, contributors=("1", "2")), now=1.0)
     apply, record = answer.actions
     assert isinstance(apply, ApplyAverage) and apply.contributed and not apply.completed
-    assert isinstance(record, Record) and record.record.event is WorkerEvent.GRADIENT
+    assert isinstance(record, Record) and record.record.event == Sent("gradient")
     assert record.record.outcome is RESULT and record.record.score == 10.0
     assert m.next_deadline() == -np.inf  # catch-up: only what is queued
     assert m.tick(now=1.0).actions == (Checkpoint(2), PlayRound(2))
@@ -243,7 +245,7 @@ def test_the_per_step_exchange_keyed_by_step() -> None:
         assert [type(a) for a in answer.actions] == [ApplyStep, type(following)]
         assert answer.actions[1] == following
     over = m.round_played(RESULT, now=0.0)
-    assert records(over)[0].event is WorkerEvent.STEP_GRADIENT and records(over)[0].round == 2
+    assert records(over)[0].event == Sent("step_gradient") and records(over)[0].round == 2
     assert m.tick(now=0.0).actions == (Checkpoint(3), PlayRound(3))
 
 
@@ -307,7 +309,7 @@ def test_a_worker_resumed_mid_round_replays_the_closed_steps_and_goes_on_at_the_
     expected = [(grads["1"][k] + grads["2"][k]) / 2 for k in range(steps)]
     np.testing.assert_array_equal(np.stack(applied), np.stack(expected))
     (record,) = records(m.round_played(RESULT, now=10.0))
-    assert (record.round, record.event, m.summary) == (1, WorkerEvent.STEP_GRADIENT, None)
+    assert (record.round, record.event, m.summary) == (1, Sent("step_gradient"), None)
     # a later step's answer while replaying still means the fleet went on without this worker
     m = machine("pergrad", start_round=1)
     welcomed(m, 1)
@@ -383,7 +385,20 @@ def test_the_runner_plays_a_run_over_an_in_process_chief_and_repairs_a_lost_mess
         clock=lambda: transport.now[0],
     )
     summary = worker.run()
-    assert [r.event for r in got] == [WorkerEvent.GRADIENT, WorkerEvent.GRADIENT, WorkerEvent.TRANSFER_OUT]
+    assert [r.event for r in got] == [Sent("gradient"), Sent("gradient"), WorkerEvent.TRANSFER_OUT]
     assert (summary.rounds, summary.finished, learner.rounds) == (3, True, 3)
     assert checkpoints == [2, 3]
     assert transport.now[0] >= 5.0  # the lost gradient was re-sent after resend_interval
+
+
+def test_the_fleet_s_start_is_taken_by_a_joining_worker_and_its_config_goes_to_the_round() -> None:
+    start = {"flat": FLAT, "origin": "chief", "config": {"mu": 0.5}}
+    fresh = welcomed(machine(), 1, **start)
+    assert fresh.actions[0] == TakeParameters(FLAT) and fresh.actions[1] == PlayRound(1, {"mu": 0.5})
+    # resumed with its own state (rounds went on without it): it keeps what it learned, not the start
+    late = welcomed(machine(start_round=2), 5, **start)
+    assert not any(isinstance(a, TakeParameters) for a in late.actions) and late.actions[-1] == PlayRound(
+        5, {"mu": 0.5}
+    )
+    # a transfer's θ* is taken all the same
+    assert isinstance(welcomed(machine(start_round=2), 5, flat=FLAT, origin="2").actions[0], TakeParameters)

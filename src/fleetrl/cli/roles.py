@@ -198,7 +198,7 @@ def cmd_chief(args: argparse.Namespace) -> int:
     """Serve one run as its chief; print how it ended as JSON."""
     from fleetrl.federation.chief import Chief
     from fleetrl.federation.runner import run_chief
-    from fleetrl.runs.launch import exchanges_per_round, shared_layout
+    from fleetrl.runs.launch import exchanges_per_round, fleet_start, shared_layout
     from fleetrl.runs.role_settings import ChiefSettings
     from fleetrl.runs.rundir import write_json_atomic
 
@@ -216,6 +216,7 @@ def cmd_chief(args: argparse.Namespace) -> int:
         dropout_grace=settings.dropout_grace,
         key=settings.fleet_key(),
         settings=settings.shared_settings(settings.fleet_seed),
+        start=fleet_start(settings),
     )
     if settings.out is None:
         summary = run_chief(chief, settings.transport(), idle_timeout=settings.idle_timeout)

@@ -12,18 +12,30 @@ whatever order the messages arrived in. Robust rules against faulty or poisoned 
 
 A rule name may carry one numeric parameter after a colon (``trimmed_mean:0.1``), for rules registered with a
 ``parameter``.
+
+Every rule takes ``weights`` too, one per vector: what each answer stands for (its units or transitions, as
+Flower weighs by ``num_examples``). ``mean`` and ``clipped_mean`` weigh by them; ``median`` and
+``trimmed_mean`` count members (a robust rule must not let one member's claim outweigh the others). Equal
+weights give exactly the unweighted numbers.
 """
 
 from __future__ import annotations
 
 import functools
 from collections.abc import Callable, Sequence
-from typing import Any
+from typing import Any, Protocol
 
 import numpy as np
 
-Aggregator = Callable[[Sequence[np.ndarray]], np.ndarray]
-"""A rule: gradients (same shape, float32, in sorted-worker order) → aggregate (float32)."""
+
+class Aggregator(Protocol):
+    """A rule: gradients (same shape, float32, in sorted-worker order), and optionally a weight for each
+    (what it stands for, ≥ 0) → aggregate (float32)."""
+
+    def __call__(
+        self, gradients: Sequence[np.ndarray], weights: Sequence[float] | None = None
+    ) -> np.ndarray: ...
+
 
 _REGISTRY: dict[str, tuple[Callable[..., np.ndarray], str | None]] = {}
 
@@ -80,24 +92,45 @@ def _stack(gradients: Sequence[np.ndarray]) -> np.ndarray:
 _PROBE = [np.zeros(1, np.float32)] * 3
 
 
+def _unequal(weights: Sequence[float] | None, n: int) -> np.ndarray | None:
+    """The weights as float64 if they differ from one another (None: every vector counts the same)."""
+    if weights is None:
+        return None
+    w = np.asarray(weights, dtype=np.float64)
+    if w.shape != (n,) or not np.isfinite(w).all() or (w < 0).any() or not w.sum() > 0:
+        raise ValueError(f"weights must be {n} finite numbers >= 0, not all 0; got {list(weights)}")
+    return None if (w == w[0]).all() else w
+
+
 @register_aggregator("mean")
-def mean(gradients: Sequence[np.ndarray]) -> np.ndarray:
-    """Element-wise arithmetic mean (accumulated in float64, returned as float32): the paper's average ḡ."""
-    return np.asarray(np.mean(_stack(gradients), axis=0, dtype=np.float64), dtype=np.float32)
+def mean(gradients: Sequence[np.ndarray], weights: Sequence[float] | None = None) -> np.ndarray:
+    """Element-wise arithmetic mean (accumulated in float64, returned as float32): the paper's average ḡ;
+    with unequal ``weights`` the weighted mean Σ wᵢ gᵢ / Σ wᵢ (equal weights: the plain mean, bit for bit)."""
+    stacked = _stack(gradients)
+    w = _unequal(weights, len(stacked))
+    if w is None:
+        return np.asarray(np.mean(stacked, axis=0, dtype=np.float64), dtype=np.float32)
+    return np.asarray(np.tensordot(w / w.sum(), stacked.astype(np.float64), axes=1), dtype=np.float32)
 
 
 @register_aggregator("median")
-def median(gradients: Sequence[np.ndarray]) -> np.ndarray:
-    """Coordinate-wise median (the mean of the two middle values for an even count), float32."""
+def median(gradients: Sequence[np.ndarray], weights: Sequence[float] | None = None) -> np.ndarray:
+    """Coordinate-wise median (the mean of the two middle values for an even count), float32; every member
+    counts once (``weights`` are not used)."""
+    del weights
     return np.asarray(np.median(_stack(gradients).astype(np.float64), axis=0), dtype=np.float32)
 
 
 @register_aggregator("trimmed_mean", parameter="trim")
-def trimmed_mean(gradients: Sequence[np.ndarray], trim: float = 0.2) -> np.ndarray:
-    """Per coordinate, drop the ⌊trim·n⌋ smallest and largest values and average the rest (float64 inside).
+def trimmed_mean(
+    gradients: Sequence[np.ndarray], weights: Sequence[float] | None = None, trim: float = 0.2
+) -> np.ndarray:
+    """Per coordinate, drop the ⌊trim·n⌋ smallest and largest values and average the rest (float64 inside);
+    every member counts once (``weights`` are not used).
 
     :param trim: fraction cut at each end, in [0, 0.5); at least one value per coordinate always remains.
     """
+    del weights
     if not 0.0 <= trim < 0.5:
         raise ValueError(f"trim must be in [0, 0.5), got {trim}")
     ordered = np.sort(_stack(gradients).astype(np.float64), axis=0)
@@ -107,8 +140,11 @@ def trimmed_mean(gradients: Sequence[np.ndarray], trim: float = 0.2) -> np.ndarr
 
 
 @register_aggregator("clipped_mean", parameter="max_norm")
-def clipped_mean(gradients: Sequence[np.ndarray], max_norm: float | None = None) -> np.ndarray:
-    """Mean after scaling each gradient down to L2 norm ``max_norm`` if it is longer (norm clipping).
+def clipped_mean(
+    gradients: Sequence[np.ndarray], weights: Sequence[float] | None = None, max_norm: float | None = None
+) -> np.ndarray:
+    """Mean after scaling each gradient down to L2 norm ``max_norm`` if it is longer (norm clipping),
+    weighted by ``weights`` as :func:`mean` is.
 
     :param max_norm: the clip C > 0; None clips to the median of the received gradients' norms.
     """
@@ -119,4 +155,7 @@ def clipped_mean(gradients: Sequence[np.ndarray], max_norm: float | None = None)
         raise ValueError(f"max_norm must be > 0, got {max_norm}")
     scale = np.where(norms > limit, limit / np.where(norms > 0, norms, 1.0), 1.0)
     clipped = stacked * scale.reshape((-1,) + (1,) * (stacked.ndim - 1))
-    return np.asarray(clipped.mean(axis=0), dtype=np.float32)
+    w = _unequal(weights, len(stacked))
+    if w is None:
+        return np.asarray(clipped.mean(axis=0), dtype=np.float32)
+    return np.asarray(np.tensordot(w / w.sum(), clipped, axes=1), dtype=np.float32)

@@ -4,34 +4,30 @@ No sockets and no clocks: every input takes ``now`` (seconds, any monotonic orig
 required, so a caller that forgets the clock gets a TypeError), and deadlines are tested without a broker.
 Round semantics (docs/protocol.md has the full rules):
 
-* The chief keeps W, the workers still learning, and the open round i (from 1). It accepts from each worker
-  exactly one message for round i of a type its scheme accepts (the scheme's round message, or ``parameters``:
-  "my criterion holds"), keyed by (sender, round): a second one is a rejected duplicate, a message for a later
-  round is from the future, one from a worker that left W is rejected — none of them changes anything.
-* Round i closes when every worker in W has answered. Answers are read in sorted worker-id order, never
-  arrival order, so the same inputs give bit-identical outputs on any transport.
-* The scheme (:mod:`fleetrl.federation.schemes`: ``paper``, Algorithm 1 lines 6–13; ``fedavg``; ``pergrad``;
-  …) combines the answers into one answer, says who leaves W and whether the run is complete; the chief
-  broadcasts it.
-* The run ends after the round the scheme calls complete, after the round in which W becomes empty, or after
-  round M; ``done`` is then broadcast.
+* The chief keeps W and the open round i (from 1); it takes from each worker exactly one message for round i
+  of a type its scheme accepts, keyed by (sender, round); duplicates, future rounds and workers out of W are
+  rejected and change nothing.
+* Round i closes when every worker in W has answered; answers are read in sorted worker-id order, never
+  arrival order. The scheme (:mod:`fleetrl.federation.schemes`) combines them into one answer and says who
+  leaves W and whether the run is complete; the chief broadcasts it with the next round's configuration.
+* The run ends after the round the scheme calls complete, when W is empty, or after round M (``done``).
 
 Reliability (dropout and rejoin, deadlines and quorum, the join's settings check, idempotent resends):
 docs/protocol.md, "Reliability", whose rules the methods below implement.
 
-Every decision is returned as a :class:`ChiefEvent`, whose ``str()`` is a log line for people.
+Every decision is returned as a :class:`ChiefEvent`, whose ``str()`` is a log line for people. What the
+chief remembers is one value it owns, :attr:`Chief.state` (:class:`~.chief_state.ChiefState`), which its
+checkpoint serialises.
 """
 
 from __future__ import annotations
 
 import math
-from collections import Counter
 from collections.abc import Iterable
 from dataclasses import replace
 
 from fleetrl.federation.aggregation import Aggregator, get_aggregator
 from fleetrl.federation.chief_answer import (
-    AnswerBook,
     ClosedExchange,
     answer_event,
     answer_message,
@@ -40,9 +36,11 @@ from fleetrl.federation.chief_answer import (
     welcome_step,
     where,
 )
+from fleetrl.federation.chief_state import AnswerBook, ChiefState
 from fleetrl.federation.events import ChiefEvent, ChiefStep
 from fleetrl.federation.messages import Layout, Message, MessageRejected, Reason, decode
 from fleetrl.federation.schemes import RoundContext, Scheme, resolve_scheme
+from fleetrl.federation.schemes.base import FleetStart
 from fleetrl.federation.shared_settings import JoinGate, SharedSettings
 from fleetrl.federation.signing import FleetKey, parse_status
 from fleetrl.federation.topics import CHIEF_ID, sorted_workers, validate_id, validate_worker_id
@@ -77,6 +75,10 @@ class Chief:
     :param steps_per_round: exchanges per round: 1 for a scheme that sends once per round; the K optimisation
         steps of the round for one that sends per step (each step is closed and answered like a round, keyed
         (round, step); completions and the run's end are decided at a round's last step).
+    :param start: the fleet's start (a ``shared_start`` scheme), in every ``welcome`` until the scheme's
+        answers give the fleet a model.  :param welcome_layout: a ``welcome``'s layout (``start``'s, else
+        ``layout``).  :param state: a restored chief's (:func:`.chief_state.chief_from_state`); None: round 1.
+    :param now: when the open round opened (a restored chief: now); None: at the first input.
     """
 
     def __init__(
@@ -96,13 +98,18 @@ class Chief:
         scheme: str | Scheme = "paper",
         settings: SharedSettings | None = None,
         steps_per_round: int = 1,
+        start: FleetStart | None = None,
+        welcome_layout: Layout | None = None,
+        state: ChiefState | None = None,
+        now: float | None = None,
     ) -> None:
-        """Create the chief with W = ``workers`` and round 1 open."""
+        """Create the chief with W = ``workers`` and round 1 open (or as ``state`` says)."""
         self.run_id = validate_id(run_id, "run id")
         self.all_workers: tuple[str, ...] = tuple(sorted_workers({validate_worker_id(w) for w in workers}))
         if not self.all_workers:
             raise ValueError("a run needs at least one worker")
         self.layout = list(layout)
+        self.welcome_layout = list(start.layout if start else welcome_layout or layout)
         self.scheme: Scheme = resolve_scheme(scheme)
         check_round_rules(self.scheme, max_rounds, quorum, round_timeout, steps_per_round)
         self.steps_per_round = steps_per_round
@@ -115,28 +122,27 @@ class Chief:
         self.round_timeout = round_timeout
         self.resend_holdoff = resend_holdoff
         self.dropout_grace = dropout_grace
-        self._suspects: dict[str, float] = {}  # went offline → leaves W at this time unless it comes back
         self.key = key
-        self._members: set[str] = set(self.all_workers)
-        self._left: set[str] = set()  # sent parameters: out of W for good
-        self._round = 1
-        self._step = 0  # the open exchange of the round (always 0 for a scheme that sends once per round)
-        self._opened_at: float | None = None
-        self._pending: dict[str, Message] = {}
-        self._end_reason: str | None = None
-        self._answers = AnswerBook(resend_holdoff)  # for re-sends: the last two rounds' answers
-        self._incarnation: dict[str, int] = {}
-        self._model: Message | None = None  # θ* of the last transfer (fedavg: the last average) for joiners
-        self.rejections: Counter[Reason] = Counter()
-        """How many messages were rejected, by reason."""
-        self.completed: dict[str, int] = {}
-        """worker → the first round its criterion held (every scheme)."""
-        self.transfers: list[tuple[int, str, tuple[str, ...]]] = []
-        """(round, origin, recipients) of every model transfer."""
-        self.dropouts: list[tuple[int, str, str]] = []
-        """(round, worker, reason) of every worker that left W without transferring."""
-        self.rejoins: list[tuple[int, str]] = []
-        """(round, worker) of every dropped worker that re-entered W."""
+        if state is None:
+            model = (
+                None
+                if start is None
+                else Message("welcome", run_id, CHIEF_ID, 1, flat=start.flat, origin=CHIEF_ID)
+            )
+            members = set(self.all_workers)
+            config = dict(self.scheme.configure(1, tuple(sorted_workers(members))))
+            state = ChiefState(members, AnswerBook(resend_holdoff), model=model, config=config)
+        self.state = state
+        """what the chief remembers (its checkpoint serialises it)"""
+        self._opened_at: float | None = now
+        self._pending: dict[str, Message] = {}  # the open exchange's answers (workers re-send them)
+        # the state's records, under the names the runner and people read (the same objects: never rebound)
+        self.rejections, self.completed, self.transfers = state.rejections, state.completed, state.transfers
+        self.dropouts, self.rejoins = state.dropouts, state.rejoins
+
+    def layout_of(self, message_type: str) -> Layout:
+        """The layout of the tensors a message of ``message_type`` from the chief carries."""
+        return self.welcome_layout if message_type == "welcome" else self.layout
 
     @property
     def settings(self) -> dict[str, str] | None:
@@ -146,12 +152,12 @@ class Chief:
     @property
     def round(self) -> int:
         """The open round (after the end: the last round played)."""
-        return self._round
+        return self.state.round
 
     @property
     def members(self) -> tuple[str, ...]:
         """W: the workers still learning, sorted."""
-        return tuple(sorted_workers(self._members))
+        return tuple(sorted_workers(self.state.members))
 
     @property
     def answered(self) -> tuple[str, ...]:
@@ -161,18 +167,18 @@ class Chief:
     @property
     def finished(self) -> bool:
         """True once the run has ended."""
-        return self._end_reason is not None
+        return self.state.end_reason is not None
 
     @property
     def end_reason(self) -> str | None:
         """Why the run ended (``W is empty`` or ``reached M rounds``), or None while it runs."""
-        return self._end_reason
+        return self.state.end_reason
 
     def next_deadline(self) -> float | None:
         """When :meth:`tick` may next change something (a round deadline, a grace running out), or None."""
         if self.finished:
             return None
-        times = list(self._suspects.values())
+        times = list(self.state.suspects.values())
         # the round deadline acts only on answers (with none, tick keeps waiting): without one it is not due,
         # else a deadline that passed would stay due and the runner would poll without waiting
         if self.round_timeout is not None and self._opened_at is not None and self._pending:
@@ -188,13 +194,9 @@ class Chief:
         """
         try:
             message = decode(
-                payload,
-                run_id=self.run_id,
-                known_senders=self.all_workers,
-                layout=self.layout,
-                max_bytes=self.max_bytes,
-                key=self.key,
-            )
+                payload, run_id=self.run_id, known_senders=self.all_workers, layout=self.layout,
+                max_bytes=self.max_bytes, key=self.key, scheme_types=(self.scheme.round_message,),
+            )  # fmt: skip
         except MessageRejected as exc:
             return self._reject(topic_worker, exc.reason, exc.detail)
         if topic_worker is not None and message.sender != topic_worker:
@@ -219,7 +221,7 @@ class Chief:
         if sender not in self.all_workers:
             return self._reject(sender, Reason.UNKNOWN_SENDER, f"round {rnd}")
         at = (rnd, message.step)
-        open_at = (self._round, self.steps_per_round if self.finished else self._step)
+        open_at = (self.state.round, self.steps_per_round if self.finished else self.state.step)
         if at < open_at:
             # a resend after a lost answer, a straggler, a resumed worker replaying its round: answer that
             # exchange again, change nothing
@@ -228,17 +230,19 @@ class Chief:
             return step + self._resend(sender, at, now)
         if self.finished:
             return self._reject(sender, Reason.RUN_OVER, f"round {rnd}")
-        if sender in self._left:
+        if sender in self.state.left:
             return self._reject(sender, Reason.NOT_IN_W, f"round {rnd}")
         if at > open_at:
             return self._reject(sender, Reason.FUTURE_ROUND, f"{where(*at)} > open {where(*open_at)}")
         if sender in self._pending:
             return self._reject(sender, Reason.DUPLICATE, f"{message.type} for round {rnd}")
         step = self._rejoin(sender, f"sent {message.type} for round {rnd}")
-        self._suspects.pop(sender, None)
+        self.state.suspects.pop(sender, None)
         self._pending[sender] = message
-        step += ChiefStep(events=(ChiefEvent("accepted", self._round, sender=sender, detail=message.type),))
-        if self._members.issubset(self._pending):
+        step += ChiefStep(
+            events=(ChiefEvent("accepted", self.state.round, sender=sender, detail=message.type),)
+        )
+        if self.state.members.issubset(self._pending):
             step += self._close_round(now)
         return step
 
@@ -258,7 +262,7 @@ class Chief:
             return self._reject(worker, exc.reason, exc.detail)
         if self.finished:
             return ChiefStep()
-        known = self._incarnation.get(worker)
+        known = self.state.incarnations.get(worker)
         inc = status.incarnation
         if inc is not None and known is not None and inc < known:  # an old status played again
             return self._reject(worker, Reason.REPLAYED, f"{status.state} of incarnation {inc} < {known}")
@@ -267,16 +271,17 @@ class Chief:
                 self._gate.new_incarnation(worker)
                 if known is not None and status.state == "online":  # a restart: the new process re-sends
                     self._pending.pop(worker, None)  # what the dead one sent for the open exchange
-            self._incarnation[worker] = inc
+            self.state.incarnations[worker] = inc
         if status.state == "offline":
-            if retained or worker not in self._members:
+            if retained or worker not in self.state.members:
                 return ChiefStep()
-            self._suspects[worker] = now + self.dropout_grace
+            self.state.suspects[worker] = now + self.dropout_grace
             return self.tick(now)
         if self._gate.refusal(worker) is not None:  # no welcome until a join that matches
             return self._refusal(worker)
         step = ChiefStep() if retained else self._rejoin(worker, "came back online")
-        return step + welcome_step(self.run_id, worker, self._round, self._model, self.settings or {})
+        model, config = self.state.model, self.state.config
+        return step + welcome_step(self.run_id, worker, self.state.round, model, self.settings or {}, config)
 
     def tick(self, now: float) -> ChiefStep:
         """Apply the deadlines at time ``now``: offline workers whose grace ran out leave W; then the round
@@ -288,17 +293,19 @@ class Chief:
         """
         self._start_clock(now)
         step = ChiefStep()
-        gone = sorted_workers(w for w, t in self._suspects.items() if t <= now)
+        gone = sorted_workers(w for w, t in self.state.suspects.items() if t <= now)
         for worker in gone:
-            del self._suspects[worker]
+            del self.state.suspects[worker]
         if gone:
-            step = self._drop([w for w in gone if w in self._members], OFFLINE_DROP) + self._maybe_close(now)
+            step = self._drop([w for w in gone if w in self.state.members], OFFLINE_DROP) + self._maybe_close(
+                now
+            )
         timeout, opened = self.round_timeout, self._opened_at
         if self.finished or timeout is None or opened is None or now < opened + timeout or not self._pending:
             return step
-        answered_members = self._members & set(self._pending)
-        silent = self._members - answered_members
-        if len(answered_members) >= math.ceil(self.quorum * len(self._members) - 1e-9):
+        answered_members = self.state.members & set(self._pending)
+        silent = self.state.members - answered_members
+        if len(answered_members) >= math.ceil(self.quorum * len(self.state.members) - 1e-9):
             return step + self._close_round(now)
         return step + self._drop(sorted_workers(silent), DEADLINE_DROP) + self._close_round(now)
 
@@ -308,97 +315,104 @@ class Chief:
         if outcome == "duplicate":  # a re-sent or replayed join: nothing to do
             return self._reject(message.sender, Reason.DUPLICATE, "join")
         if outcome == "joined":
-            return ChiefStep(events=(ChiefEvent("joined", self._round, sender=message.sender),))
+            return ChiefStep(events=(ChiefEvent("joined", self.state.round, sender=message.sender),))
         return self._refusal(message.sender)
 
     def _refusal(self, worker: str) -> ChiefStep:
-        return refusal_step(self.run_id, worker, self._round, self._gate.refusal(worker) or "")
+        return refusal_step(self.run_id, worker, self.state.round, self._gate.refusal(worker) or "")
 
     def _start_clock(self, now: float) -> None:
         if self._opened_at is None:
             self._opened_at = now
 
     def _reject(self, sender: str | None, reason: Reason, detail: str) -> ChiefStep:
-        self.rejections[reason] += 1
+        self.state.rejections[reason] += 1
         return ChiefStep(
-            events=(ChiefEvent("rejected", self._round, sender=sender, reason=reason, detail=detail),)
+            events=(ChiefEvent("rejected", self.state.round, sender=sender, reason=reason, detail=detail),)
         )
 
     def _resend(self, worker: str, at: tuple[int, int], now: float) -> ChiefStep:
-        answer = self._answers.resend(worker, at, now)
+        answer = self.state.answers.resend(worker, at, now)
         if not answer:
             return ChiefStep()
         detail = f"answer of {where(answer[0].round, answer[0].step)}"
-        return ChiefStep(answer, (ChiefEvent("resent", self._round, sender=worker, detail=detail),))
+        return ChiefStep(answer, (ChiefEvent("resent", self.state.round, sender=worker, detail=detail),))
 
     def _drop(self, workers: Iterable[str], reason: str) -> ChiefStep:
         events = []
         for worker in workers:
-            self._members.discard(worker)
-            self.dropouts.append((self._round, worker, reason))
+            self.state.members.discard(worker)
+            self.state.dropouts.append((self.state.round, worker, reason))
             events.append(
-                ChiefEvent("dropped", self._round, sender=worker, detail=reason, remaining=self.members)
+                ChiefEvent("dropped", self.state.round, sender=worker, detail=reason, remaining=self.members)
             )
         return ChiefStep(events=tuple(events))
 
     def _rejoin(self, worker: str, why: str) -> ChiefStep:
-        self._suspects.pop(worker, None)
-        if worker in self._members or worker in self._left:
+        self.state.suspects.pop(worker, None)
+        if worker in self.state.members or worker in self.state.left:
             return ChiefStep()
-        self._members.add(worker)
-        self.rejoins.append((self._round, worker))
+        self.state.members.add(worker)
+        self.state.rejoins.append((self.state.round, worker))
         return ChiefStep(
-            events=(ChiefEvent("rejoined", self._round, sender=worker, detail=why, remaining=self.members),)
+            events=(
+                ChiefEvent("rejoined", self.state.round, sender=worker, detail=why, remaining=self.members),
+            )
         )
 
     def _maybe_close(self, now: float) -> ChiefStep:
-        if not self._pending and not self._members:
+        if not self._pending and not self.state.members:
             return self._end("every worker dropped out")
-        if self._pending and self._members.issubset(self._pending):
+        if self._pending and self.state.members.issubset(self._pending):
             return self._close_round(now)
         return ChiefStep()
 
     def _close_round(self, now: float) -> ChiefStep:
-        rnd, exchange = self._round, self._step
+        rnd, exchange = self.state.round, self.state.step
         last_step = exchange == self.steps_per_round - 1
-        closed = ClosedExchange.of(rnd, self._pending, self._members)
+        closed = ClosedExchange.of(rnd, self._pending, self.state.members)
         if last_step:
             for worker in closed.completed:
-                self.completed.setdefault(worker, rnd)
+                self.state.completed.setdefault(worker, rnd)
         context = RoundContext(
-            self._aggregate, self.members, dict(self.completed), step=exchange, last_step=last_step
+            self._aggregate, self.members, dict(self.state.completed), step=exchange, last_step=last_step
         )
-        answer = self.scheme.combine({w: self._pending[w] for w in closed.answered}, context)
-        self._members.difference_update(answer.leave_w)
-        self._left.update(answer.leave_w)
+        answers = {w: self._pending[w] for w in closed.answered}
+        answer = self.scheme.combine(answers, context)
+        self.state.members.difference_update(answer.leave_w)
+        self.state.left.update(answer.leave_w)
         remaining = self.members
-        reply = answer_message(answer, self.run_id, rnd, exchange)
-        if answer.fleet_model:  # what a (re)joining worker starts from
-            self._model = reply
+        opens = last_step and not answer.ends_run and bool(remaining) and rnd < self.max_rounds
+        if opens:  # the answer opens round rnd + 1: what the scheme asks of every worker for it
+            self.state.config = dict(self.scheme.configure(rnd + 1, remaining))
+        config = self.state.config if opens else {}
+        reply = answer_message(answer, self.run_id, rnd, exchange, answers, config)
+        if answer.fleet_model and self.welcome_layout == self.layout:  # what a (re)joining worker takes
+            self.state.model = reply
         if answer.kind == "transfer":
-            self.transfers.append((rnd, str(answer.origin), remaining))
+            self.state.transfers.append((rnd, str(answer.origin), remaining))
         event = answer_event(answer, replace(closed, remaining=remaining), self.aggregator_name)
         self._pending = {}
-        self._answers.broadcast(reply, self.all_workers, now)
+        self.state.answers.broadcast(reply, self.all_workers, now)
         step = ChiefStep((reply,), (event,))
         if not last_step and not answer.ends_run:  # the round's next exchange
-            self._step = exchange + 1
+            self.state.step = exchange + 1
             self._opened_at = now
             return step
-        self._step = 0
+        self.state.step = 0
         if answer.ends_run:
             return step + self._end("every unit completed")
-        if not self._members or rnd >= self.max_rounds:
+        if not self.state.members or rnd >= self.max_rounds:
             return step + self._end(
-                "W is empty" if not self._members else f"reached M={self.max_rounds} rounds"
+                "W is empty" if not self.state.members else f"reached M={self.max_rounds} rounds"
             )
-        self._round = rnd + 1
+        self.state.round = rnd + 1
         self._opened_at = now
         return step
 
     def _end(self, reason: str) -> ChiefStep:
-        self._end_reason = reason
-        done = Message("done", self.run_id, CHIEF_ID, self._round)
-        self._answers.end(done)
-        event = ChiefEvent("run_ended", self._round, detail=reason, remaining=self.members)
+        self.state.end_reason = reason
+        done = Message("done", self.run_id, CHIEF_ID, self.state.round)
+        self.state.answers.end(done)
+        event = ChiefEvent("run_ended", self.state.round, detail=reason, remaining=self.members)
         return ChiefStep((done,), (event,))

@@ -1,15 +1,14 @@
-"""The chief's answers: which configurations can run, how a scheme's answer to a closed exchange becomes the
-broadcast message and the event people read, the welcome or refusal of a joining worker, and the answers
-kept to answer re-sends (:class:`AnswerBook`)."""
+"""What the chief says: which configurations can run, how a scheme's answer to a closed exchange becomes the
+broadcast message (with what it stands for and the next round's configuration) and the event people read,
+and the welcome or refusal of a joining worker. What it keeps of them is :mod:`.chief_state`'s."""
 
 from __future__ import annotations
 
-import math
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
 
 from fleetrl.federation.events import ChiefEvent, ChiefStep
-from fleetrl.federation.messages import Message
+from fleetrl.federation.messages import Message, RoundConfig
 from fleetrl.federation.schemes import COMPLETED, Granularity, RoundAnswer, Scheme
 from fleetrl.federation.topics import CHIEF_ID, sorted_workers
 
@@ -67,22 +66,36 @@ def where(rnd: int, step: int) -> str:
     return f"round {rnd}" if step == 0 else f"round {rnd} step {step}"
 
 
-def answer_message(answer: RoundAnswer, run_id: str, rnd: int, step: int) -> Message:
-    """The ``average`` or ``transfer`` message the chief broadcasts for round ``rnd``'s exchange ``step``."""
+def answer_message(
+    answer: RoundAnswer, run_id: str, rnd: int, step: int, answers: Mapping[str, Message], config: RoundConfig
+) -> Message:
+    """The ``average`` or ``transfer`` message the chief broadcasts for round ``rnd``'s exchange ``step``:
+    it stands for the samples and units of the ``answers`` it combines (a transfer: its origin's), and carries
+    ``config``, what the scheme asks for the round it opens (empty if it opens none)."""
+    origin = answer.origin if answer.origin in answers else None
+    behind = [answers[w] for w in ((origin,) if origin is not None else answer.contributors)]
     return Message(
         answer.kind, run_id, CHIEF_ID, rnd, flat=answer.flat, origin=answer.origin,
         finished=answer.finished, contributors=answer.contributors, step=step,
+        samples=sum(m.samples for m in behind), units=sum(m.units for m in behind), config=config,
     )  # fmt: skip
 
 
 def welcome_step(
-    run_id: str, worker: str, rnd: int, model: Message | None, settings: Mapping[str, str]
+    run_id: str,
+    worker: str,
+    rnd: int,
+    model: Message | None,
+    settings: Mapping[str, str],
+    config: RoundConfig,
 ) -> ChiefStep:
-    """The ``welcome`` to ``worker`` for the open round ``rnd``: the fleet model θ* (``model``'s vector and
-    origin) if there is one, and the settings every worker must share; with its event."""
+    """The ``welcome`` to ``worker`` for the open round ``rnd``: the fleet's model (θ* of a transfer, the last
+    average, or the fleet's start: ``model``'s vector and origin) if there is one, the settings every worker
+    must share, and ``config`` (what the scheme asks for the round); with its event."""
     welcome = Message(
         "welcome", run_id, CHIEF_ID, rnd,
         flat=model.flat if model else None, origin=model.origin if model else None, settings=dict(settings),
+        config=config,
     )  # fmt: skip
     detail = f"of round {rnd}" + (f" with θ* of {welcome.origin}" if welcome.origin else "")
     return ChiefStep((welcome,), (ChiefEvent("welcome", rnd, sender=worker, detail=detail),))
@@ -106,55 +119,3 @@ def answer_event(answer: RoundAnswer, closed: ClosedExchange, aggregator: str) -
         "averaged", closed.round, answered=closed.answered, averaged=answer.contributors,
         detail=aggregator + completed, remaining=closed.remaining, scores=closed.scores, late=closed.late,
     )  # fmt: skip
-
-
-class AnswerBook:
-    """The answers the chief broadcast, kept to answer re-sends (docs/protocol.md, "Broker loss and idempotent
-    resends").
-
-    It keeps the answer of every exchange of the open round and of the round before it, and the last answer
-    (followed by ``done`` once the run ended). A worker resumed from its checkpoint replays its round from
-    step 0 and re-sends each step's message; each is answered with the answer of exactly that (round, step),
-    so the worker continues as if it had never stopped. A re-send of an exchange no longer kept (older, or
-    lost with a restarted chief, which keeps only the last answer) gets the last answer.
-
-    :param holdoff: least seconds between two re-sends of one answer to one worker, counted from its
-        broadcast too (a flood of one stale message, or a re-send crossing the broadcast, is answered at most
-        once per hold-off).
-    :param last: the last answer of a restored chief (re-sent to each worker's first re-send at once).
-    """
-
-    def __init__(self, holdoff: float, last: tuple[Message, ...] = ()) -> None:
-        """An empty book (or a restored chief's, holding only ``last``)."""
-        self.holdoff = holdoff
-        self.last = last
-        """the last answer broadcast (and ``done`` after the end)"""
-        self._kept: dict[tuple[int, int], tuple[Message, ...]] = {}  # (round, step) → its answer
-        self._sent: dict[tuple[str, int, int], float] = {}  # (worker, round, step) → last sent
-
-    def broadcast(self, reply: Message, workers: Iterable[str], now: float) -> None:
-        """Keep ``reply``, broadcast to ``workers`` at ``now``; forget answers of rounds before the last."""
-        rnd, step = reply.round, reply.step
-        self.last = (reply,)
-        self._kept = {at: answer for at, answer in self._kept.items() if at[0] >= rnd - 1}
-        self._kept[rnd, step] = self.last
-        self._sent = {key: t for key, t in self._sent.items() if key[1] >= rnd - 1}
-        self._sent.update(((worker, rnd, step), now) for worker in workers)
-
-    def end(self, done: Message) -> None:
-        """The run ended: ``done`` follows the last answer whenever it is sent again."""
-        if self.last:
-            self._kept[self.last[0].round, self.last[0].step] = (*self.last, done)
-        self.last = (*self.last, done)
-
-    def resend(self, worker: str, at: tuple[int, int], now: float) -> tuple[Message, ...]:
-        """The answer to send again for ``worker``'s stale message of (round, step) ``at``: that exchange's,
-        else the last; nothing if there is none yet or within the hold-off of its last sending."""
-        answer = self._kept.get(at, self.last)
-        if not answer:
-            return ()
-        key = (worker, answer[0].round, answer[0].step)
-        if now < self._sent.get(key, -math.inf) + self.holdoff:
-            return ()
-        self._sent[key] = now
-        return answer

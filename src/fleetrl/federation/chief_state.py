@@ -1,37 +1,190 @@
-"""The chief's durable state as data (JSON fields + named float32 tensors), and the chief rebuilt from it.
+"""What the chief remembers, as a value it owns (:class:`ChiefState`, with its :class:`AnswerBook`), and that
+value as data (JSON fields + named float32 tensors) for its checkpoint.
 
 No files here: :mod:`fleetrl.runs.checkpoints` stores what :func:`chief_to_state` returns. The state is what a
 restarted chief needs to continue a run with no round lost or counted twice (docs/protocol.md, "Checkpoints
-and resume"): its configuration, the open round, W, the workers that left, the last transfer θ*, the last
-answer (re-sent to workers that ask again), the first completion of each worker, dropouts, rejoins,
-rejections, suspects and the newest incarnation seen of each worker. Answers received for the open round are
-not kept: the workers re-send them; nor are the earlier answers of the round that a running chief keeps for a
-worker replaying it (docs/protocol.md says what a double failure in one round does).
+and resume"): its configuration, the open round and its configuration for the workers, W, the workers that
+left, the fleet's model (the last transfer's θ*, fedavg's last average, or the fleet's start), the last answer
+(re-sent to workers that ask again), the first completion of each worker, dropouts, rejoins, rejections,
+suspects and the newest incarnation seen of each worker. Answers received for the open round are not kept:
+the workers re-send them; nor are the earlier answers of the round that a running chief keeps for a worker
+replaying it (docs/protocol.md says what a double failure in one round does).
 
 Times are not kept either (they are seconds of a monotonic clock of a dead process): a restored chief opens
 its round, re-arms the grace of suspected workers at the ``now`` it is given, and answers the first re-send of
-every worker at once. This module reads the chief's private attributes; it is the chief's other half.
+every worker at once. The chief reads and writes its :class:`ChiefState`; this module only turns it into data
+and back.
 """
 
 from __future__ import annotations
 
+import math
 from collections import Counter
-from typing import Any
+from collections.abc import Iterable
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from fleetrl.federation.chief import Chief
-from fleetrl.federation.chief_answer import AnswerBook
 from fleetrl.federation.events import ChiefEvent, ChiefStep
 from fleetrl.federation.messages import Message, Reason
-from fleetrl.federation.schemes import get_scheme
+from fleetrl.federation.schemes import get_scheme, scheme_reference
 from fleetrl.federation.signing import FleetKey
-from fleetrl.federation.topics import CHIEF_ID
+from fleetrl.federation.topics import CHIEF_ID, sorted_workers
 
-STATE_VERSION = 1
-"""Version of the state's fields; :func:`chief_from_state` refuses any other."""
+if TYPE_CHECKING:
+    from fleetrl.federation.chief import Chief
+
+STATE_VERSION = 2
+"""Version of the state's fields; :func:`chief_from_state` refuses any other (2: the round's ``config`` and
+the fleet's start)."""
 SCHEME_TENSOR = "scheme."
 """Prefix of the scheme's own state tensors (a server optimiser's moments) in the tensor file."""
+
+
+class AnswerBook:
+    """The answers the chief broadcast, kept to answer re-sends (docs/protocol.md, "Broker loss and idempotent
+    resends").
+
+    It keeps the answer of every exchange of the open round and of the round before it, and the last answer
+    (followed by ``done`` once the run ended). A worker resumed from its checkpoint replays its round from
+    step 0 and re-sends each step's message; each is answered with the answer of exactly that (round, step),
+    so the worker continues as if it had never stopped. A re-send of an exchange no longer kept (older, or
+    lost with a restarted chief, which keeps only the last answer) gets the last answer.
+
+    :param holdoff: least seconds between two re-sends of one answer to one worker, counted from its
+        broadcast too (a flood of one stale message, or a re-send crossing the broadcast, is answered at most
+        once per hold-off).
+    :param last: the last answer of a restored chief (re-sent to each worker's first re-send at once).
+    """
+
+    def __init__(self, holdoff: float, last: tuple[Message, ...] = ()) -> None:
+        """An empty book (or a restored chief's, holding only ``last``)."""
+        self.holdoff = holdoff
+        self.last = last
+        """the last answer broadcast (and ``done`` after the end)"""
+        self._kept: dict[tuple[int, int], tuple[Message, ...]] = {}  # (round, step) → its answer
+        self._sent: dict[tuple[str, int, int], float] = {}  # (worker, round, step) → last sent
+
+    def broadcast(self, reply: Message, workers: Iterable[str], now: float) -> None:
+        """Keep ``reply``, broadcast to ``workers`` at ``now``; forget answers of rounds before the last."""
+        rnd, step = reply.round, reply.step
+        self.last = (reply,)
+        self._kept = {at: answer for at, answer in self._kept.items() if at[0] >= rnd - 1}
+        self._kept[rnd, step] = self.last
+        self._sent = {key: t for key, t in self._sent.items() if key[1] >= rnd - 1}
+        self._sent.update(((worker, rnd, step), now) for worker in workers)
+
+    def end(self, done: Message) -> None:
+        """The run ended: ``done`` follows the last answer whenever it is sent again."""
+        if self.last:
+            self._kept[self.last[0].round, self.last[0].step] = (*self.last, done)
+        self.last = (*self.last, done)
+
+    def resend(self, worker: str, at: tuple[int, int], now: float) -> tuple[Message, ...]:
+        """The answer to send again for ``worker``'s stale message of (round, step) ``at``: that exchange's,
+        else the last; nothing if there is none yet or within the hold-off of its last sending."""
+        answer = self._kept.get(at, self.last)
+        if not answer:
+            return ()
+        key = (worker, answer[0].round, answer[0].step)
+        if now < self._sent.get(key, -math.inf) + self.holdoff:
+            return ()
+        self._sent[key] = now
+        return answer
+
+
+@dataclass
+class ChiefState:
+    """Everything the chief remembers across inputs that a checkpoint keeps; the :class:`~.chief.Chief` owns
+    one and changes it as its rules say."""
+
+    members: set[str]
+    """W: the workers still learning"""
+    answers: AnswerBook
+    """the answers broadcast (the last one is kept across a restart)"""
+    round: int = 1
+    """the open round (after the end: the last round played)"""
+    step: int = 0
+    """the open exchange of the round (always 0 for a scheme that sends once per round)"""
+    config: dict[str, float | str] = field(default_factory=dict)
+    """what the scheme asks of every worker for the open round (sent in the welcome)"""
+    left: set[str] = field(default_factory=set)
+    """workers that sent parameters and left W for good"""
+    end_reason: str | None = None
+    """why the run ended, or None while it runs"""
+    suspects: dict[str, float] = field(default_factory=dict)
+    """went offline → leaves W at this time unless it comes back"""
+    incarnations: dict[str, int] = field(default_factory=dict)
+    """the newest incarnation seen of each worker"""
+    model: Message | None = None
+    """what a (re)joining worker starts from: the last transfer's θ* (fedavg: the last average) or the
+    fleet's start"""
+    rejections: Counter[Reason] = field(default_factory=Counter)
+    """how many messages were rejected, by reason"""
+    completed: dict[str, int] = field(default_factory=dict)
+    """worker → the first round its criterion held"""
+    transfers: list[tuple[int, str, tuple[str, ...]]] = field(default_factory=list)
+    """(round, origin, recipients) of every model transfer"""
+    dropouts: list[tuple[int, str, str]] = field(default_factory=list)
+    """(round, worker, reason) of every worker that left W without transferring"""
+    rejoins: list[tuple[int, str]] = field(default_factory=list)
+    """(round, worker) of every dropped worker that re-entered W"""
+
+    def fields(self) -> dict[str, Any]:
+        """The JSON part (cheap: the runner compares it after every input)."""
+        model = self.model
+        return {
+            "round": self.round,
+            "step": self.step,
+            "round_config": dict(self.config),
+            "members": sorted_workers(self.members),
+            "left": sorted(self.left),
+            "end_reason": self.end_reason,
+            "suspects": sorted(self.suspects),
+            "incarnations": dict(sorted(self.incarnations.items())),
+            "last_answer": [_message_fields(m, f"answer.{i}") for i, m in enumerate(self.answers.last)],
+            "model": None if model is None else _message_fields(model, "model"),
+            "rejections": {reason.value: n for reason, n in sorted(self.rejections.items())},
+            "transfers": [[r, origin, list(to)] for r, origin, to in self.transfers],
+            "completed": dict(sorted(self.completed.items())),
+            "dropouts": [list(d) for d in self.dropouts],
+            "rejoins": [list(r) for r in self.rejoins],
+        }
+
+    def tensors(self) -> dict[str, np.ndarray]:
+        """The tensors: the last answer's and the fleet model's flat vectors."""
+        tensors = {f"answer.{i}": m.flat for i, m in enumerate(self.answers.last) if m.flat is not None}
+        if self.model is not None and self.model.flat is not None:
+            tensors["model"] = self.model.flat
+        return {name: np.asarray(flat, dtype=np.float32) for name, flat in tensors.items()}
+
+    @classmethod
+    def from_data(
+        cls, fields: dict[str, Any], tensors: dict[str, np.ndarray], *, run_id: str, holdoff: float,
+        grace: float, now: float,
+    ) -> ChiefState:  # fmt: skip
+        """The state :meth:`fields` and :meth:`tensors` describe, its suspects' grace re-armed at ``now``."""
+        # only the last answer: each worker's first re-send gets it at once (docs/protocol.md, "Checkpoints
+        # and resume", on a worker replaying a round the restarted chief had half answered)
+        last = tuple(_message(run_id, m, tensors) for m in fields["last_answer"])
+        return cls(
+            members=set(fields["members"]),
+            answers=AnswerBook(holdoff, last),
+            round=int(fields["round"]),
+            step=int(fields["step"]),
+            config=dict(fields["round_config"]),
+            left=set(fields["left"]),
+            end_reason=fields["end_reason"],
+            suspects={w: now + grace for w in fields["suspects"]},
+            incarnations={w: int(i) for w, i in fields["incarnations"].items()},
+            model=None if fields["model"] is None else _message(run_id, fields["model"], tensors),
+            rejections=Counter({Reason(r): int(n) for r, n in fields["rejections"].items()}),
+            completed={str(w): int(r) for w, r in fields["completed"].items()},
+            transfers=[(int(r), str(o), tuple(to)) for r, o, to in fields["transfers"]],
+            dropouts=[(int(r), str(w), str(why)) for r, w, why in fields["dropouts"]],
+            rejoins=[(int(r), str(w)) for r, w in fields["rejoins"]],
+        )
 
 
 def chief_config(chief: Chief) -> dict[str, Any]:
@@ -40,6 +193,7 @@ def chief_config(chief: Chief) -> dict[str, Any]:
         "run_id": chief.run_id,
         "workers": list(chief.all_workers),
         "layout": [[name, list(shape)] for name, shape in chief.layout],
+        "welcome_layout": [[name, list(shape)] for name, shape in chief.welcome_layout],
         "max_rounds": chief.max_rounds,
         "aggregator": chief.aggregator_name,
         "max_bytes": chief.max_bytes,
@@ -48,7 +202,7 @@ def chief_config(chief: Chief) -> dict[str, Any]:
         "resend_holdoff": chief.resend_holdoff,
         "dropout_grace": chief.dropout_grace,
         "signed": chief.key is not None,
-        "scheme": chief.scheme.name,
+        "scheme": scheme_reference(chief.scheme),
         "scheme_params": chief.scheme.params(),
         "settings": chief.settings,
         "steps_per_round": chief.steps_per_round,
@@ -57,36 +211,18 @@ def chief_config(chief: Chief) -> dict[str, Any]:
 
 def chief_fields(chief: Chief) -> dict[str, Any]:
     """The JSON part of the chief's state (cheap: the runner compares it after every input)."""
-    answers = [_message_fields(m, f"answer.{i}") for i, m in enumerate(chief._answers.last)]
-    model = chief._model
     return {
         "version": STATE_VERSION,
         "config": chief_config(chief),
-        "round": chief._round,
-        "step": chief._step,
-        "members": list(chief.members),
-        "left": sorted(chief._left),
-        "end_reason": chief._end_reason,
-        "suspects": sorted(chief._suspects),
-        "incarnations": dict(sorted(chief._incarnation.items())),
-        "last_answer": answers,
-        "model": None if model is None else _message_fields(model, "model"),
-        "rejections": {reason.value: n for reason, n in sorted(chief.rejections.items())},
-        "transfers": [[r, origin, list(to)] for r, origin, to in chief.transfers],
-        "completed": dict(sorted(chief.completed.items())),
-        "dropouts": [list(d) for d in chief.dropouts],
-        "rejoins": [list(r) for r in chief.rejoins],
+        **chief.state.fields(),
         "scheme_state": chief.scheme.state()[0],
     }
 
 
 def chief_tensors(chief: Chief) -> dict[str, np.ndarray]:
-    """The tensors of the chief's state: the last answer's and θ*'s flat vectors."""
-    tensors = {f"answer.{i}": m.flat for i, m in enumerate(chief._answers.last) if m.flat is not None}
-    if chief._model is not None and chief._model.flat is not None:
-        tensors["model"] = chief._model.flat
-    tensors |= {SCHEME_TENSOR + name: flat for name, flat in chief.scheme.state()[1].items()}
-    return {name: np.asarray(flat, dtype=np.float32) for name, flat in tensors.items()}
+    """The tensors of the chief's state: the last answer's and the fleet model's, and the scheme's own."""
+    scheme = {SCHEME_TENSOR + name: flat for name, flat in chief.scheme.state()[1].items()}
+    return chief.state.tensors() | {name: np.asarray(flat, np.float32) for name, flat in scheme.items()}
 
 
 def chief_to_state(chief: Chief) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
@@ -103,38 +239,26 @@ def chief_from_state(
     :param now: the current time of the clock the restored chief will be driven with.
     :raises ValueError: another state version, or a key where there was none (or the reverse).
     """
+    from fleetrl.federation.chief import Chief  # the chief's module imports this one for ChiefState
+
     if fields.get("version") != STATE_VERSION:
         raise ValueError(f"chief state version {fields.get('version')!r}, expected {STATE_VERSION}")
     config = dict(fields["config"])
     if bool(config.pop("signed")) != (key is not None):
         had = "with" if key is None else "without"
         raise ValueError(f"the checkpoint was written by a chief {had} a fleet key; resume it the same way")
-    config["layout"] = [(str(name), tuple(int(d) for d in shape)) for name, shape in config["layout"]]
+    for name in ("layout", "welcome_layout"):
+        config[name] = [(str(n), tuple(int(d) for d in shape)) for n, shape in config[name]]
     scheme = get_scheme(config.pop("scheme"), **config.pop("scheme_params", {}))
-    chief = Chief(**config, scheme=scheme, key=key)
     scheme_tensors = {
         n.removeprefix(SCHEME_TENSOR): t for n, t in tensors.items() if n.startswith(SCHEME_TENSOR)
     }
     scheme.restore(fields.get("scheme_state", {}), scheme_tensors)
-    chief._round = int(fields["round"])
-    chief._step = int(fields.get("step", 0))
-    chief._members = set(fields["members"])
-    chief._left = set(fields["left"])
-    chief._end_reason = fields["end_reason"]
-    chief._opened_at = now
-    chief._suspects = {w: now + chief.dropout_grace for w in fields["suspects"]}
-    chief._incarnation = {w: int(i) for w, i in fields["incarnations"].items()}
-    # only the last answer: each worker's first re-send gets it at once (docs/protocol.md, "Checkpoints and
-    # resume", on a worker replaying a round the restarted chief had half answered)
-    last = tuple(_message(chief.run_id, m, tensors) for m in fields["last_answer"])
-    chief._answers = AnswerBook(chief.resend_holdoff, last)
-    chief._model = None if fields["model"] is None else _message(chief.run_id, fields["model"], tensors)
-    chief.rejections = Counter({Reason(r): int(n) for r, n in fields["rejections"].items()})
-    chief.transfers = [(int(r), str(o), tuple(to)) for r, o, to in fields["transfers"]]
-    chief.completed = {str(w): int(r) for w, r in fields.get("completed", {}).items()}
-    chief.dropouts = [(int(r), str(w), str(why)) for r, w, why in fields["dropouts"]]
-    chief.rejoins = [(int(r), str(w)) for r, w in fields["rejoins"]]
-    return chief
+    state = ChiefState.from_data(
+        fields, tensors, run_id=config["run_id"], holdoff=config["resend_holdoff"],
+        grace=config["dropout_grace"], now=now,
+    )  # fmt: skip
+    return Chief(**config, scheme=scheme, key=key, state=state, now=now)
 
 
 def replay_last_answer(chief: Chief) -> ChiefStep:
@@ -143,10 +267,11 @@ def replay_last_answer(chief: Chief) -> ChiefStep:
     A chief may die after committing a round but before its answer left; workers that got the answer ignore
     the copy (they are past that round), those that did not take it.
     """
-    if not chief._answers.last:
+    last = chief.state.answers.last
+    if not last:
         return ChiefStep()
-    detail = f"answer of round {chief._answers.last[0].round} after resume"
-    return ChiefStep(chief._answers.last, (ChiefEvent("resent", chief.round, sender="*", detail=detail),))
+    detail = f"answer of round {last[0].round} after resume"
+    return ChiefStep(last, (ChiefEvent("resent", chief.round, sender="*", detail=detail),))
 
 
 def _message_fields(message: Message, tensor: str) -> dict[str, Any]:
@@ -158,6 +283,9 @@ def _message_fields(message: Message, tensor: str) -> dict[str, Any]:
         "finished": list(message.finished),
         "contributors": list(message.contributors),
         "metrics": dict(message.metrics),
+        "samples": message.samples,
+        "units": message.units,
+        "config": dict(message.config),
         "tensor": None if message.flat is None else tensor,
     }
 
@@ -171,5 +299,6 @@ def _message(run_id: str, fields: dict[str, Any], tensors: dict[str, np.ndarray]
         flat=None if name is None else np.asarray(tensors[name], dtype=np.float32),
         metrics={str(k): float(v) for k, v in fields["metrics"].items()}, origin=fields["origin"],
         finished=tuple(fields["finished"]), contributors=tuple(fields["contributors"]),
-        step=int(fields.get("step", 0)),
+        step=int(fields["step"]), samples=int(fields["samples"]), units=int(fields["units"]),
+        config=dict(fields["config"]),
     )  # fmt: skip

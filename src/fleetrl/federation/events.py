@@ -89,14 +89,9 @@ class ChiefStep:
 
 
 class WorkerEvent(StrEnum):
-    """What one round did for a worker (:attr:`fleetrl.federation.rounds.RoundRecord.event`)."""
+    """What one round did for a worker (:attr:`fleetrl.federation.rounds.RoundRecord.event`), beside the
+    round in which it sent its scheme's message and applied the answer (:class:`Sent`)."""
 
-    GRADIENT = "gradient"
-    """sent its gradient, applied the average (``paper``)"""
-    MODEL = "model"
-    """sent its model, continued from the average (``fedavg``)"""
-    STEP_GRADIENT = "step_gradient"
-    """sent every optimisation step's gradient and applied each step's average (``pergrad``)"""
     COMPLETED = "completed"
     """its criterion held; it sent its parameters, which were averaged, and it stays (``fedavg``)"""
     LATE = "late"
@@ -124,3 +119,31 @@ class WorkerEvent(StrEnum):
     def describe(self, peer: str | None = None) -> str:
         """The event for a log line (``transfer_in from K``)."""
         return f"{self.value} from {peer}" if peer is not None else self.value
+
+
+@dataclass(frozen=True)
+class Sent:
+    """A round in which the worker sent its scheme's round message — ``gradient`` (``paper``), ``model``
+    (``fedavg``), ``step_gradient`` (``pergrad``: every step's) … — and applied the chief's answer; labelled
+    with that message type, which only the scheme names."""
+
+    message: str
+
+    @property
+    def value(self) -> str:
+        """The message type."""
+        return self.message
+
+    def label(self, peer: str | None = None) -> str:
+        """The metrics files' label: the message type."""
+        del peer
+        return self.message
+
+    def describe(self, peer: str | None = None) -> str:
+        """The log line's: the message type."""
+        del peer
+        return self.message
+
+
+RoundEvent = WorkerEvent | Sent
+"""What one round did for a worker."""

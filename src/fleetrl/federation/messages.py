@@ -2,15 +2,21 @@
 
 An envelope is one msgpack map with exactly these keys (see docs/protocol.md):
 
-``version`` (int, :data:`VERSION`), ``type`` (str, one of :data:`MESSAGE_TYPES`), ``run_id`` (str), ``sender``
+``version`` (int, :data:`VERSION`), ``type`` (str, one of :data:`MESSAGE_TYPES`, or the round message a scheme
+declares: then it carries tensors and only a receiver that expects it takes it), ``run_id`` (str), ``sender``
 (str), ``round`` (int ≥ 1), ``metrics`` (map str → finite number, small), ``origin`` (str or nil: whose
 parameters a ``transfer`` carries), ``finished`` (list of str: workers that leave W with this message),
 ``contributors`` (list of str: whose gradients an ``average`` combines), ``step`` (int ≥ 0: the optimisation
 step within the round, for schemes that send per step; 0 otherwise), ``settings`` (map str → str: the settings
-all roles must share, in ``join`` and ``welcome``), ``detail`` (str: why, in ``refused``), ``tensors`` (list
-of ``[name, shape]``) and ``data`` (bin: the tensors concatenated in that order as little-endian float32).
+all roles must share, in ``join`` and ``welcome``), ``detail`` (str: why, in ``refused``), ``samples`` (int
+≥ 0: the transitions a worker's contribution stands for; a chief's answer: those of its contributors),
+``units`` (int ≥ 0: the units it stands for, 1 for a worker of one unit), ``config`` (map str → finite
+number or short str: what the chief asks of every worker for the round the message opens, the scheme's
+``configure``), ``tensors`` (list of ``[name, shape]``) and ``data`` (bin: the tensors concatenated in that
+order as little-endian float32).
 
-Version 2 added ``step``, ``settings``, ``detail`` and the ``join`` / ``refused`` types.
+Version 2 added ``step``, ``settings``, ``detail`` and the ``join`` / ``refused`` types; version 3 added
+``samples``, ``units`` and ``config``, and a scheme's own round-message type.
 
 :func:`decode` validates all of it and raises :class:`MessageRejected` with a :class:`Reason` for anything
 wrong; it never raises anything else, whatever the bytes.
@@ -19,6 +25,7 @@ wrong; it never raises anything else, whatever the bytes.
 from __future__ import annotations
 
 import math
+import re
 from collections.abc import Collection, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
@@ -26,7 +33,17 @@ from typing import Any
 import msgpack
 import numpy as np
 
-from fleetrl.federation.rejections import MessageRejected, Reason
+from fleetrl.federation.rejections import (
+    MAX_TEXT,
+    MessageRejected,
+    Reason,
+    check_config,
+    check_count,
+    check_metrics,
+    check_names,
+    check_settings,
+    short,
+)
 from fleetrl.federation.signing import OVERHEAD as SIGNATURE_OVERHEAD
 from fleetrl.federation.signing import FleetKey
 
@@ -38,6 +55,8 @@ __all__ = [
     "Message",
     "MessageRejected",
     "Reason",
+    "RoundConfig",
+    "check_scheme_type",
     "decode",
     "default_max_bytes",
     "encode",
@@ -45,17 +64,16 @@ __all__ = [
     "layout_size",
 ]
 
-VERSION = 2
+VERSION = 3
 """Envelope version; a receiver rejects any other."""
 
 Layout = Sequence[tuple[str, tuple[int, ...]]]
 """Names and shapes of the tensors of a message, in order (the actor's ``actor_layout()``)."""
+RoundConfig = Mapping[str, float | str]
+"""What the chief asks of every worker for a round (a scheme's ``configure``): name → number or short text."""
 
 MESSAGE_TYPES: Mapping[str, bool] = {
-    "gradient": True,  # worker → chief: the last actor gradient of the round (Algorithm 2, line 25)
-    "parameters": True,  # worker → chief: the actor parameters of a mature worker (Algorithm 2, line 8)
-    "model": True,  # worker → chief: its whole actor-critic after the round's update (scheme fedavg)
-    "step_gradient": True,  # worker → chief: one optimisation step's gradient (scheme pergrad)
+    "parameters": True,  # worker → chief: "my criterion holds", with the parameters its scheme shares
     "average": True,  # chief → workers: the aggregated gradient (Algorithm 1, line 13) or model (fedavg)
     "transfer": True,  # chief → workers: a mature worker's parameters (Algorithm 1, line 8)
     "done": False,  # chief → workers: the run is over (W empty, or M rounds)
@@ -63,16 +81,14 @@ MESSAGE_TYPES: Mapping[str, bool] = {
     "join": False,  # worker → chief: its shared settings, checked against the chief's before it plays
     "refused": False,  # chief → workers: the join of the worker in ``finished`` is refused (``detail``: why)
 }
-"""Known message types, each mapped to whether it must carry the layout's tensors."""
+"""The protocol's message types, each mapped to whether it must carry the layout's tensors. A scheme's own
+round message (``gradient``, ``model``, ``step_gradient`` …: :func:`check_scheme_type`) is not listed: it
+always carries tensors, and a receiver names the ones it takes (:func:`decode`'s ``scheme_types``)."""
+SCHEME_TYPE = re.compile(r"[a-z][a-z0-9_]{0,31}")
+"""the form of a scheme's round-message type"""
 OPTIONAL_TENSORS = frozenset({"welcome"})
 """Types that carry either no tensors or the whole layout."""
 
-MAX_METRICS = 32
-"""Most metrics one message may carry."""
-MAX_NAME = 64
-"""Longest metric name or id accepted."""
-MAX_TEXT = 1024
-"""Longest setting value or detail text accepted."""
 HEADER_ALLOWANCE = 64 * 1024
 """Bytes allowed beyond the tensors' own size by :func:`default_max_bytes`."""
 _MAX_ROUND = 2**31 - 1
@@ -90,10 +106,24 @@ _KEYS = frozenset(
         "step",
         "settings",
         "detail",
+        "samples",
+        "units",
+        "config",
         "tensors",
         "data",
     }
 )
+
+
+def check_scheme_type(name: object, what: str = "a scheme") -> str:
+    """``name`` if it can be a scheme's round-message type (:data:`SCHEME_TYPE`, not a protocol type);
+    otherwise a ValueError saying so."""
+    if not isinstance(name, str) or not SCHEME_TYPE.fullmatch(name) or name in MESSAGE_TYPES:
+        raise ValueError(
+            f"{what}: round_message {name!r} must be lower-case letters, digits and _ (at most 32, a letter "
+            f"first) and not one of the protocol's types ({', '.join(MESSAGE_TYPES)})"
+        )
+    return name
 
 
 @dataclass(frozen=True)
@@ -112,6 +142,9 @@ class Message:
     :param step: the optimisation step within the round (schemes that send per step); 0 otherwise.
     :param settings: the settings all roles must share (``join``, ``welcome``): name → value text.
     :param detail: free text (``refused``: the reason).
+    :param samples: the transitions the message's contribution stands for (0: not counted).
+    :param units: the units it stands for (a worker of one unit: 1).
+    :param config: what the chief asks of every worker for the round this message opens.
     :param version: envelope version.
     """
 
@@ -127,6 +160,9 @@ class Message:
     step: int = 0
     settings: Mapping[str, str] = field(default_factory=dict)
     detail: str = ""
+    samples: int = 0
+    units: int = 1
+    config: RoundConfig = field(default_factory=dict)
     version: int = VERSION
 
     def tensors(self, layout: Layout) -> dict[str, np.ndarray]:
@@ -154,9 +190,11 @@ def default_max_bytes(layout: Layout) -> int:
 
 def envelope(message: Message, *, layout: Layout) -> dict[str, Any]:
     """The msgpack map :func:`encode` packs (exposed so tests can build malformed variants)."""
-    if message.type not in MESSAGE_TYPES:
+    if message.type not in MESSAGE_TYPES and not SCHEME_TYPE.fullmatch(message.type):
         raise ValueError(f"unknown message type {message.type!r} (choose {', '.join(MESSAGE_TYPES)})")
-    if MESSAGE_TYPES[message.type] or (message.type in OPTIONAL_TENSORS and message.flat is not None):
+    if MESSAGE_TYPES.get(message.type, True) or (
+        message.type in OPTIONAL_TENSORS and message.flat is not None
+    ):
         if message.flat is None:
             raise ValueError(f"a {message.type!r} message needs tensors")
         flat = np.ascontiguousarray(message.flat, dtype="<f4").reshape(-1)
@@ -179,6 +217,9 @@ def envelope(message: Message, *, layout: Layout) -> dict[str, Any]:
         "step": message.step,
         "settings": {str(k): str(v) for k, v in message.settings.items()},
         "detail": message.detail,
+        "samples": message.samples,
+        "units": message.units,
+        "config": {str(k): v if isinstance(v, str) else float(v) for k, v in message.config.items()},
         "tensors": tensors,
         "data": data,
     }
@@ -197,6 +238,7 @@ def encode(message: Message, *, layout: Layout, key: FleetKey | None = None) -> 
         raise ValueError(f"refusing to send a {message.type!r} message with NaN or Inf values")
     if not all(math.isfinite(v) for v in env["metrics"].values()):
         raise ValueError("refusing to send non-finite metrics")
+    check_config(env["config"], error=ValueError)
     packed = bytes(msgpack.packb(env, use_bin_type=True))
     return packed if key is None else key.sign(packed)
 
@@ -209,6 +251,8 @@ def decode(
     layout: Layout,
     max_bytes: int | None = None,
     key: FleetKey | None = None,
+    scheme_types: Collection[str] = (),
+    layouts: Mapping[str, Layout] | None = None,
 ) -> Message:
     """Parse and validate one message; raise :class:`MessageRejected` (only) if anything is wrong.
 
@@ -220,8 +264,13 @@ def decode(
     :param max_bytes: size cap; default :func:`default_max_bytes` of ``layout`` (plus the signature's bytes
         with ``key``).
     :param key: the fleet key: the payload must be signed with it (checked before anything is parsed).
+    :param scheme_types: the scheme's round-message types the receiver takes besides :data:`MESSAGE_TYPES`
+        (the chief: its scheme's; a worker: none).
+    :param layouts: message type → its own layout, where it is not ``layout`` (a ``welcome`` handing out the
+        fleet's start).
     """
-    cap = default_max_bytes(layout) if max_bytes is None else max_bytes
+    layouts = layouts or {}
+    cap = max(map(default_max_bytes, [layout, *layouts.values()])) if max_bytes is None else max_bytes
     if key is not None:
         cap += SIGNATURE_OVERHEAD
     if not isinstance(payload, bytes | bytearray | memoryview):
@@ -237,34 +286,36 @@ def decode(
     if not isinstance(env, dict):
         raise MessageRejected(Reason.MALFORMED, f"top level is {type(env).__name__}, not a map")
     if env.get("version") != VERSION or isinstance(env.get("version"), bool):
-        raise MessageRejected(Reason.WRONG_VERSION, f"{_short(env.get('version'))} (expected {VERSION})")
+        raise MessageRejected(Reason.WRONG_VERSION, f"{short(env.get('version'))} (expected {VERSION})")
     if set(env) != _KEYS:
         raise MessageRejected(
             Reason.MALFORMED, f"keys {sorted(map(str, env))[:20]} (expected {sorted(_KEYS)})"
         )
     mtype = env["type"]
-    if not isinstance(mtype, str) or mtype not in MESSAGE_TYPES:
-        raise MessageRejected(Reason.UNKNOWN_TYPE, _short(mtype))
+    if not isinstance(mtype, str) or (mtype not in MESSAGE_TYPES and mtype not in scheme_types):
+        raise MessageRejected(Reason.UNKNOWN_TYPE, short(mtype))
     if env["run_id"] != run_id:
-        raise MessageRejected(Reason.WRONG_RUN_ID, _short(env["run_id"]))
+        raise MessageRejected(Reason.WRONG_RUN_ID, short(env["run_id"]))
     sender = env["sender"]
     if not isinstance(sender, str) or sender not in known_senders:
-        raise MessageRejected(Reason.UNKNOWN_SENDER, _short(sender))
+        raise MessageRejected(Reason.UNKNOWN_SENDER, short(sender))
     rnd = env["round"]
     if not isinstance(rnd, int) or isinstance(rnd, bool) or not 1 <= rnd <= _MAX_ROUND:
-        raise MessageRejected(Reason.BAD_ROUND, _short(rnd))
-    metrics = _metrics(env["metrics"])
+        raise MessageRejected(Reason.BAD_ROUND, short(rnd))
+    metrics = check_metrics(env["metrics"])
     origin = env["origin"]
     if origin is not None and not isinstance(origin, str):
         raise MessageRejected(Reason.MALFORMED, "origin is not a string")
     step = env["step"]
     if not isinstance(step, int) or isinstance(step, bool) or not 0 <= step <= _MAX_ROUND:
-        raise MessageRejected(Reason.MALFORMED, f"step {_short(step)}")
+        raise MessageRejected(Reason.MALFORMED, f"step {short(step)}")
     detail = env["detail"]
     if not isinstance(detail, str) or len(detail) > MAX_TEXT:
         raise MessageRejected(Reason.MALFORMED, "detail is not a short string")
-    carries = MESSAGE_TYPES[mtype] or (mtype in OPTIONAL_TENSORS and env["tensors"] != [])
-    flat = _tensors(env["tensors"], env["data"], layout if carries else ())
+    samples, units = check_count(env["samples"], "samples"), check_count(env["units"], "units")
+    config = check_config(env["config"], error=None)
+    carries = MESSAGE_TYPES.get(mtype, True) or (mtype in OPTIONAL_TENSORS and env["tensors"] != [])
+    flat = _tensors(env["tensors"], env["data"], layouts.get(mtype, layout) if carries else ())
     return Message(
         type=mtype,
         run_id=run_id,
@@ -273,49 +324,15 @@ def decode(
         flat=flat if carries else None,
         metrics=metrics,
         origin=origin,
-        finished=_names(env["finished"], "finished"),
-        contributors=_names(env["contributors"], "contributors"),
+        finished=check_names(env["finished"], "finished"),
+        contributors=check_names(env["contributors"], "contributors"),
         step=step,
-        settings=_settings(env["settings"]),
+        settings=check_settings(env["settings"]),
         detail=detail,
+        samples=samples,
+        units=units,
+        config=config,
     )
-
-
-def _short(value: object) -> str:
-    """A bounded, recursion-free description of a decoded value for a rejection detail."""
-    if isinstance(value, str | bytes | int | float | bool) or value is None:
-        return repr(value)[:MAX_NAME]
-    return f"<{type(value).__name__}>"
-
-
-def _names(value: object, what: str) -> tuple[str, ...]:
-    if not isinstance(value, list) or len(value) > 4096 or not all(isinstance(v, str) for v in value):
-        raise MessageRejected(Reason.MALFORMED, f"{what} is not a list of strings")
-    return tuple(value)
-
-
-def _settings(value: object) -> dict[str, str]:
-    if not isinstance(value, dict) or len(value) > MAX_METRICS:
-        raise MessageRejected(Reason.MALFORMED, f"settings is not a map of at most {MAX_METRICS} entries")
-    for key, val in value.items():
-        if not (
-            isinstance(key, str) and len(key) <= MAX_NAME and isinstance(val, str) and len(val) <= MAX_TEXT
-        ):
-            raise MessageRejected(Reason.MALFORMED, f"setting {_short(key)}")
-    return dict(value)
-
-
-def _metrics(value: object) -> dict[str, float]:
-    if not isinstance(value, dict) or len(value) > MAX_METRICS:
-        raise MessageRejected(Reason.BAD_METRICS, f"not a map of at most {MAX_METRICS} entries")
-    out: dict[str, float] = {}
-    for key, val in value.items():
-        if not isinstance(key, str) or len(key) > MAX_NAME:
-            raise MessageRejected(Reason.BAD_METRICS, f"bad name {_short(key)}")
-        if not isinstance(val, int | float) or isinstance(val, bool) or not math.isfinite(val):
-            raise MessageRejected(Reason.BAD_METRICS, f"{key}={_short(val)}")
-        out[key] = float(val)
-    return out
 
 
 def _tensors(tensors: object, data: object, layout: Layout) -> np.ndarray:
@@ -323,7 +340,7 @@ def _tensors(tensors: object, data: object, layout: Layout) -> np.ndarray:
     if tensors != expected:
         raise MessageRejected(
             Reason.LAYOUT_MISMATCH,
-            f"got {_short(tensors)} of {len(tensors) if isinstance(tensors, list) else '?'} entries",
+            f"got {short(tensors)} of {len(tensors) if isinstance(tensors, list) else '?'} entries",
         )
     if not isinstance(data, bytes) or len(data) != 4 * layout_size(layout):
         size = len(data) if isinstance(data, bytes) else type(data).__name__

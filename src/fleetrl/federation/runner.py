@@ -123,7 +123,7 @@ def run_chief(
             checkpoint(chief)
             committed[0] = fields
         for message in step.outgoing:
-            transport.publish(out_topic, encode(message, layout=chief.layout, key=chief.key))
+            transport.publish(out_topic, encode(message, layout=chief.layout_of(message.type), key=chief.key))
         for event in step.events:
             _log_event(event)
             if on_event is not None:

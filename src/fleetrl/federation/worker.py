@@ -41,13 +41,8 @@ from collections import deque
 from collections.abc import Callable
 from typing import Any
 
-from fleetrl.federation.messages import Layout
-from fleetrl.federation.rounds import RoundFigures, RoundOutcome, RoundPlayer, RoundRecord, WorkerSummary
-from fleetrl.federation.schemes import Scheme, resolve_scheme
-from fleetrl.federation.shared_settings import SettingsRefused, SharedSettings
-from fleetrl.federation.signing import FleetKey
-from fleetrl.federation.topics import OFFLINE, validate_id, validate_worker_id
-from fleetrl.federation.worker_actions import (
+from fleetrl.federation.messages import Layout, RoundConfig
+from fleetrl.federation.rounds import (
     Announce,
     ApplyAverage,
     ApplyStep,
@@ -59,10 +54,20 @@ from fleetrl.federation.worker_actions import (
     Publish,
     Record,
     Refused,
+    RoundFigures,
+    RoundOutcome,
+    RoundPlayer,
+    RoundRecord,
     TakeParameters,
     TimedOut,
     WorkerOutput,
+    WorkerSummary,
 )
+from fleetrl.federation.schemes import RoundScheme, Scheme, StepScheme, resolve_scheme
+from fleetrl.federation.schemes.base import LocalTraining
+from fleetrl.federation.shared_settings import SettingsRefused, SharedSettings
+from fleetrl.federation.signing import FleetKey
+from fleetrl.federation.topics import OFFLINE, validate_id, validate_worker_id
 from fleetrl.federation.worker_machine import WorkerMachine
 from fleetrl.transport.base import Transport, Will
 
@@ -139,6 +144,7 @@ class FederatedWorker:
             max_rounds=max_rounds,
             layout=self.layout,
             scheme=self.scheme,
+            welcome_layout=self.scheme.welcome_layout(learner.agent),
             settings=settings,
             key=key,
             reply_timeout=reply_timeout,
@@ -205,13 +211,15 @@ class FederatedWorker:
             case TakeParameters(flat):
                 self.scheme.take_parameters(agent, flat)
             case ApplyAverage(flat, completed, contributed):
+                assert isinstance(self.scheme, RoundScheme), "averages come per step to a per-step scheme"
                 self.scheme.apply_average(agent, flat, completed=completed, contributed=contributed)
-            case PlayRound():
-                self._play_round()
+            case PlayRound(_, config):
+                self._play_round(config)
             case ComputeStep(k):  # a per-step round: step k's gradient to the chief
                 flat = agent.step_gradients(k)
                 self._queue.extend(self.machine.step_computed(k, flat, now=self.clock()).outputs)
             case ApplyStep(flat):  # the chief's combination: the agent steps and takes the next gradient
+                assert isinstance(self.scheme, StepScheme), "step answers come to a per-step scheme"
                 self.scheme.apply_step_answer(agent, flat)
             case EndUpdate():
                 self._end_round()
@@ -228,11 +236,13 @@ class FederatedWorker:
             case _:
                 raise AssertionError(f"worker {self.worker_id}: {output} out of turn")
 
-    def _play_round(self) -> None:
-        """Play the round the machine asked for and report it; a per-step scheme's round plays its episodes
-        here and reports its update's steps as the machine asks for them (:meth:`_execute`)."""
+    def _play_round(self, config: RoundConfig) -> None:
+        """Play the round the machine asked for and report it. A per-round scheme's local loss for the round
+        (with the chief's ``config``) is installed first; a per-step scheme's round plays its episodes here
+        and reports its update's steps as the machine asks for them (:meth:`_execute`)."""
         agent = self.learner.agent
-        if not self.machine.per_step:
+        if isinstance(self.scheme, RoundScheme):
+            self._install_local_loss(self.scheme, config)
             result = self.learner.play_round()
             share = self.scheme.outgoing(agent, completed=bool(result.completed))  # lines 8, 25
             self._queue.extend(self.machine.round_played(result, now=self.clock(), share=share).outputs)
@@ -248,3 +258,15 @@ class FederatedWorker:
         stats = self.learner.agent.end_update() if played.updates else None
         result = self.learner.end_round(played, stats)
         self._queue.extend(self.machine.round_played(result, now=self.clock()).outputs)
+
+    def _install_local_loss(self, scheme: RoundScheme, config: RoundConfig) -> None:
+        """Hand the agent what ``scheme`` adds to its local training's loss this round (or nothing)."""
+        agent = self.learner.agent
+        extra = scheme.local_loss(agent, config)
+        if isinstance(agent, LocalTraining):
+            agent.set_extra_loss(extra)
+        elif extra is not None:
+            raise TypeError(
+                f"scheme {scheme.name!r} adds a term to local training, which this agent "
+                f"({type(agent).__name__}) cannot take: it has no set_extra_loss(fn)"
+            )

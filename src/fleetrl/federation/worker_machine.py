@@ -1,31 +1,24 @@
 """The worker of Algorithm 2 as a pure state machine: chief messages, time and the learner's reports in →
-messages to publish and actions for the runner out (:mod:`fleetrl.federation.worker_actions`).
+messages to publish and actions for the runner out (:mod:`fleetrl.federation.rounds`).
 
 No transport, no threads, no clock: every input takes ``now`` (seconds, any monotonic origin), and
 :meth:`WorkerMachine.next_deadline` says when :meth:`WorkerMachine.tick` is due. The runner
 (:class:`fleetrl.federation.worker.FederatedWorker`) owns the learner: the machine never touches the agent.
-It asks for what the agent must do (:class:`~fleetrl.federation.worker_actions.PlayRound`,
-:class:`~fleetrl.federation.worker_actions.ComputeStep`, ``ApplyAverage`` …); the runner does it, on the
+It asks for what the agent must do (:class:`~fleetrl.federation.rounds.PlayRound`,
+:class:`~fleetrl.federation.rounds.ComputeStep`, ``ApplyAverage`` …); the runner does it, on the
 agent through the scheme, and reports back (:meth:`round_played`, :meth:`update_begun`,
 :meth:`step_computed`).
-Of the scheme the machine reads only its granularity and its round message's name.
+Of the scheme the machine reads only its granularity and its round message's name; the chief's configuration
+for a round (from the welcome, or the answer that opens it) goes to the runner with :class:`PlayRound`.
 
-The rules (docs/protocol.md):
-
-* Join: :meth:`start` announces ``online`` and publishes a retained ``join`` with the shared settings; until
-  the ``welcome`` (or ``done``) it re-sends both every ``resend_interval``. A ``welcome`` whose settings
-  differ, or a ``refused`` naming this worker (at any time), ends in
-  :class:`~fleetrl.federation.worker_actions.Refused`.
-* Resume (``start_round``): a welcome for that round or the next keeps the learner's state and plays
-  ``start_round``; a later one rejoins like a fresh worker (taking θ*); an earlier one is an error.
-* A round: play it, send what the scheme shares, wait for the chief's answer for that round (or a later
-  one's, or ``done``); earlier answers are stale and ignored. The answer is applied, the round recorded;
-  then every later answer already queued is applied (catch-up: the chief moved on without us) before the
-  next round. The round's message is re-sent every ``resend_interval``; nothing for ``reply_timeout``
-  seconds ends in :class:`~fleetrl.federation.worker_actions.TimedOut`.
-* A per-step scheme exchanges each of the update's K steps like a round, keyed (round, step); ``done`` or a
-  later step's answer inside the round ends the worker's run without a record. A worker resumed mid-round
-  replays the round by the same rules: the chief answers each re-sent step with that step's answer.
+The rules (docs/protocol.md): join (``online`` and a retained ``join``, re-sent until the ``welcome``; a
+welcome whose settings differ, or a ``refused`` naming this worker, ends in ``Refused``); resume
+(``start_round``: a welcome for that round or the next keeps the learner's state, a later one rejoins taking
+the welcome's parameters, an earlier one is an error); a round (play, send, wait for the answer of that round
+or a later one, apply it, record, then catch up with later answers already queued; re-send every
+``resend_interval``, ``TimedOut`` after ``reply_timeout``); a per-step scheme exchanges each of the update's
+K steps like a round, keyed (round, step), and ``done`` or a later step's answer inside the round ends the
+worker's run without a record.
 """
 
 from __future__ import annotations
@@ -38,13 +31,15 @@ from enum import Enum, auto
 
 import numpy as np
 
-from fleetrl.federation import worker_actions as act
-from fleetrl.federation.events import WorkerEvent
-from fleetrl.federation.messages import Layout, Message, MessageRejected, decode, encode
+from fleetrl.federation import rounds as act
+from fleetrl.federation.events import RoundEvent, Sent, WorkerEvent
+from fleetrl.federation.messages import Layout, Message, MessageRejected, RoundConfig, decode, encode
 from fleetrl.federation.rounds import (
     ANSWERS,
     RoundOutcome,
     RoundRecord,
+    WorkerOutput,
+    WorkerStep,
     WorkerSummary,
     answer_for,
     resume_round,
@@ -53,7 +48,6 @@ from fleetrl.federation.schemes import COMPLETED, Granularity, Scheme
 from fleetrl.federation.shared_settings import SharedSettings, settings_difference
 from fleetrl.federation.signing import FleetKey, status_payload
 from fleetrl.federation.topics import CHIEF_ID, OFFLINE, ONLINE, chief_topic, status_topic, worker_topic
-from fleetrl.federation.worker_actions import WorkerOutput, WorkerStep
 
 __all__ = ["Phase", "WorkerMachine"]
 
@@ -97,6 +91,7 @@ class WorkerMachine:
     :param worker_id: this worker's id.
     :param max_rounds: M.
     :param layout: what the scheme shares of the agent (``scheme.layout(agent)``).
+    :param welcome_layout: what a welcome hands out (``scheme.welcome_layout(agent)``; default ``layout``).
     :param scheme: the federation scheme (read for its granularity and round message).
     :param settings: the shared settings sent in the ``join``.
     :param key: the fleet key: sign what is sent, accept only what is signed with it.
@@ -114,6 +109,7 @@ class WorkerMachine:
         max_rounds: int,
         layout: Layout,
         scheme: Scheme,
+        welcome_layout: Layout | None = None,
         settings: SharedSettings | None = None,
         key: FleetKey | None = None,
         reply_timeout: float | None = 600.0,
@@ -126,6 +122,7 @@ class WorkerMachine:
         self.worker_id = worker_id
         self.max_rounds = max_rounds
         self.layout: Layout = list(layout)
+        self.welcome_layout: Layout = list(layout if welcome_layout is None else welcome_layout)
         self.round_message = scheme.round_message
         self.per_step = scheme.granularity is Granularity.STEP
         self.settings: dict[str, str] = dict(settings or {})
@@ -149,6 +146,7 @@ class WorkerMachine:
         self._step_kind = ""
         self._last_answer: Message | None = None
         self._caught_up_to = 0
+        self._config: RoundConfig = {}  # the chief's configuration for the next round played
 
     # ---- inputs ----
 
@@ -174,8 +172,9 @@ class WorkerMachine:
             return NOTHING
         try:
             message = decode(
-                payload, run_id=self.run_id, known_senders=(CHIEF_ID,), layout=self.layout, key=self.key
-            )
+                payload, run_id=self.run_id, known_senders=(CHIEF_ID,), layout=self.layout, key=self.key,
+                layouts={"welcome": self.welcome_layout},
+            )  # fmt: skip
         except MessageRejected as exc:
             log.warning("worker %s: rejected a chief message: %s", self.worker_id, exc)
             return NOTHING
@@ -253,7 +252,15 @@ class WorkerMachine:
         metrics = {"score": float(outcome.score), "wma": float(outcome.wma), "steps": float(outcome.steps)}
         finite = {k: v for k, v in metrics.items() if math.isfinite(v)}
         self._outcome, self.phase = outcome, Phase.ANSWER
-        message = Message(kind, self.run_id, self.worker_id, self.round, flat=flat, metrics=finite)
+        message = Message(  # it stands for the round's transitions of this worker's one unit
+            kind,
+            self.run_id,
+            self.worker_id,
+            self.round,
+            flat=flat,
+            metrics=finite,
+            samples=int(outcome.steps),
+        )
         return self._send(message, answer_for(self.round), f"the chief's answer for round {self.round}", now)
 
     def update_begun(self, steps: int, *, completed: bool, now: float) -> WorkerStep:
@@ -287,8 +294,11 @@ class WorkerMachine:
             return self._refused(why)
         resume = resume_round(self.start_round, welcome.round, self.worker_id)
         out: tuple[WorkerOutput, ...] = ()
-        if welcome.flat is not None and resume is None:  # rejoining: start from θ* (fedavg: the fleet's)
+        # joining: start from the fleet's model, or its start (origin: the chief) unless resumed with its own
+        fleet_start = welcome.origin == CHIEF_ID and self.start_round is not None
+        if welcome.flat is not None and resume is None and not fleet_start:
             out = (act.TakeParameters(welcome.flat),)
+        self._config = dict(welcome.config)
         log.info("worker %s: welcomed at round %d (θ* of %s)", self.worker_id, welcome.round, welcome.origin)
         return WorkerStep(out) + self._begin_round(welcome.round if resume is None else resume)
 
@@ -297,7 +307,7 @@ class WorkerMachine:
             reason = f"reached M={self.max_rounds}"
             return self._finish(WorkerSummary(self.worker_id, self.max_rounds, finished=False, reason=reason))
         self.round, self.phase, self._last_answer = rnd, Phase.PLAYING, None
-        return WorkerStep((act.PlayRound(rnd),))
+        return WorkerStep((act.PlayRound(rnd, self._config),))
 
     def _answered(self, reply: Message) -> WorkerStep:
         """A per-round scheme: act on the chief's answer (Algorithm 2, lines 28-31)."""
@@ -320,10 +330,9 @@ class WorkerMachine:
         # the round may have closed without us (a straggler, or a resend): the fleet's update all the same
         contributed = self.worker_id in reply.contributors
         applied = WorkerStep((act.ApplyAverage(reply.flat, completed=completed, contributed=contributed),))
-        if not contributed:
-            event = WorkerEvent.LATE
-        else:
-            event = WorkerEvent.COMPLETED if completed else WorkerEvent(self.round_message)
+        event: RoundEvent = WorkerEvent.LATE
+        if contributed:
+            event = WorkerEvent.COMPLETED if completed else Sent(self.round_message)
         return applied + self._round_over(self._outcome, reply, event, None, self.worker_id in reply.finished)
 
     def _step_answered(self, reply: Message) -> WorkerStep:
@@ -345,13 +354,14 @@ class WorkerMachine:
         """A per-step scheme's round (every step's answer is applied already)."""
         if reply.type == "done":
             return self._round_over(outcome, reply, WorkerEvent.RUN_ENDED, None, True)
-        event = WorkerEvent.COMPLETED if outcome.completed else WorkerEvent(self.round_message)
+        event = WorkerEvent.COMPLETED if outcome.completed else Sent(self.round_message)
         return self._round_over(outcome, reply, event, None, self.worker_id in reply.finished)
 
     def _round_over(
-        self, outcome: RoundOutcome, reply: Message, event: WorkerEvent, peer: str | None, leave: bool
+        self, outcome: RoundOutcome, reply: Message, event: RoundEvent, peer: str | None, leave: bool
     ) -> WorkerStep:
         """Record the round; stop if this worker leaves, else catch up with what is queued."""
+        self._config = dict(reply.config)  # what the chief asks for the round this answer opens
         record = RoundRecord(self.worker_id, self.round, outcome, event, peer)
         log.info(
             "worker %s round %d: score %g wma %.1f steps %d actor %.4g critic %.4g entropy %.3f: %s",
@@ -377,7 +387,7 @@ class WorkerMachine:
         if message.type == "done":
             return self._finish(WorkerSummary(self.worker_id, message.round, False, "run ended"))
         log.info("worker %s: caught up with the %s of round %d", self.worker_id, message.type, message.round)
-        self._caught_up_to = message.round
+        self._caught_up_to, self._config = message.round, dict(message.config)
         if message.flat is None:
             return NOTHING
         if message.type == "transfer":

@@ -27,7 +27,8 @@ from fleetrl.envs.catalog import ENV_SPECS, describe_env
 from fleetrl.federation.chief import Chief
 from fleetrl.federation.runner import ChiefSummary, run_chief
 from fleetrl.federation.schemes import DEFAULT_SCHEME
-from fleetrl.runs.factory import make_learner, probe_agent
+from fleetrl.federation.schemes.base import FleetStart
+from fleetrl.runs.factory import agent_for, make_learner, probe_agent
 from fleetrl.runs.fleet import Fleet, ThreadFleet, follow
 from fleetrl.runs.live import LiveView
 from fleetrl.runs.processes import ProcessFleet, fork_available
@@ -95,6 +96,25 @@ def shared_layout(settings: LearningSettings) -> list[tuple[str, tuple[int, ...]
 def exchanges_per_round(settings: LearningSettings) -> int:
     """The chief's ``steps_per_round``: 1, or the optimisation steps of an update for a per-step scheme."""
     return settings.federation_scheme().exchanges_per_round(probe_agent(settings.env, settings.ppo()))
+
+
+def fleet_start(settings: LearningSettings) -> FleetStart | None:
+    """The fleet's start under a scheme whose fleet is one policy (``shared_start``), which the chief hands
+    every joining worker: the network the run's learning seed draws, exactly as
+    :func:`~fleetrl.runs.factory.make_learner` draws it for a worker; None for another scheme. The seed is the
+    settings' ``seed`` (``fleetrl chief`` has none yet: 0)."""
+    scheme = settings.federation_scheme()
+    if not scheme.shared_start:
+        return None
+    import torch
+
+    threads = torch.get_num_threads()
+    torch.set_num_threads(1)  # as make_learner draws it: the initialisation's QR differs with the threads
+    try:
+        agent = agent_for(describe_env(settings.env), settings.ppo(), seed=getattr(settings, "seed", 0))
+    finally:
+        torch.set_num_threads(threads)
+    return FleetStart(scheme.welcome_layout(agent), scheme.start_parameters(agent))
 
 
 def train(settings: RunSettings) -> dict[str, Any]:
@@ -241,6 +261,7 @@ def train_federated(
         quorum=settings.quorum,
         round_timeout=settings.round_timeout,
         settings=settings.shared_settings(settings.fleet_seed),
+        start=fleet_start(settings),
     )
     make_transport, fleet_for = transports(settings, url, specs, run_id)
     outcome: dict[str, ChiefSummary | BaseException] = {}

@@ -1,37 +1,45 @@
-"""Federation schemes as strategy objects behind one interface (:class:`~.base.Scheme`), looked up by name.
+"""Federation schemes as strategy objects, found by name: every built-in is one module of this package, a
+user's is named as ``package.module:Class`` (``--scheme mylab.schemes:FedNova``).
 
 * ``paper`` (:mod:`.paper`) — the paper's gradient sharing with model transfer;
 * ``fedavg`` (:mod:`.fedavg`) — whole-model averaging, mature workers stay;
+* ``fedavgm``, ``fedadam`` (:mod:`.fedopt`) — fedavg with a server optimiser (momentum, Adam) on the average;
+* ``fedprox`` (:mod:`.fedprox`) — fedavg with a proximal term in local training;
 * ``pergrad`` (:mod:`.pergrad`) — gradients averaged at every optimisation step (DD-PPO style).
-* ``fedavgm``, ``fedadam`` (:mod:`.fedopt`) — fedavg with a server optimiser (momentum, Adam) on the average.
 
-Adding a scheme: write one module here with a :class:`Scheme` subclass, add it to :data:`SCHEMES`, and test it
-on hand-computed arrays in tests/federation/test_schemes.py (no broker). Nothing else changes: the chief, the
-worker, the learner factory and the launcher only call the scheme object.
+Adding a scheme: write one module here with a :class:`~.base.RoundScheme` or :class:`~.base.StepScheme`
+subclass that sets ``name`` (it is found by that name: no list to edit), and test it on hand-computed arrays
+(no broker). Nothing else changes: the chief, the worker, the learner factory and the launcher only call the
+scheme object, and the message type it declares (``round_message``) is its own.
 """
 
 from __future__ import annotations
 
+import importlib
 import inspect
+import pkgutil
 import types
 from typing import Any, Union, get_args, get_origin, get_type_hints
 
+from fleetrl.envs.unit_factory import load_callable
+from fleetrl.federation.messages import check_scheme_type
 from fleetrl.federation.schemes.base import (
     COMPLETED,
     FederatedAgent,
     Granularity,
     RoundAnswer,
     RoundContext,
+    RoundScheme,
     Scheme,
+    StepScheme,
 )
-from fleetrl.federation.schemes.fedavg import FedAvgScheme
-from fleetrl.federation.schemes.fedopt import FedAdamScheme, FedAvgMScheme
-from fleetrl.federation.schemes.paper import PaperScheme
-from fleetrl.federation.schemes.pergrad import PerStepGradientScheme
 
 DEFAULT_SCHEME = "pergrad"
 """the scheme of ``fleetrl demo``, ``fleetrl train --mode federated``, ``chief`` and ``worker`` when none is
 named: the one that won on the held-out seeds (docs/results.md); ``--scheme paper`` is the paper's"""
+
+USER_FORM = "package.module:Class"
+"""how a scheme from the user's own code is named"""
 
 __all__ = [
     "COMPLETED",
@@ -41,27 +49,43 @@ __all__ = [
     "Granularity",
     "RoundAnswer",
     "RoundContext",
+    "RoundScheme",
     "Scheme",
+    "StepScheme",
     "get_scheme",
     "resolve_scheme",
+    "scheme_reference",
 ]
 
-SCHEMES: dict[str, type[Scheme]] = {
-    cls.name: cls for cls in (PaperScheme, FedAvgScheme, FedAvgMScheme, FedAdamScheme, PerStepGradientScheme)
-}
-"""Every registered scheme class by name."""
+
+def _discover() -> dict[str, type[Scheme]]:
+    """Every concrete scheme class defined in a module of this package, by its ``name`` (modules in name
+    order, classes in the order each module defines them)."""
+    found: dict[str, type[Scheme]] = {}
+    for info in sorted(pkgutil.iter_modules(__path__), key=lambda m: m.name):
+        if info.name == "base":
+            continue
+        module = importlib.import_module(f"{__name__}.{info.name}")
+        for cls in vars(module).values():
+            if (
+                inspect.isclass(cls) and issubclass(cls, Scheme) and cls.__module__ == module.__name__
+                and not inspect.isabstract(cls) and "name" in vars(cls)
+            ):  # fmt: skip
+                if cls.name in found:
+                    raise AssertionError(f"two schemes are named {cls.name!r}")
+                found[cls.name] = cls
+    return found
+
+
+SCHEMES: dict[str, type[Scheme]] = _discover()
+"""Every built-in scheme class by name."""
 
 
 def get_scheme(name: str, **params: Any) -> Scheme:
-    """A new scheme object called ``name`` with ``params``, each typed from the scheme's constructor
-    annotations (an int where a float is expected is taken); ValueError naming the choices, the unknown
-    parameter or the bad value otherwise."""
-    try:
-        cls = SCHEMES[name]
-    except KeyError:
-        names = list(SCHEMES)
-        choices = ", ".join(names[:-1]) + " or " + names[-1]
-        raise ValueError(f"unknown federation scheme {name!r} (choose {choices})") from None
+    """A new scheme object called ``name`` (a built-in's name, or ``package.module:Class``) with ``params``,
+    each typed from the scheme's constructor annotations (an int where a float is expected is taken);
+    ValueError naming the choices, the unknown parameter or the bad value otherwise."""
+    cls = scheme_class(name)
     accepted = scheme_parameters(cls)
     unknown = sorted(set(params) - set(accepted))
     if unknown:
@@ -74,6 +98,44 @@ def get_scheme(name: str, **params: Any) -> Scheme:
         return cls(**typed)
     except ValueError as err:
         raise ValueError(f"scheme {name!r}: {err}") from None
+
+
+def scheme_class(name: str) -> type[Scheme]:
+    """The class ``name`` names: a built-in, or a user's ``package.module:Class`` (imported, and checked to
+    be a concrete :class:`RoundScheme` or :class:`StepScheme` declaring what every scheme declares)."""
+    if ":" in name:
+        return _user_scheme(name)
+    try:
+        return SCHEMES[name]
+    except KeyError:
+        names = list(SCHEMES)
+        choices = ", ".join(names[:-1]) + " or " + names[-1]
+        raise ValueError(
+            f"unknown federation scheme {name!r} (choose {choices}, or your own as {USER_FORM})"
+        ) from None
+
+
+def _user_scheme(text: str) -> type[Scheme]:
+    what = f"scheme {text!r}"
+    cls = load_callable(text, what, USER_FORM, "a RoundScheme or StepScheme subclass")
+    if not (inspect.isclass(cls) and issubclass(cls, RoundScheme | StepScheme)):
+        raise ValueError(f"{what} is not a subclass of fleetrl.federation.schemes.RoundScheme or StepScheme")
+    if inspect.isabstract(cls):
+        missing = ", ".join(sorted(getattr(cls, "__abstractmethods__", ())))
+        raise ValueError(f"{what} does not define {missing}")
+    lacking = [a for a in ("name", "round_message", "stays_after_completion") if not hasattr(cls, a)]
+    if lacking:
+        raise ValueError(f"{what} does not set {', '.join(lacking)}")
+    check_scheme_type(cls.round_message, what)
+    return cls
+
+
+def scheme_reference(scheme: Scheme) -> str:
+    """What names ``scheme``'s class for :func:`get_scheme`: a built-in's name, else ``module:Class``."""
+    cls = type(scheme)
+    if SCHEMES.get(cls.name) is cls:
+        return cls.name
+    return f"{cls.__module__}:{cls.__qualname__}"
 
 
 def scheme_parameters(cls: type[Scheme]) -> dict[str, Any]:

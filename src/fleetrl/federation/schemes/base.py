@@ -1,14 +1,23 @@
-"""The :class:`Scheme` interface: one federation scheme, read by the chief's and the worker's state machines.
+"""The scheme seam: what every federation scheme says (:class:`Scheme`, read by the chief), and the two ways a
+worker takes part, each its own protocol — :class:`RoundScheme` (one message per round: ``paper``, ``fedavg``,
+``fedprox`` …) and :class:`StepScheme` (one message per optimisation step: ``pergrad``). The chief's and the
+worker's state machines use the one they need; no method of either raises because it belongs to the other.
 
-Like a Flower ``Strategy``, a scheme says everything that differs between ways of federating, and the chief,
-the worker, the learner factory and the launcher only call it:
+Like a Flower ``Strategy``, a scheme says everything that differs between ways of federating:
 
-* what a worker shares (:meth:`Scheme.layout`: the actor, or the whole actor-critic) and what it sends after a
-  round (:meth:`Scheme.outgoing`), and how often (:attr:`Scheme.granularity`);
-* how the chief combines the answers of a round (:meth:`Scheme.combine`, with the run's aggregation rule);
-* what a worker does with the chief's answer (:meth:`Scheme.apply_average`, :meth:`Scheme.take_parameters`);
-* what a worker whose criterion holds does (:attr:`Scheme.stays_after_completion`) and when the run is
-  finished (:attr:`RoundAnswer.ends_run`).
+* what a worker shares (:meth:`Scheme.layout`) and under which message type (:attr:`Scheme.round_message`, its
+  own: no list elsewhere names it);
+* what the chief asks of every worker for a round (:meth:`Scheme.configure`, Flower's ``configure_fit``: a
+  small map carried by the message that opens the round) and how it combines the answers of a round
+  (:meth:`Scheme.combine`, with the run's aggregation rule, weighted by what each answer stands for:
+  :func:`aggregate`);
+* what a worker does with the chief's answer (:meth:`RoundScheme.apply_average`,
+  :meth:`StepScheme.apply_step_answer`, :meth:`Scheme.take_parameters`), what it adds to its local
+  training (:meth:`RoundScheme.local_loss`, e.g. FedProx's proximal term), what it sends
+  (:meth:`RoundScheme.outgoing`);
+* where the fleet starts (:attr:`Scheme.shared_start`: the chief's welcome hands every joining worker the
+  fleet's start), what a worker whose criterion holds does (:attr:`Scheme.stays_after_completion`) and when
+  the run is finished (:attr:`RoundAnswer.ends_run`).
 
 The protocol around it is the same for every scheme (docs/protocol.md): a ``parameters`` message says "my
 criterion holds"; the chief answers a round with one ``average`` or one ``transfer``; workers named in the
@@ -18,27 +27,26 @@ answer's ``finished`` leave W.
 from __future__ import annotations
 
 from abc import ABC, abstractmethod
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from enum import StrEnum
-from typing import Any, ClassVar, Literal, Protocol
+from typing import TYPE_CHECKING, Any, ClassVar, Literal, Protocol, TypeAlias, runtime_checkable
 
 import numpy as np
 
 from fleetrl.federation.aggregation import Aggregator
-from fleetrl.federation.messages import Layout, Message
+from fleetrl.federation.messages import Layout, Message, RoundConfig
+
+if TYPE_CHECKING:  # torch is the agent's: not imported to read a scheme
+    import torch
 
 COMPLETED = "parameters"
 """The message type a worker sends in a round in which its completion criterion holds (every scheme)."""
 
 
-class WrongGranularity(TypeError):
-    """A per-round method was called on a per-step scheme, or the reverse: a bug in the caller (the runner
-    calls each scheme only through the methods of its :class:`Granularity`), never a user's setting."""
-
-
 class Granularity(StrEnum):
-    """How often a worker sends: once per round, or once per optimisation step of the round."""
+    """How often a worker sends: once per round (:class:`RoundScheme`), or once per optimisation step of the
+    round (:class:`StepScheme`)."""
 
     ROUND = "round"
     """one message per round, after the round's K optimisations (``paper``, ``fedavg``)"""
@@ -106,6 +114,30 @@ class FederatedAgent(Protocol):
         ...
 
 
+ExtraLoss: TypeAlias = "Callable[[torch.nn.Module], torch.Tensor]"
+"""A term added to the loss of every optimisation step of local training: ``fn(model) -> scalar tensor``
+(FedProx's μ/2‖θ − θ_global‖²); ``model`` is the agent's actor-critic network."""
+
+
+@runtime_checkable
+class LocalTraining(Protocol):
+    """The worker-side hook into the agent's local training (``fleetrl.agent.ppo.PPOAgent`` provides it)."""
+
+    def set_extra_loss(self, fn: ExtraLoss | None) -> None:
+        """Add ``fn(model)`` to the loss of every optimisation step from now on (None: nothing added)."""
+        ...
+
+
+@dataclass(frozen=True)
+class FleetStart:
+    """The parameters every worker of a one-policy fleet starts from, handed out in the chief's welcome."""
+
+    layout: Layout
+    """their names and shapes (:meth:`Scheme.welcome_layout`)"""
+    flat: np.ndarray
+    """the parameters, flat float32 in that order"""
+
+
 @dataclass(frozen=True)
 class RoundContext:
     """What the chief knows when a round closes, for :meth:`Scheme.combine`."""
@@ -145,9 +177,11 @@ class RoundAnswer:
 
 
 class Scheme(ABC):
-    """One federation scheme. Subclasses live one per module in :mod:`fleetrl.federation.schemes` and are
-    registered there by name; an instance may hold state across rounds (a server optimiser's momentum), saved
-    with the chief through :meth:`state` and :meth:`restore`.
+    """What every scheme says, and the chief's side of it. A scheme is a :class:`RoundScheme` or a
+    :class:`StepScheme` (the worker's side); the built-ins live one per module in
+    :mod:`fleetrl.federation.schemes` (found there by name), a user's anywhere (``--scheme module:Class``).
+    An instance may hold state across rounds (a server optimiser's momentum), saved with the chief through
+    :meth:`state` and :meth:`restore`.
     """
 
     name: ClassVar[str]
@@ -155,17 +189,16 @@ class Scheme(ABC):
     summary: ClassVar[str]
     """one line for logs and ``--help``"""
     round_message: ClassVar[str]
-    """the message type a still-learning worker sends (a key of ``MESSAGE_TYPES``)"""
+    """the message type a still-learning worker sends: the scheme's own name for it (lower-case letters,
+    digits and ``_``), declared here only"""
     stays_after_completion: ClassVar[bool]
     """a worker whose criterion holds keeps learning in W (True) or transfers and leaves (False); the learner
     factory sets ``Learner.keep_learning`` from it"""
-    granularity: ClassVar[Granularity] = Granularity.ROUND
-    """how often a worker sends: once per round, or once per optimisation step (the chief is then built with
-    the round's number of steps, and the worker exchanges every step, sending the step's gradient and
-    applying the answer with :meth:`apply_step_answer`)"""
+    granularity: ClassVar[Granularity]
+    """how often a worker sends (set by :class:`RoundScheme` and :class:`StepScheme`)"""
     shared_start: ClassVar[bool] = False
-    """every worker starts from the same parameters (those drawn from the run's seed, not its own): a scheme
-    that averages gradients into identical models needs it"""
+    """the fleet is one policy: every worker starts from the same parameters, the fleet's start, which the
+    chief's ``welcome`` hands to every joining worker (whatever its own seed)"""
 
     def params(self) -> dict[str, Any]:
         """The scheme's parameters (JSON values), for the welcome's shared settings and checkpoints."""
@@ -175,49 +208,47 @@ class Scheme(ABC):
         """Whether the chief takes a worker message of this type in a round."""
         return message_type in (self.round_message, COMPLETED)
 
-    # -- worker side ---------------------------------------------------------------------------------------
-
     @abstractmethod
     def layout(self, agent: FederatedAgent) -> Layout:
-        """Names and shapes of the tensors this scheme puts on the wire for ``agent``."""
+        """Names and shapes of the tensors a worker sends and the chief answers with, for ``agent``."""
 
-    @abstractmethod
-    def outgoing(self, agent: FederatedAgent, *, completed: bool) -> tuple[str, np.ndarray]:
-        """(type, flat vector) a worker sends after a round; type :data:`COMPLETED` if its criterion holds."""
+    def welcome_layout(self, agent: FederatedAgent) -> Layout:
+        """Names and shapes of the parameters a ``welcome`` hands a joining worker (the fleet's model or its
+        start; :meth:`take_parameters` takes them): :meth:`layout` unless the scheme shares no parameters."""
+        return self.layout(agent)
+
+    def start_parameters(self, agent: FederatedAgent) -> np.ndarray:
+        """``agent``'s parameters in :meth:`welcome_layout` order: the fleet's start, drawn by the chief's
+        role (a ``shared_start`` scheme); the whole actor-critic unless a scheme shares less."""
+        return agent.model_parameters()
 
     @abstractmethod
     def take_parameters(self, agent: FederatedAgent, flat: np.ndarray) -> None:
-        """Replace the worker's shared parameters with ``flat`` (a ``transfer``, or the welcome's θ*)."""
-
-    @abstractmethod
-    def apply_average(
-        self, agent: FederatedAgent, flat: np.ndarray, *, completed: bool, contributed: bool
-    ) -> None:
-        """Act on the chief's ``average``.
-
-        :param completed: this worker's criterion held in the round it answers.
-        :param contributed: this worker's message is among those averaged (False: the round closed without it,
-            or the worker is catching up with rounds it missed).
-        """
+        """Replace the worker's shared parameters with the fleet's ``flat`` (in :meth:`welcome_layout`): a
+        ``transfer``, or a ``welcome``'s model or start."""
 
     def exchanges_per_round(self, agent: FederatedAgent) -> int:
-        """How many messages a worker sends per round (the chief's ``steps_per_round``): 1, or for a per-step
-        scheme the steps of one update; a ValueError if the agent's settings do not fit the scheme."""
+        """How many messages a worker sends per round (the chief's ``steps_per_round``): 1 for a
+        :class:`RoundScheme`."""
         del agent
         return 1
 
-    def apply_step_answer(self, agent: FederatedAgent, flat: np.ndarray) -> None:
-        """A per-step scheme: apply the chief's combination of the workers' gradients of the step."""
-        raise WrongGranularity(f"scheme {self.name!r} sends once per round: it has no step answers")
+    def configure(self, round: int, members: tuple[str, ...]) -> RoundConfig:
+        """What the chief asks of every worker for ``round`` (Flower's ``configure_fit``): a small map of
+        names to numbers or short texts, carried by the message that opens the round and handed to the
+        worker's side (:meth:`RoundScheme.local_loss`); nothing by default.
 
-    # -- chief side ----------------------------------------------------------------------------------------
+        :param members: W as the round opens.
+        """
+        del round, members
+        return {}
 
     @abstractmethod
     def combine(self, answers: Mapping[str, Message], context: RoundContext) -> RoundAnswer:
-        """The chief's answer to a closed round.
+        """The chief's answer to a closed round (or, for a :class:`StepScheme`, a closed step).
 
         :param answers: sender → message, in sorted worker-id order (never arrival order), every one carrying
-            ``flat`` of :meth:`layout`.
+            ``flat`` of :meth:`layout` and saying what it stands for (``samples``, ``units``).
         :param context: the aggregation rule, W and who has completed.
         """
 
@@ -230,6 +261,49 @@ class Scheme(ABC):
         del fields, tensors
 
 
+class RoundScheme(Scheme):
+    """A scheme whose worker sends once per round, after its local training (the round's K optimisations)."""
+
+    granularity: ClassVar[Granularity] = Granularity.ROUND
+
+    @abstractmethod
+    def outgoing(self, agent: FederatedAgent, *, completed: bool) -> tuple[str, np.ndarray]:
+        """(type, flat vector) a worker sends after a round; type :data:`COMPLETED` if its criterion holds."""
+
+    @abstractmethod
+    def apply_average(
+        self, agent: FederatedAgent, flat: np.ndarray, *, completed: bool, contributed: bool
+    ) -> None:
+        """Act on the chief's ``average``.
+
+        :param completed: this worker's criterion held in the round it answers.
+        :param contributed: this worker's message is among those averaged (False: the round closed without it,
+            or the worker is catching up with rounds it missed).
+        """
+
+    def local_loss(self, agent: FederatedAgent, config: RoundConfig) -> ExtraLoss | None:
+        """What the worker adds to its local training's loss this round (called before the round is
+        played, with the chief's :meth:`~Scheme.configure` for it); None: nothing (the default)."""
+        del agent, config
+        return None
+
+
+class StepScheme(Scheme):
+    """A scheme whose worker exchanges every optimisation step of its update with the chief, keyed (sender,
+    round, step): it sends the step's gradient and applies the chief's combination before the next step."""
+
+    granularity: ClassVar[Granularity] = Granularity.STEP
+
+    @abstractmethod
+    def exchanges_per_round(self, agent: FederatedAgent) -> int:
+        """How many messages a worker sends per round (the chief's ``steps_per_round``): the steps of one
+        update; a ValueError if the agent's settings do not fit the scheme."""
+
+    @abstractmethod
+    def apply_step_answer(self, agent: FederatedAgent, flat: np.ndarray) -> None:
+        """Apply the chief's combination of the workers' gradients of the step."""
+
+
 def flats(answers: Mapping[str, Message]) -> list[np.ndarray]:
     """The answers' vectors in the mapping's (sorted worker-id) order."""
     out = []
@@ -238,6 +312,16 @@ def flats(answers: Mapping[str, Message]) -> list[np.ndarray]:
             raise AssertionError(f"{message.type} from {sender} has no tensors")
         out.append(message.flat)
     return out
+
+
+def aggregate(
+    answers: Mapping[str, Message], context: RoundContext, by: Literal["units", "samples"] = "units"
+) -> np.ndarray:
+    """The answers' vectors combined with the run's rule, each weighted by what it stands for (``by``: the
+    units or the transitions its message says it carries; a rule that cannot weigh counts members). Equal
+    weights give exactly the unweighted rule."""
+    weights = [float(getattr(m, by)) for m in answers.values()]
+    return context.aggregate(flats(answers), weights=weights)
 
 
 def average_until_all_completed(
@@ -250,7 +334,7 @@ def average_until_all_completed(
     ends = context.last_step and bool(members) and members.issubset(context.completed)
     return RoundAnswer(
         "average",
-        context.aggregate(flats(answers)),
+        aggregate(answers, context),
         contributors=tuple(answers),
         finished=context.members if ends else (),
         fleet_model=fleet_model,

@@ -20,12 +20,12 @@ from fleetrl.federation.schemes.base import (
     FederatedAgent,
     RoundAnswer,
     RoundContext,
-    Scheme,
+    RoundScheme,
     average_until_all_completed,
 )
 
 
-class FedAvgScheme(Scheme):
+class FedAvgScheme(RoundScheme):
     """Federated averaging of whole models (McMahan et al.), one average per round."""
 
     name = "fedavg"

@@ -21,12 +21,12 @@ from fleetrl.federation.schemes.base import (
     FederatedAgent,
     RoundAnswer,
     RoundContext,
-    Scheme,
-    flats,
+    RoundScheme,
+    aggregate,
 )
 
 
-class PaperScheme(Scheme):
+class PaperScheme(RoundScheme):
     """Gradient sharing with model transfer (the paper's Algorithms 1 and 2)."""
 
     name = "paper"
@@ -48,6 +48,10 @@ class PaperScheme(Scheme):
         """Replace the actor's parameters (line 29)."""
         agent.set_actor_parameters(flat)
 
+    def start_parameters(self, agent: FederatedAgent) -> np.ndarray:
+        """The actor's parameters (what a transfer carries)."""
+        return agent.actor_parameters()
+
     def apply_average(
         self, agent: FederatedAgent, flat: np.ndarray, *, completed: bool, contributed: bool
     ) -> None:
@@ -68,4 +72,4 @@ class PaperScheme(Scheme):
             return RoundAnswer(
                 "transfer", flat, origin=origin, finished=completed, leave_w=completed, fleet_model=True
             )
-        return RoundAnswer("average", context.aggregate(flats(answers)), contributors=tuple(answers))
+        return RoundAnswer("average", aggregate(answers, context), contributors=tuple(answers))

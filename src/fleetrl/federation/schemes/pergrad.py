@@ -11,8 +11,10 @@ criterion holds says so (its step messages are typed ``parameters``) and stays; 
 in which every member of W has completed, as with ``fedavg``.
 
 Per step the chief combines with the run's aggregation rule (mean by default; a robust rule also works). A
-per-step scheme needs every worker at every step: quorum 1, no rejoin with a model (a worker that restarts
-mid-run diverges from the fleet; it is refused nothing, but its updates then come from another model).
+per-step scheme needs every worker at every step: quorum 1. The fleet starts from one network whatever each
+worker's own seed: the chief's ``welcome`` hands it to every joining worker (``shared_start``). A worker that
+restarts mid-run without its checkpoint takes that start again and so diverges from the fleet; it is refused
+nothing, but its updates then come from another model.
 """
 
 from __future__ import annotations
@@ -24,42 +26,33 @@ import numpy as np
 from fleetrl.federation.messages import Layout, Message
 from fleetrl.federation.schemes.base import (
     FederatedAgent,
-    Granularity,
     RoundAnswer,
     RoundContext,
-    Scheme,
-    WrongGranularity,
+    StepScheme,
     average_until_all_completed,
 )
 
 
-class PerStepGradientScheme(Scheme):
+class PerStepGradientScheme(StepScheme):
     """Synchronous per-step gradient averaging (Wijmans et al.'s DD-PPO, with the chief as the all-reduce)."""
 
     name = "pergrad"
     summary = "average the workers' minibatch gradients at every optimisation step; mature workers stay"
     round_message = "step_gradient"
     stays_after_completion = True
-    granularity = Granularity.STEP
     shared_start = True
 
     def layout(self, agent: FederatedAgent) -> Layout:
         """One step's gradient: the whole actor-critic (every step moves the same parameters)."""
         return agent.step_layout(0)
 
-    def outgoing(self, agent: FederatedAgent, *, completed: bool) -> tuple[str, np.ndarray]:
-        """Nothing is sent after the round: the steps carried it (the worker never calls this)."""
-        raise WrongGranularity("pergrad sends per step, nothing after the round")
+    def welcome_layout(self, agent: FederatedAgent) -> Layout:
+        """The whole actor-critic's parameters: the fleet's start."""
+        return agent.model_layout()
 
     def take_parameters(self, agent: FederatedAgent, flat: np.ndarray) -> None:
-        """No parameters travel in this scheme (its workers never receive a transfer)."""
-        raise WrongGranularity("pergrad transfers no parameters")
-
-    def apply_average(
-        self, agent: FederatedAgent, flat: np.ndarray, *, completed: bool, contributed: bool
-    ) -> None:
-        """Averages arrive per step (:meth:`apply_step_answer`)."""
-        raise WrongGranularity("pergrad applies its averages per step")
+        """Start from the fleet's network (the welcome's; no transfer happens in this scheme)."""
+        agent.set_model_parameters(flat)
 
     def exchanges_per_round(self, agent: FederatedAgent) -> int:
         """The steps of one update; every step must move the same parameters (one layout on the wire)."""

@@ -1,0 +1,73 @@
+"""``fedprox``: fedavg with a proximal term in every worker's local training (Li et al., "Federated
+Optimization in Heterogeneous Networks", MLSys 2020).
+
+The chief does exactly what it does under ``fedavg`` (averages the workers' whole actor-critics). Each round
+it asks every worker for μ (the round's configuration, as Flower's FedProx sends ``proximal_mu`` in its fit
+configuration), and each worker adds μ/2‖θ − θ_global‖² to the loss of every optimisation step of the round,
+θ_global being the model the round started from (the fleet's average it last took). The term pulls each
+worker's local update towards the fleet's model, so units whose dynamics differ drift apart less. μ = 0 is
+fedavg, bit for bit (no term is added).
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+
+from fleetrl.federation.messages import RoundConfig
+from fleetrl.federation.schemes.base import ExtraLoss, FederatedAgent
+from fleetrl.federation.schemes.fedavg import FedAvgScheme
+
+
+class FedProxScheme(FedAvgScheme):
+    """Model averaging with a proximal term in local training.
+
+    :param mu: μ ≥ 0, the weight of the proximal term μ/2‖θ − θ_global‖² (default 0.01; 0 is fedavg).
+    :raises ValueError: μ negative or not finite.
+    """
+
+    name = "fedprox"
+    summary = "fedavg with the proximal term mu/2 ||theta - theta_global||^2 in every worker's local training"
+
+    def __init__(self, *, mu: float = 0.01) -> None:
+        if not (math.isfinite(mu) and mu >= 0.0):
+            raise ValueError(f"mu = {mu!r}: must be a finite number >= 0")
+        self.mu = float(mu)
+
+    def params(self) -> dict[str, Any]:
+        """μ."""
+        return {"mu": self.mu}
+
+    def configure(self, round: int, members: tuple[str, ...]) -> RoundConfig:
+        """Every worker is asked for the same μ each round."""
+        del round, members
+        return {"mu": self.mu}
+
+    def local_loss(self, agent: FederatedAgent, config: RoundConfig) -> ExtraLoss | None:
+        """μ/2‖θ − θ_global‖² over the whole actor-critic, θ_global = the agent's model now (the round's
+        start); μ from the chief's configuration (this scheme's own μ if it has none); None when μ is 0."""
+        mu = float(config.get("mu", self.mu))
+        if mu == 0.0:
+            return None
+        return proximal_term(mu, agent.model_layout(), agent.model_parameters())
+
+
+def proximal_term(mu: float, layout: list[tuple[str, tuple[int, ...]]], flat: np.ndarray) -> ExtraLoss:
+    """``fn(model) = mu/2 · Σ ‖p − θ_global[name]‖²`` over the parameters of ``model`` named in ``layout``
+    (θ_global: ``flat`` split by ``layout``, the names ``model.named_parameters()`` gives)."""
+    import torch  # the worker's: a chief reading this module does not load it
+
+    anchors, start = {}, 0
+    for name, shape in layout:
+        size = math.prod(shape)
+        anchors[name] = torch.from_numpy(np.array(flat[start : start + size], np.float32).reshape(shape))
+        start += size
+
+    def term(model: torch.nn.Module) -> torch.Tensor:
+        params = dict(model.named_parameters())
+        total = sum(((params[name] - anchor) ** 2).sum() for name, anchor in anchors.items())
+        return 0.5 * mu * torch.as_tensor(total)
+
+    return term
