@@ -14,41 +14,24 @@ from typing import Any
 from fleetrl.cli import device_command, roles
 from fleetrl.cli.settings_args import (
     add_broker_arguments,
-    add_config_argument,
     add_env_argument,
     add_fleet_profile_argument,
-    add_learning_arguments,
-    add_round_arguments,
+    add_settings_arguments,
     add_target_score_argument,
     settings_from_args,
 )
 
 
 def add_train_arguments(p: argparse.ArgumentParser) -> None:
-    """``fleetrl train``'s options; each is a field of RunSettings (and a key of a --config file)."""
-    add_config_argument(p)
-    add_learning_arguments(p)
-    add_round_arguments(p)
-    add_broker_arguments(p, "default: an embedded broker")
-    p.add_argument("--units", type=int, default=None, help="units in the fleet, one worker each (default 3)")
-    p.add_argument("--seed", type=int, default=None, help="learning seed (default 0)")
-    p.add_argument("--fleet-seed", type=int, default=None, help="seed of the fleet's per-unit dynamics (0)")
-    p.add_argument("--out", type=Path, default=None, help="run directory to create (required)")
-    p.add_argument("--no-live", dest="live", action="store_false", default=None, help="no live terminal view")
-    p.add_argument("--mode", default=None, help="individual or federated (default)")
-    p.add_argument("--transport", default=None, help="federated: mqtt (default) or local")
-    p.add_argument(
-        "--device-link",
-        default=None,
-        help="inprocess (default) or mqtt: each unit served by a device bridge over the broker",
-    )
-    p.add_argument(
-        "--device-driver",
-        default=None,
-        metavar="PKG.MOD:FUNCTION",
-        help="with --device-link mqtt: what the bridges serve, driver(unit, fleet_seed, *, realtime) -> "
-        "DeviceDriver (needed for your own unit type; a built-in's bridges serve its simulated units)",
-    )
+    """``fleetrl train``'s options: one per setting of RunSettings (and a key of a --config file)."""
+    from fleetrl.federation.schemes import DEFAULT_SCHEME
+    from fleetrl.runs.settings import ALONE_SCHEME, RunSettings
+
+    notes = {
+        "broker": "unset: an embedded broker",
+        "scheme": f"unset: {DEFAULT_SCHEME} ({ALONE_SCHEME} with --mode individual, where it is unused)",
+    }
+    add_settings_arguments(p, RunSettings, notes=notes)
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -183,8 +166,7 @@ def cmd_demo(args: argparse.Namespace) -> int:
     from fleetrl.runs.launch import demo_settings, train
 
     out = args.out or Path("runs") / time.strftime("demo-%Y%m%d-%H%M%S")
-    settings = demo_settings(out, args.seed)
-    settings.validate()
+    settings = demo_settings(out, args.seed).resolved()
     summary = train(settings)
     print_summary(summary, settings.out)
     return exit_code(summary)

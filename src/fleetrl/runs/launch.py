@@ -23,22 +23,20 @@ from typing import Any
 
 from fleetrl.federation.chief import Chief
 from fleetrl.federation.runner import ChiefSummary, run_chief
-from fleetrl.federation.schemes import DEFAULT_SCHEME
-from fleetrl.runs.factory import probe_agent
+from fleetrl.federation.shared_settings import shared_text
 from fleetrl.runs.fleet import Fleet, ThreadFleet, follow
 from fleetrl.runs.live import LiveView
 from fleetrl.runs.processes import ProcessFleet
 from fleetrl.runs.roles import Emit
 from fleetrl.runs.roles import train_federated as train_federated_worker
 from fleetrl.runs.rundir import RunDirectoryError, RunRecorder, write_json_atomic
-from fleetrl.runs.settings import LearningSettings, RunSettings
+from fleetrl.runs.settings import LearningSettings, RunSettings, fleet_shape
 from fleetrl.runs.spec import WorkerSpec
 from fleetrl.transport.base import Transport
 from fleetrl.transport.login import password_in_environment
 
 log = logging.getLogger(__name__)
 
-DEMO_MAX_ROUNDS = 1000
 CHIEF_IDLE_TIMEOUT = 600.0
 TRAIN_CONNECT_WINDOW = 10.0
 """seconds ``fleetrl train`` retries a broker given with ``--broker`` before it gives up (exit 1)"""
@@ -46,57 +44,25 @@ TRAIN_CONNECT_WINDOW = 10.0
 
 def demo_settings(out: Path, seed: int = 0) -> RunSettings:
     """The main job: a simulated 3-unit QUBE fleet trained federated through an embedded MQTT broker, with
-    fleetrl's best scheme (the default, ``pergrad``; docs/results.md measures it against the paper's)."""
-    return RunSettings(
-        mode="federated",
-        env="qube",
-        units=3,
-        preset="standard",
-        scheme=DEFAULT_SCHEME,
-        seed=seed,
-        max_rounds=DEMO_MAX_ROUNDS,
-        out=out,
-    )
+    fleetrl's best scheme (the default; docs/results.md measures it against the paper's). Every other
+    setting is its default."""
+    return RunSettings(learning=LearningSettings(seed=seed), out=out)
 
 
 def worker_specs(settings: RunSettings, device_url: str | None, run_id: str) -> dict[int, WorkerSpec]:
     """One spec per worker; worker K trains unit K of the fleet."""
     return {
         k: WorkerSpec(
-            worker=k,
-            unit=k,
-            env=settings.env,
-            preset=settings.preset,
-            seed=settings.seed,
-            fleet_seed=settings.fleet_seed,
-            fleet_profile=settings.fleet_profile,
-            max_rounds=settings.max_rounds,
-            out=str(settings.out),
-            overrides=dict(settings.overrides),
-            device_url=device_url,
+            worker=k, unit=k, learning=settings.learning, out=str(settings.out), device_url=device_url,
             device_run_id=run_id,
-            scheme=settings.scheme_name,
-            scheme_params=dict(settings.scheme_params),
-            target_score=settings.target_score,
-        )
+        )  # fmt: skip
         for k in range(settings.units)
     }
 
 
-def shared_layout(settings: LearningSettings) -> list[tuple[str, tuple[int, ...]]]:
-    """Names and shapes of what the run's scheme shares for this env and preset (the scheme's
-    :meth:`~fleetrl.federation.schemes.Scheme.layout`): the chief validates every message with it."""
-    return list(settings.federation_scheme().layout(probe_agent(settings.env, settings.ppo())))
-
-
-def exchanges_per_round(settings: LearningSettings) -> int:
-    """The chief's ``steps_per_round``: 1, or the optimisation steps of an update for a per-step scheme."""
-    return settings.federation_scheme().exchanges_per_round(probe_agent(settings.env, settings.ppo()))
-
-
 def train(settings: RunSettings) -> dict[str, Any]:
-    """Run the whole training and return summary.json's content."""
-    settings.validate()
+    """Run the whole training of resolved ``settings`` (:meth:`RunSettings.resolved`) and return
+    summary.json's content."""
     password = settings.broker_password if settings.broker else None
     with password_in_environment(password):  # children inherit it; no argv or file holds it
         if settings.needs_broker and settings.broker:  # fatal now, before the run directory exists
@@ -114,8 +80,9 @@ def _train(settings: RunSettings) -> dict[str, Any]:
     recorder = RunRecorder(Path(settings.out), settings.to_config(), list(range(settings.units)))
     (recorder.out / "config.toml").write_text(settings.to_toml())
     recorder.extra["run_id"] = run_id
-    title = f"fleetrl {settings.mode} · {settings.env} × {settings.units} · preset {settings.preset}"
-    threshold = settings.target_score
+    learning = settings.learning
+    title = f"fleetrl {settings.mode} · {learning.env} × {settings.units} · preset {learning.preset}"
+    threshold = learning.target_score
     assert threshold is not None, "validation fills in the target score"
     try:
         with (
@@ -155,8 +122,9 @@ def device_bridges(settings: RunSettings, url: str | None, run_id: str) -> Itera
     assert url is not None, "a device link over MQTT needs a broker"
     units = range(settings.units)
     driver = settings.bridge_driver()  # a built-in's device type, or the user's driver function
-    profile = settings.fleet_profile if isinstance(driver, str) else None
-    with start_bridges(url, run_id, driver, units, settings.fleet_seed, fleet_profile=profile):
+    learning = settings.learning
+    profile = learning.fleet_profile if isinstance(driver, str) else None
+    with start_bridges(url, run_id, driver, units, learning.fleet_seed, fleet_profile=profile):
         yield
 
 
@@ -200,17 +168,18 @@ def train_federated(
     view: LiveView,
 ) -> None:
     """Chief in a thread of this process; workers as processes (MQTT at ``url``) or threads (local bus)."""
+    shape = fleet_shape(settings.learning)
     chief = Chief(
         run_id=run_id,
         workers=[str(k) for k in specs],
-        layout=shared_layout(settings),
-        steps_per_round=exchanges_per_round(settings),
-        max_rounds=settings.max_rounds,
+        layout=shape.layout,
+        steps_per_round=shape.exchanges_per_round,
+        max_rounds=settings.learning.max_rounds,
         aggregator=settings.aggregation,
-        scheme=settings.federation_scheme(),
+        scheme=settings.learning.federation_scheme(),
         quorum=settings.quorum,
         round_timeout=settings.round_timeout,
-        settings=settings.shared_settings(settings.fleet_seed),
+        settings=shared_text(settings.learning),
     )
     make_transport, fleet_for = transports(settings, url, specs, run_id)
     outcome: dict[str, ChiefSummary | BaseException] = {}

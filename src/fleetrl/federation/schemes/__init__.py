@@ -13,8 +13,9 @@ worker, the learner factory and the launcher only call the scheme object.
 from __future__ import annotations
 
 import inspect
-import types
-from typing import Any, Union, get_args, get_origin, get_type_hints
+from typing import Any, get_type_hints
+
+from fleetrl.coercion import CoercionError, coerce
 
 from fleetrl.federation.schemes.base import (
     COMPLETED,
@@ -86,16 +87,10 @@ def scheme_parameters(cls: type[Scheme]) -> dict[str, Any]:
 
 
 def _typed(scheme: str, key: str, value: Any, kind: Any) -> Any:
-    options = get_args(kind) if get_origin(kind) in (Union, types.UnionType) else (kind,)
-    for option in options:
-        if option is Any or (option is type(None) and value is None):
-            return value
-        if option is float and isinstance(value, int | float) and not isinstance(value, bool):
-            return float(value)
-        if option in (int, str, bool) and type(value) is option:
-            return value
-    wanted = " or ".join(getattr(o, "__name__", str(o)) for o in options if o is not type(None))
-    raise ValueError(f"scheme {scheme!r}: {key} = {value!r}: expected {wanted}")
+    try:
+        return coerce(key, value, kind)
+    except CoercionError as err:
+        raise ValueError(f"scheme {scheme!r}: {err}") from None
 
 
 def resolve_scheme(scheme: str | Scheme) -> Scheme:
