@@ -5,16 +5,15 @@ from __future__ import annotations
 
 import argparse
 import csv
-import dataclasses
 import tomllib
 from pathlib import Path
 
 import pytest
 
+from fleetrl.agent.config import DEFAULT_PRESET
 from fleetrl.cli.main import build_parser, main
 from fleetrl.cli.settings_args import NOT_SETTINGS, settings_from_args
 from fleetrl.runs.role_settings import ChiefSettings, WorkerSettings
-from fleetrl.agent.config import DEFAULT_PRESET
 from fleetrl.runs.setting_values import SettingError, setting_fields
 from fleetrl.runs.settings import RunSettings
 

@@ -1,16 +1,16 @@
 """The learning settings of a run as one frozen value, and the part of it every role must share.
 
-:class:`LearningSettings` is what every worker learns with: the unit type and its fleet, the PPO preset and its
-overrides, the scheme and its parameters, the target score, the learning seed and the most rounds. ``fleetrl
-train``, ``chief`` and ``worker`` hold it, a worker's spec carries it, a run's config file spells it out, and
-its fields' defaults are the only defaults of those settings (the flags and their help are generated from the
-fields). :func:`fleetrl.runs.settings.resolve_learning` turns one as given into one with every default filled
-in and every value checked (a new value: nothing is changed in place).
+:class:`LearningSettings` is what every worker learns with: the unit type and its fleet, the PPO preset and
+its overrides, the scheme and its parameters, the target score, the learning seed and the most rounds.
+``fleetrl train``, ``chief`` and ``worker`` hold it, a worker's spec carries it, a run's config file spells it
+out, and its fields' defaults are the only defaults of those settings (the flags and their help are generated
+from the fields). :func:`fleetrl.runs.settings.resolve_learning` turns one as given into one with every
+default filled in and every value checked (a new value: nothing is changed in place).
 
-The chief's ``welcome`` carries its :func:`shared_text`; a worker's ``join`` carries its own. They are a map of
-setting name → value text over the fields marked ``shared`` (the env, the fleet seed and profile, the preset,
-the ``--set`` overrides, the scheme and its parameters, the target score). A worker whose map differs is
-refused at join, with a reason that names the first differing key in sorted order. The learning seed is not
+The chief's ``welcome`` carries its :func:`shared_text`; a worker's ``join`` carries its own. They are a map
+of setting name → value text over the fields marked ``shared`` (the env, the fleet seed and profile, the
+preset, the ``--set`` overrides, the scheme and its parameters, the target score). A worker whose map differs
+is refused at join, with a reason that names the first differing key in sorted order. The learning seed is not
 shared: each worker's own seed draws its actions and windows.
 """
 

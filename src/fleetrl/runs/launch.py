@@ -53,9 +53,13 @@ def worker_specs(settings: RunSettings, device_url: str | None, run_id: str) -> 
     """One spec per worker; worker K trains unit K of the fleet."""
     return {
         k: WorkerSpec(
-            worker=k, unit=k, learning=settings.learning, out=str(settings.out), device_url=device_url,
+            worker=k,
+            unit=k,
+            learning=settings.learning,
+            out=str(settings.out),
+            device_url=device_url,
             device_run_id=run_id,
-        )  # fmt: skip
+        )
         for k in range(settings.units)
     }
 

@@ -15,14 +15,14 @@ from fleetrl.runs.setting_values import SettingError, check_readable_file, check
 from fleetrl.runs.settings import (
     DEVICE_LINKS,
     BrokerLogin,
+    FleetShape,
     LearningSettings,
     RoundRules,
     as_setting_error,
     choose,
-    fleet_shape,
     path_text,
     positive,
-    resolve_learning,
+    resolve_and_probe,
 )
 from fleetrl.runs.spec import WorkerSpec
 
@@ -47,10 +47,10 @@ class RoleSettings(BrokerLogin):
     """seconds to keep retrying an unreachable broker, with backoff, before exiting 1 (start order does not
     matter)"""
 
-    def resolved_learning(self) -> LearningSettings:
-        """The learning settings resolved, then the broker URL and login, the run id, and every file the
-        role will read checked."""
-        learning = resolve_learning(self.learning)
+    def resolved_learning(self) -> tuple[LearningSettings, FleetShape]:
+        """The learning settings resolved (and the fleet's shape, from the one agent built for them), then
+        the broker URL and login, the run id, and every file the role will read checked."""
+        learning, shape = resolve_and_probe(self.learning)
         if self.broker is None:
             raise SettingError(f"missing setting: {label('broker')} (mqtt://[user@]host:port or mqtts://…)")
         self.validate_broker()
@@ -59,7 +59,7 @@ class RoleSettings(BrokerLogin):
             check_readable_file(name, getattr(self, name))
         self.fleet_key()
         positive("connect_timeout", self.connect_timeout)
-        return learning
+        return learning, shape
 
     def fleet_key(self) -> FleetKey | None:
         """The fleet key, read from its file (None: messages are not signed)."""
@@ -102,8 +102,8 @@ class ChiefSettings(RoleSettings, RoundRules):
     def resolved(self) -> ChiefSettings:
         """A new value with every default filled in; SettingError naming the first setting that cannot
         work. Nothing is created."""
-        learning = self.resolved_learning()
-        self.check_rounds(learning, fleet_shape(learning))
+        learning, shape = self.resolved_learning()
+        self.check_rounds(learning, shape)
         if self.workers < 1:
             raise SettingError(f"{label('workers')} = {self.workers}: must be at least 1")
         positive("idle_timeout", self.idle_timeout)
@@ -139,8 +139,7 @@ class WorkerSettings(RoleSettings):
     def resolved(self) -> WorkerSettings:
         """A new value with every default filled in; SettingError naming the first setting that cannot
         work. Nothing is created."""
-        learning = self.resolved_learning()
-        fleet_shape(learning)  # the env's spaces fit the agent and the scheme runs with the preset
+        learning, _ = self.resolved_learning()  # the env's spaces fit the agent, the scheme the preset
         choose("device_link", self.device_link, DEVICE_LINKS)
         if self.device_link == "mqtt":
             from fleetrl.envs.device_side import check_takes_link

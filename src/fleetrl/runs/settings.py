@@ -44,7 +44,15 @@ from fleetrl.transport.mqtt import BrokerAddress
 
 log = logging.getLogger(__name__)
 
-__all__ = ["LearningSettings", "RunSettings", "RoundRules", "BrokerLogin", "resolve_learning", "fleet_shape"]
+__all__ = [
+    "BrokerLogin",
+    "LearningSettings",
+    "RoundRules",
+    "RunSettings",
+    "fleet_shape",
+    "resolve_and_probe",
+    "resolve_learning",
+]
 
 MODES = ("individual", "federated")
 TRANSPORTS = ("mqtt", "local")
@@ -85,7 +93,24 @@ def resolve_learning(learning: LearningSettings, *, default_scheme: str = DEFAUL
     named, the scheme's parameters, the typed overrides, the unit type's target score) and every value
     checked (env, preset, scheme and its parameters, M, seeds, every PPO override's name, type and range;
     unit 0 of the env is built once). A new value; SettingError naming the first setting that cannot work.
-    No agent is built (:func:`fleet_shape` does that)."""
+    No agent is built (:func:`resolve_and_probe` builds one)."""
+    resolved, _ = _resolve(learning, default_scheme, probe=False)
+    return resolved
+
+
+def resolve_and_probe(
+    learning: LearningSettings, *, default_scheme: str = DEFAULT_SCHEME
+) -> tuple[LearningSettings, FleetShape]:
+    """:func:`resolve_learning`, and the fleet's shape read from the one agent built for it (so the env's
+    spaces are known to fit the agent, and the scheme to run with the preset)."""
+    resolved, shape = _resolve(learning, default_scheme, probe=True)
+    assert shape is not None
+    return resolved, shape
+
+
+def _resolve(
+    learning: LearningSettings, default_scheme: str, *, probe: bool
+) -> tuple[LearningSettings, FleetShape | None]:
     env = as_setting_error("env", get_env_spec, learning.env)
     profile = as_setting_error("fleet_profile", env.resolve_fleet_profile, learning.fleet_profile)
     as_setting_error("preset", get_preset, learning.preset)
@@ -102,12 +127,20 @@ def resolve_learning(learning: LearningSettings, *, default_scheme: str = DEFAUL
     if target is not None and not math.isfinite(target):
         raise SettingError(f"{label('target_score')} = {target}: must be a finite number")
     unit = as_setting_error("env", describe_env, learning.env)  # builds unit 0: a bad factory fails here
+    resolved = replace(
+        learning, fleet_profile=profile, scheme=scheme, scheme_params=params, overrides=overrides
+    )
+    agent = _probe_agent(resolved) if probe else None  # before the target: the agent is the deeper fault
     if target is None:
         target = as_setting_error("target_score", env.default_target, unit)
-    return replace(
-        learning, fleet_profile=profile, scheme=scheme, scheme_params=params, overrides=overrides,
-        target_score=target,
-    )  # fmt: skip
+    resolved = replace(resolved, target_score=target)
+    return resolved, None if agent is None else fleet_shape(resolved, agent)
+
+
+def _probe_agent(learning: LearningSettings) -> Any:
+    from fleetrl.runs.factory import probe_agent  # torch: only once the cheap checks passed
+
+    return as_setting_error("env", probe_agent, learning.env, learning.ppo())
 
 
 def typed_overrides(overrides: dict[str, Any]) -> dict[str, Any]:
@@ -131,12 +164,11 @@ class FleetShape:
     """the chief's ``steps_per_round``: 1, or the optimisation steps of an update for a per-step scheme"""
 
 
-def fleet_shape(learning: LearningSettings) -> FleetShape:
-    """The shape of a fleet of resolved ``learning`` settings, read from one agent built for it (torch);
-    SettingError if the env's spaces do not fit the agent or the scheme cannot run with the preset."""
-    from fleetrl.runs.factory import probe_agent  # torch: only once the cheap checks passed
-
-    agent = as_setting_error("env", probe_agent, learning.env, learning.ppo())
+def fleet_shape(learning: LearningSettings, agent: Any = None) -> FleetShape:
+    """The shape of a fleet of resolved ``learning`` settings, read from ``agent`` or else from one agent
+    built for it (torch); SettingError if the env's spaces do not fit the agent or the scheme cannot run
+    with the preset."""
+    agent = _probe_agent(learning) if agent is None else agent
     scheme = learning.federation_scheme()
     steps = as_setting_error("scheme", scheme.exchanges_per_round, agent)
     return FleetShape(list(scheme.layout(agent)), steps)
@@ -238,13 +270,16 @@ class RunSettings(RoundRules, BrokerLogin):
         """These settings with every default filled in and every setting checked, before anything is
         created: a new value, or SettingError naming the first setting that cannot work. The probe agent
         is built once."""
-        learning = self.learning_resolved().learning
+        scheme = ALONE_SCHEME if self.mode == "individual" else DEFAULT_SCHEME
+        learning, shape = resolve_and_probe(self.learning, default_scheme=scheme)
         choose("mode", self.mode, MODES)
         choose("transport", self.transport, TRANSPORTS)
         choose("device_link", self.device_link, DEVICE_LINKS)
         if self.mode == "individual" and (learning.scheme != ALONE_SCHEME or self.learning.scheme_params):
-            raise SettingError(f"--scheme {learning.scheme} is a federation scheme: it needs --mode federated")
-        self.check_rounds(learning, fleet_shape(learning))
+            raise SettingError(
+                f"--scheme {learning.scheme} is a federation scheme: it needs --mode federated"
+            )
+        self.check_rounds(learning, shape)
         self.validate_broker()
         if self.units < 1:
             raise SettingError(f"{label('units')} = {self.units}: must be at least 1")

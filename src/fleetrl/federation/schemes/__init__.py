@@ -16,7 +16,6 @@ import inspect
 from typing import Any, get_type_hints
 
 from fleetrl.coercion import CoercionError, coerce
-
 from fleetrl.federation.schemes.base import (
     COMPLETED,
     FederatedAgent,
