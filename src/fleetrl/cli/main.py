@@ -16,6 +16,7 @@ from fleetrl.cli.settings_args import (
     add_broker_arguments,
     add_env_argument,
     add_fleet_profile_argument,
+    add_learning_argument,
     add_settings_arguments,
     add_target_score_argument,
     settings_from_args,
@@ -51,12 +52,12 @@ def build_parser() -> argparse.ArgumentParser:
 
     evaluate = sub.add_parser("evaluate", help="run a saved policy greedily and print its mean score")
     evaluate.add_argument("model", type=Path, help="a models/worker-K.safetensors file")
-    add_env_argument(evaluate, default="qube")
+    add_env_argument(evaluate, defaulted=True)
     evaluate.add_argument("--unit", type=int, default=0)
-    evaluate.add_argument("--fleet-seed", type=int, default=0)
+    add_learning_argument(evaluate, "fleet_seed")
     add_fleet_profile_argument(evaluate)
     evaluate.add_argument("--episodes", type=int, default=10)
-    evaluate.add_argument("--seed", type=int, default=0)
+    evaluate.add_argument("--seed", type=int, default=0, help="seed of the episodes' starts (default 0)")
     add_broker_arguments(evaluate, "given: run on the unit that `fleetrl device --unit K` serves there")
     evaluate.add_argument(
         "--run-id", default="default", help="with --broker: the run id the unit's bridge serves (default)"
@@ -67,7 +68,7 @@ def build_parser() -> argparse.ArgumentParser:
         "homogeneity", help="the paper's Table 2 homogeneity test on simulated units"
     )
     homogeneity.add_argument("--units", type=int, default=3)
-    homogeneity.add_argument("--fleet-seed", type=int, default=0)
+    add_learning_argument(homogeneity, "fleet_seed")
     add_fleet_profile_argument(homogeneity)
     homogeneity.add_argument("--impulses", type=int, default=100)
     homogeneity.add_argument("--seed", type=int, default=0, help="seed of the impulse directions")

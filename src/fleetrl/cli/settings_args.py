@@ -94,19 +94,26 @@ def _parse_type(kind: Any) -> Any:
     return kind if kind in (int, float, Path) else str
 
 
-def add_env_argument(p: argparse.ArgumentParser, default: str | None) -> None:
+def add_learning_argument(p: argparse.ArgumentParser, name: str, *, defaulted: bool = True) -> None:
+    """The flag of learning setting ``name`` for a command that is not a role (``evaluate``,
+    ``homogeneity``): with ``defaulted``, the flag gives the setting's default when it is not given."""
+    field = setting_fields(LearningSettings)[name][0]
+    add_setting_argument(p, LearningSettings, name, default=field_default(field) if defaulted else None)
+
+
+def add_env_argument(p: argparse.ArgumentParser, *, defaulted: bool) -> None:
     """``--env``: a built-in unit type, or the user's own as ``package.module:factory``."""
-    add_setting_argument(p, LearningSettings, "env", default=default)
+    add_learning_argument(p, "env", defaulted=defaulted)
 
 
 def add_target_score_argument(p: argparse.ArgumentParser) -> None:
     """``--target-score``: the completion criterion's target."""
-    add_setting_argument(p, LearningSettings, "target_score")
+    add_learning_argument(p, "target_score")
 
 
 def add_fleet_profile_argument(p: argparse.ArgumentParser) -> None:
     """``--fleet-profile``: which per-unit variation the simulated QUBE fleet is drawn with."""
-    add_setting_argument(p, LearningSettings, "fleet_profile")
+    add_learning_argument(p, "fleet_profile")
 
 
 def add_broker_arguments(p: argparse.ArgumentParser, note: str) -> None:
