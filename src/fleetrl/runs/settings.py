@@ -25,7 +25,6 @@ from typing import Any, get_type_hints
 from fleetrl.agent.config import PPOConfig, get_preset
 from fleetrl.envs.catalog import describe_env, get_env_spec
 from fleetrl.federation.aggregation import get_aggregator
-from fleetrl.federation.chief_answer import check_round_rules
 from fleetrl.federation.schemes import DEFAULT_SCHEME, get_scheme
 from fleetrl.federation.schemes.paper import PaperScheme
 from fleetrl.federation.shared_settings import LearningSettings
@@ -40,7 +39,6 @@ from fleetrl.runs.setting_values import (
     toml_values,
 )
 from fleetrl.transport.login import broker_password, password_in_url, without_password
-from fleetrl.transport.mqtt import BrokerAddress
 
 log = logging.getLogger(__name__)
 
@@ -199,6 +197,8 @@ class RoundRules:
     def check_rounds(self, learning: LearningSettings, shape: FleetShape) -> None:
         """The aggregation rule, and the round rules a chief of ``learning`` checks (the quorum, the round
         timeout and how they fit the scheme: :func:`fleetrl.federation.chief_answer.check_round_rules`)."""
+        from fleetrl.federation.chief_answer import check_round_rules
+
         as_setting_error("aggregation", get_aggregator, self.aggregation)
         try:
             check_round_rules(
@@ -223,6 +223,8 @@ class BrokerLogin:
         """The URL parses; the password file is readable; a password inside the URL is warned about."""
         if self.broker is None:
             return
+        from fleetrl.transport.mqtt import BrokerAddress  # paho: not needed to build the flags
+
         as_setting_error("broker", BrokerAddress.parse, self.broker)
         check_readable_file("broker_password_file", self.broker_password_file)
         if password_in_url(self.broker):
