@@ -219,7 +219,7 @@ def run_configuration(
     clock = RoundClock()
     counter = AcceptedCounter(n_workers - 1, clock)
     chief = Chief(run_id=run_id, workers=[str(i) for i in range(1, n_workers + 1)], layout=layout,
-                  max_rounds=total)  # fmt: skip
+                  max_rounds=total, scheme="paper")  # fmt: skip
     barrier = threading.Barrier(n_workers, timeout=TIMEOUT)
     errors: list[BaseException] = []
 
@@ -246,7 +246,7 @@ def run_configuration(
         learner = InstantLearner(agent, barrier, counter.wait if last else None)
         worker = FederatedWorker(
             learner, TimedTransport(make_transport(), run_id, agent, clock), run_id=run_id,
-            worker_id=str(i), max_rounds=total, reply_timeout=TIMEOUT,
+            worker_id=str(i), max_rounds=total, reply_timeout=TIMEOUT, scheme="paper",
         )  # fmt: skip
         threads.append(threading.Thread(target=guarded(worker.run), name=f"worker-{i}", daemon=True))
     deadline = time.monotonic() + TIMEOUT

@@ -59,10 +59,10 @@ def test_dict_round_trip_is_json_ready(preset: str) -> None:
 @pytest.mark.parametrize(
     ("overrides", "message"),
     [
-        ({"critic_loss": "l2"}, "critic_loss: abs, mse or huber"),
+        ({"critic_loss": "l2"}, "critic_loss = 'l2': expected one of 'abs', 'mse', 'huber'"),
         ({"critic_coef": 0.0}, "critic_coef must be > 0"),
-        ({"trajectory_memory": "fifo"}, "trajectory_memory: ring or per_round"),
-        ({"optimisers": "three"}, "optimisers: per_model or one_sequential"),
+        ({"trajectory_memory": "fifo"}, "trajectory_memory = 'fifo': expected one of 'ring', 'per_round'"),
+        ({"optimisers": "three"}, "optimisers = 'three': expected one of 'per_model', 'one_sequential'"),
         ({"optimisers": "one_sequential", "critic_lr": 3e-4}, "actor_lr .* must equal critic_lr"),
         ({"optimisers": "one_sequential", "trunk_split": "actor"}, "needs trunk_split 'shared'"),
     ],

@@ -11,10 +11,15 @@ import pytest
 from fleetrl.agent.learner import Learner
 from fleetrl.agent.state import learner_state, load_learner_state
 from fleetrl.agent.statestore import StateError, StateStore
+from fleetrl.federation.shared_settings import LearningSettings
 from fleetrl.runs.factory import make_learner
 from fleetrl.runs.spec import WorkerSpec
 
-SPEC = WorkerSpec(1, 1, "cartpole", "standard", 3, 0, 50, "unused", {"memory_size": 64, "batch_size": 16})
+SPEC = WorkerSpec(
+    worker=1, unit=1, out="unused",
+    learning=LearningSettings(env="cartpole", preset="standard", seed=3, max_rounds=50, scheme="paper",
+                              overrides={"memory_size": 64, "batch_size": 16}),
+)  # fmt: skip
 
 
 def fingerprint(learner: Learner, rounds: int) -> list[tuple[float, int, float]]:

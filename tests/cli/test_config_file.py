@@ -5,16 +5,16 @@ from __future__ import annotations
 
 import argparse
 import csv
-import dataclasses
 import tomllib
 from pathlib import Path
 
 import pytest
 
+from fleetrl.agent.config import DEFAULT_PRESET
 from fleetrl.cli.main import build_parser, main
 from fleetrl.cli.settings_args import NOT_SETTINGS, settings_from_args
 from fleetrl.runs.role_settings import ChiefSettings, WorkerSettings
-from fleetrl.runs.setting_values import SettingError
+from fleetrl.runs.setting_values import SettingError, setting_fields
 from fleetrl.runs.settings import RunSettings
 
 COMMANDS = {"train": RunSettings, "chief": ChiefSettings, "worker": WorkerSettings}
@@ -27,7 +27,7 @@ def subparser(command: str) -> argparse.ArgumentParser:
 
 @pytest.mark.parametrize("command", sorted(COMMANDS))
 def test_every_flag_is_a_setting_with_a_config_file_key(command: str) -> None:
-    fields = {f.name for f in dataclasses.fields(COMMANDS[command])}
+    fields = set(setting_fields(COMMANDS[command]))  # its groups' fields too (a flat file)
     dests = {a.dest for a in subparser(command)._actions if a.dest not in ("help", *NOT_SETTINGS)}
     assert dests <= fields, dests - fields
     assert fields <= dests, f"settings without a flag: {fields - dests}"
@@ -46,14 +46,14 @@ def test_flags_override_the_file_and_the_file_overrides_the_defaults(tmp_path: P
     )
     settings = parse("train", "--config", str(config), "--units", "4", "--set", "clip_eps=0.25")
     assert isinstance(settings, RunSettings)
-    assert (settings.env, settings.units, settings.quorum, settings.round_timeout) == (
+    assert (settings.learning.env, settings.units, settings.quorum, settings.round_timeout) == (
         "cartpole",
         4,
         0.5,
         3.0,
     )
-    assert settings.out == Path("from-file") and settings.preset == "standard"  # the dataclass default
-    assert settings.overrides == {"clip_eps": 0.25, "hidden": (16, 16)}  # merged key by key
+    assert settings.out == Path("from-file") and settings.learning.preset == DEFAULT_PRESET  # the one default
+    assert settings.learning.overrides == {"clip_eps": 0.25, "hidden": (16, 16)}  # merged key by key
 
 
 def test_the_roles_read_the_same_file(tmp_path: Path) -> None:
@@ -61,7 +61,7 @@ def test_the_roles_read_the_same_file(tmp_path: Path) -> None:
     config.write_text('broker = "mqtt://127.0.0.1:1883"\nrun_id = "r7"\nenv = "cartpole"\nworkers = 3\n')
     chief = parse("chief", "--config", str(config), "--idle-timeout", "5")
     assert isinstance(chief, ChiefSettings)
-    assert (chief.run_id, chief.workers, chief.idle_timeout, chief.env) == ("r7", 3, 5.0, "cartpole")
+    assert (chief.run_id, chief.workers, chief.idle_timeout, chief.learning.env) == ("r7", 3, 5.0, "cartpole")
     with pytest.raises(SettingError, match=r"unknown setting\(s\) workers"):  # a worker has no such setting
         parse("worker", "--config", str(config), "--worker-id", "0", "--out", str(tmp_path / "w"))
 

@@ -9,7 +9,7 @@ from pathlib import Path
 import pytest
 from cli_helpers import refused_in_process as refused
 
-from fleetrl.runs.settings import RunSettings
+from fleetrl.runs.settings import LearningSettings, RunSettings
 
 REPO = Path(__file__).resolve().parents[2]
 SLIDER = "tests.link.slider_units"
@@ -75,8 +75,9 @@ def test_a_device_driver_needs_device_bridges(tmp_path: Path, capsys: pytest.Cap
 
 
 def test_a_fitting_driver_is_accepted_and_is_a_result_setting_only_when_named(tmp_path: Path) -> None:
-    settings = RunSettings(out=tmp_path / "a", env=f"{SLIDER}:factory", device_link="mqtt",
-                           device_driver=f"{SLIDER}:driver", target_score=50.0)  # fmt: skip
-    settings.validate()
+    learning = LearningSettings(env=f"{SLIDER}:factory", target_score=50.0)
+    settings = RunSettings(out=tmp_path / "a", learning=learning, device_link="mqtt",
+                           device_driver=f"{SLIDER}:driver").resolved()  # fmt: skip
     assert settings.result_settings()["device_driver"] == f"{SLIDER}:driver"
-    assert "device_driver" not in RunSettings(out=tmp_path / "b", env="cartpole").result_settings()
+    cartpole = RunSettings(out=tmp_path / "b", learning=LearningSettings(env="cartpole"))
+    assert "device_driver" not in cartpole.learning_resolved().result_settings()

@@ -17,7 +17,7 @@ from fleetrl.runs.factory import make_learner
 from fleetrl.runs.launch import worker_specs
 from fleetrl.runs.role_settings import WorkerSettings
 from fleetrl.runs.setting_values import SettingError
-from fleetrl.runs.settings import RunSettings
+from fleetrl.runs.settings import LearningSettings, RunSettings, resolve_learning
 from fleetrl.runs.spec import WorkerSpec
 
 
@@ -30,13 +30,13 @@ def train_settings(*argv: str) -> RunSettings:
 
 def test_validation_names_the_default_profile_and_the_file_records_it(tmp_path: Path) -> None:
     settings = train_settings("--out", str(tmp_path / "a"))
-    assert settings.fleet_profile == "table2"
+    assert settings.learning.fleet_profile == "table2"
     assert tomllib.loads(settings.to_toml())["fleet_profile"] == "table2"
     assert settings.to_config()["fleet_profile"] == "table2"
     old = train_settings("--out", str(tmp_path / "b"), "--fleet-profile", "v1")
-    assert old.fleet_profile == "v1"
-    assert all(spec.fleet_profile == "v1" for spec in worker_specs(old, None, "r").values())
-    assert train_settings("--env", "cartpole", "--out", str(tmp_path / "c")).fleet_profile is None
+    assert old.learning.fleet_profile == "v1"
+    assert all(spec.learning.fleet_profile == "v1" for spec in worker_specs(old, None, "r").values())
+    assert train_settings("--env", "cartpole", "--out", str(tmp_path / "c")).learning.fleet_profile is None
 
 
 @pytest.mark.parametrize(
@@ -74,12 +74,13 @@ def test_the_worker_role_takes_the_profile(tmp_path: Path) -> None:
             "mqtt://h:1",
         ]
     )
-    assert settings_from_args(WorkerSettings, args).fleet_profile == "v1"
+    assert settings_from_args(WorkerSettings, args).learning.fleet_profile == "v1"
 
 
 @pytest.mark.parametrize("profile", ["v1", "table2"])
 def test_a_workers_unit_and_its_device_bridges_unit_are_drawn_with_the_profile(profile: str) -> None:
-    spec = WorkerSpec(0, 2, "qube", "standard", 0, 3, 5, "unused", fleet_profile=profile)
+    learning = resolve_learning(LearningSettings(fleet_seed=3, max_rounds=5, fleet_profile=profile))
+    spec = WorkerSpec(worker=0, unit=2, learning=learning, out="unused")
     learner = make_learner(WorkerSpec.from_json(spec.to_json()))
     expected = QubeDevice.from_fleet(2, 3, profile=profile).params
     assert learner.env.unwrapped.link.device.params == expected  # type: ignore[attr-defined]

@@ -40,7 +40,7 @@ def test_pergrad_refuses_a_quorum_and_a_preset_whose_steps_differ_before_anythin
 ) -> None:
     out = tmp_path / "run"
     quorum = fleetrl(*RUN, "--quorum", "0.5", "--round-timeout", "2", "--out", str(out))
-    assert quorum.returncode == 2 and "it needs quorum 1" in last_line(quorum), quorum.stderr
+    assert quorum.returncode == 2 and "it needs every worker (quorum 1)" in last_line(quorum), quorum.stderr
     preset = fleetrl(*RUN[:-1], "paper-code", "--out", str(out))
     assert preset.returncode == 2 and "optimisers = 'per_model'" in last_line(preset), preset.stderr
     assert "--scheme fedavg or paper" in last_line(preset)  # what to do instead

@@ -29,17 +29,17 @@ def test_the_flag_is_typed_by_the_scheme_and_filled_with_its_defaults(tmp_path: 
     settings = parse("train", *FEDAVGM, "--scheme-param", "momentum=0.9", "--scheme-param", "server_lr=1",
                      "--out", str(tmp_path / "r"))  # fmt: skip
     assert isinstance(settings, RunSettings)
-    assert settings.scheme_params == {"optimizer": "momentum", "server_lr": 1.0, "momentum": 0.9}
-    assert settings.result_settings()["scheme_params"] == settings.scheme_params
+    assert settings.learning.scheme_params == {"optimizer": "momentum", "server_lr": 1.0, "momentum": 0.9}
+    assert settings.result_settings()["scheme_params"] == settings.learning.scheme_params
     (spec, *_) = worker_specs(settings, None, "r").values()
-    assert spec.scheme_params == settings.scheme_params
-    assert json.loads(spec.to_json())["scheme_params"]["momentum"] == 0.9
+    assert spec.learning == settings.learning
+    assert json.loads(spec.to_json())["learning"]["scheme_params"]["momentum"] == 0.9
 
 
 def test_a_scheme_without_parameters_leaves_the_result_settings_as_they_were(tmp_path: Path) -> None:
     settings = parse("train", "--mode", "federated", "--scheme", "fedavg", "--out", str(tmp_path / "r"))
     assert isinstance(settings, RunSettings)
-    assert settings.scheme_params == {} and "scheme_params" not in settings.result_settings()
+    assert settings.learning.scheme_params == {} and "scheme_params" not in settings.result_settings()
 
 
 def test_the_config_file_table_and_the_flags_merge_key_by_key(tmp_path: Path) -> None:
@@ -48,9 +48,9 @@ def test_the_config_file_table_and_the_flags_merge_key_by_key(tmp_path: Path) ->
                       "[scheme_params]\nserver_lr = 0.05\ntau = 0.01\n")  # fmt: skip
     chief = parse("chief", "--config", str(config), "--scheme-param", "tau=0.1")
     assert isinstance(chief, ChiefSettings)
-    assert chief.scheme_params == {"optimizer": "adam", "server_lr": 0.05, "beta1": 0.9, "beta2": 0.99,
-                                   "tau": 0.1}  # fmt: skip
-    assert chief.federation_scheme().params() == chief.scheme_params
+    adam = {"optimizer": "adam", "server_lr": 0.05, "beta1": 0.9, "beta2": 0.99, "tau": 0.1}
+    assert chief.learning.scheme_params == adam
+    assert chief.learning.federation_scheme().params() == chief.learning.scheme_params
 
 
 @pytest.mark.parametrize(
@@ -61,7 +61,7 @@ def test_the_config_file_table_and_the_flags_merge_key_by_key(tmp_path: Path) ->
             "--scheme-param: scheme 'fedavgm': momentum = 1.2: must be in [0, 1)",
         ),
         (["--scheme-param", "speed=2"], "--scheme-param: scheme 'fedavgm' has no parameter(s) speed"),
-        (["--scheme-param", "server_lr=fast"], "scheme 'fedavgm': server_lr = 'fast': expected float"),
+        (["--scheme-param", "server_lr=fast"], "scheme 'fedavgm': server_lr = 'fast': expected a number"),
         (["--scheme-param", "momentum"], "--scheme-param takes KEY=VALUE, got 'momentum'"),
     ],
 )

@@ -13,7 +13,7 @@ from fake_units import FACTORY, factory, pole_length
 
 from fleetrl.cli.main import main
 from fleetrl.envs.catalog import describe_env, get_env_spec
-from fleetrl.runs.settings import RunSettings
+from fleetrl.runs.settings import LearningSettings, RunSettings
 
 REPO = Path(__file__).resolve().parents[2]
 
@@ -83,22 +83,20 @@ def test_the_factory_builds_each_unit_of_the_fleet() -> None:
 
 
 def test_the_target_defaults_to_the_reward_threshold_and_a_builtins_to_its_own(tmp_path: Path) -> None:
-    mine = RunSettings(env=FACTORY, out=tmp_path / "a")
-    mine.validate()
-    assert mine.target_score == 475.0 == describe_env(FACTORY).reward_threshold
+    mine = RunSettings(learning=LearningSettings(env=FACTORY), out=tmp_path / "a").resolved()
+    assert mine.learning.target_score == 475.0 == describe_env(FACTORY).reward_threshold
     assert mine.result_settings()["target_score"] == 475.0  # a factory's target is always in its key
-    qube = RunSettings(env="qube", out=tmp_path / "b")
-    qube.validate()
-    assert qube.target_score == 2450.0 and "target_score" not in qube.result_settings()
-    cartpole = RunSettings(env="cartpole", target_score=400.0, out=tmp_path / "c")
-    cartpole.validate()
+    qube = RunSettings(learning=LearningSettings(env="qube"), out=tmp_path / "b").resolved()
+    assert qube.learning.target_score == 2450.0 and "target_score" not in qube.result_settings()
+    learning = LearningSettings(env="cartpole", target_score=400.0)
+    cartpole = RunSettings(learning=learning, out=tmp_path / "c").resolved()
     assert cartpole.result_settings()["target_score"] == 400.0
 
 
 def test_a_builtin_run_keeps_its_result_settings_key_set(tmp_path: Path) -> None:
     """The records committed under docs/results/records are keyed by these: nothing new at the defaults."""
-    settings = RunSettings(env="cartpole", out=tmp_path / "a", preset="standard", scheme="fedavg")
-    settings.validate()
+    learning = LearningSettings(env="cartpole", preset="standard", scheme="fedavg")
+    settings = RunSettings(learning=learning, out=tmp_path / "a").resolved()
     assert set(settings.result_settings()) == {
         "aggregation", "device_link", "env", "fleet_profile", "fleet_seed", "max_rounds", "mode",
         "overrides", "preset", "quorum", "round_timeout", "scheme", "seed", "transport", "units",
@@ -117,15 +115,17 @@ def role_settings(command: str, *argv: str) -> object:
 
 
 def test_the_chief_and_a_worker_of_a_factory_run_agree_only_on_the_same_target(tmp_path: Path) -> None:
+    from fleetrl.federation.shared_settings import shared_text
     from fleetrl.runs.role_settings import ChiefSettings, WorkerSettings
-    from fleetrl.runs.shared import spec_shared_settings
 
     chief = role_settings("chief", "--workers", "2", "--target-score", "50")
     worker = role_settings("worker", "--worker-id", "1", "--out", str(tmp_path / "w"), "--target-score", "50")
     assert isinstance(chief, ChiefSettings) and isinstance(worker, WorkerSettings)
-    ours = chief.shared_settings(chief.fleet_seed)
+    ours = shared_text(chief.learning)
     assert ours["env"] == FACTORY and ours["target_score"] == "50.0"
-    assert spec_shared_settings(worker.worker_spec()) == ours
+    assert shared_text(worker.worker_spec().learning) == ours
     default = role_settings("worker", "--worker-id", "1", "--out", str(tmp_path / "d"))
-    assert isinstance(default, WorkerSettings) and default.target_score == 475.0  # CartPole-v1's threshold
-    assert spec_shared_settings(default.worker_spec())["target_score"] != ours["target_score"]
+    assert (
+        isinstance(default, WorkerSettings) and default.learning.target_score == 475.0
+    )  # CartPole-v1's threshold
+    assert shared_text(default.worker_spec().learning)["target_score"] != ours["target_score"]

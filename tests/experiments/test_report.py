@@ -104,7 +104,7 @@ def test_a_report_from_the_records_alone_runs_nothing_and_names_what_is_missing(
     places = Places(tmp_path / "runs", tmp_path / "committed")
     for seed, fed in zip(SEEDS[:2], (10, 20), strict=True):  # fedavg has 2 of 3 seeds, alone none
         write_record_of(FEDAVG.run(places, seed), record(FEDAVG.run(places, seed), fed))
-    paper = arm("cartpole", 3, "federated", "standard", 100, "paper")
+    paper = arm("cartpole", 3, "federated", "standard", 100, "paper", "paper")
     plan = Plan("demo", "A demo", [ALONE, FEDAVG, paper], 100, [Ratio(ALONE, FEDAVG, "the claim")])
     section = run_plan(plan, tmp_path / "out", places, SEEDS, [seeds_line(SEEDS, 0), ""], run=False)
     assert not places.runs.exists()  # nothing was started

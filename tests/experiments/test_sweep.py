@@ -118,10 +118,14 @@ def test_a_run_is_named_by_arm_and_seed(tmp_path: Path) -> None:
 
 
 def test_result_settings_leave_out_only_what_cannot_change_the_result(tmp_path: Path) -> None:
+    from fleetrl.runs.setting_values import build
     from fleetrl.runs.settings import RunSettings
 
-    a = RunSettings(out=tmp_path / "a", live=True, broker="mqtt://u@h:1883", overrides={"actor_lr": 1})
-    b = RunSettings(out=tmp_path / "b", live=False, overrides={"actor_lr": 1.0})
+    def settings(**values: object) -> RunSettings:
+        return build(RunSettings, {}, values, resolve=False).learning_resolved()
+
+    a = settings(out=tmp_path / "a", live=True, broker="mqtt://u@h:1883", overrides={"actor_lr": 1})
+    b = settings(out=tmp_path / "b", live=False, overrides={"actor_lr": 1.0})
     assert a.result_settings() == b.result_settings()
     assert {"out", "live", "broker", "broker_password_file"}.isdisjoint(a.result_settings())
     assert json.dumps(a.result_settings()["overrides"]) == '{"actor_lr": 1.0}'  # typed: a float

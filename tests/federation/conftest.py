@@ -120,10 +120,10 @@ def run_fleet(
     ``role_transport(role)``, role ``chief`` or the worker id); extra keyword arguments for the Chief and
     FederatedWorker; ``on_chief`` sees the chief's state machine before it starts."""
     agent = learners[next(iter(learners))].agent  # type: ignore[attr-defined]
-    layout = resolve_scheme((chief_kwargs or {}).get("scheme", "paper")).layout(agent)
-    chief = Chief(
-        run_id=run_id, workers=list(learners), layout=layout, max_rounds=max_rounds, **(chief_kwargs or {})
-    )
+    chief_kwargs = {"scheme": "paper", **(chief_kwargs or {})}
+    worker_kwargs = {"scheme": "paper", **(worker_kwargs or {})}
+    layout = resolve_scheme(chief_kwargs["scheme"]).layout(agent)
+    chief = Chief(run_id=run_id, workers=list(learners), layout=layout, max_rounds=max_rounds, **chief_kwargs)
     if on_chief is not None:
         on_chief(chief)
 

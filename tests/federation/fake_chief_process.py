@@ -27,7 +27,13 @@ def main(argv: list[str]) -> int:
     url, run_id, workers, max_rounds, directory = argv[:5]
     logging.basicConfig(level=logging.INFO, format="%(name)s %(levelname)s %(message)s")
     store = ChiefCheckpoint(Path(directory))
-    chief = Chief(run_id=run_id, workers=workers.split(","), layout=FAKE_LAYOUT, max_rounds=int(max_rounds))
+    chief = Chief(
+        run_id=run_id,
+        workers=workers.split(","),
+        layout=FAKE_LAYOUT,
+        max_rounds=int(max_rounds),
+        scheme="paper",
+    )
     first = None
     if "--resume" in argv:
         chief = store.load(now=time.monotonic(), expect=chief)

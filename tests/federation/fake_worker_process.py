@@ -34,6 +34,7 @@ def main(argv: list[str]) -> int:
         on_record=show,
         reply_timeout=60.0,
         resend_interval=1.0,
+        scheme="paper",
     )
     summary = worker.run()
     print(f"summary {summary.reason}", flush=True)

@@ -15,7 +15,9 @@ KEY = FleetKey(b"k" * 32)
 
 
 def make(**kwargs: object) -> Chief:
-    args: dict[str, object] = dict(run_id=RUN, workers=("1", "2", "3"), layout=LAYOUT, max_rounds=10)
+    args: dict[str, object] = dict(
+        run_id=RUN, workers=("1", "2", "3"), layout=LAYOUT, max_rounds=10, scheme="paper"
+    )
     args.update(kwargs)
     return Chief(**args)  # type: ignore[arg-type]
 

@@ -19,7 +19,7 @@ RUN = "r1"
 
 
 def chief(workers: tuple[str, ...] = ("1", "2", "3"), max_rounds: int = 10) -> Chief:
-    return Chief(run_id=RUN, workers=workers, layout=LAYOUT, max_rounds=max_rounds)
+    return Chief(run_id=RUN, workers=workers, layout=LAYOUT, max_rounds=max_rounds, scheme="paper")
 
 
 def grad(sender: str, rnd: int, values: list[float]) -> Message:
@@ -219,7 +219,7 @@ def test_outgoing_messages_are_valid_on_the_wire() -> None:
     ],
 )
 def test_bad_configuration_is_refused(kwargs: dict[str, Any], match: str) -> None:
-    args: dict[str, Any] = dict(run_id=RUN, workers=["1"], layout=LAYOUT, max_rounds=3)
+    args: dict[str, Any] = dict(run_id=RUN, workers=["1"], layout=LAYOUT, max_rounds=3, scheme="paper")
     args.update(kwargs)
     with pytest.raises(ValueError, match=match):
         Chief(**args)

@@ -89,7 +89,7 @@ def test_gradients_are_refused_in_a_fedavg_run_and_models_in_a_paper_run() -> No
     # each chief's decoder takes its own scheme's round message only: another scheme's is an unknown type
     (step,) = feed(c, Message("gradient", RUN, "1", 1, flat=np.zeros(2, np.float32)))
     assert [e.reason for e in step.events] == [Reason.UNKNOWN_TYPE]
-    paper = Chief(run_id=RUN, workers=("1",), layout=LAYOUT, max_rounds=3)
+    paper = Chief(run_id=RUN, workers=("1",), layout=LAYOUT, max_rounds=3, scheme="paper")
     (step,) = feed(paper, model("1", 1, [1, 1]))
     assert [e.reason for e in step.events] == [Reason.UNKNOWN_TYPE]
     assert [e.reason for e in paper.receive(model("1", 1, [1, 1]), now=0.0).events] == [

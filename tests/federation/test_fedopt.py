@@ -128,7 +128,7 @@ def test_a_chief_restored_from_its_checkpoint_continues_identically(name: str, t
     [
         ("fedavgm", {"momentum": 1.0}, r"momentum = 1.0: must be in \[0, 1\)"),
         ("fedavgm", {"server_lr": 0}, "server_lr = 0.0: must be > 0"),
-        ("fedavgm", {"server_lr": "fast"}, "server_lr = 'fast': expected float"),
+        ("fedavgm", {"server_lr": "fast"}, "server_lr = 'fast': expected a number"),
         ("fedavgm", {"optimizer": "sgd"}, "optimizer 'sgd': choose momentum or adam"),
         ("fedavgm", {"beta1": 0.5}, "beta1: not a parameter of the momentum optimizer"),
         ("fedadam", {"momentum": 0.5}, "momentum: not a parameter of the adam optimizer"),

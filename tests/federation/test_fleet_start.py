@@ -15,8 +15,8 @@ from safetensors.numpy import load_file
 
 from fleetrl.federation.schemes.base import FleetStart
 from fleetrl.runs.factory import make_learner
-from fleetrl.runs.launch import exchanges_per_round, fleet_start
-from fleetrl.runs.settings import LearningSettings
+from fleetrl.runs.launch import fleet_start
+from fleetrl.runs.settings import LearningSettings, fleet_shape, resolve_learning
 from fleetrl.runs.spec import WorkerSpec
 from fleetrl.transport.broker import EmbeddedBroker
 from fleetrl.transport.local import LocalBus
@@ -27,17 +27,24 @@ SEEDS = {"0": 40, "1": 41, "2": 42}
 """worker id → the --seed it was started with"""
 
 
+def pergrad(seed: int = 0) -> LearningSettings:
+    """CartPole under pergrad, preset standard, 3 rounds, learning seed ``seed`` (resolved)."""
+    learning = LearningSettings(env="cartpole", preset="standard", scheme="pergrad", seed=seed, max_rounds=3)
+    return resolve_learning(learning)
+
+
 def final_models(fleet_runner: FleetRunner, start: FleetStart | None) -> dict[str, np.ndarray]:
     """Three pergrad workers on CartPole units 0-2, each built as ``fleetrl worker --seed S`` builds it, and a
     chief handing out ``start``, 3 rounds over the in-process bus."""
-    settings = LearningSettings(env="cartpole", preset="standard", scheme="pergrad")
+    settings = pergrad()
     specs = {
-        w: WorkerSpec(int(w), int(w), "cartpole", "standard", seed, 0, 3, "/nonexistent", scheme="pergrad")
+        w: WorkerSpec(worker=int(w), unit=int(w), learning=pergrad(seed), out="/nonexistent")
         for w, seed in SEEDS.items()
     }
     learners = {w: make_learner(spec) for w, spec in specs.items()}
     bus = LocalBus()
-    chief_kwargs = {"scheme": "pergrad", "steps_per_round": exchanges_per_round(settings), "start": start}
+    steps = fleet_shape(settings).exchanges_per_round
+    chief_kwargs = {"scheme": "pergrad", "steps_per_round": steps, "start": start}
     result = fleet_runner(
         bus.client, learners, max_rounds=3, chief_kwargs=chief_kwargs, worker_kwargs={"scheme": "pergrad"}
     )
@@ -49,9 +56,7 @@ def final_models(fleet_runner: FleetRunner, start: FleetStart | None) -> dict[st
 def test_workers_of_different_seeds_end_with_one_model_from_the_chief_s_start(
     fleet_runner: FleetRunner,
 ) -> None:
-    settings = LearningSettings(env="cartpole", preset="standard", scheme="pergrad")
-    settings.seed = 7  # type: ignore[attr-defined]  # the run's learning seed, as RunSettings carries it
-    start = fleet_start(settings)
+    start = fleet_start(pergrad(seed=7))  # the run's learning seed
     assert start is not None
     models = final_models(fleet_runner, start)
     assert all(np.array_equal(models["0"], m) for m in models.values())
@@ -61,9 +66,9 @@ def test_workers_of_different_seeds_end_with_one_model_from_the_chief_s_start(
 
 
 def test_only_a_one_policy_scheme_has_a_fleet_start() -> None:
-    assert fleet_start(LearningSettings(env="cartpole", preset="standard", scheme="fedavg")) is None
-    first = fleet_start(LearningSettings(env="cartpole", preset="standard", scheme="pergrad"))
-    again = fleet_start(LearningSettings(env="cartpole", preset="standard", scheme="pergrad"))
+    fedavg = resolve_learning(LearningSettings(env="cartpole", preset="standard", scheme="fedavg"))
+    assert fleet_start(fedavg) is None
+    first, again = fleet_start(pergrad()), fleet_start(pergrad())
     assert first is not None and again is not None
     assert first.flat.tobytes() == again.flat.tobytes()  # drawn from the seed: the same on every machine
 

@@ -46,7 +46,7 @@ def run_workers(
     def body(w: str) -> None:
         worker = FederatedWorker(
             learners[w], make_transport(), run_id=run_id, worker_id=w, max_rounds=rounds,
-            on_record=records[w].append, reply_timeout=90.0, resend_interval=0.5,
+            on_record=records[w].append, reply_timeout=90.0, resend_interval=0.5, scheme="paper",
         )  # fmt: skip
         summaries[w] = worker.run()
 

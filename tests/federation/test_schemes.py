@@ -261,13 +261,13 @@ def test_the_chief_closes_each_step_and_the_round_at_its_last_step() -> None:
 
 
 def test_a_per_round_chief_rejects_a_step_and_a_per_step_chief_needs_every_worker() -> None:
-    chief = Chief(run_id=RUN, workers=("1", "2"), layout=[("pi", (2,))], max_rounds=3)
+    chief = Chief(run_id=RUN, workers=("1", "2"), layout=[("pi", (2,))], max_rounds=3, scheme="paper")
     message = Message("gradient", RUN, "1", 1, flat=np.ones(2, np.float32), step=2)
     step = chief.receive_bytes(encode(message, layout=[("pi", (2,))]), topic_worker="1", now=0.0)
     assert [(e.reason, e.detail) for e in step.events] == [(Reason.BAD_ROUND, "step 2 of 1 per round")]
     assert chief.answered == ()
     with pytest.raises(ValueError, match="scheme 'paper' sends once per round"):
-        Chief(run_id=RUN, workers=("1",), layout=LAYOUT2, max_rounds=3, steps_per_round=2)
+        Chief(run_id=RUN, workers=("1",), layout=LAYOUT2, max_rounds=3, steps_per_round=2, scheme="paper")
     with pytest.raises(
         ValueError, match=r"scheme 'pergrad' averages every step: it needs every worker \(quorum 1\)"
     ):

@@ -12,28 +12,41 @@ import pytest
 from fleetrl.federation.chief import Chief
 from fleetrl.federation.messages import Message, Reason, encode
 from fleetrl.federation.runner import IdleTimeout, run_chief
-from fleetrl.federation.shared_settings import SettingsRefused, settings_difference
+from fleetrl.federation.shared_settings import (
+    LearningSettings,
+    SettingsRefused,
+    settings_difference,
+    shared_text,
+)
 from fleetrl.federation.signing import status_payload
 from fleetrl.federation.worker import FederatedWorker
-from fleetrl.runs.shared import shared_settings
+from fleetrl.runs.settings import resolve_learning
 from fleetrl.transport.local import LocalBus
 
 RUN = "shared"
 LAYOUT = [("w", (2,))]
-CHIEF_SETTINGS = shared_settings(
-    env="qube",
-    fleet_seed=0,
-    fleet_profile="table2",
-    preset="standard",
-    overrides={},
-    scheme="paper",
-    scheme_params={},
-    target_score=2450.0,
+CHIEF_SETTINGS = shared_text(
+    LearningSettings(
+        env="qube",
+        fleet_seed=0,
+        fleet_profile="table2",
+        preset="standard",
+        overrides={},
+        scheme="paper",
+        scheme_params={},
+        target_score=2450.0,
+    )
 )
 
 
+def shared_settings(**values: Any) -> dict[str, str]:
+    return shared_text(LearningSettings(**values))
+
+
 def chief() -> Chief:
-    return Chief(run_id=RUN, workers=("1", "2"), layout=LAYOUT, max_rounds=5, settings=CHIEF_SETTINGS)
+    return Chief(
+        run_id=RUN, workers=("1", "2"), layout=LAYOUT, max_rounds=5, scheme="paper", settings=CHIEF_SETTINGS
+    )
 
 
 def join(worker: str, **changes: object) -> bytes:
@@ -47,7 +60,7 @@ def join(worker: str, **changes: object) -> bytes:
         "scheme_params": {},
         "target_score": 2450.0,
     } | changes
-    settings = shared_settings(**values)  # type: ignore[arg-type]
+    settings = shared_settings(**values)
     return encode(Message("join", RUN, worker, 1, settings=settings), layout=LAYOUT)
 
 
@@ -89,10 +102,16 @@ def test_equal_settings_give_equal_text_whatever_the_order_of_the_overrides() ->
     assert a == b and a["overrides"] == '{"k":2,"lr":0.1}' and a["fleet_seed"] == "3"
 
 
+def test_each_worker_keeps_its_own_learning_seed_and_the_join_does_not_compare_it() -> None:
+    base = dict(CHIEF_SETTINGS_ARGS, scheme="pergrad", scheme_params={})
+    assert shared_settings(**base, seed=40) == shared_settings(**base, seed=41)
+    assert "seed" not in shared_settings(**base) and "max_rounds" not in shared_settings(**base)
+
+
 def test_the_scheme_params_are_the_schemes_own_with_its_defaults_filled_in() -> None:
     def params(**given: object) -> str:
-        values = dict(CHIEF_SETTINGS_ARGS, scheme="fedavgm", scheme_params=given)
-        return shared_settings(**values)["scheme_params"]  # type: ignore[arg-type]
+        learning = LearningSettings(env="cartpole", scheme="fedavgm", scheme_params=given)
+        return shared_text(resolve_learning(learning))["scheme_params"]
 
     assert (
         params()
@@ -147,9 +166,9 @@ def test_a_worker_whose_settings_differ_is_refused_at_join_and_its_messages_reje
 
 
 def test_a_worker_whose_scheme_params_differ_is_refused_naming_them() -> None:
-    ours = shared_settings(**CHIEF_SETTINGS_ARGS, scheme="fedavgm", scheme_params={"momentum": 0.9})  # type: ignore[arg-type]
-    c = Chief(run_id=RUN, workers=("1", "2"), layout=LAYOUT, max_rounds=5, settings=ours)
-    theirs = shared_settings(**CHIEF_SETTINGS_ARGS, scheme="fedavgm", scheme_params={"momentum": 0.5})  # type: ignore[arg-type]
+    ours = shared_settings(**CHIEF_SETTINGS_ARGS, scheme="fedavgm", scheme_params={"momentum": 0.9})
+    c = Chief(run_id=RUN, workers=("1", "2"), layout=LAYOUT, max_rounds=5, scheme="fedavgm", settings=ours)
+    theirs = shared_settings(**CHIEF_SETTINGS_ARGS, scheme="fedavgm", scheme_params={"momentum": 0.5})
     step = c.receive_bytes(
         encode(Message("join", RUN, "2", 1, settings=theirs), layout=LAYOUT), topic_worker="2", now=0.0
     )
@@ -171,7 +190,7 @@ def test_a_matching_join_is_accepted_once_and_lifts_a_refusal() -> None:
 
 
 def test_a_chief_without_settings_checks_nothing() -> None:
-    c = Chief(run_id=RUN, workers=("1",), layout=LAYOUT, max_rounds=5)
+    c = Chief(run_id=RUN, workers=("1",), layout=LAYOUT, max_rounds=5, scheme="paper")
     step = c.receive_bytes(join("1", preset="paper"), topic_worker="1", now=0.0)
     assert [e.kind for e in step.events] == ["joined"]
 
@@ -183,7 +202,9 @@ def test_a_worker_with_another_scheme_or_preset_stops_with_the_chiefs_reason(
     bus = LocalBus()
     learner = fake_learner(1)
     layout = learner.agent.actor_layout()
-    boss = Chief(run_id=RUN, workers=("1",), layout=layout, max_rounds=5, settings=CHIEF_SETTINGS)
+    boss = Chief(
+        run_id=RUN, workers=("1",), layout=layout, max_rounds=5, scheme="paper", settings=CHIEF_SETTINGS
+    )
     failures: list[BaseException] = []
 
     def serve() -> None:
@@ -208,7 +229,7 @@ def test_a_worker_with_another_scheme_or_preset_stops_with_the_chiefs_reason(
     } | change
     worker = FederatedWorker(
         learner, bus.client(), run_id=RUN, worker_id="1", max_rounds=5, reply_timeout=10,
-        settings=shared_settings(**values),  # type: ignore[arg-type]
+        scheme="paper", settings=shared_settings(**values),
     )  # fmt: skip
     key = next(iter(change))
     with pytest.raises(

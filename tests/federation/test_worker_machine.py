@@ -370,7 +370,7 @@ def test_the_runner_plays_a_run_over_an_in_process_chief_and_repairs_a_lost_mess
     fake_learner: Any,
 ) -> None:
     learner = fake_learner(11, complete_at=3)
-    c = Chief(run_id=RUN, workers=["1"], layout=FAKE_LAYOUT, max_rounds=5)
+    c = Chief(run_id=RUN, workers=["1"], layout=FAKE_LAYOUT, max_rounds=5, scheme="paper")
     transport = LoopbackTransport(c, drop_first=2)  # the join and round 1's gradient are lost
     got: list[RoundRecord] = []
     checkpoints: list[int] = []
@@ -383,6 +383,7 @@ def test_the_runner_plays_a_run_over_an_in_process_chief_and_repairs_a_lost_mess
         on_record=got.append,
         on_round_done=checkpoints.append,
         clock=lambda: transport.now[0],
+        scheme="paper",
     )
     summary = worker.run()
     assert [r.event for r in got] == [Sent("gradient"), Sent("gradient"), WorkerEvent.TRANSFER_OUT]

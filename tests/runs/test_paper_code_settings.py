@@ -23,7 +23,7 @@ def test_paper_code_and_its_overrides_reach_the_run_config(tmp_path: Path) -> No
     assert ppo["optimisers"] == "one_sequential" and ppo["clip_eps"] == 0.1  # the preset's own values
     table = tomllib.loads(settings.to_toml())
     again = build(RunSettings, table, {})  # config.toml reruns the same settings
-    assert again.ppo() == settings.ppo()
+    assert again.learning.ppo() == settings.learning.ppo()
 
 
 @pytest.mark.parametrize(

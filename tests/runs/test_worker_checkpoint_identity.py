@@ -9,15 +9,16 @@ import torch
 
 from fleetrl.runs.checkpoints import WorkerCheckpoint
 from fleetrl.runs.factory import make_learner
+from fleetrl.runs.settings import LearningSettings
 from fleetrl.runs.spec import WorkerSpec
 
 
 def spec(tmp_path: Path, **changes: object) -> WorkerSpec:
-    base = WorkerSpec(
-        worker=0, unit=0, env="cartpole", preset="standard", seed=3, fleet_seed=0, max_rounds=5,
-        out=str(tmp_path), scheme="fedavgm", scheme_params={"momentum": 0.5, "server_lr": 1.0},
+    learning = LearningSettings(
+        env="cartpole", preset="standard", seed=3, fleet_seed=0, max_rounds=5, scheme="fedavgm",
+        scheme_params={"momentum": 0.5, "server_lr": 1.0},
     )  # fmt: skip
-    return replace(base, **changes)  # type: ignore[arg-type]
+    return WorkerSpec(worker=0, unit=0, learning=replace(learning, **changes), out=str(tmp_path))  # type: ignore[arg-type]
 
 
 def test_a_checkpoint_loads_into_the_same_worker_and_is_refused_by_another_scheme(tmp_path: Path) -> None:

@@ -14,41 +14,25 @@ from typing import Any
 from fleetrl.cli import control_command, device_command, roles
 from fleetrl.cli.settings_args import (
     add_broker_arguments,
-    add_config_argument,
     add_env_argument,
     add_fleet_profile_argument,
-    add_learning_arguments,
-    add_round_arguments,
+    add_learning_argument,
+    add_settings_arguments,
     add_target_score_argument,
     settings_from_args,
 )
 
 
 def add_train_arguments(p: argparse.ArgumentParser) -> None:
-    """``fleetrl train``'s options; each is a field of RunSettings (and a key of a --config file)."""
-    add_config_argument(p)
-    add_learning_arguments(p)
-    add_round_arguments(p)
-    add_broker_arguments(p, "default: an embedded broker")
-    p.add_argument("--units", type=int, default=None, help="units in the fleet, one worker each (default 3)")
-    p.add_argument("--seed", type=int, default=None, help="learning seed (default 0)")
-    p.add_argument("--fleet-seed", type=int, default=None, help="seed of the fleet's per-unit dynamics (0)")
-    p.add_argument("--out", type=Path, default=None, help="run directory to create (required)")
-    p.add_argument("--no-live", dest="live", action="store_false", default=None, help="no live terminal view")
-    p.add_argument("--mode", default=None, help="individual or federated (default)")
-    p.add_argument("--transport", default=None, help="federated: mqtt (default) or local")
-    p.add_argument(
-        "--device-link",
-        default=None,
-        help="inprocess (default) or mqtt: each unit served by a device bridge over the broker",
-    )
-    p.add_argument(
-        "--device-driver",
-        default=None,
-        metavar="PKG.MOD:FUNCTION",
-        help="with --device-link mqtt: what the bridges serve, driver(unit, fleet_seed, *, realtime) -> "
-        "DeviceDriver (needed for your own unit type; a built-in's bridges serve its simulated units)",
-    )
+    """``fleetrl train``'s options: one per setting of RunSettings (and a key of a --config file)."""
+    from fleetrl.federation.schemes import DEFAULT_SCHEME
+    from fleetrl.runs.settings import ALONE_SCHEME, RunSettings
+
+    notes = {
+        "broker": "unset: an embedded broker",
+        "scheme": f"unset: {DEFAULT_SCHEME} ({ALONE_SCHEME} with --mode individual, where it is unused)",
+    }
+    add_settings_arguments(p, RunSettings, notes=notes)
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -68,12 +52,12 @@ def build_parser() -> argparse.ArgumentParser:
 
     evaluate = sub.add_parser("evaluate", help="run a saved policy greedily and print its mean score")
     evaluate.add_argument("model", type=Path, help="a models/worker-K.safetensors file")
-    add_env_argument(evaluate, default="qube")
+    add_env_argument(evaluate, defaulted=True)
     evaluate.add_argument("--unit", type=int, default=0)
-    evaluate.add_argument("--fleet-seed", type=int, default=0)
+    add_learning_argument(evaluate, "fleet_seed")
     add_fleet_profile_argument(evaluate)
     evaluate.add_argument("--episodes", type=int, default=10)
-    evaluate.add_argument("--seed", type=int, default=0)
+    evaluate.add_argument("--seed", type=int, default=0, help="seed of the episodes' starts (default 0)")
     add_broker_arguments(evaluate, "given: run on the unit that `fleetrl device --unit K` serves there")
     evaluate.add_argument(
         "--run-id", default="default", help="with --broker: the run id the unit's bridge serves (default)"
@@ -84,7 +68,7 @@ def build_parser() -> argparse.ArgumentParser:
         "homogeneity", help="the paper's Table 2 homogeneity test on simulated units"
     )
     homogeneity.add_argument("--units", type=int, default=3)
-    homogeneity.add_argument("--fleet-seed", type=int, default=0)
+    add_learning_argument(homogeneity, "fleet_seed")
     add_fleet_profile_argument(homogeneity)
     homogeneity.add_argument("--impulses", type=int, default=100)
     homogeneity.add_argument("--seed", type=int, default=0, help="seed of the impulse directions")
@@ -184,8 +168,7 @@ def cmd_demo(args: argparse.Namespace) -> int:
     from fleetrl.runs.launch import demo_settings, train
 
     out = args.out or Path("runs") / time.strftime("demo-%Y%m%d-%H%M%S")
-    settings = demo_settings(out, args.seed)
-    settings.validate()
+    settings = demo_settings(out, args.seed).resolved()
     summary = train(settings)
     print_summary(summary, settings.out)
     return exit_code(summary)

@@ -11,14 +11,7 @@ import time
 from pathlib import Path
 from typing import Any
 
-from fleetrl.cli.settings_args import (
-    add_broker_arguments,
-    add_config_argument,
-    add_connect_timeout,
-    add_learning_arguments,
-    add_round_arguments,
-    settings_from_args,
-)
+from fleetrl.cli.settings_args import add_settings_arguments, settings_from_args
 
 log = logging.getLogger(__name__)
 
@@ -50,95 +43,16 @@ def register(sub: Any) -> None:
     secure.add_argument("--no-tls", action="store_true", help="plain MQTT (logins travel in clear text)")
     secure.set_defaults(handler=cmd_secure_config)
 
+    from fleetrl.runs.role_settings import ChiefSettings, WorkerSettings
+
+    required = {"broker": "required"}
     chief = sub.add_parser("chief", help="serve as the chief of a federated run (Algorithm 1)")
-    add_run_arguments(chief)
-    add_round_arguments(chief)
-    chief.add_argument("--workers", type=int, default=None, help="N: the workers are ids 0 … N-1 (required)")
-    chief.add_argument(
-        "--fleet-seed",
-        type=int,
-        default=None,
-        help="seed of the fleet's per-unit dynamics; every worker must have the same (0)",
-    )
-    chief.add_argument(
-        "--out",
-        type=Path,
-        default=None,
-        help="write chief.json, chief.log and a checkpoint every round (checkpoints/chief/) here",
-    )
-    chief.add_argument(
-        "--resume",
-        action="store_true",
-        default=None,
-        help="continue the run from the checkpoint in --out (after a crash; same settings)",
-    )
-    chief.add_argument(
-        "--idle-timeout", type=float, default=None, help="give up after this many idle seconds (600)"
-    )
-    chief.add_argument(
-        "--dropout-grace",
-        type=float,
-        default=None,
-        help="seconds a worker that went offline has to come back before it leaves W (3)",
-    )
+    add_settings_arguments(chief, ChiefSettings, notes=required)
     chief.set_defaults(handler=cmd_chief)
 
     worker = sub.add_parser("worker", help="serve as one worker of a federated run (Algorithm 2)")
-    add_run_arguments(worker)
-    worker.add_argument("--worker-id", type=int, default=None, help="this worker's id (0 … N-1; required)")
-    worker.add_argument("--unit", type=int, default=None, help="device unit to train on (default: worker id)")
-    worker.add_argument("--seed", type=int, default=None, help="the run's learning seed (0)")
-    worker.add_argument("--fleet-seed", type=int, default=None, help="seed of the fleet's per-unit dynamics")
-    worker.add_argument(
-        "--out",
-        type=Path,
-        default=None,
-        help="this worker's run directory (metrics, model, a checkpoint every round; required)",
-    )
-    worker.add_argument(
-        "--resume",
-        action="store_true",
-        default=None,
-        help="continue from the checkpoint in --out at its round (after a crash; same settings)",
-    )
-    worker.add_argument(
-        "--reply-timeout", type=float, default=None, help="seconds to wait for the chief (600)"
-    )
-    worker.add_argument(
-        "--resend-interval",
-        type=float,
-        default=None,
-        help="re-send the round's message after this many seconds without an answer (5)",
-    )
-    worker.add_argument(
-        "--device-link",
-        default=None,
-        help="inprocess (default: the unit simulated here) or mqtt: drive the unit through its device bridge "
-        "(fleetrl device --run-id RUN --unit K) on the same broker",
-    )
+    add_settings_arguments(worker, WorkerSettings, notes=required)
     worker.set_defaults(handler=cmd_worker)
-
-
-def add_run_arguments(p: argparse.ArgumentParser) -> None:
-    """Options the chief and every worker must agree on, and how each reaches the broker."""
-    add_config_argument(p)
-    add_learning_arguments(p)
-    add_broker_arguments(p, "required")
-    p.add_argument("--ca-file", type=Path, default=None, help="CA certificate for mqtts://")
-    p.add_argument(
-        "--client-cert", type=Path, default=None, help="client certificate for mqtts:// (optional)"
-    )
-    p.add_argument("--client-key", type=Path, default=None, help="the client certificate's private key")
-    p.add_argument(
-        "--fleet-key-file",
-        type=Path,
-        default=None,
-        help="sign and verify every federation message with this key (HMAC-SHA256; all roles share it)",
-    )
-    p.add_argument(
-        "--run-id", default=None, help="the run's id (a topic level shared by all roles; required)"
-    )
-    add_connect_timeout(p, default=None)
 
 
 def cmd_broker(args: argparse.Namespace) -> int:
@@ -198,25 +112,28 @@ def cmd_chief(args: argparse.Namespace) -> int:
     """Serve one run as its chief; print how it ended as JSON."""
     from fleetrl.federation.chief import Chief
     from fleetrl.federation.runner import run_chief
-    from fleetrl.runs.launch import exchanges_per_round, fleet_start, shared_layout
+    from fleetrl.federation.shared_settings import shared_text
+    from fleetrl.runs.launch import fleet_start
     from fleetrl.runs.role_settings import ChiefSettings
     from fleetrl.runs.rundir import write_json_atomic
+    from fleetrl.runs.settings import fleet_shape
 
     settings = settings_from_args(ChiefSettings, args)
+    shape = fleet_shape(settings.learning)
     chief = Chief(
         run_id=settings.run_id,
         workers=[str(k) for k in range(settings.workers)],
-        layout=shared_layout(settings),
-        steps_per_round=exchanges_per_round(settings),
-        scheme=settings.federation_scheme(),
-        max_rounds=settings.max_rounds,
+        layout=shape.layout,
+        steps_per_round=shape.exchanges_per_round,
+        scheme=settings.learning.federation_scheme(),
+        max_rounds=settings.learning.max_rounds,
         aggregator=settings.aggregation,
         quorum=settings.quorum,
         round_timeout=settings.round_timeout,
         dropout_grace=settings.dropout_grace,
         key=settings.fleet_key(),
-        settings=settings.shared_settings(settings.fleet_seed),
-        start=fleet_start(settings),
+        settings=shared_text(settings.learning),
+        start=fleet_start(settings.learning),
     )
     if settings.out is None:
         summary = run_chief(chief, settings.transport(), idle_timeout=settings.idle_timeout)
@@ -303,12 +220,14 @@ def worker_config(settings: Any) -> dict[str, Any]:
     """A standalone worker's config.json: its settings (no password) and the resolved PPO config."""
     from dataclasses import asdict
 
-    config = {k: str(v) if isinstance(v, Path) else v for k, v in asdict(settings).items()}
+    from fleetrl.runs.setting_values import flat_values
+
+    config = {k: str(v) if isinstance(v, Path) else v for k, v in flat_values(settings).items()}
     return config | {
         "role": "worker",
         "mode": "federated",
         "units": 1,
         "broker": settings.public_broker,
         "unit": settings.device_unit,
-        "ppo": settings.ppo_config(),
+        "ppo": asdict(settings.learning.ppo()),
     }

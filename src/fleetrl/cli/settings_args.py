@@ -1,21 +1,34 @@
 """Settings from a ``--config`` TOML file and the flags given (flags win): ``train``, ``chief``, ``worker``.
 
-Every flag of those commands has ``default=None`` (not given) and a ``dest`` that is a field of the command's
-settings class (:mod:`fleetrl.runs.settings`, :mod:`fleetrl.runs.role_settings`): the defaults live in one
-place, the dataclass, and every flag has a config-file key of the same name.
+The flags of those commands are generated from the fields of the command's settings class
+(:mod:`fleetrl.runs.settings`, :mod:`fleetrl.runs.role_settings`): a field's name is its flag's ``dest`` and
+its config-file key, its type the flag's type, its docstring the flag's help, and its default (the only one)
+is shown there. Every generated flag has ``default=None`` (not given), so a config file can set what no flag
+gives.
 """
 
 from __future__ import annotations
 
 import argparse
+import dataclasses
+import types
 from pathlib import Path
-from typing import Any, TypeVar
+from typing import Any, TypeVar, Union, get_args, get_origin
 
 from fleetrl.cli.parsing import parse_overrides
+from fleetrl.federation.schemes import DEFAULT_SCHEME
+from fleetrl.federation.shared_settings import LearningSettings
+from fleetrl.runs.setting_values import (
+    NEGATED_FLAGS,
+    TABLE_FLAGS,
+    field_default,
+    field_docs,
+    flag,
+    required,
+    setting_fields,
+)
 
 S = TypeVar("S")
-
-CONNECT_TIMEOUT = 60.0  # fleetrl.runs.role_settings.CONNECT_TIMEOUT, without importing torch for --help
 
 NOT_SETTINGS = frozenset({"command", "handler", "verbose", "config"})
 """parsed names that are not settings"""
@@ -32,131 +45,101 @@ def add_config_argument(p: argparse.ArgumentParser) -> None:
     )
 
 
-def add_learning_arguments(p: argparse.ArgumentParser) -> None:
-    """The learning options of ``train``, ``chief`` and ``worker`` (defaults: fleetrl.runs.settings)."""
-    add_env_argument(p, default=None)
-    add_target_score_argument(p)
-    add_fleet_profile_argument(p)
-    p.add_argument(
-        "--preset",
-        default=None,
-        help="PPO preset: standard (default; learns on every unit type measured), paper (Table 1 as "
-        "written, to reproduce the paper) or paper-code (what the authors' code ran)",
-    )
-    p.add_argument(
-        "--max-rounds", type=int, default=None, help="the paper's M: most rounds per worker (1000)"
-    )
-    p.add_argument(
-        "--scheme",
-        default=None,
-        help="federated: pergrad (default; gradients averaged at every optimisation step), paper (the "
-        "paper's: gradient sharing + model transfer), fedavg (model averaging), fedavgm or fedadam (fedavg "
-        "with a server optimiser)",
-    )
-    p.add_argument(
-        "--scheme-param",
-        dest="scheme_params",
-        action="append",
-        default=None,
-        metavar="KEY=VALUE",
-        help="one parameter of the scheme, e.g. --scheme-param momentum=0.9 (repeatable; all roles agree)",
-    )
-    p.add_argument(
-        "--set",
-        dest="overrides",
-        action="append",
-        default=None,
-        metavar="KEY=VALUE",
-        help="override one PPO setting of the preset, e.g. --set clip_eps=0.2 (repeatable; all roles agree)",
-    )
+def add_settings_arguments(
+    p: argparse.ArgumentParser, cls: type, *, notes: dict[str, str] | None = None
+) -> None:
+    """``--config`` and one flag per setting of the settings class ``cls`` (its groups' settings too), each
+    with its help from the field's docstring and ``notes`` (setting → what this command adds)."""
+    add_config_argument(p)
+    notes = {"scheme": f"unset: {DEFAULT_SCHEME}"} | (notes or {})
+    for name in setting_fields(cls):
+        add_setting_argument(p, cls, name, note=notes.get(name))
 
 
-def add_env_argument(p: argparse.ArgumentParser, default: str | None) -> None:
+def add_setting_argument(
+    p: argparse.ArgumentParser, cls: type, name: str, *, default: Any = None, note: str | None = None
+) -> None:
+    """The flag of setting ``name`` of the settings class ``cls``: its type, and its help from the field's
+    docstring, its default (or ``required``) and ``note``. ``default`` is what the flag gives when it is not
+    given (None: not given, the settings class's default applies)."""
+    field, kind = setting_fields(cls)[name]
+    help_text = field_docs(cls).get(name, "")
+    if note:
+        help_text += f"; {note}"
+    if name in TABLE_FLAGS:
+        p.add_argument(
+            flag(name), dest=name, action="append", default=None, metavar="KEY=VALUE",
+            help=f"{help_text} (repeatable)",
+        )  # fmt: skip
+        return
+    if name in NEGATED_FLAGS:
+        p.add_argument(flag(name), dest=name, action="store_false", default=None, help=f"not: {help_text}")
+        return
+    if kind is bool:
+        p.add_argument(flag(name), dest=name, action="store_true", default=None, help=help_text)
+        return
+    if required(field):
+        help_text += " (required)"
+    else:
+        shown = field_default(field) if default is None else default
+        if shown is not None:
+            help_text += f" (default: {shown})"
+    p.add_argument(flag(name), dest=name, type=_parse_type(kind), default=default, help=help_text)
+
+
+def _parse_type(kind: Any) -> Any:
+    """The argparse ``type`` of a setting's type (its non-None option for an optional one)."""
+    if get_origin(kind) in (Union, types.UnionType):
+        kind = next(a for a in get_args(kind) if a is not type(None))
+    return kind if kind in (int, float, Path) else str
+
+
+def add_learning_argument(p: argparse.ArgumentParser, name: str, *, defaulted: bool = True) -> None:
+    """The flag of learning setting ``name`` for a command that is not a role (``evaluate``,
+    ``homogeneity``): with ``defaulted``, the flag gives the setting's default when it is not given."""
+    field = setting_fields(LearningSettings)[name][0]
+    add_setting_argument(p, LearningSettings, name, default=field_default(field) if defaulted else None)
+
+
+def add_env_argument(p: argparse.ArgumentParser, *, defaulted: bool) -> None:
     """``--env``: a built-in unit type, or the user's own as ``package.module:factory``."""
-    p.add_argument(
-        "--env",
-        default=default,
-        metavar="ENV",
-        help="the unit type: qube (QUBE-Servo 2 balance; default), cartpole, or your own as "
-        "package.module:factory, where factory(unit: int, fleet_seed: int) -> gymnasium.Env builds unit "
-        "`unit` of your fleet (imported from the current directory or the installed packages)",
-    )
+    add_learning_argument(p, "env", defaulted=defaulted)
 
 
 def add_target_score_argument(p: argparse.ArgumentParser) -> None:
     """``--target-score``: the completion criterion's target."""
-    p.add_argument(
-        "--target-score",
-        type=float,
-        default=None,
-        metavar="X",
-        help="learning is complete when the weighted moving average of the last 10 scores reaches X "
-        "(default: qube 2450, cartpole 475, a factory's env spec reward_threshold; all roles agree)",
-    )
+    add_learning_argument(p, "target_score")
 
 
 def add_fleet_profile_argument(p: argparse.ArgumentParser) -> None:
     """``--fleet-profile``: which per-unit variation the simulated QUBE fleet is drawn with."""
-    p.add_argument(
-        "--fleet-profile",
-        default=None,
-        metavar="NAME",
-        help="QUBE fleet profile: table2 (default; fitted to the paper's Table 2) or v1 (the first fleet); "
-        "other unit types have one fleet",
-    )
+    add_learning_argument(p, "fleet_profile")
 
 
-def add_round_arguments(p: argparse.ArgumentParser) -> None:
-    """How the chief closes a round (``train`` and ``chief``)."""
-    p.add_argument(
-        "--aggregation",
-        default=None,
-        help="mean (default, the paper's), median, trimmed_mean[:β], clipped_mean[:C]",
-    )
-    p.add_argument(
-        "--quorum",
-        type=float,
-        default=None,
-        help="at the round deadline, close the round if this fraction of W answered (default 1.0)",
-    )
-    p.add_argument(
-        "--round-timeout",
-        type=float,
-        default=None,
-        help="round deadline in seconds (default: none, the paper's fully synchronous rule)",
-    )
-
-
-def add_broker_arguments(p: argparse.ArgumentParser, default: str) -> None:
+def add_broker_arguments(p: argparse.ArgumentParser, note: str) -> None:
     """``--broker`` and the password file (never the password itself on a command line)."""
-    p.add_argument("--broker", default=None, help=f"mqtt://[user@]host:port or mqtts://…; {default}")
-    p.add_argument(
-        "--broker-password-file",
-        type=Path,
-        default=None,
-        metavar="FILE",
-        help="the broker password's file (else $FLEETRL_BROKER_PASSWORD; never put it in the URL)",
-    )
+    from fleetrl.runs.settings import BrokerLogin
+
+    add_setting_argument(p, BrokerLogin, "broker", note=note)
+    add_setting_argument(p, BrokerLogin, "broker_password_file")
 
 
-def add_connect_timeout(p: argparse.ArgumentParser, default: float | None = CONNECT_TIMEOUT) -> None:
-    """``--connect-timeout``: how long a standalone role retries an unreachable broker (start order does not
-    matter) before it exits 1."""
-    p.add_argument(
-        "--connect-timeout",
-        type=float,
-        default=default,
-        help=f"seconds to keep retrying an unreachable broker, with backoff (default {CONNECT_TIMEOUT:g})",
-    )
+def add_connect_timeout(p: argparse.ArgumentParser) -> None:
+    """``--connect-timeout``: how long a role retries an unreachable broker (start order does not matter)
+    before it exits 1; the flag's default is the roles' setting's."""
+    from fleetrl.runs.role_settings import RoleSettings
+
+    timeout = next(f for f in dataclasses.fields(RoleSettings) if f.name == "connect_timeout")
+    add_setting_argument(p, RoleSettings, "connect_timeout", default=timeout.default)
 
 
 def settings_from_args(cls: type[S], args: argparse.Namespace) -> S:
-    """The command's validated settings object from ``--config`` and the flags given."""
+    """The command's resolved settings value from ``--config`` and the flags given."""
     from fleetrl.runs.setting_values import build, load_toml
 
     file_values: dict[str, Any] = {} if args.config is None else load_toml(args.config)
     flags = {k: v for k, v in vars(args).items() if k not in NOT_SETTINGS}
-    for table, flag in (("overrides", "--set"), ("scheme_params", "--scheme-param")):
+    for table, table_flag in TABLE_FLAGS.items():
         if flags.get(table) is not None:
-            flags[table] = parse_overrides(flags[table], flag)
+            flags[table] = parse_overrides(flags[table], table_flag)
     return build(cls, file_values, flags, source=str(args.config or ""))

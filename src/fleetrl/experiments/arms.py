@@ -28,7 +28,7 @@ def arm_key(settings: dict[str, Any]) -> str:
     env, units, mode, preset = (settings[k] for k in ("env", "units", "mode", "preset"))
     env = str(env).replace(":", "-")  # a unit factory's package.module:factory
     key = f"{env}-{units}-{mode}-{preset}-m{settings['max_rounds']}"
-    if settings.get("scheme", "paper") != "paper":
+    if settings.get("scheme") not in (None, "paper"):  # the keys made before arms named a scheme
         key += f"-{settings['scheme']}"
     if settings.get("fleet_seed", 0):
         key += f"-fleet{settings['fleet_seed']}"

@@ -42,7 +42,7 @@ def arm(
     preset: str,
     rounds: int,
     label: str,
-    scheme: str = "paper",
+    scheme: str | None = None,
     fleet_seed: int = 0,
     target_score: float | None = None,
     scheme_params: dict[str, float] | None = None,
@@ -50,7 +50,8 @@ def arm(
 ) -> Arm:
     """A training arm; its key names the configuration, so experiments that share one share its runs.
 
-    Federated arms use the in-process bus (each experiment checks one arm over MQTT as well).
+    Federated arms use the in-process bus (each experiment checks one arm over MQTT as well) and name their
+    ``scheme`` (so a new default changes no arm).
     """
     settings: dict[str, object] = {
         "env": env,
@@ -59,7 +60,9 @@ def arm(
         "preset": preset,
         "max_rounds": rounds,
     }
-    if mode == "federated":  # named even when it is the default, so a new default changes no arm
+    if mode == "federated":
+        if scheme is None:
+            raise ValueError(f"arm {label!r}: a federated arm names its scheme")
         settings["transport"] = "local"
         settings["scheme"] = scheme
     if fleet_seed:
@@ -113,7 +116,7 @@ def fig5(budget: Budget) -> Plan:
     (``paper-code``) and with ``standard``; fleetrl's schemes (``fedavg``, ``pergrad``) with ``standard``."""
     m = budget.qube_rounds
     ind_paper, fed_paper, ind_std, fed_std = (
-        arm("qube", 3, mode, preset, m, f"{mode} · {preset}", fleet_seed=budget.fleet_seed)
+        arm("qube", 3, mode, preset, m, f"{mode} · {preset}", "paper", budget.fleet_seed)
         for preset in ("paper", "standard")
         for mode in ("individual", "federated")
     )
@@ -122,7 +125,7 @@ def fig5(budget: Budget) -> Plan:
         for s in ("fedavg", "pergrad")
     )
     ind_code, fed_code = (
-        arm("qube", 3, mode, "paper-code", m, f"{mode} · paper-code", fleet_seed=budget.fleet_seed)
+        arm("qube", 3, mode, "paper-code", m, f"{mode} · paper-code", "paper", budget.fleet_seed)
         for mode in ("individual", "federated")
     )
     server = FIG_SERVER_OPTIMISER
@@ -261,7 +264,7 @@ def learning(budget: Budget) -> Plan:
             for mode in ("individual", "federated"):
                 label = f"{env} · {mode} · {preset}"
                 arms[env, preset, mode] = arm(
-                    env, 3, mode, preset, rounds, label, fleet_seed=budget.fleet_seed, target_score=target
+                    env, 3, mode, preset, rounds, label, "paper", budget.fleet_seed, target_score=target
                 )
             alone = arms[env, preset, "individual"]
             ratios.append(Ratio(alone, arms[env, preset, "federated"], "federation, the paper's scheme"))

@@ -123,7 +123,7 @@ def check_unit_type(
 ) -> list[str]:
     """The experiments to run on a user's unit type (``all``: those not about the paper's rig); a ValueError
     for one that is, for a target without a unit type, or for a unit type that cannot be trained."""
-    from fleetrl.runs.settings import LearningSettings
+    from fleetrl.runs.settings import LearningSettings, resolve_and_probe
 
     if unit_type is None:
         raise ValueError("--target-score needs --env: the built-ins' experiments use their own targets")
@@ -135,7 +135,7 @@ def check_unit_type(
                 f"experiment {one!r} is about the paper's rig: --env applies to "
                 f"{' and '.join(UNIT_TYPE_EXPERIMENTS)} only"
             )
-    LearningSettings(env=unit_type, target_score=target_score).validate_learning()  # before any run starts
+    resolve_and_probe(LearningSettings(env=unit_type, target_score=target_score))  # before any run starts
     return names
 
 

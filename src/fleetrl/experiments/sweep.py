@@ -44,9 +44,11 @@ def train_args(settings: Mapping[str, Any]) -> list[str]:
 
 def result_settings(settings: Mapping[str, Any]) -> dict[str, Any]:
     """What :meth:`fleetrl.runs.settings.RunSettings.result_settings` gives for a run with ``settings``."""
+    from fleetrl.runs.setting_values import build
     from fleetrl.runs.settings import RunSettings
 
-    return RunSettings(out=Path("."), **settings).result_settings()
+    run = build(RunSettings, {}, {"out": ".", **settings}, resolve=False)
+    return run.learning_resolved().result_settings()
 
 
 @dataclass

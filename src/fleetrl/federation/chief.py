@@ -95,7 +95,7 @@ class Chief:
         resend_holdoff: float = 1.0,
         dropout_grace: float = 3.0,
         key: FleetKey | None = None,
-        scheme: str | Scheme = "paper",
+        scheme: str | Scheme,
         settings: SharedSettings | None = None,
         steps_per_round: int = 1,
         start: FleetStart | None = None,

@@ -6,7 +6,7 @@ import logging
 import time
 from collections import Counter
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 from fleetrl.federation.chief import Chief, ChiefEvent, ChiefStep
@@ -53,7 +53,7 @@ class ChiefSummary:
     """(round, worker, reason) of every worker that left W without transferring"""
     rejoins: tuple[tuple[int, str], ...] = ()
     """(round, worker) of every dropped worker that came back"""
-    scheme: str = "paper"
+    scheme: str = field(kw_only=True)
     """the federation scheme"""
     completed: tuple[tuple[str, int], ...] = ()
     """(worker, round) of the first round each worker's criterion held"""

@@ -1,20 +1,118 @@
-"""The settings every role of a run must share, and the rule that compares a worker's with the chief's.
+"""The learning settings of a run as one frozen value, and the part of it every role must share.
 
-The chief's ``welcome`` carries its shared settings; a worker's ``join`` carries its own. They are a map of
-setting name → value text (what :func:`fleetrl.runs.shared.shared_settings` builds: env, fleet seed, preset,
-``--set`` overrides, scheme and its parameters). A worker whose map differs is refused at join, with a reason
-that names the first differing key in sorted order.
+:class:`LearningSettings` is what every worker learns with: the unit type and its fleet, the PPO preset and
+its overrides, the scheme and its parameters, the target score, the learning seed and the most rounds.
+``fleetrl train``, ``chief`` and ``worker`` hold it, a worker's spec carries it, a run's config file spells it
+out, and its fields' defaults are the only defaults of those settings (the flags and their help are generated
+from the fields). :func:`fleetrl.runs.settings.resolve_learning` turns one as given into one with every
+default filled in and every value checked (a new value: nothing is changed in place).
+
+The chief's ``welcome`` carries its :func:`shared_text`; a worker's ``join`` carries its own. They are a map
+of setting name → value text over the fields marked ``shared`` (the env, the fleet seed and profile, the
+preset, the ``--set`` overrides, the scheme and its parameters, the target score). A worker whose map differs
+is refused at join, with a reason that names the first differing key in sorted order. The learning seed is not
+shared: each worker's own seed draws its actions and windows.
 """
 
 from __future__ import annotations
 
+import dataclasses
+import json
 from collections.abc import Mapping
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Any
+
+from fleetrl.agent.config import DEFAULT_PRESET
+
+if TYPE_CHECKING:
+    from fleetrl.agent.config import PPOConfig
+    from fleetrl.federation.schemes import Scheme
 
 SharedSettings = Mapping[str, str]
 """setting name → its value as text (the same text for the same value on every machine)"""
 
 MISSING = "<not set>"
 """How a setting one side lacks is shown."""
+
+NOT_SHARED = {"shared": False}
+"""field metadata of a learning setting each role may have its own of (not checked at join)"""
+
+
+@dataclass(frozen=True, kw_only=True)
+class LearningSettings:
+    """What every worker learns with; the fields not marked ``NOT_SHARED`` must be equal on every role."""
+
+    env: str = "qube"
+    """the unit type: ``qube`` (QUBE-Servo 2 balance), ``cartpole``, or your own as ``package.module:factory``
+    with ``factory(unit, fleet_seed) -> gymnasium.Env`` (imported from the current directory or the installed
+    packages)"""
+    fleet_seed: int = 0
+    """seed of the fleet's per-unit dynamics: with the unit index it draws each unit"""
+    fleet_profile: str | None = None
+    """the simulated fleet's profile (QUBE: ``table2``, fitted to the paper's Table 2, or ``v1``, the fleet
+    before the calibration; other unit types have one fleet); unset: the unit type's own"""
+    preset: str = DEFAULT_PRESET
+    """PPO preset: ``standard`` (learns on every unit type measured), ``paper`` (Table 1 as written, to
+    reproduce the paper) or ``paper-code`` (what the authors' code ran)"""
+    overrides: dict[str, Any] = field(default_factory=dict)
+    """PPO settings that replace the preset's, e.g. ``--set clip_eps=0.2`` (the ``[overrides]`` table)"""
+    scheme: str | None = None
+    """federated: ``pergrad`` (gradients averaged at every optimisation step), ``paper`` (the paper's
+    gradient sharing + model transfer), ``fedavg`` (model averaging), ``fedavgm`` or ``fedadam`` (fedavg
+    with a server optimiser)"""
+    scheme_params: dict[str, Any] = field(default_factory=dict)
+    """the scheme's parameters, e.g. ``--scheme-param momentum=0.9`` (the ``[scheme_params]`` table);
+    resolution fills in the scheme's defaults, so equal schemes have equal tables"""
+    target_score: float | None = None
+    """learning is complete when the weighted moving average of the last 10 scores reaches it; unset: the
+    unit type's own (a factory's env spec ``reward_threshold``)"""
+    seed: int = field(default=0, metadata=NOT_SHARED)
+    """the learning seed: network initialisation, action sampling, window starts (each worker's own)"""
+    max_rounds: int = field(default=1000, metadata=NOT_SHARED)
+    """the paper's M: the most rounds per worker (a round is one episode, or with the paper-code preset the
+    episodes that fill the memory)"""
+
+    @property
+    def scheme_name(self) -> str:
+        """The resolved value's scheme (resolution names one)."""
+        assert self.scheme is not None, "resolve_learning names the scheme"
+        return self.scheme
+
+    def federation_scheme(self) -> Scheme:
+        """A new scheme object of these settings (its name and parameters); ValueError naming a bad one."""
+        from fleetrl.federation.schemes import get_scheme
+
+        return get_scheme(self.scheme_name, **self.scheme_params)
+
+    def ppo(self) -> PPOConfig:
+        """The preset with the overrides applied (resolution has type- and range-checked them)."""
+        from fleetrl.agent.config import get_preset
+
+        return dataclasses.replace(get_preset(self.preset), **self.overrides)
+
+    def to_json(self) -> dict[str, Any]:
+        """The fields as JSON-plain values (tuples as lists), which the constructor reads back."""
+        plain: dict[str, Any] = json.loads(json.dumps(dataclasses.asdict(self)))
+        return plain
+
+
+def shared_text(settings: LearningSettings) -> dict[str, str]:
+    """What a run of the resolved ``settings`` carries in the chief's ``welcome`` and a worker's ``join``:
+    every shared field as text, each written the same way on every machine (JSON with sorted keys)."""
+    text = {}
+    for f in dataclasses.fields(settings):
+        if f.metadata.get("shared", True):
+            value = getattr(settings, f.name)
+            text[f.name] = value if isinstance(value, str) else _canonical(value)
+    text["fleet_profile"] = settings.fleet_profile or "none"
+    text["fleet_seed"] = str(int(settings.fleet_seed))
+    target = settings.target_score
+    text["target_score"] = _canonical(None if target is None else float(target))
+    return text
+
+
+def _canonical(value: Any) -> str:
+    return json.dumps(value, sort_keys=True, separators=(",", ":"))
 
 
 class SettingsRefused(ValueError):

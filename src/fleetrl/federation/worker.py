@@ -122,7 +122,7 @@ class FederatedWorker:
         key: FleetKey | None = None,
         start_round: int | None = None,
         on_round_done: Callable[[int], None] | None = None,
-        scheme: str | Scheme = "paper",
+        scheme: str | Scheme,
         settings: SharedSettings | None = None,
         clock: Callable[[], float] = time.monotonic,
     ) -> None:

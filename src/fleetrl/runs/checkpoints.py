@@ -139,22 +139,24 @@ class WorkerCheckpoint:
 
 def _identity(spec: WorkerSpec, run_id: str) -> dict[str, Any]:
     """What a worker's checkpoint must have been written with. The scheme and its parameters are named only
-    off their defaults (``paper``, none), so a checkpoint written before they were recorded still loads."""
-    scheme: dict[str, Any] = {} if spec.scheme == "paper" else {"scheme": spec.scheme}
-    if spec.scheme_params:
-        scheme["scheme_params"] = json.loads(json.dumps(spec.scheme_params, sort_keys=True))
+    off the scheme checkpoints had before they recorded one (``paper``, no parameters), so a checkpoint
+    written then still loads."""
+    learning = spec.learning
+    scheme: dict[str, Any] = {} if learning.scheme == "paper" else {"scheme": learning.scheme}
+    if learning.scheme_params:
+        scheme["scheme_params"] = json.loads(json.dumps(learning.scheme_params, sort_keys=True))
     return scheme | {
         "run_id": run_id,
         "worker": spec.worker,
         "unit": spec.unit,
-        "env": spec.env,
-        "preset": spec.preset,
-        "seed": spec.seed,
-        "fleet_seed": spec.fleet_seed,
-        "fleet_profile": spec.fleet_profile,
-        "max_rounds": spec.max_rounds,
-        "target_score": spec.target_score,
-        "overrides": json.loads(json.dumps(spec.overrides, sort_keys=True)),  # as the JSON record has it
+        "env": learning.env,
+        "preset": learning.preset,
+        "seed": learning.seed,
+        "fleet_seed": learning.fleet_seed,
+        "fleet_profile": learning.fleet_profile,
+        "max_rounds": learning.max_rounds,
+        "target_score": learning.target_score,
+        "overrides": json.loads(json.dumps(learning.overrides, sort_keys=True)),  # as the JSON record has it
     }
 
 

@@ -1,18 +1,15 @@
 """Building a worker's learner (env + PPO agent + completion criterion) from its spec."""
 
-import dataclasses
-
 import torch
 
 from fleetrl.agent.action_space import ActionSpace
-from fleetrl.agent.config import PPOConfig, get_preset
+from fleetrl.agent.config import PPOConfig
 from fleetrl.agent.criterion import CompletionCriterion
 from fleetrl.agent.lazy_dynamo import defer_dynamo_import
 from fleetrl.agent.learner import Learner
 from fleetrl.agent.ppo import PPOAgent
 from fleetrl.envs.catalog import describe_env, get_env_spec
 from fleetrl.envs.spaces import UnitDescription
-from fleetrl.federation.schemes import get_scheme
 from fleetrl.link.mqtt import MqttLink, open_mqtt_link
 from fleetrl.runs.spec import WorkerSpec
 from fleetrl.transport.base import Transport
@@ -55,18 +52,19 @@ def make_learner(spec: WorkerSpec, device_transport: Transport | None = None) ->
     the one the run's seed draws (its actions and windows still come from its own seed).
     """
     torch.set_num_threads(1)
-    env_spec = get_env_spec(spec.env)
-    config = dataclasses.replace(get_preset(spec.preset), **spec.overrides)
+    learning = spec.learning
+    env_spec = get_env_spec(learning.env)
+    config = learning.ppo()
     if spec.device_url is None:
-        env, unit = env_spec.make(spec.unit, spec.fleet_seed, fleet_profile=spec.fleet_profile)
+        env, unit = env_spec.make(spec.unit, learning.fleet_seed, fleet_profile=learning.fleet_profile)
     else:  # the device bridge draws the unit (with the same fleet profile)
-        link = bridge_link(spec.env, spec.device_url, spec.device_run_id, spec.unit, device_transport)
-        env, unit = env_spec.make(spec.unit, spec.fleet_seed, link=link)
+        link = bridge_link(learning.env, spec.device_url, spec.device_run_id, spec.unit, device_transport)
+        env, unit = env_spec.make(spec.unit, learning.fleet_seed, link=link)
     agent = agent_for(unit, config, seed=spec.worker_seed)
-    scheme = get_scheme(spec.scheme, **spec.scheme_params)
+    scheme = learning.federation_scheme()
     if scheme.shared_start:  # every worker from the same initial network: the run's, not its own
-        agent.set_model_parameters(agent_for(unit, config, seed=spec.seed).model_parameters())
-    target = spec.target_score if spec.target_score is not None else env_spec.default_target(unit)
+        agent.set_model_parameters(agent_for(unit, config, seed=learning.seed).model_parameters())
+    target = learning.target_score if learning.target_score is not None else env_spec.default_target(unit)
     criterion = CompletionCriterion(target)
     return Learner(env, agent, criterion, seed=spec.worker_seed, keep_learning=scheme.stays_after_completion)
 

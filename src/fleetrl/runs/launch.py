@@ -26,8 +26,8 @@ import numpy as np
 from fleetrl.envs.catalog import ENV_SPECS, describe_env
 from fleetrl.federation.chief import Chief
 from fleetrl.federation.runner import ChiefSummary, run_chief
-from fleetrl.federation.schemes import DEFAULT_SCHEME
 from fleetrl.federation.schemes.base import FleetStart
+from fleetrl.federation.shared_settings import shared_text
 from fleetrl.runs.factory import agent_for, make_learner, probe_agent
 from fleetrl.runs.fleet import Fleet, ThreadFleet, follow
 from fleetrl.runs.live import LiveView
@@ -35,14 +35,13 @@ from fleetrl.runs.processes import ProcessFleet, fork_available
 from fleetrl.runs.roles import Emit
 from fleetrl.runs.roles import train_federated as train_federated_worker
 from fleetrl.runs.rundir import RunDirectoryError, RunRecorder, write_json_atomic
-from fleetrl.runs.settings import LearningSettings, RunSettings
+from fleetrl.runs.settings import LearningSettings, RunSettings, fleet_shape
 from fleetrl.runs.spec import WorkerSpec
 from fleetrl.transport.base import Transport
 from fleetrl.transport.login import password_in_environment
 
 log = logging.getLogger(__name__)
 
-DEMO_MAX_ROUNDS = 1000
 CHIEF_IDLE_TIMEOUT = 600.0
 TRAIN_CONNECT_WINDOW = 10.0
 """seconds ``fleetrl train`` retries a broker given with ``--broker`` before it gives up (exit 1)"""
@@ -50,17 +49,9 @@ TRAIN_CONNECT_WINDOW = 10.0
 
 def demo_settings(out: Path, seed: int = 0) -> RunSettings:
     """The main job: a simulated 3-unit QUBE fleet trained federated through an embedded MQTT broker, with
-    fleetrl's best scheme (the default, ``pergrad``; docs/results.md measures it against the paper's)."""
-    return RunSettings(
-        mode="federated",
-        env="qube",
-        units=3,
-        preset="standard",
-        scheme=DEFAULT_SCHEME,
-        seed=seed,
-        max_rounds=DEMO_MAX_ROUNDS,
-        out=out,
-    )
+    fleetrl's best scheme (the default; docs/results.md measures it against the paper's). Every other
+    setting is its default."""
+    return RunSettings(learning=LearningSettings(seed=seed), out=out)
 
 
 def worker_specs(settings: RunSettings, device_url: str | None, run_id: str) -> dict[int, WorkerSpec]:
@@ -69,41 +60,20 @@ def worker_specs(settings: RunSettings, device_url: str | None, run_id: str) -> 
         k: WorkerSpec(
             worker=k,
             unit=k,
-            env=settings.env,
-            preset=settings.preset,
-            seed=settings.seed,
-            fleet_seed=settings.fleet_seed,
-            fleet_profile=settings.fleet_profile,
-            max_rounds=settings.max_rounds,
+            learning=settings.learning,
             out=str(settings.out),
-            overrides=dict(settings.overrides),
             device_url=device_url,
             device_run_id=run_id,
-            scheme=settings.scheme_name,
-            scheme_params=dict(settings.scheme_params),
-            target_score=settings.target_score,
         )
         for k in range(settings.units)
     }
 
 
-def shared_layout(settings: LearningSettings) -> list[tuple[str, tuple[int, ...]]]:
-    """Names and shapes of what the run's scheme shares for this env and preset (the scheme's
-    :meth:`~fleetrl.federation.schemes.Scheme.layout`): the chief validates every message with it."""
-    return list(settings.federation_scheme().layout(probe_agent(settings.env, settings.ppo())))
-
-
-def exchanges_per_round(settings: LearningSettings) -> int:
-    """The chief's ``steps_per_round``: 1, or the optimisation steps of an update for a per-step scheme."""
-    return settings.federation_scheme().exchanges_per_round(probe_agent(settings.env, settings.ppo()))
-
-
-def fleet_start(settings: LearningSettings) -> FleetStart | None:
+def fleet_start(learning: LearningSettings) -> FleetStart | None:
     """The fleet's start under a scheme whose fleet is one policy (``shared_start``), which the chief hands
-    every joining worker: the network the run's learning seed draws, exactly as
-    :func:`~fleetrl.runs.factory.make_learner` draws it for a worker; None for another scheme. The seed is the
-    settings' ``seed`` (``fleetrl chief`` has none yet: 0)."""
-    scheme = settings.federation_scheme()
+    every joining worker: the network the settings' learning seed draws, exactly as
+    :func:`~fleetrl.runs.factory.make_learner` draws it for a worker; None for another scheme."""
+    scheme = learning.federation_scheme()
     if not scheme.shared_start:
         return None
     import torch
@@ -111,15 +81,15 @@ def fleet_start(settings: LearningSettings) -> FleetStart | None:
     threads = torch.get_num_threads()
     torch.set_num_threads(1)  # as make_learner draws it: the initialisation's QR differs with the threads
     try:
-        agent = agent_for(describe_env(settings.env), settings.ppo(), seed=getattr(settings, "seed", 0))
+        agent = agent_for(describe_env(learning.env), learning.ppo(), seed=learning.seed)
     finally:
         torch.set_num_threads(threads)
     return FleetStart(scheme.welcome_layout(agent), scheme.start_parameters(agent))
 
 
 def train(settings: RunSettings) -> dict[str, Any]:
-    """Run the whole training and return summary.json's content."""
-    settings.validate()
+    """Run the whole training of resolved ``settings`` (:meth:`RunSettings.resolved`) and return
+    summary.json's content."""
     password = settings.broker_password if settings.broker else None
     with password_in_environment(password):  # children inherit it; no argv or file holds it
         if settings.needs_broker and settings.broker:  # fatal now, before the run directory exists
@@ -138,8 +108,9 @@ def _train(settings: RunSettings) -> dict[str, Any]:
     (recorder.out / "config.toml").write_text(settings.to_toml())
     recorder.extra["run_id"] = run_id
     log.debug("run directory %s ready", recorder.out)
-    title = f"fleetrl {settings.mode} · {settings.env} × {settings.units} · preset {settings.preset}"
-    threshold = settings.target_score
+    learning = settings.learning
+    title = f"fleetrl {settings.mode} · {learning.env} × {settings.units} · preset {learning.preset}"
+    threshold = learning.target_score
     assert threshold is not None, "validation fills in the target score"
     try:
         with (
@@ -179,8 +150,9 @@ def device_bridges(settings: RunSettings, url: str | None, run_id: str) -> Itera
     assert url is not None, "a device link over MQTT needs a broker"
     units = range(settings.units)
     driver = settings.bridge_driver()  # a built-in's device type, or the user's driver function
-    profile = settings.fleet_profile if isinstance(driver, str) else None
-    with start_bridges(url, run_id, driver, units, settings.fleet_seed, fleet_profile=profile):
+    learning = settings.learning
+    profile = learning.fleet_profile if isinstance(driver, str) else None
+    with start_bridges(url, run_id, driver, units, learning.fleet_seed, fleet_profile=profile):
         yield
 
 
@@ -222,12 +194,13 @@ def load_kernels(settings: RunSettings) -> None:
     built-in unit type on an in-process link, the unit's physics and reset. Worker processes forked from here
     start with them loaded (each would otherwise spend ~0.4 s of CPU on its first step, more on a cold cache);
     a user's unit is not stepped here."""
-    agent = probe_agent(settings.env, settings.ppo())
-    description = describe_env(settings.env)
-    if settings.env not in ENV_SPECS or settings.device_link != "inprocess":
+    learning = settings.learning
+    agent = probe_agent(learning.env, learning.ppo())
+    description = describe_env(learning.env)
+    if learning.env not in ENV_SPECS or settings.device_link != "inprocess":
         agent.act(np.zeros(description.obs_dim, dtype=np.float32))
         return
-    built = ENV_SPECS[settings.env].make(0, settings.fleet_seed, fleet_profile=settings.fleet_profile)
+    built = ENV_SPECS[learning.env].make(0, learning.fleet_seed, fleet_profile=learning.fleet_profile)
     try:
         obs, _ = built.env.reset(seed=0)
         action = agent.act(obs)
@@ -250,18 +223,19 @@ def train_federated(
     view: LiveView,
 ) -> None:
     """Chief in a thread of this process; workers as processes (MQTT at ``url``) or threads (local bus)."""
+    shape = fleet_shape(settings.learning)
     chief = Chief(
         run_id=run_id,
         workers=[str(k) for k in specs],
-        layout=shared_layout(settings),
-        steps_per_round=exchanges_per_round(settings),
-        max_rounds=settings.max_rounds,
+        layout=shape.layout,
+        steps_per_round=shape.exchanges_per_round,
+        max_rounds=settings.learning.max_rounds,
         aggregator=settings.aggregation,
-        scheme=settings.federation_scheme(),
+        scheme=settings.learning.federation_scheme(),
         quorum=settings.quorum,
         round_timeout=settings.round_timeout,
-        settings=settings.shared_settings(settings.fleet_seed),
-        start=fleet_start(settings),
+        settings=shared_text(settings.learning),
+        start=fleet_start(settings.learning),
     )
     make_transport, fleet_for = transports(settings, url, specs, run_id)
     outcome: dict[str, ChiefSummary | BaseException] = {}

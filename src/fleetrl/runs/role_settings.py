@@ -1,10 +1,10 @@
 """The settings of the standalone roles ``fleetrl chief`` and ``fleetrl worker`` (docs/deploy.md): what both
-must agree on (:class:`RoleSettings`) and what each adds. Validated once, before any file, connection or
+must agree on (:class:`RoleSettings`) and what each adds. Resolved once, before any file, connection or
 process."""
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -15,24 +15,24 @@ from fleetrl.runs.setting_values import SettingError, check_readable_file, check
 from fleetrl.runs.settings import (
     DEVICE_LINKS,
     BrokerLogin,
+    FleetShape,
     LearningSettings,
     RoundRules,
     as_setting_error,
-    check_scheme_quorum,
     choose,
     path_text,
     positive,
+    resolve_and_probe,
 )
 from fleetrl.runs.spec import WorkerSpec
 
-CONNECT_TIMEOUT = 60.0
-"""default seconds a standalone role retries an unreachable broker before it gives up (exit 1)"""
 
-
-@dataclass(kw_only=True)
-class RoleSettings(LearningSettings, BrokerLogin):
+@dataclass(frozen=True, kw_only=True)
+class RoleSettings(BrokerLogin):
     """What the chief and every worker of a run must agree on, and how each reaches the broker."""
 
+    learning: LearningSettings = field(default_factory=LearningSettings)
+    """what every worker learns with (the shared part is checked when a worker joins)"""
     run_id: str
     """the run's id (a topic level shared by all roles)"""
     ca_file: Path | None = None
@@ -43,12 +43,14 @@ class RoleSettings(LearningSettings, BrokerLogin):
     """the client certificate's private key"""
     fleet_key_file: Path | None = None
     """sign and verify every federation message with this key (HMAC-SHA256; all roles share it)"""
-    connect_timeout: float = CONNECT_TIMEOUT
-    """seconds to keep retrying an unreachable broker, with backoff, before exiting 1"""
+    connect_timeout: float = 60.0
+    """seconds to keep retrying an unreachable broker, with backoff, before exiting 1 (start order does not
+    matter)"""
 
-    def validate_role(self) -> None:
-        """Learning settings, broker URL and login, run id, and every file the role will read."""
-        self.validate_learning()
+    def resolved_learning(self) -> tuple[LearningSettings, FleetShape]:
+        """The learning settings resolved (and the fleet's shape, from the one agent built for them), then
+        the broker URL and login, the run id, and every file the role will read checked."""
+        learning, shape = resolve_and_probe(self.learning)
         if self.broker is None:
             raise SettingError(f"missing setting: {label('broker')} (mqtt://[user@]host:port or mqtts://…)")
         self.validate_broker()
@@ -57,6 +59,7 @@ class RoleSettings(LearningSettings, BrokerLogin):
             check_readable_file(name, getattr(self, name))
         self.fleet_key()
         positive("connect_timeout", self.connect_timeout)
+        return learning, shape
 
     def fleet_key(self) -> FleetKey | None:
         """The fleet key, read from its file (None: messages are not signed)."""
@@ -69,7 +72,7 @@ class RoleSettings(LearningSettings, BrokerLogin):
         session under the role's client id)."""
         from fleetrl.transport.mqtt import MqttTransport
 
-        assert self.broker is not None, "validate() requires a broker"
+        assert self.broker is not None, "resolution requires a broker"
         return MqttTransport(
             self.broker,
             ca_file=path_text(self.ca_file),
@@ -81,14 +84,12 @@ class RoleSettings(LearningSettings, BrokerLogin):
         )
 
 
-@dataclass(kw_only=True)
+@dataclass(frozen=True, kw_only=True)
 class ChiefSettings(RoleSettings, RoundRules):
     """``fleetrl chief``: serve one run as its chief (Algorithm 1)."""
 
     workers: int
     """N: the workers are ids 0 … N-1"""
-    fleet_seed: int = 0
-    """seed of the fleet's per-unit dynamics; every worker's must be the same (checked at join)"""
     out: Path | None = None
     """write chief.json, chief.log and a checkpoint every round (checkpoints/chief/) here"""
     resume: bool = False
@@ -98,15 +99,13 @@ class ChiefSettings(RoleSettings, RoundRules):
     dropout_grace: float = 3.0
     """seconds a worker that went offline has to come back before it leaves W"""
 
-    def validate(self) -> None:
-        """Raise SettingError naming the first setting that cannot work; nothing is created."""
-        self.validate_role()
-        self.validate_rounds()
-        check_scheme_quorum(self.scheme_name, self.quorum)
+    def resolved(self) -> ChiefSettings:
+        """A new value with every default filled in; SettingError naming the first setting that cannot
+        work. Nothing is created."""
+        learning, shape = self.resolved_learning()
+        self.check_rounds(learning, shape)
         if self.workers < 1:
             raise SettingError(f"{label('workers')} = {self.workers}: must be at least 1")
-        if self.fleet_seed < 0:
-            raise SettingError(f"{label('fleet_seed')} = {self.fleet_seed}: must be a non-negative integer")
         positive("idle_timeout", self.idle_timeout)
         positive("dropout_grace", self.dropout_grace, allow_zero=True)
         if self.out is None:
@@ -114,9 +113,10 @@ class ChiefSettings(RoleSettings, RoundRules):
                 raise SettingError(f"--resume needs {label('out')}: the directory holding the checkpoint")
         else:
             check_writable_dir("out", self.out)
+        return replace(self, learning=learning)
 
 
-@dataclass(kw_only=True)
+@dataclass(frozen=True, kw_only=True)
 class WorkerSettings(RoleSettings):
     """``fleetrl worker``: serve as one worker of a run (Algorithm 2)."""
 
@@ -125,11 +125,7 @@ class WorkerSettings(RoleSettings):
     out: Path
     """this worker's run directory (metrics, model, a checkpoint every round in checkpoints/)"""
     unit: int | None = None
-    """device unit to train on (default: the worker id)"""
-    seed: int = 0
-    """the run's learning seed"""
-    fleet_seed: int = 0
-    """seed of the fleet's per-unit dynamics"""
+    """device unit to train on (unset: the worker id)"""
     resume: bool = False
     """continue from the checkpoint in ``out`` at its round (after a crash; same settings)"""
     reply_timeout: float = 600.0
@@ -140,21 +136,21 @@ class WorkerSettings(RoleSettings):
     """``inprocess``: the unit is simulated in this process; ``mqtt``: the unit is driven through its device
     bridge (``fleetrl device --run-id RUN --unit K``) on the same broker, with this worker's login"""
 
-    def validate(self) -> None:
-        """Raise SettingError naming the first setting that cannot work; nothing is created."""
-        self.validate_role()
+    def resolved(self) -> WorkerSettings:
+        """A new value with every default filled in; SettingError naming the first setting that cannot
+        work. Nothing is created."""
+        learning, _ = self.resolved_learning()  # the env's spaces fit the agent, the scheme the preset
         choose("device_link", self.device_link, DEVICE_LINKS)
         if self.device_link == "mqtt":
             from fleetrl.envs.device_side import check_takes_link
 
-            as_setting_error("device_link", check_takes_link, get_env_spec(self.env))
+            as_setting_error("device_link", check_takes_link, get_env_spec(learning.env))
         if self.worker_id < 0 or (self.unit is not None and self.unit < 0):
             raise SettingError(f"{label('worker_id')} and {label('unit')}: must be non-negative")
-        if self.seed < 0 or self.fleet_seed < 0:
-            raise SettingError(f"{label('seed')}, {label('fleet_seed')}: must be non-negative integers")
         positive("reply_timeout", self.reply_timeout)
         positive("resend_interval", self.resend_interval)
         check_writable_dir("out", self.out)
+        return replace(self, learning=learning)
 
     @property
     def device_unit(self) -> int:
@@ -164,11 +160,13 @@ class WorkerSettings(RoleSettings):
     def worker_spec(self) -> WorkerSpec:
         """The spec this worker trains with (with a device link: its unit served under this run's id)."""
         return WorkerSpec(
-            self.worker_id, self.device_unit, self.env, self.preset, self.seed, self.fleet_seed,
-            self.max_rounds, str(self.out), self.overrides, fleet_profile=self.fleet_profile,
-            scheme=self.scheme_name, scheme_params=self.scheme_params, target_score=self.target_score,
-            device_url=self.public_broker if self.device_link == "mqtt" else None, device_run_id=self.run_id,
-        )  # fmt: skip
+            worker=self.worker_id,
+            unit=self.device_unit,
+            learning=self.learning,
+            out=str(self.out),
+            device_url=self.public_broker if self.device_link == "mqtt" else None,
+            device_run_id=self.run_id,
+        )
 
     def device_transport(self) -> Any:
         """With ``device_link = "mqtt"``: an unconnected transport for the device link (its own connection

@@ -12,14 +12,13 @@ from typing import Protocol
 
 from fleetrl.agent.learner import Learner
 from fleetrl.federation import worker as federation_worker
-from fleetrl.federation.schemes import get_scheme
+from fleetrl.federation.shared_settings import shared_text
 from fleetrl.federation.signing import FleetKey
 from fleetrl.federation.worker import FederatedWorker, RoundFigures, WorkerSummary
 from fleetrl.runs.checkpoints import WorkerCheckpoint
 from fleetrl.runs.factory import make_learner
 from fleetrl.runs.records import RoundRecord
 from fleetrl.runs.rundir import model_path
-from fleetrl.runs.shared import spec_shared_settings
 from fleetrl.runs.spec import WorkerSpec
 from fleetrl.transport.base import Transport
 
@@ -74,7 +73,7 @@ def train_alone(spec: WorkerSpec, emit: Emit, learner: Learner | None = None) ->
     learner = learner or make_learner(spec)
     started = time.monotonic()
     try:
-        for _ in range(spec.max_rounds):
+        for _ in range(spec.learning.max_rounds):
             result = learner.play_round()
             event = "completed" if result.completed else ""
             emit(metrics_row(spec.worker, result, started, event, result.episodes))
@@ -124,7 +123,7 @@ def train_federated(
         transport,
         run_id=run_id,
         worker_id=str(spec.worker),
-        max_rounds=spec.max_rounds,
+        max_rounds=spec.learning.max_rounds,
         on_record=lambda record: emit(
             metrics_row(spec.worker, record, started, federated_event(record), _episodes_of(learner))
         ),
@@ -133,8 +132,8 @@ def train_federated(
         key=key,
         start_round=start_round,
         on_round_done=None if store is None else lambda next_round: store.save(learner, next_round),
-        scheme=get_scheme(spec.scheme, **spec.scheme_params),
-        settings=spec_shared_settings(spec),
+        scheme=spec.learning.federation_scheme(),
+        settings=shared_text(spec.learning),
     )
     try:
         summary = worker.run()

@@ -1,24 +1,33 @@
 """Typed settings from a TOML file and the command line: one coercion, one error style, checked before
 anything starts.
 
-A settings class is a ``kw_only`` dataclass whose field names are the TOML keys and the flags' ``dest``
-(``round_timeout`` and ``--round-timeout``). :func:`build` merges its defaults, a config file and the flags
-given (flags win), checks every value against the field's type and calls the class's ``validate()``; a
-:class:`SettingError` names the setting, the value and what is accepted. Nothing here creates a file, a
-directory, a connection or a process.
+A settings class is a frozen ``kw_only`` dataclass whose field names are the TOML keys and the flags' ``dest``
+(``round_timeout`` and ``--round-timeout``); a field holding a settings dataclass (``learning``) is a group
+whose fields are settings under their own names, so a config file stays flat. :func:`build` merges the
+defaults, a config file and the flags given (flags win), checks every value against its field's type
+(:func:`fleetrl.coercion.coerce`) and returns the class's ``resolved()`` value; a :class:`SettingError` names
+the setting, the value and what is accepted. The flags and their help are generated from the fields and their
+docstrings (:func:`field_docs`). Nothing here creates a file, a directory, a connection or a process.
 """
 
 from __future__ import annotations
 
+import ast
 import dataclasses
+import functools
+import inspect
 import os
+import re
 import resource
 import shutil
+import textwrap
 import tomllib
-import types
 from collections.abc import Mapping
 from pathlib import Path
-from typing import Any, Literal, TypeVar, Union, get_args, get_origin, get_type_hints
+from typing import Any, TypeVar, get_type_hints
+
+from fleetrl.coercion import CoercionError
+from fleetrl.coercion import coerce as typed
 
 MIN_FREE_BYTES = 64 * 2**20
 """free space an ``--out`` file system must have at start (a long QUBE run writes tens of MB)"""
@@ -49,62 +58,68 @@ def label(name: str) -> str:
     return f"{name} (flag {NEGATED_FLAGS[name]})" if name in NEGATED_FLAGS else flag(name)
 
 
-def describe(kind: Any) -> str:
-    """What a type accepts, in words."""
-    origin, args = get_origin(kind), get_args(kind)
-    if origin in (Union, types.UnionType):
-        return " or ".join(describe(a) for a in args if a is not type(None)) + " (or unset)"
-    if origin is Literal:
-        return "one of " + ", ".join(repr(a) for a in args)
-    if origin is tuple:
-        return f"a list of {describe(args[0])}s"
-    if origin is dict or kind is dict:
-        return "a table of settings"
-    names = {bool: "true or false", int: "an integer", float: "a number", str: "a string", Path: "a path"}
-    return names.get(kind, getattr(kind, "__name__", str(kind)))
-
-
 def coerce(name: str, value: Any, kind: Any) -> Any:
-    """``value`` as the type ``kind`` (int to float, str to Path, list to tuple); else SettingError."""
-    origin, args = get_origin(kind), get_args(kind)
-    if kind is Any:
-        return value
-    if origin in (Union, types.UnionType):
-        if value is None and type(None) in args:
-            return None
-        for option in (a for a in args if a is not type(None)):
-            try:
-                return coerce(name, value, option)
-            except SettingError:
-                continue
-    elif origin is Literal:
-        if value in args and not isinstance(value, bool):
-            return value
-    elif origin is tuple and isinstance(value, list | tuple):
-        return tuple(coerce(name, item, args[0]) for item in value)
-    elif (origin is dict or kind is dict) and isinstance(value, dict):
-        return dict(value)
-    elif (kind is bool and isinstance(value, bool)) or (
-        kind is int and isinstance(value, int) and not isinstance(value, bool)
-    ):
-        return value
-    elif kind is float and isinstance(value, int | float) and not isinstance(value, bool):
-        return float(value)
-    elif kind is str and isinstance(value, str):
-        return value
-    elif kind is Path and isinstance(value, str | Path) and str(value):
-        return Path(value)
-    raise SettingError(f"{name} = {value!r}: expected {describe(kind)}")
+    """``value`` as the type ``kind`` (:func:`fleetrl.coercion.coerce`); else SettingError."""
+    try:
+        return typed(name, value, kind)
+    except CoercionError as err:
+        raise SettingError(str(err)) from None
+
+
+def group_type(kind: Any) -> type | None:
+    """The settings dataclass a field of type ``kind`` holds (its fields are settings of their own), or
+    None for a field that is one setting."""
+    return kind if isinstance(kind, type) and dataclasses.is_dataclass(kind) else None
+
+
+def setting_fields(cls: type) -> dict[str, tuple[dataclasses.Field[Any], Any]]:
+    """Every setting of the settings dataclass ``cls`` by name, with its field and type: the fields of a
+    field that holds a settings dataclass (``learning``) are settings of ``cls`` too, under their own names
+    (the config file and the flags are flat)."""
+    hints = get_type_hints(cls)  # annotations may be strings
+    found: dict[str, tuple[dataclasses.Field[Any], Any]] = {}
+    for f in dataclasses.fields(cls):
+        group = group_type(hints[f.name])
+        found |= setting_fields(group) if group is not None else {f.name: (f, hints[f.name])}
+    return found
+
+
+def construct(cls: type[S], values: Mapping[str, Any]) -> S:
+    """``cls`` from flat setting values (:func:`setting_fields`'s names), each group from its own names;
+    a value not given takes its field's default."""
+    hints = get_type_hints(cls)
+    kwargs: dict[str, Any] = {}
+    for f in dataclasses.fields(cls):  # type: ignore[arg-type]
+        group = group_type(hints[f.name])
+        if group is not None:
+            kwargs[f.name] = construct(group, values)
+        elif f.name in values:
+            kwargs[f.name] = values[f.name]
+    return cls(**kwargs)
+
+
+def flat_values(settings: Any) -> dict[str, Any]:
+    """The settings' values by setting name (a group's fields at the top, as in a config file)."""
+    values: dict[str, Any] = {}
+    for f in dataclasses.fields(settings):
+        value = getattr(settings, f.name)
+        values |= flat_values(value) if dataclasses.is_dataclass(value) else {f.name: value}
+    return values
 
 
 def build(
-    cls: type[S], file_values: Mapping[str, Any], flag_values: Mapping[str, Any], source: str = ""
+    cls: type[S],
+    file_values: Mapping[str, Any],
+    flag_values: Mapping[str, Any],
+    source: str = "",
+    *,
+    resolve: bool = True,
 ) -> S:
-    """An instance of the settings dataclass ``cls``: its defaults, then ``file_values`` (a config file's
-    table; ``source`` names the file in errors), then ``flag_values`` (the flags given; None means not
-    given). Table-valued settings (the PPO overrides) merge key by key. ``validate()`` is called."""
-    hints = get_type_hints(cls)  # annotations may be strings
-    fields = {f.name: f for f in dataclasses.fields(cls)}  # type: ignore[arg-type]
+    """The settings dataclass ``cls`` from its defaults, then ``file_values`` (a config file's table;
+    ``source`` names the file in errors), then ``flag_values`` (the flags given; None means not given).
+    Table-valued settings (the PPO overrides) merge key by key. With ``resolve``: the value its
+    ``resolved()`` returns (every default filled in, every setting checked)."""
+    fields = setting_fields(cls)
     unknown = sorted(set(file_values) - set(fields))
     if unknown:
         raise SettingError(
@@ -117,26 +132,67 @@ def build(
             if raw is None or name not in fields:
                 continue
             try:
-                value = coerce(label(name), raw, hints[name])
+                value = coerce(label(name), raw, fields[name][1])
             except SettingError as err:
                 raise SettingError(f"{err}{where}") from None
             if isinstance(value, dict) and isinstance(values.get(name), dict):
                 value = {**values[name], **value}
             values[name] = value
-    missing = [n for n, f in fields.items() if n not in values and _required(f)]
+    missing = [n for n, (f, _) in fields.items() if n not in values and required(f)]
     if missing:
         raise SettingError(
             "missing setting(s): " + ", ".join(f"{flag(n)} (or {n} = … in a --config file)" for n in missing)
         )
-    settings = cls(**values)
-    validate = getattr(settings, "validate", None)
-    if validate is not None:
-        validate()
-    return settings
+    settings = construct(cls, values)
+    resolved: S = settings.resolved() if resolve else settings  # type: ignore[attr-defined]
+    return resolved
 
 
-def _required(field: dataclasses.Field[Any]) -> bool:
+def required(field: dataclasses.Field[Any]) -> bool:
+    """Whether a setting has no default (it must be given)."""
     return field.default is dataclasses.MISSING and field.default_factory is dataclasses.MISSING
+
+
+def field_default(field: dataclasses.Field[Any]) -> Any:
+    """A setting's default (None when it has none)."""
+    if field.default is not dataclasses.MISSING:
+        return field.default
+    if field.default_factory is not dataclasses.MISSING:
+        return field.default_factory()
+    return None
+
+
+@functools.cache
+def field_docs(cls: type) -> dict[str, str]:
+    """The docstring under each field of the settings dataclass ``cls`` and of its bases and groups (the
+    string literal right after the field, as in CleanRL), as one line of plain text."""
+    docs: dict[str, str] = {}
+    for klass in reversed(cls.__mro__):
+        if not dataclasses.is_dataclass(klass):
+            continue
+        body = ast.parse(textwrap.dedent(inspect.getsource(klass))).body[0]
+        assert isinstance(body, ast.ClassDef)
+        for node, after in zip(body.body, body.body[1:], strict=False):
+            if (
+                isinstance(node, ast.AnnAssign)
+                and isinstance(node.target, ast.Name)
+                and isinstance(after, ast.Expr)
+                and isinstance(after.value, ast.Constant)
+                and isinstance(after.value.value, str)
+            ):
+                docs[node.target.id] = _plain(after.value.value)
+    hints = get_type_hints(cls)
+    for f in dataclasses.fields(cls):
+        group = group_type(hints[f.name])
+        if group is not None:
+            docs |= field_docs(group)
+    return docs
+
+
+def _plain(doc: str) -> str:
+    """A docstring as one line of plain text: reST roles and literals unwrapped, whitespace collapsed."""
+    text = re.sub(r":[a-z]+:`~?(?:[\w.]+\.)?([\w]+)`", r"\1", doc)
+    return " ".join(text.replace("``", "").split())
 
 
 def load_toml(path: Path) -> dict[str, Any]:
@@ -151,18 +207,17 @@ def load_toml(path: Path) -> dict[str, Any]:
 
 
 def toml_values(settings: Any, *, leave_out: tuple[str, ...] = ()) -> dict[str, Any]:
-    """The settings as a TOML-ready table (Paths as strings, unset values left out) that :func:`build`
+    """The settings as a TOML-ready flat table (Paths as strings, unset values left out) that :func:`build`
     reads back to the same settings."""
     table: dict[str, Any] = {}
-    for field in dataclasses.fields(settings):
-        value = getattr(settings, field.name)
-        if value is None or field.name in leave_out:
+    for name, value in flat_values(settings).items():
+        if value is None or name in leave_out:
             continue
         if isinstance(value, Path):
             value = str(value)
         elif isinstance(value, dict):
             value = {k: list(v) if isinstance(v, tuple) else v for k, v in value.items()}
-        table[field.name] = value
+        table[name] = value
     return table
 
 

@@ -1,11 +1,14 @@
-"""The settings of a run, for every command that starts one: typed, defaulted, validated once before anything
+"""The settings of a run, for every command that starts one: typed, defaulted, resolved once before anything
 starts.
 
 ``RunSettings`` is ``fleetrl train``'s; :mod:`fleetrl.runs.role_settings` has the chief's and the worker's.
-They are built from parts every command shares (:class:`LearningSettings`, :class:`RoundRules`,
-:class:`BrokerLogin`), so a new setting is one field (a type, a default, a docstring) in the part it belongs
-to, plus its check in that part's ``validate_*`` method and its flag. A field's name is its config-file key
-and its flag's ``dest``; :func:`fleetrl.runs.setting_values.build` reads a file and the flags into them.
+Each is a frozen value built from parts every command shares: the learning settings
+(:class:`~fleetrl.federation.shared_settings.LearningSettings`, one field ``learning``), :class:`RoundRules`
+and :class:`BrokerLogin`. A new setting is one field (a type, a default, a docstring: its flag and help are
+generated from them) in the part it belongs to, plus its check in that part's resolution. A field's name is
+its config-file key and its flag's ``dest``; :func:`fleetrl.runs.setting_values.build` reads a file and the
+flags into them and returns the ``resolved()`` value: a new value with every default filled in and every
+setting checked (nothing is changed in place).
 """
 
 from __future__ import annotations
@@ -15,33 +18,48 @@ import json
 import logging
 import math
 import platform
-from dataclasses import asdict, dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any, get_type_hints
 
 from fleetrl.agent.config import PPOConfig, get_preset
 from fleetrl.envs.catalog import describe_env, get_env_spec
 from fleetrl.federation.aggregation import get_aggregator
-from fleetrl.federation.schemes import DEFAULT_SCHEME, Granularity, Scheme, get_scheme
+from fleetrl.federation.schemes import DEFAULT_SCHEME, get_scheme
+from fleetrl.federation.schemes.paper import PaperScheme
+from fleetrl.federation.shared_settings import LearningSettings
 from fleetrl.runs.setting_values import (
     SettingError,
     check_readable_file,
     check_writable_dir,
     coerce,
     dump_toml,
+    flat_values,
     label,
     toml_values,
 )
 from fleetrl.transport.login import broker_password, password_in_url, without_password
-from fleetrl.transport.mqtt import BrokerAddress
 
 log = logging.getLogger(__name__)
+
+__all__ = [
+    "BrokerLogin",
+    "LearningSettings",
+    "RoundRules",
+    "RunSettings",
+    "fleet_shape",
+    "resolve_and_probe",
+    "resolve_learning",
+]
 
 MODES = ("individual", "federated")
 TRANSPORTS = ("mqtt", "local")
 DEVICE_LINKS = ("inprocess", "mqtt")
 NOT_RESULT_SETTINGS = ("out", "live", "broker", "broker_password_file")
 """settings that cannot change what a run learns (where it writes, the live view, the broker's address)"""
+ALONE_SCHEME = PaperScheme.name
+"""the scheme of a run whose units learn alone (``--mode individual``): its learners stop at completion, and
+the result settings stay those of the individual runs made before federated runs took another default"""
 
 
 def choose(name: str, value: str, choices: tuple[str, ...]) -> None:
@@ -58,15 +76,6 @@ def positive(name: str, value: float | None, *, allow_zero: bool = False) -> Non
         raise SettingError(f"{label(name)} = {value!r}: must be {bound}")
 
 
-def check_scheme_quorum(scheme: str, quorum: float) -> None:
-    """SettingError if a scheme that averages every optimisation step is given a quorum below 1."""
-    if quorum < 1.0 and get_scheme(scheme).granularity is Granularity.STEP:
-        raise SettingError(
-            f"{label('quorum')} = {quorum}: scheme {scheme} averages every optimisation step over every "
-            "worker; it needs quorum 1"
-        )
-
-
 def as_setting_error(name: str, check: Any, *args: Any) -> Any:
     """Run a lower layer's own check; its ValueError becomes a SettingError naming the setting."""
     try:
@@ -77,151 +86,145 @@ def as_setting_error(name: str, check: Any, *args: Any) -> Any:
         raise SettingError(f"{label(name)}: {err}") from None
 
 
-@dataclass(kw_only=True)
-class LearningSettings:
-    """What every worker learns with (the chief needs it for the shape of what is shared)."""
-
-    env: str = "qube"
-    """the unit type: ``qube`` (QUBE-Servo 2 balance), ``cartpole``, or your own as
-    ``package.module:factory`` with ``factory(unit, fleet_seed) -> gymnasium.Env``"""
-    fleet_profile: str | None = None
-    """the simulated fleet's profile (QUBE: ``table2``, the default, or ``v1``, the fleet before the
-    calibration; CartPole and unit factories have one fleet); validation fills in the default's name"""
-    target_score: float | None = None
-    """learning is complete when the weighted moving average of the last 10 scores reaches it (default: the
-    built-in's own target, QUBE 2450, CartPole 475; a factory's env spec ``reward_threshold``); validation
-    fills it in"""
-    preset: str = "standard"
-    """PPO preset: ``standard`` (the default: the settings that learn on every unit type measured),
-    ``paper`` (Table 1 as written, to reproduce the paper) or ``paper-code`` (what the authors' code ran)"""
-    max_rounds: int = 1000
-    """the paper's M: the most rounds per worker (a round is one episode, or with the paper-code preset
-    the episodes that fill the memory)"""
-    scheme: str | None = None
-    """federated: ``pergrad`` (the default), ``paper`` (Algorithms 1 and 2), ``fedavg``, ``fedavgm`` or
-    ``fedadam`` (:mod:`fleetrl.federation.schemes`); None: the default, which validation fills in
-    (:meth:`default_scheme`)"""
-    scheme_params: dict[str, Any] = field(default_factory=dict)
-    """the scheme's parameters (``--scheme-param KEY=VALUE``; the ``[scheme_params]`` table); validation
-    fills in the scheme's defaults, so equal schemes have equal tables"""
-    overrides: dict[str, Any] = field(default_factory=dict)
-    """PPO config fields that replace the preset's (``--set KEY=VALUE``; the ``[overrides]`` table)"""
-
-    def validate_learning(self) -> None:
-        """Env, preset, scheme and its parameters, M and every PPO override (name, type, range), then unit 0
-        of the env built once (its spaces checked) and the target score."""
-        env = as_setting_error("env", get_env_spec, self.env)
-        self.fleet_profile = as_setting_error("fleet_profile", env.resolve_fleet_profile, self.fleet_profile)
-        as_setting_error("preset", get_preset, self.preset)
-        if self.scheme is None:
-            self.scheme = self.default_scheme()
-        as_setting_error("scheme", get_scheme, self.scheme)
-        self.scheme_params = as_setting_error("scheme_params", self.federation_scheme).params()
-        if self.max_rounds < 1:
-            raise SettingError(f"{label('max_rounds')} = {self.max_rounds}: must be at least 1")
-        self.overrides = self._typed_overrides()
-        if self.target_score is not None and not math.isfinite(self.target_score):
-            raise SettingError(f"{label('target_score')} = {self.target_score}: must be a finite number")
-        from fleetrl.runs.factory import probe_agent  # torch: only once the cheap checks passed
-
-        unit = as_setting_error("env", describe_env, self.env)  # builds unit 0: a bad factory fails here
-        agent = as_setting_error("env", probe_agent, self.env, self.ppo())
-        if self.target_score is None:
-            self.target_score = as_setting_error("target_score", env.default_target, unit)
-        as_setting_error("scheme", self.federation_scheme().exchanges_per_round, agent)
-
-    def result_target_score(self) -> dict[str, float]:
-        """``target_score`` as a result setting: none for a built-in at its own target, so that the records of
-        built-in runs made before the setting existed keep their keys (like an empty ``scheme_params``)."""
-        spec = get_env_spec(self.env)
-        if spec.builtin and self.target_score == spec.declared_target:
-            return {}
-        assert self.target_score is not None, "validate_learning fills in the target score"
-        return {"target_score": self.target_score}
-
-    def shared_settings(self, fleet_seed: int) -> dict[str, str]:
-        """What every role of a run of these settings on fleet ``fleet_seed`` must share, as the chief's
-        ``welcome`` and a worker's ``join`` carry it (:mod:`fleetrl.runs.shared`)."""
-        from fleetrl.runs.shared import shared_settings
-
-        return shared_settings(
-            env=self.env, fleet_seed=fleet_seed, fleet_profile=self.fleet_profile, preset=self.preset,
-            overrides=self.overrides, scheme=self.scheme_name, scheme_params=self.scheme_params,
-            target_score=self.target_score,
-        )  # fmt: skip
-
-    def default_scheme(self) -> str:
-        """The scheme a run takes when none is named: :data:`~fleetrl.federation.schemes.DEFAULT_SCHEME`."""
-        return DEFAULT_SCHEME
-
-    @property
-    def scheme_name(self) -> str:
-        """The run's scheme: the one named, else :meth:`default_scheme`."""
-        return self.scheme or self.default_scheme()
-
-    def federation_scheme(self) -> Scheme:
-        """A new scheme object of the run (its name and parameters); ValueError naming a bad one."""
-        return get_scheme(self.scheme_name, **self.scheme_params)
-
-    def _typed_overrides(self) -> dict[str, Any]:
-        hints = get_type_hints(PPOConfig)
-        unknown = sorted(set(self.overrides) - set(hints))
-        if unknown:
-            raise SettingError(
-                f"--set {', '.join(unknown)}: unknown PPO setting(s) (known: {', '.join(sorted(hints))})"
-            )
-        return {k: coerce(f"--set {k}", v, hints[k]) for k, v in self.overrides.items()}
-
-    def ppo(self) -> PPOConfig:
-        """The preset with the overrides applied, type- and range-checked."""
-        config = dataclasses.replace(get_preset(self.preset), **self._typed_overrides())
-        as_setting_error("overrides", config.validate)
-        return config
-
-    def ppo_config(self) -> dict[str, Any]:
-        """:meth:`ppo` as a plain dict."""
-        return asdict(self.ppo())
+def resolve_learning(learning: LearningSettings, *, default_scheme: str = DEFAULT_SCHEME) -> LearningSettings:
+    """``learning`` with every default filled in (the fleet profile's name, ``default_scheme`` if none is
+    named, the scheme's parameters, the typed overrides, the unit type's target score) and every value
+    checked (env, preset, scheme and its parameters, M, seeds, every PPO override's name, type and range;
+    unit 0 of the env is built once). A new value; SettingError naming the first setting that cannot work.
+    No agent is built (:func:`resolve_and_probe` builds one)."""
+    resolved, _ = _resolve(learning, default_scheme, probe=False)
+    return resolved
 
 
-@dataclass(kw_only=True)
+def resolve_and_probe(
+    learning: LearningSettings, *, default_scheme: str = DEFAULT_SCHEME
+) -> tuple[LearningSettings, FleetShape]:
+    """:func:`resolve_learning`, and the fleet's shape read from the one agent built for it (so the env's
+    spaces are known to fit the agent, and the scheme to run with the preset)."""
+    resolved, shape = _resolve(learning, default_scheme, probe=True)
+    assert shape is not None
+    return resolved, shape
+
+
+def _resolve(
+    learning: LearningSettings, default_scheme: str, *, probe: bool
+) -> tuple[LearningSettings, FleetShape | None]:
+    env = as_setting_error("env", get_env_spec, learning.env)
+    profile = as_setting_error("fleet_profile", env.resolve_fleet_profile, learning.fleet_profile)
+    as_setting_error("preset", get_preset, learning.preset)
+    scheme = default_scheme if learning.scheme is None else learning.scheme
+    as_setting_error("scheme", get_scheme, scheme)
+    params = as_setting_error("scheme_params", lambda: get_scheme(scheme, **learning.scheme_params).params())
+    if learning.max_rounds < 1:
+        raise SettingError(f"{label('max_rounds')} = {learning.max_rounds}: must be at least 1")
+    if learning.seed < 0 or learning.fleet_seed < 0:
+        raise SettingError(f"{label('seed')}, {label('fleet_seed')}: must be non-negative integers")
+    overrides = typed_overrides(learning.overrides)
+    as_setting_error("overrides", replace(get_preset(learning.preset), **overrides).validate)
+    target = learning.target_score
+    if target is not None and not math.isfinite(target):
+        raise SettingError(f"{label('target_score')} = {target}: must be a finite number")
+    unit = as_setting_error("env", describe_env, learning.env)  # builds unit 0: a bad factory fails here
+    resolved = replace(
+        learning, fleet_profile=profile, scheme=scheme, scheme_params=params, overrides=overrides
+    )
+    agent = _probe_agent(resolved) if probe else None  # before the target: the agent is the deeper fault
+    if target is None:
+        target = as_setting_error("target_score", env.default_target, unit)
+    resolved = replace(resolved, target_score=target)
+    return resolved, None if agent is None else fleet_shape(resolved, agent)
+
+
+def _probe_agent(learning: LearningSettings) -> Any:
+    from fleetrl.runs.factory import probe_agent  # torch: only once the cheap checks passed
+
+    return as_setting_error("env", probe_agent, learning.env, learning.ppo())
+
+
+def typed_overrides(overrides: dict[str, Any]) -> dict[str, Any]:
+    """The ``--set`` overrides, each as its PPOConfig field's type; SettingError naming an unknown one."""
+    hints = get_type_hints(PPOConfig)
+    unknown = sorted(set(overrides) - set(hints))
+    if unknown:
+        raise SettingError(
+            f"--set {', '.join(unknown)}: unknown PPO setting(s) (known: {', '.join(sorted(hints))})"
+        )
+    return {k: coerce(f"--set {k}", v, hints[k]) for k, v in overrides.items()}
+
+
+@dataclass(frozen=True)
+class FleetShape:
+    """What the chief of resolved learning settings needs before any worker exists."""
+
+    layout: list[tuple[str, tuple[int, ...]]]
+    """names and shapes of what the scheme shares (the chief validates every message with it)"""
+    exchanges_per_round: int
+    """the chief's ``steps_per_round``: 1, or the optimisation steps of an update for a per-step scheme"""
+
+
+def fleet_shape(learning: LearningSettings, agent: Any = None) -> FleetShape:
+    """The shape of a fleet of resolved ``learning`` settings, read from ``agent`` or else from one agent
+    built for it (torch); SettingError if the env's spaces do not fit the agent or the scheme cannot run
+    with the preset."""
+    agent = _probe_agent(learning) if agent is None else agent
+    scheme = learning.federation_scheme()
+    steps = as_setting_error("scheme", scheme.exchanges_per_round, agent)
+    return FleetShape(list(scheme.layout(agent)), steps)
+
+
+def result_target_score(learning: LearningSettings) -> dict[str, float]:
+    """``target_score`` as a result setting: none for a built-in at its own target, so that the records of
+    built-in runs made before the setting existed keep their keys (like an empty ``scheme_params``)."""
+    spec = get_env_spec(learning.env)
+    if spec.builtin and learning.target_score == spec.declared_target:
+        return {}
+    assert learning.target_score is not None, "resolve_learning fills in the target score"
+    return {"target_score": learning.target_score}
+
+
+@dataclass(frozen=True, kw_only=True)
 class RoundRules:
     """How the chief closes a round."""
 
     aggregation: str = "mean"
-    """how the chief aggregates (mean, median, trimmed_mean[:β], clipped_mean[:C])"""
+    """how the chief aggregates: mean (the paper's), median, trimmed_mean[:β], clipped_mean[:C]"""
     quorum: float = 1.0
-    """fraction of W whose answers close a round at the deadline (1.0: fully synchronous; < 1 needs
-    ``round_timeout``)"""
+    """at the round deadline, close the round if this fraction of W answered (1.0: fully synchronous; < 1
+    needs ``round_timeout``)"""
     round_timeout: float | None = None
-    """seconds after which a round closes with the quorum (unset: wait for every worker)"""
+    """round deadline in seconds (unset: wait for every worker, the paper's fully synchronous rule)"""
 
-    def validate_rounds(self) -> None:
-        """Aggregation rule, quorum and round timeout, and that they fit together."""
+    def check_rounds(self, learning: LearningSettings, shape: FleetShape) -> None:
+        """The aggregation rule, and the round rules a chief of ``learning`` checks (the quorum, the round
+        timeout and how they fit the scheme: :func:`fleetrl.federation.chief_answer.check_round_rules`)."""
+        from fleetrl.federation.chief_answer import check_round_rules
+
         as_setting_error("aggregation", get_aggregator, self.aggregation)
-        if not 0.0 < self.quorum <= 1.0:
-            raise SettingError(f"{label('quorum')} = {self.quorum}: must be in (0, 1]")
-        positive("round_timeout", self.round_timeout)
-        if self.quorum < 1.0 and self.round_timeout is None:
-            raise SettingError(
-                f"{label('quorum')} = {self.quorum} needs {label('round_timeout')}: "
-                "the quorum applies at the round deadline"
-            )
+        try:
+            check_round_rules(
+                learning.federation_scheme(), learning.max_rounds, self.quorum, self.round_timeout,
+                shape.exchanges_per_round,
+            )  # fmt: skip
+        except ValueError as err:
+            raise SettingError(str(err)) from None
 
 
-@dataclass(kw_only=True)
+@dataclass(frozen=True, kw_only=True)
 class BrokerLogin:
     """Where the broker is and how to log in; the password never travels in a URL a run writes or passes
     on."""
 
     broker: str | None = None
-    """``mqtt://[user@]host:port`` or ``mqtts://…`` (train: none starts an embedded broker)"""
+    """``mqtt://[user@]host:port`` or ``mqtts://…``"""
     broker_password_file: Path | None = None
-    """a file holding the broker password (else the ``FLEETRL_BROKER_PASSWORD`` environment variable)"""
+    """the broker password's file (else ``$FLEETRL_BROKER_PASSWORD``; never put it in the URL)"""
 
     def validate_broker(self) -> None:
         """The URL parses; the password file is readable; a password inside the URL is warned about."""
         if self.broker is None:
             return
+        from fleetrl.transport.mqtt import BrokerAddress  # paho: not needed to build the flags
+
         as_setting_error("broker", BrokerAddress.parse, self.broker)
         check_readable_file("broker_password_file", self.broker_password_file)
         if password_in_url(self.broker):
@@ -241,24 +244,23 @@ class BrokerLogin:
         return None if self.broker is None else without_password(self.broker)
 
 
-@dataclass(kw_only=True)
-class RunSettings(LearningSettings, RoundRules, BrokerLogin):
+@dataclass(frozen=True, kw_only=True)
+class RunSettings(RoundRules, BrokerLogin):
     """One training run of a simulated fleet (``fleetrl train``)."""
 
+    learning: LearningSettings = field(default_factory=LearningSettings)
+    """what every worker learns with (its fields are settings of their own: ``--env``, ``--preset``, …)"""
     out: Path
-    """the run directory (created; must not hold a run)"""
+    """the run directory to create (must not hold a run)"""
     mode: str = "federated"
     """``individual`` (each unit alone, the paper's Fig. 5a) or ``federated`` (Algorithms 1 and 2)"""
     units: int = 3
-    """how many units (one worker each)"""
-    seed: int = 0
-    """fixes the learning: network initialisation, action sampling, window starts"""
-    fleet_seed: int = 0
-    """fixes the fleet: with the unit index it draws each unit's dynamics"""
+    """units in the fleet, one worker each"""
     transport: str = "mqtt"
     """federated: ``mqtt`` (a real broker, workers in processes) or ``local`` (in-process bus, threads)"""
     device_link: str = "inprocess"
-    """how workers reach their devices: ``inprocess`` or ``mqtt`` (one device bridge per unit)"""
+    """how workers reach their devices: ``inprocess`` or ``mqtt`` (one device bridge per unit, over the
+    broker)"""
     device_driver: str | None = None
     """with ``device_link = "mqtt"``: the device side the bridges serve, ``package.module:function`` with
     ``driver(unit, fleet_seed, *, realtime) -> DeviceDriver`` (needed for a unit factory; a built-in's
@@ -266,33 +268,37 @@ class RunSettings(LearningSettings, RoundRules, BrokerLogin):
     live: bool = True
     """show the live terminal view"""
 
-    def default_scheme(self) -> str:
-        """Federated: :data:`~fleetrl.federation.schemes.DEFAULT_SCHEME`; each unit alone: ``paper``, whose
-        learners stop at completion (the scheme is otherwise unused, and the result settings stay those of
-        the individual runs made before the default changed)."""
-        return "paper" if self.mode == "individual" else DEFAULT_SCHEME
-
-    def validate(self) -> None:
-        """Raise SettingError naming the first setting that cannot work; nothing is created."""
-        self.validate_learning()
+    def resolved(self) -> RunSettings:
+        """These settings with every default filled in and every setting checked, before anything is
+        created: a new value, or SettingError naming the first setting that cannot work. The probe agent
+        is built once."""
+        scheme = ALONE_SCHEME if self.mode == "individual" else DEFAULT_SCHEME
+        learning, shape = resolve_and_probe(self.learning, default_scheme=scheme)
         choose("mode", self.mode, MODES)
         choose("transport", self.transport, TRANSPORTS)
         choose("device_link", self.device_link, DEVICE_LINKS)
-        if self.mode == "individual" and (self.scheme != "paper" or self.scheme_params):
-            raise SettingError(f"--scheme {self.scheme} is a federation scheme: it needs --mode federated")
-        self.validate_rounds()
-        check_scheme_quorum(self.scheme_name, self.quorum)
+        if self.mode == "individual" and (learning.scheme != ALONE_SCHEME or self.learning.scheme_params):
+            raise SettingError(
+                f"--scheme {learning.scheme} is a federation scheme: it needs --mode federated"
+            )
+        self.check_rounds(learning, shape)
         self.validate_broker()
         if self.units < 1:
             raise SettingError(f"{label('units')} = {self.units}: must be at least 1")
-        if self.seed < 0 or self.fleet_seed < 0:
-            raise SettingError(f"{label('seed')}, {label('fleet_seed')}: must be non-negative integers")
-        self.validate_device_link()
+        self.validate_device_link(learning)
         if (self.out / "metrics.csv").exists():
             raise SettingError(f"{label('out')} = {str(self.out)!r} already holds a run; choose another")
         check_writable_dir("out", self.out)
+        return replace(self, learning=learning)
 
-    def validate_device_link(self) -> None:
+    def learning_resolved(self) -> RunSettings:
+        """These settings with their learning settings resolved (:func:`resolve_learning`; the scheme by
+        default :data:`ALONE_SCHEME` for units alone, else the default scheme) and nothing else checked:
+        what :meth:`result_settings` needs, without building an agent."""
+        scheme = ALONE_SCHEME if self.mode == "individual" else DEFAULT_SCHEME
+        return replace(self, learning=resolve_learning(self.learning, default_scheme=scheme))
+
+    def validate_device_link(self, learning: LearningSettings) -> None:
         """With device bridges: the unit type can be reached through a link, and its driver function (a
         user's, named by ``device_driver``) loads, builds unit 0 and fits the env's spaces. Without: no
         driver is named."""
@@ -305,17 +311,17 @@ class RunSettings(LearningSettings, RoundRules, BrokerLogin):
             return
         from fleetrl.envs.device_side import bridge_driver, check_bridge_driver
 
-        env = get_env_spec(self.env)
+        env = get_env_spec(learning.env)
         name = "device_link" if self.device_driver is None or not env.takes_link else "device_driver"
         driver = as_setting_error(name, bridge_driver, env, self.device_driver)
-        unit = describe_env(self.env)
-        as_setting_error("device_driver", check_bridge_driver, driver, unit, self.fleet_seed)
+        unit = describe_env(learning.env)
+        as_setting_error("device_driver", check_bridge_driver, driver, unit, learning.fleet_seed)
 
     def bridge_driver(self) -> Any:
         """What the run's device bridges serve (:func:`fleetrl.envs.device_side.bridge_driver`)."""
         from fleetrl.envs.device_side import bridge_driver
 
-        return bridge_driver(get_env_spec(self.env), self.device_driver)
+        return bridge_driver(get_env_spec(self.learning.env), self.device_driver)
 
     @property
     def needs_broker(self) -> bool:
@@ -336,38 +342,38 @@ class RunSettings(LearningSettings, RoundRules, BrokerLogin):
         return dump_toml(table, header)
 
     def result_settings(self) -> dict[str, Any]:
-        """Every setting that can change the run's result, as JSON-plain values (the fleet profile's default
-        name, the typed overrides and the scheme's parameters filled in): two runs with equal result settings
-        learn the same. A scheme without parameters (``paper``, ``fedavg``) has no ``scheme_params`` key, and
-        a built-in at its own target no ``target_score`` key, as in the records made before either existed."""
-        self.validate_learning()
-        values = {k: v for k, v in asdict(self).items() if k not in NOT_RESULT_SETTINGS}
+        """Every setting of these resolved settings that can change the run's result, as JSON-plain values:
+        two runs with equal result settings learn the same. A scheme without parameters (``paper``,
+        ``fedavg``) has no ``scheme_params`` key, and a built-in at its own target no ``target_score`` key,
+        as in the records made before either existed."""
+        values = {k: v for k, v in flat_values(self).items() if k not in NOT_RESULT_SETTINGS}
         if not values["scheme_params"]:
             del values["scheme_params"]
         if values["device_driver"] is None:  # as in the records made before the setting existed
             del values["device_driver"]
         del values["target_score"]
-        values |= self.result_target_score()
+        values |= result_target_score(self.learning)
         plain: dict[str, Any] = json.loads(json.dumps(values, sort_keys=True, default=str))
         return plain
 
     def to_config(self) -> dict[str, Any]:
-        """Everything that defines the run, for config.json (the resolved PPO config too; no password)."""
+        """Everything that defines the resolved run, for config.json (the PPO config too; no password)."""
         import torch
 
-        config = asdict(self)
+        config = flat_values(self)
         config["out"] = str(self.out)
         config["broker"] = self.public_broker
         config["broker_password_file"] = path_text(self.broker_password_file)
-        config["ppo"] = self.ppo_config()
+        config["ppo"] = dataclasses.asdict(self.learning.ppo())
         config["result_settings"] = self.result_settings()
-        unit = describe_env(self.env)
+        unit = describe_env(self.learning.env)
         config["env_id"] = unit.env_id
-        config["completion_threshold"] = self.target_score
+        config["completion_threshold"] = self.learning.target_score
         config["episode_cap"] = unit.episode_cap
         config["versions"] = {"python": platform.python_version(), "torch": torch.__version__}
         return config
 
 
 def path_text(path: Path | None) -> str | None:
+    """A path as text (None stays None)."""
     return None if path is None else str(path)

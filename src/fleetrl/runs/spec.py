@@ -1,60 +1,49 @@
 """What one worker process needs to know, as JSON on its command line (nothing is pickled)."""
 
 import json
-from dataclasses import asdict, dataclass, field
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
+from fleetrl.federation.shared_settings import LearningSettings
 
-@dataclass
+
+@dataclass(frozen=True, kw_only=True)
 class WorkerSpec:
-    """Everything that defines one worker of a run."""
+    """Everything that defines one worker of a run: the run's learning settings and where this worker is."""
 
     worker: int
     """worker id within the run (also the device unit it trains on, unless ``unit`` says otherwise)"""
     unit: int
     """device unit index in the fleet"""
-    env: str
-    """the unit type: a built-in's short name (``qube``, ``cartpole``) or ``package.module:factory``"""
-    preset: str
-    """PPO preset name (``paper`` or ``standard``)"""
-    seed: int
-    """the run's seed; the worker's own seed is derived from (seed, worker)"""
-    fleet_seed: int
-    """the fleet's seed: with ``unit`` it fixes the device's dynamics"""
-    max_rounds: int
-    """the paper's M: the most rounds the worker plays (each one episode, or with paper-code several)"""
+    learning: LearningSettings
+    """the run's resolved learning settings (env, fleet, preset and overrides, scheme, target, seed, M)"""
     out: str
     """the run directory"""
-    overrides: dict[str, Any] = field(default_factory=dict)
-    """PPO config fields that replace the preset's"""
     device_url: str | None = None
     """broker of the unit's device bridge; None: the device is simulated in-process"""
     device_run_id: str = "default"
     """run id under which the device bridge serves the unit's topics"""
-    fleet_profile: str | None = None
-    """the simulated fleet's profile (QUBE; None: the default or a unit type with one fleet)"""
-    scheme: str = "paper"
-    """federated mode: the federation scheme (a name in :data:`fleetrl.federation.schemes.SCHEMES`)"""
-    scheme_params: dict[str, Any] = field(default_factory=dict)
-    """the scheme's parameters (``--scheme-param``)"""
-    target_score: float | None = None
-    """the completion criterion's target (the WMA of the last 10 scores); None: the unit type's default"""
 
     def to_json(self) -> str:
         """Serialise for a child process's command line."""
-        return json.dumps(asdict(self), sort_keys=True)
+        data: dict[str, Any] = {
+            "worker": self.worker, "unit": self.unit, "learning": self.learning.to_json(), "out": self.out,
+            "device_url": self.device_url, "device_run_id": self.device_run_id,
+        }  # fmt: skip
+        return json.dumps(data, sort_keys=True)
 
     @classmethod
     def from_json(cls, text: str) -> "WorkerSpec":
         """Parse :meth:`to_json`'s output."""
-        return cls(**json.loads(text))
+        data = json.loads(text)
+        return cls(**{**data, "learning": LearningSettings(**data["learning"])})
 
     @property
     def worker_seed(self) -> int:
-        """A seed for this worker alone, derived from the run's seed and the worker id."""
-        return derive_seed(self.seed, self.worker)
+        """A seed for this worker alone, derived from the run's learning seed and the worker id."""
+        return derive_seed(self.learning.seed, self.worker)
 
 
 def derive_seed(seed: int, index: int) -> int:

@@ -18,9 +18,9 @@ from __future__ import annotations
 import importlib
 import inspect
 import pkgutil
-import types
-from typing import Any, Union, get_args, get_origin, get_type_hints
+from typing import Any, get_type_hints
 
+from fleetrl.coercion import CoercionError, coerce
 from fleetrl.envs.unit_factory import load_callable
 from fleetrl.federation.messages import check_scheme_type
 from fleetrl.federation.schemes.base import (
@@ -148,16 +148,10 @@ def scheme_parameters(cls: type[Scheme]) -> dict[str, Any]:
 
 
 def _typed(scheme: str, key: str, value: Any, kind: Any) -> Any:
-    options = get_args(kind) if get_origin(kind) in (Union, types.UnionType) else (kind,)
-    for option in options:
-        if option is Any or (option is type(None) and value is None):
-            return value
-        if option is float and isinstance(value, int | float) and not isinstance(value, bool):
-            return float(value)
-        if option in (int, str, bool) and type(value) is option:
-            return value
-    wanted = " or ".join(getattr(o, "__name__", str(o)) for o in options if o is not type(None))
-    raise ValueError(f"scheme {scheme!r}: {key} = {value!r}: expected {wanted}")
+    try:
+        return coerce(key, value, kind)
+    except CoercionError as err:
+        raise ValueError(f"scheme {scheme!r}: {err}") from None
 
 
 def resolve_scheme(scheme: str | Scheme) -> Scheme:
