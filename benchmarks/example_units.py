@@ -38,6 +38,7 @@ from fleetrl import portable  # noqa: E402
 from fleetrl.agent.action_space import ActionSpace  # noqa: E402
 from fleetrl.agent.config import get_preset  # noqa: E402
 from fleetrl.agent.ppo import PPOAgent  # noqa: E402
+from fleetrl.control.episodes import greedy_scores  # noqa: E402
 from fleetrl.transport.broker import EmbeddedBroker  # noqa: E402
 
 FACTORY = "fleet_dc_motor.units:factory"
@@ -51,15 +52,7 @@ def mean_score(policy: Callable[[object], Policy], units: range, episodes: int) 
     scores = []
     for unit in units:
         env = factory(unit, 0)
-        act = policy(env.action_space)  # type: ignore[arg-type]
-        for episode in range(episodes):
-            obs, _ = env.reset(seed=episode)
-            score, done = 0.0, False
-            while not done:
-                obs, reward, terminated, truncated, _ = env.step(act(obs))
-                score += float(reward)
-                done = terminated or truncated
-            scores.append(score)
+        scores += greedy_scores(env, policy(env.action_space), episodes)  # type: ignore[arg-type]
         env.close()
     return float(np.mean(scores))
 

@@ -7,6 +7,7 @@ import pytest
 
 from fleetrl.runs.processes import START_ENV, ProcessFleet, WorkerExit, fork_available
 from fleetrl.runs.records import RoundRecord
+from fleetrl.runs.settings import ALONE_SCHEME, LearningSettings, resolve_learning
 from fleetrl.runs.spec import WorkerSpec
 
 pytestmark = pytest.mark.slow  # worker processes that train
@@ -14,10 +15,13 @@ pytestmark = pytest.mark.slow  # worker processes that train
 
 def spec(worker: int, rounds: int, out: Path) -> WorkerSpec:
     """Worker ``worker`` of a CartPole fleet alone, seed 3."""
+    learning = LearningSettings(env="cartpole", preset="standard", seed=3, max_rounds=rounds)
     return WorkerSpec(
-        worker=worker, unit=worker, env="cartpole", preset="standard", seed=3, fleet_seed=0,
-        max_rounds=rounds, out=str(out),
-    )  # fmt: skip
+        worker=worker,
+        unit=worker,
+        learning=resolve_learning(learning, default_scheme=ALONE_SCHEME),
+        out=str(out),
+    )
 
 
 Played = list[tuple[int, int, float, int]]

@@ -67,7 +67,9 @@ class LearningSettings:
     """learning is complete when the weighted moving average of the last 10 scores reaches it; unset: the
     unit type's own (a factory's env spec ``reward_threshold``)"""
     seed: int = field(default=0, metadata=NOT_SHARED)
-    """the learning seed: network initialisation, action sampling, window starts (each worker's own)"""
+    """the learning seed: a worker's action sampling, window starts and network initialisation (each worker
+    its own); under a scheme whose fleet is one policy the chief's seed draws the network every worker
+    starts from"""
     max_rounds: int = field(default=1000, metadata=NOT_SHARED)
     """the paper's M: the most rounds per worker (a round is one episode, or with the paper-code preset the
     episodes that fill the memory)"""
