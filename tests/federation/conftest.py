@@ -98,7 +98,7 @@ class FleetResult:
     state: Chief
 
     def scores(self) -> dict[str, list[float]]:
-        return {w: [r.score for r in rs] for w, rs in self.records.items()}
+        return {w: [r.result.score for r in rs] for w, rs in self.records.items()}
 
 
 FleetRunner = Callable[..., FleetResult]

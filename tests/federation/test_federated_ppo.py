@@ -39,7 +39,7 @@ def ppo_fleet(keep_learning: bool = False, preset: str = "paper") -> dict[str, L
 
 
 def outcome(result: Any) -> tuple[dict[str, list[tuple[float, str]]], Any]:
-    return {w: [(r.score, r.event) for r in rs] for w, rs in result.records.items()}, result.chief.transfers
+    return {w: [(r.result.score, r.event) for r in rs] for w, rs in result.records.items()}, result.chief.transfers
 
 
 @pytest.mark.slow
