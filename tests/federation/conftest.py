@@ -14,7 +14,7 @@ import pytest
 from fleetrl.federation.chief import Chief, ChiefEvent
 from fleetrl.federation.runner import ChiefSummary, run_chief
 from fleetrl.federation.schemes import resolve_scheme
-from fleetrl.federation.worker import FederatedWorker, RoundRecord, WorkerSummary
+from fleetrl.federation.worker import FederatedRound, FederatedWorker, WorkerSummary
 from fleetrl.transport.base import Transport
 
 FAKE_LAYOUT: list[tuple[str, tuple[int, ...]]] = [("trunk.weight", (4, 3)), ("head.bias", (3,))]
@@ -91,14 +91,14 @@ class FakeLearner:
 class FleetResult:
     """What a threaded federated run produced."""
 
-    records: dict[str, list[RoundRecord]]
+    records: dict[str, list[FederatedRound]]
     workers: dict[str, WorkerSummary]
     chief: ChiefSummary
     events: list[ChiefEvent]
     state: Chief
 
     def scores(self) -> dict[str, list[float]]:
-        return {w: [r.score for r in rs] for w, rs in self.records.items()}
+        return {w: [r.result.score for r in rs] for w, rs in self.records.items()}
 
 
 FleetRunner = Callable[..., FleetResult]
@@ -131,7 +131,7 @@ def run_fleet(
         return role_transport(role) if role_transport is not None else make_transport()
 
     events: list[ChiefEvent] = []
-    records: dict[str, list[RoundRecord]] = {w: [] for w in learners}
+    records: dict[str, list[FederatedRound]] = {w: [] for w in learners}
     summaries: dict[str, WorkerSummary] = {}
     outcome: dict[str, ChiefSummary] = {}
     errors: list[BaseException] = []

@@ -14,7 +14,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from conftest import FakeLearner
 
-from fleetrl.federation.worker import FederatedWorker, RoundRecord
+from fleetrl.federation.worker import FederatedRound, FederatedWorker
 from fleetrl.transport.mqtt import MqttTransport
 
 
@@ -22,7 +22,7 @@ def main(argv: list[str]) -> int:
     url, run_id, worker_id, seed, max_rounds, pause = argv
     logging.basicConfig(level=logging.INFO, format="%(name)s %(levelname)s %(message)s")
 
-    def show(record: RoundRecord) -> None:
+    def show(record: FederatedRound) -> None:
         print(f"round {record.round} {record.event}", flush=True)
 
     worker = FederatedWorker(

@@ -39,7 +39,8 @@ def ppo_fleet(keep_learning: bool = False, preset: str = "paper") -> dict[str, L
 
 
 def outcome(result: Any) -> tuple[dict[str, list[tuple[float, str]]], Any]:
-    return {w: [(r.score, r.event) for r in rs] for w, rs in result.records.items()}, result.chief.transfers
+    scores = {w: [(r.result.score, r.event) for r in rs] for w, rs in result.records.items()}
+    return scores, result.chief.transfers
 
 
 @pytest.mark.slow

@@ -13,7 +13,7 @@ from typing import Any
 
 import pytest
 
-from fleetrl.federation.worker import FederatedWorker, RoundRecord, WorkerSummary
+from fleetrl.federation.worker import FederatedRound, FederatedWorker, WorkerSummary
 from fleetrl.transport.broker import EmbeddedBroker
 from fleetrl.transport.local import LocalBus
 from fleetrl.transport.mqtt import MqttTransport
@@ -39,8 +39,8 @@ def summary_of(chief: Any) -> dict[str, Any]:
 
 def run_workers(
     make_transport: Callable[[], Any], learners: dict[str, Any], run_id: str, rounds: int
-) -> tuple[dict[str, list[RoundRecord]], dict[str, WorkerSummary], list[threading.Thread]]:
-    records: dict[str, list[RoundRecord]] = {w: [] for w in learners}
+) -> tuple[dict[str, list[FederatedRound]], dict[str, WorkerSummary], list[threading.Thread]]:
+    records: dict[str, list[FederatedRound]] = {w: [] for w in learners}
     summaries: dict[str, WorkerSummary] = {}
 
     def body(w: str) -> None:

@@ -5,21 +5,23 @@ from __future__ import annotations
 
 from fleetrl.agent.learner import RoundResult
 from fleetrl.federation.events import RoundEvent, Sent, WorkerEvent
-from fleetrl.federation.rounds import RoundRecord
-from fleetrl.runs.roles import federated_event, metrics_row
+from fleetrl.federation.rounds import FederatedRound
+from fleetrl.runs.roles import metrics_row
 
 RESULT = RoundResult(2, 10.0, 10, 1, 9.0, False, 0.1, 0.2, 1.0, 0.5)
 """the learner's round 2, which the federation played as its round 4 (a resumed worker)"""
 
 
-def record(event: RoundEvent, peer: str | None = None) -> RoundRecord:
-    return RoundRecord("1", 4, RESULT, event, peer)
+def record(event: RoundEvent, peer: str | None = None) -> FederatedRound:
+    return FederatedRound("1", 4, RESULT, event, peer)
 
 
-def test_the_record_reads_its_figures_from_the_learner_s_result() -> None:
-    row = metrics_row(1, record(Sent("gradient")), 0.0, "gradient")
+def test_the_metrics_row_is_the_learner_s_result_with_the_federation_s_round() -> None:
+    fed = record(Sent("gradient"))
+    row = metrics_row(1, fed.round, fed.result, 0.0, fed.label)
     figures = (row.round, row.score, row.wma, row.steps, row.actor_loss, row.critic_loss, row.entropy)
     assert figures == (4, 10.0, 9.0, 10, 0.1, 0.2, 1.0)
+    assert (row.worker, row.event, row.episodes) == (1, "gradient", 1)
 
 
 def test_metrics_labels_are_those_of_the_metrics_files() -> None:
@@ -31,9 +33,9 @@ def test_metrics_labels_are_those_of_the_metrics_files() -> None:
         WorkerEvent.RUN_ENDED: "run_ended",
         WorkerEvent.TRANSFER_OUT: "completed+transfer_out",
     }
-    assert {e: federated_event(record(e)) for e in labels} == labels
-    assert federated_event(record(WorkerEvent.TRANSFER_IN, "2")) == "transfer_in:2"
-    assert federated_event(record(WorkerEvent.FINISHED, "0")) == "completed+finished:0"
+    assert {e: record(e).label for e in labels} == labels
+    assert record(WorkerEvent.TRANSFER_IN, "2").label == "transfer_in:2"
+    assert record(WorkerEvent.FINISHED, "0").label == "completed+finished:0"
 
 
 def test_log_lines_name_the_peer_of_a_transfer() -> None:

@@ -19,12 +19,12 @@ from fleetrl.federation.rounds import (
     Checkpoint,
     ComputeStep,
     EndUpdate,
+    FederatedRound,
     Finish,
     PlayRound,
     Publish,
     Record,
     Refused,
-    RoundRecord,
     TakeParameters,
     TimedOut,
     WorkerStep,
@@ -84,7 +84,7 @@ def played(m: WorkerMachine, result: Outcome = RESULT, now: float = 0.0) -> Work
     return m.round_played(result, now=now, share=("gradient", FLAT))
 
 
-def records(step: WorkerStep) -> list[RoundRecord]:
+def records(step: WorkerStep) -> list[FederatedRound]:
     return [o.record for o in step.outputs if isinstance(o, Record)]
 
 
@@ -103,7 +103,7 @@ def test_join_then_a_round_end_to_end() -> None:
     apply, record = answer.actions
     assert isinstance(apply, ApplyAverage) and apply.contributed and not apply.completed
     assert isinstance(record, Record) and record.record.event == Sent("gradient")
-    assert record.record.outcome is RESULT and record.record.score == 10.0
+    assert record.record.result is RESULT and record.record.round == 1
     assert m.next_deadline() == -np.inf  # catch-up: only what is queued
     assert m.tick(now=1.0).actions == (Checkpoint(2), PlayRound(2))
 
@@ -372,7 +372,7 @@ def test_the_runner_plays_a_run_over_an_in_process_chief_and_repairs_a_lost_mess
     learner = fake_learner(11, complete_at=3)
     c = Chief(run_id=RUN, workers=["1"], layout=FAKE_LAYOUT, max_rounds=5, scheme="paper")
     transport = LoopbackTransport(c, drop_first=2)  # the join and round 1's gradient are lost
-    got: list[RoundRecord] = []
+    got: list[FederatedRound] = []
     checkpoints: list[int] = []
     worker = FederatedWorker(
         learner,

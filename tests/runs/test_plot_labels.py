@@ -6,12 +6,12 @@ import matplotlib.pyplot as plt
 import pytest
 
 from fleetrl.runs.plots import LOSS_LABEL, SCORE_LABEL, X_LABELS, XAxis, scores_figure, unlabelled_axes
-from fleetrl.runs.records import RoundRecord
+from fleetrl.runs.records import MetricsRow
 
 
-def rows(workers: int, rounds: int, actor_loss: float = 0.1) -> list[RoundRecord]:
+def rows(workers: int, rounds: int, actor_loss: float = 0.1) -> list[MetricsRow]:
     return [
-        RoundRecord(r, w, 10.0 * r, 5.0 * r, actor_loss * r, 0.2, 1.0, 50, 0.5 * r, "", episodes=2)
+        MetricsRow(r, w, 10.0 * r, 5.0 * r, actor_loss * r, 0.2, 1.0, 50, 0.5 * r, "", episodes=2)
         for w in range(workers)
         for r in range(1, rounds + 1)
     ]

@@ -6,7 +6,7 @@ from pathlib import Path
 import pytest
 
 from fleetrl.runs.processes import START_ENV, ProcessFleet, WorkerExit, fork_available
-from fleetrl.runs.records import RoundRecord
+from fleetrl.runs.records import MetricsRow
 from fleetrl.runs.settings import ALONE_SCHEME, LearningSettings, resolve_learning
 from fleetrl.runs.spec import WorkerSpec
 
@@ -37,7 +37,7 @@ def play(out: Path, units: int = 2, rounds: int = 3) -> tuple[Played, dict[int, 
     codes: dict[int, int] = {}
     while len(codes) < units:
         event = fleet.events.get(timeout=120)
-        if isinstance(event, RoundRecord):
+        if isinstance(event, MetricsRow):
             records.append((event.worker, event.round, event.score, event.steps))
         else:
             assert isinstance(event, WorkerExit)

@@ -7,25 +7,38 @@ import math
 
 import pytest
 
-from fleetrl.runs.records import CSV_COLUMNS, RoundRecord
+from fleetrl.agent.learner import RoundResult
+from fleetrl.runs.records import CSV_COLUMNS, FIGURES, MetricsRow
 from fleetrl.runs.rundir import RunRecorder
 
 
-def make_record(worker: int, round_: int, score: float, event: str = "") -> RoundRecord:
-    return RoundRecord(round_, worker, score, score / 2, 0.1, 0.2, 1.0, int(score), 0.5 * round_, event)
+def make_record(worker: int, round_: int, score: float, event: str = "") -> MetricsRow:
+    return MetricsRow(round_, worker, score, score / 2, 0.1, 0.2, 1.0, int(score), 0.5 * round_, event)
 
 
 def test_record_json_round_trip_keeps_nan_as_nan() -> None:
-    record = RoundRecord(3, 1, 12.0, 11.5, math.nan, 0.25, 1.05, 12, 0.75, "gradient")
-    parsed = RoundRecord.from_json(record.to_json())
+    record = MetricsRow(3, 1, 12.0, 11.5, math.nan, 0.25, 1.05, 12, 0.75, "gradient")
+    parsed = MetricsRow.from_json(record.to_json())
     assert parsed.round == 3 and parsed.event == "gradient" and parsed.critic_loss == 0.25
     assert math.isnan(parsed.actor_loss)
+
+
+def test_the_row_is_the_learner_s_result_flattened_in_the_file_s_column_order() -> None:
+    assert CSV_COLUMNS == (
+        "round", "worker", "score", "wma", "actor_loss", "critic_loss", "entropy", "steps", "wall_time",
+        "event", "episodes", "approx_kl", "clip_fraction",
+    )  # fmt: skip
+    assert {f.name for f in dataclasses.fields(RoundResult)} >= FIGURES
+    result = RoundResult(2, 25.5, 204, 8, 20.0, False, 0.1, 0.2, 0.6, 3.0, 0.01, 0.25)
+    row = MetricsRow.of(0, 5, result, 1.5, "gradient")  # the federation's round 5 (a resumed worker)
+    assert row == MetricsRow(5, 0, 25.5, 20.0, 0.1, 0.2, 0.6, 204, 1.5, "gradient", 8, 0.01, 0.25)
+    assert all(getattr(row, name) == getattr(result, name) for name in FIGURES)
 
 
 @pytest.mark.parametrize("line", ["[1, 2]", '{"round": 1}', "not json"])
 def test_record_rejects_lines_that_are_not_records(line: str) -> None:
     with pytest.raises(ValueError):
-        RoundRecord.from_json(line)
+        MetricsRow.from_json(line)
 
 
 def test_recorder_writes_metrics_summary_and_plot(tmp_path) -> None:
@@ -69,22 +82,22 @@ def test_recorder_refuses_to_overwrite_a_run(tmp_path) -> None:
 
 
 def test_records_carry_the_episodes_of_a_round_and_older_rows_read_as_one() -> None:
-    record = RoundRecord(2, 0, 25.5, 20.0, 0.1, 0.2, 0.6, 204, 1.5, "", episodes=8, approx_kl=0.01,
+    record = MetricsRow(2, 0, 25.5, 20.0, 0.1, 0.2, 0.6, 204, 1.5, "", episodes=8, approx_kl=0.01,
                          clip_fraction=0.25)  # fmt: skip
-    assert RoundRecord.from_json(record.to_json()) == record
+    assert MetricsRow.from_json(record.to_json()) == record
     row = dict(zip(CSV_COLUMNS, (str(v) for v in record.csv_row()), strict=True))
-    assert RoundRecord.from_csv_row(row) == record
+    assert MetricsRow.from_csv_row(row) == record
     # a metrics.csv written before the columns: the old columns keep their places, the new ones read as NaN
     old = {k: v for k, v in row.items() if k not in ("episodes", "approx_kl", "clip_fraction")}
-    assert RoundRecord.from_csv_row(old).episodes == 1
-    assert math.isnan(RoundRecord.from_csv_row(old).approx_kl)
-    assert math.isnan(RoundRecord.from_csv_row(old).clip_fraction)
+    assert MetricsRow.from_csv_row(old).episodes == 1
+    assert math.isnan(MetricsRow.from_csv_row(old).approx_kl)
+    assert math.isnan(MetricsRow.from_csv_row(old).clip_fraction)
     assert CSV_COLUMNS[-3:] == ("episodes", "approx_kl", "clip_fraction")
     assert CSV_COLUMNS.index("episodes") == 10
     old_json = json.loads(record.to_json())
     for name in ("episodes", "approx_kl", "clip_fraction"):
         del old_json[name]
-    from_old = RoundRecord.from_json(json.dumps(old_json))
+    from_old = MetricsRow.from_json(json.dumps(old_json))
     assert from_old.episodes == 1 and math.isnan(from_old.approx_kl) and math.isnan(from_old.clip_fraction)
 
 

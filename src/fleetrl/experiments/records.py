@@ -27,7 +27,7 @@ from pathlib import Path
 from typing import Any
 
 from fleetrl.experiments.stats import Completion
-from fleetrl.runs.records import RoundRecord
+from fleetrl.runs.records import MetricsRow
 from fleetrl.runs.rig_time import RigTime, rig_time, waiting_rule
 from fleetrl.runs.rundir import PLAIN_EVENTS, model_path
 
@@ -100,17 +100,14 @@ class RunRecord:
         """Each worker's score per round (round 1 first)."""
         return {int(k): list(v["score"]) for k, v in sorted(self.data["workers"].items())}
 
-    def round_records(self) -> list[RoundRecord]:
+    def round_records(self) -> list[MetricsRow]:
         """The per-round rows the record keeps (score, WMA, events; no losses), for the per-worker plots."""
         rows = []
         for key, worker in self.data["workers"].items():
             events = worker.get("events", {})
             for i, (score, wma) in enumerate(zip(worker["score"], worker["wma"], strict=True)):
-                nan = math.nan
                 event = events.get(str(i + 1), "")
-                rows.append(
-                    RoundRecord(i + 1, int(key), _number(score), _number(wma), nan, nan, nan, 0, nan, event)
-                )
+                rows.append(MetricsRow(i + 1, int(key), _number(score), _number(wma), steps=0, event=event))
         return rows
 
     def unseen_scores(self) -> list[float]:

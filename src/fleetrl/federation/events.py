@@ -89,7 +89,7 @@ class ChiefStep:
 
 
 class WorkerEvent(StrEnum):
-    """What one round did for a worker (:attr:`fleetrl.federation.rounds.RoundRecord.event`), beside the
+    """What one round did for a worker (:attr:`fleetrl.federation.rounds.FederatedRound.event`), beside the
     round in which it sent its scheme's message and applied the answer (:class:`Sent`)."""
 
     COMPLETED = "completed"

@@ -2,8 +2,9 @@
 state machine asks of its runner (the actions of a :class:`WorkerStep`), and the round's record.
 
 :class:`RoundPlayer` is what the worker needs from the learner (``fleetrl.agent.learner.Learner``), whose
-``play_round`` returns a :class:`RoundOutcome` (``fleetrl.agent.learner.RoundResult`` provides it); every
-round becomes one :class:`RoundRecord`, and a worker's run ends with a :class:`WorkerSummary`.
+``play_round`` returns the learner's :class:`~fleetrl.agent.learner.RoundResult`; every round becomes one
+:class:`FederatedRound` (that result with the worker, the federation's round and its event), and a worker's
+run ends with a :class:`WorkerSummary`.
 
 The machine (:mod:`fleetrl.federation.worker_machine`) decides; the runner
 (:class:`fleetrl.federation.worker.FederatedWorker`) does: it publishes, plays the learner's rounds and steps,
@@ -16,7 +17,7 @@ from __future__ import annotations
 import logging
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Any, Protocol
+from typing import TYPE_CHECKING, Any, Protocol
 
 import numpy as np
 
@@ -24,38 +25,13 @@ from fleetrl.federation.events import RoundEvent
 from fleetrl.federation.messages import Message, RoundConfig
 from fleetrl.federation.schemes import FederatedAgent
 
+if TYPE_CHECKING:  # the learner (and torch) is not imported by the federation's pure parts
+    from fleetrl.agent.learner import RoundResult
+
 log = logging.getLogger(__name__)
 
 ANSWERS = ("average", "transfer", "done")
 """The chief's answers to a round."""
-
-
-class RoundFigures(Protocol):
-    """The figures of one round: the episode and the update's statistics."""
-
-    @property
-    def score(self) -> float: ...
-    @property
-    def steps(self) -> int: ...
-    @property
-    def wma(self) -> float: ...
-    @property
-    def actor_loss(self) -> float: ...
-    @property
-    def critic_loss(self) -> float: ...
-    @property
-    def entropy(self) -> float: ...
-    @property
-    def approx_kl(self) -> float: ...
-    @property
-    def clip_fraction(self) -> float: ...
-
-
-class RoundOutcome(RoundFigures, Protocol):
-    """What one ``play_round`` reports (``fleetrl.agent.learner.RoundResult`` provides it)."""
-
-    @property
-    def completed(self) -> bool: ...
 
 
 class RoundPlayer(Protocol):
@@ -71,7 +47,7 @@ class RoundPlayer(Protocol):
         """The completion criterion has held (after this round's episodes, inside ``play_round``)."""
         ...
 
-    def play_round(self) -> RoundOutcome:
+    def play_round(self) -> RoundResult:
         """Play one episode and, unless learning is complete, optimise (Algorithm 2, lines 2–24)."""
         ...
 
@@ -80,16 +56,16 @@ class RoundPlayer(Protocol):
         scheme's worker then drives it, exchanging every step with the chief)."""
         ...
 
-    def end_round(self, played: Any, stats: Any) -> RoundOutcome:
+    def end_round(self, played: Any, stats: Any) -> RoundResult:
         """The round's outcome from :meth:`begin_round`'s result and the update's statistics (None: none)."""
         ...
 
 
 @dataclass(frozen=True)
-class RoundRecord:
-    """One round of one worker, for metrics files and the live view: the learner's figures of the round
-    (its :class:`RoundOutcome`, ``fleetrl.agent.learner.RoundResult``, kept as it is: the figures live in one
-    place) with what the federation made of it.
+class FederatedRound:
+    """One round of one worker as the federation saw it: the learner's figures of the round (its
+    :class:`~fleetrl.agent.learner.RoundResult`, kept whole: the figures live in that one value) with the
+    worker, the federation's round number and what the federation made of the round.
 
     ``round`` is the federation's round (a resumed or rejoining worker's learner counts its own);
     ``event`` is a :class:`~fleetrl.federation.events.WorkerEvent`, or a
@@ -99,51 +75,16 @@ class RoundRecord:
 
     worker_id: str
     round: int
-    outcome: RoundFigures
-    """the learner's report of the round (score, steps, wma, losses, entropy)"""
+    result: RoundResult
+    """the learner's report of the round (score, steps, episodes, wma, the update's statistics)"""
     event: RoundEvent
     peer: str | None = None
     """the other worker of a transfer (``transfer_in``: the origin; ``finished``: the one forwarded)"""
 
     @property
-    def score(self) -> float:
-        """The round's score (the learner's)."""
-        return float(self.outcome.score)
-
-    @property
-    def wma(self) -> float:
-        """The weighted moving average of the scores after this round."""
-        return float(self.outcome.wma)
-
-    @property
-    def steps(self) -> int:
-        """Environment steps of the round."""
-        return int(self.outcome.steps)
-
-    @property
-    def actor_loss(self) -> float:
-        """The update's actor loss (NaN without an update)."""
-        return float(self.outcome.actor_loss)
-
-    @property
-    def critic_loss(self) -> float:
-        """The update's critic loss (NaN without an update)."""
-        return float(self.outcome.critic_loss)
-
-    @property
-    def entropy(self) -> float:
-        """The update's mean policy entropy (NaN without an update)."""
-        return float(self.outcome.entropy)
-
-    @property
-    def approx_kl(self) -> float:
-        """The update's approximate KL(π_θold ‖ π_θ) (NaN without an update)."""
-        return float(self.outcome.approx_kl)
-
-    @property
-    def clip_fraction(self) -> float:
-        """The update's share of clipped ratios (NaN without an update)."""
-        return float(self.outcome.clip_fraction)
+    def label(self) -> str:
+        """The round's event as metrics files name it (:meth:`.events.WorkerEvent.label`)."""
+        return self.event.label(self.peer)
 
 
 @dataclass(frozen=True)
@@ -259,7 +200,7 @@ class EndUpdate:
 class Record:
     """A round is over: hand its record to ``on_record``."""
 
-    record: RoundRecord
+    record: FederatedRound
 
 
 @dataclass(frozen=True)

@@ -15,7 +15,7 @@ message — to the chief, and waits for the chief's answer for that round:
 * an ``average`` listing it in ``finished``: the run is complete for it (``fedavg``'s last round);
 * ``done``: the run is over.
 
-The worker also stops after round M. Every round produces a :class:`RoundRecord` through ``on_record``.
+The worker also stops after round M. Every round produces a :class:`FederatedRound` through ``on_record``.
 
 Join: before its first round the worker publishes a retained ``join`` carrying its shared settings; a chief
 ``refused`` naming it, or a ``welcome`` whose settings differ, raises
@@ -49,15 +49,13 @@ from fleetrl.federation.rounds import (
     Checkpoint,
     ComputeStep,
     EndUpdate,
+    FederatedRound,
     Finish,
     PlayRound,
     Publish,
     Record,
     Refused,
-    RoundFigures,
-    RoundOutcome,
     RoundPlayer,
-    RoundRecord,
     TakeParameters,
     TimedOut,
     WorkerOutput,
@@ -71,7 +69,7 @@ from fleetrl.federation.topics import OFFLINE, validate_id, validate_worker_id
 from fleetrl.federation.worker_machine import WorkerMachine
 from fleetrl.transport.base import Transport, Will
 
-__all__ = ["FederatedWorker", "RoundFigures", "RoundOutcome", "RoundPlayer", "RoundRecord", "WorkerSummary"]
+__all__ = ["FederatedRound", "FederatedWorker", "RoundPlayer", "WorkerSummary"]
 
 log = logging.getLogger(__name__)
 
@@ -88,7 +86,7 @@ class FederatedWorker:
     :param run_id: the run.
     :param worker_id: this worker's id (a topic level; not ``chief``).
     :param max_rounds: M.
-    :param on_record: called with every :class:`RoundRecord`.
+    :param on_record: called with every :class:`FederatedRound`.
     :param reply_timeout: seconds to wait for the chief (at start, and each round); None waits forever.
     :param resend_interval: seconds without an answer after which the round's message (or, before the
         welcome, the ``online`` status) is sent again; None never re-sends.
@@ -116,7 +114,7 @@ class FederatedWorker:
         run_id: str,
         worker_id: str,
         max_rounds: int,
-        on_record: Callable[[RoundRecord], None] | None = None,
+        on_record: Callable[[FederatedRound], None] | None = None,
         reply_timeout: float | None = 600.0,
         resend_interval: float | None = 5.0,
         key: FleetKey | None = None,

@@ -28,6 +28,7 @@ import math
 from collections.abc import Callable
 from dataclasses import dataclass
 from enum import Enum, auto
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -36,8 +37,7 @@ from fleetrl.federation.events import RoundEvent, Sent, WorkerEvent
 from fleetrl.federation.messages import Layout, Message, MessageRejected, RoundConfig, decode, encode
 from fleetrl.federation.rounds import (
     ANSWERS,
-    RoundOutcome,
-    RoundRecord,
+    FederatedRound,
     WorkerOutput,
     WorkerStep,
     WorkerSummary,
@@ -48,6 +48,9 @@ from fleetrl.federation.schemes import COMPLETED, Granularity, Scheme
 from fleetrl.federation.shared_settings import SharedSettings, settings_difference
 from fleetrl.federation.signing import FleetKey, status_payload
 from fleetrl.federation.topics import CHIEF_ID, OFFLINE, ONLINE, chief_topic, status_topic, worker_topic
+
+if TYPE_CHECKING:  # the learner (and torch) is not imported by the pure machine
+    from fleetrl.agent.learner import RoundResult
 
 __all__ = ["Phase", "WorkerMachine"]
 
@@ -140,7 +143,7 @@ class WorkerMachine:
         """the round being played (or waited for)"""
         self.summary: WorkerSummary | None = None
         self._wait: _Wait | None = None
-        self._outcome: RoundOutcome | None = None
+        self._outcome: RoundResult | None = None
         self._steps = 0
         self._step = 0
         self._step_kind = ""
@@ -239,7 +242,7 @@ class WorkerMachine:
     # ---- reports of the runner ----
 
     def round_played(
-        self, outcome: RoundOutcome, *, now: float, share: tuple[str, np.ndarray] | None = None
+        self, outcome: RoundResult, *, now: float, share: tuple[str, np.ndarray] | None = None
     ) -> WorkerStep:
         """The round was played; ``share``: what a per-round scheme sends (``scheme.outgoing``)."""
         if self.per_step:
@@ -350,7 +353,7 @@ class WorkerMachine:
         self.phase = Phase.STEPS_DONE
         return WorkerStep((act.ApplyStep(reply.flat), act.EndUpdate()))
 
-    def _step_round_over(self, outcome: RoundOutcome, reply: Message) -> WorkerStep:
+    def _step_round_over(self, outcome: RoundResult, reply: Message) -> WorkerStep:
         """A per-step scheme's round (every step's answer is applied already)."""
         if reply.type == "done":
             return self._round_over(outcome, reply, WorkerEvent.RUN_ENDED, None, True)
@@ -358,15 +361,15 @@ class WorkerMachine:
         return self._round_over(outcome, reply, event, None, self.worker_id in reply.finished)
 
     def _round_over(
-        self, outcome: RoundOutcome, reply: Message, event: RoundEvent, peer: str | None, leave: bool
+        self, outcome: RoundResult, reply: Message, event: RoundEvent, peer: str | None, leave: bool
     ) -> WorkerStep:
         """Record the round; stop if this worker leaves, else catch up with what is queued."""
         self._config = dict(reply.config)  # what the chief asks for the round this answer opens
-        record = RoundRecord(self.worker_id, self.round, outcome, event, peer)
+        record = FederatedRound(self.worker_id, self.round, outcome, event, peer)
         log.info(
             "worker %s round %d: score %g wma %.1f steps %d actor %.4g critic %.4g entropy %.3f: %s",
-            self.worker_id, record.round, record.score, record.wma, record.steps,
-            record.actor_loss, record.critic_loss, record.entropy, event.describe(peer),
+            self.worker_id, self.round, outcome.score, outcome.wma, outcome.steps,
+            outcome.actor_loss, outcome.critic_loss, outcome.entropy, event.describe(peer),
         )  # fmt: skip
         recorded = WorkerStep((act.Record(record),))
         if leave:

@@ -8,7 +8,7 @@ from typing import Protocol
 
 from fleetrl.runs.live import LiveView
 from fleetrl.runs.processes import FleetEvent, WorkerExit
-from fleetrl.runs.records import RoundRecord
+from fleetrl.runs.records import MetricsRow
 from fleetrl.runs.rundir import RunDirectoryError, RunRecorder
 
 log = logging.getLogger(__name__)
@@ -34,7 +34,7 @@ class ThreadFleet:
     :param bodies: worker id → a function that runs the worker, reporting each round through its argument
     """
 
-    def __init__(self, bodies: dict[int, Callable[[Callable[[RoundRecord], None]], None]]) -> None:
+    def __init__(self, bodies: dict[int, Callable[[Callable[[MetricsRow], None]], None]]) -> None:
         self.events: queue.Queue[FleetEvent] = queue.Queue()
         self.threads = {
             worker: threading.Thread(
@@ -45,7 +45,7 @@ class ThreadFleet:
         for thread in self.threads.values():
             thread.start()
 
-    def _run(self, worker: int, body: Callable[[Callable[[RoundRecord], None]], None]) -> None:
+    def _run(self, worker: int, body: Callable[[Callable[[MetricsRow], None]], None]) -> None:
         code = 0
         try:
             body(self.events.put)
@@ -94,7 +94,7 @@ def follow(fleet: Fleet, recorder: RunRecorder, view: LiveView) -> None:
 
 def apply_event(event: FleetEvent, recorder: RunRecorder, ended: set[int]) -> None:
     """Write one event from the fleet into the run directory."""
-    if isinstance(event, RoundRecord):
+    if isinstance(event, MetricsRow):
         recorder.add(event)
         return
     ended.add(event.worker)

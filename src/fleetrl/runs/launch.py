@@ -8,7 +8,7 @@ federated      one process each (``mqtt``)      a thread of this process, on the
 federated      threads of this process          a thread, on the in-process bus (``local``)
 =============  ===============================  =============================================
 
-Every worker reports its rounds as :class:`~fleetrl.runs.records.RoundRecord` objects; this process
+Every worker reports its rounds as :class:`~fleetrl.runs.records.MetricsRow` objects; this process
 owns the run directory and the live view. Worker processes are forked from this one where the OS can
 (:mod:`fleetrl.runs.processes`: torch and fleetrl are imported once), before the chief's thread starts.
 """

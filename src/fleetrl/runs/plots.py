@@ -19,7 +19,7 @@ import matplotlib.pyplot as plt
 from matplotlib.axes import Axes
 from matplotlib.figure import Figure
 
-from fleetrl.runs.records import RoundRecord
+from fleetrl.runs.records import MetricsRow
 
 XAxis = Literal["rounds", "episodes"]
 X_LABELS: dict[str, str] = {
@@ -33,22 +33,22 @@ LOSS_LABEL = r"actor loss $-L^{\mathrm{CLIP}}$ (dotted)"
 """the right axis of a worker's panel: the PPO actor loss, a dimensionless objective"""
 
 
-def by_worker(records: list[RoundRecord]) -> dict[int, list[RoundRecord]]:
+def by_worker(records: list[MetricsRow]) -> dict[int, list[MetricsRow]]:
     """Records grouped per worker, each group in round order."""
-    groups: dict[int, list[RoundRecord]] = defaultdict(list)
+    groups: dict[int, list[MetricsRow]] = defaultdict(list)
     for record in records:
         groups[record.worker].append(record)
     return {w: sorted(rs, key=lambda r: r.round) for w, rs in sorted(groups.items())}
 
 
-def x_values(rows: list[RoundRecord], x_axis: XAxis = "rounds") -> list[int]:
+def x_values(rows: list[MetricsRow], x_axis: XAxis = "rounds") -> list[int]:
     """Where each of one worker's rounds sits on the x-axis: its number, or the episodes played by its end."""
     if x_axis == "rounds":
         return [r.round for r in rows]
     return list(itertools.accumulate(r.episodes for r in rows))
 
 
-def draw_worker(ax: Axes, rows: list[RoundRecord], label: str, x_axis: XAxis = "rounds") -> None:
+def draw_worker(ax: Axes, rows: list[MetricsRow], label: str, x_axis: XAxis = "rounds") -> None:
     """One worker's panel: score, WMA, actor loss (right axis, drawn only where a row carries one),
     transfers and completion; ``label`` names the worker above the score axis's label."""
     rounds = x_values(rows, x_axis)
@@ -80,7 +80,7 @@ def draw_worker(ax: Axes, rows: list[RoundRecord], label: str, x_axis: XAxis = "
     ax.grid(alpha=0.3)
 
 
-def scores_figure(records: list[RoundRecord], title: str = "", x_axis: XAxis = "rounds") -> Figure:
+def scores_figure(records: list[MetricsRow], title: str = "", x_axis: XAxis = "rounds") -> Figure:
     """One panel per worker against rounds or episodes (``x_axis``); the caller saves and closes it."""
     groups = by_worker(records) or {0: []}
     fig, axes = plt.subplots(len(groups), 1, figsize=(9, 2.6 * len(groups)), sharex=True, squeeze=False)
@@ -94,7 +94,7 @@ def scores_figure(records: list[RoundRecord], title: str = "", x_axis: XAxis = "
     return fig
 
 
-def plot_run(records: list[RoundRecord], path: Path, title: str = "", x_axis: XAxis = "rounds") -> None:
+def plot_run(records: list[MetricsRow], path: Path, title: str = "", x_axis: XAxis = "rounds") -> None:
     """Draw one panel per worker against rounds or episodes (``x_axis``) and save a PNG at ``path``."""
     fig = scores_figure(records, title, x_axis)
     fig.savefig(path, dpi=110)

@@ -1,7 +1,7 @@
 """Worker processes that report their rounds as JSON lines on stdout.
 
 Each child runs :mod:`fleetrl.runs.worker_main` with its arguments (its spec as JSON), prints one
-:class:`RoundRecord` per line on stdout and logs to stderr (kept in ``<run>/logs/worker-K.log``). The parent
+:class:`MetricsRow` per line on stdout and logs to stderr (kept in ``<run>/logs/worker-K.log``). The parent
 reads every child's stdout on a thread and hands the parsed records to one queue, so the main thread owns the
 run directory and the live view. Nothing crosses the process boundary but text.
 
@@ -28,7 +28,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import IO, NoReturn, Protocol
 
-from fleetrl.runs.records import RoundRecord
+from fleetrl.runs.records import MetricsRow
 
 log = logging.getLogger(__name__)
 
@@ -46,7 +46,7 @@ class WorkerExit:
     returncode: int
 
 
-FleetEvent = RoundRecord | WorkerExit
+FleetEvent = MetricsRow | WorkerExit
 
 
 class Child(Protocol):
@@ -194,7 +194,7 @@ class ProcessFleet:
                 if not line:
                     continue
                 try:
-                    self.events.put(RoundRecord.from_json(line))
+                    self.events.put(MetricsRow.from_json(line))
                 except (ValueError, TypeError) as err:
                     log.warning(
                         "worker %d printed a line that is not a round record (%s): %.200s", worker, err, line

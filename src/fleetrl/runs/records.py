@@ -1,101 +1,109 @@
-"""One row of a run's metrics: what one worker did in one round."""
+"""A run's metrics row: one worker's round flattened, the shape of metrics.csv and of what reads it back.
+
+The learner's figures of a round are one value (:class:`fleetrl.agent.learner.RoundResult`); the federation
+adds the worker, its round number and the event (:class:`fleetrl.federation.rounds.FederatedRound`).
+:meth:`MetricsRow.of` flattens that into one row; metrics.csv's columns are the row's fields in order, and
+:func:`read_metrics` gives the same rows back (plots, resume, the experiments' records).
+"""
 
 import csv
 import json
 import math
 from dataclasses import asdict, dataclass, fields
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-CSV_COLUMNS = (
-    "round",
-    "worker",
-    "score",
-    "wma",
-    "actor_loss",
-    "critic_loss",
-    "entropy",
-    "steps",
-    "wall_time",
-    "event",
-    "episodes",
-    "approx_kl",
-    "clip_fraction",
-)
-"""metrics.csv's columns (later ones were added at the end, so older files keep their columns' positions)"""
+if TYPE_CHECKING:  # reading metrics back (plots, experiments) needs no learner
+    from fleetrl.agent.learner import RoundResult
+
+nan = math.nan
 
 
-@dataclass
-class RoundRecord:
-    """A worker's round: the episode's score, the learning statistics, and what federation did.
+@dataclass(frozen=True)
+class MetricsRow:
+    """A worker's round: the round's score, the learning statistics, and what federation did.
 
     ``event`` is empty for a plain round, ``gradient`` for a gradient-sharing round, ``completed`` when the
     worker's criterion holds, ``transfer_out`` / ``transfer_in:<from>`` for model transfers. A round is one
     episode, or with the ``paper-code`` preset the episodes that fill the memory: ``score`` is then their
-    mean return, ``steps`` their total and ``episodes`` their number.
+    mean return, ``steps`` their total and ``episodes`` their number. The fields are metrics.csv's columns,
+    in order (later ones were added at the end, so older files keep their columns' positions); a field
+    named like one of :class:`~fleetrl.agent.learner.RoundResult`'s is that figure of the round.
     """
 
     round: int
     worker: int
     score: float
     wma: float
-    actor_loss: float
-    critic_loss: float
-    entropy: float
-    steps: int
-    wall_time: float
+    actor_loss: float = nan
+    critic_loss: float = nan
+    entropy: float = nan
+    steps: int = 0
+    wall_time: float = nan
+    """seconds from the worker's start to the end of the round"""
     event: str = ""
     episodes: int = 1
-    approx_kl: float = math.nan
+    approx_kl: float = nan
     """the update's estimate of KL(π_θold ‖ π_θ) (NaN: no update, or a row written before the column)"""
-    clip_fraction: float = math.nan
+    clip_fraction: float = nan
     """the update's share of clipped probability ratios (NaN: no update, or an older row)"""
+
+    @classmethod
+    def of(
+        cls, worker: int, round_: int, result: "RoundResult", wall_time: float, event: str
+    ) -> "MetricsRow":
+        """The row of the learner's ``result``, played by ``worker`` as round ``round_`` (the federation's
+        number; alone: the learner's), ``wall_time`` seconds into the worker's run, ``event`` what it did."""
+        figures: dict[str, Any] = {k: (int if k in COUNTS else float)(getattr(result, k)) for k in FIGURES}
+        return cls(round=round_, worker=worker, wall_time=wall_time, event=event, **figures)
 
     def to_json(self) -> str:
         """One line of JSON (non-finite floats become null)."""
         return json.dumps({k: _finite_or_none(v) for k, v in asdict(self).items()})
 
     @classmethod
-    def from_json(cls, line: str) -> "RoundRecord":
+    def from_json(cls, line: str) -> "MetricsRow":
         """Parse a line written by :meth:`to_json`; raises ValueError on anything else."""
         data = json.loads(line)
         if not isinstance(data, dict):
             raise ValueError("a round record must be a JSON object")
-        names = {f.name for f in fields(cls)}
-        data.setdefault("episodes", 1)  # written before rounds of several episodes
-        data.setdefault("approx_kl", None)  # written before the update's diagnostics were kept
-        data.setdefault("clip_fraction", None)
-        if set(data) != names:
-            raise ValueError(f"round record fields {sorted(data)} != {sorted(names)}")
-        values: dict[str, Any] = {k: (math.nan if v is None else v) for k, v in data.items()}
+        data = {**OLDER_DEFAULTS, **data}  # a line written before a later column
+        if set(data) != set(CSV_COLUMNS):
+            raise ValueError(f"round record fields {sorted(data)} != {sorted(CSV_COLUMNS)}")
+        values: dict[str, Any] = {k: (nan if v is None else v) for k, v in data.items()}
         return cls(**values)
 
     @classmethod
-    def from_csv_row(cls, row: dict[str, str]) -> "RoundRecord":
-        """Parse one row of metrics.csv (as ``csv.DictReader`` gives it); empty losses become NaN."""
-
-        def number(name: str) -> float:
-            return float(row[name]) if row.get(name) else math.nan  # a column older files lack: NaN
-
-        return cls(
-            round=int(row["round"]),
-            worker=int(row["worker"]),
-            score=number("score"),
-            wma=number("wma"),
-            actor_loss=number("actor_loss"),
-            critic_loss=number("critic_loss"),
-            entropy=number("entropy"),
-            steps=int(row["steps"]),
-            wall_time=number("wall_time"),
-            event=row["event"],
-            episodes=int(row.get("episodes") or 1),  # older files have no such column
-            approx_kl=number("approx_kl"),
-            clip_fraction=number("clip_fraction"),
-        )
+    def from_csv_row(cls, row: dict[str, str]) -> "MetricsRow":
+        """Parse one row of metrics.csv (as ``csv.DictReader`` gives it); empty numbers become NaN, a column
+        older files lack its default."""
+        values: dict[str, Any] = {}
+        for f in fields(cls):
+            if f.name in OLDER_DEFAULTS and not row.get(f.name):  # a column older files lack
+                values[f.name] = f.default
+            elif f.type is str:
+                values[f.name] = row[f.name]
+            elif f.name in COUNTS:
+                values[f.name] = int(row[f.name])
+            else:
+                values[f.name] = float(row[f.name]) if row.get(f.name) else nan  # empty losses: NaN
+        return cls(**values)
 
     def csv_row(self) -> list[object]:
         """Values in :data:`CSV_COLUMNS` order."""
         return [getattr(self, name) for name in CSV_COLUMNS]
+
+
+CSV_COLUMNS = tuple(f.name for f in fields(MetricsRow))
+"""metrics.csv's columns: :class:`MetricsRow`'s fields, in order"""
+IDENTITY = frozenset({"round", "worker", "wall_time", "event"})
+"""the columns that say who played the round, when, and what the federation did"""
+FIGURES = frozenset(CSV_COLUMNS) - IDENTITY
+"""the columns that are the learner's figures of the round (fields of the same name of its RoundResult)"""
+COUNTS = frozenset(f.name for f in fields(MetricsRow) if f.type is int)
+"""the columns that hold whole numbers"""
+OLDER_DEFAULTS: dict[str, Any] = {"episodes": 1, "approx_kl": None, "clip_fraction": None}
+"""what a row written before a later column holds in it"""
 
 
 def _finite_or_none(value: object) -> object:
@@ -104,7 +112,7 @@ def _finite_or_none(value: object) -> object:
     return value
 
 
-def read_metrics(path: Path) -> list[RoundRecord]:
-    """Every record of a run's metrics.csv."""
+def read_metrics(path: Path) -> list[MetricsRow]:
+    """Every row of a run's metrics.csv."""
     with path.open(newline="") as f:
-        return [RoundRecord.from_csv_row(row) for row in csv.DictReader(f)]
+        return [MetricsRow.from_csv_row(row) for row in csv.DictReader(f)]

@@ -1,6 +1,6 @@
 """What one worker does in a run, in individual or federated mode, wherever it runs (process or thread).
 
-Both modes report every round as a :class:`~fleetrl.runs.records.RoundRecord` through ``emit`` and save the
+Both modes report every round as a :class:`~fleetrl.runs.records.MetricsRow` through ``emit`` and save the
 worker's model when they end, however they end.
 """
 
@@ -8,64 +8,29 @@ import logging
 import time
 from collections.abc import Callable
 from pathlib import Path
-from typing import Protocol
 
-from fleetrl.agent.learner import Learner
-from fleetrl.federation import worker as federation_worker
+from fleetrl.agent.learner import Learner, RoundResult
 from fleetrl.federation.shared_settings import shared_text
 from fleetrl.federation.signing import FleetKey
-from fleetrl.federation.worker import FederatedWorker, RoundFigures, WorkerSummary
+from fleetrl.federation.worker import FederatedWorker, WorkerSummary
 from fleetrl.runs.checkpoints import WorkerCheckpoint
 from fleetrl.runs.factory import make_learner
-from fleetrl.runs.records import RoundRecord
+from fleetrl.runs.records import MetricsRow
 from fleetrl.runs.rundir import model_path
 from fleetrl.runs.spec import WorkerSpec
 from fleetrl.transport.base import Transport
 
 log = logging.getLogger(__name__)
 
-Emit = Callable[[RoundRecord], None]
+Emit = Callable[[MetricsRow], None]
 FINISHED_REASONS = ("transfer_out", "every unit completed")
 """how a worker's run ends when it left W having completed (paper: its θ was forwarded; fedavg: the last
 average)"""
 
 
-class NumberedRound(RoundFigures, Protocol):
-    """A round's figures with its number, whichever mode played it (``RoundResult``, the federated record)."""
-
-    @property
-    def round(self) -> int: ...
-
-
-def metrics_row(
-    worker: int, figures: NumberedRound, started: float, event: str, episodes: int = 1
-) -> RoundRecord:
-    """The metrics row of a round (``wall_time`` counted from ``started``; ``episodes`` it played)."""
-    return RoundRecord(
-        round=figures.round,
-        worker=worker,
-        score=figures.score,
-        wma=figures.wma,
-        actor_loss=figures.actor_loss,
-        critic_loss=figures.critic_loss,
-        entropy=figures.entropy,
-        steps=figures.steps,
-        wall_time=round(time.monotonic() - started, 4),
-        event=event,
-        episodes=episodes,
-        approx_kl=figures.approx_kl,
-        clip_fraction=figures.clip_fraction,
-    )
-
-
-def federated_event(record: federation_worker.RoundRecord) -> str:
-    """The metrics ``event`` for a federated round (:meth:`~fleetrl.federation.events.WorkerEvent.label`)."""
-    return record.event.label(record.peer)
-
-
-def _episodes_of(learner: Learner) -> int:
-    """How many episodes the learner's latest round played (the federated worker's record does not say)."""
-    return 1 if learner.last_round is None else learner.last_round.episodes
+def metrics_row(worker: int, round_: int, result: RoundResult, started: float, event: str) -> MetricsRow:
+    """The metrics row of ``result`` (``wall_time`` counted from ``started``, the worker's start)."""
+    return MetricsRow.of(worker, round_, result, round(time.monotonic() - started, 4), event)
 
 
 def train_alone(spec: WorkerSpec, emit: Emit, learner: Learner | None = None) -> None:
@@ -76,7 +41,7 @@ def train_alone(spec: WorkerSpec, emit: Emit, learner: Learner | None = None) ->
         for _ in range(spec.learning.max_rounds):
             result = learner.play_round()
             event = "completed" if result.completed else ""
-            emit(metrics_row(spec.worker, result, started, event, result.episodes))
+            emit(metrics_row(spec.worker, result.round, result, started, event))
             if result.completed:
                 break
     finally:
@@ -124,9 +89,7 @@ def train_federated(
         run_id=run_id,
         worker_id=str(spec.worker),
         max_rounds=spec.learning.max_rounds,
-        on_record=lambda record: emit(
-            metrics_row(spec.worker, record, started, federated_event(record), _episodes_of(learner))
-        ),
+        on_record=lambda r: emit(metrics_row(spec.worker, r.round, r.result, started, r.label)),
         reply_timeout=reply_timeout,
         resend_interval=resend_interval,
         key=key,

@@ -13,7 +13,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from fleetrl.runs.records import CSV_COLUMNS, RoundRecord, read_metrics
+from fleetrl.runs.records import CSV_COLUMNS, MetricsRow, read_metrics
 from fleetrl.runs.rig_time import rig_time, waiting_rule
 
 if TYPE_CHECKING:
@@ -74,7 +74,7 @@ class RunRecorder:
         resume_from: dict[int, int] | None = None,
     ) -> None:
         self.out = Path(out)
-        kept: list[RoundRecord] = []
+        kept: list[MetricsRow] = []
         if resume_from is not None and (self.out / "metrics.csv").exists():
             kept = [
                 r
@@ -87,7 +87,7 @@ class RunRecorder:
         self.config = config
         self.started = time.monotonic()
         self.progress = {w: WorkerProgress() for w in workers}
-        self.records: list[RoundRecord] = []
+        self.records: list[MetricsRow] = []
         self.interrupted = False
         self.finished = False
         """whether :meth:`finish` was called"""
@@ -118,7 +118,7 @@ class RunRecorder:
         """Seconds since the run started."""
         return time.monotonic() - self.started
 
-    def add(self, record: RoundRecord) -> None:
+    def add(self, record: MetricsRow) -> None:
         """Append one record to metrics.csv and TensorBoard and update the worker's progress."""
         self.records.append(record)
         self._csv.writerow(record.csv_row())
@@ -133,7 +133,7 @@ class RunRecorder:
             if math.isfinite(value):
                 board.add_scalar(f"train/{name}/{tag}", value, record.round)
 
-    def _progress(self, record: RoundRecord) -> None:
+    def _progress(self, record: MetricsRow) -> None:
         progress = self.progress.setdefault(record.worker, WorkerProgress())
         progress.round, progress.score, progress.wma = record.round, record.score, record.wma
         progress.episodes += record.episodes

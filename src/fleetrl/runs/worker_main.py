@@ -13,12 +13,12 @@ import sys
 from pathlib import Path
 
 from fleetrl.runs.factory import make_learner
-from fleetrl.runs.records import RoundRecord
+from fleetrl.runs.records import MetricsRow
 from fleetrl.runs.roles import train_alone, train_federated
 from fleetrl.runs.spec import WorkerSpec
 
 
-def print_record(record: RoundRecord) -> None:
+def print_record(record: MetricsRow) -> None:
     """Hand a round to the launcher: one JSON line on stdout."""
     print(record.to_json(), flush=True)
 
