@@ -221,6 +221,24 @@ class PPOAgent:
         named = [item for _, part in self._step_named(exchange.step) for item in part]
         exchange.send(split(flat_grad, named, "step gradient"))
 
+    def apply_fleet_step(self, k: int, flat_grad: np.ndarray) -> None:
+        """Step the optimiser(s) with the fleet's gradient of step ``k`` of an update this agent took no part
+        in (a straggler catching up): the same optimiser steps :meth:`apply_step` takes, no update under way.
+
+        :raises RuntimeError: an update is under way
+        :raises ValueError: the vector does not fit :meth:`step_layout` ``(k)`` or is not finite
+        """
+        if self._exchange is not None:
+            raise RuntimeError("an update is under way: its steps are applied with apply_step()")
+        parts = self._step_named(k)
+        chunks = split(flat_grad, [item for _, named in parts for item in named], "step gradient")
+        self._score_new_transitions()
+        start = 0
+        for part, named in parts:
+            self._model.step(part, chunks[start : start + len(named)])
+            start += len(named)
+        self._policy.refresh(self.net)
+
     def end_update(self) -> UpdateStats:
         """The update's statistics (the acting copy follows θ, a ``per_round`` memory is emptied).
 

@@ -7,9 +7,10 @@ Round semantics (docs/protocol.md has the full rules):
 * The chief keeps W and the open round i (from 1); it takes from each worker exactly one message for round i
   of a type its scheme accepts, keyed by (sender, round); duplicates, future rounds and workers out of W are
   rejected and change nothing.
-* Round i closes when every worker in W has answered; answers are read in sorted worker-id order, never
-  arrival order. The scheme (:mod:`fleetrl.federation.schemes`) combines them into one answer and says who
-  leaves W and whether the run is complete; the chief broadcasts it with the next round's configuration.
+* Round i closes when every worker in W has answered (a per-step scheme: every one it waits for,
+  :mod:`.stragglers`); answers are read in sorted worker-id order, never arrival order. The scheme
+  (:mod:`fleetrl.federation.schemes`) combines them into one answer and says who leaves W and whether the
+  run is complete; the chief broadcasts it with the next round's configuration.
 * The run ends after the round the scheme calls complete, when W is empty, or after round M (``done``).
 
 Reliability (dropout and rejoin, deadlines and quorum, the join's settings check, idempotent resends):
@@ -39,10 +40,11 @@ from fleetrl.federation.chief_answer import (
 from fleetrl.federation.chief_state import AnswerBook, ChiefState
 from fleetrl.federation.events import ChiefEvent, ChiefStep
 from fleetrl.federation.messages import Layout, Message, MessageRejected, Reason, decode
-from fleetrl.federation.schemes import RoundContext, Scheme, resolve_scheme
+from fleetrl.federation.schemes import Granularity, RoundContext, Scheme, resolve_scheme
 from fleetrl.federation.schemes.base import FleetStart
 from fleetrl.federation.shared_settings import JoinGate, SharedSettings
 from fleetrl.federation.signing import FleetKey, parse_status
+from fleetrl.federation.stragglers import StepWaits
 from fleetrl.federation.topics import CHIEF_ID, sorted_workers, validate_id, validate_worker_id
 
 __all__ = ["Chief", "ChiefEvent", "ChiefStep"]
@@ -61,9 +63,13 @@ class Chief:
     :param aggregator: a registered aggregation rule, ``name`` or ``name:value`` (see
         :mod:`fleetrl.federation.aggregation`).
     :param max_bytes: message size cap; default from the layout.
-    :param quorum: fraction of W whose answers close a round at its deadline (needs ``round_timeout`` if < 1).
+    :param quorum: fraction of W whose answers close a round at its deadline (needs ``round_timeout`` if < 1);
+        a per-step scheme: the share of those waited for after which the others get a grace
+        (:mod:`.stragglers`).
     :param round_timeout: seconds a round may stay open before the deadline rules apply; None waits forever
         (the paper's fully synchronous rule).
+    :param max_staleness: a per-step scheme: rounds a straggler's contribution may lag the fleet and still be
+        averaged (None: no bound).
     :param resend_holdoff: least seconds between two re-sends of one answer to one worker (and after its
         broadcast).
     :param dropout_grace: seconds an ``offline`` worker has to come back before it leaves W (0: at once).
@@ -92,6 +98,7 @@ class Chief:
         max_bytes: int | None = None,
         quorum: float = 1.0,
         round_timeout: float | None = None,
+        max_staleness: int | None = None,
         resend_holdoff: float = 1.0,
         dropout_grace: float = 3.0,
         key: FleetKey | None = None,
@@ -111,7 +118,7 @@ class Chief:
         self.layout = list(layout)
         self.welcome_layout = list(start.layout if start else welcome_layout or layout)
         self.scheme: Scheme = resolve_scheme(scheme)
-        check_round_rules(self.scheme, max_rounds, quorum, round_timeout, steps_per_round)
+        check_round_rules(self.scheme, max_rounds, quorum, round_timeout, steps_per_round, max_staleness)
         self.steps_per_round = steps_per_round
         self._gate = JoinGate(settings)
         self.max_rounds = max_rounds
@@ -120,6 +127,12 @@ class Chief:
         self.max_bytes = max_bytes
         self.quorum = quorum
         self.round_timeout = round_timeout
+        self.max_staleness = max_staleness
+        self._waits = (
+            StepWaits(quorum, round_timeout, max_staleness)
+            if self.scheme.granularity is Granularity.STEP
+            else None
+        )
         self.resend_holdoff = resend_holdoff
         self.dropout_grace = dropout_grace
         self.key = key
@@ -181,8 +194,9 @@ class Chief:
         times = list(self.state.suspects.values())
         # the round deadline acts only on answers (with none, tick keeps waiting): without one it is not due,
         # else a deadline that passed would stay due and the runner would poll without waiting
-        if self.round_timeout is not None and self._opened_at is not None and self._pending:
-            times.append(self._opened_at + self.round_timeout)
+        due = self._waits.deadline(self._opened_at) if self._waits else self._round_deadline()
+        if due is not None and self._pending:
+            times.append(due)
         return min(times, default=None)
 
     def receive_bytes(self, payload: bytes, *, topic_worker: str | None = None, now: float) -> ChiefStep:
@@ -242,8 +256,10 @@ class Chief:
         step += ChiefStep(
             events=(ChiefEvent("accepted", self.state.round, sender=sender, detail=message.type),)
         )
-        if self.state.members.issubset(self._pending):
-            step += self._close_round(now)
+        if self._all_in():
+            return step + self._close_round(now)
+        if self._waits:
+            self._waits.note(self.state.pace, self.state.members, self.state.step, self._pending, now)
         return step
 
     def status(self, worker: str, payload: bytes, *, retained: bool = False, now: float) -> ChiefStep:
@@ -300,9 +316,11 @@ class Chief:
             step = self._drop([w for w in gone if w in self.state.members], OFFLINE_DROP) + self._maybe_close(
                 now
             )
-        timeout, opened = self.round_timeout, self._opened_at
-        if self.finished or timeout is None or opened is None or now < opened + timeout or not self._pending:
+        due = self._waits.deadline(self._opened_at) if self._waits else self._round_deadline()
+        if self.finished or due is None or now < due or not self._pending:
             return step
+        if self._waits:  # a per-step scheme's stragglers stay in W and catch up
+            return step + self._close_round(now)
         answered_members = self.state.members & set(self._pending)
         silent = self.state.members - answered_members
         if len(answered_members) >= math.ceil(self.quorum * len(self.state.members) - 1e-9):
@@ -360,10 +378,21 @@ class Chief:
             )
         )
 
+    def _round_deadline(self) -> float | None:
+        if self.round_timeout is None or self._opened_at is None:
+            return None
+        return self._opened_at + self.round_timeout
+
+    def _all_in(self) -> bool:
+        """Every member the open exchange waits for has answered."""
+        if self._waits:
+            return self._waits.all_in(self.state.pace, self.state.members, self.state.step, self._pending)
+        return self.state.members.issubset(self._pending)
+
     def _maybe_close(self, now: float) -> ChiefStep:
         if not self._pending and not self.state.members:
             return self._end("every worker dropped out")
-        if self._pending and self.state.members.issubset(self._pending):
+        if self._all_in():
             return self._close_round(now)
         return ChiefStep()
 
@@ -378,6 +407,10 @@ class Chief:
             self._aggregate, self.members, dict(self.state.completed), step=exchange, last_step=last_step
         )
         answers = {w: self._pending[w] for w in closed.answered}
+        if self._waits:
+            members = set(self.state.members)
+            self._waits.closed(self.state.pace, members, closed.answered, last_step)
+            answers = self._waits.averaged(self.state.pace, answers, exchange)
         answer = self.scheme.combine(answers, context)
         self.state.members.difference_update(answer.leave_w)
         self.state.left.update(answer.leave_w)

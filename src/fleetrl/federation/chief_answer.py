@@ -14,7 +14,12 @@ from fleetrl.federation.topics import CHIEF_ID, sorted_workers
 
 
 def check_round_rules(
-    scheme: Scheme, max_rounds: int, quorum: float, round_timeout: float | None, steps_per_round: int
+    scheme: Scheme,
+    max_rounds: int,
+    quorum: float,
+    round_timeout: float | None,
+    steps_per_round: int,
+    max_staleness: int | None = None,
 ) -> None:
     """Raise ValueError naming the first setting of a chief that cannot run (see :class:`Chief`)."""
     if max_rounds < 1:
@@ -23,16 +28,16 @@ def check_round_rules(
         raise ValueError(f"quorum must be in (0, 1], got {quorum}")
     if round_timeout is not None and not round_timeout > 0:
         raise ValueError(f"round_timeout must be > 0 seconds, got {round_timeout}")
-    if quorum < 1.0 and round_timeout is None:
-        raise ValueError("a quorum below 1 needs a round timeout (--round-timeout)")
+    if max_staleness is not None and max_staleness < 0:
+        raise ValueError(f"max_staleness must be >= 0 rounds, got {max_staleness}")
     per_step = scheme.granularity is Granularity.STEP
+    if quorum < 1.0 and round_timeout is None and not per_step:
+        raise ValueError(f"scheme {scheme.name!r}: a quorum below 1 needs a round timeout (--round-timeout)")
     if steps_per_round < 1 or (steps_per_round != 1 and not per_step):
         raise ValueError(
             f"steps_per_round = {steps_per_round}: scheme {scheme.name!r} sends "
             + ("per step (at least 1)" if per_step else "once per round (1)")
         )
-    if per_step and quorum < 1.0:
-        raise ValueError(f"scheme {scheme.name!r} averages every step: it needs every worker (quorum 1)")
 
 
 @dataclass(frozen=True)

@@ -30,6 +30,7 @@ from fleetrl.federation.events import ChiefEvent, ChiefStep
 from fleetrl.federation.messages import Message, Reason
 from fleetrl.federation.schemes import get_scheme, scheme_reference
 from fleetrl.federation.signing import FleetKey
+from fleetrl.federation.stragglers import FleetPace
 from fleetrl.federation.topics import CHIEF_ID, sorted_workers
 
 if TYPE_CHECKING:
@@ -130,6 +131,9 @@ class ChiefState:
     """(round, worker, reason) of every worker that left W without transferring"""
     rejoins: list[tuple[int, str]] = field(default_factory=list)
     """(round, worker) of every dropped worker that re-entered W"""
+    pace: FleetPace = field(default_factory=FleetPace)
+    """a per-step scheme's stragglers: who is behind, who took part in the open round, per member the
+    rounds closed without it and the contributions left out for their staleness"""
 
     def fields(self) -> dict[str, Any]:
         """The JSON part (cheap: the runner compares it after every input)."""
@@ -150,6 +154,7 @@ class ChiefState:
             "completed": dict(sorted(self.completed.items())),
             "dropouts": [list(d) for d in self.dropouts],
             "rejoins": [list(r) for r in self.rejoins],
+            "pace": self.pace.fields(),
         }
 
     def tensors(self) -> dict[str, np.ndarray]:
@@ -184,6 +189,7 @@ class ChiefState:
             transfers=[(int(r), str(o), tuple(to)) for r, o, to in fields["transfers"]],
             dropouts=[(int(r), str(w), str(why)) for r, w, why in fields["dropouts"]],
             rejoins=[(int(r), str(w)) for r, w in fields["rejoins"]],
+            pace=FleetPace.from_fields(fields.get("pace")),
         )
 
 
@@ -199,6 +205,7 @@ def chief_config(chief: Chief) -> dict[str, Any]:
         "max_bytes": chief.max_bytes,
         "quorum": chief.quorum,
         "round_timeout": chief.round_timeout,
+        "max_staleness": chief.max_staleness,
         "resend_holdoff": chief.resend_holdoff,
         "dropout_grace": chief.dropout_grace,
         "signed": chief.key is not None,

@@ -232,8 +232,9 @@ def train_federated(
         max_rounds=settings.learning.max_rounds,
         aggregator=settings.aggregation,
         scheme=settings.learning.federation_scheme(),
-        quorum=settings.quorum,
+        quorum=settings.chief_quorum,
         round_timeout=settings.round_timeout,
+        max_staleness=settings.max_staleness,
         settings=shared_text(settings.learning),
         start=fleet_start(settings.learning),
     )

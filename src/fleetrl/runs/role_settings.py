@@ -103,7 +103,7 @@ class ChiefSettings(RoleSettings, RoundRules):
         """A new value with every default filled in; SettingError naming the first setting that cannot
         work. Nothing is created."""
         learning, shape = self.resolved_learning()
-        self.check_rounds(learning, shape)
+        quorum = self.resolved_quorum(learning, shape)
         if self.workers < 1:
             raise SettingError(f"{label('workers')} = {self.workers}: must be at least 1")
         positive("idle_timeout", self.idle_timeout)
@@ -113,7 +113,7 @@ class ChiefSettings(RoleSettings, RoundRules):
                 raise SettingError(f"--resume needs {label('out')}: the directory holding the checkpoint")
         else:
             check_writable_dir("out", self.out)
-        return replace(self, learning=learning)
+        return replace(self, learning=learning, quorum=quorum)
 
 
 @dataclass(frozen=True, kw_only=True)

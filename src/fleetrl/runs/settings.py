@@ -188,25 +188,40 @@ class RoundRules:
 
     aggregation: str = "mean"
     """how the chief aggregates: mean (the paper's), median, trimmed_mean[:β], clipped_mean[:C]"""
-    quorum: float = 1.0
-    """at the round deadline, close the round if this fraction of W answered (1.0: fully synchronous; < 1
-    needs ``round_timeout``)"""
+    quorum: float | None = None
+    """a once-per-round scheme: at the round deadline, close the round if this fraction of W answered (1:
+    fully synchronous; < 1 needs ``round_timeout``); a per-step scheme: once this fraction of the workers
+    waited for answered an exchange, the others get a grace of a quarter of that time (docs/protocol.md,
+    "Stragglers"). Unset: the scheme's own (1 once per round, 0.6 per step)"""
     round_timeout: float | None = None
     """round deadline in seconds (unset: wait for every worker, the paper's fully synchronous rule)"""
+    max_staleness: int | None = None
+    """a per-step scheme: rounds a straggler's contribution may lag the fleet and still be averaged (unset:
+    no bound)"""
 
-    def check_rounds(self, learning: LearningSettings, shape: FleetShape) -> None:
+    @property
+    def chief_quorum(self) -> float:
+        """The quorum the chief is given (the settings are resolved: it is filled in)."""
+        assert self.quorum is not None, "resolved() fills in the quorum"
+        return self.quorum
+
+    def resolved_quorum(self, learning: LearningSettings, shape: FleetShape) -> float:
         """The aggregation rule, and the round rules a chief of ``learning`` checks (the quorum, the round
-        timeout and how they fit the scheme: :func:`fleetrl.federation.chief_answer.check_round_rules`)."""
+        timeout and how they fit the scheme: :func:`fleetrl.federation.chief_answer.check_round_rules`);
+        the quorum: the scheme's own unless one was given."""
         from fleetrl.federation.chief_answer import check_round_rules
 
         as_setting_error("aggregation", get_aggregator, self.aggregation)
+        scheme = learning.federation_scheme()
+        quorum = scheme.default_quorum if self.quorum is None else self.quorum
         try:
             check_round_rules(
-                learning.federation_scheme(), learning.max_rounds, self.quorum, self.round_timeout,
-                shape.exchanges_per_round,
+                scheme, learning.max_rounds, quorum, self.round_timeout, shape.exchanges_per_round,
+                self.max_staleness,
             )  # fmt: skip
         except ValueError as err:
             raise SettingError(str(err)) from None
+        return quorum
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -281,7 +296,7 @@ class RunSettings(RoundRules, BrokerLogin):
             raise SettingError(
                 f"--scheme {learning.scheme} is a federation scheme: it needs --mode federated"
             )
-        self.check_rounds(learning, shape)
+        quorum = self.resolved_quorum(learning, shape)
         self.validate_broker()
         if self.units < 1:
             raise SettingError(f"{label('units')} = {self.units}: must be at least 1")
@@ -289,7 +304,7 @@ class RunSettings(RoundRules, BrokerLogin):
         if (self.out / "metrics.csv").exists():
             raise SettingError(f"{label('out')} = {str(self.out)!r} already holds a run; choose another")
         check_writable_dir("out", self.out)
-        return replace(self, learning=learning)
+        return replace(self, learning=learning, quorum=quorum)
 
     def learning_resolved(self) -> RunSettings:
         """These settings with their learning settings resolved (:func:`resolve_learning`; the scheme by
