@@ -180,6 +180,17 @@ class StepAgent(FakeAgent):
     def __init__(self) -> None:
         super().__init__()
         self.stepped: list[np.ndarray] = []
+        self.moments = np.zeros(2, np.float32)
+        """a stand-in for the optimisers' state"""
+
+    def optimiser_layout(self) -> list[tuple[str, tuple[int, ...]]]:
+        return [("optim.m", (2,))]
+
+    def optimiser_parameters(self) -> np.ndarray:
+        return self.moments.copy()
+
+    def set_optimiser_parameters(self, flat: np.ndarray) -> None:
+        self.moments = flat.copy()
 
     def update_step_count(self) -> int:
         return 2
@@ -292,12 +303,12 @@ def test_each_scheme_is_one_protocol_and_has_no_method_of_the_other() -> None:
     assert paper.exchanges_per_round(StepAgent()) == 1
 
 
-def test_pergrad_workers_take_the_fleet_s_start_as_their_whole_model() -> None:
+def test_pergrad_workers_take_the_fleet_s_model_with_its_optimisers_state() -> None:
     pergrad, agent = get_scheme("pergrad"), StepAgent()
-    assert pergrad.welcome_layout(agent) == agent.model_layout()
-    pergrad.take_parameters(agent, np.array([7.0, 8.0, 9.0], np.float32))
-    assert agent.model_parameters().tolist() == [7.0, 8.0, 9.0]
-    assert pergrad.start_parameters(agent).tolist() == [7.0, 8.0, 9.0]
+    assert pergrad.welcome_layout(agent) == agent.model_layout() + [("optim.m", (2,))]
+    pergrad.take_parameters(agent, np.array([7.0, 8.0, 9.0, 0.5, 0.25], np.float32))
+    assert agent.model_parameters().tolist() == [7.0, 8.0, 9.0] and agent.moments.tolist() == [0.5, 0.25]
+    assert pergrad.start_parameters(agent).tolist() == [7.0, 8.0, 9.0, 0.5, 0.25]
     paper = get_scheme("paper")
     assert paper.welcome_layout(agent) == agent.actor_layout()
     assert paper.start_parameters(agent).tolist() == [7.0, 8.0]

@@ -113,7 +113,7 @@ def cmd_chief(args: argparse.Namespace) -> int:
     from fleetrl.federation.chief import Chief
     from fleetrl.federation.runner import run_chief
     from fleetrl.federation.shared_settings import shared_text
-    from fleetrl.runs.launch import fleet_start
+    from fleetrl.runs.launch import fleet_model
     from fleetrl.runs.role_settings import ChiefSettings
     from fleetrl.runs.rundir import write_json_atomic
     from fleetrl.runs.settings import fleet_shape
@@ -134,7 +134,7 @@ def cmd_chief(args: argparse.Namespace) -> int:
         dropout_grace=settings.dropout_grace,
         key=settings.fleet_key(),
         settings=shared_text(settings.learning),
-        start=fleet_start(settings.learning),
+        fleet_model=fleet_model(settings.learning),
     )
     if settings.out is None:
         summary = run_chief(chief, settings.transport(), idle_timeout=settings.idle_timeout)

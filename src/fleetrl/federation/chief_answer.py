@@ -4,11 +4,11 @@ and the welcome or refusal of a joining worker. What it keeps of them is :mod:`.
 
 from __future__ import annotations
 
-from collections.abc import Iterable, Mapping
+from collections.abc import Collection, Iterable, Mapping
 from dataclasses import dataclass
 
 from fleetrl.federation.events import ChiefEvent, ChiefStep
-from fleetrl.federation.messages import Message, RoundConfig
+from fleetrl.federation.messages import Message, Reason, RoundConfig
 from fleetrl.federation.schemes import COMPLETED, Granularity, RoundAnswer, Scheme
 from fleetrl.federation.topics import CHIEF_ID, sorted_workers
 
@@ -38,6 +38,40 @@ def check_round_rules(
             f"steps_per_round = {steps_per_round}: scheme {scheme.name!r} sends "
             + ("per step (at least 1)" if per_step else "once per round (1)")
         )
+
+
+def admission(
+    message: Message,
+    scheme: Scheme,
+    workers: Collection[str],
+    steps_per_round: int,
+    open_at: tuple[int, int],
+    finished: bool,
+    left: Collection[str],
+    pending: Collection[str],
+) -> tuple[Reason, str] | None:
+    """Why the chief rejects a worker's round message (reason, detail), or None if it takes it for the open
+    exchange ``open_at`` (round, step; after the end: past the last one). Messages are keyed (sender, round,
+    step); ``left``: workers that left W for good; ``pending``: who answered the open exchange."""
+    sender, rnd, at = message.sender, message.round, (message.round, message.step)
+    if message.step >= steps_per_round:
+        return Reason.BAD_ROUND, f"step {message.step} of {steps_per_round} per round"
+    if not scheme.accepts(message.type):
+        return Reason.UNEXPECTED_TYPE, message.type
+    if sender not in workers:
+        return Reason.UNKNOWN_SENDER, f"round {rnd}"
+    if at < open_at:
+        reason = Reason.RUN_OVER if finished else Reason.STALE_ROUND
+        return reason, f"{where(*at)} before the open {where(*open_at)}"
+    if finished:
+        return Reason.RUN_OVER, f"round {rnd}"
+    if sender in left:
+        return Reason.NOT_IN_W, f"round {rnd}"
+    if at > open_at:
+        return Reason.FUTURE_ROUND, f"{where(*at)} > open {where(*open_at)}"
+    if sender in pending:
+        return Reason.DUPLICATE, f"{message.type} for round {rnd}"
+    return None
 
 
 @dataclass(frozen=True)
@@ -100,7 +134,7 @@ def welcome_step(
     welcome = Message(
         "welcome", run_id, CHIEF_ID, rnd,
         flat=model.flat if model else None, origin=model.origin if model else None, settings=dict(settings),
-        config=config,
+        config=config, step=model.step if model and model.round == rnd else 0,
     )  # fmt: skip
     detail = f"of round {rnd}" + (f" with θ* of {welcome.origin}" if welcome.origin else "")
     return ChiefStep((welcome,), (ChiefEvent("welcome", rnd, sender=worker, detail=detail),))

@@ -51,6 +51,8 @@ class StepWorkerMachine(WorkerMachine):
     :param options: :class:`~fleetrl.federation.worker_machine.WorkerMachine`'s parameters.
     """
 
+    current_model = True
+
     def __init__(self, *, steps_per_round: int, **options: Any) -> None:
         """Prepare the machine; nothing happens before :meth:`start`."""
         super().__init__(**options)
@@ -119,6 +121,14 @@ class StepWorkerMachine(WorkerMachine):
         return self._round_over(outcome, reply, event, None, self.worker_id in reply.finished)
 
     # ---- the rules ----
+
+    def _welcomed(self, welcome: Message) -> WorkerStep:
+        """As :class:`WorkerMachine`; a worker that takes the welcome's model holds the fleet's as it is at
+        the exchange the welcome names: answers after it are the ones to apply."""
+        step = super()._welcomed(welcome)
+        if any(isinstance(o, act.TakeParameters) for o in step.outputs):
+            self.fleet_at = max(self.fleet_at, (welcome.round, welcome.step))
+        return step
 
     def _begin_round(self, rnd: int) -> WorkerStep:
         self.played_round = rnd

@@ -1,4 +1,6 @@
-"""Who the chief waits for at a per-step scheme's exchange, and for how long (docs/protocol.md, "Stragglers").
+"""Who the chief waits for at an exchange, and for how long: a once-per-round scheme's deadline rule
+(:class:`RoundWaits`), and a per-step scheme's stragglers (:class:`StepWaits`; docs/protocol.md,
+"Stragglers").
 
 A per-step scheme (``pergrad``) exchanges every optimisation step with the whole fleet; waiting for every
 worker at every exchange would let the slowest unit set everyone's pace. The rules, after DD-PPO (whose
@@ -80,7 +82,50 @@ class FleetPace:
 
 
 @dataclass
-class StepWaits:
+class RoundWaits:
+    """A once-per-round scheme's waiting rule: a round waits for every member of W; at its deadline
+    (``round_timeout`` after it opened) it closes with the answers it has if ⌈quorum·|W|⌉ answered, else the
+    silent members leave W first.
+
+    :param quorum: the share of W whose answers close a round at its deadline.
+    :param round_timeout: seconds a round may stay open before the deadline rule applies; None: no deadline.
+    """
+
+    quorum: float
+    round_timeout: float | None
+
+    def all_in(self, pace: FleetPace, members: set[str], step: int, pending: Mapping[str, Message]) -> bool:
+        """Everyone waited for has answered (and someone has)."""
+        del pace, step
+        return bool(pending) and members.issubset(pending)
+
+    def note(
+        self, pace: FleetPace, members: set[str], step: int, pending: Mapping[str, Message], now: float
+    ) -> None:
+        """An answer was taken at ``now`` and the exchange stays open."""
+        del pace, members, step, pending, now
+
+    def deadline(self, opened: float | None) -> float | None:
+        """When the open exchange closes with whoever answered (None: not before everyone waited for)."""
+        return None if opened is None or self.round_timeout is None else opened + self.round_timeout
+
+    def silent_leave(self, members: set[str], pending: Mapping[str, Message]) -> set[str]:
+        """At the deadline: the members that leave W as the exchange closes."""
+        answered = members.intersection(pending)
+        return set() if len(answered) >= quorum_count(self.quorum, len(members)) else members - answered
+
+    def averaged(self, pace: FleetPace, answers: Mapping[str, Message], step: int) -> dict[str, Message]:
+        """The answers the scheme combines."""
+        del pace, step
+        return dict(answers)
+
+    def closed(self, pace: FleetPace, members: set[str], answered: tuple[str, ...], last_step: bool) -> None:
+        """An exchange closed with ``answered``."""
+        del pace, members, answered, last_step
+
+
+@dataclass
+class StepWaits(RoundWaits):
     """The open exchange's waiting rule for a per-step scheme (see the module's docstring).
 
     :param quorum: the share of those waited for after which the grace starts.
@@ -88,9 +133,7 @@ class StepWaits:
     :param max_staleness: rounds a contribution may lag the fleet and still be averaged; None: no bound.
     """
 
-    quorum: float
-    round_timeout: float | None
-    max_staleness: int | None
+    max_staleness: int | None = None
     quorum_at: float | None = None
     """when the open exchange reached its quorum (None: not yet)"""
 
@@ -125,6 +168,11 @@ class StepWaits:
             times.append(opened + self.round_timeout)
         return min(times, default=None)
 
+    def silent_leave(self, members: set[str], pending: Mapping[str, Message]) -> set[str]:
+        """Nobody leaves W for being late: a straggler catches up."""
+        del members, pending
+        return set()
+
     def averaged(self, pace: FleetPace, answers: Mapping[str, Message], step: int) -> dict[str, Message]:
         """The answers the scheme combines: those within ``max_staleness`` (all, if none is); at a round's
         first exchange, each one left out is counted."""
@@ -144,3 +192,12 @@ class StepWaits:
             pace.behind = members - pace.participants
             pace.late.update(pace.behind)
             pace.participants = set()
+
+
+def waiting_rule(
+    per_step: bool, quorum: float, round_timeout: float | None, max_staleness: int | None
+) -> RoundWaits:
+    """The chief's waiting rule for a per-step scheme (:class:`StepWaits`) or a once-per-round one."""
+    if per_step:
+        return StepWaits(quorum, round_timeout, max_staleness)
+    return RoundWaits(quorum, round_timeout)

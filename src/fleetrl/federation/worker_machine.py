@@ -112,6 +112,10 @@ class WorkerMachine:
     :param incarnation: this process's incarnation (newer than any earlier one with the same id).
     """
 
+    current_model = False
+    """a welcome from the chief (origin ``chief``) carries the fleet's model as it is now (a per-step
+    scheme's chief keeps it), not only its start"""
+
     def __init__(
         self,
         *,
@@ -268,7 +272,8 @@ class WorkerMachine:
         resume = resume_round(self.start_round, welcome.round, self.worker_id)
         out: tuple[WorkerOutput, ...] = ()
         # joining: start from the fleet's model, or its start (origin: the chief) unless resumed with its own
-        fleet_start = welcome.origin == CHIEF_ID and self.start_round is not None
+        # (a chief that keeps the fleet's model hands it as it is: taken whenever rounds were missed)
+        fleet_start = welcome.origin == CHIEF_ID and self.start_round is not None and not self.current_model
         if welcome.flat is not None and resume is None and not fleet_start:
             out = (act.TakeParameters(welcome.flat),)
         self._config = dict(welcome.config)

@@ -89,6 +89,18 @@ class FederatedAgent(Protocol):
         """Replace the whole actor-critic's parameters."""
         ...
 
+    def optimiser_layout(self) -> list[tuple[str, tuple[int, ...]]]:
+        """Names and shapes of the optimisers' state as one flat vector."""
+        ...
+
+    def optimiser_parameters(self) -> np.ndarray:
+        """The optimisers' state, flat float32."""
+        ...
+
+    def set_optimiser_parameters(self, flat: np.ndarray) -> None:
+        """Replace the optimisers' state."""
+        ...
+
     def step_layout(self, k: int) -> list[tuple[str, tuple[int, ...]]]:
         """Names and shapes of optimisation step ``k``'s flat gradient."""
         ...
