@@ -364,8 +364,9 @@ class RunSettings(RoundRules, BrokerLogin):
         values = {k: v for k, v in flat_values(self).items() if k not in NOT_RESULT_SETTINGS}
         if not values["scheme_params"]:
             del values["scheme_params"]
-        if values["device_driver"] is None:  # as in the records made before the setting existed
-            del values["device_driver"]
+        for name in ("device_driver", "max_staleness"):  # as in the records made before they existed
+            if values[name] is None:
+                del values[name]
         del values["target_score"]
         values |= result_target_score(self.learning)
         plain: dict[str, Any] = json.loads(json.dumps(values, sort_keys=True, default=str))
