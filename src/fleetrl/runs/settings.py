@@ -38,6 +38,7 @@ from fleetrl.runs.setting_values import (
     label,
     toml_values,
 )
+from fleetrl.runs.uneven import UnevenFleet
 from fleetrl.transport.login import broker_password, password_in_url, without_password
 
 log = logging.getLogger(__name__)
@@ -267,6 +268,9 @@ class RunSettings(RoundRules, BrokerLogin):
     bridges serve its simulated units)"""
     live: bool = True
     """show the live terminal view"""
+    uneven: UnevenFleet = field(default_factory=UnevenFleet)
+    """how the simulated fleet is made uneven (its fields are settings of their own: ``--pace``, ``--slow``,
+    ``--link-delay``, ``--absent``, ``--absent-rounds``); not a learning setting, never shared at join"""
 
     def resolved(self) -> RunSettings:
         """These settings with every default filled in and every setting checked, before anything is
@@ -285,11 +289,16 @@ class RunSettings(RoundRules, BrokerLogin):
         self.validate_broker()
         if self.units < 1:
             raise SettingError(f"{label('units')} = {self.units}: must be at least 1")
+        uneven = self.uneven.resolved_uneven(get_env_spec(learning.env).control_period, self.units)
+        if uneven.link_delay and self.mode != "federated":
+            raise SettingError(
+                f"{label('link_delay')} delays the messages of a federated run: it needs --mode federated"
+            )
         self.validate_device_link(learning)
         if (self.out / "metrics.csv").exists():
             raise SettingError(f"{label('out')} = {str(self.out)!r} already holds a run; choose another")
         check_writable_dir("out", self.out)
-        return replace(self, learning=learning)
+        return replace(self, learning=learning, uneven=uneven)
 
     def learning_resolved(self) -> RunSettings:
         """These settings with their learning settings resolved (:func:`resolve_learning`; the scheme by
@@ -346,7 +355,9 @@ class RunSettings(RoundRules, BrokerLogin):
         two runs with equal result settings learn the same. A scheme without parameters (``paper``,
         ``fedavg``) has no ``scheme_params`` key, and a built-in at its own target no ``target_score`` key,
         as in the records made before either existed."""
-        values = {k: v for k, v in flat_values(self).items() if k not in NOT_RESULT_SETTINGS}
+        left_out = {*NOT_RESULT_SETTINGS, *(f.name for f in dataclasses.fields(UnevenFleet))}
+        values = {k: v for k, v in flat_values(self).items() if k not in left_out}
+        values |= self.uneven.result_values()  # none for an even fleet, as in the records made before
         if not values["scheme_params"]:
             del values["scheme_params"]
         if values["device_driver"] is None:  # as in the records made before the setting existed
