@@ -272,10 +272,8 @@ class _TimedAgent:
     def __init__(self, agent: Any, timed: Callable[[Callable[[], Any]], Any]) -> None:
         self._agent = agent
         self._timed_call = timed
-
-    def set_extra_loss(self, fn: Any) -> None:
-        """The agent's own (named here: a protocol check must find it on this object)."""
-        self._agent.set_extra_loss(fn)
+        if hasattr(agent, "set_extra_loss"):  # on the object itself: a protocol check looks it up there
+            self.set_extra_loss = agent.set_extra_loss
 
     def __getattr__(self, name: str) -> Any:
         attribute = getattr(self._agent, name)
