@@ -140,6 +140,11 @@ class UnevenFleet:
             if getattr(self, f.name) != getattr(default, f.name)
         }
 
+    def default_names(self) -> tuple[str, ...]:
+        """The names of the settings at their defaults."""
+        changed = self.result_values()
+        return tuple(f.name for f in dataclasses.fields(self) if f.name not in changed)
+
 
 def unit_name(worker: int) -> str:
     """How the settings name worker ``worker`` (as the live view does): ``w2``."""
