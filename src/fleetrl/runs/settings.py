@@ -302,10 +302,13 @@ class RunSettings(RoundRules, BrokerLogin):
 
     def learning_resolved(self) -> RunSettings:
         """These settings with their learning settings resolved (:func:`resolve_learning`; the scheme by
-        default :data:`ALONE_SCHEME` for units alone, else the default scheme) and nothing else checked:
-        what :meth:`result_settings` needs, without building an agent."""
+        default :data:`ALONE_SCHEME` for units alone, else the default scheme) and the uneven fleet's units
+        named as a resolved run names them, nothing else checked: what :meth:`result_settings` needs,
+        without building an agent."""
         scheme = ALONE_SCHEME if self.mode == "individual" else DEFAULT_SCHEME
-        return replace(self, learning=resolve_learning(self.learning, default_scheme=scheme))
+        learning = resolve_learning(self.learning, default_scheme=scheme)
+        uneven = self.uneven.resolved_uneven(get_env_spec(learning.env).control_period, self.units)
+        return replace(self, learning=learning, uneven=uneven)
 
     def validate_device_link(self, learning: LearningSettings) -> None:
         """With device bridges: the unit type can be reached through a link, and its driver function (a
