@@ -305,7 +305,7 @@ def test_each_scheme_is_one_protocol_and_has_no_method_of_the_other() -> None:
 
 def test_pergrad_workers_take_the_fleet_s_model_with_its_optimisers_state() -> None:
     pergrad, agent = get_scheme("pergrad"), StepAgent()
-    assert pergrad.welcome_layout(agent) == agent.model_layout() + [("optim.m", (2,))]
+    assert pergrad.welcome_layout(agent) == [*agent.model_layout(), ("optim.m", (2,))]
     pergrad.take_parameters(agent, np.array([7.0, 8.0, 9.0, 0.5, 0.25], np.float32))
     assert agent.model_parameters().tolist() == [7.0, 8.0, 9.0] and agent.moments.tolist() == [0.5, 0.25]
     assert pergrad.start_parameters(agent).tolist() == [7.0, 8.0, 9.0, 0.5, 0.25]

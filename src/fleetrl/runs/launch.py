@@ -23,7 +23,7 @@ from typing import Any
 
 import numpy as np
 
-from fleetrl.envs.catalog import ENV_SPECS, describe_env
+from fleetrl.envs.catalog import ENV_SPECS, describe_env, get_env_spec
 from fleetrl.federation.chief import Chief
 from fleetrl.federation.fleet_model import FleetModel
 from fleetrl.federation.runner import ChiefSummary, run_chief
@@ -56,7 +56,8 @@ def demo_settings(out: Path, seed: int = 0) -> RunSettings:
 
 
 def worker_specs(settings: RunSettings, device_url: str | None, run_id: str) -> dict[int, WorkerSpec]:
-    """One spec per worker; worker K trains unit K of the fleet."""
+    """One spec per worker; worker K trains unit K of the fleet (uneven as the settings make it)."""
+    period = get_env_spec(settings.learning.env).control_period
     return {
         k: WorkerSpec(
             worker=k,
@@ -65,6 +66,7 @@ def worker_specs(settings: RunSettings, device_url: str | None, run_id: str) -> 
             out=str(settings.out),
             device_url=device_url,
             device_run_id=run_id,
+            uneven=settings.uneven.for_worker(k, period),
         )
         for k in range(settings.units)
     }

@@ -43,8 +43,15 @@ class SettingError(ValueError):
 
 NEGATED_FLAGS = {"live": "--no-live"}
 """settings whose flag switches them off (the key ``live = false``, the flag ``--no-live``)"""
-TABLE_FLAGS = {"overrides": "--set", "scheme_params": "--scheme-param"}
-"""table-valued settings whose repeatable ``KEY=VALUE`` flag has another name than the table"""
+TABLE_FLAGS = {
+    "overrides": "--set",
+    "scheme_params": "--scheme-param",
+    "slow": "--slow",
+    "link_delay": "--link-delay",
+}
+"""table-valued settings and their repeatable ``KEY=VALUE`` flag"""
+TABLE_METAVARS = {"slow": "UNIT=FACTOR", "link_delay": "UNIT=SECONDS"}
+"""how a table flag's help shows its entries, where ``KEY=VALUE`` says too little"""
 
 
 def flag(name: str) -> str:

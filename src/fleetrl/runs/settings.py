@@ -38,6 +38,7 @@ from fleetrl.runs.setting_values import (
     label,
     toml_values,
 )
+from fleetrl.runs.uneven import UnevenFleet
 from fleetrl.transport.login import broker_password, password_in_url, without_password
 
 log = logging.getLogger(__name__)
@@ -282,6 +283,9 @@ class RunSettings(RoundRules, BrokerLogin):
     bridges serve its simulated units)"""
     live: bool = True
     """show the live terminal view"""
+    uneven: UnevenFleet = field(default_factory=UnevenFleet)
+    """how the simulated fleet is made uneven (its fields are settings of their own: ``--pace``, ``--slow``,
+    ``--link-delay``, ``--absent``, ``--absent-rounds``); not a learning setting, never shared at join"""
 
     def resolved(self) -> RunSettings:
         """These settings with every default filled in and every setting checked, before anything is
@@ -300,18 +304,27 @@ class RunSettings(RoundRules, BrokerLogin):
         self.validate_broker()
         if self.units < 1:
             raise SettingError(f"{label('units')} = {self.units}: must be at least 1")
+        uneven = self.uneven.resolved_uneven(get_env_spec(learning.env).control_period, self.units)
+        if uneven.link_delay and self.mode != "federated":
+            raise SettingError(
+                f"{label('link_delay')} delays the messages of a federated run: it needs --mode federated"
+            )
         self.validate_device_link(learning)
         if (self.out / "metrics.csv").exists():
             raise SettingError(f"{label('out')} = {str(self.out)!r} already holds a run; choose another")
         check_writable_dir("out", self.out)
-        return replace(self, learning=learning, quorum=quorum)
+        return replace(self, learning=learning, quorum=quorum, uneven=uneven)
 
     def learning_resolved(self) -> RunSettings:
         """These settings with their learning settings resolved (:func:`resolve_learning`; the scheme by
-        default :data:`ALONE_SCHEME` for units alone, else the default scheme) and nothing else checked:
-        what :meth:`result_settings` needs, without building an agent."""
+        default :data:`ALONE_SCHEME` for units alone, else the default scheme), the quorum (the scheme's own
+        unless given) and the uneven fleet's units named as a resolved run names them, nothing else
+        checked: what :meth:`result_settings` needs, without building an agent."""
         scheme = ALONE_SCHEME if self.mode == "individual" else DEFAULT_SCHEME
-        return replace(self, learning=resolve_learning(self.learning, default_scheme=scheme))
+        learning = resolve_learning(self.learning, default_scheme=scheme)
+        uneven = self.uneven.resolved_uneven(get_env_spec(learning.env).control_period, self.units)
+        quorum = learning.federation_scheme().default_quorum if self.quorum is None else self.quorum
+        return replace(self, learning=learning, quorum=quorum, uneven=uneven)
 
     def validate_device_link(self, learning: LearningSettings) -> None:
         """With device bridges: the unit type can be reached through a link, and its driver function (a
@@ -346,8 +359,9 @@ class RunSettings(RoundRules, BrokerLogin):
 
     def to_toml(self) -> str:
         """config.toml of the run directory: every setting (no password), so that
-        ``fleetrl train --config runs/x/config.toml --out runs/y`` reruns the run."""
-        table = toml_values(self)
+        ``fleetrl train --config runs/x/config.toml --out runs/y`` reruns the run. An uneven-fleet setting at
+        its default is left out (an even run's file is the one written before those settings existed)."""
+        table = toml_values(self, leave_out=self.uneven.default_names())
         if self.broker is not None:
             table["broker"] = self.public_broker
         header = (
@@ -361,7 +375,9 @@ class RunSettings(RoundRules, BrokerLogin):
         two runs with equal result settings learn the same. A scheme without parameters (``paper``,
         ``fedavg``) has no ``scheme_params`` key, and a built-in at its own target no ``target_score`` key,
         as in the records made before either existed."""
-        values = {k: v for k, v in flat_values(self).items() if k not in NOT_RESULT_SETTINGS}
+        left_out = {*NOT_RESULT_SETTINGS, *(f.name for f in dataclasses.fields(UnevenFleet))}
+        values = {k: v for k, v in flat_values(self).items() if k not in left_out}
+        values |= self.uneven.result_values()  # none for an even fleet, as in the records made before
         if not values["scheme_params"]:
             del values["scheme_params"]
         for name in ("device_driver", "max_staleness"):  # as in the records made before they existed
