@@ -1,6 +1,6 @@
 """An uneven simulated fleet end to end: ``fleetrl train`` with a slow unit, a slow link, real-time pacing
-and absences finishes, records its settings, and — the rounds being synchronous — learns exactly what the
-even fleet learns (the conditions change when things happen, never what is computed)."""
+and absences finishes, records its settings, and — with the fully synchronous rule (``--quorum 1``) — learns
+exactly what the even fleet learns (the conditions change when things happen, never what is computed)."""
 
 from __future__ import annotations
 
@@ -33,7 +33,8 @@ def test_an_uneven_fleet_finishes_and_learns_what_the_even_fleet_learns(
     assert any(any(islice(absences(0.3, 1.0, 0, worker), 2)) for worker in range(3))
     even, uneven = tmp_path / "even", tmp_path / "uneven"
     for out, extra in ((even, []), (uneven, UNEVEN)):
-        argv = [*RUN, "--scheme", scheme, "--max-rounds", "3", "--no-live", "--out", str(out), *extra]
+        argv = [*RUN, "--scheme", scheme, "--quorum", "1", "--max-rounds", "3", "--no-live", "--out", str(out)]
+        argv += extra
         done = fleetrl(*argv, timeout=240)
         assert done.returncode == 0, done.stderr
     summary = json.loads((uneven / "summary.json").read_text())
