@@ -8,7 +8,8 @@ from pathlib import Path
 
 import pytest
 
-from fleetrl.cli.main import collector_paused, main
+from fleetrl.cli.main import main
+from fleetrl.cli.startup import collector_paused
 
 
 @pytest.fixture(autouse=True)

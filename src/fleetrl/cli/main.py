@@ -1,15 +1,13 @@
 """``fleetrl``: train a simulated fleet, evaluate a policy, test the fleet's homogeneity, run roles."""
 
 import argparse
-import gc
 import json
 import logging
 import signal
 import sys
 import threading
 import time
-from collections.abc import Callable, Iterator, Sequence
-from contextlib import contextmanager
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -23,6 +21,7 @@ from fleetrl.cli.settings_args import (
     add_target_score_argument,
     settings_from_args,
 )
+from fleetrl.cli.startup import collector_paused
 
 
 def add_train_arguments(p: argparse.ArgumentParser) -> None:
@@ -137,24 +136,6 @@ def build_parser() -> argparse.ArgumentParser:
     device_command.register(sub)
     control_command.register(sub)
     return parser
-
-
-@contextmanager
-def collector_paused() -> Iterator[None]:
-    """Python's cyclic garbage collector off while a command starts (parsing, checking the settings,
-    importing torch and fleetrl), where it would scan the growing heap of imported modules again and again
-    (~0.4 s of CPU, ``benchmarks/startup.py``); nothing of that is garbage. On leaving, even by an error,
-    what exists then is frozen (``gc.freeze``: left out of later collections, and its memory shared with
-    the forked worker processes) and the collector runs again. A collector already off stays off."""
-    if not gc.isenabled():
-        yield
-        return
-    gc.disable()
-    try:
-        yield
-    finally:
-        gc.freeze()
-        gc.enable()
 
 
 def cmd_train(args: argparse.Namespace) -> int:
