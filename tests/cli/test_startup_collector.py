@@ -50,3 +50,21 @@ def test_a_refused_setting_is_the_same_one_line_error_and_the_collector_runs_aft
     assert main(["train", "--env", "qbe", "--out", str(tmp_path / "run")]) == 2
     assert "fleetrl train: error: --env: unknown env 'qbe'" in capsys.readouterr().err
     assert gc.isenabled() and not (tmp_path / "run").exists()
+
+
+def test_without_freeze_nothing_is_frozen() -> None:
+    frozen = gc.get_freeze_count()
+    with collector_paused(freeze=False):
+        assert not gc.isenabled()
+    assert gc.isenabled() and gc.get_freeze_count() == frozen
+
+
+def test_a_command_called_again_freezes_nothing_new(tmp_path: Path) -> None:
+    """The parser (garbage once it has parsed) is not frozen: a process that calls main() many times, like a
+    test run, does not keep every call's parser."""
+    refused = ["train", "--env", "qbe", "--out", str(tmp_path / "run")]
+    assert main(refused) == 2
+    frozen = gc.get_freeze_count()
+    for _ in range(3):
+        assert main(refused) == 2
+    assert gc.get_freeze_count() == frozen

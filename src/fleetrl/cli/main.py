@@ -311,7 +311,7 @@ def _terminate(signum: int, frame: object) -> None:
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Parse, run, and turn known failures into one clear line and a non-zero exit code."""
-    with collector_paused():
+    with collector_paused(freeze=False):  # the parser is garbage once it has parsed
         args = build_parser().parse_args(argv)
     logging.basicConfig(
         level=logging.DEBUG if args.verbose else logging.INFO,
