@@ -33,8 +33,8 @@ def test_an_uneven_fleet_finishes_and_learns_what_the_even_fleet_learns(
     assert any(any(islice(absences(0.3, 1.0, 0, worker), 2)) for worker in range(3))
     even, uneven = tmp_path / "even", tmp_path / "uneven"
     for out, extra in ((even, []), (uneven, UNEVEN)):
-        argv = [*RUN, "--scheme", scheme, "--quorum", "1", "--max-rounds", "3", "--no-live", "--out", str(out)]
-        argv += extra
+        argv = [*RUN, "--scheme", scheme, "--quorum", "1", "--max-rounds", "3", "--no-live"]
+        argv += ["--out", str(out), *extra]
         done = fleetrl(*argv, timeout=240)
         assert done.returncode == 0, done.stderr
     summary = json.loads((uneven / "summary.json").read_text())
