@@ -382,21 +382,17 @@ class Chief:
         self._pending = {}
         self.state.answers.broadcast(reply, self.all_workers, now)
         step = ChiefStep((reply,), (event,))
-        if not last_step and not answer.ends_run:  # the round's next exchange
-            self.state.step = exchange + 1
-            self._opened_at = now
-            self._snapshot_fleet_model()
-            return step
-        self.state.step = 0
+        self.state.step = exchange + 1 if not last_step and not answer.ends_run else 0  # the next exchange
         if answer.ends_run:
-            return step + self._end("every unit completed")
-        if not self.state.members or rnd >= self.max_rounds:
-            return step + self._end(
+            step += self._end("every unit completed")
+        elif self.state.step == 0 and (not self.state.members or rnd >= self.max_rounds):
+            step += self._end(
                 "W is empty" if not self.state.members else f"reached M={self.max_rounds} rounds"
             )
-        self.state.round = rnd + 1
+        elif self.state.step == 0:
+            self.state.round = rnd + 1
         self._opened_at = now
-        self._snapshot_fleet_model()
+        self._snapshot_fleet_model()  # also after the last answer: the model the fleet ended with
         return step
 
     def _snapshot_fleet_model(self) -> None:
