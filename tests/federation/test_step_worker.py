@@ -20,6 +20,7 @@ from fleetrl.federation.rounds import (
     EndUpdate,
     PlayRound,
     Record,
+    TakeParameters,
     TimedOut,
     WorkerStep,
 )
@@ -153,11 +154,16 @@ def test_a_straggler_that_finds_the_fleet_mid_round_waits_for_its_end() -> None:
     assert isinstance(timed_out, TimedOut) and "the end of the fleet's round" in timed_out.detail
 
 
-def test_a_gap_in_the_fleets_answers_while_behind_ends_the_worker() -> None:
-    m = machine()
+def test_a_gap_in_the_fleets_answers_while_behind_takes_the_fleet_s_model_again() -> None:
+    m = machine(start_round=1)
     welcomed(m, 1)
-    collected(m, answer(1, 0), answer(1, 2))
-    assert m.summary is not None and "never got the answer of round 1 step 1" in m.summary.reason
+    again = collected(m, answer(1, 0), answer(1, 2))  # step 1's answer never came
+    assert [type(o).__name__ for o in again.outputs[-2:]] == ["Announce", "Publish"]  # online, then the join
+    assert again.published[-1].type == "join" and m.summary is None
+    model = np.arange(15, dtype=np.float32)
+    back = m.receive(Message("welcome", RUN, "chief", 3, step=1, flat=model, origin="chief"), now=1.0)
+    assert [type(a) for a in back.actions] == [TakeParameters, PlayRound] and back.actions[1] == PlayRound(3)
+    assert m.fleet_at == (3, 1)  # the model is the fleet's as it is at round 3 step 1
 
 
 def test_after_its_round_a_worker_applies_later_answers_queued_and_plays_the_fleets_open_round() -> None:

@@ -9,8 +9,10 @@ how many rounds the fleet moved on meanwhile (``staleness``). It asks the runner
 (:class:`~fleetrl.federation.rounds.BeginUpdate`), and each of the update's K steps is exchanged like a round,
 keyed (round, step): send the step's gradient, apply the chief's combination (which may have closed without
 it: the fleet's step all the same). So every worker applies every answer of the fleet, in order, and the fleet
-stays one policy. ``done`` inside the round ends the worker's run without a record; an answer after one it
-never got (a lost message) ends it as out of step with the fleet.
+stays one policy. ``done`` inside the round ends the worker's run without a record. A worker that finds it
+never got some answer (a resumed worker whose fleet went on, a lost message) announces itself again and
+takes the fleet's model from the chief's welcome; inside its own exchange, such a gap ends its run as out
+of step with the fleet.
 """
 
 from __future__ import annotations
@@ -68,6 +70,7 @@ class StepWorkerMachine(WorkerMachine):
         self._step = 0
         self._last_answer: Message | None = None
         self._wait_until: float | None = None
+        self._rejoining = False
 
     # ---- reports of the runner ----
 
@@ -124,7 +127,12 @@ class StepWorkerMachine(WorkerMachine):
 
     def _welcomed(self, welcome: Message) -> WorkerStep:
         """As :class:`WorkerMachine`; a worker that takes the welcome's model holds the fleet's as it is at
-        the exchange the welcome names: answers after it are the ones to apply."""
+        the exchange the welcome names: answers after it are the ones to apply. A worker that missed answers
+        takes it whatever its checkpoint, and plays the welcome's round."""
+        if self._rejoining and welcome.type == "welcome" and welcome.flat is not None:
+            self._rejoining, self._config = False, dict(welcome.config)
+            self.fleet_at = (welcome.round, welcome.step)
+            return WorkerStep((act.TakeParameters(welcome.flat),)) + self._begin_round(welcome.round)
         step = super()._welcomed(welcome)
         if any(isinstance(o, act.TakeParameters) for o in step.outputs):
             self.fleet_at = max(self.fleet_at, (welcome.round, welcome.step))
@@ -161,10 +169,13 @@ class StepWorkerMachine(WorkerMachine):
             return self._finish(WorkerSummary(self.worker_id, self.fleet_at[0] - 1, False, "run ended"))
         if message.type != "average" or (message.round, message.step) < self.fleet_at:
             return NOTHING  # a copy of an answer already applied
-        if (message.round, message.step) > self.fleet_at:
-            at = f"round {self.fleet_at[0]} step {self.fleet_at[1]}"
-            why = f"out of step with the fleet (never got the answer of {at})"
-            return self._finish(WorkerSummary(self.worker_id, self.fleet_at[0] - 1, False, why))
+        if (message.round, message.step) > self.fleet_at:  # answers it never got: the fleet's model again
+            log.warning(
+                "worker %s: never got the answer of round %d step %d; taking the fleet's model again",
+                self.worker_id, *self.fleet_at,
+            )  # fmt: skip
+            self._rejoining = True
+            return self.start(now=now)
         if message.flat is None:
             raise AssertionError("decode guarantees tensors for an average")
         self.fleet_at = self._after(message)
