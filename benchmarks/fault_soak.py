@@ -5,8 +5,8 @@ checked after.
 Faults, one per run, chosen at random: kill -9 of a random worker that is restarted with ``--resume``; kill -9
 of a random worker that stays dead; kill -9 of the chief, restarted with ``--resume``; kill -9 of the broker,
 restarted; a worker added mid-run (the last worker id starts only then). The moment is after a random round
-(1 … M-2) of the killed role (of the chief, for the added worker or an uneven fleet), plus a random 0-0.3 s. ``--uneven`` gives
-every worker more flags (``--slow w1=4 --absent 0.2``, say: each applies its own entry).
+(1 … M-2) of the killed role (of the chief, for the added worker or an uneven fleet), plus a random 0-0.3 s.
+``--uneven`` gives every worker more flags (``--slow w1=4 --absent 0.2``, say: each applies its own entry).
 
 Checked per run: every role that ran to the end exited 0; no worker's metrics.csv holds a round twice (rounds
 duplicated); every round in which the chief's log lists a worker as answering is in that worker's metrics.csv
