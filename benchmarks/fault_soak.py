@@ -4,15 +4,21 @@ checked after.
 
 Faults, one per run, chosen at random: kill -9 of a random worker that is restarted with ``--resume``; kill -9
 of a random worker that stays dead; kill -9 of the chief, restarted with ``--resume``; kill -9 of the broker,
-restarted. The moment is after a random round (1 … M-2) of the killed role, plus a random 0-0.3 s.
+restarted; a worker added mid-run (the last worker id starts only then). The moment is after a random round
+(1 … M-2) of the killed role (of the chief, for the added worker or an uneven fleet), plus a random 0-0.3 s.
+``--uneven`` gives every worker more flags (``--slow w1=4 --absent 0.2``, say: each applies its own entry).
 
-Checked per run: every role that ran to the end exited 0; every surviving or restarted worker's metrics.csv
-holds rounds 1 … n exactly once, n being the chief's last round (chief.json); a worker killed for good holds
-every round it had finished, exactly once, and the chief dropped it in the round after (or the one after that,
-if its last message had closed a round before it died). Recovery: seconds from the fault until the chief has
-closed two more rounds (the one the fault hit and the next), or the run ended.
+Checked per run: every role that ran to the end exited 0; no worker's metrics.csv holds a round twice (rounds
+duplicated); every round in which the chief's log lists a worker as answering is in that worker's metrics.csv
+(rounds lost); when every worker is waited for (quorum 1, an even fleet), every surviving or restarted worker
+holds rounds 1 … n, n being the chief's last round (chief.json), and a worker killed for good was dropped by
+the chief in the round after it died (or the one after that); under a one-policy scheme (``pergrad``), every
+worker that ran to the end holds the chief's final model (the network in the chief's checkpoint), bit for bit.
+Recovery: seconds from the fault until the chief has closed two more rounds (the one the fault hit and the
+next), or the run ended.
 
     python benchmarks/fault_soak.py --runs 50 --out /tmp/fault-soak      # see docs/benchmarks.md
+    python benchmarks/fault_soak.py --runs 50 --workers 3 --uneven "--slow w1=4 --absent 0.2"
 """
 
 from __future__ import annotations
@@ -22,6 +28,7 @@ import csv
 import json
 import os
 import random
+import shlex
 import signal
 import subprocess
 import sys
@@ -30,11 +37,11 @@ import time
 from collections.abc import Callable
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
+from typing import Any
 
 from fleetrl.transport.broker import find_mosquitto, free_port, mqtt_ready
 
-FAULTS = ("worker-resumed", "worker-gone", "chief-resumed", "broker-restarted")
-WORKERS = 2
+FAULTS = ("worker-resumed", "worker-gone", "chief-resumed", "broker-restarted", "worker-added")
 GRACE = 15.0
 """the chief's --dropout-grace by default: it must be longer than a worker's restart for a resumed worker to
 keep its place in W (a restart that takes longer loses the rounds played without it)"""
@@ -88,6 +95,7 @@ class Outcome:
     lost: int = 0
     duplicated: int = 0
     chief_agrees: bool = True
+    same_model: bool | None = None
     recovery_s: float | None = None
     wall_s: float = 0.0
     notes: list[str] = field(default_factory=list)
@@ -96,8 +104,18 @@ class Outcome:
 class Run:
     """The chief and the workers of one run, as ``fleetrl`` processes."""
 
-    def __init__(self, index: int, broker: Broker, out: Path, rounds: int, grace: float) -> None:
+    def __init__(
+        self,
+        index: int,
+        broker: Broker,
+        out: Path,
+        rounds: int,
+        grace: float,
+        workers: int,
+        uneven: list[str],
+    ) -> None:
         self.index, self.broker, self.out, self.rounds, self.grace = index, broker, out, rounds, grace
+        self.workers, self.uneven = workers, uneven
         self.run_id = f"soak-{index}"
         self.procs: dict[str, subprocess.Popen[bytes]] = {}
         self.common = ["--broker", broker.url, "--run-id", self.run_id, "--env", "cartpole"]
@@ -105,7 +123,7 @@ class Run:
 
     def start(self, role: str, *extra: str) -> None:
         if role == "chief":
-            argv = ["chief", "--workers", str(WORKERS), "--dropout-grace", str(self.grace)]
+            argv = ["chief", "--workers", str(self.workers), "--dropout-grace", str(self.grace)]
             argv += ["--idle-timeout", "120"]
             argv += ["--out", str(self.out / "chief")]
         else:
@@ -117,6 +135,7 @@ class Run:
                 str(self.index),
                 "--out",
                 str(self.out / f"w{role}"),
+                *self.uneven,
             ]
         log = (self.out / f"{role}.log").open("ab")
         self.procs[role] = subprocess.Popen(
@@ -142,6 +161,17 @@ class Run:
         ]
         return max(closed, default=0)
 
+    def answered(self) -> dict[str, set[int]]:
+        """Per worker, the rounds in which the chief's log lists it as answering an exchange."""
+        path = self.out / "chief" / "chief.log"
+        out: dict[str, set[int]] = {}
+        for line in path.read_text().splitlines() if path.exists() else ():
+            if ": answered " in line:
+                rnd = int(line.split()[1].rstrip(":"))
+                for worker in line.split(": answered ")[1].split(";")[0].split(","):
+                    out.setdefault(worker.strip(), set()).add(rnd)
+        return out
+
     def worker_rounds(self, worker: str) -> list[int]:
         path = self.out / f"w{worker}" / "metrics.csv"
         if not path.exists():
@@ -164,25 +194,25 @@ class Run:
                 proc.wait()
 
 
-def soak_one(
-    index: int, fault: str, rng: random.Random, broker: Broker, root: Path, rounds: int, grace: float
-) -> Outcome:
+def soak_one(index: int, fault: str, rng: random.Random, broker: Broker, root: Path, args: Any) -> Outcome:
     """One run with one fault; the books checked after."""
     out = root / f"run-{index:03d}"
     out.mkdir(parents=True)
-    run = Run(index, broker, out, rounds, grace)
+    rounds, workers = args.rounds, args.workers
+    run = Run(index, broker, out, rounds, args.grace, workers, shlex.split(args.uneven))
     victim = {"chief-resumed": "chief", "broker-restarted": "broker"}.get(fault) or str(
-        rng.randrange(WORKERS)
+        workers - 1 if fault == "worker-added" else rng.randrange(workers)
     )
     outcome = Outcome(index, fault, victim, after_round=rng.randint(1, rounds - 2))
     started = time.monotonic()
     try:
         run.start("chief")
-        for k in range(WORKERS):
-            run.start(str(k))
-        progress = (
+        for k in range(workers):
+            if not (fault == "worker-added" and str(k) == victim):
+                run.start(str(k))
+        progress = (  # a straggler's own rounds may lag far behind: an uneven fleet goes by the chief's
             (lambda: len(run.worker_rounds(victim)) >= outcome.after_round)
-            if victim.isdigit()
+            if victim.isdigit() and fault != "worker-added" and not args.uneven
             else (lambda: run.closed_rounds() >= outcome.after_round)
         )
         if not run.wait(progress, RUN_TIMEOUT):
@@ -196,6 +226,8 @@ def soak_one(
             broker.kill9()
             time.sleep(rng.uniform(0.5, 2.0))
             broker.start()
+        elif fault == "worker-added":
+            run.start(victim)
         else:
             run.kill9(victim)
             if fault != "worker-gone":
@@ -209,15 +241,38 @@ def soak_one(
         outcome.completed = ended and all(code == 0 for code in codes.values())
         if not outcome.completed:
             outcome.notes.append(f"exit codes {codes}")
-        check_books(run, outcome, finished_by_victim)
+        check_books(run, outcome, finished_by_victim, synchronous=not args.uneven and workers <= 2)
+        if args.one_policy:
+            outcome.same_model = same_models(run, [r for r in alive if r.isdigit()])
     finally:
         run.stop_all()
         outcome.wall_s = round(time.monotonic() - started, 1)
     return outcome
 
 
-def check_books(run: Run, outcome: Outcome, finished_by_victim: int) -> None:
-    """Rounds lost or duplicated, per worker, against the chief's record (chief.json)."""
+def same_models(run: Run, workers: list[str]) -> bool:
+    """Every worker's final network equals the chief's fleet model (its checkpoint's, after the last
+    answer)."""
+    import numpy as np
+
+    from fleetrl.agent.ppo import PPOAgent
+    from fleetrl.runs.checkpoints import ChiefCheckpoint, chief_checkpoint_dir
+    from fleetrl.runs.rundir import model_path
+
+    _, tensors = ChiefCheckpoint(chief_checkpoint_dir(run.out / "chief")).store.load()
+    chief = tensors.get("model")
+    for worker in workers:
+        path = model_path(run.out / f"w{worker}", int(worker))
+        if chief is None or not path.exists():
+            return False
+        mine = PPOAgent.load(path).model_parameters()
+        if not np.array_equal(mine, chief[: mine.size]):
+            return False
+    return True
+
+
+def check_books(run: Run, outcome: Outcome, finished_by_victim: int, synchronous: bool) -> None:
+    """Rounds lost or duplicated, per worker, against the chief's record (chief.json, chief.log)."""
     chief_json = run.out / "chief" / "chief.json"
     if not chief_json.exists():
         outcome.chief_agrees = False
@@ -226,13 +281,18 @@ def check_books(run: Run, outcome: Outcome, finished_by_victim: int) -> None:
     chief = json.loads(chief_json.read_text())
     last = int(chief["rounds"])
     dropped = {d["worker"]: int(d["round"]) for d in chief["dropouts"]}
-    for k in range(WORKERS):
+    answered = run.answered()
+    for k in range(run.workers):
         worker = str(k)
         rounds = run.worker_rounds(worker)
         gone = outcome.fault == "worker-gone" and worker == outcome.victim
-        expected = set(range(1, (finished_by_victim if gone else last) + 1))
         outcome.duplicated += len(rounds) - len(set(rounds))
-        outcome.lost += len(expected - set(rounds))
+        took_part = {r for r in answered.get(worker, set()) if not gone or r <= finished_by_victim}
+        outcome.lost += len(took_part - set(rounds))
+        if not synchronous:
+            continue
+        expected = set(range(1, (finished_by_victim if gone else last) + 1))
+        outcome.lost += len(expected - set(rounds) - took_part)
         if gone:
             drop = dropped.get(worker)
             if drop is None or not finished_by_victim + 1 <= drop <= finished_by_victim + 2:
@@ -254,16 +314,19 @@ def report(outcomes: list[Outcome], seconds: float) -> str:
     """The figures, as a Markdown table."""
     lines = [
         "| fault | runs | completed | rounds lost | rounds duplicated | chief's record agrees "
-        "| longest recovery |",
-        "|---|---|---|---|---|---|---|",
+        "| final models = the chief's | longest recovery |",
+        "|---|---|---|---|---|---|---|---|",
     ]
     for fault in (*FAULTS, "all"):
         group = [o for o in outcomes if fault in ("all", o.fault)]
         recoveries = [o.recovery_s for o in group if o.recovery_s is not None]
         longest = f"{max(recoveries):.1f} s" if recoveries else "-"
+        models = [o.same_model for o in group if o.same_model is not None]
+        same = f"{sum(models)}/{len(models)}" if models else "-"
         lines.append(
             f"| {fault} | {len(group)} | {sum(o.completed for o in group)} | {sum(o.lost for o in group)} | "
-            f"{sum(o.duplicated for o in group)} | {sum(o.chief_agrees for o in group)} | {longest} |"
+            f"{sum(o.duplicated for o in group)} | {sum(o.chief_agrees for o in group)} | {same} "
+            f"| {longest} |"
         )
     lines.append(f"\n{len(outcomes)} runs in {seconds / 60:.1f} min")
     return "\n".join(lines)
@@ -274,6 +337,13 @@ def main() -> int:
         description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
     )
     parser.add_argument("--runs", type=int, default=50)
+    parser.add_argument("--workers", type=int, default=2, help="workers per run (default 2)")
+    parser.add_argument("--uneven", default="", help="more flags for every worker, quoted")
+    parser.add_argument(
+        "--one-policy",
+        action="store_true",
+        help="check every worker's final model equals the chief's (pergrad)",
+    )
     parser.add_argument("--rounds", type=int, default=8, help="M of every run (default 8)")
     parser.add_argument("--seed", type=int, default=0, help="seed of the faults and their moments")
     parser.add_argument(
@@ -281,12 +351,21 @@ def main() -> int:
     )
     parser.add_argument("--out", type=Path, default=None, help="directory for the runs and soak.json")
     parser.add_argument(
-        "--faults", default=",".join(FAULTS), help=f"the kinds to draw from ({','.join(FAULTS)})"
+        "--faults",
+        default=None,
+        help=f"the kinds to draw from ({','.join(FAULTS)}; worker-added: 3 workers up)",
     )
     args = parser.parse_args()
-    kinds = args.faults.split(",")
+    # a worker added mid-run needs a fleet that goes on without it: a quorum below everyone (3 workers up)
+    kinds = (
+        args.faults.split(",")
+        if args.faults
+        else [f for f in FAULTS if args.workers >= 3 or "added" not in f]
+    )
     if unknown := set(kinds) - set(FAULTS):
         parser.error(f"unknown fault(s) {sorted(unknown)} (choose from {', '.join(FAULTS)})")
+    if "worker-added" in kinds and args.workers < 3:
+        parser.error("worker-added needs --workers 3 or more (the fleet goes on without the worker to add)")
     root = args.out or Path(tempfile.mkdtemp(prefix="fleetrl-soak-"))
     root.mkdir(parents=True, exist_ok=True)
     rng = random.Random(args.seed)
@@ -296,14 +375,17 @@ def main() -> int:
     started = time.monotonic()
     try:
         for index in range(args.runs):
-            outcome = soak_one(index, rng.choice(kinds), rng, broker, root, args.rounds, args.grace)
+            outcome = soak_one(index, rng.choice(kinds), rng, broker, root, args)
             outcomes.append(outcome)
             print(json.dumps(asdict(outcome)), flush=True)
             (root / "soak.json").write_text(json.dumps([asdict(o) for o in outcomes], indent=1))
     finally:
         broker.stop()
     print(report(outcomes, time.monotonic() - started))
-    bad = [o for o in outcomes if not o.completed or o.lost or o.duplicated or not o.chief_agrees]
+    bad = [
+        o for o in outcomes
+        if not o.completed or o.lost or o.duplicated or not o.chief_agrees or o.same_model is False
+    ]  # fmt: skip
     return 1 if bad else 0
 
 

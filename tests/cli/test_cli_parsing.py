@@ -40,7 +40,11 @@ def test_override_without_equals_is_refused() -> None:
         (["--set", "activation=sigmoid"], "expected one of 'tanh', 'relu'"),
         (["--aggregation", "medain"], "--aggregation: unknown aggregator 'medain' (choose"),
         (["--scheme", "fedavrg"], "--scheme: unknown federation scheme 'fedavrg'"),
-        (["--quorum", "0.5"], "a quorum below 1 needs a round timeout (--round-timeout)"),
+        (
+            ["--scheme", "fedavg", "--quorum", "0.5"],
+            "scheme 'fedavg': a quorum below 1 needs a round timeout",
+        ),
+        (["--max-staleness", "-1"], "max_staleness must be >= 0 rounds, got -1"),
         (["--quorum", "1.5", "--round-timeout", "1"], "quorum must be in (0, 1], got 1.5"),
         (["--round-timeout", "-2"], "round_timeout must be > 0 seconds, got -2.0"),
         (["--broker", "http://x:1"], "--broker: bad broker URL 'http://x:1'"),

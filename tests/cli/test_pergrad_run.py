@@ -35,12 +35,10 @@ def test_pergrad_over_mosquitto_plays_the_in_process_run_and_keeps_one_policy(
     assert all(np.array_equal(first[name], second[name]) for name in first)  # one policy, two units
 
 
-def test_pergrad_refuses_a_quorum_and_a_preset_whose_steps_differ_before_anything_starts(
+def test_pergrad_refuses_a_preset_whose_steps_differ_before_anything_starts(
     tmp_path: Path, fleetrl: Fleetrl
 ) -> None:
     out = tmp_path / "run"
-    quorum = fleetrl(*RUN, "--quorum", "0.5", "--round-timeout", "2", "--out", str(out))
-    assert quorum.returncode == 2 and "it needs every worker (quorum 1)" in last_line(quorum), quorum.stderr
     preset = fleetrl(*RUN[:-1], "paper-code", "--out", str(out))
     assert preset.returncode == 2 and "optimisers = 'per_model'" in last_line(preset), preset.stderr
     assert "--scheme fedavg or paper" in last_line(preset)  # what to do instead

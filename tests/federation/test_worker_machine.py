@@ -1,5 +1,6 @@
 """The worker's state machine without threads, transport or clock: rounds, resends, stale and later answers,
-``done``, refusal, timeouts, resume and the per-step exchange; and the runner over an in-process chief."""
+``done``, refusal, timeouts and resume (the per-step exchange: test_step_worker.py); and the runner over an
+in-process chief."""
 
 from __future__ import annotations
 
@@ -15,10 +16,7 @@ from fleetrl.federation.messages import Message, encode
 from fleetrl.federation.rounds import (
     Announce,
     ApplyAverage,
-    ApplyStep,
     Checkpoint,
-    ComputeStep,
-    EndUpdate,
     FederatedRound,
     Finish,
     PlayRound,
@@ -230,93 +228,6 @@ def test_resume_at_the_welcome_s_round() -> None:
     assert rejoined.actions[1] == PlayRound(9)
     reached = WorkerSummary("1", 4, finished=False, reason="reached M=4")
     assert welcomed(machine(max_rounds=4), 5).actions == (Finish(reached),)
-
-
-def test_the_per_step_exchange_keyed_by_step() -> None:
-    m = machine("pergrad")
-    assert welcomed(m, 2).actions == (PlayRound(2),)
-    assert m.update_begun(3, completed=False, now=0.0).actions == (ComputeStep(0),)
-    for k in range(3):
-        sent = m.step_computed(k, FLAT, now=0.0)
-        assert [(x.type, x.round, x.step) for x in sent.published] == [("step_gradient", 2, k)]
-        assert m.receive(chief("average", 1, step=k, contributors=("1",)), now=0.0) == WorkerStep()  # stale
-        answer = m.receive(chief("average", 2, step=k, contributors=("1",)), now=0.0)
-        following = ComputeStep(k + 1) if k < 2 else EndUpdate()
-        assert [type(a) for a in answer.actions] == [ApplyStep, type(following)]
-        assert answer.actions[1] == following
-    over = m.round_played(RESULT, now=0.0)
-    assert records(over)[0].event == Sent("step_gradient") and records(over)[0].round == 2
-    assert m.tick(now=0.0).actions == (Checkpoint(3), PlayRound(3))
-
-
-def test_done_or_a_later_step_mid_round_ends_without_a_record() -> None:
-    m = machine("pergrad")
-    welcomed(m, 1)
-    m.update_begun(4, completed=False, now=0.0)
-    m.step_computed(0, FLAT, now=0.0)
-    m.receive(chief("average", 1, step=0, contributors=("1",)), now=0.0)
-    m.step_computed(1, FLAT, now=0.0)
-    assert [x.step for x in m.tick(now=5.0).published] == [1]  # the step's gradient, re-sent
-    ended = m.receive(chief("done", 1), now=11.0)
-    assert not records(ended) and m.summary is not None
-    assert (m.summary.rounds, m.summary.reason) == (0, "run ended")
-    m = machine("pergrad")
-    welcomed(m, 3)
-    m.update_begun(4, completed=True, now=0.0)
-    sent = m.step_computed(0, FLAT, now=0.0)
-    assert sent.published[0].type == "parameters"
-    m.receive(chief("average", 3, step=2, contributors=("2",)), now=0.0)
-    assert m.summary is not None and (m.summary.rounds, m.summary.reason) == (2, "out of step with the fleet")
-
-
-def test_a_worker_resumed_mid_round_replays_the_closed_steps_and_goes_on_at_the_open_one() -> None:
-    """Killed after the chief closed steps 0-1 of round 1: the resumed worker plays round 1 again (same state,
-    same gradients); the chief answers each re-sent step with its own answer; step 2 is played as usual."""
-    steps = 4
-    c = Chief(
-        run_id=RUN,
-        workers=("1", "2"),
-        layout=FAKE_LAYOUT,
-        max_rounds=10,
-        scheme="pergrad",
-        steps_per_round=steps,
-    )
-    grads = {w: [np.full(15, 10 * int(w) + k, np.float32) for k in range(steps)] for w in ("1", "2")}
-
-    def step_of(worker: str, k: int) -> Message:
-        return Message("step_gradient", RUN, worker, 1, step=k, flat=grads[worker][k])
-
-    for k in range(2):  # before the kill: both workers' steps 0 and 1
-        c.receive(step_of("1", k), now=0.0)
-        c.receive(step_of("2", k), now=0.0)
-    m = machine("pergrad", start_round=1)
-    assert welcomed(m, 1).actions == (PlayRound(1),)
-    assert m.update_begun(steps, completed=False, now=10.0).actions == (ComputeStep(0),)
-    applied = []
-    for k in range(steps):
-        (sent,) = m.step_computed(k, grads["1"][k], now=10.0).published
-        answers = c.receive(sent, now=10.0).outgoing
-        if k >= 2:  # the open steps: closed when worker 2 sends too
-            assert answers == ()
-            answers = c.receive(step_of("2", k), now=10.0).outgoing
-        (answer,) = answers
-        assert (answer.round, answer.step) == (1, k)
-        got = m.receive(answer, now=10.0)
-        assert type(got.actions[0]) is ApplyStep and got.actions[1] == (
-            ComputeStep(k + 1) if k < 3 else EndUpdate()
-        )
-        applied.append(got.actions[0].flat)
-    expected = [(grads["1"][k] + grads["2"][k]) / 2 for k in range(steps)]
-    np.testing.assert_array_equal(np.stack(applied), np.stack(expected))
-    (record,) = records(m.round_played(RESULT, now=10.0))
-    assert (record.round, record.event, m.summary) == (1, Sent("step_gradient"), None)
-    # a later step's answer while replaying still means the fleet went on without this worker
-    m = machine("pergrad", start_round=1)
-    welcomed(m, 1)
-    m.update_begun(steps, completed=False, now=0.0)
-    m.step_computed(0, grads["1"][0], now=0.0)
-    m.receive(chief("average", 1, step=2, contributors=("2",)), now=0.0)
-    assert m.summary is not None and m.summary.reason == "out of step with the fleet"
 
 
 # ---- the runner, over a chief in the same thread ----

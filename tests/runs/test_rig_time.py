@@ -35,7 +35,7 @@ def test_a_unit_that_left_the_fleet_no_longer_makes_rounds_longer() -> None:
 
 
 def test_inconsistent_input_is_refused() -> None:
-    with pytest.raises(ValueError, match="completed at round 4 but played 3"):
+    with pytest.raises(ValueError, match="completed at round 4 but played up to round 3"):
         rig_time({"0": [1, 2, 3]}, {"0": 4}, 1.0, "alone")
     with pytest.raises(ValueError, match="must be > 0"):
         rig_time(STEPS, COMPLETED, 0.0, "alone")
@@ -71,3 +71,14 @@ def test_a_record_gives_its_time_on_the_rigs_from_its_steps_or_else_its_scores()
     assert alone is not None and alone.fleet == pytest.approx(2.0)  # unit 1: 100 steps
     several = {"0": {"score": [5.0], "episodes": [3], "completed_at_round": 1}}
     assert _record("individual", several).rig_time() is None  # rounds of several episodes, no steps kept
+
+
+def test_a_straggler_s_rounds_count_where_it_played_them() -> None:
+    """Under a quorum a slow unit plays rounds 1 and 4 only: the fleet's rounds last as long as their members'
+    episodes, and the straggler has spent the fleet's time until the round it completed in."""
+    t = rig_time({"a": [10, 10, 10, 10], "s": {1: 30, 4: 50}}, {"a": 4, "s": 4}, 1.0, "synchronous")
+    assert (t.fleet, t.per_unit) == (30 + 10 + 10 + 50, {"a": 100, "s": 100})
+    alone = rig_time({"s": {1: 30, 4: 50}}, {"s": 4}, 1.0, "alone")
+    assert alone.per_unit == {"s": 80}
+    with pytest.raises(ValueError, match="completed at round 5 but played up to round 4"):
+        rig_time({"s": {1: 30, 4: 50}}, {"s": 5}, 1.0, "alone")

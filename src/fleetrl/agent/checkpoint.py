@@ -78,3 +78,14 @@ def check_tensors_fit(
     ]
     if problems:
         raise CheckpointError(f"{source} does not fit this architecture: " + "; ".join(problems))
+
+
+def check_architecture(path: str | Path, arch: dict[str, Any], wanted: dict[str, int | None]) -> None:
+    """CheckpointError unless the model file at ``path`` (architecture ``arch``) has every value ``wanted``
+    asks for (None: any)."""
+    for key, want in wanted.items():
+        if want is not None and want != arch[key]:
+            raise CheckpointError(
+                f"{path} is a model for {key}={arch[key]}, but {want} is needed here "
+                "(a model trained for another environment or architecture)"
+            )

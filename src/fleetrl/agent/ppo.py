@@ -11,15 +11,14 @@ import torch
 
 from fleetrl.agent.action_space import ActionSpace, as_action_space
 from fleetrl.agent.checkpoint import (
-    CheckpointError,
     check_tensors_fit,
-    read_checkpoint,
-    write_checkpoint,
 )
 from fleetrl.agent.config import PPOConfig
 from fleetrl.agent.flat import Named, flatten, flatten_tensors, layout, split
 from fleetrl.agent.memory import TrajectoryMemory
+from fleetrl.agent.model_file import architecture, load_agent, save_agent
 from fleetrl.agent.network import ActorCritic
+from fleetrl.agent.optimiser_flat import load_optimiser_flat, optimiser_flat, optimiser_layout
 from fleetrl.agent.policy_numpy import NumpyPolicy
 from fleetrl.agent.update import (
     ACTOR,
@@ -221,6 +220,24 @@ class PPOAgent:
         named = [item for _, part in self._step_named(exchange.step) for item in part]
         exchange.send(split(flat_grad, named, "step gradient"))
 
+    def apply_fleet_step(self, k: int, flat_grad: np.ndarray) -> None:
+        """Step the optimiser(s) with the fleet's gradient of step ``k`` of an update this agent took no part
+        in (a straggler catching up): the same optimiser steps :meth:`apply_step` takes, no update under way.
+
+        :raises RuntimeError: an update is under way
+        :raises ValueError: the vector does not fit :meth:`step_layout` ``(k)`` or is not finite
+        """
+        if self._exchange is not None:
+            raise RuntimeError("an update is under way: its steps are applied with apply_step()")
+        parts = self._step_named(k)
+        chunks = split(flat_grad, [item for _, named in parts for item in named], "step gradient")
+        self._score_new_transitions()
+        start = 0
+        for part, named in parts:
+            self._model.step(part, chunks[start : start + len(named)])
+            start += len(named)
+        self._policy.refresh(self.net)
+
     def end_update(self) -> UpdateStats:
         """The update's statistics (the acting copy follows θ, a ``per_round`` memory is emptied).
 
@@ -317,6 +334,18 @@ class PPOAgent:
             return {"shared": self.actor_optimizer}
         return {"actor": self.actor_optimizer, "critic": self.critic_optimizer}
 
+    def optimiser_layout(self) -> list[tuple[str, tuple[int, ...]]]:
+        """Names and shapes of the optimisers' state as one flat vector (:mod:`.optimiser_flat`)."""
+        return optimiser_layout(self.optimisers())
+
+    def optimiser_parameters(self) -> np.ndarray:
+        """The optimisers' state, flat float32 in :meth:`optimiser_layout` order."""
+        return optimiser_flat(self.optimisers())
+
+    def set_optimiser_parameters(self, flat: np.ndarray) -> None:
+        """Replace the optimisers' state (a fleet's, from the chief)."""
+        load_optimiser_flat(self.optimisers(), flat)
+
     def rng_states(self) -> dict[str, Any]:
         """The bit-generator states of action sampling and window starts (JSON-ready)."""
         return {"act": self._act_rng.bit_generator.state, "window": self._window_rng.bit_generator.state}
@@ -330,27 +359,15 @@ class PPOAgent:
         """Copy the network into the acting policy after its weights were changed in place."""
         self._policy.refresh(self.net)
 
-    # ---- checkpoints ------------------------------------------------------------------------------------
+    # ---- model files (fleetrl.agent.model_file) ---------------------------------------------------------
 
     def architecture(self) -> dict[str, Any]:
-        """What a model file must match to be loaded into this agent: for a box also ``action_space``
-        (its bounds; ``n_actions`` is 0). A discrete agent's is what it has always been, so the model
-        files written before continuous actions load unchanged."""
-        arch: dict[str, Any] = {
-            "obs_dim": self.obs_dim,
-            "n_actions": self.n_actions,
-            "hidden": list(self.config.hidden),
-            "activation": self.config.activation,
-        }
-        if not self.action_space.is_discrete:
-            arch["action_space"] = self.action_space.to_dict()
-        return arch
+        """What a model file must match to be loaded into this agent (:func:`.model_file.architecture`)."""
+        return architecture(self)
 
     def save(self, path: str | Path) -> None:
         """Write the network weights (safetensors) with config, architecture and seed as JSON metadata."""
-        tensors = {name: t.detach().numpy().copy() for name, t in self.net.state_dict().items()}
-        metadata = {"architecture": self.architecture(), "config": self.config.to_dict(), "seed": self.seed}
-        write_checkpoint(path, tensors, metadata)
+        save_agent(self, path)
 
     @classmethod
     def load(
@@ -360,36 +377,15 @@ class PPOAgent:
         n_actions: int | None = None,
         action_space: ActionSpace | None = None,
     ) -> PPOAgent:
-        """An agent rebuilt from a model file (its action space too: discrete when the file names none);
-        ``obs_dim``/``n_actions``/``action_space``, if given, must match it.
+        """An agent rebuilt from a model file (:func:`.model_file.load_agent`).
 
         :raises FileNotFoundError: no file at ``path``
         :raises CheckpointError: corrupt file, not a fleetrl model, or a model for another architecture
         """
-        tensors, metadata = read_checkpoint(path)
-        try:
-            arch = metadata["architecture"]
-            config = PPOConfig.from_dict(metadata["config"])
-            space = ActionSpace.from_architecture(arch)
-            agent = cls(int(arch["obs_dim"]), space, config, int(metadata.get("seed", 0)))
-        except (KeyError, TypeError, ValueError) as exc:
-            raise CheckpointError(f"{path}: fleetrl metadata is incomplete or invalid ({exc})") from exc
-        expected = {"obs_dim": obs_dim, "n_actions": n_actions}
-        for key, want in expected.items():
-            if want is not None and want != agent.architecture()[key]:
-                raise CheckpointError(
-                    f"{path} is a model for {key}={agent.architecture()[key]}, but {want} is needed here "
-                    "(a model trained for another environment or architecture)"
-                )
-        if action_space is not None and action_space != agent.action_space:
-            raise CheckpointError(
-                f"{path} is a model for actions {agent.action_space}, but {action_space} is needed here "
-                "(a model trained for another environment)"
-            )
-        agent._load_tensors(tensors, str(path))
-        return agent
+        return load_agent(cls, path, obs_dim, n_actions, action_space)
 
-    def _load_tensors(self, tensors: dict[str, np.ndarray], source: str) -> None:
+    def load_weights(self, tensors: dict[str, np.ndarray], source: str) -> None:
+        """Replace the network's weights with a model file's ``tensors`` (``source``: for errors)."""
         check_tensors_fit(tensors, {k: tuple(t.shape) for k, t in self.net.state_dict().items()}, source)
         self._score_new_transitions()
         self.net.load_state_dict(

@@ -21,6 +21,7 @@ from fleetrl.cli.settings_args import (
     add_target_score_argument,
     settings_from_args,
 )
+from fleetrl.cli.startup import collector_paused
 
 
 def add_train_arguments(p: argparse.ArgumentParser) -> None:
@@ -139,10 +140,11 @@ def build_parser() -> argparse.ArgumentParser:
 
 def cmd_train(args: argparse.Namespace) -> int:
     """``fleetrl train``: every setting is checked before anything is created or started."""
-    from fleetrl.runs.launch import train
-    from fleetrl.runs.settings import RunSettings
+    with collector_paused():
+        from fleetrl.runs.settings import RunSettings
 
-    settings = settings_from_args(RunSettings, args)
+        settings = settings_from_args(RunSettings, args)
+        from fleetrl.runs.launch import train
     summary = train(settings)
     print_summary(summary, settings.out)
     return exit_code(summary)
@@ -165,10 +167,11 @@ def exit_code(summary: dict[str, Any]) -> int:
 
 def cmd_demo(args: argparse.Namespace) -> int:
     """``fleetrl demo``: the main job of the day."""
-    from fleetrl.runs.launch import demo_settings, train
+    with collector_paused():
+        from fleetrl.runs.launch import demo_settings, train
 
-    out = args.out or Path("runs") / time.strftime("demo-%Y%m%d-%H%M%S")
-    settings = demo_settings(out, args.seed).resolved()
+        out = args.out or Path("runs") / time.strftime("demo-%Y%m%d-%H%M%S")
+        settings = demo_settings(out, args.seed).resolved()
     summary = train(settings)
     print_summary(summary, settings.out)
     return exit_code(summary)
@@ -308,8 +311,8 @@ def _terminate(signum: int, frame: object) -> None:
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Parse, run, and turn known failures into one clear line and a non-zero exit code."""
-    parser = build_parser()
-    args = parser.parse_args(argv)
+    with collector_paused(freeze=False):  # the parser is garbage once it has parsed
+        args = build_parser().parse_args(argv)
     logging.basicConfig(
         level=logging.DEBUG if args.verbose else logging.INFO,
         format="%(asctime)s %(levelname)s %(name)s: %(message)s",

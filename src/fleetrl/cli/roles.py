@@ -12,6 +12,7 @@ from pathlib import Path
 from typing import Any
 
 from fleetrl.cli.settings_args import add_settings_arguments, settings_from_args
+from fleetrl.cli.startup import collector_paused
 
 log = logging.getLogger(__name__)
 
@@ -110,15 +111,16 @@ def cmd_secure_config(args: argparse.Namespace) -> int:
 
 def cmd_chief(args: argparse.Namespace) -> int:
     """Serve one run as its chief; print how it ended as JSON."""
-    from fleetrl.federation.chief import Chief
-    from fleetrl.federation.runner import run_chief
-    from fleetrl.federation.shared_settings import shared_text
-    from fleetrl.runs.launch import fleet_start
-    from fleetrl.runs.role_settings import ChiefSettings
-    from fleetrl.runs.rundir import write_json_atomic
-    from fleetrl.runs.settings import fleet_shape
+    with collector_paused():
+        from fleetrl.federation.chief import Chief
+        from fleetrl.federation.runner import run_chief
+        from fleetrl.federation.shared_settings import shared_text
+        from fleetrl.runs.launch import fleet_model
+        from fleetrl.runs.role_settings import ChiefSettings
+        from fleetrl.runs.rundir import write_json_atomic
+        from fleetrl.runs.settings import fleet_shape
 
-    settings = settings_from_args(ChiefSettings, args)
+        settings = settings_from_args(ChiefSettings, args)
     shape = fleet_shape(settings.learning)
     chief = Chief(
         run_id=settings.run_id,
@@ -128,12 +130,13 @@ def cmd_chief(args: argparse.Namespace) -> int:
         scheme=settings.learning.federation_scheme(),
         max_rounds=settings.learning.max_rounds,
         aggregator=settings.aggregation,
-        quorum=settings.quorum,
+        quorum=settings.chief_quorum,
         round_timeout=settings.round_timeout,
+        max_staleness=settings.max_staleness,
         dropout_grace=settings.dropout_grace,
         key=settings.fleet_key(),
         settings=shared_text(settings.learning),
-        start=fleet_start(settings.learning),
+        fleet_model=fleet_model(settings.learning),
     )
     if settings.out is None:
         summary = run_chief(chief, settings.transport(), idle_timeout=settings.idle_timeout)
@@ -175,13 +178,14 @@ def _serve_with_checkpoints(chief: Any, settings: Any) -> Any:
 
 def cmd_worker(args: argparse.Namespace) -> int:
     """Serve as one worker; its run directory gets the same files as a ``fleetrl train`` run."""
-    from fleetrl.runs.checkpoints import WorkerCheckpoint, worker_checkpoint_dir
-    from fleetrl.runs.factory import make_learner
-    from fleetrl.runs.role_settings import WorkerSettings
-    from fleetrl.runs.roles import train_federated
-    from fleetrl.runs.rundir import RunRecorder
+    with collector_paused():
+        from fleetrl.runs.checkpoints import WorkerCheckpoint, worker_checkpoint_dir
+        from fleetrl.runs.factory import make_learner
+        from fleetrl.runs.role_settings import WorkerSettings
+        from fleetrl.runs.roles import train_federated
+        from fleetrl.runs.rundir import RunRecorder
 
-    settings = settings_from_args(WorkerSettings, args)
+        settings = settings_from_args(WorkerSettings, args)
     spec = settings.worker_spec()
     config = worker_config(settings)
     checkpoints = worker_checkpoint_dir(settings.out, settings.worker_id)

@@ -21,6 +21,7 @@ from fleetrl.federation.shared_settings import LearningSettings
 from fleetrl.runs.setting_values import (
     NEGATED_FLAGS,
     TABLE_FLAGS,
+    TABLE_METAVARS,
     field_default,
     field_docs,
     flag,
@@ -68,7 +69,8 @@ def add_setting_argument(
         help_text += f"; {note}"
     if name in TABLE_FLAGS:
         p.add_argument(
-            flag(name), dest=name, action="append", default=None, metavar="KEY=VALUE",
+            flag(name), dest=name, action="append", default=None,
+            metavar=TABLE_METAVARS.get(name, "KEY=VALUE"),
             help=f"{help_text} (repeatable)",
         )  # fmt: skip
         return

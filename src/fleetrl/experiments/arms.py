@@ -35,6 +35,8 @@ def arm_key(settings: dict[str, Any]) -> str:
     if settings.get("transport") == "mqtt" and settings["mode"] == "federated":
         key += "-mqtt"
     rest = {k: v for k, v in settings.items() if k not in KEY_SETTINGS}
+    if rest.get("quorum") == 1.0:  # the keys made before arms named their quorum
+        del rest["quorum"]
     if rest:
         key += "-" + hashlib.sha256(json.dumps(rest, sort_keys=True).encode()).hexdigest()[:8]
     return key

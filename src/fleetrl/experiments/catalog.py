@@ -6,6 +6,7 @@ from dataclasses import dataclass
 
 from fleetrl.experiments.arms import Arm
 from fleetrl.experiments.plan import Plan, Ratio
+from fleetrl.federation.schemes import Granularity, resolve_scheme
 
 
 @dataclass(frozen=True)
@@ -51,7 +52,8 @@ def arm(
     """A training arm; its key names the configuration, so experiments that share one share its runs.
 
     Federated arms use the in-process bus (each experiment checks one arm over MQTT as well) and name their
-    ``scheme`` (so a new default changes no arm).
+    ``scheme``, and a per-step scheme its ``quorum`` (1: every worker waited for), so a new default changes no
+    arm.
     """
     settings: dict[str, object] = {
         "env": env,
@@ -65,6 +67,8 @@ def arm(
             raise ValueError(f"arm {label!r}: a federated arm names its scheme")
         settings["transport"] = "local"
         settings["scheme"] = scheme
+        if resolve_scheme(scheme).granularity is Granularity.STEP:  # the rule its records were made with
+            settings["quorum"] = 1.0
     if fleet_seed:
         settings["fleet_seed"] = fleet_seed
     if target_score is not None:

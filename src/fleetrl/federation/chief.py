@@ -7,9 +7,10 @@ Round semantics (docs/protocol.md has the full rules):
 * The chief keeps W and the open round i (from 1); it takes from each worker exactly one message for round i
   of a type its scheme accepts, keyed by (sender, round); duplicates, future rounds and workers out of W are
   rejected and change nothing.
-* Round i closes when every worker in W has answered; answers are read in sorted worker-id order, never
-  arrival order. The scheme (:mod:`fleetrl.federation.schemes`) combines them into one answer and says who
-  leaves W and whether the run is complete; the chief broadcasts it with the next round's configuration.
+* Round i closes when every worker in W has answered (a per-step scheme: every one it waits for,
+  :mod:`.stragglers`); answers are read in sorted worker-id order, never arrival order. The scheme
+  (:mod:`fleetrl.federation.schemes`) combines them into one answer and says who leaves W and whether the
+  run is complete; the chief broadcasts it with the next round's configuration.
 * The run ends after the round the scheme calls complete, when W is empty, or after round M (``done``).
 
 Reliability (dropout and rejoin, deadlines and quorum, the join's settings check, idempotent resends):
@@ -22,13 +23,13 @@ checkpoint serialises.
 
 from __future__ import annotations
 
-import math
 from collections.abc import Iterable
 from dataclasses import replace
 
 from fleetrl.federation.aggregation import Aggregator, get_aggregator
 from fleetrl.federation.chief_answer import (
     ClosedExchange,
+    admission,
     answer_event,
     answer_message,
     check_round_rules,
@@ -38,11 +39,13 @@ from fleetrl.federation.chief_answer import (
 )
 from fleetrl.federation.chief_state import AnswerBook, ChiefState
 from fleetrl.federation.events import ChiefEvent, ChiefStep
+from fleetrl.federation.fleet_model import FleetModel
 from fleetrl.federation.messages import Layout, Message, MessageRejected, Reason, decode
-from fleetrl.federation.schemes import RoundContext, Scheme, resolve_scheme
+from fleetrl.federation.schemes import Granularity, RoundContext, Scheme, resolve_scheme
 from fleetrl.federation.schemes.base import FleetStart
 from fleetrl.federation.shared_settings import JoinGate, SharedSettings
 from fleetrl.federation.signing import FleetKey, parse_status
+from fleetrl.federation.stragglers import waiting_rule
 from fleetrl.federation.topics import CHIEF_ID, sorted_workers, validate_id, validate_worker_id
 
 __all__ = ["Chief", "ChiefEvent", "ChiefStep"]
@@ -54,30 +57,29 @@ OFFLINE_DROP = "went offline"
 class Chief:
     """Algorithm 1 (the chief) for one run.
 
-    :param run_id: the run.
-    :param workers: the initial W (worker ids).
-    :param layout: the actor's tensor layout every gradient or parameter message must match.
+    :param run_id: the run.  :param workers: the initial W (worker ids).
+    :param layout: the tensor layout every round message must match (what ``scheme`` shares).
     :param max_rounds: M, the last round.
-    :param aggregator: a registered aggregation rule, ``name`` or ``name:value`` (see
-        :mod:`fleetrl.federation.aggregation`).
+    :param aggregator: an aggregation rule, ``name`` or ``name:value`` (:mod:`.aggregation`).
     :param max_bytes: message size cap; default from the layout.
-    :param quorum: fraction of W whose answers close a round at its deadline (needs ``round_timeout`` if < 1).
-    :param round_timeout: seconds a round may stay open before the deadline rules apply; None waits forever
-        (the paper's fully synchronous rule).
-    :param resend_holdoff: least seconds between two re-sends of one answer to one worker (and after its
-        broadcast).
+    :param quorum, round_timeout, max_staleness: the waiting rules (:mod:`.stragglers`): once per round,
+        the share of W whose answers close a round at its deadline, ``round_timeout`` seconds after it
+        opened (None: no deadline); per step, the share after which the others get a grace, and the rounds a
+        straggler's contribution may lag and still be averaged (None: no bound).
+    :param resend_holdoff: least seconds between two re-sends of one answer to one worker.
     :param dropout_grace: seconds an ``offline`` worker has to come back before it leaves W (0: at once).
     :param key: the fleet key; if given, only messages and statuses signed with it are accepted.
-    :param scheme: the federation scheme, or its name with default parameters (see
-        :mod:`fleetrl.federation.schemes`); ``layout`` must be what it shares.
-    :param settings: the settings every worker must share (:mod:`fleetrl.federation.shared_settings`), sent in
-        the ``welcome``; a worker whose ``join`` carries others is refused. None: no check.
-    :param steps_per_round: exchanges per round: 1 for a scheme that sends once per round; the K optimisation
-        steps of the round for one that sends per step (each step is closed and answered like a round, keyed
-        (round, step); completions and the run's end are decided at a round's last step).
+    :param scheme: the federation scheme, or its name with default parameters (:mod:`.schemes`).
+    :param settings: the settings every worker must share (:mod:`.shared_settings`), sent in the ``welcome``;
+        a worker whose ``join`` carries others is refused. None: no check.
+    :param steps_per_round: exchanges per round: 1, or a per-step scheme's K (each step closed and answered
+        like a round, keyed (round, step); completions and the run's end decided at a round's last step).
     :param start: the fleet's start (a ``shared_start`` scheme), in every ``welcome`` until the scheme's
-        answers give the fleet a model.  :param welcome_layout: a ``welcome``'s layout (``start``'s, else
-        ``layout``).  :param state: a restored chief's (:func:`.chief_state.chief_from_state`); None: round 1.
+        answers give the fleet a model.
+    :param fleet_model: a per-step scheme's fleet model, kept by the chief (:mod:`.fleet_model`): it gives
+        the start, and every ``welcome`` carries it as it is.
+    :param welcome_layout: a ``welcome``'s layout (``start``'s, else ``layout``).
+    :param state: a restored chief's (:func:`.chief_state.chief_from_state`); None: round 1.
     :param now: when the open round opened (a restored chief: now); None: at the first input.
     """
 
@@ -92,6 +94,7 @@ class Chief:
         max_bytes: int | None = None,
         quorum: float = 1.0,
         round_timeout: float | None = None,
+        max_staleness: int | None = None,
         resend_holdoff: float = 1.0,
         dropout_grace: float = 3.0,
         key: FleetKey | None = None,
@@ -99,6 +102,7 @@ class Chief:
         settings: SharedSettings | None = None,
         steps_per_round: int = 1,
         start: FleetStart | None = None,
+        fleet_model: FleetModel | None = None,
         welcome_layout: Layout | None = None,
         state: ChiefState | None = None,
         now: float | None = None,
@@ -109,9 +113,12 @@ class Chief:
         if not self.all_workers:
             raise ValueError("a run needs at least one worker")
         self.layout = list(layout)
+        self.fleet_model = fleet_model
+        if fleet_model is not None and start is None:
+            start = FleetStart(fleet_model.layout, fleet_model.snapshot())
         self.welcome_layout = list(start.layout if start else welcome_layout or layout)
         self.scheme: Scheme = resolve_scheme(scheme)
-        check_round_rules(self.scheme, max_rounds, quorum, round_timeout, steps_per_round)
+        check_round_rules(self.scheme, max_rounds, quorum, round_timeout, steps_per_round, max_staleness)
         self.steps_per_round = steps_per_round
         self._gate = JoinGate(settings)
         self.max_rounds = max_rounds
@@ -120,6 +127,9 @@ class Chief:
         self.max_bytes = max_bytes
         self.quorum = quorum
         self.round_timeout = round_timeout
+        self.max_staleness = max_staleness
+        per_step = self.scheme.granularity is Granularity.STEP
+        self._waits = waiting_rule(per_step, quorum, round_timeout, max_staleness)
         self.resend_holdoff = resend_holdoff
         self.dropout_grace = dropout_grace
         self.key = key
@@ -129,9 +139,8 @@ class Chief:
                 if start is None
                 else Message("welcome", run_id, CHIEF_ID, 1, flat=start.flat, origin=CHIEF_ID)
             )
-            members = set(self.all_workers)
-            config = dict(self.scheme.configure(1, tuple(sorted_workers(members))))
-            state = ChiefState(members, AnswerBook(resend_holdoff), model=model, config=config)
+            config = dict(self.scheme.configure(1, self.all_workers))
+            state = ChiefState(set(self.all_workers), AnswerBook(resend_holdoff), model=model, config=config)
         self.state = state
         """what the chief remembers (its checkpoint serialises it)"""
         self._opened_at: float | None = now
@@ -181,8 +190,9 @@ class Chief:
         times = list(self.state.suspects.values())
         # the round deadline acts only on answers (with none, tick keeps waiting): without one it is not due,
         # else a deadline that passed would stay due and the runner would poll without waiting
-        if self.round_timeout is not None and self._opened_at is not None and self._pending:
-            times.append(self._opened_at + self.round_timeout)
+        due = self._waits.deadline(self._opened_at)
+        if due is not None and self._pending:
+            times.append(due)
         return min(times, default=None)
 
     def receive_bytes(self, payload: bytes, *, topic_worker: str | None = None, now: float) -> ChiefStep:
@@ -212,38 +222,26 @@ class Chief:
             return self._join(message)
         if (why := self._gate.refusal(sender)) is not None:
             return self._reject(sender, Reason.REFUSED, why)
-        if message.step >= self.steps_per_round:  # messages are keyed (sender, round, step)
-            return self._reject(
-                sender, Reason.BAD_ROUND, f"step {message.step} of {self.steps_per_round} per round"
-            )
-        if not self.scheme.accepts(message.type):
-            return self._reject(sender, Reason.UNEXPECTED_TYPE, message.type)
-        if sender not in self.all_workers:
-            return self._reject(sender, Reason.UNKNOWN_SENDER, f"round {rnd}")
-        at = (rnd, message.step)
         open_at = (self.state.round, self.steps_per_round if self.finished else self.state.step)
-        if at < open_at:
-            # a resend after a lost answer, a straggler, a resumed worker replaying its round: answer that
-            # exchange again, change nothing
-            reason = Reason.RUN_OVER if self.finished else Reason.STALE_ROUND
-            step = self._reject(sender, reason, f"{where(*at)} before the open {where(*open_at)}")
-            return step + self._resend(sender, at, now)
-        if self.finished:
-            return self._reject(sender, Reason.RUN_OVER, f"round {rnd}")
-        if sender in self.state.left:
-            return self._reject(sender, Reason.NOT_IN_W, f"round {rnd}")
-        if at > open_at:
-            return self._reject(sender, Reason.FUTURE_ROUND, f"{where(*at)} > open {where(*open_at)}")
-        if sender in self._pending:
-            return self._reject(sender, Reason.DUPLICATE, f"{message.type} for round {rnd}")
+        refusal = admission(
+            message, self.scheme, self.all_workers, self.steps_per_round, open_at, self.finished,
+            self.state.left, self._pending,
+        )  # fmt: skip
+        if refusal is not None:
+            step = self._reject(sender, *refusal)
+            # a stale message (a resend after a lost answer, a straggler, a resumed worker replaying its
+            # round): answer that exchange again, change nothing
+            stale = refusal[0] in (Reason.STALE_ROUND, Reason.RUN_OVER) and (rnd, message.step) < open_at
+            return step + self._resend(sender, (rnd, message.step), now) if stale else step
         step = self._rejoin(sender, f"sent {message.type} for round {rnd}")
         self.state.suspects.pop(sender, None)
         self._pending[sender] = message
         step += ChiefStep(
             events=(ChiefEvent("accepted", self.state.round, sender=sender, detail=message.type),)
         )
-        if self.state.members.issubset(self._pending):
-            step += self._close_round(now)
+        if self._all_in():
+            return step + self._close_round(now)
+        self._waits.note(self.state.pace, self.state.members, self.state.step, self._pending, now)
         return step
 
     def status(self, worker: str, payload: bytes, *, retained: bool = False, now: float) -> ChiefStep:
@@ -300,14 +298,11 @@ class Chief:
             step = self._drop([w for w in gone if w in self.state.members], OFFLINE_DROP) + self._maybe_close(
                 now
             )
-        timeout, opened = self.round_timeout, self._opened_at
-        if self.finished or timeout is None or opened is None or now < opened + timeout or not self._pending:
+        due = self._waits.deadline(self._opened_at)
+        if self.finished or due is None or now < due or not self._pending:
             return step
-        answered_members = self.state.members & set(self._pending)
-        silent = self.state.members - answered_members
-        if len(answered_members) >= math.ceil(self.quorum * len(self.state.members) - 1e-9):
-            return step + self._close_round(now)
-        return step + self._drop(sorted_workers(silent), DEADLINE_DROP) + self._close_round(now)
+        leave = self._waits.silent_leave(self.state.members, self._pending)
+        return step + self._drop(sorted_workers(leave), DEADLINE_DROP) + self._close_round(now)
 
     def _join(self, message: Message) -> ChiefStep:
         """Check a worker's shared settings: refuse it (until a join that matches) if one differs."""
@@ -339,31 +334,19 @@ class Chief:
         return ChiefStep(answer, (ChiefEvent("resent", self.state.round, sender=worker, detail=detail),))
 
     def _drop(self, workers: Iterable[str], reason: str) -> ChiefStep:
-        events = []
-        for worker in workers:
-            self.state.members.discard(worker)
-            self.state.dropouts.append((self.state.round, worker, reason))
-            events.append(
-                ChiefEvent("dropped", self.state.round, sender=worker, detail=reason, remaining=self.members)
-            )
-        return ChiefStep(events=tuple(events))
+        return ChiefStep(events=self.state.drop(workers, reason))
 
     def _rejoin(self, worker: str, why: str) -> ChiefStep:
-        self.state.suspects.pop(worker, None)
-        if worker in self.state.members or worker in self.state.left:
-            return ChiefStep()
-        self.state.members.add(worker)
-        self.state.rejoins.append((self.state.round, worker))
-        return ChiefStep(
-            events=(
-                ChiefEvent("rejoined", self.state.round, sender=worker, detail=why, remaining=self.members),
-            )
-        )
+        return ChiefStep(events=self.state.rejoin(worker, why))
+
+    def _all_in(self) -> bool:
+        """Every member the open exchange waits for has answered."""
+        return self._waits.all_in(self.state.pace, self.state.members, self.state.step, self._pending)
 
     def _maybe_close(self, now: float) -> ChiefStep:
         if not self._pending and not self.state.members:
             return self._end("every worker dropped out")
-        if self._pending and self.state.members.issubset(self._pending):
+        if self._all_in():
             return self._close_round(now)
         return ChiefStep()
 
@@ -378,6 +361,8 @@ class Chief:
             self._aggregate, self.members, dict(self.state.completed), step=exchange, last_step=last_step
         )
         answers = {w: self._pending[w] for w in closed.answered}
+        self._waits.closed(self.state.pace, set(self.state.members), closed.answered, last_step)
+        answers = self._waits.averaged(self.state.pace, answers, exchange)
         answer = self.scheme.combine(answers, context)
         self.state.members.difference_update(answer.leave_w)
         self.state.left.update(answer.leave_w)
@@ -392,23 +377,32 @@ class Chief:
         if answer.kind == "transfer":
             self.state.transfers.append((rnd, str(answer.origin), remaining))
         event = answer_event(answer, replace(closed, remaining=remaining), self.aggregator_name)
+        if self.fleet_model is not None:  # the chief's copy steps as every worker does
+            self.fleet_model.apply(reply)
         self._pending = {}
         self.state.answers.broadcast(reply, self.all_workers, now)
         step = ChiefStep((reply,), (event,))
-        if not last_step and not answer.ends_run:  # the round's next exchange
-            self.state.step = exchange + 1
-            self._opened_at = now
-            return step
-        self.state.step = 0
+        self.state.step = exchange + 1 if not last_step and not answer.ends_run else 0  # the next exchange
         if answer.ends_run:
-            return step + self._end("every unit completed")
-        if not self.state.members or rnd >= self.max_rounds:
-            return step + self._end(
+            step += self._end("every unit completed")
+        elif self.state.step == 0 and (not self.state.members or rnd >= self.max_rounds):
+            step += self._end(
                 "W is empty" if not self.state.members else f"reached M={self.max_rounds} rounds"
             )
-        self.state.round = rnd + 1
+        elif self.state.step == 0:
+            self.state.round = rnd + 1
         self._opened_at = now
+        self._snapshot_fleet_model()  # also after the last answer: the model the fleet ended with
         return step
+
+    def _snapshot_fleet_model(self) -> None:
+        """A joining worker takes a per-step scheme's fleet model as it now is, at the open exchange."""
+        if self.fleet_model is None:
+            return
+        self.state.model = Message(
+            "welcome", self.run_id, CHIEF_ID, self.state.round, step=self.state.step, origin=CHIEF_ID,
+            flat=self.fleet_model.snapshot(),
+        )  # fmt: skip
 
     def _end(self, reason: str) -> ChiefStep:
         self.state.end_reason = reason

@@ -4,17 +4,22 @@ and the welcome or refusal of a joining worker. What it keeps of them is :mod:`.
 
 from __future__ import annotations
 
-from collections.abc import Iterable, Mapping
+from collections.abc import Collection, Iterable, Mapping
 from dataclasses import dataclass
 
 from fleetrl.federation.events import ChiefEvent, ChiefStep
-from fleetrl.federation.messages import Message, RoundConfig
+from fleetrl.federation.messages import Message, Reason, RoundConfig
 from fleetrl.federation.schemes import COMPLETED, Granularity, RoundAnswer, Scheme
 from fleetrl.federation.topics import CHIEF_ID, sorted_workers
 
 
 def check_round_rules(
-    scheme: Scheme, max_rounds: int, quorum: float, round_timeout: float | None, steps_per_round: int
+    scheme: Scheme,
+    max_rounds: int,
+    quorum: float,
+    round_timeout: float | None,
+    steps_per_round: int,
+    max_staleness: int | None = None,
 ) -> None:
     """Raise ValueError naming the first setting of a chief that cannot run (see :class:`Chief`)."""
     if max_rounds < 1:
@@ -23,16 +28,50 @@ def check_round_rules(
         raise ValueError(f"quorum must be in (0, 1], got {quorum}")
     if round_timeout is not None and not round_timeout > 0:
         raise ValueError(f"round_timeout must be > 0 seconds, got {round_timeout}")
-    if quorum < 1.0 and round_timeout is None:
-        raise ValueError("a quorum below 1 needs a round timeout (--round-timeout)")
+    if max_staleness is not None and max_staleness < 0:
+        raise ValueError(f"max_staleness must be >= 0 rounds, got {max_staleness}")
     per_step = scheme.granularity is Granularity.STEP
+    if quorum < 1.0 and round_timeout is None and not per_step:
+        raise ValueError(f"scheme {scheme.name!r}: a quorum below 1 needs a round timeout (--round-timeout)")
     if steps_per_round < 1 or (steps_per_round != 1 and not per_step):
         raise ValueError(
             f"steps_per_round = {steps_per_round}: scheme {scheme.name!r} sends "
             + ("per step (at least 1)" if per_step else "once per round (1)")
         )
-    if per_step and quorum < 1.0:
-        raise ValueError(f"scheme {scheme.name!r} averages every step: it needs every worker (quorum 1)")
+
+
+def admission(
+    message: Message,
+    scheme: Scheme,
+    workers: Collection[str],
+    steps_per_round: int,
+    open_at: tuple[int, int],
+    finished: bool,
+    left: Collection[str],
+    pending: Collection[str],
+) -> tuple[Reason, str] | None:
+    """Why the chief rejects a worker's round message (reason, detail), or None if it takes it for the open
+    exchange ``open_at`` (round, step; after the end: past the last one). Messages are keyed (sender, round,
+    step); ``left``: workers that left W for good; ``pending``: who answered the open exchange."""
+    sender, rnd, at = message.sender, message.round, (message.round, message.step)
+    if message.step >= steps_per_round:
+        return Reason.BAD_ROUND, f"step {message.step} of {steps_per_round} per round"
+    if not scheme.accepts(message.type):
+        return Reason.UNEXPECTED_TYPE, message.type
+    if sender not in workers:
+        return Reason.UNKNOWN_SENDER, f"round {rnd}"
+    if at < open_at:
+        reason = Reason.RUN_OVER if finished else Reason.STALE_ROUND
+        return reason, f"{where(*at)} before the open {where(*open_at)}"
+    if finished:
+        return Reason.RUN_OVER, f"round {rnd}"
+    if sender in left:
+        return Reason.NOT_IN_W, f"round {rnd}"
+    if at > open_at:
+        return Reason.FUTURE_ROUND, f"{where(*at)} > open {where(*open_at)}"
+    if sender in pending:
+        return Reason.DUPLICATE, f"{message.type} for round {rnd}"
+    return None
 
 
 @dataclass(frozen=True)
@@ -95,7 +134,7 @@ def welcome_step(
     welcome = Message(
         "welcome", run_id, CHIEF_ID, rnd,
         flat=model.flat if model else None, origin=model.origin if model else None, settings=dict(settings),
-        config=config,
+        config=config, step=model.step if model and model.round == rnd else 0,
     )  # fmt: skip
     detail = f"of round {rnd}" + (f" with θ* of {welcome.origin}" if welcome.origin else "")
     return ChiefStep((welcome,), (ChiefEvent("welcome", rnd, sender=worker, detail=detail),))

@@ -30,10 +30,12 @@ from fleetrl.federation.events import ChiefEvent, ChiefStep
 from fleetrl.federation.messages import Message, Reason
 from fleetrl.federation.schemes import get_scheme, scheme_reference
 from fleetrl.federation.signing import FleetKey
+from fleetrl.federation.stragglers import FleetPace
 from fleetrl.federation.topics import CHIEF_ID, sorted_workers
 
 if TYPE_CHECKING:
     from fleetrl.federation.chief import Chief
+    from fleetrl.federation.fleet_model import FleetModel
 
 STATE_VERSION = 2
 """Version of the state's fields; :func:`chief_from_state` refuses any other (2: the round's ``config`` and
@@ -130,6 +132,31 @@ class ChiefState:
     """(round, worker, reason) of every worker that left W without transferring"""
     rejoins: list[tuple[int, str]] = field(default_factory=list)
     """(round, worker) of every dropped worker that re-entered W"""
+    pace: FleetPace = field(default_factory=FleetPace)
+    """a per-step scheme's stragglers: who is behind, who took part in the open round, per member the
+    rounds closed without it and the contributions left out for their staleness"""
+
+    def drop(self, workers: Iterable[str], reason: str) -> tuple[ChiefEvent, ...]:
+        """``workers`` leave W (they may come back) for ``reason``; their events."""
+        events = []
+        for worker in workers:
+            self.members.discard(worker)
+            self.dropouts.append((self.round, worker, reason))
+            remaining = tuple(sorted_workers(self.members))
+            events.append(
+                ChiefEvent("dropped", self.round, sender=worker, detail=reason, remaining=remaining)
+            )
+        return tuple(events)
+
+    def rejoin(self, worker: str, why: str) -> tuple[ChiefEvent, ...]:
+        """``worker`` is heard from (``why``): no longer suspected, and back in W if it was dropped."""
+        self.suspects.pop(worker, None)
+        if worker in self.members or worker in self.left:
+            return ()
+        self.members.add(worker)
+        self.rejoins.append((self.round, worker))
+        remaining = tuple(sorted_workers(self.members))
+        return (ChiefEvent("rejoined", self.round, sender=worker, detail=why, remaining=remaining),)
 
     def fields(self) -> dict[str, Any]:
         """The JSON part (cheap: the runner compares it after every input)."""
@@ -150,6 +177,7 @@ class ChiefState:
             "completed": dict(sorted(self.completed.items())),
             "dropouts": [list(d) for d in self.dropouts],
             "rejoins": [list(r) for r in self.rejoins],
+            "pace": self.pace.fields(),
         }
 
     def tensors(self) -> dict[str, np.ndarray]:
@@ -184,6 +212,7 @@ class ChiefState:
             transfers=[(int(r), str(o), tuple(to)) for r, o, to in fields["transfers"]],
             dropouts=[(int(r), str(w), str(why)) for r, w, why in fields["dropouts"]],
             rejoins=[(int(r), str(w)) for r, w in fields["rejoins"]],
+            pace=FleetPace.from_fields(fields.get("pace")),
         )
 
 
@@ -199,6 +228,7 @@ def chief_config(chief: Chief) -> dict[str, Any]:
         "max_bytes": chief.max_bytes,
         "quorum": chief.quorum,
         "round_timeout": chief.round_timeout,
+        "max_staleness": chief.max_staleness,
         "resend_holdoff": chief.resend_holdoff,
         "dropout_grace": chief.dropout_grace,
         "signed": chief.key is not None,
@@ -231,12 +261,19 @@ def chief_to_state(chief: Chief) -> tuple[dict[str, Any], dict[str, np.ndarray]]
 
 
 def chief_from_state(
-    fields: dict[str, Any], tensors: dict[str, np.ndarray], *, key: FleetKey | None = None, now: float
+    fields: dict[str, Any],
+    tensors: dict[str, np.ndarray],
+    *,
+    key: FleetKey | None = None,
+    now: float,
+    fleet_model: FleetModel | None = None,
 ) -> Chief:
     """The chief as it was when ``fields``/``tensors`` were taken, its open round starting at ``now``.
 
     :param key: the fleet key; required if and only if the saved chief had one.
     :param now: the current time of the clock the restored chief will be driven with.
+    :param fleet_model: a per-step scheme's fleet model (built as for the chief that wrote the state); it
+        is set to the saved one.
     :raises ValueError: another state version, or a key where there was none (or the reverse).
     """
     from fleetrl.federation.chief import Chief  # the chief's module imports this one for ChiefState
@@ -258,7 +295,9 @@ def chief_from_state(
         fields, tensors, run_id=config["run_id"], holdoff=config["resend_holdoff"],
         grace=config["dropout_grace"], now=now,
     )  # fmt: skip
-    return Chief(**config, scheme=scheme, key=key, state=state, now=now)
+    if fleet_model is not None and state.model is not None and state.model.flat is not None:
+        fleet_model.load(state.model.flat)
+    return Chief(**config, scheme=scheme, key=key, state=state, now=now, fleet_model=fleet_model)
 
 
 def replay_last_answer(chief: Chief) -> ChiefStep:

@@ -12,11 +12,12 @@ all roles must share, in ``join`` and ``welcome``), ``detail`` (str: why, in ``r
 ≥ 0: the transitions a worker's contribution stands for; a chief's answer: those of its contributors),
 ``units`` (int ≥ 0: the units it stands for, 1 for a worker of one unit), ``config`` (map str → finite
 number or short str: what the chief asks of every worker for the round the message opens, the scheme's
-``configure``), ``tensors`` (list of ``[name, shape]``) and ``data`` (bin: the tensors concatenated in that
-order as little-endian float32).
+``configure``), ``staleness`` (int ≥ 0: how many rounds the fleet moved on while the worker played what it
+contributes; 0: it played the round it answers), ``tensors`` (list of ``[name, shape]``) and ``data``
+(bin: the tensors concatenated in that order as little-endian float32).
 
 Version 2 added ``step``, ``settings``, ``detail`` and the ``join`` / ``refused`` types; version 3 added
-``samples``, ``units`` and ``config``, and a scheme's own round-message type.
+``samples``, ``units`` and ``config``, and a scheme's own round-message type; version 4 added ``staleness``.
 
 :func:`decode` validates all of it and raises :class:`MessageRejected` with a :class:`Reason` for anything
 wrong; it never raises anything else, whatever the bytes.
@@ -64,7 +65,7 @@ __all__ = [
     "layout_size",
 ]
 
-VERSION = 3
+VERSION = 4
 """Envelope version; a receiver rejects any other."""
 
 Layout = Sequence[tuple[str, tuple[int, ...]]]
@@ -109,6 +110,7 @@ _KEYS = frozenset(
         "samples",
         "units",
         "config",
+        "staleness",
         "tensors",
         "data",
     }
@@ -145,6 +147,7 @@ class Message:
     :param samples: the transitions the message's contribution stands for (0: not counted).
     :param units: the units it stands for (a worker of one unit: 1).
     :param config: what the chief asks of every worker for the round this message opens.
+    :param staleness: rounds the fleet moved on while the worker played what it contributes (0: none).
     :param version: envelope version.
     """
 
@@ -163,6 +166,7 @@ class Message:
     samples: int = 0
     units: int = 1
     config: RoundConfig = field(default_factory=dict)
+    staleness: int = 0
     version: int = VERSION
 
     def tensors(self, layout: Layout) -> dict[str, np.ndarray]:
@@ -220,6 +224,7 @@ def envelope(message: Message, *, layout: Layout) -> dict[str, Any]:
         "samples": message.samples,
         "units": message.units,
         "config": {str(k): v if isinstance(v, str) else float(v) for k, v in message.config.items()},
+        "staleness": message.staleness,
         "tensors": tensors,
         "data": data,
     }
@@ -332,6 +337,7 @@ def decode(
         samples=samples,
         units=units,
         config=config,
+        staleness=check_count(env["staleness"], "staleness"),
     )
 
 

@@ -168,8 +168,9 @@ class ApplyAverage:
 class PlayRound:
     """Play round ``round`` (``learner.play_round``) and report it with
     :meth:`~fleetrl.federation.worker_machine.WorkerMachine.round_played` — for a per-round scheme with what
-    ``scheme.outgoing`` shares; a per-step scheme's update reports through ``update_begun`` and
-    ``step_computed`` first. A per-round scheme's ``local_loss(agent, config)`` is installed before it."""
+    ``scheme.outgoing`` shares; a per-step scheme's round reports its episodes with ``round_collected``
+    and its update through ``update_begun`` and ``step_computed`` first. A per-round scheme's
+    ``local_loss(agent, config)`` is installed before it."""
 
     round: int
     config: RoundConfig = field(default_factory=dict)
@@ -182,6 +183,22 @@ class ComputeStep:
     :meth:`~fleetrl.federation.worker_machine.WorkerMachine.step_computed`."""
 
     step: int
+
+
+@dataclass(frozen=True)
+class BeginUpdate:
+    """A per-step round's episodes are played and the worker joins an exchange: ``agent.begin_update()``
+    (no steps if the learner does not update this round) and report it with
+    :meth:`~fleetrl.federation.step_worker.StepWorkerMachine.update_begun`."""
+
+
+@dataclass(frozen=True)
+class ApplyFleetStep:
+    """``scheme.catch_up_step(agent, step, flat)``: an answer of the fleet's step ``step`` taken while this
+    worker had no update under way (it was behind)."""
+
+    step: int
+    flat: np.ndarray
 
 
 @dataclass(frozen=True)
@@ -238,8 +255,10 @@ WorkerOutput = (
     | TakeParameters
     | ApplyAverage
     | PlayRound
+    | BeginUpdate
     | ComputeStep
     | ApplyStep
+    | ApplyFleetStep
     | EndUpdate
     | Record
     | Checkpoint

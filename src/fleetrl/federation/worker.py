@@ -45,7 +45,9 @@ from fleetrl.federation.messages import Layout, RoundConfig
 from fleetrl.federation.rounds import (
     Announce,
     ApplyAverage,
+    ApplyFleetStep,
     ApplyStep,
+    BeginUpdate,
     Checkpoint,
     ComputeStep,
     EndUpdate,
@@ -65,8 +67,8 @@ from fleetrl.federation.schemes import RoundScheme, Scheme, StepScheme, resolve_
 from fleetrl.federation.schemes.base import LocalTraining
 from fleetrl.federation.shared_settings import SettingsRefused, SharedSettings
 from fleetrl.federation.signing import FleetKey
+from fleetrl.federation.step_worker import StepWorkerMachine, worker_machine
 from fleetrl.federation.topics import OFFLINE, validate_id, validate_worker_id
-from fleetrl.federation.worker_machine import WorkerMachine
 from fleetrl.transport.base import Transport, Will
 
 __all__ = ["FederatedRound", "FederatedWorker", "RoundPlayer", "WorkerSummary"]
@@ -136,12 +138,13 @@ class FederatedWorker:
         self.clock = clock
         self.scheme = resolve_scheme(scheme)
         self.layout: Layout = list(self.scheme.layout(learner.agent))
-        self.machine = WorkerMachine(
+        self.machine = worker_machine(
+            scheme=self.scheme,
+            steps_per_round=self.scheme.exchanges_per_round(learner.agent),
             run_id=self.run_id,
             worker_id=self.worker_id,
             max_rounds=max_rounds,
             layout=self.layout,
-            scheme=self.scheme,
             welcome_layout=self.scheme.welcome_layout(learner.agent),
             settings=settings,
             key=key,
@@ -213,9 +216,15 @@ class FederatedWorker:
                 self.scheme.apply_average(agent, flat, completed=completed, contributed=contributed)
             case PlayRound(_, config):
                 self._play_round(config)
+            case BeginUpdate():  # a per-step round joins the fleet's exchange: line 11
+                steps = agent.begin_update() if self._played.updates else 0
+                self._queue.extend(self._step_machine.update_begun(steps, now=self.clock()).outputs)
+            case ApplyFleetStep(k, flat):  # behind the fleet: its step, taken outside an update
+                assert isinstance(self.scheme, StepScheme), "step answers come to a per-step scheme"
+                self.scheme.catch_up_step(agent, k, flat)
             case ComputeStep(k):  # a per-step round: step k's gradient to the chief
                 flat = agent.step_gradients(k)
-                self._queue.extend(self.machine.step_computed(k, flat, now=self.clock()).outputs)
+                self._queue.extend(self._step_machine.step_computed(k, flat, now=self.clock()).outputs)
             case ApplyStep(flat):  # the chief's combination: the agent steps and takes the next gradient
                 assert isinstance(self.scheme, StepScheme), "step answers come to a per-step scheme"
                 self.scheme.apply_step_answer(agent, flat)
@@ -246,9 +255,15 @@ class FederatedWorker:
             self._queue.extend(self.machine.round_played(result, now=self.clock(), share=share).outputs)
             return
         self._played = self.learner.begin_round()
-        steps = agent.begin_update() if self._played.updates else 0
-        begun = self.machine.update_begun(steps, completed=bool(self.learner.completed), now=self.clock())
-        self._queue.extend(begun.outputs)
+        completed = bool(self.learner.completed)
+        collected = self._step_machine.round_collected(completed=completed, now=self.clock())
+        self._queue.extend(collected.outputs)
+
+    @property
+    def _step_machine(self) -> StepWorkerMachine:
+        """The machine of a per-step scheme's worker (its actions come to no other)."""
+        assert isinstance(self.machine, StepWorkerMachine), "per-step actions come to a per-step scheme"
+        return self.machine
 
     def _end_round(self) -> None:
         """Every step of a per-step round was applied: finish the update and report the round."""

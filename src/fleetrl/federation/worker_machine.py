@@ -16,9 +16,9 @@ welcome whose settings differ, or a ``refused`` naming this worker, ends in ``Re
 (``start_round``: a welcome for that round or the next keeps the learner's state, a later one rejoins taking
 the welcome's parameters, an earlier one is an error); a round (play, send, wait for the answer of that round
 or a later one, apply it, record, then catch up with later answers already queued; re-send every
-``resend_interval``, ``TimedOut`` after ``reply_timeout``); a per-step scheme exchanges each of the update's
-K steps like a round, keyed (round, step), and ``done`` or a later step's answer inside the round ends the
-worker's run without a record.
+``resend_interval``, ``TimedOut`` after ``reply_timeout``). A per-step scheme's worker is
+:class:`~fleetrl.federation.step_worker.StepWorkerMachine`
+(:func:`~fleetrl.federation.step_worker.worker_machine` picks the machine a scheme needs).
 """
 
 from __future__ import annotations
@@ -44,7 +44,7 @@ from fleetrl.federation.rounds import (
     answer_for,
     resume_round,
 )
-from fleetrl.federation.schemes import COMPLETED, Granularity, Scheme
+from fleetrl.federation.schemes import Scheme
 from fleetrl.federation.shared_settings import SharedSettings, settings_difference
 from fleetrl.federation.signing import FleetKey, status_payload
 from fleetrl.federation.topics import CHIEF_ID, OFFLINE, ONLINE, chief_topic, status_topic, worker_topic
@@ -60,19 +60,27 @@ NOTHING = WorkerStep()
 
 
 class Phase(Enum):
-    """Where the worker is: waiting for the chief (``WELCOME``, ``ANSWER``, ``STEP_ANSWER``), for the runner
-    (``PLAYING`` a round, a per-step update's ``COMPUTING`` a step, ``STEPS_DONE``: finishing the round), or
-    applying later answers already queued (``CATCH_UP``)."""
+    """Where the worker is: waiting for the chief (``WELCOME``, ``ANSWER``, ``STEP_ANSWER``, a per-step
+    straggler's ``WAIT_ROUND``), for the runner (``PLAYING`` a round, a per-step update's ``JOINING``,
+    ``COMPUTING`` a step, ``STEPS_DONE``: finishing the round), or applying answers already queued
+    (``CATCH_UP`` after a round, a per-step worker's ``DRAIN`` before its update)."""
 
     NEW = auto()
     WELCOME = auto()
     PLAYING = auto()
+    DRAIN = auto()
+    WAIT_ROUND = auto()
+    JOINING = auto()
     COMPUTING = auto()
     STEP_ANSWER = auto()
     STEPS_DONE = auto()
     ANSWER = auto()
     CATCH_UP = auto()
     DONE = auto()
+
+
+QUEUED = (Phase.CATCH_UP, Phase.DRAIN)
+"""phases that read only what is already queued (due at once)"""
 
 
 @dataclass
@@ -104,6 +112,10 @@ class WorkerMachine:
     :param incarnation: this process's incarnation (newer than any earlier one with the same id).
     """
 
+    current_model = False
+    """a welcome from the chief (origin ``chief``) carries the fleet's model as it is now (a per-step
+    scheme's chief keeps it), not only its start"""
+
     def __init__(
         self,
         *,
@@ -127,7 +139,6 @@ class WorkerMachine:
         self.layout: Layout = list(layout)
         self.welcome_layout: Layout = list(layout if welcome_layout is None else welcome_layout)
         self.round_message = scheme.round_message
-        self.per_step = scheme.granularity is Granularity.STEP
         self.settings: dict[str, str] = dict(settings or {})
         self.key = key
         self.reply_timeout = reply_timeout
@@ -144,10 +155,6 @@ class WorkerMachine:
         self.summary: WorkerSummary | None = None
         self._wait: _Wait | None = None
         self._outcome: RoundResult | None = None
-        self._steps = 0
-        self._step = 0
-        self._step_kind = ""
-        self._last_answer: Message | None = None
         self._caught_up_to = 0
         self._config: RoundConfig = {}  # the chief's configuration for the next round played
 
@@ -189,33 +196,25 @@ class WorkerMachine:
             return NOTHING
         if message.type == "refused":
             return self._refused(message.detail) if self.worker_id in message.finished else NOTHING
-        if self.phase is Phase.CATCH_UP:
-            return self._catch_up(message)
+        if self._wait is None and self.phase is not Phase.WELCOME:
+            return self._between(message, now)
         if self._wait is None or not self._wait.wanted(message):
             log.debug("worker %s: ignoring %s of round %d", self.worker_id, message.type, message.round)
             return NOTHING
         self._wait = None
         if self.phase is Phase.WELCOME:
             return self._welcomed(message)
-        if self.phase is Phase.STEP_ANSWER:
-            return self._step_answered(message)
         return self._answered(message)
 
     def tick(self, *, now: float) -> WorkerStep:
         """Time passed with nothing received: re-send, time out, or (catching up) nothing more is queued."""
-        if self.phase is Phase.CATCH_UP:
-            nxt = self._caught_up_to + 1
-            return WorkerStep((act.Checkpoint(nxt),)) + self._begin_round(nxt)
+        if self.phase in QUEUED:
+            return self._queue_read(now)
         wait = self._wait
         if wait is None:
             return NOTHING
         if wait.deadline is not None and now >= wait.deadline:
-            self.phase = Phase.DONE
-            self._wait = None
-            return WorkerStep((act.TimedOut(
-                f"worker {self.worker_id}: nothing from the chief of run {self.run_id!r} for "
-                f"{self.reply_timeout:g} s (--reply-timeout) while waiting for {wait.what}"
-            ),))  # fmt: skip
+            return self._timed_out(wait.what)
         if wait.next_send is None or now < wait.next_send:
             return NOTHING
         log.info("worker %s: nothing yet; re-sending while waiting for %s", self.worker_id, wait.what)
@@ -227,7 +226,7 @@ class WorkerMachine:
 
     def next_deadline(self) -> float | None:
         """When :meth:`tick` is due (None: only a message or a report moves the machine)."""
-        if self.phase is Phase.CATCH_UP:
+        if self.phase in QUEUED:
             return -math.inf  # due at once: only what is already queued is read
         if self._wait is None:
             return None
@@ -245,10 +244,6 @@ class WorkerMachine:
         self, outcome: RoundResult, *, now: float, share: tuple[str, np.ndarray] | None = None
     ) -> WorkerStep:
         """The round was played; ``share``: what a per-round scheme sends (``scheme.outgoing``)."""
-        if self.per_step:
-            if self.phase is not Phase.STEPS_DONE or self._last_answer is None:
-                raise RuntimeError(f"worker {self.worker_id}: round {self.round} ended without its steps")
-            return self._step_round_over(outcome, self._last_answer)
         if self.phase is not Phase.PLAYING or share is None:
             raise RuntimeError(f"worker {self.worker_id}: round {self.round} reported out of turn")
         kind, flat = share
@@ -266,27 +261,6 @@ class WorkerMachine:
         )
         return self._send(message, answer_for(self.round), f"the chief's answer for round {self.round}", now)
 
-    def update_begun(self, steps: int, *, completed: bool, now: float) -> WorkerStep:
-        """A per-step scheme's update has ``steps`` steps; ``completed``: the criterion holds."""
-        if self.phase is not Phase.PLAYING:
-            raise RuntimeError(f"worker {self.worker_id}: an update began out of turn")
-        self._steps, self._step = steps, 0
-        self._step_kind = COMPLETED if completed else self.round_message
-        if steps == 0:
-            self.phase = Phase.STEPS_DONE
-            return WorkerStep((act.EndUpdate(),))
-        self.phase = Phase.COMPUTING
-        return WorkerStep((act.ComputeStep(0),))
-
-    def step_computed(self, step: int, flat: np.ndarray, *, now: float) -> WorkerStep:
-        """The gradients of step ``step``: send them and wait for the chief's answer."""
-        if self.phase is not Phase.COMPUTING or step != self._step:
-            raise RuntimeError(f"worker {self.worker_id}: step {step} reported out of turn")
-        self.phase = Phase.STEP_ANSWER
-        message = Message(self._step_kind, self.run_id, self.worker_id, self.round, step=step, flat=flat)
-        what = f"the chief's answer for round {self.round} step {step}"
-        return self._send(message, answer_for(self.round, step), what, now)
-
     # ---- the rules ----
 
     def _welcomed(self, welcome: Message) -> WorkerStep:
@@ -298,7 +272,8 @@ class WorkerMachine:
         resume = resume_round(self.start_round, welcome.round, self.worker_id)
         out: tuple[WorkerOutput, ...] = ()
         # joining: start from the fleet's model, or its start (origin: the chief) unless resumed with its own
-        fleet_start = welcome.origin == CHIEF_ID and self.start_round is not None
+        # (a chief that keeps the fleet's model hands it as it is: taken whenever rounds were missed)
+        fleet_start = welcome.origin == CHIEF_ID and self.start_round is not None and not self.current_model
         if welcome.flat is not None and resume is None and not fleet_start:
             out = (act.TakeParameters(welcome.flat),)
         self._config = dict(welcome.config)
@@ -309,7 +284,7 @@ class WorkerMachine:
         if rnd > self.max_rounds:
             reason = f"reached M={self.max_rounds}"
             return self._finish(WorkerSummary(self.worker_id, self.max_rounds, finished=False, reason=reason))
-        self.round, self.phase, self._last_answer = rnd, Phase.PLAYING, None
+        self.round, self.phase = rnd, Phase.PLAYING
         return WorkerStep((act.PlayRound(rnd, self._config),))
 
     def _answered(self, reply: Message) -> WorkerStep:
@@ -338,28 +313,6 @@ class WorkerMachine:
             event = WorkerEvent.COMPLETED if completed else Sent(self.round_message)
         return applied + self._round_over(self._outcome, reply, event, None, self.worker_id in reply.finished)
 
-    def _step_answered(self, reply: Message) -> WorkerStep:
-        if reply.type == "done" or (reply.round, reply.step) != (self.round, self._step):
-            # the run ended (or went on without us) inside the round
-            why = "run ended" if reply.type == "done" else "out of step with the fleet"
-            return self._finish(WorkerSummary(self.worker_id, self.round - 1, finished=False, reason=why))
-        if reply.flat is None:
-            raise AssertionError("decode guarantees tensors for an average")
-        self._last_answer = reply
-        self._step += 1
-        if self._step < self._steps:
-            self.phase = Phase.COMPUTING
-            return WorkerStep((act.ApplyStep(reply.flat), act.ComputeStep(self._step)))
-        self.phase = Phase.STEPS_DONE
-        return WorkerStep((act.ApplyStep(reply.flat), act.EndUpdate()))
-
-    def _step_round_over(self, outcome: RoundResult, reply: Message) -> WorkerStep:
-        """A per-step scheme's round (every step's answer is applied already)."""
-        if reply.type == "done":
-            return self._round_over(outcome, reply, WorkerEvent.RUN_ENDED, None, True)
-        event = WorkerEvent.COMPLETED if outcome.completed else Sent(self.round_message)
-        return self._round_over(outcome, reply, event, None, self.worker_id in reply.finished)
-
     def _round_over(
         self, outcome: RoundResult, reply: Message, event: RoundEvent, peer: str | None, leave: bool
     ) -> WorkerStep:
@@ -382,6 +335,20 @@ class WorkerMachine:
             return recorded + self._finish(summary)
         self.phase, self._caught_up_to = Phase.CATCH_UP, reply.round
         return recorded
+
+    def _between(self, message: Message, now: float) -> WorkerStep:
+        """A chief message while no answer is awaited: after a round, an answer of a later round already
+        queued (the chief moved on without us) is applied."""
+        del now
+        if self.phase is not Phase.CATCH_UP:
+            return NOTHING
+        return self._catch_up(message)
+
+    def _queue_read(self, now: float) -> WorkerStep:
+        """Nothing more is queued: the round after the last answer applied is played."""
+        del now
+        nxt = self._caught_up_to + 1
+        return WorkerStep((act.Checkpoint(nxt),)) + self._begin_round(nxt)
 
     def _catch_up(self, message: Message) -> WorkerStep:
         """Apply an answer of a later round already queued (the chief moved on without us)."""
@@ -409,6 +376,13 @@ class WorkerMachine:
         next_send = None if self.resend_interval is None else now + self.resend_interval
         self._wait = _Wait(wanted, what, publish, deadline, next_send)
         return WorkerStep((publish,))
+
+    def _timed_out(self, what: str) -> WorkerStep:
+        self.phase, self._wait = Phase.DONE, None
+        return WorkerStep((act.TimedOut(
+            f"worker {self.worker_id}: nothing from the chief of run {self.run_id!r} for "
+            f"{self.reply_timeout:g} s (--reply-timeout) while waiting for {what}"
+        ),))  # fmt: skip
 
     def _finish(self, summary: WorkerSummary) -> WorkerStep:
         self.phase, self._wait, self.summary = Phase.DONE, None, summary

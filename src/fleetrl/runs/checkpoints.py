@@ -66,12 +66,14 @@ class ChiefCheckpoint:
 
         :param key: the run's fleet key (required if and only if the run was signed).
         :param expect: a chief built from the current command line; any setting that differs from the
-            checkpoint's is an error (a run resumes with the settings it started with).
+            checkpoint's is an error (a run resumes with the settings it started with). Its fleet model
+            (a per-step scheme's) is set to the saved one and kept by the resumed chief.
         :raises FileNotFoundError: no checkpoint in the directory
         :raises ValueError: a corrupt checkpoint, or settings that differ
         """
         fields, tensors = self.store.load()
-        chief = chief_from_state(fields, tensors, key=key, now=now)
+        model = None if expect is None else expect.fleet_model
+        chief = chief_from_state(fields, tensors, key=key, now=now, fleet_model=model)
         if expect is not None:
             _same_settings(chief_config(chief), chief_config(expect), "chief")
         log.info(

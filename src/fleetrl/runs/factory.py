@@ -9,6 +9,7 @@ from fleetrl.agent.lazy_dynamo import defer_dynamo_import
 from fleetrl.agent.learner import Learner
 from fleetrl.agent.ppo import PPOAgent
 from fleetrl.envs.catalog import describe_env, get_env_spec
+from fleetrl.envs.paced import PacedEnv
 from fleetrl.envs.spaces import UnitDescription
 from fleetrl.link.mqtt import MqttLink, open_mqtt_link
 from fleetrl.runs.spec import WorkerSpec
@@ -50,6 +51,9 @@ def make_learner(spec: WorkerSpec, device_transport: Transport | None = None) ->
     Under a scheme whose mature workers stay in the federation (``fedavg``) the learner keeps learning after
     its criterion holds; under one that needs a shared start (``pergrad``) every worker's network starts from
     the one the run's seed draws (its actions and windows still come from its own seed).
+
+    A unit paced in real time (``spec.uneven.step_seconds``) has its env wrapped in a
+    :class:`~fleetrl.envs.paced.PacedEnv`.
     """
     torch.set_num_threads(1)
     learning = spec.learning
@@ -60,6 +64,8 @@ def make_learner(spec: WorkerSpec, device_transport: Transport | None = None) ->
     else:  # the device bridge draws the unit (with the same fleet profile)
         link = bridge_link(learning.env, spec.device_url, spec.device_run_id, spec.unit, device_transport)
         env, unit = env_spec.make(spec.unit, learning.fleet_seed, link=link)
+    if spec.uneven is not None and spec.uneven.step_seconds is not None:
+        env = PacedEnv(env, spec.uneven.step_seconds)
     agent = agent_for(unit, config, seed=spec.worker_seed)
     scheme = learning.federation_scheme()
     if scheme.shared_start:  # every worker from the same initial network: the run's, not its own

@@ -23,10 +23,11 @@ from typing import Any
 
 import numpy as np
 
-from fleetrl.envs.catalog import ENV_SPECS, describe_env
+from fleetrl.envs.catalog import ENV_SPECS, describe_env, get_env_spec
 from fleetrl.federation.chief import Chief
+from fleetrl.federation.fleet_model import FleetModel
 from fleetrl.federation.runner import ChiefSummary, run_chief
-from fleetrl.federation.schemes.base import FleetStart
+from fleetrl.federation.schemes.base import FleetStart, StepScheme
 from fleetrl.federation.shared_settings import shared_text
 from fleetrl.runs.factory import agent_for, make_learner, probe_agent
 from fleetrl.runs.fleet import Fleet, ThreadFleet, follow
@@ -55,7 +56,8 @@ def demo_settings(out: Path, seed: int = 0) -> RunSettings:
 
 
 def worker_specs(settings: RunSettings, device_url: str | None, run_id: str) -> dict[int, WorkerSpec]:
-    """One spec per worker; worker K trains unit K of the fleet."""
+    """One spec per worker; worker K trains unit K of the fleet (uneven as the settings make it)."""
+    period = get_env_spec(settings.learning.env).control_period
     return {
         k: WorkerSpec(
             worker=k,
@@ -64,27 +66,31 @@ def worker_specs(settings: RunSettings, device_url: str | None, run_id: str) -> 
             out=str(settings.out),
             device_url=device_url,
             device_run_id=run_id,
+            uneven=settings.uneven.for_worker(k, period),
         )
         for k in range(settings.units)
     }
 
 
-def fleet_start(learning: LearningSettings) -> FleetStart | None:
-    """The fleet's start under a scheme whose fleet is one policy (``shared_start``), which the chief hands
-    every joining worker: the network the settings' learning seed draws, exactly as
-    :func:`~fleetrl.runs.factory.make_learner` draws it for a worker; None for another scheme."""
+def fleet_model(learning: LearningSettings) -> FleetModel | None:
+    """The fleet's model the chief keeps under a per-step scheme whose fleet is one policy (``shared_start``):
+    an agent built as :func:`~fleetrl.runs.factory.make_learner` builds a worker's, at the network the
+    settings' learning seed draws (the fleet's start); None for another scheme. Torch is set to one thread
+    in this process, as in every worker (the initialisation's QR differs with the threads)."""
     scheme = learning.federation_scheme()
-    if not scheme.shared_start:
+    if not scheme.shared_start or not isinstance(scheme, StepScheme):
         return None
     import torch
 
-    threads = torch.get_num_threads()
-    torch.set_num_threads(1)  # as make_learner draws it: the initialisation's QR differs with the threads
-    try:
-        agent = agent_for(describe_env(learning.env), learning.ppo(), seed=learning.seed)
-    finally:
-        torch.set_num_threads(threads)
-    return FleetStart(scheme.welcome_layout(agent), scheme.start_parameters(agent))
+    torch.set_num_threads(1)
+    return FleetModel(scheme, agent_for(describe_env(learning.env), learning.ppo(), seed=learning.seed))
+
+
+def fleet_start(learning: LearningSettings) -> FleetStart | None:
+    """The fleet's start under a scheme whose fleet is one policy, which the chief hands every joining
+    worker before the fleet has learnt anything (:func:`fleet_model`'s first snapshot); None otherwise."""
+    model = fleet_model(learning)
+    return None if model is None else FleetStart(model.layout, model.snapshot())
 
 
 def train(settings: RunSettings) -> dict[str, Any]:
@@ -232,10 +238,11 @@ def train_federated(
         max_rounds=settings.learning.max_rounds,
         aggregator=settings.aggregation,
         scheme=settings.learning.federation_scheme(),
-        quorum=settings.quorum,
+        quorum=settings.chief_quorum,
         round_timeout=settings.round_timeout,
+        max_staleness=settings.max_staleness,
         settings=shared_text(settings.learning),
-        start=fleet_start(settings.learning),
+        fleet_model=fleet_model(settings.learning),
     )
     make_transport, fleet_for = transports(settings, url, specs, run_id)
     outcome: dict[str, ChiefSummary | BaseException] = {}

@@ -1,18 +1,22 @@
 """The live terminal view: one row per worker with its round, score, WMA and state.
 
 On a terminal it is a ``rich`` table redrawn in place; elsewhere (CI, a pipe) it prints one plain progress
-line every few seconds, so logs stay readable.
+line every few seconds, so logs stay readable. A disabled view (``--no-live``) does not import ``rich``.
 """
+
+from __future__ import annotations
 
 import math
 import time
 from types import TracebackType
-
-from rich.console import Console
-from rich.live import Live
-from rich.table import Table
+from typing import TYPE_CHECKING
 
 from fleetrl.runs.rundir import WorkerProgress
+
+if TYPE_CHECKING:
+    from rich.console import Console
+    from rich.live import Live
+    from rich.table import Table
 
 
 def _fmt(value: float) -> str:
@@ -31,15 +35,21 @@ class LiveView:
         self.title = title
         self.threshold = threshold
         self.enabled = enabled
-        self.console = Console(stderr=True)
-        if not self.console.is_terminal:
-            self.console.width = 200  # one progress line per update in logs, not wrapped at 80
+        self.console: Console | None = None
+        if enabled:
+            from rich.console import Console
+
+            self.console = Console(stderr=True)
+            if not self.console.is_terminal:
+                self.console.width = 200  # one progress line per update in logs, not wrapped at 80
         self._live: Live | None = None
         self._last_plain = 0.0
         self._plain_every = 5.0
 
-    def __enter__(self) -> "LiveView":
-        if self.enabled and self.console.is_terminal:
+    def __enter__(self) -> LiveView:
+        if self.console is not None and self.console.is_terminal:
+            from rich.live import Live
+
             self._live = Live(console=self.console, refresh_per_second=4, transient=False)
             self._live.__enter__()
         return self
@@ -53,6 +63,8 @@ class LiveView:
 
     def table(self, progress: dict[int, WorkerProgress], elapsed: float) -> Table:
         """The table as it stands."""
+        from rich.table import Table
+
         table = Table(title=f"{self.title}  ·  {elapsed:.0f} s", title_justify="left")
         for column in ("worker", "round", "score", f"WMA (→ {self.threshold:g})", "state", "last event"):
             table.add_column(column, justify="right" if column != "state" else "left")
@@ -69,7 +81,7 @@ class LiveView:
 
     def update(self, progress: dict[int, WorkerProgress], elapsed: float, force: bool = False) -> None:
         """Redraw (terminal) or print a progress line at most every few seconds (elsewhere)."""
-        if not self.enabled:
+        if self.console is None:
             return
         if self._live is not None:
             self._live.update(self.table(progress, elapsed))

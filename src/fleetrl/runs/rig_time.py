@@ -5,7 +5,9 @@ A simulated run costs rounds; a fleet of real units costs time, each step one co
 
 * **synchronous** (every federation scheme of fleetrl today): a round closes when its last member has played
   its episode, so round r lasts as long as the longest episode played in it, ``max_w steps[w][r] × period``;
-  a unit has spent the rounds up to the one in which its criterion held;
+  a unit has spent the rounds up to the one in which its criterion held (under a quorum a straggler's
+  episodes count in the round it contributed to, and a round the fleet closed without it lasts as long as
+  its members' episodes);
 * **alone** (each unit trains by itself): a unit plays its episodes back to back, ``Σ_r steps[u][r] ×
   period``; the fleet is done when its slowest unit is.
 
@@ -44,16 +46,21 @@ class RigTime:
         }
 
 
+def _by_round(played: Mapping[int, int] | Sequence[int]) -> dict[int, int]:
+    """Round → steps (a sequence: rounds 1, 2, … in order)."""
+    return dict(played) if isinstance(played, Mapping) else {i + 1: s for i, s in enumerate(played)}
+
+
 def rig_time(
-    steps: Mapping[str, Sequence[int]],
+    steps: Mapping[str, Mapping[int, int] | Sequence[int]],
     completed_at: Mapping[str, int | None],
     period: float,
     rule: WaitingRule,
 ) -> RigTime:
     """The time on the rigs of one run.
 
-    :param steps: unit → the steps of each round it played (round 1 first; a unit that left the fleet has
-        fewer rounds than the others).
+    :param steps: unit → the steps of each round it played: round → steps, or a sequence for rounds 1, 2, …
+        (a unit that left the fleet, or a straggler, has fewer rounds than the others).
     :param completed_at: unit → the round in which its criterion held, None if it never did.
     :param period: seconds per step (the unit type's control period).
     :param rule: who waits for whom.
@@ -62,18 +69,23 @@ def rig_time(
         raise ValueError(f"control period {period!r}: must be > 0")
     if set(steps) != set(completed_at):
         raise ValueError(f"units with steps {sorted(steps)} != units with completions {sorted(completed_at)}")
+    by_round = {unit: _by_round(played) for unit, played in steps.items()}
     last: dict[str, int] = {}
-    for unit, played in steps.items():
+    for unit, played in by_round.items():
         done = completed_at[unit]
-        last[unit] = len(played) if done is None else done
-        if last[unit] > len(played):
-            raise ValueError(f"unit {unit} completed at round {last[unit]} but played {len(played)} rounds")
+        last[unit] = max(played, default=0) if done is None else done
+        if last[unit] > max(played, default=0):
+            raise ValueError(
+                f"unit {unit} completed at round {last[unit]} but played up to round {max(played, default=0)}"
+            )
     if rule == "alone":
-        per_unit = {u: sum(rounds[: last[u]]) * period for u, rounds in steps.items()}
+        per_unit = {
+            u: sum(s for r, s in played.items() if r <= last[u]) * period for u, played in by_round.items()
+        }
         fleet = max(per_unit.values(), default=0.0)
     elif rule == "synchronous":
         rounds = max(last.values(), default=0)
-        durations = [max((r[i] for r in steps.values() if i < len(r)), default=0) for i in range(rounds)]
+        durations = [max((p.get(i + 1, 0) for p in by_round.values()), default=0) for i in range(rounds)]
         elapsed = [0.0]
         for duration in durations:
             elapsed.append(elapsed[-1] + duration * period)

@@ -25,6 +25,7 @@ from fleetrl.runs.settings import (
     resolve_and_probe,
 )
 from fleetrl.runs.spec import WorkerSpec
+from fleetrl.runs.uneven import UnevenFleet
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -103,7 +104,7 @@ class ChiefSettings(RoleSettings, RoundRules):
         """A new value with every default filled in; SettingError naming the first setting that cannot
         work. Nothing is created."""
         learning, shape = self.resolved_learning()
-        self.check_rounds(learning, shape)
+        quorum = self.resolved_quorum(learning, shape)
         if self.workers < 1:
             raise SettingError(f"{label('workers')} = {self.workers}: must be at least 1")
         positive("idle_timeout", self.idle_timeout)
@@ -113,7 +114,7 @@ class ChiefSettings(RoleSettings, RoundRules):
                 raise SettingError(f"--resume needs {label('out')}: the directory holding the checkpoint")
         else:
             check_writable_dir("out", self.out)
-        return replace(self, learning=learning)
+        return replace(self, learning=learning, quorum=quorum)
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -135,6 +136,9 @@ class WorkerSettings(RoleSettings):
     device_link: str = "inprocess"
     """``inprocess``: the unit is simulated in this process; ``mqtt``: the unit is driven through its device
     bridge (``fleetrl device --run-id RUN --unit K``) on the same broker, with this worker's login"""
+    uneven: UnevenFleet = field(default_factory=UnevenFleet)
+    """how this simulated unit is uneven (``--pace``, ``--slow wK=F``, ``--link-delay wK=S``, ``--absent``,
+    ``--absent-rounds``; a table's entries for other workers are not this one's)"""
 
     def resolved(self) -> WorkerSettings:
         """A new value with every default filled in; SettingError naming the first setting that cannot
@@ -149,8 +153,9 @@ class WorkerSettings(RoleSettings):
             raise SettingError(f"{label('worker_id')} and {label('unit')}: must be non-negative")
         positive("reply_timeout", self.reply_timeout)
         positive("resend_interval", self.resend_interval)
+        uneven = self.uneven.resolved_uneven(get_env_spec(learning.env).control_period, None)
         check_writable_dir("out", self.out)
-        return replace(self, learning=learning)
+        return replace(self, learning=learning, uneven=uneven)
 
     @property
     def device_unit(self) -> int:
@@ -166,6 +171,7 @@ class WorkerSettings(RoleSettings):
             out=str(self.out),
             device_url=self.public_broker if self.device_link == "mqtt" else None,
             device_run_id=self.run_id,
+            uneven=self.uneven.for_worker(self.worker_id, get_env_spec(self.learning.env).control_period),
         )
 
     def device_transport(self) -> Any:

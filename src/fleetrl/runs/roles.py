@@ -1,7 +1,8 @@
 """What one worker does in a run, in individual or federated mode, wherever it runs (process or thread).
 
 Both modes report every round as a :class:`~fleetrl.runs.records.MetricsRow` through ``emit`` and save the
-worker's model when they end, however they end.
+worker's model when they end, however they end. An uneven unit (its spec's ``uneven``:
+:mod:`fleetrl.runs.uneven`) plays through its wrappers here: slowed, absent at times, its messages delayed.
 """
 
 import logging
@@ -18,7 +19,9 @@ from fleetrl.runs.factory import make_learner
 from fleetrl.runs.records import MetricsRow
 from fleetrl.runs.rundir import model_path
 from fleetrl.runs.spec import WorkerSpec
+from fleetrl.runs.uneven import uneven_unit
 from fleetrl.transport.base import Transport
+from fleetrl.transport.delayed import DelayedTransport
 
 log = logging.getLogger(__name__)
 
@@ -36,10 +39,11 @@ def metrics_row(worker: int, round_: int, result: RoundResult, started: float, e
 def train_alone(spec: WorkerSpec, emit: Emit, learner: Learner | None = None) -> None:
     """Individual mode: play rounds until the criterion holds or M rounds pass; save the model."""
     learner = learner or make_learner(spec)
+    player = uneven_unit(learner, spec.uneven, seed=spec.learning.seed, worker=spec.worker)
     started = time.monotonic()
     try:
         for _ in range(spec.learning.max_rounds):
-            result = learner.play_round()
+            result = player.play_round()
             event = "completed" if result.completed else ""
             emit(metrics_row(spec.worker, result.round, result, started, event))
             if result.completed:
@@ -83,8 +87,10 @@ def train_federated(
         start_round = where.next_round
     elif resume:
         log.warning("worker %d: nothing to resume in %s; starting afresh", spec.worker, checkpoint_dir)
+    if spec.uneven is not None and spec.uneven.link_delay > 0:
+        transport = DelayedTransport(transport, spec.uneven.link_delay)
     worker = FederatedWorker(
-        learner,
+        uneven_unit(learner, spec.uneven, seed=spec.learning.seed, worker=spec.worker),
         transport,
         run_id=run_id,
         worker_id=str(spec.worker),

@@ -189,9 +189,9 @@ class RunRecorder:
             return None
         if period is None:
             return None
-        steps: dict[str, list[int]] = {}
+        steps: dict[str, dict[int, int]] = {}
         for record in sorted(self.records, key=lambda r: (r.worker, r.round)):
-            steps.setdefault(str(record.worker), []).append(record.steps)
+            steps.setdefault(str(record.worker), {})[record.round] = record.steps
         completed = {w: self.progress[int(w)].completed_at_round for w in steps}
         rule = waiting_rule(self.config.get("mode"))
         return {"period": period, "rule": rule, **rig_time(steps, completed, period, rule).to_dict()}

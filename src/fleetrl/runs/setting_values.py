@@ -16,6 +16,7 @@ import ast
 import dataclasses
 import functools
 import inspect
+import linecache
 import os
 import re
 import resource
@@ -43,8 +44,15 @@ class SettingError(ValueError):
 
 NEGATED_FLAGS = {"live": "--no-live"}
 """settings whose flag switches them off (the key ``live = false``, the flag ``--no-live``)"""
-TABLE_FLAGS = {"overrides": "--set", "scheme_params": "--scheme-param"}
-"""table-valued settings whose repeatable ``KEY=VALUE`` flag has another name than the table"""
+TABLE_FLAGS = {
+    "overrides": "--set",
+    "scheme_params": "--scheme-param",
+    "slow": "--slow",
+    "link_delay": "--link-delay",
+}
+"""table-valued settings and their repeatable ``KEY=VALUE`` flag"""
+TABLE_METAVARS = {"slow": "UNIT=FACTOR", "link_delay": "UNIT=SECONDS"}
+"""how a table flag's help shows its entries, where ``KEY=VALUE`` says too little"""
 
 
 def flag(name: str) -> str:
@@ -76,11 +84,18 @@ def setting_fields(cls: type) -> dict[str, tuple[dataclasses.Field[Any], Any]]:
     """Every setting of the settings dataclass ``cls`` by name, with its field and type: the fields of a
     field that holds a settings dataclass (``learning``) are settings of ``cls`` too, under their own names
     (the config file and the flags are flat)."""
+    return dict(_setting_fields(cls))
+
+
+@functools.cache
+def _setting_fields(cls: type) -> dict[str, tuple[dataclasses.Field[Any], Any]]:
+    # read once per class: a command line's flags ask for it once per setting, and resolving the string
+    # annotations (get_type_hints) is most of the parser's start-up time
     hints = get_type_hints(cls)  # annotations may be strings
     found: dict[str, tuple[dataclasses.Field[Any], Any]] = {}
     for f in dataclasses.fields(cls):
         group = group_type(hints[f.name])
-        found |= setting_fields(group) if group is not None else {f.name: (f, hints[f.name])}
+        found |= _setting_fields(group) if group is not None else {f.name: (f, hints[f.name])}
     return found
 
 
@@ -170,8 +185,7 @@ def field_docs(cls: type) -> dict[str, str]:
     for klass in reversed(cls.__mro__):
         if not dataclasses.is_dataclass(klass):
             continue
-        body = ast.parse(textwrap.dedent(inspect.getsource(klass))).body[0]
-        assert isinstance(body, ast.ClassDef)
+        body = _class_definition(klass)
         for node, after in zip(body.body, body.body[1:], strict=False):
             if (
                 isinstance(node, ast.AnnAssign)
@@ -187,6 +201,31 @@ def field_docs(cls: type) -> dict[str, str]:
         if group is not None:
             docs |= field_docs(group)
     return docs
+
+
+def _class_definition(klass: type) -> ast.ClassDef:
+    """The syntax tree of ``klass``'s definition, found in its module's tree (each module is parsed once;
+    a class the tree does not hold at its qualified name, e.g. one defined in a function, is read alone)."""
+    filename = inspect.getsourcefile(klass)
+    nodes = _module_tree(filename).body if filename else []
+    found: ast.ClassDef | None = None
+    for part in klass.__qualname__.split("."):
+        found = next(
+            (n for n in reversed(nodes) if isinstance(n, ast.ClassDef) and n.name == part), None
+        )  # the last definition of a name is the one the module holds
+        if found is None:
+            break
+        nodes = found.body
+    if found is not None:
+        return found
+    body = ast.parse(textwrap.dedent(inspect.getsource(klass))).body[0]
+    assert isinstance(body, ast.ClassDef)
+    return body
+
+
+@functools.cache
+def _module_tree(filename: str) -> ast.Module:
+    return ast.parse("".join(linecache.getlines(filename)))
 
 
 def _plain(doc: str) -> str:

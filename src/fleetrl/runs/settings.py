@@ -38,6 +38,7 @@ from fleetrl.runs.setting_values import (
     label,
     toml_values,
 )
+from fleetrl.runs.uneven import UnevenFleet
 from fleetrl.transport.login import broker_password, password_in_url, without_password
 
 log = logging.getLogger(__name__)
@@ -188,25 +189,40 @@ class RoundRules:
 
     aggregation: str = "mean"
     """how the chief aggregates: mean (the paper's), median, trimmed_mean[:β], clipped_mean[:C]"""
-    quorum: float = 1.0
-    """at the round deadline, close the round if this fraction of W answered (1.0: fully synchronous; < 1
-    needs ``round_timeout``)"""
+    quorum: float | None = None
+    """a once-per-round scheme: at the round deadline, close the round if this fraction of W answered (1:
+    fully synchronous; < 1 needs ``round_timeout``); a per-step scheme: once this fraction of the workers
+    waited for answered an exchange, the others get a grace of a quarter of that time (docs/protocol.md,
+    "Stragglers"). Unset: the scheme's own (1 once per round, 0.6 per step)"""
     round_timeout: float | None = None
     """round deadline in seconds (unset: wait for every worker, the paper's fully synchronous rule)"""
+    max_staleness: int | None = None
+    """a per-step scheme: rounds a straggler's contribution may lag the fleet and still be averaged (unset:
+    no bound)"""
 
-    def check_rounds(self, learning: LearningSettings, shape: FleetShape) -> None:
+    @property
+    def chief_quorum(self) -> float:
+        """The quorum the chief is given (the settings are resolved: it is filled in)."""
+        assert self.quorum is not None, "resolved() fills in the quorum"
+        return self.quorum
+
+    def resolved_quorum(self, learning: LearningSettings, shape: FleetShape) -> float:
         """The aggregation rule, and the round rules a chief of ``learning`` checks (the quorum, the round
-        timeout and how they fit the scheme: :func:`fleetrl.federation.chief_answer.check_round_rules`)."""
+        timeout and how they fit the scheme: :func:`fleetrl.federation.chief_answer.check_round_rules`);
+        the quorum: the scheme's own unless one was given."""
         from fleetrl.federation.chief_answer import check_round_rules
 
         as_setting_error("aggregation", get_aggregator, self.aggregation)
+        scheme = learning.federation_scheme()
+        quorum = scheme.default_quorum if self.quorum is None else self.quorum
         try:
             check_round_rules(
-                learning.federation_scheme(), learning.max_rounds, self.quorum, self.round_timeout,
-                shape.exchanges_per_round,
+                scheme, learning.max_rounds, quorum, self.round_timeout, shape.exchanges_per_round,
+                self.max_staleness,
             )  # fmt: skip
         except ValueError as err:
             raise SettingError(str(err)) from None
+        return quorum
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -267,6 +283,9 @@ class RunSettings(RoundRules, BrokerLogin):
     bridges serve its simulated units)"""
     live: bool = True
     """show the live terminal view"""
+    uneven: UnevenFleet = field(default_factory=UnevenFleet)
+    """how the simulated fleet is made uneven (its fields are settings of their own: ``--pace``, ``--slow``,
+    ``--link-delay``, ``--absent``, ``--absent-rounds``); not a learning setting, never shared at join"""
 
     def resolved(self) -> RunSettings:
         """These settings with every default filled in and every setting checked, before anything is
@@ -281,22 +300,31 @@ class RunSettings(RoundRules, BrokerLogin):
             raise SettingError(
                 f"--scheme {learning.scheme} is a federation scheme: it needs --mode federated"
             )
-        self.check_rounds(learning, shape)
+        quorum = self.resolved_quorum(learning, shape)
         self.validate_broker()
         if self.units < 1:
             raise SettingError(f"{label('units')} = {self.units}: must be at least 1")
+        uneven = self.uneven.resolved_uneven(get_env_spec(learning.env).control_period, self.units)
+        if uneven.link_delay and self.mode != "federated":
+            raise SettingError(
+                f"{label('link_delay')} delays the messages of a federated run: it needs --mode federated"
+            )
         self.validate_device_link(learning)
         if (self.out / "metrics.csv").exists():
             raise SettingError(f"{label('out')} = {str(self.out)!r} already holds a run; choose another")
         check_writable_dir("out", self.out)
-        return replace(self, learning=learning)
+        return replace(self, learning=learning, quorum=quorum, uneven=uneven)
 
     def learning_resolved(self) -> RunSettings:
         """These settings with their learning settings resolved (:func:`resolve_learning`; the scheme by
-        default :data:`ALONE_SCHEME` for units alone, else the default scheme) and nothing else checked:
-        what :meth:`result_settings` needs, without building an agent."""
+        default :data:`ALONE_SCHEME` for units alone, else the default scheme), the quorum (the scheme's own
+        unless given) and the uneven fleet's units named as a resolved run names them, nothing else
+        checked: what :meth:`result_settings` needs, without building an agent."""
         scheme = ALONE_SCHEME if self.mode == "individual" else DEFAULT_SCHEME
-        return replace(self, learning=resolve_learning(self.learning, default_scheme=scheme))
+        learning = resolve_learning(self.learning, default_scheme=scheme)
+        uneven = self.uneven.resolved_uneven(get_env_spec(learning.env).control_period, self.units)
+        quorum = learning.federation_scheme().default_quorum if self.quorum is None else self.quorum
+        return replace(self, learning=learning, quorum=quorum, uneven=uneven)
 
     def validate_device_link(self, learning: LearningSettings) -> None:
         """With device bridges: the unit type can be reached through a link, and its driver function (a
@@ -331,8 +359,9 @@ class RunSettings(RoundRules, BrokerLogin):
 
     def to_toml(self) -> str:
         """config.toml of the run directory: every setting (no password), so that
-        ``fleetrl train --config runs/x/config.toml --out runs/y`` reruns the run."""
-        table = toml_values(self)
+        ``fleetrl train --config runs/x/config.toml --out runs/y`` reruns the run. An uneven-fleet setting at
+        its default is left out (an even run's file is the one written before those settings existed)."""
+        table = toml_values(self, leave_out=self.uneven.default_names())
         if self.broker is not None:
             table["broker"] = self.public_broker
         header = (
@@ -346,11 +375,14 @@ class RunSettings(RoundRules, BrokerLogin):
         two runs with equal result settings learn the same. A scheme without parameters (``paper``,
         ``fedavg``) has no ``scheme_params`` key, and a built-in at its own target no ``target_score`` key,
         as in the records made before either existed."""
-        values = {k: v for k, v in flat_values(self).items() if k not in NOT_RESULT_SETTINGS}
+        left_out = {*NOT_RESULT_SETTINGS, *(f.name for f in dataclasses.fields(UnevenFleet))}
+        values = {k: v for k, v in flat_values(self).items() if k not in left_out}
+        values |= self.uneven.result_values()  # none for an even fleet, as in the records made before
         if not values["scheme_params"]:
             del values["scheme_params"]
-        if values["device_driver"] is None:  # as in the records made before the setting existed
-            del values["device_driver"]
+        for name in ("device_driver", "max_staleness"):  # as in the records made before they existed
+            if values[name] is None:
+                del values[name]
         del values["target_score"]
         values |= result_target_score(self.learning)
         plain: dict[str, Any] = json.loads(json.dumps(values, sort_keys=True, default=str))

@@ -7,6 +7,7 @@ from typing import Any
 import numpy as np
 
 from fleetrl.federation.shared_settings import LearningSettings
+from fleetrl.runs.uneven import UnitConditions
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -25,6 +26,8 @@ class WorkerSpec:
     """broker of the unit's device bridge; None: the device is simulated in-process"""
     device_run_id: str = "default"
     """run id under which the device bridge serves the unit's topics"""
+    uneven: UnitConditions | None = None
+    """how this simulated unit is uneven (paced, slowed, on a slow link, absent at times); None: it is not"""
 
     def to_json(self) -> str:
         """Serialise for a child process's command line."""
@@ -32,13 +35,18 @@ class WorkerSpec:
             "worker": self.worker, "unit": self.unit, "learning": self.learning.to_json(), "out": self.out,
             "device_url": self.device_url, "device_run_id": self.device_run_id,
         }  # fmt: skip
+        if self.uneven is not None:  # an even unit's spec is the one it was before the setting existed
+            data["uneven"] = self.uneven.to_dict()
         return json.dumps(data, sort_keys=True)
 
     @classmethod
     def from_json(cls, text: str) -> "WorkerSpec":
         """Parse :meth:`to_json`'s output."""
         data = json.loads(text)
-        return cls(**{**data, "learning": LearningSettings(**data["learning"])})
+        uneven = data.pop("uneven", None)
+        learning = LearningSettings(**data.pop("learning"))
+        conditions = None if uneven is None else UnitConditions.from_dict(uneven)
+        return cls(**data, learning=learning, uneven=conditions)
 
     @property
     def worker_seed(self) -> int:

@@ -89,6 +89,18 @@ class FederatedAgent(Protocol):
         """Replace the whole actor-critic's parameters."""
         ...
 
+    def optimiser_layout(self) -> list[tuple[str, tuple[int, ...]]]:
+        """Names and shapes of the optimisers' state as one flat vector."""
+        ...
+
+    def optimiser_parameters(self) -> np.ndarray:
+        """The optimisers' state, flat float32."""
+        ...
+
+    def set_optimiser_parameters(self, flat: np.ndarray) -> None:
+        """Replace the optimisers' state."""
+        ...
+
     def step_layout(self, k: int) -> list[tuple[str, tuple[int, ...]]]:
         """Names and shapes of optimisation step ``k``'s flat gradient."""
         ...
@@ -107,6 +119,10 @@ class FederatedAgent(Protocol):
 
     def apply_step(self, flat_grad: np.ndarray) -> None:
         """Step the optimiser(s) with a gradient for the step last computed."""
+        ...
+
+    def apply_fleet_step(self, k: int, flat_grad: np.ndarray) -> None:
+        """Step the optimiser(s) with the fleet's gradient of step ``k``, no update under way."""
         ...
 
     def end_update(self) -> Any:
@@ -196,6 +212,8 @@ class Scheme(ABC):
     factory sets ``Learner.keep_learning`` from it"""
     granularity: ClassVar[Granularity]
     """how often a worker sends (set by :class:`RoundScheme` and :class:`StepScheme`)"""
+    default_quorum: ClassVar[float] = 1.0
+    """the chief's quorum when the run names none (:class:`StepScheme`: 0.6, docs/protocol.md "Stragglers")"""
     shared_start: ClassVar[bool] = False
     """the fleet is one policy: every worker starts from the same parameters, the fleet's start, which the
     chief's ``welcome`` hands to every joining worker (whatever its own seed)"""
@@ -293,6 +311,8 @@ class StepScheme(Scheme):
     round, step): it sends the step's gradient and applies the chief's combination before the next step."""
 
     granularity: ClassVar[Granularity] = Granularity.STEP
+    default_quorum: ClassVar[float] = 0.6
+    """DD-PPO's share of workers after which the rest are not waited for (habitat-lab's ``sync_frac``)"""
 
     @abstractmethod
     def exchanges_per_round(self, agent: FederatedAgent) -> int:
@@ -302,6 +322,12 @@ class StepScheme(Scheme):
     @abstractmethod
     def apply_step_answer(self, agent: FederatedAgent, flat: np.ndarray) -> None:
         """Apply the chief's combination of the workers' gradients of the step."""
+
+    def catch_up_step(self, agent: FederatedAgent, step: int, flat: np.ndarray) -> None:
+        """Apply the chief's answer of the fleet's step ``step`` that this worker took no part in (it was
+        behind, docs/protocol.md "Stragglers"): the same change :meth:`apply_step_answer` makes, outside an
+        update (``agent.apply_fleet_step``)."""
+        agent.apply_fleet_step(step, flat)
 
 
 def flats(answers: Mapping[str, Message]) -> list[np.ndarray]:

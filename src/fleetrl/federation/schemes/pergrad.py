@@ -10,15 +10,18 @@ workers' minibatches: an N× larger batch per step, with the units' differences 
 criterion holds says so (its step messages are typed ``parameters``) and stays; the run ends after the round
 in which every member of W has completed, as with ``fedavg``.
 
-Per step the chief combines with the run's aggregation rule (mean by default; a robust rule also works). A
-per-step scheme needs every worker at every step: quorum 1. The fleet starts from one network whatever each
-worker's own seed: the chief's ``welcome`` hands it to every joining worker (``shared_start``). A worker that
-restarts mid-run without its checkpoint takes that start again and so diverges from the fleet; it is refused
-nothing, but its updates then come from another model.
+Per step the chief combines with the run's aggregation rule (mean by default; a robust rule also works). No
+straggler stalls the fleet: an exchange closes once a quorum answered and the others' grace ran out; a
+straggler applies the answers it missed and contributes to the next round (docs/protocol.md, "Stragglers").
+The fleet starts from one network whatever each worker's own seed, and the chief keeps the fleet's model —
+the network and the Adam states every worker holds — applying each step's answer as the workers do: its
+``welcome`` hands it to every joining worker (at the start, late, or after a restart without its
+checkpoint), which then steps on exactly as the fleet does.
 """
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping
 
 import numpy as np
@@ -47,12 +50,19 @@ class PerStepGradientScheme(StepScheme):
         return agent.step_layout(0)
 
     def welcome_layout(self, agent: FederatedAgent) -> Layout:
-        """The whole actor-critic's parameters: the fleet's start."""
-        return agent.model_layout()
+        """The fleet's model: the whole actor-critic's parameters, then its optimisers' state."""
+        return agent.model_layout() + agent.optimiser_layout()
+
+    def start_parameters(self, agent: FederatedAgent) -> np.ndarray:
+        """``agent``'s network and optimisers' state, in :meth:`welcome_layout` order."""
+        return np.concatenate([agent.model_parameters(), agent.optimiser_parameters()])
 
     def take_parameters(self, agent: FederatedAgent, flat: np.ndarray) -> None:
-        """Start from the fleet's network (the welcome's; no transfer happens in this scheme)."""
-        agent.set_model_parameters(flat)
+        """Take the fleet's model (the welcome's; no transfer happens in this scheme): its network and its
+        optimisers' state."""
+        size = sum(math.prod(shape) for _, shape in agent.model_layout())
+        agent.set_model_parameters(flat[:size])
+        agent.set_optimiser_parameters(flat[size:])
 
     def exchanges_per_round(self, agent: FederatedAgent) -> int:
         """The steps of one update; every step must move the same parameters (one layout on the wire)."""

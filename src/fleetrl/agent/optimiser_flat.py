@@ -1,0 +1,67 @@
+"""The Adam optimisers' state as one flat float32 vector (what the chief of a one-policy fleet hands a joining
+worker beside the network, so that it steps on exactly as the fleet does).
+
+For each optimiser (by name, in the agent's order) and each of its parameters in order: ``exp_avg`` and
+``exp_avg_sq`` (the parameter's shape) and ``step`` (one value; float32 holds every count below 2²⁴ exactly).
+An optimiser that has not stepped yet has zeros and step 0 — the state Adam creates at its first step, so
+loading it changes nothing.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+
+import numpy as np
+import torch
+from torch import nn
+
+from fleetrl.agent.flat import split
+
+Layout = list[tuple[str, tuple[int, ...]]]
+SLOTS = ("exp_avg", "exp_avg_sq", "step")
+
+
+def _params(optimiser: torch.optim.Optimizer) -> list[torch.Tensor]:
+    return [p for group in optimiser.param_groups for p in group["params"]]
+
+
+def optimiser_layout(optimisers: Mapping[str, torch.optim.Optimizer]) -> Layout:
+    """Names and shapes of the flat state, in order (``optim.<name>.<index>.<slot>``)."""
+    out: Layout = []
+    for name, optimiser in optimisers.items():
+        for i, p in enumerate(_params(optimiser)):
+            shape = tuple(p.shape)
+            out += [(f"optim.{name}.{i}.{slot}", shape if slot != "step" else (1,)) for slot in SLOTS]
+    return out
+
+
+def optimiser_flat(optimisers: Mapping[str, torch.optim.Optimizer]) -> np.ndarray:
+    """The state as flat float32 in :func:`optimiser_layout` order."""
+    chunks: list[np.ndarray] = []
+    for optimiser in optimisers.values():
+        for p in _params(optimiser):
+            state = optimiser.state.get(p, {})
+            for slot in SLOTS:
+                value = state.get(slot)
+                if value is None:
+                    chunks.append(np.zeros(1 if slot == "step" else p.numel(), np.float32))
+                else:
+                    chunks.append(torch.as_tensor(value).detach().reshape(-1).to(torch.float32).numpy())
+    return np.concatenate(chunks) if chunks else np.zeros(0, np.float32)
+
+
+def load_optimiser_flat(optimisers: Mapping[str, torch.optim.Optimizer], flat: np.ndarray) -> None:
+    """Replace the state with ``flat`` (:func:`optimiser_flat`'s form).
+
+    :raises ValueError: ``flat`` does not fit the layout or is not finite
+    """
+    named = [(name, nn.Parameter(torch.empty(shape), False)) for name, shape in optimiser_layout(optimisers)]
+    chunks = iter(split(flat, named, "optimiser state"))
+    for optimiser in optimisers.values():
+        for p in _params(optimiser):
+            exp_avg, exp_avg_sq, step = next(chunks), next(chunks), next(chunks)
+            optimiser.state[p] = {
+                "step": step.reshape(()).clone(),
+                "exp_avg": exp_avg.clone(),
+                "exp_avg_sq": exp_avg_sq.clone(),
+            }

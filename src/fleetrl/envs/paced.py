@@ -1,0 +1,60 @@
+"""A simulated unit stepped in real time: each step lasts (at least) one control period of wall time, as on
+the rig, so that a simulated fleet's wall time behaves as the hardware's would.
+
+The rule: a step returns no sooner than one period after the previous step returned (a step's own
+computation that fits in the period is hidden, as on the rig, where the agent computes while the device
+holds its command; computation beyond it makes the step late). The deadlines are kept, not the times the
+sleeps happened to end, so a sleep's overshoot does not add up over an episode. A reset (the device-side
+swing-up) is not paced: it starts the episode's clock.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from typing import Any, SupportsFloat
+
+import gymnasium
+
+
+class PacedEnv(gymnasium.Wrapper[Any, Any, Any, Any]):
+    """``env`` whose steps each last ``period`` seconds of wall time (at least).
+
+    :param env: the unit's env (simulated in-process or through a link; nothing of it changes)
+    :param period: seconds a step lasts (the device's control period, optionally scaled); > 0
+    :param clock: the time source (seconds; monotonic)
+    :param sleep: how to wait (seconds)
+    """
+
+    def __init__(
+        self,
+        env: gymnasium.Env[Any, Any],
+        period: float,
+        *,
+        clock: Callable[[], float] = time.monotonic,
+        sleep: Callable[[float], None] = time.sleep,
+    ) -> None:
+        if not period > 0:
+            raise ValueError(f"a paced env's period must be > 0 seconds, got {period!r}")
+        super().__init__(env)
+        self.period = period
+        self._clock = clock
+        self._sleep = sleep
+        self._due: float | None = None
+        """when the last step was due to return (None before the first reset)"""
+
+    def reset(self, **kwargs: Any) -> tuple[Any, dict[str, Any]]:
+        """Reset the unit; the episode's clock starts when the reset returns."""
+        result = self.env.reset(**kwargs)
+        self._due = self._clock()
+        return result
+
+    def step(self, action: Any) -> tuple[Any, SupportsFloat, bool, bool, dict[str, Any]]:
+        """Step the unit, then wait until one period after the previous step was due (no wait if late)."""
+        result = self.env.step(action)
+        now = self._clock()
+        due = now if self._due is None else max(now, self._due + self.period)
+        if due > now:
+            self._sleep(due - now)
+        self._due = due
+        return result

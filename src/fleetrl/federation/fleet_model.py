@@ -1,0 +1,50 @@
+"""The fleet's one policy, kept by the chief of a per-step scheme (a parameter server).
+
+Every worker of a one-policy fleet applies every answer of the chief, in order, to the same start; the chief
+does the same to its own copy of the agent (the scheme's :meth:`~.schemes.base.StepScheme.catch_up_step`,
+the very optimiser steps a worker takes), so its copy is, after every exchange, the model each worker holds —
+network and optimiser state. It hands that model (:meth:`FleetModel.snapshot`, in the scheme's
+``welcome_layout``) to every worker that joins: at the start, late, after a crash, or after being dropped; and
+its checkpoint keeps it (:meth:`FleetModel.load` puts it back into a restarted chief's copy).
+
+The agent is any :class:`~.schemes.base.FederatedAgent` (the role that builds the chief builds it, as a worker
+builds its own: federation never imports torch).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from fleetrl.federation.messages import Layout, Message
+from fleetrl.federation.schemes.base import FederatedAgent, StepScheme
+
+
+class FleetModel:
+    """The chief's copy of the fleet's model under ``scheme``, starting as ``agent`` is (the fleet's start).
+
+    :param scheme: a per-step scheme whose fleet is one policy.
+    :param agent: the chief's agent, built as every worker's is and set to the fleet's start.
+    """
+
+    def __init__(self, scheme: StepScheme, agent: FederatedAgent) -> None:
+        """Keep ``agent`` as the fleet's model."""
+        if not scheme.shared_start:
+            raise ValueError(f"scheme {scheme.name!r}'s fleet is not one policy: the chief keeps no model")
+        self.scheme = scheme
+        self.agent = agent
+        self.layout: Layout = list(scheme.welcome_layout(agent))
+        """what a ``welcome`` carries"""
+
+    def apply(self, answer: Message) -> None:
+        """Apply one of the chief's step answers (every one, in order, as the workers do)."""
+        if answer.flat is None:
+            raise ValueError(f"a {answer.type} without tensors cannot move the fleet's model")
+        self.scheme.catch_up_step(self.agent, answer.step, answer.flat)
+
+    def snapshot(self) -> np.ndarray:
+        """The model a joining worker takes: network and optimiser state, flat in :attr:`layout` order."""
+        return np.asarray(self.scheme.start_parameters(self.agent), dtype=np.float32)
+
+    def load(self, flat: np.ndarray) -> None:
+        """Make the copy ``flat`` (a checkpoint's :meth:`snapshot`)."""
+        self.scheme.take_parameters(self.agent, flat)

@@ -1,0 +1,238 @@
+"""The worker of a per-step scheme (``pergrad``) as a pure state machine: the rounds of
+:class:`~fleetrl.federation.worker_machine.WorkerMachine`, each round's update exchanged step by step.
+
+A round: the runner plays the round's episodes and reports them (:meth:`StepWorkerMachine.round_collected`);
+the machine applies every answer of the fleet already queued (it may have moved on while this worker played:
+a straggler, docs/protocol.md "Stragglers"), then joins the fleet's next round-opening exchange — at once if
+the fleet is still at step 0 of a round, else after that round's last answer — with what it played, saying
+how many rounds the fleet moved on meanwhile (``staleness``). It asks the runner to begin the update
+(:class:`~fleetrl.federation.rounds.BeginUpdate`), and each of the update's K steps is exchanged like a round,
+keyed (round, step): send the step's gradient, apply the chief's combination (which may have closed without
+it: the fleet's step all the same). So every worker applies every answer of the fleet, in order, and the fleet
+stays one policy. ``done`` inside the round ends the worker's run without a record. A worker that finds it
+never got some answer (a resumed worker whose fleet went on, a lost message) announces itself again and
+takes the fleet's model from the chief's welcome; inside its own exchange, such a gap ends its run as out
+of step with the fleet.
+"""
+
+from __future__ import annotations
+
+import logging
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from fleetrl.federation import rounds as act
+from fleetrl.federation.events import Sent, WorkerEvent
+from fleetrl.federation.messages import Message
+from fleetrl.federation.rounds import WorkerStep, WorkerSummary, answer_for
+from fleetrl.federation.schemes import COMPLETED, Granularity, Scheme
+from fleetrl.federation.worker_machine import NOTHING, Phase, WorkerMachine
+
+if TYPE_CHECKING:  # the learner (and torch) is not imported by the pure machine
+    from fleetrl.agent.learner import RoundResult
+
+__all__ = ["StepWorkerMachine", "worker_machine"]
+
+log = logging.getLogger(__name__)
+
+
+def worker_machine(*, scheme: Scheme, steps_per_round: int = 1, **options: Any) -> WorkerMachine:
+    """The worker's state machine ``scheme`` needs: a :class:`StepWorkerMachine` for a per-step scheme
+    (``steps_per_round``: the exchanges of one round), else a :class:`WorkerMachine`; ``options`` are the
+    machine's other parameters."""
+    if scheme.granularity is Granularity.STEP:
+        return StepWorkerMachine(scheme=scheme, steps_per_round=steps_per_round, **options)
+    return WorkerMachine(scheme=scheme, **options)
+
+
+class StepWorkerMachine(WorkerMachine):
+    """Algorithm 2 for one worker of a per-step scheme (see the module's docstring).
+
+    :param steps_per_round: K, the exchanges of one round (``scheme.exchanges_per_round(agent)``).
+    :param options: :class:`~fleetrl.federation.worker_machine.WorkerMachine`'s parameters.
+    """
+
+    current_model = True
+
+    def __init__(self, *, steps_per_round: int, **options: Any) -> None:
+        """Prepare the machine; nothing happens before :meth:`start`."""
+        super().__init__(**options)
+        if steps_per_round < 1:
+            raise ValueError(f"steps_per_round must be >= 1, got {steps_per_round}")
+        self.steps_per_round = steps_per_round
+        self.fleet_at = (0, 0)
+        """the fleet's open exchange (round, step) as this worker knows it: every answer before it applied"""
+        self.played_round = 0
+        """the round the fleet was at when this worker began playing what it contributes"""
+        self._completed = False
+        self._steps = 0
+        self._step = 0
+        self._last_answer: Message | None = None
+        self._wait_until: float | None = None
+        self._rejoining = False
+
+    # ---- reports of the runner ----
+
+    def round_collected(self, *, completed: bool, now: float) -> WorkerStep:
+        """The round's episodes are played (``completed``: the criterion holds): apply the fleet's answers
+        already queued, then join its next round-opening exchange."""
+        del now
+        if self.phase is not Phase.PLAYING:
+            raise RuntimeError(f"worker {self.worker_id}: round {self.round} collected out of turn")
+        self._completed, self.phase = completed, Phase.DRAIN
+        return NOTHING
+
+    def update_begun(self, steps: int, *, now: float) -> WorkerStep:
+        """The update has ``steps`` steps (0: none this round): exchange step 0."""
+        del now
+        if self.phase is not Phase.JOINING:
+            raise RuntimeError(f"worker {self.worker_id}: an update began out of turn")
+        self._steps, self._step, self._last_answer = steps, 0, None
+        if steps == 0:
+            self.phase = Phase.STEPS_DONE
+            return WorkerStep((act.EndUpdate(),))
+        self.phase = Phase.COMPUTING
+        return WorkerStep((act.ComputeStep(0),))
+
+    def step_computed(self, step: int, flat: np.ndarray, *, now: float) -> WorkerStep:
+        """The gradients of step ``step``: send them and wait for the chief's answer."""
+        if self.phase is not Phase.COMPUTING or step != self._step:
+            raise RuntimeError(f"worker {self.worker_id}: step {step} reported out of turn")
+        self.phase = Phase.STEP_ANSWER
+        kind = COMPLETED if self._completed else self.round_message
+        message = Message(
+            kind, self.run_id, self.worker_id, self.round, step=step, flat=flat,
+            staleness=self.round - self.played_round,
+        )  # fmt: skip
+        what = f"the chief's answer for round {self.round} step {step}"
+        return self._send(message, answer_for(self.round, step), what, now)
+
+    def round_played(
+        self, outcome: RoundResult, *, now: float, share: tuple[str, np.ndarray] | None = None
+    ) -> WorkerStep:
+        """Every step of the round's update was applied: record the round."""
+        del now, share
+        reply = self._last_answer
+        if self.phase is not Phase.STEPS_DONE:
+            raise RuntimeError(f"worker {self.worker_id}: round {self.round} ended without its steps")
+        if reply is None:
+            raise RuntimeError(f"worker {self.worker_id}: round {self.round} ended without an exchange")
+        if reply.type == "done":
+            return self._round_over(outcome, reply, WorkerEvent.RUN_ENDED, None, True)
+        event = WorkerEvent.COMPLETED if outcome.completed else Sent(self.round_message)
+        return self._round_over(outcome, reply, event, None, self.worker_id in reply.finished)
+
+    # ---- the rules ----
+
+    def _welcomed(self, welcome: Message) -> WorkerStep:
+        """As :class:`WorkerMachine`; a worker that takes the welcome's model holds the fleet's as it is at
+        the exchange the welcome names: answers after it are the ones to apply. A worker that missed answers
+        takes it whatever its checkpoint, and plays the welcome's round."""
+        if self._rejoining and welcome.type == "welcome" and welcome.flat is not None:
+            self._rejoining, self._config = False, dict(welcome.config)
+            self.fleet_at = (welcome.round, welcome.step)
+            return WorkerStep((act.TakeParameters(welcome.flat),)) + self._begin_round(welcome.round)
+        step = super()._welcomed(welcome)
+        if any(isinstance(o, act.TakeParameters) for o in step.outputs):
+            self.fleet_at = max(self.fleet_at, (welcome.round, welcome.step))
+        return step
+
+    def _begin_round(self, rnd: int) -> WorkerStep:
+        self.played_round = rnd
+        self.fleet_at = max(self.fleet_at, (rnd, 0))
+        return super()._begin_round(rnd)
+
+    def _answered(self, reply: Message) -> WorkerStep:
+        """The chief's answer to this worker's step (Algorithm 2, lines 21 and 23, with the fleet's
+        gradient)."""
+        if reply.type == "done" or (reply.round, reply.step) != (self.round, self._step):
+            # the run ended (or an answer was lost) inside the round
+            why = "run ended" if reply.type == "done" else "out of step with the fleet"
+            return self._finish(WorkerSummary(self.worker_id, self.round - 1, finished=False, reason=why))
+        if reply.flat is None:
+            raise AssertionError("decode guarantees tensors for an average")
+        self._last_answer, self.fleet_at = reply, self._after(reply)
+        self._step += 1
+        if self._step < self._steps:
+            self.phase = Phase.COMPUTING
+            return WorkerStep((act.ApplyStep(reply.flat), act.ComputeStep(self._step)))
+        self.phase = Phase.STEPS_DONE
+        return WorkerStep((act.ApplyStep(reply.flat), act.EndUpdate()))
+
+    def _between(self, message: Message, now: float) -> WorkerStep:
+        """Outside this worker's own exchanges (after its round, before or while joining the fleet's next
+        round): the fleet's answers are applied in order."""
+        if self.phase not in (Phase.CATCH_UP, Phase.DRAIN, Phase.WAIT_ROUND):
+            return NOTHING
+        if message.type == "done":
+            return self._finish(WorkerSummary(self.worker_id, self.fleet_at[0] - 1, False, "run ended"))
+        if message.type != "average" or (message.round, message.step) < self.fleet_at:
+            return NOTHING  # a copy of an answer already applied
+        if (message.round, message.step) > self.fleet_at:  # answers it never got: the fleet's model again
+            log.warning(
+                "worker %s: never got the answer of round %d step %d; taking the fleet's model again",
+                self.worker_id, *self.fleet_at,
+            )  # fmt: skip
+            self._rejoining = True
+            return self.start(now=now)
+        if message.flat is None:
+            raise AssertionError("decode guarantees tensors for an average")
+        self.fleet_at = self._after(message)
+        self._config = dict(message.config) if message.config else self._config
+        applied = WorkerStep((act.ApplyFleetStep(message.step, message.flat),))
+        if self.phase is Phase.WAIT_ROUND and self.fleet_at[1] == 0:
+            return applied + self._join(now)
+        return applied
+
+    def _queue_read(self, now: float) -> WorkerStep:
+        """Nothing more is queued. After a round: play the fleet's open round. Before an update: join the
+        fleet's round-opening exchange, or wait for the end of the round it is in."""
+        if self.phase is Phase.CATCH_UP:
+            nxt = self.fleet_at[0]
+            return WorkerStep((act.Checkpoint(nxt),)) + self._begin_round(nxt)
+        if self.fleet_at[1] == 0:
+            return self._join(now)
+        log.info(
+            "worker %s: the fleet is at round %d step %d; joining its next round", self.worker_id,
+            *self.fleet_at,
+        )  # fmt: skip
+        self.phase = Phase.WAIT_ROUND
+        self._wait_until = None if self.reply_timeout is None else now + self.reply_timeout
+        return NOTHING
+
+    def _join(self, now: float) -> WorkerStep:
+        """Contribute what was played to the fleet's round-opening exchange ``fleet_at``."""
+        del now
+        rnd = self.fleet_at[0]
+        if rnd > self.max_rounds:
+            reason = f"reached M={self.max_rounds}"
+            return self._finish(WorkerSummary(self.worker_id, self.max_rounds, finished=False, reason=reason))
+        if rnd > self.played_round:
+            log.info(
+                "worker %s: played in round %d, contributes to round %d (staleness %d)", self.worker_id,
+                self.played_round, rnd, rnd - self.played_round,
+            )  # fmt: skip
+        self.round, self.phase = rnd, Phase.JOINING
+        return WorkerStep((act.BeginUpdate(),))
+
+    def _after(self, answer: Message) -> tuple[int, int]:
+        """The exchange that follows ``answer``'s."""
+        if answer.step + 1 < self.steps_per_round:
+            return (answer.round, answer.step + 1)
+        return (answer.round + 1, 0)
+
+    def next_deadline(self) -> float | None:
+        """When :meth:`tick` is due (a straggler waiting for the end of the fleet's round: its timeout)."""
+        if self.phase is Phase.WAIT_ROUND:
+            return self._wait_until
+        return super().next_deadline()
+
+    def tick(self, *, now: float) -> WorkerStep:
+        """As :meth:`WorkerMachine.tick`; a straggler waiting for the end of the fleet's round times out
+        like any wait for the chief."""
+        if self.phase is not Phase.WAIT_ROUND:
+            return super().tick(now=now)
+        if self._wait_until is None or now < self._wait_until:
+            return NOTHING
+        return self._timed_out("the end of the fleet's round")

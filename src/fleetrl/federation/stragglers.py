@@ -1,0 +1,203 @@
+"""Who the chief waits for at an exchange, and for how long: a once-per-round scheme's deadline rule
+(:class:`RoundWaits`), and a per-step scheme's stragglers (:class:`StepWaits`; docs/protocol.md,
+"Stragglers").
+
+A per-step scheme (``pergrad``) exchanges every optimisation step with the whole fleet; waiting for every
+worker at every exchange would let the slowest unit set everyone's pace. The rules, after DD-PPO (whose
+collection closes when 60 % of the workers are done):
+
+* A round's first exchange waits for the members that took part in the round before (the others are
+  *behind*: still playing a round the fleet has moved past). A later exchange of the round waits for the
+  round's participants.
+* Once ⌈quorum·n⌉ of the n waited for have answered, the others get a grace of a quarter of the time the
+  quorum took (at least :data:`GRACE_FLOOR`); then the exchange closes with whoever answered. With the
+  ``round_timeout`` set, it also closes that long after it opened, with whoever answered (at least one).
+* Nobody is dropped for being late (only an ``offline`` status drops a worker). A straggler applies every
+  answer it missed, in order, and joins the first round-opening exchange after its play with what it played;
+  its message says how many rounds the fleet moved on meanwhile (``staleness``). A contribution older than
+  ``max_staleness`` rounds is left out of the average (its completion still counts), unless nothing fresher
+  answered. The chief counts, per member, the rounds that closed without it (``late``) and the contributions
+  it left out (``stale``).
+
+With quorum 1 every member that took part in the last round is waited for: the fully synchronous rule, and
+for an even fleet the same runs as before stragglers were allowed for.
+"""
+
+from __future__ import annotations
+
+import math
+from collections import Counter
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+
+from fleetrl.federation.messages import Message
+
+GRACE_SHARE = 0.25
+"""after the quorum, the others' grace as a share of the time the quorum took (a round waits at most 1.25×
+its quorum's time)"""
+GRACE_FLOOR = 0.25
+"""the shortest grace in seconds (a fleet of fast simulated rounds is not cut by scheduling jitter)"""
+
+
+def quorum_count(quorum: float, n: int) -> int:
+    """⌈quorum·n⌉: how many of ``n`` make a quorum."""
+    return math.ceil(quorum * n - 1e-9)
+
+
+@dataclass
+class FleetPace:
+    """Who took part in what: the part of the chief's state (checkpointed) these rules keep."""
+
+    behind: set[str] = field(default_factory=set)
+    """members that took no part in the last round: not waited for at the next round's first exchange"""
+    participants: set[str] = field(default_factory=set)
+    """who has answered an exchange of the open round"""
+    late: Counter[str] = field(default_factory=Counter)
+    """per member: rounds that closed without it"""
+    stale: Counter[str] = field(default_factory=Counter)
+    """per member: contributions left out of the average for their staleness"""
+
+    def fields(self) -> dict[str, object]:
+        """As JSON."""
+        return {
+            "behind": sorted(self.behind),
+            "participants": sorted(self.participants),
+            "late": dict(sorted(self.late.items())),
+            "stale": dict(sorted(self.stale.items())),
+        }
+
+    @classmethod
+    def from_fields(cls, fields: Mapping[str, object] | None) -> FleetPace:
+        """From :meth:`fields` (None: a state written before stragglers were allowed for)."""
+        if not fields:
+            return cls()
+        late, stale = fields["late"], fields["stale"]
+        assert isinstance(late, dict) and isinstance(stale, dict)
+        return cls(
+            behind={str(w) for w in fields["behind"]},  # type: ignore[attr-defined]
+            participants={str(w) for w in fields["participants"]},  # type: ignore[attr-defined]
+            late=Counter({str(w): int(n) for w, n in late.items()}),
+            stale=Counter({str(w): int(n) for w, n in stale.items()}),
+        )
+
+
+@dataclass
+class RoundWaits:
+    """A once-per-round scheme's waiting rule: a round waits for every member of W; at its deadline
+    (``round_timeout`` after it opened) it closes with the answers it has if ⌈quorum·|W|⌉ answered, else the
+    silent members leave W first.
+
+    :param quorum: the share of W whose answers close a round at its deadline.
+    :param round_timeout: seconds a round may stay open before the deadline rule applies; None: no deadline.
+    """
+
+    quorum: float
+    round_timeout: float | None
+
+    def all_in(self, pace: FleetPace, members: set[str], step: int, pending: Mapping[str, Message]) -> bool:
+        """Everyone waited for has answered (and someone has)."""
+        del pace, step
+        return bool(pending) and members.issubset(pending)
+
+    def note(
+        self, pace: FleetPace, members: set[str], step: int, pending: Mapping[str, Message], now: float
+    ) -> None:
+        """An answer was taken at ``now`` and the exchange stays open."""
+        del pace, members, step, pending, now
+
+    def deadline(self, opened: float | None) -> float | None:
+        """When the open exchange closes with whoever answered (None: not before everyone waited for)."""
+        return None if opened is None or self.round_timeout is None else opened + self.round_timeout
+
+    def silent_leave(self, members: set[str], pending: Mapping[str, Message]) -> set[str]:
+        """At the deadline: the members that leave W as the exchange closes."""
+        answered = members.intersection(pending)
+        return set() if len(answered) >= quorum_count(self.quorum, len(members)) else members - answered
+
+    def averaged(self, pace: FleetPace, answers: Mapping[str, Message], step: int) -> dict[str, Message]:
+        """The answers the scheme combines."""
+        del pace, step
+        return dict(answers)
+
+    def closed(self, pace: FleetPace, members: set[str], answered: tuple[str, ...], last_step: bool) -> None:
+        """An exchange closed with ``answered``."""
+        del pace, members, answered, last_step
+
+
+@dataclass
+class StepWaits(RoundWaits):
+    """The open exchange's waiting rule for a per-step scheme (see the module's docstring).
+
+    :param quorum: the share of those waited for after which the grace starts.
+    :param round_timeout: seconds after which an exchange closes with whoever answered; None: no such limit.
+    :param max_staleness: rounds a contribution may lag the fleet and still be averaged; None: no bound.
+    """
+
+    max_staleness: int | None = None
+    quorum_at: float | None = None
+    """when the open exchange reached its quorum (None: not yet)"""
+
+    def waited_for(self, pace: FleetPace, members: set[str], step: int) -> set[str]:
+        """The members the open exchange (``step`` of its round) waits for."""
+        if step == 0:
+            return members - pace.behind
+        return members & pace.participants
+
+    def all_in(self, pace: FleetPace, members: set[str], step: int, pending: Mapping[str, Message]) -> bool:
+        """Everyone waited for has answered (and someone has)."""
+        return bool(pending) and self.waited_for(pace, members, step).issubset(pending)
+
+    def note(
+        self, pace: FleetPace, members: set[str], step: int, pending: Mapping[str, Message], now: float
+    ) -> None:
+        """An answer was taken at ``now``: start the grace if the quorum is reached."""
+        if self.quorum_at is not None:
+            return
+        waited = self.waited_for(pace, members, step)
+        if len(waited.intersection(pending)) >= quorum_count(self.quorum, len(waited)):
+            self.quorum_at = now
+
+    def deadline(self, opened: float | None) -> float | None:
+        """When the open exchange closes with whoever answered (None: not before everyone waited for)."""
+        if opened is None:
+            return None
+        times = []
+        if self.quorum_at is not None:
+            times.append(self.quorum_at + max(GRACE_SHARE * (self.quorum_at - opened), GRACE_FLOOR))
+        if self.round_timeout is not None:
+            times.append(opened + self.round_timeout)
+        return min(times, default=None)
+
+    def silent_leave(self, members: set[str], pending: Mapping[str, Message]) -> set[str]:
+        """Nobody leaves W for being late: a straggler catches up."""
+        del members, pending
+        return set()
+
+    def averaged(self, pace: FleetPace, answers: Mapping[str, Message], step: int) -> dict[str, Message]:
+        """The answers the scheme combines: those within ``max_staleness`` (all, if none is); at a round's
+        first exchange, each one left out is counted."""
+        bound = self.max_staleness
+        fresh = {w: m for w, m in answers.items() if bound is None or m.staleness <= bound}
+        if not fresh:
+            return dict(answers)
+        if step == 0:
+            pace.stale.update(w for w in answers if w not in fresh)
+        return fresh
+
+    def closed(self, pace: FleetPace, members: set[str], answered: tuple[str, ...], last_step: bool) -> None:
+        """An exchange closed with ``answered``; at the round's last, who missed the round is behind."""
+        self.quorum_at = None
+        pace.participants.update(answered)
+        if last_step:
+            pace.behind = members - pace.participants
+            pace.late.update(pace.behind)
+            pace.participants = set()
+
+
+def waiting_rule(
+    per_step: bool, quorum: float, round_timeout: float | None, max_staleness: int | None
+) -> RoundWaits:
+    """The chief's waiting rule for a per-step scheme (:class:`StepWaits`) or a once-per-round one."""
+    if per_step:
+        return StepWaits(quorum, round_timeout, max_staleness)
+    return RoundWaits(quorum, round_timeout)

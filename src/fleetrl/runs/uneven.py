@@ -1,0 +1,298 @@
+"""An uneven simulated fleet, before any hardware is bought: real-time pacing, units that compute slower,
+units on a slow link, units that drop out for some rounds and come back (issue 23, item 4).
+
+:class:`UnevenFleet` is the run setting (``--pace``, ``--slow``, ``--link-delay``, ``--absent``,
+``--absent-rounds``; all off by default, and then nothing of a run changes). It is not a learning setting:
+it is never part of what a worker shares at join. :meth:`UnevenFleet.for_worker` gives one worker its
+:class:`UnitConditions` (carried in its spec), and :func:`uneven_unit` wraps that worker's learner from the
+outside with them; the env's pacing is :class:`~fleetrl.envs.paced.PacedEnv`, the slow uplink
+:class:`~fleetrl.transport.delayed.DelayedTransport`.
+
+A slow unit is slowed by waiting, not by a slower pace: after each piece of its own work (a round's
+episodes, each step of an update) it sleeps ``(FACTOR − 1)×`` the computing time that piece took (the
+thread's CPU time). That stretches everything the unit computes (acting, physics, updates; its first round's
+warm-up too) as a machine FACTOR× slower would, leaves the device's own time alone (a paced step still lasts
+one control period when the computation fits in it, as on a rig), is not inflated by other processes
+competing for the cores, and changes nothing the unit computes (the same numbers, later). An absent unit
+pauses before a round: its worker stays connected and sends nothing for ``k`` times its own last round's
+time (its work in wall time, slowed, without the waits for the chief), then plays on.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import time
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass, field, replace
+from typing import Any
+
+import numpy as np
+
+from fleetrl.runs.setting_values import SettingError, label
+
+ABSENCE_STREAM = 0xAB5E
+"""the third word of an absence generator's seed ([seed, worker, this]): no learning stream draws from it"""
+TIMED_AGENT_CALLS = ("begin_update", "step_gradients", "apply_step", "end_update")
+"""the agent's own work in a per-step round's update (the worker calls them between exchanges)"""
+
+
+@dataclass(frozen=True, kw_only=True)
+class UnitConditions:
+    """How one simulated unit is uneven (JSON-plain: a worker's spec carries it)."""
+
+    step_seconds: float | None = None
+    """wall seconds per env step (its control period × the pace scale); None: as fast as possible"""
+    slowdown: float = 1.0
+    """the unit takes this many times its own time for its work"""
+    link_delay: float = 0.0
+    """seconds added to each message the unit sends"""
+    absent: float = 0.0
+    """the share of rounds the unit is absent"""
+    absent_rounds: float = 3.0
+    """the mean length of an absence, in rounds"""
+
+    def to_dict(self) -> dict[str, Any]:
+        """The conditions as a JSON-plain dict (:meth:`from_dict` reads it back)."""
+        return dataclasses.asdict(self)
+
+    @classmethod
+    def from_dict(cls, data: dict[str, Any]) -> UnitConditions:
+        """Read :meth:`to_dict`'s output."""
+        return cls(**data)
+
+
+@dataclass(frozen=True, kw_only=True)
+class UnevenFleet:
+    """How a simulated fleet is made uneven (all off by default: as fast as possible, every unit alike and
+    always present). Units are named as the live view names them: ``w0`` … (or the worker id alone)."""
+
+    pace: float | None = None
+    """step every simulated unit in real time: its control period (QUBE 6 ms, CartPole 20 ms) × this
+    scale, e.g. 0.1 (unset: as fast as possible)"""
+    slow: dict[str, float] = field(default_factory=dict)
+    """units that compute slower, e.g. ``--slow w2=4``: worker 2 takes 4× its own computing time (a
+    factor ≥ 1; the ``[slow]`` table)"""
+    link_delay: dict[str, float] = field(default_factory=dict)
+    """units on a slow uplink, e.g. ``--link-delay w1=0.05``: seconds added to each message worker 1 sends
+    (the ``[link_delay]`` table)"""
+    absent: float = 0.0
+    """the share of rounds each unit is absent, in [0, 1), e.g. 0.2: it leaves at random (drawn from the
+    learning seed and its worker id), pauses for some rounds' worth of its own round time, comes back"""
+    absent_rounds: float = 3.0
+    """with ``absent``: the mean length of one absence, in rounds (≥ 1)"""
+
+    @property
+    def even(self) -> bool:
+        """No setting makes the fleet uneven (every one at its default)."""
+        return self == UnevenFleet()
+
+    def resolved_uneven(self, control_period: float | None, units: int | None) -> UnevenFleet:
+        """These settings checked, with units named ``wK``: a new value, or SettingError naming the first
+        that cannot work. ``control_period``: the unit type's (None: not known, no pacing possible);
+        ``units``: how many workers the run has (None: a standalone worker, any id)."""
+        if self.pace is not None:
+            if not self.pace > 0:
+                raise SettingError(f"{label('pace')} = {self.pace!r}: must be > 0 (a scale of the period)")
+            if control_period is None:
+                raise SettingError(
+                    f"{label('pace')}: this unit type declares no control period, so it cannot be paced"
+                )
+        slow = _per_unit("slow", self.slow, units)
+        for unit, factor in slow.items():
+            if not factor >= 1:
+                raise SettingError(f"{label('slow')} {unit}={factor:g}: must be ≥ 1 (slower, not faster)")
+        delay = _per_unit("link_delay", self.link_delay, units)
+        for unit, seconds in delay.items():
+            if not seconds >= 0:
+                raise SettingError(f"{label('link_delay')} {unit}={seconds:g}: must be ≥ 0 seconds")
+        if not 0 <= self.absent < 1:
+            raise SettingError(f"{label('absent')} = {self.absent!r}: must be in [0, 1) (a share of rounds)")
+        if not self.absent_rounds >= 1:
+            raise SettingError(f"{label('absent_rounds')} = {self.absent_rounds!r}: must be ≥ 1")
+        if leave_probability(self.absent, self.absent_rounds) > 1:
+            most = self.absent_rounds / (self.absent_rounds + 1)
+            raise SettingError(
+                f"{label('absent')} = {self.absent!r}: with absences of {self.absent_rounds:g} rounds a unit "
+                f"is absent at most {most:.3g} of the rounds (raise {label('absent_rounds')})"
+            )
+        return replace(self, slow=slow, link_delay=delay)
+
+    def for_worker(self, worker: int, control_period: float | None) -> UnitConditions | None:
+        """Worker ``worker``'s conditions under these resolved settings (None: it is an even unit)."""
+        name = unit_name(worker)
+        scale = self.pace
+        conditions = UnitConditions(
+            step_seconds=None if scale is None or control_period is None else control_period * scale,
+            slowdown=self.slow.get(name, 1.0),
+            link_delay=self.link_delay.get(name, 0.0),
+            absent=self.absent,
+            absent_rounds=self.absent_rounds,
+        )
+        return None if conditions == UnitConditions() else conditions
+
+    def result_values(self) -> dict[str, Any]:
+        """The settings that differ from their defaults (the result settings of an even run keep the keys
+        of the records made before these settings existed)."""
+        default = UnevenFleet()
+        return {
+            f.name: getattr(self, f.name)
+            for f in dataclasses.fields(self)
+            if getattr(self, f.name) != getattr(default, f.name)
+        }
+
+    def default_names(self) -> tuple[str, ...]:
+        """The names of the settings at their defaults."""
+        changed = self.result_values()
+        return tuple(f.name for f in dataclasses.fields(self) if f.name not in changed)
+
+
+def unit_name(worker: int) -> str:
+    """How the settings name worker ``worker`` (as the live view does): ``w2``."""
+    return f"w{worker}"
+
+
+def _per_unit(name: str, table: dict[str, float], units: int | None) -> dict[str, float]:
+    """``table`` with its keys as ``wK`` and its values as numbers; SettingError for an unknown unit."""
+    known = "w0" if units == 1 else f"w0 … w{(units or 0) - 1}"
+    named: dict[str, float] = {}
+    for key, value in table.items():
+        text = str(key).strip()
+        digits = text[1:] if text[:1] == "w" else text
+        if not digits.isdigit() or (units is not None and int(digits) >= units):
+            fleet = f" (this fleet: {known})" if units is not None else " (a worker as wK)"
+            raise SettingError(f"{label(name)} {key}={value}: unknown unit {key!r}{fleet}")
+        if isinstance(value, bool) or not isinstance(value, int | float):
+            raise SettingError(f"{label(name)} {key}={value!r}: expected a number")
+        named[unit_name(int(digits))] = float(value)
+    return named
+
+
+def leave_probability(absent: float, absent_rounds: float) -> float:
+    """The chance that a present unit leaves before a round, so that with absences of ``absent_rounds``
+    rounds on average it is absent for ``absent`` of the rounds: q·L / (1 + q·L) = absent."""
+    return absent / (absent_rounds * (1 - absent))
+
+
+def absences(absent: float, absent_rounds: float, seed: int, worker: int) -> Iterator[int]:
+    """For each round after the first, how many rounds' worth the unit is absent before it (0: present):
+    it leaves with :func:`leave_probability`, for a geometric number of rounds of mean ``absent_rounds``.
+    The same (seed, worker) gives the same pattern."""
+    rng = np.random.default_rng([seed, worker, ABSENCE_STREAM])
+    leave = leave_probability(absent, absent_rounds)
+    while True:
+        yield int(rng.geometric(1 / absent_rounds)) if leave > 0 and rng.random() < leave else 0
+
+
+class UnevenUnit:
+    """A learner (:class:`~fleetrl.federation.rounds.RoundPlayer`) that plays as an uneven unit: each piece
+    of its own work is followed by ``(slowdown − 1)×`` its computing time asleep, and before a round it may
+    be absent.
+
+    :param learner: the unit's learner (its env already paced, if it is)
+    :param slowdown: the factor its computing time is stretched by (1: not slowed)
+    :param absent_for: for each round after the first, the rounds' worth it is absent before it
+        (:func:`absences`); None: always present
+    :param clock: the wall-time source (seconds)
+    :param cpu_clock: the computing-time source (seconds of this thread's CPU)
+    :param sleep: how to wait (seconds)
+    """
+
+    def __init__(
+        self,
+        learner: Any,
+        *,
+        slowdown: float = 1.0,
+        absent_for: Iterator[int] | None = None,
+        clock: Callable[[], float] = time.perf_counter,
+        cpu_clock: Callable[[], float] = time.thread_time,
+        sleep: Callable[[float], None] = time.sleep,
+    ) -> None:
+        self.learner = learner
+        self._cpu_clock = cpu_clock
+        self.slowdown = slowdown
+        self.absent_for = absent_for
+        self._clock = clock
+        self._sleep = sleep
+        self._agent = _TimedAgent(learner.agent, self._timed)
+        self.own_time = 0.0
+        """the unit's own time in the round under way (its work, slowed; not its waits)"""
+        self.last_round_time: float | None = None
+        """its own time in the last round it played (None before the first)"""
+        self.absences: list[tuple[int, float]] = []
+        """every absence so far: (rounds' worth, seconds paused)"""
+
+    @property
+    def agent(self) -> Any:
+        """The learner's agent, whose update steps count as the unit's own work (slowed)."""
+        return self._agent
+
+    @property
+    def completed(self) -> bool:
+        """The learner's completion criterion has held."""
+        return bool(self.learner.completed)
+
+    def play_round(self) -> Any:
+        """A whole round (per-round schemes), after an absence if one is due."""
+        self._begin()
+        result = self._timed(self.learner.play_round)
+        self.last_round_time = self.own_time
+        return result
+
+    def begin_round(self) -> Any:
+        """A per-step round's episodes, after an absence if one is due."""
+        self._begin()
+        return self._timed(self.learner.begin_round)
+
+    def end_round(self, played: Any, stats: Any) -> Any:
+        """A per-step round's result."""
+        result = self._timed(lambda: self.learner.end_round(played, stats))
+        self.last_round_time = self.own_time
+        return result
+
+    def _begin(self) -> None:
+        self.own_time = 0.0
+        if self.last_round_time is None or self.absent_for is None:
+            return
+        rounds = next(self.absent_for)
+        if rounds:
+            pause = rounds * self.last_round_time
+            self.absences.append((rounds, pause))
+            self._sleep(pause)
+
+    def _timed(self, work: Callable[[], Any]) -> Any:
+        """Do ``work``, then sleep (slowdown − 1)× its computing time; count both as the unit's own time."""
+        started, computing = self._clock(), self._cpu_clock()
+        result = work()
+        extra = (self.slowdown - 1) * (self._cpu_clock() - computing)
+        if extra > 0:
+            self._sleep(extra)
+        self.own_time += self._clock() - started
+        return result
+
+
+class _TimedAgent:
+    """An agent whose update steps (:data:`TIMED_AGENT_CALLS`) go through ``timed``; everything else is the
+    agent's own."""
+
+    def __init__(self, agent: Any, timed: Callable[[Callable[[], Any]], Any]) -> None:
+        self._agent = agent
+        self._timed_call = timed
+        if hasattr(agent, "set_extra_loss"):  # on the object itself: a protocol check looks it up there
+            self.set_extra_loss = agent.set_extra_loss
+
+    def __getattr__(self, name: str) -> Any:
+        attribute = getattr(self._agent, name)
+        if name not in TIMED_AGENT_CALLS:
+            return attribute
+        return lambda *args, **kwargs: self._timed_call(lambda: attribute(*args, **kwargs))
+
+
+def uneven_unit(learner: Any, conditions: UnitConditions | None, *, seed: int, worker: int) -> Any:
+    """``learner`` as the unit ``conditions`` describe (slowed, absent at times), or itself when the unit
+    is not slowed and never absent (pacing is in its env; a link delay in its transport)."""
+    if conditions is None or (conditions.slowdown == 1 and conditions.absent == 0):
+        return learner
+    schedule = None
+    if conditions.absent:
+        schedule = absences(conditions.absent, conditions.absent_rounds, seed, worker)
+    return UnevenUnit(learner, slowdown=conditions.slowdown, absent_for=schedule)

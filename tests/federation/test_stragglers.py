@@ -1,0 +1,129 @@
+"""A per-step scheme's chief with a quorum (docs/protocol.md, "Stragglers"), on hand-computed arrays: the
+grace after the quorum, who is waited for, stale contributions averaged or left out, and the per-unit
+counts."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from fleetrl.federation.chief import Chief, ChiefStep
+from fleetrl.federation.chief_state import chief_from_state, chief_to_state
+from fleetrl.federation.messages import Message
+from fleetrl.federation.stragglers import GRACE_FLOOR, quorum_count
+
+RUN = "straggle"
+LAYOUT = [("g", (2,))]
+K = 2
+
+
+def make(**kwargs: object) -> Chief:
+    options: dict[str, object] = {"quorum": 0.6, "max_rounds": 20}
+    options.update(kwargs)
+    return Chief(
+        run_id=RUN, workers=("0", "1", "2"), layout=LAYOUT, scheme="pergrad", steps_per_round=K, **options,  # type: ignore[arg-type]
+    )  # fmt: skip
+
+
+def step(
+    c: Chief, sender: str, rnd: int, k: int, values: list[float], now: float, stale: int = 0
+) -> ChiefStep:
+    flat = np.array(values, np.float32)
+    return c.receive(Message("step_gradient", RUN, sender, rnd, step=k, flat=flat, staleness=stale), now=now)
+
+
+def answers(s: ChiefStep) -> list[tuple[int, int, list[float], tuple[str, ...]]]:
+    return [(m.round, m.step, m.flat.tolist(), m.contributors) for m in s.outgoing if m.flat is not None]
+
+
+def test_quorum_count() -> None:
+    assert [quorum_count(0.6, n) for n in (1, 2, 3, 5, 10)] == [1, 2, 2, 3, 6]
+    assert quorum_count(1.0, 3) == 3
+
+
+def test_the_grace_after_the_quorum_then_the_straggler_is_not_waited_for_until_it_takes_part() -> None:
+    c = make()
+    assert c.tick(0.0) == ChiefStep()  # round 1 opens at 0
+    assert answers(step(c, "0", 1, 0, [1.0, 2.0], now=2.0)) == []
+    assert answers(step(c, "1", 1, 0, [3.0, 4.0], now=4.0)) == []  # 2 of 3: the quorum, at 4 s
+    assert c.next_deadline() == pytest.approx(5.0)  # a quarter of the 4 s the quorum took
+    assert answers(c.tick(4.9)) == []
+    assert answers(c.tick(5.0)) == [(1, 0, [2.0, 3.0], ("0", "1"))]
+    # the round's later steps wait only for its participants: no grace
+    assert answers(step(c, "0", 1, 1, [0.0, 0.0], now=5.1)) == []
+    assert answers(step(c, "1", 1, 1, [2.0, 2.0], now=5.2)) == [(1, 1, [1.0, 1.0], ("0", "1"))]
+    assert c.state.pace.behind == {"2"} and c.state.pace.late == {"2": 1}
+    # round 2: worker 2 is behind, so its first step closes with 0 and 1 at once
+    step(c, "0", 2, 0, [1.0, 1.0], now=6.0)
+    assert answers(step(c, "1", 2, 0, [3.0, 3.0], now=6.1)) == [(2, 0, [2.0, 2.0], ("0", "1"))]
+    # worker 2 joins round 2's step 1 (it answers the open exchange) and so takes part in round 2
+    step(c, "2", 2, 1, [9.0, 9.0], now=6.2, stale=1)
+    step(c, "0", 2, 1, [0.0, 0.0], now=6.3)
+    assert answers(step(c, "1", 2, 1, [0.0, 0.0], now=6.4)) == [(2, 1, [3.0, 3.0], ("0", "1", "2"))]
+    assert c.state.pace.behind == set() and c.round == 3 and c.members == ("0", "1", "2")
+
+
+def test_every_member_in_phase_answering_closes_at_once_and_the_floor_bounds_a_short_grace() -> None:
+    c = make()
+    c.tick(0.0)
+    step(c, "0", 1, 0, [1.0, 1.0], now=0.1)
+    step(c, "1", 1, 0, [1.0, 1.0], now=0.2)
+    assert c.next_deadline() == pytest.approx(0.2 + GRACE_FLOOR)
+    assert answers(step(c, "2", 1, 0, [4.0, 4.0], now=0.3)) == [(1, 0, [2.0, 2.0], ("0", "1", "2"))]
+
+
+def test_with_quorum_1_every_member_is_waited_for() -> None:
+    c = make(quorum=1.0)
+    c.tick(0.0)
+    step(c, "0", 1, 0, [1.0, 1.0], now=1.0)
+    step(c, "1", 1, 0, [1.0, 1.0], now=2.0)
+    assert c.next_deadline() is None and answers(c.tick(1000.0)) == []
+    assert len(answers(step(c, "2", 1, 0, [1.0, 1.0], now=1001.0))) == 1
+
+
+@pytest.mark.parametrize(("bound", "expected", "stale"), [(None, [3.0, 3.0], {}), (0, [1.0, 1.0], {"2": 1})])
+def test_a_stale_contribution_is_averaged_within_the_bound_else_counted_and_left_out(
+    bound: int | None, expected: list[float], stale: dict[str, int]
+) -> None:
+    c = make(quorum=1.0, max_staleness=bound)
+    step(c, "2", 1, 0, [7.0, 7.0], now=0.0, stale=2)
+    step(c, "0", 1, 0, [1.0, 1.0], now=0.0)
+    (got,) = answers(step(c, "1", 1, 0, [1.0, 1.0], now=0.0))
+    assert got[2] == expected and c.state.pace.stale == stale
+
+
+def test_a_completion_in_a_stale_message_still_counts() -> None:
+    c = make(quorum=1.0, max_staleness=0, max_rounds=1)
+    for k in range(K):
+        for w in ("0", "1"):
+            c.receive(Message("parameters", RUN, w, 1, step=k, flat=np.ones(2, np.float32)), now=0.0)
+        c.receive(
+            Message("parameters", RUN, "2", 1, step=k, flat=np.ones(2, np.float32), staleness=3), now=0.0
+        )
+    assert c.completed == {"0": 1, "1": 1, "2": 1} and c.end_reason == "every unit completed"
+
+
+def test_a_round_timeout_closes_with_whoever_answered_and_drops_nobody() -> None:
+    c = make(quorum=1.0, round_timeout=3.0)
+    c.tick(0.0)
+    step(c, "0", 1, 0, [1.0, 1.0], now=1.0)
+    assert answers(c.tick(3.0)) == [(1, 0, [1.0, 1.0], ("0",))] and c.members == ("0", "1", "2")
+
+
+def test_what_the_pace_rules_keep_survives_a_checkpoint() -> None:
+    c = make()
+    c.tick(0.0)
+    step(c, "0", 1, 0, [1.0, 1.0], now=1.0)
+    step(c, "1", 1, 0, [1.0, 1.0], now=1.0)
+    c.tick(2.0)
+    step(c, "0", 1, 1, [1.0, 1.0], now=2.0)
+    step(c, "1", 1, 1, [1.0, 1.0], now=2.0)
+    fields, tensors = chief_to_state(c)
+    back = chief_from_state(fields, tensors, now=0.0)
+    assert back.state.pace == c.state.pace and back.max_staleness == c.max_staleness
+    assert back.state.pace.behind == {"2"}
+
+
+def test_bad_staleness_bounds_are_refused() -> None:
+    with pytest.raises(ValueError, match="max_staleness must be >= 0"):
+        make(max_staleness=-1)
