@@ -69,7 +69,7 @@ def test_the_roles_read_the_same_file(tmp_path: Path) -> None:
 @pytest.mark.parametrize(
     ("text", "message"),
     [
-        ("quorum = 'high'\n", "--quorum = 'high': expected a number in "),
+        ("quorum = 'high'\n", "--quorum = 'high': expected a number (or unset) in "),
         ("unit = 3\n", "unknown setting(s) unit (known: "),
         ("units = 2.5\n", "--units = 2.5: expected an integer in "),
         ("live = 'no'\n", "live (flag --no-live) = 'no': expected true or false in "),

@@ -57,7 +57,9 @@ def test_the_probe_agent_is_built_once_per_resolution_and_not_for_the_result_set
     settings = build(RunSettings, {}, {"env": "cartpole", "out": tmp_path / "run", "quorum": 1})
     assert built == ["cartpole"]
     assert settings.result_settings() == settings.result_settings() and built == ["cartpole"]
-    unresolved = build(RunSettings, {}, {"env": "cartpole", "out": tmp_path / "run"}, resolve=False)
+    unresolved = build(
+        RunSettings, {}, {"env": "cartpole", "out": tmp_path / "run", "quorum": 1}, resolve=False
+    )
     assert unresolved.learning_resolved().result_settings() == settings.result_settings()
     assert built == ["cartpole"]
 
