@@ -15,11 +15,19 @@ from safetensors.numpy import load_file
 
 from fleetrl.federation.schemes.base import FleetStart
 from fleetrl.runs.factory import make_learner
-from fleetrl.runs.launch import fleet_start
+from fleetrl.runs.launch import fleet_model
 from fleetrl.runs.settings import LearningSettings, fleet_shape, resolve_learning
 from fleetrl.runs.spec import WorkerSpec
 from fleetrl.transport.broker import EmbeddedBroker
 from fleetrl.transport.local import LocalBus
+
+
+def fleet_start(learning: LearningSettings) -> FleetStart | None:
+    """The fleet's start the chief hands out before the fleet has learnt anything: its fleet model's first
+    snapshot (None for a scheme whose fleet is not one policy)."""
+    model = fleet_model(learning)
+    return None if model is None else FleetStart(model.layout, model.snapshot())
+
 
 FleetRunner = Callable[..., Any]
 

@@ -182,7 +182,7 @@ class StepWorkerMachine(WorkerMachine):
         self._config = dict(message.config) if message.config else self._config
         applied = WorkerStep((act.ApplyFleetStep(message.step, message.flat),))
         if self.phase is Phase.WAIT_ROUND and self.fleet_at[1] == 0:
-            return applied + self._join(now)
+            return applied + self._join()
         return applied
 
     def _queue_read(self, now: float) -> WorkerStep:
@@ -192,7 +192,7 @@ class StepWorkerMachine(WorkerMachine):
             nxt = self.fleet_at[0]
             return WorkerStep((act.Checkpoint(nxt),)) + self._begin_round(nxt)
         if self.fleet_at[1] == 0:
-            return self._join(now)
+            return self._join()
         log.info(
             "worker %s: the fleet is at round %d step %d; joining its next round", self.worker_id,
             *self.fleet_at,
@@ -201,9 +201,8 @@ class StepWorkerMachine(WorkerMachine):
         self._wait_until = None if self.reply_timeout is None else now + self.reply_timeout
         return NOTHING
 
-    def _join(self, now: float) -> WorkerStep:
+    def _join(self) -> WorkerStep:
         """Contribute what was played to the fleet's round-opening exchange ``fleet_at``."""
-        del now
         rnd = self.fleet_at[0]
         if rnd > self.max_rounds:
             reason = f"reached M={self.max_rounds}"

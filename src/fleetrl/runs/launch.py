@@ -27,7 +27,7 @@ from fleetrl.envs.catalog import ENV_SPECS, describe_env, get_env_spec
 from fleetrl.federation.chief import Chief
 from fleetrl.federation.fleet_model import FleetModel
 from fleetrl.federation.runner import ChiefSummary, run_chief
-from fleetrl.federation.schemes.base import FleetStart, StepScheme
+from fleetrl.federation.schemes.base import StepScheme
 from fleetrl.federation.shared_settings import shared_text
 from fleetrl.runs.factory import agent_for, make_learner, probe_agent
 from fleetrl.runs.fleet import Fleet, ThreadFleet, follow
@@ -84,13 +84,6 @@ def fleet_model(learning: LearningSettings) -> FleetModel | None:
 
     torch.set_num_threads(1)
     return FleetModel(scheme, agent_for(describe_env(learning.env), learning.ppo(), seed=learning.seed))
-
-
-def fleet_start(learning: LearningSettings) -> FleetStart | None:
-    """The fleet's start under a scheme whose fleet is one policy, which the chief hands every joining
-    worker before the fleet has learnt anything (:func:`fleet_model`'s first snapshot); None otherwise."""
-    model = fleet_model(learning)
-    return None if model is None else FleetStart(model.layout, model.snapshot())
 
 
 def train(settings: RunSettings) -> dict[str, Any]:
