@@ -4,8 +4,9 @@ checked after.
 
 Faults, one per run, chosen at random: kill -9 of a random worker that is restarted with ``--resume``; kill -9
 of a random worker that stays dead; kill -9 of the chief, restarted with ``--resume``; kill -9 of the broker,
-restarted; a worker added mid-run (the last worker id starts only then). The moment is after a random round
-(1 … M-2) of the killed role (of the chief, for the added worker or an uneven fleet), plus a random 0-0.3 s.
+restarted; a worker added mid-run (a new unit: an id the chief was not started with, N for a fleet of N).
+The moment is after a random round (1 … M-2) of the killed role (of the chief, for the added worker or an
+uneven fleet), plus a random 0-0.3 s.
 ``--uneven`` gives every worker more flags (``--slow w1=4 --absent 0.2``, say: each applies its own entry).
 
 Checked per run: every role that ran to the end exited 0; no worker's metrics.csv holds a round twice (rounds
@@ -201,15 +202,14 @@ def soak_one(index: int, fault: str, rng: random.Random, broker: Broker, root: P
     rounds, workers = args.rounds, args.workers
     run = Run(index, broker, out, rounds, args.grace, workers, shlex.split(args.uneven))
     victim = {"chief-resumed": "chief", "broker-restarted": "broker"}.get(fault) or str(
-        workers - 1 if fault == "worker-added" else rng.randrange(workers)
+        workers if fault == "worker-added" else rng.randrange(workers)
     )
     outcome = Outcome(index, fault, victim, after_round=rng.randint(1, rounds - 2))
     started = time.monotonic()
     try:
         run.start("chief")
         for k in range(workers):
-            if not (fault == "worker-added" and str(k) == victim):
-                run.start(str(k))
+            run.start(str(k))
         progress = (  # a straggler's own rounds may lag far behind: an uneven fleet goes by the chief's
             (lambda: len(run.worker_rounds(victim)) >= outcome.after_round)
             if victim.isdigit() and fault != "worker-added" and not args.uneven
@@ -282,15 +282,14 @@ def check_books(run: Run, outcome: Outcome, finished_by_victim: int, synchronous
     last = int(chief["rounds"])
     dropped = {d["worker"]: int(d["round"]) for d in chief["dropouts"]}
     answered = run.answered()
-    for k in range(run.workers):
-        worker = str(k)
+    for worker in (r for r in run.procs if r.isdigit()):  # the fleet's workers and an added one
         rounds = run.worker_rounds(worker)
         gone = outcome.fault == "worker-gone" and worker == outcome.victim
         outcome.duplicated += len(rounds) - len(set(rounds))
         took_part = {r for r in answered.get(worker, set()) if not gone or r <= finished_by_victim}
         outcome.lost += len(took_part - set(rounds))
-        if not synchronous:
-            continue
+        if not synchronous or (outcome.fault == "worker-added" and worker == outcome.victim):
+            continue  # a unit added mid-run holds the rounds from its welcome on
         expected = set(range(1, (finished_by_victim if gone else last) + 1))
         outcome.lost += len(expected - set(rounds) - took_part)
         if gone:
@@ -353,19 +352,12 @@ def main() -> int:
     parser.add_argument(
         "--faults",
         default=None,
-        help=f"the kinds to draw from ({','.join(FAULTS)}; worker-added: 3 workers up)",
+        help=f"the kinds to draw from ({','.join(FAULTS)})",
     )
     args = parser.parse_args()
-    # a worker added mid-run needs a fleet that goes on without it: a quorum below everyone (3 workers up)
-    kinds = (
-        args.faults.split(",")
-        if args.faults
-        else [f for f in FAULTS if args.workers >= 3 or "added" not in f]
-    )
+    kinds = args.faults.split(",") if args.faults else list(FAULTS)
     if unknown := set(kinds) - set(FAULTS):
         parser.error(f"unknown fault(s) {sorted(unknown)} (choose from {', '.join(FAULTS)})")
-    if "worker-added" in kinds and args.workers < 3:
-        parser.error("worker-added needs --workers 3 or more (the fleet goes on without the worker to add)")
     root = args.out or Path(tempfile.mkdtemp(prefix="fleetrl-soak-"))
     root.mkdir(parents=True, exist_ok=True)
     rng = random.Random(args.seed)

@@ -123,7 +123,8 @@ def run_fleet(
     chief_kwargs = {"scheme": "paper", **(chief_kwargs or {})}
     worker_kwargs = {"scheme": "paper", **(worker_kwargs or {})}
     layout = resolve_scheme(chief_kwargs["scheme"]).layout(agent)
-    chief = Chief(run_id=run_id, workers=list(learners), layout=layout, max_rounds=max_rounds, **chief_kwargs)
+    chief_kwargs = {"workers": list(learners), **chief_kwargs}  # a chief may know fewer: new units join
+    chief = Chief(run_id=run_id, layout=layout, max_rounds=max_rounds, **chief_kwargs)
     if on_chief is not None:
         on_chief(chief)
 

@@ -160,7 +160,7 @@ BAD = [
     (_raw(data=np.array([np.nan, 0], "<f4").tobytes()), Reason.NOT_FINITE),
     (_raw(data=np.array([np.inf, 0], "<f4").tobytes()), Reason.NOT_FINITE),
     (b"\x00" * 100_000, Reason.OVERSIZED),
-    (_raw(sender="7"), Reason.UNKNOWN_SENDER),
+    (_raw(sender="chief"), Reason.UNKNOWN_SENDER),  # no worker id (a new valid id may join)
     (_raw(round=0), Reason.BAD_ROUND),
     (b"not msgpack \xc1", Reason.NOT_MSGPACK),
     (_raw(run_id="other"), Reason.WRONG_RUN_ID),

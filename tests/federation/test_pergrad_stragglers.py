@@ -57,7 +57,8 @@ class LateTransport:
 def test_a_slow_unit_and_a_late_one_leave_the_fleet_one_policy_the_chief_s(
     fleet_runner: Callable[..., Any],
 ) -> None:
-    """Workers 0 and 1 are even; 2 plays its rounds a second slower; 3 joins at round JOIN. The fleet does not
+    """Workers 0 and 1 are even; 2 plays its rounds a second slower; 3, a unit the chief was not started
+    with, joins at round JOIN. The fleet does not
     wait for 2 round after round; 2 applies every answer it missed and contributes what it played, stale; 3
     starts from the fleet's model the chief hands it. Every worker ends with the chief's model — network and
     optimisers' state."""
@@ -74,7 +75,7 @@ def test_a_slow_unit_and_a_late_one_leave_the_fleet_one_policy_the_chief_s(
     assert model is not None
     chief_kwargs = {
         "scheme": "pergrad", "steps_per_round": fleet_shape(learning).exchanges_per_round,
-        "fleet_model": model, "quorum": 0.6,
+        "fleet_model": model, "quorum": 0.6, "workers": ["0", "1", "2"],  # 3 is new to the fleet
     }  # fmt: skip
     chiefs: list[Chief] = []
     bus = LocalBus()
@@ -94,6 +95,7 @@ def test_a_slow_unit_and_a_late_one_leave_the_fleet_one_policy_the_chief_s(
     assert chief.state.pace.late["2"] >= 1 and not chief.state.pace.late["0"]
     late_rounds = [r.round for r in result.records["3"]]
     assert late_rounds and min(late_rounds) >= JOIN, late_rounds
+    assert chief.all_workers == ("0", "1", "2", "3")
     kept = model.agent
     for w, learner in plain.items():  # every answer applied, in order, to the fleet's model
         assert np.array_equal(learner.agent.model_parameters(), kept.model_parameters()), w

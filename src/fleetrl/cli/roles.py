@@ -134,6 +134,7 @@ def cmd_chief(args: argparse.Namespace) -> int:
         round_timeout=settings.round_timeout,
         max_staleness=settings.max_staleness,
         dropout_grace=settings.dropout_grace,
+        open_fleet=not settings.closed_fleet,
         key=settings.fleet_key(),
         settings=shared_text(settings.learning),
         fleet_model=fleet_model(settings.learning),

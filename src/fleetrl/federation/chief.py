@@ -12,6 +12,8 @@ Round semantics (docs/protocol.md has the full rules):
   (:mod:`fleetrl.federation.schemes`) combines them into one answer and says who leaves W and whether the
   run is complete; the chief broadcasts it with the next round's configuration.
 * The run ends after the round the scheme calls complete, when W is empty, or after round M (``done``).
+* A worker new to the run joins it while it goes on (an open fleet, :mod:`.roster`): its matching ``join``
+  puts it in W and the welcome hands it the fleet's model.
 
 Reliability (dropout and rejoin, deadlines and quorum, the join's settings check, idempotent resends):
 docs/protocol.md, "Reliability", whose rules the methods below implement.
@@ -41,12 +43,13 @@ from fleetrl.federation.chief_state import AnswerBook, ChiefState
 from fleetrl.federation.events import ChiefEvent, ChiefStep
 from fleetrl.federation.fleet_model import FleetModel
 from fleetrl.federation.messages import Layout, Message, MessageRejected, Reason, decode
+from fleetrl.federation.roster import Roster
 from fleetrl.federation.schemes import Granularity, RoundContext, Scheme, resolve_scheme
 from fleetrl.federation.schemes.base import FleetStart
 from fleetrl.federation.shared_settings import JoinGate, SharedSettings
 from fleetrl.federation.signing import FleetKey, parse_status
 from fleetrl.federation.stragglers import waiting_rule
-from fleetrl.federation.topics import CHIEF_ID, sorted_workers, validate_id, validate_worker_id
+from fleetrl.federation.topics import CHIEF_ID, sorted_workers, validate_id
 
 __all__ = ["Chief", "ChiefEvent", "ChiefStep"]
 
@@ -79,6 +82,8 @@ class Chief:
     :param fleet_model: a per-step scheme's fleet model, kept by the chief (:mod:`.fleet_model`): it gives
         the start, and every ``welcome`` carries it as it is.
     :param welcome_layout: a ``welcome``'s layout (``start``'s, else ``layout``).
+    :param open_fleet: a worker with an id not in ``workers`` may join the run (:mod:`.roster`); False: only
+        ``workers`` take part.
     :param state: a restored chief's (:func:`.chief_state.chief_from_state`); None: round 1.
     :param now: when the open round opened (a restored chief: now); None: at the first input.
     """
@@ -104,14 +109,13 @@ class Chief:
         start: FleetStart | None = None,
         fleet_model: FleetModel | None = None,
         welcome_layout: Layout | None = None,
+        open_fleet: bool = True,
         state: ChiefState | None = None,
         now: float | None = None,
     ) -> None:
         """Create the chief with W = ``workers`` and round 1 open (or as ``state`` says)."""
         self.run_id = validate_id(run_id, "run id")
-        self.all_workers: tuple[str, ...] = tuple(sorted_workers({validate_worker_id(w) for w in workers}))
-        if not self.all_workers:
-            raise ValueError("a run needs at least one worker")
+        self.roster = Roster(workers, open_fleet=open_fleet)
         self.layout = list(layout)
         self.fleet_model = fleet_model
         if fleet_model is not None and start is None:
@@ -128,8 +132,8 @@ class Chief:
         self.quorum = quorum
         self.round_timeout = round_timeout
         self.max_staleness = max_staleness
-        per_step = self.scheme.granularity is Granularity.STEP
-        self._waits = waiting_rule(per_step, quorum, round_timeout, max_staleness)
+        self._per_step = self.scheme.granularity is Granularity.STEP
+        self._waits = waiting_rule(self._per_step, quorum, round_timeout, max_staleness)
         self.resend_holdoff = resend_holdoff
         self.dropout_grace = dropout_grace
         self.key = key
@@ -148,6 +152,11 @@ class Chief:
         # the state's records, under the names the runner and people read (the same objects: never rebound)
         self.rejections, self.completed, self.transfers = state.rejections, state.completed, state.transfers
         self.dropouts, self.rejoins = state.dropouts, state.rejoins
+
+    @property
+    def all_workers(self) -> tuple[str, ...]:
+        """Every worker of the run (W and those that left it), in the fixed order."""
+        return self.roster.workers
 
     def layout_of(self, message_type: str) -> Layout:
         """The layout of the tensors a message of ``message_type`` from the chief carries."""
@@ -204,7 +213,7 @@ class Chief:
         """
         try:
             message = decode(
-                payload, run_id=self.run_id, known_senders=self.all_workers, layout=self.layout,
+                payload, run_id=self.run_id, known_senders=self.roster, layout=self.layout,
                 max_bytes=self.max_bytes, key=self.key, scheme_types=(self.scheme.round_message,),
             )  # fmt: skip
         except MessageRejected as exc:
@@ -220,6 +229,8 @@ class Chief:
         sender, rnd = message.sender, message.round
         if message.type == "join":
             return self._join(message)
+        if sender not in self.all_workers:  # a new unit's first word is its join
+            return self._reject(sender, Reason.UNKNOWN_SENDER, f"{message.type} before its join")
         if (why := self._gate.refusal(sender)) is not None:
             return self._reject(sender, Reason.REFUSED, why)
         open_at = (self.state.round, self.steps_per_round if self.finished else self.state.step)
@@ -252,8 +263,12 @@ class Chief:
         never change W.
         """
         self._start_clock(now)
-        if worker not in self.all_workers:
-            return self._reject(worker, Reason.UNKNOWN_SENDER, "status")
+        if worker not in self.all_workers:  # a new unit's status: its join admits and welcomes it
+            return (
+                ChiefStep()
+                if self.roster.may_join(worker)
+                else self._reject(worker, Reason.UNKNOWN_SENDER, "status")
+            )
         try:
             status = parse_status(payload, run_id=self.run_id, node=worker, key=self.key)
         except MessageRejected as exc:
@@ -305,13 +320,22 @@ class Chief:
         return step + self._drop(sorted_workers(leave), DEADLINE_DROP) + self._close_round(now)
 
     def _join(self, message: Message) -> ChiefStep:
-        """Check a worker's shared settings: refuse it (until a join that matches) if one differs."""
-        outcome = self._gate.join(message.sender, message.settings)
+        """Check a worker's shared settings: refuse it (until a join that matches) if one differs. A worker
+        new to the run whose settings match is one of its workers from now on, welcomed at once."""
+        worker = message.sender
+        outcome = self._gate.join(worker, message.settings)
         if outcome == "duplicate":  # a re-sent or replayed join: nothing to do
-            return self._reject(message.sender, Reason.DUPLICATE, "join")
-        if outcome == "joined":
-            return ChiefStep(events=(ChiefEvent("joined", self.state.round, sender=message.sender),))
-        return self._refusal(message.sender)
+            return self._reject(worker, Reason.DUPLICATE, "join")
+        if outcome != "joined":
+            return self._refusal(worker)
+        if worker in self.all_workers:
+            return ChiefStep(events=(ChiefEvent("joined", self.state.round, sender=worker),))
+        if self.finished:
+            return ChiefStep()
+        self.roster.admit(worker)
+        step = ChiefStep(events=self.state.admit(worker, per_step=self._per_step))
+        model, config = self.state.model, self.state.config
+        return step + welcome_step(self.run_id, worker, self.state.round, model, self.settings or {}, config)
 
     def _refusal(self, worker: str) -> ChiefStep:
         return refusal_step(self.run_id, worker, self.state.round, self._gate.refusal(worker) or "")

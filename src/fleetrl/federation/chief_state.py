@@ -158,6 +158,18 @@ class ChiefState:
         remaining = tuple(sorted_workers(self.members))
         return (ChiefEvent("rejoined", self.round, sender=worker, detail=why, remaining=remaining),)
 
+    def admit(self, worker: str, *, per_step: bool) -> tuple[ChiefEvent, ...]:
+        """``worker``, new to the run, is in W from now on; under a per-step scheme it is behind (it plays
+        its first round from the fleet's model and joins the next round-opening exchange after it)."""
+        self.members.add(worker)
+        if per_step:
+            self.pace.behind.add(worker)
+        remaining = tuple(sorted_workers(self.members))
+        event = ChiefEvent(
+            "admitted", self.round, sender=worker, detail="new to the fleet", remaining=remaining
+        )
+        return (event,)
+
     def fields(self) -> dict[str, Any]:
         """The JSON part (cheap: the runner compares it after every input)."""
         model = self.model
@@ -221,6 +233,7 @@ def chief_config(chief: Chief) -> dict[str, Any]:
     return {
         "run_id": chief.run_id,
         "workers": list(chief.all_workers),
+        "open_fleet": chief.roster.open_fleet,
         "layout": [[name, list(shape)] for name, shape in chief.layout],
         "welcome_layout": [[name, list(shape)] for name, shape in chief.welcome_layout],
         "max_rounds": chief.max_rounds,
@@ -281,6 +294,7 @@ def chief_from_state(
     if fields.get("version") != STATE_VERSION:
         raise ValueError(f"chief state version {fields.get('version')!r}, expected {STATE_VERSION}")
     config = dict(fields["config"])
+    config.setdefault("open_fleet", True)  # a state written before new units could join
     if bool(config.pop("signed")) != (key is not None):
         had = "with" if key is None else "without"
         raise ValueError(f"the checkpoint was written by a chief {had} a fleet key; resume it the same way")

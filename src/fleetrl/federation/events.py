@@ -17,7 +17,8 @@ class ChiefEvent:
     :param kind: ``rejected``, ``accepted``, ``averaged``, ``transfer``, ``run_ended``, ``dropped``
         (a worker left W: offline or silent past the deadline), ``rejoined`` (a dropped worker is back in W),
         ``welcome`` (the open round was announced to a worker coming online), ``resent`` (the last answer
-        was sent again for a worker that re-sent a closed round), ``joined`` (a worker's shared settings
+        was sent again for a worker that re-sent a closed round), ``admitted`` (a worker new to the run
+        joined W: :mod:`.roster`), ``joined`` (a worker's shared settings
         match the chief's) or ``refused`` (they differ: ``detail`` names the setting).
     :param round: the chief's open round when it happened (the closed round for ``averaged``/``transfer``).
     :param sender: who sent the message concerned, or the worker dropped, rejoined or welcomed.
@@ -57,7 +58,7 @@ class ChiefEvent:
             return f"round {self.round}: worker {self.sender} refused: {self.detail}"
         if self.kind in ("accepted", "resent", "welcome"):
             return f"round {self.round}: {self.kind} {self.detail} for {self.sender}".replace("  ", " ")
-        if self.kind in ("dropped", "rejoined"):
+        if self.kind in ("dropped", "rejoined", "admitted"):
             w = ids(self.remaining)
             return f"round {self.round}: worker {self.sender} {self.kind}: {self.detail}; W={{{w}}}"
         scores = " ".join(f"{k}={v:g}" for k, v in self.scores.items())

@@ -27,7 +27,7 @@ from __future__ import annotations
 
 import math
 import re
-from collections.abc import Collection, Mapping, Sequence
+from collections.abc import Collection, Container, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -252,7 +252,7 @@ def decode(
     payload: bytes,
     *,
     run_id: str,
-    known_senders: Collection[str],
+    known_senders: Container[str],
     layout: Layout,
     max_bytes: int | None = None,
     key: FleetKey | None = None,
@@ -263,8 +263,8 @@ def decode(
 
     :param payload: the bytes received.
     :param run_id: the receiver's run; other runs' messages are rejected.
-    :param known_senders: senders the receiver accepts (the chief: all workers of the run; a worker:
-        ``chief``).
+    :param known_senders: senders the receiver accepts (the chief: its roster — the run's workers, and in an
+        open fleet any valid worker id; a worker: ``chief``).
     :param layout: tensor names and shapes every tensor-carrying message must match exactly.
     :param max_bytes: size cap; default :func:`default_max_bytes` of ``layout`` (plus the signature's bytes
         with ``key``).

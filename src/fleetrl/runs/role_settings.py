@@ -99,6 +99,8 @@ class ChiefSettings(RoleSettings, RoundRules):
     """give up (exit 1) after this many seconds without any worker message"""
     dropout_grace: float = 3.0
     """seconds a worker that went offline has to come back before it leaves W"""
+    closed_fleet: bool = False
+    """take only workers 0 … N-1 (by default a worker with another id joins the running fleet: a new unit)"""
 
     def resolved(self) -> ChiefSettings:
         """A new value with every default filled in; SettingError naming the first setting that cannot
@@ -122,7 +124,8 @@ class WorkerSettings(RoleSettings):
     """``fleetrl worker``: serve as one worker of a run (Algorithm 2)."""
 
     worker_id: int
-    """this worker's id (0 … N-1)"""
+    """this worker's id (0 … N-1; another id joins a running fleet as a new unit, unless its chief runs
+    with --closed-fleet)"""
     out: Path
     """this worker's run directory (metrics, model, a checkpoint every round in checkpoints/)"""
     unit: int | None = None
