@@ -17,6 +17,12 @@ Every rule takes ``weights`` too, one per vector: what each answer stands for (i
 Flower weighs by ``num_examples``). ``mean`` and ``clipped_mean`` weigh by them; ``median`` and
 ``trimmed_mean`` count members (a robust rule must not let one member's claim outweigh the others). Equal
 weights give exactly the unweighted numbers.
+
+``mean`` is one sum: fl32(Σ wᵢ·xᵢ / Σ wᵢ), accumulated in float64 one vector after the other in the given
+order (:func:`weighted_sum`). So it decomposes: an edge aggregator sends its members' weighted sum in float64
+with their total weight, and the chief adds it as one more term (:func:`mean_of_parts`) — the same numbers as
+if the members had answered the chief themselves whenever the float64 additions are exact (float32 inputs,
+small integer weights). The robust rules do not decompose (:func:`decomposes`).
 """
 
 from __future__ import annotations
@@ -102,15 +108,50 @@ def _unequal(weights: Sequence[float] | None, n: int) -> np.ndarray | None:
     return None if (w == w[0]).all() else w
 
 
+def weighted_sum(
+    vectors: Sequence[np.ndarray], weights: Sequence[float] | None = None, *, summed: Sequence[bool] = ()
+) -> tuple[np.ndarray, float]:
+    """(Σ wᵢ·xᵢ, Σ wᵢ): the vectors weighted and added in float64, one after the other in the given order.
+
+    :param weights: one per vector, finite, >= 0, not all 0 (None: 1 each).
+    :param summed: per vector, whether it is already a weighted sum (an edge aggregator's float64 Σ w·x,
+        whose weight is its total): added as it is. Empty: none is.
+    """
+    if not vectors:
+        raise ValueError("nothing to aggregate")
+    n = len(vectors)
+    w = np.ones(n) if weights is None else np.asarray(weights, dtype=np.float64)
+    if w.shape != (n,) or not np.isfinite(w).all() or (w < 0).any() or not w.sum() > 0:
+        raise ValueError(f"weights must be {n} finite numbers >= 0, not all 0; got {list(w)}")
+    flags = list(summed) or [False] * n
+    total = np.zeros(np.shape(vectors[0]), dtype=np.float64)
+    for vector, weight, is_sum in zip(vectors, w, flags, strict=True):
+        if is_sum:
+            total += np.asarray(vector, dtype=np.float64)
+        else:
+            total += weight * np.asarray(vector, dtype=np.float32).astype(np.float64)
+    return total, float(w.sum())
+
+
+def mean_of_parts(vectors: Sequence[np.ndarray], weights: Sequence[float], summed: Sequence[bool]) -> np.ndarray:
+    """The weighted mean of members some of which are edge aggregators' sums (see :func:`weighted_sum`):
+    fl32(Σ parts / Σ weights)."""
+    total, weight = weighted_sum(vectors, weights, summed=summed)
+    return np.asarray(total / weight, dtype=np.float32)
+
+
 @register_aggregator("mean")
 def mean(gradients: Sequence[np.ndarray], weights: Sequence[float] | None = None) -> np.ndarray:
     """Element-wise arithmetic mean (accumulated in float64, returned as float32): the paper's average ḡ;
-    with unequal ``weights`` the weighted mean Σ wᵢ gᵢ / Σ wᵢ (equal weights: the plain mean, bit for bit)."""
-    stacked = _stack(gradients)
-    w = _unequal(weights, len(stacked))
-    if w is None:
-        return np.asarray(np.mean(stacked, axis=0, dtype=np.float64), dtype=np.float32)
-    return np.asarray(np.tensordot(w / w.sum(), stacked.astype(np.float64), axes=1), dtype=np.float32)
+    with ``weights`` the weighted mean fl32(Σ wᵢ gᵢ / Σ wᵢ) (equal weights: np.mean's numbers, bit for bit)."""
+    total, weight = weighted_sum(gradients, weights)
+    return np.asarray(total / weight, dtype=np.float32)
+
+
+def decomposes(spec: str) -> bool:
+    """Whether the rule ``spec`` names can be applied in two levels (members' sums at edge aggregators,
+    then the chief) with the numbers of one level: only ``mean``."""
+    return spec.partition(":")[0] == "mean"
 
 
 @register_aggregator("median")

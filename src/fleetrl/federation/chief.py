@@ -28,7 +28,7 @@ from __future__ import annotations
 from collections.abc import Iterable
 from dataclasses import replace
 
-from fleetrl.federation.aggregation import Aggregator, get_aggregator
+from fleetrl.federation.aggregation import Aggregator, decomposes, get_aggregator
 from fleetrl.federation.chief_answer import (
     ClosedExchange,
     admission,
@@ -215,6 +215,7 @@ class Chief:
             message = decode(
                 payload, run_id=self.run_id, known_senders=self.roster, layout=self.layout,
                 max_bytes=self.max_bytes, key=self.key, scheme_types=(self.scheme.round_message,),
+                sums=decomposes(self.aggregator_name),
             )  # fmt: skip
         except MessageRejected as exc:
             return self._reject(topic_worker, exc.reason, exc.detail)

@@ -19,7 +19,8 @@ class ChiefEvent:
         ``welcome`` (the open round was announced to a worker coming online), ``resent`` (the last answer
         was sent again for a worker that re-sent a closed round), ``admitted`` (a worker new to the run
         joined W: :mod:`.roster`), ``joined`` (a worker's shared settings
-        match the chief's) or ``refused`` (they differ: ``detail`` names the setting).
+        match the chief's), ``refused`` (they differ: ``detail`` names the setting) or, at an edge
+        aggregator, ``forwarded`` (an exchange closed at the site: its members' sum went to the root).
     :param round: the chief's open round when it happened (the closed round for ``averaged``/``transfer``).
     :param sender: who sent the message concerned, or the worker dropped, rejoined or welcomed.
     :param reason: why a message was rejected.
@@ -67,6 +68,11 @@ class ChiefEvent:
             return (
                 f"round {self.round}: answered {ids(self.answered)}{late}; "
                 f"averaged {ids(self.averaged)} ({self.detail}); W={{{ids(self.remaining)}}} scores {scores}"
+            )
+        if self.kind == "forwarded":
+            return (
+                f"round {self.round}: answered {ids(self.answered)}{late}; sent the sum of "
+                f"{ids(self.averaged)} to the root ({self.detail}); W={{{ids(self.remaining)}}}"
             )
         if self.kind == "transfer":
             return (

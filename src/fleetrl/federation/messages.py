@@ -16,6 +16,10 @@ number or short str: what the chief asks of every worker for the round the messa
 contributes; 0: it played the round it answers), ``tensors`` (list of ``[name, shape]``) and ``data``
 (bin: the tensors concatenated in that order as little-endian float32).
 
+A round message of an edge aggregator (a site's gateway, :mod:`fleetrl.federation.edge`) carries its
+members' weighted sum Σ wᵢ·xᵢ exactly: its ``data`` is little-endian float64 (8 bytes a value; ``units`` is
+Σ wᵢ), which only a receiver that takes sums accepts (``decode(sums=True)``: a chief whose rule decomposes).
+
 Version 2 added ``step``, ``settings``, ``detail`` and the ``join`` / ``refused`` types; version 3 added
 ``samples``, ``units`` and ``config``, and a scheme's own round-message type; version 4 added ``staleness``.
 
@@ -149,6 +153,8 @@ class Message:
     :param config: what the chief asks of every worker for the round this message opens.
     :param staleness: rounds the fleet moved on while the worker played what it contributes (0: none).
     :param version: envelope version.
+    :param summed: ``flat`` is an edge aggregator's weighted sum of its members' vectors, float64 (sent as
+        8 bytes a value), standing for ``units``.
     """
 
     type: str
@@ -168,6 +174,7 @@ class Message:
     config: RoundConfig = field(default_factory=dict)
     staleness: int = 0
     version: int = VERSION
+    summed: bool = False
 
     def tensors(self, layout: Layout) -> dict[str, np.ndarray]:
         """The flat vector split into named, shaped views following ``layout``."""
@@ -201,7 +208,7 @@ def envelope(message: Message, *, layout: Layout) -> dict[str, Any]:
     ):
         if message.flat is None:
             raise ValueError(f"a {message.type!r} message needs tensors")
-        flat = np.ascontiguousarray(message.flat, dtype="<f4").reshape(-1)
+        flat = np.ascontiguousarray(message.flat, dtype="<f8" if message.summed else "<f4").reshape(-1)
         if flat.size != layout_size(layout):
             raise ValueError(f"{flat.size} values do not fit the layout ({layout_size(layout)})")
         tensors = [[name, list(shape)] for name, shape in layout]
@@ -239,7 +246,7 @@ def encode(message: Message, *, layout: Layout, key: FleetKey | None = None) -> 
         sender must not put on the wire what every receiver would reject.
     """
     env = envelope(message, layout=layout)
-    if env["data"] and not np.isfinite(np.frombuffer(env["data"], dtype="<f4")).all():
+    if env["data"] and not np.isfinite(np.frombuffer(env["data"], dtype="<f8" if message.summed else "<f4")).all():
         raise ValueError(f"refusing to send a {message.type!r} message with NaN or Inf values")
     if not all(math.isfinite(v) for v in env["metrics"].values()):
         raise ValueError("refusing to send non-finite metrics")
@@ -258,6 +265,7 @@ def decode(
     key: FleetKey | None = None,
     scheme_types: Collection[str] = (),
     layouts: Mapping[str, Layout] | None = None,
+    sums: bool = False,
 ) -> Message:
     """Parse and validate one message; raise :class:`MessageRejected` (only) if anything is wrong.
 
@@ -273,9 +281,12 @@ def decode(
         (the chief: its scheme's; a worker: none).
     :param layouts: message type → its own layout, where it is not ``layout`` (a ``welcome`` handing out the
         fleet's start).
+    :param sums: a scheme's round message may carry an edge aggregator's float64 sum (8 bytes a value).
     """
     layouts = layouts or {}
     cap = max(map(default_max_bytes, [layout, *layouts.values()])) if max_bytes is None else max_bytes
+    if sums and max_bytes is None:
+        cap += 4 * layout_size(layout)
     if key is not None:
         cap += SIGNATURE_OVERHEAD
     if not isinstance(payload, bytes | bytearray | memoryview):
@@ -320,7 +331,9 @@ def decode(
     samples, units = check_count(env["samples"], "samples"), check_count(env["units"], "units")
     config = check_config(env["config"], error=None)
     carries = MESSAGE_TYPES.get(mtype, True) or (mtype in OPTIONAL_TENSORS and env["tensors"] != [])
-    flat = _tensors(env["tensors"], env["data"], layouts.get(mtype, layout) if carries else ())
+    wide = sums and (mtype in scheme_types or mtype == "parameters") and isinstance(env["data"], bytes)
+    wide = wide and len(env["data"]) == 8 * layout_size(layout) > 0
+    flat = _tensors(env["tensors"], env["data"], layouts.get(mtype, layout) if carries else (), wide)
     return Message(
         type=mtype,
         run_id=run_id,
@@ -338,22 +351,24 @@ def decode(
         units=units,
         config=config,
         staleness=check_count(env["staleness"], "staleness"),
+        summed=wide,
     )
 
 
-def _tensors(tensors: object, data: object, layout: Layout) -> np.ndarray:
+def _tensors(tensors: object, data: object, layout: Layout, wide: bool = False) -> np.ndarray:
     expected = [[name, list(shape)] for name, shape in layout]
     if tensors != expected:
         raise MessageRejected(
             Reason.LAYOUT_MISMATCH,
             f"got {short(tensors)} of {len(tensors) if isinstance(tensors, list) else '?'} entries",
         )
-    if not isinstance(data, bytes) or len(data) != 4 * layout_size(layout):
+    width = 8 if wide else 4
+    if not isinstance(data, bytes) or len(data) != width * layout_size(layout):
         size = len(data) if isinstance(data, bytes) else type(data).__name__
         raise MessageRejected(
             Reason.LAYOUT_MISMATCH, f"data has {size} bytes, layout needs {4 * layout_size(layout)}"
         )
-    flat = np.frombuffer(data, dtype="<f4").astype(np.float32)
+    flat = np.frombuffer(data, dtype="<f8").astype(np.float64) if wide else np.frombuffer(data, "<f4").astype(np.float32)
     if not np.isfinite(flat).all():
         raise MessageRejected(Reason.NOT_FINITE, f"{int((~np.isfinite(flat)).sum())} non-finite values")
     return flat

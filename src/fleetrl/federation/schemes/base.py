@@ -34,7 +34,7 @@ from typing import TYPE_CHECKING, Any, ClassVar, Literal, Protocol, TypeAlias, r
 
 import numpy as np
 
-from fleetrl.federation.aggregation import Aggregator
+from fleetrl.federation.aggregation import Aggregator, mean_of_parts
 from fleetrl.federation.messages import Layout, Message, RoundConfig
 
 if TYPE_CHECKING:  # torch is the agent's: not imported to read a scheme
@@ -345,8 +345,12 @@ def aggregate(
 ) -> np.ndarray:
     """The answers' vectors combined with the run's rule, each weighted by what it stands for (``by``: the
     units or the transitions its message says it carries; a rule that cannot weigh counts members). Equal
-    weights give exactly the unweighted rule."""
+    weights give exactly the unweighted rule. An edge aggregator's answer is its members' weighted sum
+    (``summed``, weighted by their units): added as one term of the mean (:func:`.aggregation.mean_of_parts`)."""
     weights = [float(getattr(m, by)) for m in answers.values()]
+    summed = [m.summed for m in answers.values()]
+    if any(summed):  # an edge aggregator's sum: the chief takes one only if its rule is the mean
+        return mean_of_parts(flats(answers), weights, summed)
     return context.aggregate(flats(answers), weights=weights)
 
 

@@ -1,0 +1,162 @@
+"""The edge aggregator's loop: drive :class:`~.edge.EdgeAggregator` over two transports — downstream, its
+members' (the site's run: a site broker, or the central one under the site's own run id), and upstream, the
+root's (where the site is one worker).
+
+Each transport is read by a small thread that only queues what arrives; the state machine is fed from that
+one queue, in arrival order, on the caller's thread, so its inputs are never concurrent.
+"""
+
+from __future__ import annotations
+
+import logging
+import queue
+import threading
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+
+from fleetrl.federation.edge import EdgeAggregator, EdgeStep
+from fleetrl.federation.events import ChiefEvent
+from fleetrl.federation.messages import encode
+from fleetrl.federation.runner import MIN_WAIT, IdleTimeout
+from fleetrl.federation.signing import status_payload
+from fleetrl.federation.topics import (
+    CHIEF_ID,
+    OFFLINE,
+    ONLINE,
+    chief_topic,
+    node_of_status_topic,
+    status_filter,
+    status_topic,
+    worker_filter,
+    worker_of_topic,
+    worker_topic,
+)
+from fleetrl.transport.base import Received, Transport, Will
+
+log = logging.getLogger(__name__)
+
+POLL = 0.1
+"""seconds a reader thread waits on its transport before looking whether the loop has ended"""
+
+
+@dataclass(frozen=True)
+class EdgeSummary:
+    """How the site's run ended."""
+
+    site: str
+    rounds: int
+    end_reason: str
+    members: tuple[str, ...]
+    """the site's members when it ended"""
+
+
+def run_edge(
+    edge: EdgeAggregator,
+    *,
+    upstream: Transport,
+    downstream: Transport,
+    on_event: Callable[[ChiefEvent], None] | None = None,
+    idle_timeout: float | None = None,
+    clock: Callable[[], float] = time.monotonic,
+) -> EdgeSummary:
+    """Serve one site until the root ends the run: connect both sides (each with an ``offline`` last will),
+    join the root, and relay.
+
+    :param edge: the state machine.  :param upstream: an unconnected transport to the root's broker.
+    :param downstream: an unconnected transport to the site's broker (may be the same broker).
+    :param on_event: called with every event (also logged).
+    :param idle_timeout: raise :class:`~.runner.IdleTimeout` when nothing arrives for this long (None: never).
+    """
+    site = edge.site
+    incarnation = time.time_ns()
+    root_run, site_run, site_id = site.root_run, site.run_id, site.site_id
+    up_status, down_status = status_topic(root_run, site_id), status_topic(site_run, CHIEF_ID)
+
+    def up_state(state: bytes) -> bytes:
+        return status_payload(state, run_id=root_run, node=site_id, incarnation=incarnation, key=site.key)
+
+    def down_state(state: bytes) -> bytes:
+        return status_payload(state, run_id=site_run, node=CHIEF_ID, incarnation=incarnation, key=site.key)
+
+    def publish(step: EdgeStep) -> None:
+        for message in step.up:
+            retain = message.type == "join"
+            if retain:  # a re-sent join goes with the site's online status, as a worker's does
+                upstream.publish(up_status, up_state(ONLINE), retain=True)
+            payload = encode(message, layout=site.layout, key=site.key)
+            upstream.publish(worker_topic(root_run, site_id), payload, retain=retain)
+        for message in step.down:
+            payload = encode(message, layout=site.layout_of(message.type), key=site.key)
+            downstream.publish(chief_topic(site_run), payload)
+        for event in step.events:
+            (log.warning if event.kind in ("rejected", "dropped", "refused") else log.info)("site %s: %s", site_id, event)
+            if on_event is not None:
+                on_event(event)
+
+    inbox: queue.Queue[tuple[str, Received]] = queue.Queue()
+    stop = threading.Event()
+
+    def reader(side: str, transport: Transport) -> None:
+        while not stop.is_set():
+            received = transport.receive(POLL)
+            if received is not None:
+                inbox.put((side, received))
+
+    downstream.connect(f"fleetrl-{site_run}-chief", will=Will(down_status, down_state(OFFLINE)))
+    upstream.connect(f"fleetrl-{root_run}-{site_id}", will=Will(up_status, up_state(OFFLINE)))
+    readers = [
+        threading.Thread(target=reader, args=(side, t), name=f"site-{site_id}-{side}", daemon=True)
+        for side, t in (("up", upstream), ("down", downstream))
+    ]
+    try:
+        downstream.subscribe(worker_filter(site_run))
+        downstream.subscribe(status_filter(site_run))
+        upstream.subscribe(chief_topic(root_run))
+        for thread in readers:
+            thread.start()
+        downstream.announce(down_status, down_state(ONLINE))
+        upstream.announce(up_status, up_state(ONLINE))
+        log.info("site %s of run %s online: members {%s}", site_id, root_run, ",".join(site.members))
+        publish(edge.start(now=clock()))
+        last_input = clock()
+        while not edge.finished:
+            now = clock()
+            waits = [] if idle_timeout is None else [last_input + idle_timeout - now]
+            if (deadline := edge.next_deadline()) is not None:
+                waits.append(max(deadline - now + 0.001, MIN_WAIT))
+            try:
+                side, received = inbox.get(timeout=max(0.0, min(waits)) if waits else None)
+            except queue.Empty:
+                now = clock()
+                publish(edge.tick(now))
+                if idle_timeout is not None and now - last_input >= idle_timeout:
+                    raise IdleTimeout(f"site {site_id}: nothing for {idle_timeout:g} s in round {site.round}")
+                continue
+            now = last_input = clock()
+            publish(_feed(edge, side, received, now))
+            publish(edge.tick(now))
+        upstream.publish(up_status, up_state(OFFLINE), retain=True)
+        downstream.publish(down_status, down_state(OFFLINE), retain=True)
+    finally:
+        stop.set()
+        for thread in readers:
+            if thread.is_alive():
+                thread.join(2 * POLL + 1)
+        upstream.close()
+        downstream.close()
+    return EdgeSummary(site_id, site.round, site.end_reason or "?", site.members)
+
+
+def _feed(edge: EdgeAggregator, side: str, received: Received, now: float) -> EdgeStep:
+    """One received payload, to the side of the machine it belongs to."""
+    site = edge.site
+    if side == "up":
+        return edge.root_bytes(received.payload, now=now)
+    worker = worker_of_topic(site.run_id, received.topic)
+    if worker is not None:
+        return edge.receive_bytes(received.payload, topic_worker=worker, now=now)
+    node = node_of_status_topic(site.run_id, received.topic)
+    if node is not None and node != CHIEF_ID:
+        return edge.status(node, received.payload, retained=received.retained, now=now)
+    return EdgeStep()
