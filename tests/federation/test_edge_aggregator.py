@@ -48,14 +48,19 @@ def test_a_site_s_sum_and_a_plain_member_give_the_flat_mean() -> None:
     site, units = weighted_sum([a, b], [1, 2])  # a site of two members, the second a host of 2 units
     tree = mean_of_parts([site, c], [units, 3.0], [True, False])
     assert tree.tobytes() == mean([a, b, c], [1, 2, 3]).tobytes()
-    assert mean_of_parts([site, c], [units, 1.0], [True, False]).tobytes() == mean([a, b, c], [1, 2, 1]).tobytes()
+    assert (
+        mean_of_parts([site, c], [units, 1.0], [True, False]).tobytes()
+        == mean([a, b, c], [1, 2, 1]).tobytes()
+    )
 
 
 def test_a_site_s_sum_travels_as_float64_and_only_a_chief_that_takes_sums_reads_it() -> None:
     total = np.array([0.1, 1e-30, 3.0]) + np.array([1e-17, 0.0, 0.0])  # not a float32 value
     message = Message("step_gradient", ROOT, SITE, 1, flat=total, units=2, summed=True)
     wire = encode(message, layout=LAYOUT)
-    read = decode(wire, run_id=ROOT, known_senders={SITE}, layout=LAYOUT, scheme_types=("step_gradient",), sums=True)
+    read = decode(
+        wire, run_id=ROOT, known_senders={SITE}, layout=LAYOUT, scheme_types=("step_gradient",), sums=True
+    )
     assert read.summed and read.flat is not None and read.flat.tobytes() == total.tobytes()
     with pytest.raises(MessageRejected) as refused:
         decode(wire, run_id=ROOT, known_senders={SITE}, layout=LAYOUT, scheme_types=("step_gradient",))
@@ -126,7 +131,9 @@ def test_an_exchange_closes_up_as_one_sum_and_the_root_s_answer_comes_down() -> 
     )  # fmt: skip
     assert up.flat is not None and up.flat.tolist() == [1.5, 2.5, 3.5]
     # the root (two sites of 2 units) answers; the members get it with member ids
-    answer = Message("average", ROOT, "chief", 1, step=0, flat=f32(0.25, 0.5, 1.0), contributors=(SITE, "site-b"))
+    answer = Message(
+        "average", ROOT, "chief", 1, step=0, flat=f32(0.25, 0.5, 1.0), contributors=(SITE, "site-b")
+    )
     (down,) = e.from_root(answer, now=2.0).down
     assert (down.type, down.run_id, down.round, down.step, down.contributors) == (
         "average", "site-a-run", 1, 0, ("1", "2"),
@@ -142,7 +149,9 @@ def test_a_site_whose_members_all_completed_is_complete_at_the_root() -> None:
     e.receive_bytes(step_grad("1", 1, 0, 1, 1, 1, kind="parameters"), topic_worker="1", now=1.0)
     (up,) = e.receive_bytes(step_grad("2", 1, 0, 1, 1, 1), topic_worker="2", now=1.0).up
     assert up.type == "step_gradient"  # member 2 has not completed
-    e.from_root(Message("average", ROOT, "chief", 1, step=0, flat=f32(1, 1, 1), contributors=(SITE,)), now=2.0)
+    e.from_root(
+        Message("average", ROOT, "chief", 1, step=0, flat=f32(1, 1, 1), contributors=(SITE,)), now=2.0
+    )
     e.receive_bytes(step_grad("1", 1, 1, 1, 1, 1, kind="parameters"), topic_worker="1", now=3.0)
     (up,) = e.receive_bytes(step_grad("2", 1, 1, 1, 1, 1, kind="parameters"), topic_worker="2", now=3.0).up
     assert up.type == "parameters"
@@ -164,7 +173,9 @@ def test_a_member_dropping_out_leaves_the_site_and_the_next_exchange_closes_with
     started(e)
     e.receive_bytes(step_grad("1", 1, 0, 1, 1, 1), topic_worker="1", now=1.0)
     e.receive_bytes(step_grad("2", 1, 0, 3, 3, 3), topic_worker="2", now=1.0)
-    e.from_root(Message("average", ROOT, "chief", 1, step=0, flat=f32(2, 2, 2), contributors=(SITE,)), now=2.0)
+    e.from_root(
+        Message("average", ROOT, "chief", 1, step=0, flat=f32(2, 2, 2), contributors=(SITE,)), now=2.0
+    )
     e.status("2", offline("2"), now=2.0)
     dropped = e.tick(3.5)
     assert [ev.kind for ev in dropped.events] == ["dropped"] and e.site.members == ("1",)
@@ -173,7 +184,15 @@ def test_a_member_dropping_out_leaves_the_site_and_the_next_exchange_closes_with
 
 
 def test_the_root_takes_a_site_s_sum_as_its_members_and_answers_with_the_flat_mean() -> None:
-    root = Chief(run_id=ROOT, workers=(SITE, "9"), layout=LAYOUT, max_rounds=3, scheme="pergrad", steps_per_round=K, quorum=1.0)
+    root = Chief(
+        run_id=ROOT,
+        workers=(SITE, "9"),
+        layout=LAYOUT,
+        max_rounds=3,
+        scheme="pergrad",
+        steps_per_round=K,
+        quorum=1.0,
+    )
     e = edge()
     started(e)
     e.receive_bytes(step_grad("1", 1, 0, 1.0, 2.0, 0.1), topic_worker="1", now=1.0)
@@ -184,6 +203,14 @@ def test_the_root_takes_a_site_s_sum_as_its_members_and_answers_with_the_flat_me
     flat = mean([f32(1.0, 2.0, 0.1), f32(3.0, 5.0, 0.2), f32(-1.0, 0.5, 0.3)])
     assert answer.flat is not None and answer.flat.tobytes() == flat.tobytes()
     assert (answer.units, answer.contributors) == (3, ("9", SITE))  # numeric ids sort first
-    robust = Chief(run_id=ROOT, workers=(SITE,), layout=LAYOUT, max_rounds=3, scheme="pergrad", steps_per_round=K, aggregator="median")
+    robust = Chief(
+        run_id=ROOT,
+        workers=(SITE,),
+        layout=LAYOUT,
+        max_rounds=3,
+        scheme="pergrad",
+        steps_per_round=K,
+        aggregator="median",
+    )
     step = robust.receive_bytes(encode(up, layout=LAYOUT), topic_worker=SITE, now=1.0)
     assert [ev.reason for ev in step.events] == [Reason.LAYOUT_MISMATCH]

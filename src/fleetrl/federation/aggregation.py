@@ -133,7 +133,9 @@ def weighted_sum(
     return total, float(w.sum())
 
 
-def mean_of_parts(vectors: Sequence[np.ndarray], weights: Sequence[float], summed: Sequence[bool]) -> np.ndarray:
+def mean_of_parts(
+    vectors: Sequence[np.ndarray], weights: Sequence[float], summed: Sequence[bool]
+) -> np.ndarray:
     """The weighted mean of members some of which are edge aggregators' sums (see :func:`weighted_sum`):
     fl32(Σ parts / Σ weights)."""
     total, weight = weighted_sum(vectors, weights, summed=summed)
@@ -143,7 +145,8 @@ def mean_of_parts(vectors: Sequence[np.ndarray], weights: Sequence[float], summe
 @register_aggregator("mean")
 def mean(gradients: Sequence[np.ndarray], weights: Sequence[float] | None = None) -> np.ndarray:
     """Element-wise arithmetic mean (accumulated in float64, returned as float32): the paper's average ḡ;
-    with ``weights`` the weighted mean fl32(Σ wᵢ gᵢ / Σ wᵢ) (equal weights: np.mean's numbers, bit for bit)."""
+    with ``weights`` the weighted mean fl32(Σ wᵢ gᵢ / Σ wᵢ) (equal weights: np.mean's numbers, bit for
+    bit)."""
     total, weight = weighted_sum(gradients, weights)
     return np.asarray(total / weight, dtype=np.float32)
 

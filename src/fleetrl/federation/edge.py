@@ -37,7 +37,8 @@ the ones an edge aggregator can sum for"""
 
 
 def check_tree(scheme: str | Scheme, aggregator: str) -> None:
-    """ValueError, in one line, if a run of ``scheme`` and rule ``aggregator`` cannot have edge aggregators."""
+    """ValueError, in one line, if a run of ``scheme`` and rule ``aggregator`` cannot have edge
+    aggregators."""
     name = resolve_scheme(scheme).name
     if name not in TREE_SCHEMES:
         raise ValueError(
@@ -151,7 +152,11 @@ class EdgeAggregator:
         if message.type not in ("average", "transfer"):
             return EdgeStep()
         last = self._last_up
-        if last is not None and last.type != "join" and (message.round, message.step) >= (last.round, last.step):
+        if (
+            last is not None
+            and last.type != "join"
+            and (message.round, message.step) >= (last.round, last.step)
+        ):
             self._last_up, self._next_send = None, math.inf  # answered: nothing more to re-send
         return self._from(site.root_answer(message, now=now), now)
 

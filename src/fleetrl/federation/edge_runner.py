@@ -90,7 +90,9 @@ def run_edge(
             payload = encode(message, layout=site.layout_of(message.type), key=site.key)
             downstream.publish(chief_topic(site_run), payload)
         for event in step.events:
-            (log.warning if event.kind in ("rejected", "dropped", "refused") else log.info)("site %s: %s", site_id, event)
+            (log.warning if event.kind in ("rejected", "dropped", "refused") else log.info)(
+                "site %s: %s", site_id, event
+            )
             if on_event is not None:
                 on_event(event)
 
@@ -125,14 +127,14 @@ def run_edge(
             waits = [] if idle_timeout is None else [last_input + idle_timeout - now]
             if (deadline := edge.next_deadline()) is not None:
                 waits.append(max(deadline - now + 0.001, MIN_WAIT))
-            try:
-                side, received = inbox.get(timeout=max(0.0, min(waits)) if waits else None)
-            except queue.Empty:
+            item = _next(inbox, max(0.0, min(waits)) if waits else None)
+            if item is None:  # a deadline, or the idle timeout
                 now = clock()
                 publish(edge.tick(now))
                 if idle_timeout is not None and now - last_input >= idle_timeout:
                     raise IdleTimeout(f"site {site_id}: nothing for {idle_timeout:g} s in round {site.round}")
                 continue
+            side, received = item
             now = last_input = clock()
             publish(_feed(edge, side, received, now))
             publish(edge.tick(now))
@@ -146,6 +148,14 @@ def run_edge(
         upstream.close()
         downstream.close()
     return EdgeSummary(site_id, site.round, site.end_reason or "?", site.members)
+
+
+def _next(inbox: queue.Queue[tuple[str, Received]], timeout: float | None) -> tuple[str, Received] | None:
+    """What a transport delivered next, or None after ``timeout`` seconds."""
+    try:
+        return inbox.get(timeout=timeout)
+    except queue.Empty:
+        return None
 
 
 def _feed(edge: EdgeAggregator, side: str, received: Received, now: float) -> EdgeStep:

@@ -246,7 +246,10 @@ def encode(message: Message, *, layout: Layout, key: FleetKey | None = None) -> 
         sender must not put on the wire what every receiver would reject.
     """
     env = envelope(message, layout=layout)
-    if env["data"] and not np.isfinite(np.frombuffer(env["data"], dtype="<f8" if message.summed else "<f4")).all():
+    if (
+        env["data"]
+        and not np.isfinite(np.frombuffer(env["data"], dtype="<f8" if message.summed else "<f4")).all()
+    ):
         raise ValueError(f"refusing to send a {message.type!r} message with NaN or Inf values")
     if not all(math.isfinite(v) for v in env["metrics"].values()):
         raise ValueError("refusing to send non-finite metrics")
@@ -368,7 +371,11 @@ def _tensors(tensors: object, data: object, layout: Layout, wide: bool = False) 
         raise MessageRejected(
             Reason.LAYOUT_MISMATCH, f"data has {size} bytes, layout needs {4 * layout_size(layout)}"
         )
-    flat = np.frombuffer(data, dtype="<f8").astype(np.float64) if wide else np.frombuffer(data, "<f4").astype(np.float32)
+    flat = (
+        np.frombuffer(data, dtype="<f8").astype(np.float64)
+        if wide
+        else np.frombuffer(data, "<f4").astype(np.float32)
+    )
     if not np.isfinite(flat).all():
         raise MessageRejected(Reason.NOT_FINITE, f"{int((~np.isfinite(flat)).sum())} non-finite values")
     return flat

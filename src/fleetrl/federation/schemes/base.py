@@ -346,7 +346,8 @@ def aggregate(
     """The answers' vectors combined with the run's rule, each weighted by what it stands for (``by``: the
     units or the transitions its message says it carries; a rule that cannot weigh counts members). Equal
     weights give exactly the unweighted rule. An edge aggregator's answer is its members' weighted sum
-    (``summed``, weighted by their units): added as one term of the mean (:func:`.aggregation.mean_of_parts`)."""
+    (``summed``, weighted by their units): added as one term of the mean
+    (:func:`.aggregation.mean_of_parts`)."""
     weights = [float(getattr(m, by)) for m in answers.values()]
     summed = [m.summed for m in answers.values()]
     if any(summed):  # an edge aggregator's sum: the chief takes one only if its rule is the mean
