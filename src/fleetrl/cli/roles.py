@@ -1,5 +1,6 @@
 """The roles of a run spread over several machines: ``fleetrl broker``, ``fleetrl chief``, ``fleetrl worker``,
-and ``fleetrl secure-config`` (a mosquitto config with logins, per-role ACLs, TLS and a fleet key).
+``fleetrl aggregator`` (a site's edge aggregator) and ``fleetrl secure-config`` (a mosquitto config with
+logins, per-role ACLs, TLS and a fleet key).
 
 See docs/deploy.md and docs/security.md. Start order does not matter: workers wait for the chief's welcome.
 """
@@ -54,6 +55,14 @@ def register(sub: Any) -> None:
     worker = sub.add_parser("worker", help="serve as one worker of a federated run (Algorithm 2)")
     add_settings_arguments(worker, WorkerSettings, notes=required)
     worker.set_defaults(handler=cmd_worker)
+
+    from fleetrl.runs.aggregator_settings import AggregatorSettings
+
+    aggregator = sub.add_parser(
+        "aggregator", help="serve a site's workers as one member of the root chief (an edge aggregator)"
+    )
+    add_settings_arguments(aggregator, AggregatorSettings, notes=required)
+    aggregator.set_defaults(handler=cmd_aggregator)
 
 
 def cmd_broker(args: argparse.Namespace) -> int:
@@ -219,6 +228,39 @@ def cmd_worker(args: argparse.Namespace) -> int:
         summary = recorder.finish()
     print(json.dumps(summary["workers"]))
     return 130 if recorder.interrupted else 0
+
+
+def cmd_aggregator(args: argparse.Namespace) -> int:
+    """Serve a site as its edge aggregator until the root ends the run; print how it ended as JSON."""
+    with collector_paused():
+        from dataclasses import asdict
+
+        from fleetrl.federation.edge import EdgeAggregator
+        from fleetrl.federation.edge_runner import run_edge
+        from fleetrl.federation.shared_settings import shared_text
+        from fleetrl.runs.aggregator_settings import AggregatorSettings
+        from fleetrl.runs.launch import fleet_model
+        from fleetrl.runs.settings import fleet_shape
+
+        settings = settings_from_args(AggregatorSettings, args)
+    shape = fleet_shape(settings.learning)
+    model = fleet_model(settings.learning)
+    edge = EdgeAggregator(
+        site_id=settings.site_id, root_run=settings.run_id, run_id=settings.site_run,
+        members=settings.member_ids, layout=shape.layout, scheme=settings.learning.federation_scheme(),
+        welcome_layout=None if model is None else model.layout, steps_per_round=shape.exchanges_per_round,
+        max_rounds=settings.learning.max_rounds, aggregator=settings.aggregation,
+        quorum=settings.chief_quorum, round_timeout=settings.round_timeout,
+        max_staleness=settings.max_staleness,
+        dropout_grace=settings.dropout_grace, open_fleet=not settings.closed_fleet, key=settings.fleet_key(),
+        settings=shared_text(settings.learning), fleet_model=model, resend_interval=settings.resend_interval,
+    )  # fmt: skip
+    summary = run_edge(
+        edge, upstream=settings.transport(), downstream=settings.site_transport(),
+        idle_timeout=settings.idle_timeout,
+    )  # fmt: skip
+    print(json.dumps({"run_id": settings.run_id, "site_run": settings.site_run, **asdict(summary)}))
+    return 0
 
 
 def worker_config(settings: Any) -> dict[str, Any]:
