@@ -1,6 +1,8 @@
-"""THE flat-vs-tree equality: the same 4 CartPole units (real learners, preset standard, pergrad) run flat
-(a chief and 4 workers) and as a tree (a root chief, 2 edge aggregators × 2 workers) on the in-process bus
-give identical per-round scores and final models."""
+"""THE flat-vs-tree equality: the same 4 CartPole units (real learners, preset standard) run flat (a chief
+and 4 workers) and as a tree (a root chief, 2 edge aggregators × 2 workers) on the in-process bus give
+identical per-round scores, events and final models: under ``pergrad`` (the default, to round M) and under
+``fedavg`` with a low target, so that the run ends by every unit completing and the root's ``finished``
+reaches every member through its site."""
 
 from __future__ import annotations
 
@@ -8,7 +10,6 @@ import threading
 from collections.abc import Callable
 from typing import Any
 
-import numpy as np
 import pytest
 
 from fleetrl.federation.chief import Chief
@@ -30,56 +31,75 @@ TIMEOUT = 300.0
 FleetRunner = Callable[..., Any]
 
 
-def learning(seed: int = 0) -> LearningSettings:
+ARMS = {"pergrad": (ROUNDS, None), "fedavg": (12, 25.0)}
+"""scheme → (M, target score: None for CartPole's own)"""
+Outcome = dict[str, list[tuple[float, str]]]
+
+
+def learning(scheme: str, seed: int = 0) -> LearningSettings:
+    rounds, target = ARMS[scheme]
     return resolve_learning(
-        LearningSettings(env="cartpole", preset="standard", scheme="pergrad", seed=seed, max_rounds=ROUNDS)
+        LearningSettings(
+            env="cartpole",
+            preset="standard",
+            scheme=scheme,
+            seed=seed,
+            max_rounds=rounds,
+            target_score=target,
+        )
     )
 
 
-def learners() -> dict[str, Any]:
+def learners(scheme: str) -> dict[str, Any]:
     """The 4 units, each built as ``fleetrl worker --worker-id W --seed 100+W`` builds it."""
     return {
         w: make_learner(
-            WorkerSpec(worker=int(w), unit=int(w), learning=learning(100 + int(w)), out="/nonexistent")
+            WorkerSpec(
+                worker=int(w), unit=int(w), learning=learning(scheme, 100 + int(w)), out="/nonexistent"
+            )
         )
         for w in UNITS
     }
 
 
-def chief_options() -> dict[str, Any]:
-    settings = learning()
+def chief_options(scheme: str) -> dict[str, Any]:
+    settings = learning(scheme)
     model = fleet_model(settings)
-    assert model is not None
-    start = FleetStart(model.layout, model.snapshot())
+    start = None if model is None else FleetStart(model.layout, model.snapshot())
     shape = fleet_shape(settings)
-    return {"scheme": "pergrad", "steps_per_round": shape.exchanges_per_round, "start": start, "quorum": 1.0}
+    return {"scheme": scheme, "steps_per_round": shape.exchanges_per_round, "start": start, "quorum": 1.0}
 
 
-def flat_run(fleet_runner: FleetRunner, units: dict[str, Any]) -> dict[str, list[float]]:
+def outcome(records: dict[str, list[FederatedRound]]) -> Outcome:
+    return {w: [(r.result.score, r.event) for r in rs] for w, rs in records.items()}
+
+
+def flat_run(fleet_runner: FleetRunner, scheme: str, units: dict[str, Any]) -> tuple[Outcome, ChiefSummary]:
     result = fleet_runner(
-        LocalBus().client, units, run_id="flat", max_rounds=ROUNDS, chief_kwargs=chief_options(),
-        worker_kwargs={"scheme": "pergrad"}, timeout=TIMEOUT,
+        LocalBus().client, units, run_id="flat", max_rounds=ARMS[scheme][0],
+        chief_kwargs=chief_options(scheme), worker_kwargs={"scheme": scheme}, timeout=TIMEOUT,
     )  # fmt: skip
-    return {w: [r.result.score for r in rs] for w, rs in result.records.items()}
+    return outcome(result.records), result.chief
 
 
-def tree_run(units: dict[str, Any]) -> tuple[dict[str, list[float]], ChiefSummary, list[EdgeSummary]]:
+def tree_run(scheme: str, units: dict[str, Any]) -> tuple[Outcome, ChiefSummary, list[EdgeSummary]]:
     """A root chief of the two sites, each site an edge aggregator of two workers under its own run id, all
     on one bus."""
-    options = chief_options()
+    options = chief_options(scheme)
+    rounds = ARMS[scheme][0]
     agent = units["0"].agent
-    layout = options["start"].layout
-    step_layout = list(agent.step_layout(0))
+    layout = None if options["start"] is None else options["start"].layout
+    step_layout = list(units["0"].agent.step_layout(0)) if scheme == "pergrad" else list(agent.model_layout())
     bus = LocalBus()
-    root = Chief(run_id="tree", workers=tuple(SITES), layout=step_layout, max_rounds=ROUNDS, **options)
+    root = Chief(run_id="tree", workers=tuple(SITES), layout=step_layout, max_rounds=rounds, **options)
     records: dict[str, list[FederatedRound]] = {w: [] for w in UNITS}
-    outcome: dict[str, Any] = {}
+    results: dict[str, Any] = {}
     errors: list[BaseException] = []
 
     def guarded(name: str, fn: Callable[[], Any]) -> threading.Thread:
         def body() -> None:
             try:
-                outcome[name] = fn()
+                results[name] = fn()
             except BaseException as exc:
                 errors.append(exc)
 
@@ -89,7 +109,7 @@ def tree_run(units: dict[str, Any]) -> tuple[dict[str, list[float]], ChiefSummar
     for site, members in SITES.items():
         edge = EdgeAggregator(
             site_id=site, root_run="tree", run_id=f"tree-{site}", members=members, layout=step_layout,
-            welcome_layout=layout, scheme="pergrad", max_rounds=ROUNDS,
+            welcome_layout=layout, scheme=scheme, max_rounds=rounds,
             steps_per_round=options["steps_per_round"], quorum=1.0,
         )  # fmt: skip
         threads.append(
@@ -102,8 +122,8 @@ def tree_run(units: dict[str, Any]) -> tuple[dict[str, list[float]], ChiefSummar
         )
         for w in members:
             worker = FederatedWorker(
-                units[w], bus.client(), run_id=f"tree-{site}", worker_id=w, max_rounds=ROUNDS,
-                on_record=records[w].append, reply_timeout=TIMEOUT, scheme="pergrad",
+                units[w], bus.client(), run_id=f"tree-{site}", worker_id=w, max_rounds=rounds,
+                on_record=records[w].append, reply_timeout=TIMEOUT, scheme=scheme,
             )  # fmt: skip
             threads.append(guarded(f"worker-{w}", worker.run))
     for thread in threads:
@@ -112,8 +132,7 @@ def tree_run(units: dict[str, Any]) -> tuple[dict[str, list[float]], ChiefSummar
         thread.join(TIMEOUT + 10)
     assert not errors, errors
     assert not any(t.is_alive() for t in threads), "a role hung"
-    scores = {w: [r.result.score for r in rs] for w, rs in records.items()}
-    return scores, outcome["root"], [outcome[s] for s in SITES]
+    return outcome(records), results["root"], [results[s] for s in SITES]
 
 
 @pytest.fixture(autouse=True)
@@ -123,21 +142,25 @@ def _one_thread() -> None:
     torch.set_num_threads(1)
 
 
-@pytest.mark.slow  # two 4-unit CartPole runs of 3 rounds
-def test_a_tree_of_two_sites_gives_the_flat_fleet_s_scores_and_models(fleet_runner: FleetRunner) -> None:
-    flat_units, tree_units = learners(), learners()
-    flat = flat_run(fleet_runner, flat_units)
-    tree, root, sites = tree_run(tree_units)
-    assert all(len(s) == ROUNDS for s in flat.values()), flat
+@pytest.mark.slow  # two 4-unit CartPole runs per scheme
+@pytest.mark.parametrize("scheme", list(ARMS))
+def test_a_tree_of_two_sites_gives_the_flat_fleet_s_scores_and_models(
+    fleet_runner: FleetRunner, scheme: str
+) -> None:
+    flat_units, tree_units = learners(scheme), learners(scheme)
+    flat, flat_chief = flat_run(fleet_runner, scheme, flat_units)
+    tree, root, sites = tree_run(scheme, tree_units)
+    assert all(len(rows) >= 3 for rows in flat.values()), flat
     assert tree == flat
     for w in UNITS:
         assert (
             flat_units[w].agent.model_parameters().tobytes()
             == tree_units[w].agent.model_parameters().tobytes()
         )
-    # the root saw two members, each standing for two units
-    assert root.rounds == ROUNDS and {s.end_reason for s in sites} == {"the root ended the run"}
+    assert (root.rounds, root.end_reason) == (flat_chief.rounds, flat_chief.end_reason)
+    assert {s.end_reason for s in sites} == {"the root ended the run"}
     models = {u.agent.model_parameters().tobytes() for u in tree_units.values()}
-    assert len(models) == 1  # one policy across both sites, and it learnt: not the fleet's start
-    final = np.frombuffer(models.pop(), np.float32)
-    assert not np.array_equal(final, chief_options()["start"].flat[: final.size])
+    assert len(models) == 1  # one policy across both sites
+    if scheme == "fedavg":  # ended by completion: the root's finished reached every member through its site
+        assert root.end_reason == "every unit completed" and root.rounds < ARMS[scheme][0]
+        assert all(rows[-1][1] == "completed" for rows in tree.values()), tree
