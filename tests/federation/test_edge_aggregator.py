@@ -3,14 +3,20 @@ and the aggregator's state machine — an exchange closed up, the root's answer 
 
 from __future__ import annotations
 
+import threading
+
 import numpy as np
 import pytest
 
 from fleetrl.federation.aggregation import mean, mean_of_parts, weighted_sum
 from fleetrl.federation.chief import Chief
 from fleetrl.federation.edge import EdgeAggregator, EdgeStep, check_tree
+from fleetrl.federation.edge_runner import run_edge
 from fleetrl.federation.messages import Message, MessageRejected, Reason, decode, encode
+from fleetrl.federation.runner import IdleTimeout, run_chief
+from fleetrl.federation.shared_settings import SettingsRefused
 from fleetrl.federation.signing import status_payload
+from fleetrl.transport.local import LocalBus
 
 LAYOUT = [("w", (3,))]
 WELCOME_LAYOUT = [("m", (2,))]
@@ -214,3 +220,46 @@ def test_the_root_takes_a_site_s_sum_as_its_members_and_answers_with_the_flat_me
     )
     step = robust.receive_bytes(encode(up, layout=LAYOUT), topic_worker=SITE, now=1.0)
     assert [ev.reason for ev in step.events] == [Reason.LAYOUT_MISMATCH]
+
+
+def test_a_site_refused_by_the_root_ends_its_members_run() -> None:
+    e = edge(settings={"preset": "paper"})
+    started_at = e.start(now=0.0)
+    assert started_at.up[0].settings == {"preset": "paper"}
+    refusal = Message("refused", ROOT, "chief", 1, finished=(SITE,), detail="setting 'preset' differs")
+    (done,) = e.from_root(refusal, now=1.0).down
+    assert done.type == "done" and e.finished and e.site.refused
+    assert e.site.end_reason == "refused by the chief of run 'root': setting 'preset' differs"
+    other = edge(settings={"preset": "paper"})
+    other.start(now=0.0)
+    elsewhere = Message("refused", ROOT, "chief", 1, finished=("9",), detail="not us")
+    assert other.from_root(elsewhere, now=1.0) == EdgeStep() and not other.finished
+
+
+def test_the_aggregator_s_loop_joins_the_root_and_raises_when_refused() -> None:
+    bus = LocalBus()
+    root = Chief(
+        run_id=ROOT, workers=(SITE,), layout=LAYOUT, max_rounds=3, scheme="pergrad", steps_per_round=K,
+        settings={"preset": "standard"},
+    )  # fmt: skip
+    chief_end: list[BaseException] = []
+
+    def serve() -> None:
+        try:
+            run_chief(root, bus.client(), idle_timeout=1.0)
+        except IdleTimeout as exc:
+            chief_end.append(exc)
+
+    thread = threading.Thread(target=serve)
+    thread.start()
+    with pytest.raises(
+        SettingsRefused, match="site site-a: refused by the chief of run 'root': setting 'preset'"
+    ):
+        run_edge(
+            edge(settings={"preset": "paper"}),
+            upstream=bus.client(),
+            downstream=bus.client(),
+            idle_timeout=5.0,
+        )
+    thread.join(10.0)
+    assert chief_end and root.rejections[Reason.REFUSED] == 0  # refused at join, before anything was sent

@@ -146,9 +146,9 @@ class EdgeAggregator:
                 self._last_up, self._next_send = None, math.inf
             return self._from(step, now)
         if message.type == "refused" and site.site_id in message.finished:
-            return self._from(site.root_done(f"the root refused the site: {message.detail}"), now)
+            return self._from(site.root_refused(message.detail), now)
         if message.type == "done":
-            return self._from(site.root_done("the root ended the run"), now)
+            return self._from(site.root_done(), now)
         if message.type not in ("average", "transfer"):
             return EdgeStep()
         last = self._last_up

@@ -19,6 +19,7 @@ from fleetrl.federation.edge import EdgeAggregator, EdgeStep
 from fleetrl.federation.events import ChiefEvent
 from fleetrl.federation.messages import encode
 from fleetrl.federation.runner import MIN_WAIT, IdleTimeout
+from fleetrl.federation.shared_settings import SettingsRefused
 from fleetrl.federation.signing import status_payload
 from fleetrl.federation.topics import (
     CHIEF_ID,
@@ -67,6 +68,7 @@ def run_edge(
     :param downstream: an unconnected transport to the site's broker (may be the same broker).
     :param on_event: called with every event (also logged).
     :param idle_timeout: raise :class:`~.runner.IdleTimeout` when nothing arrives for this long (None: never).
+    :raises SettingsRefused: the root refused the site's shared settings (its members were sent ``done``).
     """
     site = edge.site
     incarnation = time.time_ns()
@@ -147,6 +149,8 @@ def run_edge(
                 thread.join(2 * POLL + 1)
         upstream.close()
         downstream.close()
+    if site.refused:
+        raise SettingsRefused(f"site {site_id}: {site.end_reason}; start it with the chief's settings")
     return EdgeSummary(site_id, site.round, site.end_reason or "?", site.members)
 
 

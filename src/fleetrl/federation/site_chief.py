@@ -49,6 +49,8 @@ class SiteChief(Chief):
         self.awaiting: tuple[ClosedExchange, dict[str, Message]] | None = None
         """the exchange sent up (who answered, what was summed), until the root answers it"""
         self._held = False  # a member asked for a welcome before the root's
+        self.refused = False
+        """the root refused the site's settings (the run ended for its members)"""
 
     # ---- the members' side: the chief's rules, welcomes held until the root's ----
 
@@ -113,7 +115,7 @@ class SiteChief(Chief):
         if self.welcomed or self.finished:
             return ChiefStep()
         if welcome.settings and (why := settings_difference(welcome.settings, self.settings or {})):
-            return self._end(f"the root refused the site: {why}")
+            return self.root_refused(why)
         self.welcomed = True
         self.state.round, self.state.step = welcome.round, welcome.step
         self.state.config = dict(welcome.config)
@@ -170,6 +172,13 @@ class SiteChief(Chief):
         )  # fmt: skip
         return ChiefStep((reply,), (event,))
 
-    def root_done(self, detail: str) -> ChiefStep:
-        """The root ended the run (or refused the site, ``detail`` saying why): ``done`` to the members."""
-        return ChiefStep() if self.finished else self._end(detail)
+    def root_done(self) -> ChiefStep:
+        """The root ended the run: ``done`` to the members."""
+        return ChiefStep() if self.finished else self._end("the root ended the run")
+
+    def root_refused(self, why: str) -> ChiefStep:
+        """The root refused the site's settings (``why``): the site's run ends, ``done`` to the members."""
+        if self.finished:
+            return ChiefStep()
+        self.refused = True
+        return self._end(f"refused by the chief of run {self.root_run!r}: {why}")
