@@ -1,5 +1,6 @@
 """``fleetrl aggregator``: its settings refused in one line before anything starts, and a site of two
-``fleetrl worker`` processes behind it finishing a run of ``fleetrl chief`` over one mosquitto broker."""
+``fleetrl worker`` processes on a site broker behind it finishing a run of ``fleetrl chief`` on the central
+broker (two mosquitto brokers)."""
 
 from __future__ import annotations
 
@@ -43,17 +44,16 @@ def test_settings_that_cannot_make_a_tree_are_refused_in_one_line(
 @pytest.mark.slow
 @pytest.mark.mqtt
 @pytest.mark.mosquitto
-def test_a_site_behind_an_aggregator_finishes_the_chief_s_run_over_mosquitto(tmp_path: Path) -> None:
+def test_a_site_behind_an_aggregator_finishes_the_chief_s_run_over_two_brokers(tmp_path: Path) -> None:
     run = ["--env", "cartpole", "--preset", "standard", "--max-rounds", "2"]
     base = [sys.executable, "-m", "fleetrl.cli.main"]
-    with EmbeddedBroker("mosquitto") as broker:
-        url = ["--broker", broker.url]
+    with EmbeddedBroker("mosquitto") as centre, EmbeddedBroker("mosquitto") as site:
+        url = ["--broker", centre.url]
         roles = [[*base, "chief", *url, "--run-id", "root", *run, "--workers", "1", "--idle-timeout", "120"]]
-        roles.append([*base, "aggregator", *url, "--run-id", "root", *run, *SITE, "--idle-timeout", "120"])
-        roles += [
-            [*base, "worker", *url, "--run-id", "site-a", *run, "--worker-id", w, "--out", str(tmp_path / w)]
-            for w in ("0", "1")
-        ]
+        aggregator = [*base, "aggregator", *url, "--run-id", "root", *run, *SITE, "--site-broker", site.url]
+        roles.append([*aggregator, "--idle-timeout", "120"])
+        worker = [*base, "worker", "--broker", site.url, "--run-id", "site-a", *run]
+        roles += [[*worker, "--worker-id", w, "--out", str(tmp_path / w)] for w in ("0", "1")]
         procs = [subprocess.Popen(argv, stdout=subprocess.PIPE, stderr=subprocess.PIPE) for argv in roles]
         codes = [p.wait(timeout=600) for p in procs]
         outs = [p.communicate() for p in procs]
