@@ -75,7 +75,9 @@ class EdgeAggregator:
     :param welcome_layout: what a welcome carries (the scheme's welcome layout).
     :param resend_interval: seconds without the root's answer (or welcome) before the site re-sends.
     :param options: the members' chief's other parameters (:class:`~.chief.Chief`: ``scheme``,
-        ``max_rounds``, ``steps_per_round``, ``settings``, ``quorum``, ``fleet_model`` …).
+        ``max_rounds``, ``steps_per_round``, ``settings``, ``quorum``, ``fleet_model`` …). Under a per-step
+        scheme give it a ``fleet_model`` (``fleetrl aggregator`` does): a member that joins after the first
+        exchange is welcomed with the fleet's model as it is then; without one, with the root's welcome's.
     """
 
     def __init__(
