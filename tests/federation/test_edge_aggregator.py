@@ -12,8 +12,10 @@ from fleetrl.federation.aggregation import mean, mean_of_parts, weighted_sum
 from fleetrl.federation.chief import Chief
 from fleetrl.federation.edge import EdgeAggregator, EdgeStep, check_tree
 from fleetrl.federation.edge_runner import run_edge
+from fleetrl.federation.fleet_model import FleetModel
 from fleetrl.federation.messages import Message, MessageRejected, Reason, decode, encode
 from fleetrl.federation.runner import IdleTimeout, run_chief
+from fleetrl.federation.schemes.pergrad import PerStepGradientScheme
 from fleetrl.federation.shared_settings import SettingsRefused
 from fleetrl.federation.signing import status_payload
 from fleetrl.transport.local import LocalBus
@@ -263,3 +265,51 @@ def test_the_aggregator_s_loop_joins_the_root_and_raises_when_refused() -> None:
         )
     thread.join(10.0)
     assert chief_end and root.rejections[Reason.REFUSED] == 0  # refused at join, before anything was sent
+
+
+class StepAgent:
+    """Just enough of an agent for a site's fleet model: a 2-value network and a 1-value optimiser state;
+    a fleet step subtracts the gradient's first two values and counts the step."""
+
+    def __init__(self) -> None:
+        self.model, self.optimiser = f32(0.0, 0.0), f32(0.0)
+
+    def model_layout(self) -> list[tuple[str, tuple[int, ...]]]:
+        return [("m", (2,))]
+
+    def optimiser_layout(self) -> list[tuple[str, tuple[int, ...]]]:
+        return [("o", (1,))]
+
+    def model_parameters(self) -> np.ndarray:
+        return self.model.copy()
+
+    def optimiser_parameters(self) -> np.ndarray:
+        return self.optimiser.copy()
+
+    def set_model_parameters(self, flat: np.ndarray) -> None:
+        self.model = np.array(flat, np.float32)
+
+    def set_optimiser_parameters(self, flat: np.ndarray) -> None:
+        self.optimiser = np.array(flat, np.float32)
+
+    def apply_fleet_step(self, k: int, flat: np.ndarray) -> None:
+        self.model, self.optimiser = self.model - flat[:2], self.optimiser + 1
+
+
+def test_a_member_joining_late_is_welcomed_with_the_fleet_s_model_as_the_site_holds_it() -> None:
+    model = FleetModel(PerStepGradientScheme(), StepAgent())  # type: ignore[arg-type]
+    e = EdgeAggregator(
+        site_id=SITE, root_run=ROOT, run_id="site-a-run", members=("1",), layout=LAYOUT,
+        welcome_layout=model.layout, scheme="pergrad", max_rounds=3, steps_per_round=K, quorum=1.0,
+        fleet_model=model,
+    )  # fmt: skip
+    e.start(now=0.0)
+    e.from_root(Message("welcome", ROOT, "chief", 1, flat=f32(5.0, 6.0, 2.0), origin="chief"), now=0.0)
+    assert len(e.receive_bytes(step_grad("1", 1, 0, 1, 1, 1), topic_worker="1", now=1.0).up) == 1
+    e.from_root(Message("average", ROOT, "chief", 1, flat=f32(1.0, 2.0, 0.0), contributors=(SITE,)), now=2.0)
+    join = encode(Message("join", "site-a-run", "7", 1), layout=LAYOUT)
+    step = e.receive_bytes(join, topic_worker="7", now=3.0)
+    (welcome,) = step.down
+    assert [ev.kind for ev in step.events] == ["admitted", "welcome"]
+    assert (welcome.round, welcome.step) == (1, 1)  # the open exchange: after the root's first answer
+    assert welcome.flat is not None and welcome.flat.tolist() == [4.0, 4.0, 3.0]  # start, one fleet step
