@@ -121,17 +121,17 @@ def cmd_secure_config(args: argparse.Namespace) -> int:
 def cmd_chief(args: argparse.Namespace) -> int:
     """Serve one run as its chief; print how it ended as JSON."""
     with collector_paused():
-        from fleetrl.federation.chief import Chief
+        from fleetrl.federation.chief_async import new_chief
         from fleetrl.federation.runner import run_chief
         from fleetrl.federation.shared_settings import shared_text
-        from fleetrl.runs.launch import fleet_model
+        from fleetrl.runs.launch import fleet_model, fleet_start
         from fleetrl.runs.role_settings import ChiefSettings
         from fleetrl.runs.rundir import write_json_atomic
         from fleetrl.runs.settings import fleet_shape
 
         settings = settings_from_args(ChiefSettings, args)
     shape = fleet_shape(settings.learning)
-    chief = Chief(
+    chief = new_chief(
         run_id=settings.run_id,
         workers=[str(k) for k in range(settings.workers)],
         layout=shape.layout,
@@ -147,6 +147,7 @@ def cmd_chief(args: argparse.Namespace) -> int:
         key=settings.fleet_key(),
         settings=shared_text(settings.learning),
         fleet_model=fleet_model(settings.learning),
+        start=fleet_start(settings.learning),
     )
     if settings.out is None:
         summary = run_chief(chief, settings.transport(), idle_timeout=settings.idle_timeout)

@@ -294,8 +294,12 @@ class Chief:
         if self._gate.refusal(worker) is not None:  # no welcome until a join that matches
             return self._refusal(worker)
         step = ChiefStep() if retained else self._rejoin(worker, "came back online")
+        return step + self._welcome(worker)
+
+    def _welcome(self, worker: str) -> ChiefStep:
+        """The ``welcome`` to ``worker``: the open round, the fleet's model, the shared settings."""
         model, config = self.state.model, self.state.config
-        return step + welcome_step(self.run_id, worker, self.state.round, model, self.settings or {}, config)
+        return welcome_step(self.run_id, worker, self.state.round, model, self.settings or {}, config)
 
     def tick(self, now: float) -> ChiefStep:
         """Apply the deadlines at time ``now``: offline workers whose grace ran out leave W; then the round

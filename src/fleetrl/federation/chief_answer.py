@@ -30,6 +30,11 @@ def check_round_rules(
         raise ValueError(f"round_timeout must be > 0 seconds, got {round_timeout}")
     if max_staleness is not None and max_staleness < 0:
         raise ValueError(f"max_staleness must be >= 0 rounds, got {max_staleness}")
+    if scheme.granularity is Granularity.ASYNC and (quorum < 1.0 or round_timeout is not None):
+        raise ValueError(
+            f"scheme {scheme.name!r} has no round barrier: quorum and round_timeout do not apply (leave them "
+            "unset; max_staleness bounds the staleness of a contribution applied)"
+        )
     per_step = scheme.granularity is Granularity.STEP
     if quorum < 1.0 and round_timeout is None and not per_step:
         raise ValueError(f"scheme {scheme.name!r}: a quorum below 1 needs a round timeout (--round-timeout)")

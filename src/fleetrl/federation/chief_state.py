@@ -26,6 +26,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from fleetrl.federation.contributions import Contributions
 from fleetrl.federation.events import ChiefEvent, ChiefStep
 from fleetrl.federation.messages import Message, Reason
 from fleetrl.federation.schemes import get_scheme, scheme_reference
@@ -135,6 +136,8 @@ class ChiefState:
     pace: FleetPace = field(default_factory=FleetPace)
     """a per-step scheme's stragglers: who is behind, who took part in the open round, per member the
     rounds closed without it and the contributions left out for their staleness"""
+    contributions: dict[str, Contributions] = field(default_factory=dict)
+    """an asynchronous scheme's: worker → its contributions taken (:mod:`.contributions`)"""
 
     def drop(self, workers: Iterable[str], reason: str) -> tuple[ChiefEvent, ...]:
         """``workers`` leave W (they may come back) for ``reason``; their events."""
@@ -190,7 +193,12 @@ class ChiefState:
             "dropouts": [list(d) for d in self.dropouts],
             "rejoins": [list(r) for r in self.rejoins],
             "pace": self.pace.fields(),
+            **({"contributions": self.contribution_counts()} if self.contributions else {}),
         }
+
+    def contribution_counts(self) -> dict[str, dict[str, Any]]:
+        """Worker → its contributions' counts (an asynchronous scheme's; empty for the others)."""
+        return {w: self.contributions[w].to_dict() for w in sorted_workers(self.contributions)}
 
     def tensors(self) -> dict[str, np.ndarray]:
         """The tensors: the last answer's and the fleet model's flat vectors."""
@@ -225,6 +233,9 @@ class ChiefState:
             dropouts=[(int(r), str(w), str(why)) for r, w, why in fields["dropouts"]],
             rejoins=[(int(r), str(w)) for r, w in fields["rejoins"]],
             pace=FleetPace.from_fields(fields.get("pace")),
+            contributions={
+                str(w): Contributions.from_dict(c) for w, c in fields.get("contributions", {}).items()
+            },
         )
 
 
@@ -289,7 +300,7 @@ def chief_from_state(
         is set to the saved one.
     :raises ValueError: another state version, or a key where there was none (or the reverse).
     """
-    from fleetrl.federation.chief import Chief  # the chief's module imports this one for ChiefState
+    from fleetrl.federation.chief_async import new_chief  # the chief's module imports this one
 
     if fields.get("version") != STATE_VERSION:
         raise ValueError(f"chief state version {fields.get('version')!r}, expected {STATE_VERSION}")
@@ -311,7 +322,7 @@ def chief_from_state(
     )  # fmt: skip
     if fleet_model is not None and state.model is not None and state.model.flat is not None:
         fleet_model.load(state.model.flat)
-    return Chief(**config, scheme=scheme, key=key, state=state, now=now, fleet_model=fleet_model)
+    return new_chief(**config, scheme=scheme, key=key, state=state, now=now, fleet_model=fleet_model)
 
 
 def replay_last_answer(chief: Chief) -> ChiefStep:

@@ -13,15 +13,18 @@ all roles must share, in ``join`` and ``welcome``), ``detail`` (str: why, in ``r
 ``units`` (int ≥ 0: the units it stands for, 1 for a worker of one unit), ``config`` (map str → finite
 number or short str: what the chief asks of every worker for the round the message opens, the scheme's
 ``configure``), ``staleness`` (int ≥ 0: how many rounds the fleet moved on while the worker played what it
-contributes; 0: it played the round it answers), ``tensors`` (list of ``[name, shape]``) and ``data``
-(bin: the tensors concatenated in that order as little-endian float32).
+contributes; 0: it played the round it answers), ``model_version`` (int ≥ 0: an asynchronous scheme's
+fleet model version — in a worker's contribution the version it started its round from, in the chief's
+answer or welcome the version of the model it carries; 0 otherwise), ``tensors`` (list of ``[name,
+shape]``) and ``data`` (bin: the tensors concatenated in that order as little-endian float32).
 
 A round message of an edge aggregator (a site's gateway, :mod:`fleetrl.federation.edge`) carries its
 members' weighted sum Σ wᵢ·xᵢ exactly: its ``data`` is little-endian float64 (8 bytes a value; ``units`` is
 Σ wᵢ), which only a receiver that takes sums accepts (``decode(sums=True)``: a chief whose rule decomposes).
 
 Version 2 added ``step``, ``settings``, ``detail`` and the ``join`` / ``refused`` types; version 3 added
-``samples``, ``units`` and ``config``, and a scheme's own round-message type; version 4 added ``staleness``.
+``samples``, ``units`` and ``config``, and a scheme's own round-message type; version 4 added ``staleness``;
+version 5 added ``model_version``.
 
 :func:`decode` validates all of it and raises :class:`MessageRejected` with a :class:`Reason` for anything
 wrong; it never raises anything else, whatever the bytes.
@@ -69,7 +72,7 @@ __all__ = [
     "layout_size",
 ]
 
-VERSION = 4
+VERSION = 5
 """Envelope version; a receiver rejects any other."""
 
 Layout = Sequence[tuple[str, tuple[int, ...]]]
@@ -115,6 +118,7 @@ _KEYS = frozenset(
         "units",
         "config",
         "staleness",
+        "model_version",
         "tensors",
         "data",
     }
@@ -152,6 +156,8 @@ class Message:
     :param units: the units it stands for (a worker of one unit: 1).
     :param config: what the chief asks of every worker for the round this message opens.
     :param staleness: rounds the fleet moved on while the worker played what it contributes (0: none).
+    :param model_version: an asynchronous scheme's fleet model version (a contribution: the one its round
+        started from; the chief's answer or welcome: the one it carries); 0 otherwise.
     :param version: envelope version.
     :param summed: ``flat`` is an edge aggregator's weighted sum of its members' vectors, float64 (sent as
         8 bytes a value), standing for ``units``.
@@ -173,6 +179,7 @@ class Message:
     units: int = 1
     config: RoundConfig = field(default_factory=dict)
     staleness: int = 0
+    model_version: int = 0
     version: int = VERSION
     summed: bool = False
 
@@ -232,6 +239,7 @@ def envelope(message: Message, *, layout: Layout) -> dict[str, Any]:
         "units": message.units,
         "config": {str(k): v if isinstance(v, str) else float(v) for k, v in message.config.items()},
         "staleness": message.staleness,
+        "model_version": message.model_version,
         "tensors": tensors,
         "data": data,
     }
@@ -355,6 +363,7 @@ def decode(
         config=config,
         staleness=check_count(env["staleness"], "staleness"),
         summed=wide,
+        model_version=check_count(env["model_version"], "model_version"),
     )
 
 

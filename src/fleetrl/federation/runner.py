@@ -57,6 +57,8 @@ class ChiefSummary:
     """the federation scheme"""
     completed: tuple[tuple[str, int], ...] = ()
     """(worker, round) of the first round each worker's criterion held"""
+    contributions: dict[str, dict[str, Any]] = field(default_factory=dict)
+    """an asynchronous scheme's: worker → its contributions taken, and their staleness"""
 
     def to_dict(self) -> dict[str, Any]:
         """A JSON-ready account (chief.json)."""
@@ -69,6 +71,7 @@ class ChiefSummary:
             "rejoins": [{"round": r, "worker": w} for r, w in self.rejoins],
             "scheme": self.scheme,
             "completed": dict(self.completed),
+            **({"contributions": self.contributions} if self.contributions else {}),
         }
 
 
@@ -198,6 +201,7 @@ def run_chief(
         rejoins=tuple(chief.rejoins),
         scheme=chief.scheme.name,
         completed=tuple(chief.completed.items()),
+        contributions=chief.state.contribution_counts(),
     )
 
 

@@ -23,6 +23,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from fleetrl.federation import rounds as act
+from fleetrl.federation.async_worker import AsyncWorkerMachine
 from fleetrl.federation.events import Sent, WorkerEvent
 from fleetrl.federation.messages import Message
 from fleetrl.federation.rounds import WorkerStep, WorkerSummary, answer_for
@@ -39,10 +40,13 @@ log = logging.getLogger(__name__)
 
 def worker_machine(*, scheme: Scheme, steps_per_round: int = 1, **options: Any) -> WorkerMachine:
     """The worker's state machine ``scheme`` needs: a :class:`StepWorkerMachine` for a per-step scheme
-    (``steps_per_round``: the exchanges of one round), else a :class:`WorkerMachine`; ``options`` are the
-    machine's other parameters."""
+    (``steps_per_round``: the exchanges of one round), an
+    :class:`~fleetrl.federation.async_worker.AsyncWorkerMachine` for an asynchronous one, else a
+    :class:`WorkerMachine`; ``options`` are the machine's other parameters."""
     if scheme.granularity is Granularity.STEP:
         return StepWorkerMachine(scheme=scheme, steps_per_round=steps_per_round, **options)
+    if scheme.granularity is Granularity.ASYNC:
+        return AsyncWorkerMachine(scheme=scheme, **options)
     return WorkerMachine(scheme=scheme, **options)
 
 

@@ -157,6 +157,8 @@ class WorkerMachine:
         self._outcome: RoundResult | None = None
         self._caught_up_to = 0
         self._config: RoundConfig = {}  # the chief's configuration for the next round played
+        self.model_version = 0
+        """the fleet model version this worker's round started from (an asynchronous scheme's; else 0)"""
 
     # ---- inputs ----
 
@@ -258,8 +260,13 @@ class WorkerMachine:
             flat=flat,
             metrics=finite,
             samples=int(outcome.steps),
+            model_version=self.model_version,
         )
-        return self._send(message, answer_for(self.round), f"the chief's answer for round {self.round}", now)
+        return self._send(message, self._answer_wanted(), f"the chief's answer for round {self.round}", now)
+
+    def _answer_wanted(self) -> Callable[[Message], bool]:
+        """What answers the round just sent: the chief's answer of that round or a later one, or ``done``."""
+        return answer_for(self.round)
 
     # ---- the rules ----
 

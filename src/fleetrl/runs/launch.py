@@ -24,10 +24,10 @@ from typing import Any
 import numpy as np
 
 from fleetrl.envs.catalog import ENV_SPECS, describe_env, get_env_spec
-from fleetrl.federation.chief import Chief
+from fleetrl.federation.chief_async import new_chief
 from fleetrl.federation.fleet_model import FleetModel
 from fleetrl.federation.runner import ChiefSummary, run_chief
-from fleetrl.federation.schemes.base import StepScheme
+from fleetrl.federation.schemes.base import AsyncScheme, FleetStart, StepScheme
 from fleetrl.federation.shared_settings import shared_text
 from fleetrl.runs.factory import agent_for, make_learner, probe_agent
 from fleetrl.runs.fleet import Fleet, ThreadFleet, follow
@@ -84,6 +84,19 @@ def fleet_model(learning: LearningSettings) -> FleetModel | None:
 
     torch.set_num_threads(1)
     return FleetModel(scheme, agent_for(describe_env(learning.env), learning.ppo(), seed=learning.seed))
+
+
+def fleet_start(learning: LearningSettings) -> FleetStart | None:
+    """The fleet's start the chief of an asynchronous scheme begins its fleet model with: the network the
+    settings' learning seed draws, built as :func:`fleet_model` builds its agent; None for another scheme."""
+    scheme = learning.federation_scheme()
+    if not isinstance(scheme, AsyncScheme):
+        return None
+    import torch
+
+    torch.set_num_threads(1)
+    agent = agent_for(describe_env(learning.env), learning.ppo(), seed=learning.seed)
+    return FleetStart(list(scheme.welcome_layout(agent)), scheme.start_parameters(agent))
 
 
 def train(settings: RunSettings) -> dict[str, Any]:
@@ -223,7 +236,7 @@ def train_federated(
 ) -> None:
     """Chief in a thread of this process; workers as processes (MQTT at ``url``) or threads (local bus)."""
     shape = fleet_shape(settings.learning)
-    chief = Chief(
+    chief = new_chief(
         run_id=run_id,
         workers=[str(k) for k in specs],
         layout=shape.layout,
@@ -236,6 +249,7 @@ def train_federated(
         max_staleness=settings.max_staleness,
         settings=shared_text(settings.learning),
         fleet_model=fleet_model(settings.learning),
+        start=fleet_start(settings.learning),
     )
     make_transport, fleet_for = transports(settings, url, specs, run_id)
     outcome: dict[str, ChiefSummary | BaseException] = {}

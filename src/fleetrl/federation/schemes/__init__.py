@@ -5,7 +5,9 @@ user's is named as ``package.module:Class`` (``--scheme mylab.schemes:FedNova``)
 * ``fedavg`` (:mod:`.fedavg`) — whole-model averaging, mature workers stay;
 * ``fedavgm``, ``fedadam`` (:mod:`.fedopt`) — fedavg with a server optimiser (momentum, Adam) on the average;
 * ``fedprox`` (:mod:`.fedprox`) — fedavg with a proximal term in local training;
-* ``pergrad`` (:mod:`.pergrad`) — gradients averaged at every optimisation step (DD-PPO style).
+* ``pergrad`` (:mod:`.pergrad`) — gradients averaged at every optimisation step (DD-PPO style);
+* ``fedasync`` (:mod:`.fedasync`) — no round barrier: each model mixed into the fleet's on arrival, weighted
+  by its staleness (FedAsync).
 
 Adding a scheme: write one module here with a :class:`~.base.RoundScheme` or :class:`~.base.StepScheme`
 subclass that sets ``name`` (it is found by that name: no list to edit), and test it on hand-computed arrays
@@ -25,6 +27,7 @@ from fleetrl.envs.unit_factory import load_callable
 from fleetrl.federation.messages import check_scheme_type
 from fleetrl.federation.schemes.base import (
     COMPLETED,
+    AsyncScheme,
     FederatedAgent,
     Granularity,
     RoundAnswer,
@@ -45,6 +48,7 @@ __all__ = [
     "COMPLETED",
     "DEFAULT_SCHEME",
     "SCHEMES",
+    "AsyncScheme",
     "FederatedAgent",
     "Granularity",
     "RoundAnswer",

@@ -1,7 +1,9 @@
-"""The scheme seam: what every federation scheme says (:class:`Scheme`, read by the chief), and the two ways a
-worker takes part, each its own protocol — :class:`RoundScheme` (one message per round: ``paper``, ``fedavg``,
-``fedprox`` …) and :class:`StepScheme` (one message per optimisation step: ``pergrad``). The chief's and the
-worker's state machines use the one they need; no method of either raises because it belongs to the other.
+"""The scheme seam: what every federation scheme says (:class:`Scheme`, read by the chief), and the three
+ways a worker takes part, each its own protocol — :class:`RoundScheme` (one message per round: ``paper``,
+``fedavg``, ``fedprox`` …), :class:`StepScheme` (one message per optimisation step: ``pergrad``) and
+:class:`AsyncScheme` (one message per round of the worker's own, applied on arrival: ``fedasync``). The
+chief's and the worker's state machines use the one they need; no method of either raises because it
+belongs to the other.
 
 Like a Flower ``Strategy``, a scheme says everything that differs between ways of federating:
 
@@ -52,6 +54,8 @@ class Granularity(StrEnum):
     """one message per round, after the round's K optimisations (``paper``, ``fedavg``)"""
     STEP = "step"
     """one message per optimisation step, keyed (sender, round, step) — for schemes that average every step"""
+    ASYNC = "async"
+    """one message per round of the worker's own, applied by the chief on arrival: no round barrier"""
 
 
 class FederatedAgent(Protocol):
@@ -328,6 +332,34 @@ class StepScheme(Scheme):
         behind, docs/protocol.md "Stragglers"): the same change :meth:`apply_step_answer` makes, outside an
         update (``agent.apply_fleet_step``)."""
         agent.apply_fleet_step(step, flat)
+
+
+class AsyncScheme(RoundScheme):
+    """A scheme without a round barrier (docs/protocol.md, "Asynchronous schemes"). A worker's side is a
+    :class:`RoundScheme`'s — play a round, send what :meth:`~RoundScheme.outgoing` shares — but each worker
+    plays at its own pace, its rounds counted by itself, and takes the newest fleet model before each round.
+    The chief holds the fleet model and its version (the contributions applied so far, :meth:`state`); it
+    applies every contribution on arrival through :meth:`combine`, given alone, its ``staleness`` set to the
+    versions applied since the one the worker started from; the answer is the fleet model after it.
+    """
+
+    granularity: ClassVar[Granularity] = Granularity.ASYNC
+    shared_start: ClassVar[bool] = True
+    stays_after_completion: ClassVar[bool] = True
+
+    @property
+    @abstractmethod
+    def version(self) -> int:
+        """How many contributions the fleet model has taken (0: the fleet's start)."""
+
+    @property
+    @abstractmethod
+    def model(self) -> np.ndarray | None:
+        """The fleet model, flat in :meth:`~Scheme.welcome_layout` order (None before :meth:`begin`)."""
+
+    @abstractmethod
+    def begin(self, start: np.ndarray) -> None:
+        """Hold ``start`` (the fleet's start) as the fleet model, version 0."""
 
 
 def flats(answers: Mapping[str, Message]) -> list[np.ndarray]:

@@ -1,0 +1,117 @@
+"""The worker of an asynchronous scheme (``fedasync``) as a pure state machine: the rounds of
+:class:`~fleetrl.federation.worker_machine.WorkerMachine`, without a round barrier.
+
+Each worker counts its own rounds. Before every round it takes the newest fleet model it has seen — the
+welcome's, its last answer's, or any newer one broadcast meanwhile (every answer of the chief carries the
+fleet model and its version, and goes to every worker) — and remembers that version. It plays the round,
+sends its contribution with that version, and waits for the answer to *it*: the chief's ``average`` naming
+this worker in ``origin`` for this round (another worker's answer is only a newer model), or an answer
+listing it in ``finished`` (the run completed), or ``done``. It re-sends its contribution while none comes;
+the chief answers a re-send again without applying it twice. A worker resumed from its checkpoint takes the
+welcome's model too (the newest there is) and plays the round the welcome's and its checkpoint's agree on.
+docs/protocol.md, "Asynchronous schemes".
+"""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Callable
+from typing import Any
+
+from fleetrl.federation import rounds as act
+from fleetrl.federation.events import RoundEvent, Sent, WorkerEvent
+from fleetrl.federation.messages import Message
+from fleetrl.federation.rounds import WorkerStep, WorkerSummary, resume_round
+from fleetrl.federation.shared_settings import settings_difference
+from fleetrl.federation.worker_machine import NOTHING, Phase, WorkerMachine
+
+__all__ = ["AsyncWorkerMachine"]
+
+log = logging.getLogger(__name__)
+
+MODELS = ("welcome", "average")
+"""the chief's messages that carry the fleet model and its version"""
+
+
+class AsyncWorkerMachine(WorkerMachine):
+    """Algorithm 2 for one worker of an asynchronous scheme (see the module's docstring); the parameters are
+    :class:`~fleetrl.federation.worker_machine.WorkerMachine`'s."""
+
+    current_model = True
+
+    def __init__(self, **options: Any) -> None:
+        """Prepare the machine; nothing happens before :meth:`start`."""
+        super().__init__(**options)
+        self.model_version = -1  # no fleet model taken yet
+        self.newest: Message | None = None
+        """the newest fleet model seen and not yet taken (taken before the next round)"""
+
+    def receive(self, message: Message, *, now: float) -> WorkerStep:
+        """A decoded chief message: any fleet model newer than every one seen is kept for the next round;
+        then the message is handled as the rules say (an answer to this worker's round, the run's end)."""
+        if message.type in MODELS and message.flat is not None and self.phase is not Phase.DONE:
+            seen = self.model_version if self.newest is None else self.newest.model_version
+            if message.model_version > seen:
+                self.newest = message
+        return super().receive(message, now=now)
+
+    def _welcomed(self, welcome: Message) -> WorkerStep:
+        """Joined: the first round is the welcome's (its checkpoint's, for a worker resumed within a round),
+        played from the welcome's model (the newest there is, kept by :meth:`receive`)."""
+        if welcome.type == "done":
+            return super()._welcomed(welcome)
+        why = settings_difference(welcome.settings, self.settings) if welcome.settings else None
+        if why is not None:
+            return self._refused(why)
+        resume = resume_round(self.start_round, welcome.round, self.worker_id)
+        self._config = dict(welcome.config)
+        log.info(
+            "worker %s: welcomed at round %d (fleet model version %d)", self.worker_id, welcome.round,
+            welcome.model_version,
+        )  # fmt: skip
+        return self._begin_round(welcome.round if resume is None else resume)
+
+    def _begin_round(self, rnd: int) -> WorkerStep:
+        """Take the newest fleet model seen, then play round ``rnd``."""
+        taken = NOTHING
+        if self.newest is not None and self.newest.flat is not None and rnd <= self.max_rounds:
+            taken = WorkerStep((act.TakeParameters(self.newest.flat),))
+            self.model_version, self.newest = self.newest.model_version, None
+        return taken + super()._begin_round(rnd)
+
+    def _answer_wanted(self) -> Callable[[Message], bool]:
+        """The chief's answer to this worker's round, an answer saying the run completed, or ``done``."""
+        me, rnd = self.worker_id, self.round
+        return lambda m: (
+            m.type == "done"
+            or (m.type == "average" and ((m.origin == me and m.round == rnd) or me in m.finished))
+        )
+
+    def _answered(self, reply: Message) -> WorkerStep:
+        """The answer to this worker's round: record the round (its model is taken before the next one)."""
+        if self._outcome is None:
+            raise AssertionError("an answer is awaited only after the round was played")
+        if reply.type == "done":
+            return self._round_over(self._outcome, reply, WorkerEvent.RUN_ENDED, None, True)
+        contributed = reply.origin == self.worker_id and self.worker_id in reply.contributors
+        event: RoundEvent = WorkerEvent.LATE
+        if contributed:
+            event = WorkerEvent.COMPLETED if self._outcome.completed else Sent(self.round_message)
+        return self._round_over(self._outcome, reply, event, None, self.worker_id in reply.finished)
+
+    def _between(self, message: Message, now: float) -> WorkerStep:
+        """Between this worker's rounds: the run's end ends it (a newer model was kept by :meth:`receive`)."""
+        del now
+        if self.phase is not Phase.CATCH_UP:
+            return NOTHING
+        if message.type == "done":
+            return self._finish(WorkerSummary(self.worker_id, self.round, False, "run ended"))
+        if message.type == "average" and self.worker_id in message.finished:
+            return self._finish(WorkerSummary(self.worker_id, self.round, True, "every unit completed"))
+        return NOTHING
+
+    def _queue_read(self, now: float) -> WorkerStep:
+        """Nothing more is queued: this worker's next round, from the newest model seen."""
+        del now
+        nxt = self.round + 1
+        return WorkerStep((act.Checkpoint(nxt),)) + self._begin_round(nxt)

@@ -1,0 +1,122 @@
+"""``fedasync``: no round barrier — each worker's model is mixed into the fleet's on arrival, weighted by how
+stale it is (Xie et al. 2019, "Asynchronous Federated Optimization").
+
+Workers play as under ``fedavg`` (a round of at least the trajectory memory, K local optimisations, the whole
+actor-critic sent), each at its own pace: a worker sends its model with the fleet model version it started
+from, waits for the chief's answer to it, and takes the newest fleet model it has seen before its next round.
+The chief holds the fleet model x and its version v (the contributions applied). A contribution x_w that
+started from version b has staleness s = v − b and is applied at once:
+
+    α_s = α·(s + 1)^(−a),   x ← (1 − α_s)·x + α_s·x_w,   v ← v + 1
+
+(α = ``alpha``, a = ``decay``: FedAsync's polynomial staleness function). x starts as the fleet's start (drawn
+by the chief's role from the run's seed, handed to every joining worker). Mature workers stay; the run ends at
+the contribution after which every member of W has completed, as with ``fedavg``. docs/algorithm.md
+("Federation schemes") and docs/protocol.md ("Asynchronous schemes").
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from typing import Any
+
+import numpy as np
+
+from fleetrl.federation.messages import Message
+from fleetrl.federation.schemes.base import AsyncScheme, RoundAnswer, RoundContext, flats
+from fleetrl.federation.schemes.fedavg import FedAvgScheme
+
+DEFAULT_ALPHA = 0.6
+"""α, the weight of a fresh contribution (FedAsync's mixing hyper-parameter)"""
+DEFAULT_DECAY = 0.5
+"""a, how fast the weight falls with staleness: α·(s + 1)^(−a)"""
+
+
+class FedAsyncScheme(AsyncScheme, FedAvgScheme):
+    """FedAsync's staleness-weighted mixing of whole models, one contribution at a time.
+
+    :param alpha: α in (0, 1], the weight of a contribution of staleness 0 (default 0.6).
+    :param decay: a ≥ 0, the staleness decay: a contribution of staleness s weighs α·(s + 1)^(−a) (default
+        0.5; 0: every contribution weighs α).
+    :raises ValueError: a value out of range.
+    """
+
+    name = "fedasync"
+    summary = "no round barrier: each worker's model mixed into the fleet's on arrival, weighted by staleness"
+    round_message = "async_model"
+
+    def __init__(self, *, alpha: float = DEFAULT_ALPHA, decay: float = DEFAULT_DECAY) -> None:
+        if not (np.isfinite(alpha) and 0.0 < alpha <= 1.0):
+            raise ValueError(f"alpha = {alpha!r}: must be in (0, 1]")
+        if not (np.isfinite(decay) and decay >= 0.0):
+            raise ValueError(f"decay = {decay!r}: must be >= 0")
+        self.alpha = float(alpha)
+        self.decay = float(decay)
+        self._model: np.ndarray | None = None
+        self._version = 0
+
+    def params(self) -> dict[str, Any]:
+        """α and a."""
+        return {"alpha": self.alpha, "decay": self.decay}
+
+    @property
+    def version(self) -> int:
+        """How many contributions the fleet model has taken."""
+        return self._version
+
+    @property
+    def model(self) -> np.ndarray | None:
+        """The fleet model x (None before :meth:`begin`)."""
+        return None if self._model is None else self._model.copy()
+
+    def begin(self, start: np.ndarray) -> None:
+        """x = the fleet's start, version 0."""
+        self._model, self._version = np.asarray(start, np.float32).copy(), 0
+
+    def weight(self, staleness: int) -> float:
+        """α_s = α·(s + 1)^(−a), the weight of a contribution of staleness ``staleness``."""
+        if staleness < 0:
+            raise ValueError(f"staleness {staleness}: must be >= 0")
+        return self.alpha * float(staleness + 1) ** (-self.decay)
+
+    def mix(self, model: np.ndarray, contribution: np.ndarray, staleness: int) -> np.ndarray:
+        """(1 − α_s)·``model`` + α_s·``contribution`` (float64 arithmetic, float32 result)."""
+        w = self.weight(staleness)
+        mixed = (1.0 - w) * model.astype(np.float64) + w * contribution.astype(np.float64)
+        return np.asarray(mixed, np.float32)
+
+    def combine(self, answers: Mapping[str, Message], context: RoundContext) -> RoundAnswer:
+        """Apply each contribution in turn (the chief gives one, its ``staleness`` set), each a new version;
+        the answer carries x after them, and lists every member in ``finished`` once every member of W has
+        completed (the run then ends)."""
+        if self._model is None:
+            raise RuntimeError("scheme fedasync: the fleet model was never given its start (begin)")
+        for flat, message in zip(flats(answers), answers.values(), strict=True):
+            self._model = self.mix(self._model, flat, message.staleness)
+            self._version += 1
+        members = set(context.members)
+        ends = bool(members) and members.issubset(context.completed)
+        return RoundAnswer(
+            "average",
+            self._model.copy(),
+            contributors=tuple(answers),
+            finished=context.members if ends else (),
+            fleet_model=True,
+            ends_run=ends,
+        )
+
+    def state(self) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
+        """The version and x (nothing before :meth:`begin`)."""
+        if self._model is None:
+            return {}, {}
+        return {"version": self._version}, {"model": self._model.copy()}
+
+    def restore(self, fields: Mapping[str, Any], tensors: Mapping[str, np.ndarray]) -> None:
+        """Take back the version and x; ValueError if x is missing."""
+        if not fields and not tensors:
+            self._model, self._version = None, 0
+            return
+        if "model" not in tensors:
+            raise ValueError(f"scheme {self.name} state lacks the fleet model")
+        self._model = np.asarray(tensors["model"], np.float32).copy()
+        self._version = int(fields.get("version", 0))
