@@ -11,6 +11,7 @@ from fleetrl.federation.messages import Message, Reason, encode
 from fleetrl.federation.schemes import (
     COMPLETED,
     SCHEMES,
+    AsyncScheme,
     Granularity,
     RoundAnswer,
     RoundContext,
@@ -74,7 +75,7 @@ def test_the_registry_finds_each_scheme_module_and_names_the_choices() -> None:
     assert {name: type(get_scheme(name)).name for name in SCHEMES} == {n: n for n in SCHEMES}
     assert set(SCHEMES) >= {"paper", "fedavg", "fedavgm", "fedadam", "pergrad"}
     with pytest.raises(
-        ValueError, match=r"unknown federation scheme 'fedsgd' \(choose fedavg, .* or pergrad, or"
+        ValueError, match=r"unknown federation scheme 'fedsgd' \(choose fedasync, fedavg, .* or pergrad, or"
     ):
         get_scheme("fedsgd")
     with pytest.raises(
@@ -296,7 +297,10 @@ def test_a_per_round_chief_rejects_a_step_and_needs_a_deadline_for_a_quorum() ->
 def test_each_scheme_is_one_protocol_and_has_no_method_of_the_other() -> None:
     for name, cls in SCHEMES.items():
         assert issubclass(cls, RoundScheme) != issubclass(cls, StepScheme), name
-        assert cls.granularity is (Granularity.ROUND if issubclass(cls, RoundScheme) else Granularity.STEP)
+        expected = Granularity.STEP if issubclass(cls, StepScheme) else Granularity.ROUND
+        if issubclass(cls, AsyncScheme):  # a worker's side of one message a round, without a barrier
+            expected = Granularity.ASYNC
+        assert cls.granularity is expected, name
     pergrad, paper = get_scheme("pergrad"), get_scheme("paper")
     assert not any(hasattr(pergrad, m) for m in ("outgoing", "apply_average", "local_loss"))
     assert not any(hasattr(paper, m) for m in ("apply_step_answer",))

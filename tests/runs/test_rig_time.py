@@ -47,6 +47,28 @@ def test_the_waiting_rule_follows_the_mode() -> None:
     assert waiting_rule("individual") == "alone" and waiting_rule("federated") == "synchronous"
 
 
+def test_under_an_asynchronous_scheme_no_unit_waits_for_another() -> None:
+    assert waiting_rule("federated", "fedasync") == "asynchronous"
+    assert waiting_rule("federated", "pergrad") == waiting_rule("federated", "fedavg") == "synchronous"
+    assert waiting_rule("individual", "fedasync") == "alone"
+    # each unit's own rounds back to back: 0 until its round 2 (10 + 40), 1 until its round 3, 2 all three
+    t = rig_time(STEPS, COMPLETED, 0.5, "asynchronous")
+    assert t.per_unit == {"0": 25.0, "1": 50.0, "2": 30.0} and t.fleet == 50.0 and not t.complete
+
+
+def test_an_asynchronous_record_is_timed_back_to_back() -> None:
+    workers = {"0": {"completed_at_round": 1, "score": [10.0], "steps": [10]},
+               "1": {"completed_at_round": 2, "score": [30.0, 5.0], "steps": [30, 5]}}  # fmt: skip
+    record = RunRecord(
+        {"result_settings": {"env": "cartpole", "mode": "federated", "scheme": "fedasync"},
+         "max_rounds": 2, "workers": workers}
+    )  # fmt: skip
+    time = record.rig_time()
+    assert time is not None
+    period = CartPoleParams().tau
+    assert time.per_unit == pytest.approx({"0": 10 * period, "1": 35 * period})  # synchronous: 1 waits 30
+
+
 def test_the_built_in_control_periods_are_the_devices_own() -> None:
     assert get_env_spec("qube").control_period == QubeConfig().control_period
     assert get_env_spec("qube-continuous").control_period == QubeConfig().control_period

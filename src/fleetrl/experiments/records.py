@@ -78,7 +78,7 @@ class RunRecord:
         return result
 
     def rig_time(self) -> RigTime | None:
-        """The time the run would take on real-time rigs under its mode's waiting rule
+        """The time the run would take on real-time rigs under its mode's and scheme's waiting rule
         (:mod:`fleetrl.runs.rig_time`); None for a unit type without a known control period, or a record
         whose rounds held several episodes and kept no steps. Records made before the steps were kept read
         each round's steps from its score (reward 1 per step: at most one step short per episode)."""
@@ -94,7 +94,7 @@ class RunRecord:
             return None
         steps = {k: w.get("steps") or [round(s or 0) for s in w["score"]] for k, w in workers.items()}
         completed = {k: w["completed_at_round"] for k, w in workers.items()}
-        return rig_time(steps, completed, period, waiting_rule(settings.get("mode")))
+        return rig_time(steps, completed, period, waiting_rule(settings.get("mode"), settings.get("scheme")))
 
     def scores(self) -> dict[int, list[float]]:
         """Each worker's score per round (round 1 first)."""

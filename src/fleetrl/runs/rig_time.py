@@ -3,13 +3,15 @@
 A simulated run costs rounds; a fleet of real units costs time, each step one control period of its unit
 (QUBE-Servo 2: 6 ms; CartPole: 20 ms). How rounds become time depends on who waits for whom:
 
-* **synchronous** (every federation scheme of fleetrl today): a round closes when its last member has played
+* **synchronous** (a federation scheme with a round barrier): a round closes when its last member has played
   its episode, so round r lasts as long as the longest episode played in it, ``max_w steps[w][r] × period``;
   a unit has spent the rounds up to the one in which its criterion held (under a quorum a straggler's
   episodes count in the round it contributed to, and a round the fleet closed without it lasts as long as
   its members' episodes);
 * **alone** (each unit trains by itself): a unit plays its episodes back to back, ``Σ_r steps[u][r] ×
-  period``; the fleet is done when its slowest unit is.
+  period``; the fleet is done when its slowest unit is;
+* **asynchronous** (a scheme without a round barrier, ``fedasync``): no unit waits for another, so each plays
+  back to back as alone (its rounds are its own count), the fleet done when its slowest unit is.
 
 Only the episodes count: the device-side reset between episodes (the QUBE's swing-up) and the learner's
 updates are left out, the same for every rule. A unit that never completed counts all the rounds it played
@@ -22,7 +24,9 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Literal
 
-WaitingRule = Literal["synchronous", "alone"]
+from fleetrl.federation.schemes import Granularity, scheme_class
+
+WaitingRule = Literal["synchronous", "alone", "asynchronous"]
 """how a fleet's units wait for each other (see the module docstring)"""
 
 
@@ -78,7 +82,7 @@ def rig_time(
             raise ValueError(
                 f"unit {unit} completed at round {last[unit]} but played up to round {max(played, default=0)}"
             )
-    if rule == "alone":
+    if rule in ("alone", "asynchronous"):
         per_unit = {
             u: sum(s for r, s in played.items() if r <= last[u]) * period for u, played in by_round.items()
         }
@@ -92,12 +96,21 @@ def rig_time(
         per_unit = {u: elapsed[last[u]] for u in steps}
         fleet = elapsed[-1]
     else:
-        raise ValueError(f"unknown waiting rule {rule!r} (choose synchronous or alone)")
+        raise ValueError(f"unknown waiting rule {rule!r} (choose synchronous, alone or asynchronous)")
     complete = all(c is not None for c in completed_at.values())
     return RigTime(fleet, per_unit, complete)
 
 
-def waiting_rule(mode: str | None) -> WaitingRule:
-    """The waiting rule of a run's mode: ``individual`` units play alone, a federated fleet waits for each
-    round's slowest member."""
-    return "alone" if mode == "individual" else "synchronous"
+def waiting_rule(mode: str | None, scheme: str | None = None) -> WaitingRule:
+    """The waiting rule of a run's mode and federation scheme (its name): ``individual`` units play alone, a
+    fleet under an asynchronous scheme waits for nobody, any other federated fleet waits for each round's
+    slowest member."""
+    if mode == "individual":
+        return "alone"
+    if scheme is not None:
+        try:
+            if scheme_class(scheme).granularity is Granularity.ASYNC:
+                return "asynchronous"
+        except ValueError:  # a user's scheme that no longer imports: its records were synchronous
+            pass
+    return "synchronous"

@@ -193,7 +193,7 @@ class RunRecorder:
         for record in sorted(self.records, key=lambda r: (r.worker, r.round)):
             steps.setdefault(str(record.worker), {})[record.round] = record.steps
         completed = {w: self.progress[int(w)].completed_at_round for w in steps}
-        rule = waiting_rule(self.config.get("mode"))
+        rule = waiting_rule(self.config.get("mode"), self.config.get("scheme"))
         return {"period": period, "rule": rule, **rig_time(steps, completed, period, rule).to_dict()}
 
     def finish(self) -> dict[str, Any]:
