@@ -1,5 +1,5 @@
-"""The worker machine of an asynchronous scheme (``fedasync``) without threads, transport or clock: it waits for
-the answer to its own round, ignores another worker's answer (only its model is kept), and takes the newest
+"""The worker machine of an asynchronous scheme (``fedasync``) without threads, transport or clock: it waits
+for the answer to its own round, ignores another worker's answer (only its model is kept), and takes the newest
 model it has seen before each round."""
 
 from __future__ import annotations
@@ -15,7 +15,6 @@ from fleetrl.federation.messages import Message
 from fleetrl.federation.rounds import Checkpoint, Finish, PlayRound, Record, TakeParameters, WorkerStep
 from fleetrl.federation.schemes import get_scheme
 from fleetrl.federation.step_worker import worker_machine
-
 
 RUN = "async-machine"
 ME = "1"
