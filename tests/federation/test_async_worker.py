@@ -1,6 +1,6 @@
 """The worker machine of an asynchronous scheme (``fedasync``) without threads, transport or clock: it waits
-for the answer to its own round, ignores another worker's answer (only its model is kept), and takes the newest
-model it has seen before each round."""
+for the answer to its own round, ignores another worker's answer (only its model is kept), and takes the
+newest model it has seen before each round."""
 
 from __future__ import annotations
 
