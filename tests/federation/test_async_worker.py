@@ -51,7 +51,10 @@ def fleet_model(version: int) -> np.ndarray:
 
 
 def chief(kind: str, rnd: int, version: int, **fields: Any) -> Message:
-    """A message of the chief carrying the fleet model of ``version`` (each version its own values)."""
+    """A message of the chief carrying the fleet model of ``version`` (each version its own values); a
+    welcome for this worker unless it names another."""
+    if kind == "welcome":
+        fields.setdefault("contributors", (ME,))
     return Message(kind, RUN, "chief", rnd, flat=fleet_model(version), model_version=version, **fields)
 
 
@@ -114,6 +117,14 @@ def test_the_end_of_the_run_is_taken_from_the_answer_listing_this_worker_as_fini
     end = m.receive(chief("average", 1, 7, origin="0", finished=("0", ME)), now=1.0)  # another's last answer
     (finish,) = [o for o in end.outputs if isinstance(o, Finish)]
     assert finish.summary.finished and finish.summary.reason == "every unit completed" and m.finished
+
+
+def test_another_workers_welcome_gives_a_model_but_not_this_workers_round() -> None:
+    m = machine()
+    m.start(now=0.0)
+    assert m.receive(chief("welcome", 7, 3, contributors=("2",)), now=0.0) == WorkerStep()
+    mine = m.receive(chief("welcome", 2, 3), now=0.1)
+    assert taken(mine) == [3.0] and mine.actions[-1] == PlayRound(2)
 
 
 def test_a_worker_resumed_within_a_round_replays_it_from_the_welcomes_model() -> None:

@@ -126,7 +126,7 @@ def test_a_late_joiner_is_welcomed_with_the_current_model_and_a_returning_one_wi
     send(c, model("0", 1, [2.0, 2.0], base=0))
     send(c, model("0", 2, [4.0, 4.0], base=1))
     (late,) = online(c, "2").outgoing
-    assert (late.type, late.round, late.model_version) == ("welcome", 1, 2)
+    assert (late.type, late.round, late.model_version, late.contributors) == ("welcome", 1, 2, ("2",))
     assert late.flat == pytest.approx([2.5, 2.5])
     (back,) = online(c, "0", inc=2).outgoing  # worker 0 restarted: its own count goes on
     assert (back.round, back.model_version) == (3, 2)

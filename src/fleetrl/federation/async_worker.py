@@ -55,6 +55,12 @@ class AsyncWorkerMachine(WorkerMachine):
                 self.newest = message
         return super().receive(message, now=now)
 
+    def _welcome_wanted(self) -> Callable[[Message], bool]:
+        """A ``welcome`` naming this worker in ``contributors`` (each carries its worker's own round), or
+        ``done``."""
+        me = self.worker_id
+        return lambda m: m.type == "done" or (m.type == "welcome" and me in m.contributors)
+
     def _welcomed(self, welcome: Message) -> WorkerStep:
         """Joined: the first round is the welcome's (its checkpoint's, for a worker resumed within a round),
         played from the welcome's model (the newest there is, kept by :meth:`receive`)."""

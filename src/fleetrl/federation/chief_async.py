@@ -7,7 +7,8 @@ twice): its staleness is s = v − b; the scheme mixes it into x (v + 1) — unl
 set and s exceeds it, then it is left out — and the chief broadcasts an ``average`` carrying x and v, naming w
 in ``origin`` (whose contribution it answers; ``contributors``: (w,) if applied) and w's round r. Nobody
 waits for anybody. Joining, dropping out, coming back, refusals and checkpoints are the synchronous chief's
-(:class:`~.chief.Chief`); a worker's ``welcome`` carries x and v and the round after its last one taken.
+(:class:`~.chief.Chief`); a worker's ``welcome`` names it in ``contributors`` (welcomes are broadcast) and
+carries x and v and the round after its last one taken.
 
 The run ends at the contribution after which every member of W has completed (its answer lists them all in
 ``finished``), once every member of W has played M rounds, or when W is empty. Per worker the chief counts
@@ -153,7 +154,7 @@ class AsyncChief(Chief):
         rnd = min(record.last_round + 1, self.max_rounds)
         welcome = Message(
             "welcome", self.run_id, CHIEF_ID, rnd, flat=self.fleet.model, origin=CHIEF_ID,
-            settings=dict(self.settings or {}), model_version=self.fleet.version,
+            contributors=(worker,), settings=dict(self.settings or {}), model_version=self.fleet.version,
         )  # fmt: skip
         detail = f"of round {rnd} with the fleet model of version {self.fleet.version}"
         return ChiefStep((welcome,), (ChiefEvent("welcome", rnd, sender=worker, detail=detail),))

@@ -174,7 +174,11 @@ class WorkerMachine:
         join = Message("join", self.run_id, self.worker_id, 1, settings=self.settings)
         online = WorkerStep((act.Announce(self.own_status, self.status(ONLINE)),))
         welcome = "the chief's welcome"
-        return online + self._send(join, lambda m: m.type in ("welcome", "done"), welcome, now, retain=True)
+        return online + self._send(join, self._welcome_wanted(), welcome, now, retain=True)
+
+    def _welcome_wanted(self) -> Callable[[Message], bool]:
+        """What welcomes this worker: a ``welcome`` (the same for every worker) or ``done``."""
+        return lambda m: m.type in ("welcome", "done")
 
     def receive_bytes(self, topic: str, payload: bytes, *, now: float) -> WorkerStep:
         """A payload from the chief's topic or its status topic."""
