@@ -7,7 +7,9 @@ with every unit absent for a random 20 % of rounds (``--absent 0.2``), for one s
 
 Per arm and seed it prints the wall time until every unit completed and until the healthy units completed (all
 units but the slow one; in the even and absent arms every unit is healthy), and the rounds until every unit
-completed; then per arm the medians over the seeds and their ratio to the even fleet's. The targets: the
+completed; then per arm the medians over the seeds and their ratio to the even fleet's. Under an asynchronous
+scheme (``fedasync``) a unit's rounds are its own count (no fleet round): "rounds" is then the most rounds a
+unit played until it completed. The targets: the
 healthy units of the slow arm within 1.25× the even fleet's time, the slow unit completing too; the absent
 arm within 1.3× the even fleet's rounds.
 
@@ -97,6 +99,13 @@ def figures(out: Path, slow_unit: int | None) -> Figures:
     return Figures(max(seconds.values()), max(healthy), max(rounds.values()), complete)
 
 
+def asynchronous(scheme: str) -> bool:
+    """Whether ``scheme`` (a name) has no round barrier: its units count their own rounds."""
+    from fleetrl.federation.schemes import Granularity, scheme_class
+
+    return scheme_class(scheme).granularity is Granularity.ASYNC
+
+
 def show(value: float, complete: bool, unit: str = "s") -> str:
     return (
         f"{'' if complete else '>'}{value:.1f}{unit}"
@@ -134,6 +143,7 @@ def main() -> None:
                 flush=True,
             )
     even = results.get("even")
+    rounds = "rounds per unit" if asynchronous(args.scheme) else "rounds"
     print(f"\nscheme {args.scheme}, {len(args.seeds)} seed(s), medians (ratio to the even fleet):")
     for arm, runs in results.items():
         medians = [
@@ -147,9 +157,9 @@ def main() -> None:
             ]
             ratios = " (" + ", ".join(f"{m / b:.2f}×" for m, b in zip(medians, base, strict=True)) + ")"
         lower = "" if all(r.complete for r in runs) else "  [some unit never completed: lower bounds]"
-        every, healthy, rounds = medians
+        every, healthy, count = medians
         print(
-            f"  {arm:>6}: every unit {every:.1f} s, healthy units {healthy:.1f} s, rounds {rounds:g}"
+            f"  {arm:>6}: every unit {every:.1f} s, healthy units {healthy:.1f} s, {rounds} {count:g}"
             f"{ratios}{lower}"
         )
 
