@@ -132,6 +132,19 @@ def test_a_late_joiner_is_welcomed_with_the_current_model_and_a_returning_one_wi
     assert (back.round, back.model_version) == (3, 2)
 
 
+def test_a_unit_new_to_the_fleet_joins_with_the_current_model_and_its_own_round_1() -> None:
+    c = make()
+    send(c, model("0", 1, [2.0, 2.0], base=0))
+    join = Message("join", RUN, "7", 1)
+    step = c.receive_bytes(encode(join, layout=LAYOUT), topic_worker="7", now=1.0)
+    assert [(e.kind, e.sender) for e in step.events] == [("admitted", "7"), ("welcome", "7")]
+    (welcome,) = step.outgoing
+    assert (welcome.round, welcome.model_version, welcome.contributors) == (1, 1, ("7",))
+    assert welcome.flat == pytest.approx([1.0, 1.0]) and "7" in c.members
+    reply = answer(send(c, model("7", 1, [3.0, 3.0], base=1)))  # s = 0: x = 0.5·1 + 0.5·3
+    assert (reply.origin, reply.model_version) == ("7", 2) and reply.flat == pytest.approx([2.0, 2.0])
+
+
 def test_a_contribution_staler_than_the_bound_is_answered_but_left_out() -> None:
     c = make(max_staleness=1)
     send(c, model("0", 1, [2.0, 2.0], base=0))

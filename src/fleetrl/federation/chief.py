@@ -338,9 +338,7 @@ class Chief:
         if self.finished:
             return ChiefStep()
         self.roster.admit(worker)
-        step = ChiefStep(events=self.state.admit(worker, per_step=self._per_step))
-        model, config = self.state.model, self.state.config
-        return step + welcome_step(self.run_id, worker, self.state.round, model, self.settings or {}, config)
+        return ChiefStep(events=self.state.admit(worker, per_step=self._per_step)) + self._welcome(worker)
 
     def _refusal(self, worker: str) -> ChiefStep:
         return refusal_step(self.run_id, worker, self.state.round, self._gate.refusal(worker) or "")
