@@ -84,6 +84,8 @@ def test_a_round_barrier_setting_is_refused_for_an_asynchronous_scheme() -> None
     with pytest.raises(ValueError, match="no round barrier"):
         check_round_rules(scheme(), 10, 1.0, 5.0, 1)
     check_round_rules(scheme(), 10, 1.0, None, 1, max_staleness=2)
+    with pytest.raises(ValueError, match="aggregation 'median' does not apply"):
+        make(aggregator="median")
 
 
 # ---- the chief ----

@@ -59,7 +59,11 @@ def test_a_fedasync_run_over_the_embedded_broker_ends_properly(tmp_path: Path) -
 
 @pytest.mark.parametrize(
     ("extra", "message"),
-    [(("--round-timeout", "5"), "no round barrier"), (("--scheme-param", "alpha=0"), "must be in (0, 1]")],
+    [
+        (("--round-timeout", "5"), "no round barrier"),
+        (("--scheme-param", "alpha=0"), "must be in (0, 1]"),
+        (("--aggregation", "median"), "does not apply"),
+    ],
 )
 def test_bad_settings_are_refused_before_the_run_starts(
     tmp_path: Path, capsys: pytest.CaptureFixture[str], extra: tuple[str, ...], message: str

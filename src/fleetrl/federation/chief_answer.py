@@ -20,8 +20,10 @@ def check_round_rules(
     round_timeout: float | None,
     steps_per_round: int,
     max_staleness: int | None = None,
+    aggregation: str = "mean",
 ) -> None:
-    """Raise ValueError naming the first setting of a chief that cannot run (see :class:`Chief`)."""
+    """Raise ValueError naming the first setting of a chief that cannot run (see :class:`Chief`;
+    ``aggregation``: the aggregation rule's name)."""
     if max_rounds < 1:
         raise ValueError(f"max_rounds must be >= 1, got {max_rounds}")
     if not 0.0 < quorum <= 1.0:
@@ -34,6 +36,11 @@ def check_round_rules(
         raise ValueError(
             f"scheme {scheme.name!r} has no round barrier: quorum and round_timeout do not apply (leave them "
             "unset; max_staleness bounds the staleness of a contribution applied)"
+        )
+    if scheme.granularity is Granularity.ASYNC and aggregation != "mean":
+        raise ValueError(
+            f"scheme {scheme.name!r} mixes one model at a time into the fleet's: aggregation {aggregation!r} "
+            "does not apply (leave it unset)"
         )
     per_step = scheme.granularity is Granularity.STEP
     if quorum < 1.0 and round_timeout is None and not per_step:

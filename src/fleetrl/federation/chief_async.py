@@ -22,6 +22,7 @@ from dataclasses import replace
 from typing import Any
 
 from fleetrl.federation.chief import Chief
+from fleetrl.federation.chief_answer import check_round_rules
 from fleetrl.federation.contributions import Contributions
 from fleetrl.federation.events import ChiefEvent, ChiefStep
 from fleetrl.federation.messages import Message, Reason
@@ -53,6 +54,10 @@ class AsyncChief(Chief):
         if not isinstance(self.scheme, AsyncScheme):
             raise ValueError(f"scheme {self.scheme.name!r} is not asynchronous: use Chief")
         self.fleet: AsyncScheme = self.scheme
+        check_round_rules(
+            self.scheme, self.max_rounds, self.quorum, self.round_timeout, 1, self.max_staleness,
+            self.aggregator_name,
+        )  # fmt: skip
         if self.fleet.model is None:
             if start is None:
                 raise ValueError(f"scheme {self.scheme.name!r}: the chief needs the fleet's start")

@@ -218,7 +218,7 @@ class RoundRules:
         try:
             check_round_rules(
                 scheme, learning.max_rounds, quorum, self.round_timeout, shape.exchanges_per_round,
-                self.max_staleness,
+                self.max_staleness, self.aggregation,
             )  # fmt: skip
         except ValueError as err:
             raise SettingError(str(err)) from None
