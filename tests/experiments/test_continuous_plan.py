@@ -1,6 +1,7 @@
 """The continuous experiment: its discrete arms are Fig. 5's runs, its continuous arms the Box task."""
 
-from fleetrl.experiments.catalog import FULL, PLANS
+from fleetrl.experiments.budget import FULL
+from fleetrl.experiments.catalog import PLANS
 
 
 def test_discrete_arms_reuse_fig5_runs_and_continuous_arms_train_the_box_task() -> None:

@@ -9,7 +9,7 @@ from experiment_fakes import record, write_record_of
 from matplotlib.figure import Figure
 
 from fleetrl.experiments.arms import Places
-from fleetrl.experiments.catalog import arm
+from fleetrl.experiments.budget import arm
 from fleetrl.experiments.plan import Plan, run_plan
 from fleetrl.experiments.runner import seeds_line
 from fleetrl.runs.plots import unlabelled_axes

@@ -12,7 +12,8 @@ from pathlib import Path
 import pytest
 
 from fleetrl.cli.main import main
-from fleetrl.experiments.catalog import FULL, PLANS, QUICK
+from fleetrl.experiments.budget import FULL, QUICK
+from fleetrl.experiments.catalog import PLANS
 from fleetrl.runs.setting_values import build
 from fleetrl.runs.settings import RunSettings
 

@@ -5,7 +5,8 @@ from pathlib import Path
 
 import pytest
 
-from fleetrl.experiments.catalog import FIG_SERVER_OPTIMISER, FULL, PLANS, SERVER_OPTIMISERS, learning
+from fleetrl.experiments.budget import FULL
+from fleetrl.experiments.catalog import FIG_SERVER_OPTIMISER, PLANS, SERVER_OPTIMISERS, learning
 
 
 def test_server_optimisers_run_on_cartpole_with_their_tuned_settings() -> None:

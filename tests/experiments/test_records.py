@@ -8,7 +8,7 @@ import pytest
 from experiment_fakes import record, write_record_of, write_run_dir
 
 from fleetrl.experiments.arms import Places
-from fleetrl.experiments.catalog import arm
+from fleetrl.experiments.budget import arm
 from fleetrl.experiments.records import build_record, read_record, unseen_units, write_record
 
 ALONE = arm("cartpole", 2, "individual", "standard", 10, "alone")

@@ -7,7 +7,7 @@ from pathlib import Path
 from experiment_fakes import record, write_record_of
 
 from fleetrl.experiments.arms import Places
-from fleetrl.experiments.catalog import arm
+from fleetrl.experiments.budget import arm
 from fleetrl.experiments.plan import Plan, Ratio, run_plan
 from fleetrl.experiments.runner import seeds_line
 

@@ -9,7 +9,7 @@ import pytest
 from experiment_fakes import record, write_record_of, write_run_dir
 
 from fleetrl.experiments.arms import Arm, Places
-from fleetrl.experiments.catalog import arm
+from fleetrl.experiments.budget import arm
 from fleetrl.experiments.records import read_record
 from fleetrl.experiments.sweep import Run, result_settings, run_all, train_args
 

@@ -8,7 +8,8 @@ from pathlib import Path
 
 import pytest
 
-from fleetrl.experiments.catalog import FULL, PLANS, QUICK
+from fleetrl.experiments.budget import FULL, QUICK
+from fleetrl.experiments.catalog import PLANS
 from fleetrl.experiments.runner import ExperimentRequest, experiment_command, run_experiment, section_name
 from fleetrl.runs.setting_values import SettingError
 

@@ -7,15 +7,8 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 
 from fleetrl.experiments.arms import Places
-from fleetrl.experiments.catalog import (
-    EXPERIMENTS,
-    FULL,
-    PLANS,
-    QUICK,
-    TUNING_FLEET_SEED,
-    TUNING_SEEDS,
-    UNIT_TYPE_EXPERIMENTS,
-)
+from fleetrl.experiments.budget import FULL, QUICK, TUNING_FLEET_SEED, TUNING_SEEDS
+from fleetrl.experiments.catalog import EXPERIMENTS, PLANS, UNIT_TYPE_EXPERIMENTS
 from fleetrl.experiments.plan import run_plan
 from fleetrl.experiments.sections import peers_section, table2_section
 

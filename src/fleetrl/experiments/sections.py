@@ -6,7 +6,7 @@ import numpy as np
 
 from fleetrl.devices.homogeneity import format_tables, pooled_homogeneity, write_csv
 from fleetrl.experiments.arms import Arm, Places, completions
-from fleetrl.experiments.catalog import Budget, arm
+from fleetrl.experiments.budget import Budget, arm
 from fleetrl.experiments.peers import PeerRun
 from fleetrl.experiments.plan import NOT_RUN
 from fleetrl.experiments.stats import bootstrap_ratio, markdown_table, spread

@@ -1,0 +1,54 @@
+"""The uneven fleet (issue 23's QUBE target): 3 QUBE units with one at a quarter of the others' speed and
+every unit absent for a random 20 % of rounds, under the default scheme (``pergrad``, its quorum 0.6) and the
+asynchronous one (``fedasync``), beside the even fleet and each unit alone. The figure that matters is the
+time on the rigs (``fleetrl.runs.rig_time``: each scheme's own waiting rule) until every unit completes."""
+
+from fleetrl.experiments.arms import Arm
+from fleetrl.experiments.budget import Budget, arm
+from fleetrl.experiments.plan import Plan, Ratio
+
+UNEVEN = {"slow": {"w2": 4.0}, "absent": 0.2}
+"""the uneven fleet: unit 2 computes at a quarter of the others' speed; each unit absent for 20 % of rounds"""
+DEFAULT_QUORUM = 0.6
+"""``pergrad``'s own quorum (the other experiments' arms pin 1, the rule their records were made with)"""
+
+NOTES = (
+    "Unit 2 computes 4× slower (`--slow w2=4`: it waits 3× the time each piece of its own work took); every "
+    "unit is absent for a random 20 % of rounds (`--absent 0.2`). Time on the rigs counts the episodes only "
+    "(6 ms a step), under each scheme's waiting rule: a per-step scheme's round lasts as long as the longest "
+    "episode it waited for; under the asynchronous scheme each unit plays back to back, as alone. fedasync "
+    "is not reproducible bit for bit: the order in which models arrive decides the fleet model."
+)
+
+
+def uneven(budget: Budget) -> Plan:
+    """3 QUBE units alone, and federated even and uneven under ``pergrad`` (quorum 1 and its default 0.6) and
+    ``fedasync``, preset ``standard``."""
+    m, fleet_seed = budget.qube_rounds, budget.fleet_seed
+
+    def fed(scheme: str, label: str, **run: object) -> Arm:
+        return arm("qube", 3, "federated", "standard", m, label, scheme, fleet_seed, run=run)
+
+    alone = arm("qube", 3, "individual", "standard", m, "each unit alone", fleet_seed=fleet_seed)
+    even_sync = fed("pergrad", "even · pergrad · everyone waited for")
+    even = fed("pergrad", "even · pergrad", quorum=DEFAULT_QUORUM)
+    slow = fed("pergrad", "uneven · pergrad", quorum=DEFAULT_QUORUM, **UNEVEN)
+    even_async = fed("fedasync", "even · fedasync")
+    slow_async = fed("fedasync", "uneven · fedasync", **UNEVEN)
+    target = "target: the uneven fleet's time on the rigs ≤ 1/2.5 of each unit alone's"
+    return Plan(
+        name="uneven",
+        title="An uneven fleet: 3 QUBE units, one at a quarter speed, each absent 20 % of rounds",
+        arms=[alone, even_sync, even, slow, even_async, slow_async],
+        max_rounds=m,
+        ratios=[
+            Ratio(alone, even_sync, "the default scheme, every worker waited for (Fig. 5's arm)"),
+            Ratio(alone, even, "the default scheme with its quorum, even fleet"),
+            Ratio(alone, slow, f"the default scheme, uneven fleet ({target})"),
+            Ratio(alone, even_async, "the asynchronous scheme, even fleet"),
+            Ratio(alone, slow_async, f"the asynchronous scheme, uneven fleet ({target})"),
+            Ratio(slow, slow_async, "uneven fleet: asynchronous vs the default scheme"),
+        ],
+        notes=NOTES,
+        headline=[alone, slow, slow_async, even_async],
+    )
