@@ -371,8 +371,10 @@ class RunSettings(RoundRules, BrokerLogin):
     def to_toml(self) -> str:
         """config.toml of the run directory: every setting (no password), so that
         ``fleetrl train --config runs/x/config.toml --out runs/y`` reruns the run. An uneven-fleet setting at
-        its default is left out (an even run's file is the one written before those settings existed)."""
-        table = toml_values(self, leave_out=self.uneven.default_names())
+        its default is left out (an even run's file is the one written before those settings existed), and
+        so is ``units_per_host`` at 1."""
+        hosts = ("units_per_host",) if self.units_per_host == 1 else ()
+        table = toml_values(self, leave_out=(*self.uneven.default_names(), *hosts))
         if self.broker is not None:
             table["broker"] = self.public_broker
         header = (
