@@ -68,11 +68,14 @@ def test_the_host_gradient_is_the_mean_of_its_units_gradients(normalise: bool) -
     assert np.allclose(host.model_parameters(), units[0].model_parameters(), rtol=1e-5, atol=1e-6)
 
 
-def test_a_host_of_one_unit_plays_and_learns_as_that_unit_alone() -> None:
+@pytest.mark.parametrize("memory", ["ring", "per_round"])
+def test_a_host_of_one_unit_plays_and_learns_as_that_unit_alone(memory: str) -> None:
     torch.set_num_threads(1)
-    config = dataclasses.replace(get_preset("standard"), hidden=(32, 32))
+    config = dataclasses.replace(get_preset("standard"), hidden=(32, 32), trajectory_memory=memory)
     env = lambda: gymnasium.make(CARTPOLE_UNIT_ID, unit=1, fleet_seed=0)  # noqa: E731
-    alone = Learner(env(), PPOAgent(4, 2, config, seed=5), CompletionCriterion(60.0), seed=5, keep_learning=True)
+    alone = Learner(
+        env(), PPOAgent(4, 2, config, seed=5), CompletionCriterion(60.0), seed=5, keep_learning=True
+    )
     host = HostLearner([env()], HostAgent(4, 2, config, [5]), [CompletionCriterion(60.0)], keep_learning=True)
     for _ in range(6):
         mine, theirs = host.play_round(), alone.play_round()
@@ -81,6 +84,7 @@ def test_a_host_of_one_unit_plays_and_learns_as_that_unit_alone() -> None:
             theirs.score, theirs.steps, theirs.wma, theirs.completed
         )  # fmt: skip
         assert unit.actor_loss == theirs.actor_loss and mine.score == theirs.score
+        assert unit.episodes == theirs.episodes >= (2 if memory == "per_round" else 1)
     assert np.array_equal(host.agent.model_parameters(), alone.agent.model_parameters())
 
 
@@ -113,7 +117,10 @@ def test_batched_acting_takes_each_rows_own_action() -> None:
 
 @pytest.mark.parametrize(
     ("overrides", "words"),
-    [({"gae_scope": "window"}, "gae_scope"), ({"optimisers": "one_sequential", "trunk_split": "shared"}, "per_model")],
+    [
+        ({"gae_scope": "window"}, "gae_scope"),
+        ({"optimisers": "one_sequential", "trunk_split": "shared"}, "per_model"),
+    ],
 )
 def test_a_host_refuses_an_update_it_cannot_make_in_one_line(overrides: dict, words: str) -> None:
     with pytest.raises(ValueError, match=words) as err:

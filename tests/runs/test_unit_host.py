@@ -15,8 +15,8 @@ TARGET = 40.0
 
 
 def train(out: Path, *extra: str) -> int:
-    argv = ["train", "--env", "cartpole", "--units", "6", "--preset", "standard", "--seed", "3",
-            "--mode", "federated", "--transport", "local", "--out", str(out), "--no-live", *extra]  # fmt: skip
+    argv = ["train", "--env", "cartpole", "--units", "6", "--preset", "standard", "--seed", "3", "--mode",
+            "federated", "--transport", "local", "--out", str(out), "--no-live", *extra]  # fmt: skip
     return main(argv)
 
 
