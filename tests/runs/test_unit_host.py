@@ -49,6 +49,17 @@ def test_two_hosts_of_three_units_train_cartpole_end_to_end(tmp_path: Path) -> N
     assert first == {r["worker"]: r["score"] for r in rows(flat)}
 
 
+@pytest.mark.slow
+@pytest.mark.mqtt
+def test_units_of_a_host_behind_device_bridges_play_as_in_process(tmp_path: Path) -> None:
+    bridged, local = tmp_path / "bridged", tmp_path / "local"
+    assert train(bridged, "--units-per-host", "3", "--device-link", "mqtt", "--max-rounds", "1") == 0
+    assert train(local, "--max-rounds", "1") == 0
+    assert {(r["worker"], r["score"]) for r in rows(bridged)} == {
+        (r["worker"], r["score"]) for r in rows(local)
+    }
+
+
 @pytest.mark.parametrize(
     ("extra", "words"),
     [
