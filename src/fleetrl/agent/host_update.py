@@ -140,7 +140,7 @@ def host_update(
             v_next = net.value_of(memory.next_obs[rows])
         adv, baseline = advantages[rows], values[rows]  # line 15
         targets = variants.critic_target(memory, rows, v_next, adv, baseline, cfg.gamma)  # type: ignore[arg-type]
-        log_probs = net.log_probs_and_entropy(head, memory.actions[rows])[0]
+        log_probs, behaviour = net.log_probs_and_entropy(head, memory.actions[rows])[0], old_log_probs[rows]
         entropies = net.entropies(head)
         objective = torch.zeros(())
         value_loss = torch.zeros(())
@@ -154,7 +154,7 @@ def host_update(
                 unit_adv = (unit_adv - unit_adv.mean(1, keepdim=True)) / (
                     unit_adv.std(1, keepdim=True) + 1e-8
                 )
-            new, old = log_probs[part].reshape(shape), old_log_probs[rows][part].reshape(shape)
+            new, old = log_probs[part].reshape(shape), behaviour[part].reshape(shape)
             l_clip = clipped_surrogate(new, old, unit_adv, cfg.clip_eps, dim=1)
             entropy = entropies[part].reshape(shape).mean(1)
             l_v = critic_loss(v[part].reshape(shape), targets[part].reshape(shape), cfg.critic_loss, dim=1)
