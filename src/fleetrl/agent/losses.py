@@ -44,31 +44,42 @@ def gae(
     return torch.from_numpy(advantages)
 
 
-def critic_loss(values: torch.Tensor, targets: torch.Tensor, kind: str = "abs") -> torch.Tensor:
+def critic_loss(
+    values: torch.Tensor, targets: torch.Tensor, kind: str = "abs", dim: int | None = None
+) -> torch.Tensor:
     """L^V(μ) = Ê[|V^target(s_t) − V_μ(s_t)|] (Eq. 3); Ê[½(V^target − V)²] for ``kind='mse'``; for
     ``kind='huber'`` the smooth L1 loss of the authors' code, Ê[½e²] where |e| < 1 and Ê[|e| − ½] elsewhere.
 
-    ``targets`` carry no gradient (semi-gradient TD).
+    ``targets`` carry no gradient (semi-gradient TD). Ê is the mean over every element, or with ``dim``
+    over that dimension only (a unit host: one loss per unit's row of transitions).
     """
     error = targets.detach() - values
     if kind == "abs":
-        return error.abs().mean()
+        return error.abs().mean() if dim is None else error.abs().mean(dim)
     if kind == "mse":
-        return 0.5 * (error**2).mean()
+        return 0.5 * (error**2).mean() if dim is None else 0.5 * (error**2).mean(dim)
     if kind == "huber":
-        return functional.smooth_l1_loss(values, targets.detach(), beta=1.0)
+        if dim is None:
+            return functional.smooth_l1_loss(values, targets.detach(), beta=1.0)
+        return functional.smooth_l1_loss(values, targets.detach(), beta=1.0, reduction="none").mean(dim)
     raise ValueError(f"unknown critic loss {kind!r} (choose abs, mse or huber)")
 
 
 def clipped_surrogate(
-    log_probs: torch.Tensor, old_log_probs: torch.Tensor, advantages: torch.Tensor, clip_eps: float
+    log_probs: torch.Tensor,
+    old_log_probs: torch.Tensor,
+    advantages: torch.Tensor,
+    clip_eps: float,
+    dim: int | None = None,
 ) -> torch.Tensor:
     """L^CLIP(θ) = Ê[min(R_t·Â_t, clip(R_t, 1 − ε, 1 + ε)·Â_t)] (Eq. 6), R_t = π_θ / π_θold (to maximise).
 
     Eq. 6 as printed puts Â_t outside the min; the min must hold the two products (Schulman et al.
-    2017), otherwise the clip does nothing for negative advantages, so this is the original form.
+    2017), otherwise the clip does nothing for negative advantages, so this is the original form. Ê is the
+    mean over every element, or with ``dim`` over that dimension only (a unit host: one per unit).
     """
     ratio = torch.exp(log_probs - old_log_probs.detach())
     unclipped = ratio * advantages
     clipped = torch.clamp(ratio, 1.0 - clip_eps, 1.0 + clip_eps) * advantages
-    return torch.min(unclipped, clipped).mean()
+    surrogate = torch.min(unclipped, clipped)
+    return surrogate.mean() if dim is None else surrogate.mean(dim)

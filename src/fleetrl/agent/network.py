@@ -126,6 +126,14 @@ class ActorCritic(nn.Module):
         entropy = (0.5 + _HALF_LOG_2PI + log_std).sum()
         return log_probs, entropy
 
+    def entropies(self, head: torch.Tensor) -> torch.Tensor:
+        """The entropy of π_θ(·|s_t) per row (batch,): what :meth:`log_probs_and_entropy` averages."""
+        if self.policy_log_std is None:
+            log_probs_all = functional.log_softmax(head, dim=-1)
+            return -(log_probs_all.exp() * log_probs_all).sum(-1)
+        _, log_std = self.gaussian(head)
+        return (0.5 + _HALF_LOG_2PI + log_std).sum().expand(head.shape[0])
+
     def log_probs(self, obs: torch.Tensor, actions: torch.Tensor) -> torch.Tensor:
         """log π_θ(a_t|s_t) (batch,) of stored actions at observations ``obs``."""
         head, _ = self(obs)

@@ -99,6 +99,24 @@ def _act_kernel(
 
 
 @numba.njit(cache=True, fastmath=_FASTMATH)
+def _act_rows_kernel(
+    weights: np.ndarray,
+    biases: np.ndarray,
+    dims: np.ndarray,
+    activation: int,
+    obs: np.ndarray,
+    a: np.ndarray,
+    b: np.ndarray,
+    u: np.ndarray,
+    out: np.ndarray,
+) -> None:
+    """:func:`_act_kernel` for every row of ``obs`` (n, obs_dim) with its draw ``u[i]``, into ``out`` (n,):
+    each row's action is the one :func:`_act_kernel` returns for it alone (the same arithmetic)."""
+    for row in range(obs.shape[0]):
+        out[row] = _act_kernel(weights, biases, dims, activation, obs[row], a, b, u[row])
+
+
+@numba.njit(cache=True, fastmath=_FASTMATH)
 def _gaussian_kernel(
     weights: np.ndarray,
     biases: np.ndarray,
@@ -208,6 +226,21 @@ class NumpyPolicy:
                 u,
             )
         )
+
+    def act_rows(self, obs: np.ndarray, u: np.ndarray) -> np.ndarray:
+        """Actions (int64, n) for the rows of ``obs`` (n, obs_dim), row i with the uniform draw ``u[i]``, in
+        one call: row i's action is :meth:`act` ``(obs[i], u[i])`` (discrete; a unit host's forward pass)."""
+        if not self.discrete:
+            raise TypeError("a Gaussian policy acts with act_continuous(obs, z)")
+        rows = np.ascontiguousarray(obs, dtype=np.float64)
+        if rows.ndim != 2 or rows.shape[1] != self._dims[0]:
+            raise ValueError(f"observations have shape {rows.shape}, the policy expects (n, {self._dims[0]})")
+        draws = np.ascontiguousarray(u, dtype=np.float64)
+        out = np.empty(rows.shape[0], dtype=np.int64)
+        _act_rows_kernel(
+            self._weights, self._biases, self._dims, self._activation, rows, self._a, self._b, draws, out
+        )
+        return out
 
     def act_greedy(self, obs: np.ndarray) -> int:
         """The most probable action under π_θ(·|obs) (discrete)."""

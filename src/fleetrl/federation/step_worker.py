@@ -107,7 +107,7 @@ class StepWorkerMachine(WorkerMachine):
         kind = COMPLETED if self._completed else self.round_message
         message = Message(
             kind, self.run_id, self.worker_id, self.round, step=step, flat=flat,
-            staleness=self.round - self.played_round,
+            staleness=self.round - self.played_round, units=self.units,
         )  # fmt: skip
         what = f"the chief's answer for round {self.round} step {step}"
         return self._send(message, answer_for(self.round, step), what, now)

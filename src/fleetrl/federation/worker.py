@@ -106,6 +106,8 @@ class FederatedWorker:
         ``join``; a ``welcome`` carrying others, or the chief's ``refused``, raises
         :class:`~fleetrl.federation.shared_settings.SettingsRefused`.
     :param clock: the time source handed to the state machine (seconds).
+    :param units: the units the learner plays (a unit host: U), said in every message it contributes; the
+        chief weighs its answers by them.
     """
 
     def __init__(
@@ -125,6 +127,7 @@ class FederatedWorker:
         scheme: str | Scheme,
         settings: SharedSettings | None = None,
         clock: Callable[[], float] = time.monotonic,
+        units: int = 1,
     ) -> None:
         """Prepare the worker; nothing is sent before :meth:`run`."""
         self.learner = learner
@@ -152,6 +155,7 @@ class FederatedWorker:
             resend_interval=resend_interval,
             start_round=start_round,
             incarnation=time.time_ns(),
+            units=units,
         )
         self._queue: deque[WorkerOutput] = deque()
         self._played: Any = None

@@ -110,6 +110,7 @@ class WorkerMachine:
     :param resend_interval: seconds without an answer before re-sending; None: never.
     :param start_round: resuming from a checkpoint: the first round the learner's state has not played.
     :param incarnation: this process's incarnation (newer than any earlier one with the same id).
+    :param units: the units this worker carries (a unit host: U), said in every message it contributes.
     """
 
     current_model = False
@@ -131,8 +132,12 @@ class WorkerMachine:
         resend_interval: float | None = 5.0,
         start_round: int | None = None,
         incarnation: int = 0,
+        units: int = 1,
     ) -> None:
         """Prepare the machine; nothing happens before :meth:`start`."""
+        if units < 1:
+            raise ValueError(f"a worker carries at least one unit, got units={units}")
+        self.units = units
         self.run_id = run_id
         self.worker_id = worker_id
         self.max_rounds = max_rounds
@@ -265,6 +270,7 @@ class WorkerMachine:
             metrics=finite,
             samples=int(outcome.steps),
             model_version=self.model_version,
+            units=self.units,
         )
         return self._send(message, self._answer_wanted(), f"the chief's answer for round {self.round}", now)
 

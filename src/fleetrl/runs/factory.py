@@ -1,5 +1,8 @@
 """Building a worker's learner (env + PPO agent + completion criterion) from its spec."""
 
+from typing import Any
+
+import gymnasium
 import torch
 
 from fleetrl.agent.action_space import ActionSpace
@@ -57,8 +60,23 @@ def make_learner(spec: WorkerSpec, device_transport: Transport | None = None) ->
     """
     torch.set_num_threads(1)
     learning = spec.learning
-    env_spec = get_env_spec(learning.env)
+    env, unit = unit_env(spec, device_transport)
     config = learning.ppo()
+    agent = agent_for(unit, config, seed=spec.worker_seed)
+    scheme = learning.federation_scheme()
+    if scheme.shared_start:  # every worker from the same initial network: the run's, not its own
+        agent.set_model_parameters(agent_for(unit, config, seed=learning.seed).model_parameters())
+    criterion = unit_criterion(spec, unit)
+    return Learner(env, agent, criterion, seed=spec.worker_seed, keep_learning=scheme.stays_after_completion)
+
+
+def unit_env(
+    spec: WorkerSpec, device_transport: Transport | None = None
+) -> tuple[gymnasium.Env[Any, Any], UnitDescription]:
+    """The env of the spec's unit and its description: simulated in-process, or through its device bridge
+    (``spec.device_url``, over ``device_transport`` or a plain transport), paced if its spec says so."""
+    learning = spec.learning
+    env_spec = get_env_spec(learning.env)
     if spec.device_url is None:
         env, unit = env_spec.make(spec.unit, learning.fleet_seed, fleet_profile=learning.fleet_profile)
     else:  # the device bridge draws the unit (with the same fleet profile)
@@ -66,13 +84,16 @@ def make_learner(spec: WorkerSpec, device_transport: Transport | None = None) ->
         env, unit = env_spec.make(spec.unit, learning.fleet_seed, link=link)
     if spec.uneven is not None and spec.uneven.step_seconds is not None:
         env = PacedEnv(env, spec.uneven.step_seconds)
-    agent = agent_for(unit, config, seed=spec.worker_seed)
-    scheme = learning.federation_scheme()
-    if scheme.shared_start:  # every worker from the same initial network: the run's, not its own
-        agent.set_model_parameters(agent_for(unit, config, seed=learning.seed).model_parameters())
-    target = learning.target_score if learning.target_score is not None else env_spec.default_target(unit)
-    criterion = CompletionCriterion(target)
-    return Learner(env, agent, criterion, seed=spec.worker_seed, keep_learning=scheme.stays_after_completion)
+    return env, unit
+
+
+def unit_criterion(spec: WorkerSpec, unit: UnitDescription) -> CompletionCriterion:
+    """The completion criterion of the spec's unit: the run's target score, or the unit type's own."""
+    learning = spec.learning
+    target = learning.target_score
+    return CompletionCriterion(
+        target if target is not None else get_env_spec(learning.env).default_target(unit)
+    )
 
 
 def probe_agent(env: str, config: PPOConfig) -> PPOAgent:

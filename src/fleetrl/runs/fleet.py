@@ -32,10 +32,17 @@ class ThreadFleet:
     """Workers as threads of this process (the in-process transport's fleet).
 
     :param bodies: worker id → a function that runs the worker, reporting each round through its argument
+    :param units: worker id → the units it reports for (a unit host: its units; each unit's exit is reported
+        when the thread ends); by default each worker is the unit of its id
     """
 
-    def __init__(self, bodies: dict[int, Callable[[Callable[[MetricsRow], None]], None]]) -> None:
+    def __init__(
+        self,
+        bodies: dict[int, Callable[[Callable[[MetricsRow], None]], None]],
+        units: dict[int, list[int]] | None = None,
+    ) -> None:
         self.events: queue.Queue[FleetEvent] = queue.Queue()
+        self.units = {worker: [worker] for worker in bodies} if units is None else units
         self.threads = {
             worker: threading.Thread(
                 target=self._run, args=(worker, body), name=f"worker-{worker}", daemon=True
@@ -52,11 +59,12 @@ class ThreadFleet:
         except Exception:
             log.exception("worker %d failed", worker)
             code = 1
-        self.events.put(WorkerExit(worker, code))
+        for unit in self.units[worker]:
+            self.events.put(WorkerExit(unit, code))
 
     def size(self) -> int:
-        """How many worker threads were started."""
-        return len(self.threads)
+        """How many units the worker threads report for (one per thread unless they are unit hosts)."""
+        return sum(len(units) for units in self.units.values())
 
     def interrupt(self) -> None:
         """Threads cannot be stopped from outside; they are daemons and end with the process."""

@@ -31,6 +31,7 @@ from fleetrl.federation.schemes.base import AsyncScheme, FleetStart, StepScheme
 from fleetrl.federation.shared_settings import shared_text
 from fleetrl.runs.factory import agent_for, make_learner, probe_agent
 from fleetrl.runs.fleet import Fleet, ThreadFleet, follow
+from fleetrl.runs.host_settings import host_groups, host_id
 from fleetrl.runs.live import LiveView
 from fleetrl.runs.processes import ProcessFleet, fork_available
 from fleetrl.runs.roles import Emit
@@ -236,9 +237,10 @@ def train_federated(
 ) -> None:
     """Chief in a thread of this process; workers as processes (MQTT at ``url``) or threads (local bus)."""
     shape = fleet_shape(settings.learning)
+    groups = host_groups(settings.units, settings.units_per_host) if settings.units_per_host > 1 else None
     chief = new_chief(
         run_id=run_id,
-        workers=[str(k) for k in specs],
+        workers=[str(k) for k in specs] if groups is None else [host_id(units) for units in groups],
         layout=shape.layout,
         steps_per_round=shape.exchanges_per_round,
         max_rounds=settings.learning.max_rounds,
@@ -303,6 +305,12 @@ def transports(
         from fleetrl.transport.local import LocalBus
 
         bus = LocalBus()
+        if settings.units_per_host > 1:
+            groups = {units[0]: units for units in host_groups(settings.units, settings.units_per_host)}
+            hosts = {
+                k: host_thread([specs[u] for u in units], bus.client, run_id) for k, units in groups.items()
+            }
+            return bus.client, lambda: ThreadFleet(hosts, units=groups)
         bodies = {k: federated_thread(spec, bus.client, run_id) for k, spec in specs.items()}
         return bus.client, lambda: ThreadFleet(bodies)
 
@@ -326,5 +334,20 @@ def federated_thread(
         train_federated_worker(
             spec, make_transport(), run_id, emit, reply_timeout=CHIEF_IDLE_TIMEOUT, learner=learner
         )
+
+    return body
+
+
+def host_thread(
+    specs: list[WorkerSpec], make_transport: Callable[[], Transport], run_id: str
+) -> Callable[[Emit], None]:
+    """The body of a unit host's thread on the in-process bus (:mod:`fleetrl.runs.host`)."""
+
+    def body(emit: Emit) -> None:
+        from fleetrl.runs.host import make_host_learner, train_host
+
+        learner = make_host_learner(specs)
+        log.info("host of units %d-%d: learner ready", specs[0].worker, specs[-1].worker)
+        train_host(specs, make_transport(), run_id, emit, reply_timeout=CHIEF_IDLE_TIMEOUT, learner=learner)
 
     return body

@@ -28,6 +28,7 @@ from fleetrl.federation.aggregation import get_aggregator
 from fleetrl.federation.schemes import DEFAULT_SCHEME, get_scheme
 from fleetrl.federation.schemes.paper import PaperScheme
 from fleetrl.federation.shared_settings import LearningSettings
+from fleetrl.runs.host_settings import host_setting_problem
 from fleetrl.runs.setting_values import (
     SettingError,
     check_readable_file,
@@ -272,6 +273,10 @@ class RunSettings(RoundRules, BrokerLogin):
     """``individual`` (each unit alone, the paper's Fig. 5a) or ``federated`` (Algorithms 1 and 2)"""
     units: int = 3
     """units in the fleet, one worker each"""
+    units_per_host: int = 1
+    """units each in-process worker carries (a unit host: their envs stepped together, one policy acting
+    for all of them in one pass, one gradient per exchange; federated, local transport, pergrad); 1: one
+    worker per unit"""
     transport: str = "mqtt"
     """federated: ``mqtt`` (a real broker, workers in processes) or ``local`` (in-process bus, threads)"""
     device_link: str = "inprocess"
@@ -310,6 +315,12 @@ class RunSettings(RoundRules, BrokerLogin):
                 f"{label('link_delay')} delays the messages of a federated run: it needs --mode federated"
             )
         self.validate_device_link(learning)
+        hosts = host_setting_problem(
+            self.units_per_host, mode=self.mode, transport=self.transport,
+            scheme=learning.federation_scheme(), ppo=learning.ppo(), even=uneven.even,
+        )  # fmt: skip
+        if hosts is not None:
+            raise SettingError(f"{label('units_per_host')} = {self.units_per_host}: {hosts}")
         if (self.out / "metrics.csv").exists():
             raise SettingError(f"{label('out')} = {str(self.out)!r} already holds a run; choose another")
         check_writable_dir("out", self.out)
@@ -360,8 +371,10 @@ class RunSettings(RoundRules, BrokerLogin):
     def to_toml(self) -> str:
         """config.toml of the run directory: every setting (no password), so that
         ``fleetrl train --config runs/x/config.toml --out runs/y`` reruns the run. An uneven-fleet setting at
-        its default is left out (an even run's file is the one written before those settings existed)."""
-        table = toml_values(self, leave_out=self.uneven.default_names())
+        its default is left out (an even run's file is the one written before those settings existed), and
+        so is ``units_per_host`` at 1."""
+        hosts = ("units_per_host",) if self.units_per_host == 1 else ()
+        table = toml_values(self, leave_out=(*self.uneven.default_names(), *hosts))
         if self.broker is not None:
             table["broker"] = self.public_broker
         header = (
@@ -383,6 +396,8 @@ class RunSettings(RoundRules, BrokerLogin):
         for name in ("device_driver", "max_staleness"):  # as in the records made before they existed
             if values[name] is None:
                 del values[name]
+        if values["units_per_host"] == 1:  # one worker per unit, as in the records made before hosts
+            del values["units_per_host"]
         del values["target_score"]
         values |= result_target_score(self.learning)
         plain: dict[str, Any] = json.loads(json.dumps(values, sort_keys=True, default=str))

@@ -1,0 +1,146 @@
+"""Unit hosts at scale: a CartPole fleet of N units with and without hosts, in this process.
+
+    python benchmarks/host_scale.py [--units 8 64 256] [--rounds 3] [--per-host 0] [--part acting|train|all]
+                                    [--kinds flat host]
+
+acting: the units' first ``--rounds`` episodes (no update) — N learners of one unit each, stepped one after
+the other as the worker threads of ``--transport local`` take turns, against one host of N units (one forward
+pass per time step for all of them); unit-steps per second of acting alone.
+
+train: ``fleetrl train --env cartpole --mode federated --transport local --preset standard --seed 3`` for
+``--rounds`` rounds, each configuration in a fresh process: N workers of one unit (``flat``), or hosts of
+``--per-host`` units (0: one host of all N). Per configuration: wall seconds per round (rounds 2 … R, from
+metrics.csv's wall times: no start-up), unit-steps per second of those rounds including the updates and the
+exchanges, and the process's peak memory (its maximum resident set). The run's scores plot is not drawn
+(one panel per unit: drawing 1000 took longer than the run).
+
+The machine is shared: the script prints the load average before and after each measurement.
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import json
+import os
+import resource
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+SEED = 3
+
+
+def load() -> str:
+    """The 1-minute load average and the cores (the machine is shared)."""
+    return f"load {os.getloadavg()[0]:.1f} on {os.cpu_count()} cores"
+
+
+def acting(units: int, rounds: int, hosted: bool) -> dict[str, float]:
+    """Unit-steps per second of ``rounds`` episodes of every unit, no update."""
+    import gymnasium
+    import torch
+
+    from fleetrl.agent.config import get_preset
+    from fleetrl.agent.criterion import CompletionCriterion
+    from fleetrl.agent.host_agent import HostAgent
+    from fleetrl.agent.host_learner import HostLearner
+    from fleetrl.agent.learner import Learner
+    from fleetrl.agent.ppo import PPOAgent
+    from fleetrl.envs.registration import CARTPOLE_UNIT_ID
+
+    torch.set_num_threads(1)
+    config = get_preset("standard")
+    envs = [gymnasium.make(CARTPOLE_UNIT_ID, unit=u, fleet_seed=0) for u in range(units)]
+    seeds = [SEED * 100_000 + u for u in range(units)]
+    steps = 0
+    if hosted:
+        host = HostLearner(envs, HostAgent(4, 2, config, seeds), [CompletionCriterion(1e9) for _ in envs])
+        host.play_episodes()  # compile and warm up
+        started = time.perf_counter()
+        for _ in range(rounds):
+            steps += sum(sum(e.steps) for e in host.play_episodes())
+    else:
+        learners = [
+            Learner(env, PPOAgent(4, 2, config, seed=s), CompletionCriterion(1e9), seed=s)
+            for env, s in zip(envs, seeds, strict=True)
+        ]
+        learners[0].play_episode(learn=False)
+        started = time.perf_counter()
+        for _ in range(rounds):
+            steps += sum(learner.play_episode()[1] for learner in learners)
+    seconds = time.perf_counter() - started
+    return {"unit_steps": steps, "seconds": seconds, "unit_steps_per_s": steps / seconds}
+
+
+def train_once(units: int, rounds: int, per_host: int) -> dict[str, float]:
+    """One ``fleetrl train`` run in this process (1: flat); its figures and this process's peak memory."""
+    from fleetrl.cli.main import main
+    from fleetrl.runs import plots
+
+    plots.plot_run = lambda *args, **kwargs: None  # one panel per unit: minutes for 1000 units
+    with tempfile.TemporaryDirectory() as tmp:
+        out = Path(tmp) / "run"
+        argv = ["train", "--env", "cartpole", "--units", str(units), "--mode", "federated",
+                "--transport", "local", "--preset", "standard", "--seed", str(SEED), "--max-rounds",
+                str(rounds), "--no-live", "--target-score", "1e9", "--units-per-host", str(per_host),
+                "--out", str(out)]  # fmt: skip
+        started = time.perf_counter()
+        code = main(argv)
+        seconds = time.perf_counter() - started
+        if code != 0:
+            raise SystemExit(f"fleetrl train exited {code}")
+        with (out / "metrics.csv").open() as f:
+            rows = list(csv.DictReader(f))
+    done = max(int(r["round"]) for r in rows)
+    if done < 2:
+        raise SystemExit("measure at least 2 rounds: the first one's end is where the timing starts")
+    ends = {n: max(float(r["wall_time"]) for r in rows if int(r["round"]) == n) for n in (1, done)}
+    timed = (ends[done] - ends[1]) / (done - 1)  # rounds 2 … R: no start-up, no first compile
+    steps = sum(int(r["steps"]) for r in rows if int(r["round"]) > 1)
+    peak_mb = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+    return {"rounds": done, "seconds_per_round": timed, "unit_steps": steps, "whole_run_s": seconds,
+            "unit_steps_per_s": steps / (timed * (done - 1)), "peak_mb": peak_mb}  # fmt: skip
+
+
+def train(units: int, rounds: int, per_host: int) -> dict[str, float]:
+    """:func:`train_once` in a fresh process (its own peak memory, its own imports)."""
+    code = f"import json, host_scale; print(json.dumps(host_scale.train_once({units}, {rounds}, {per_host})))"
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(Path(__file__).parent), *sys.path])}
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, check=True)
+    result: dict[str, float] = json.loads(done.stdout.strip().splitlines()[-1])
+    return result
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
+    parser.add_argument("--units", type=int, nargs="+", default=[8, 64, 256])
+    parser.add_argument("--rounds", type=int, default=3)
+    parser.add_argument("--per-host", type=int, default=0, help="units per host (0: one host of all)")
+    parser.add_argument("--part", choices=("acting", "train", "all"), default="all")
+    parser.add_argument("--kinds", nargs="+", choices=("flat", "host"), default=["flat", "host"])
+    args = parser.parse_args()
+    for units in args.units:
+        for name in args.kinds:
+            hosted = name == "host"
+            per_host = (args.per_host or units) if hosted else 1
+            label = f"N={units:5d} {name:4s} (U={per_host})"
+            if args.part in ("acting", "all"):
+                before = load()
+                r = acting(units, args.rounds, hosted)
+                print(f"{label} acting: {r['unit_steps_per_s']:9.0f} unit-steps/s ({r['unit_steps']} "
+                      f"in {r['seconds']:.2f} s)  [{before} -> {load()}]", flush=True)  # fmt: skip
+            if args.part in ("train", "all"):
+                before = load()
+                t = train(units, args.rounds, per_host)
+                print(f"{label} train: {t['seconds_per_round']:7.2f} s/round, {t['unit_steps_per_s']:8.0f} "
+                      f"unit-steps/s incl. updates, peak {t['peak_mb']:.0f} MB over {t['rounds']} rounds  "
+                      f"[{before} -> {load()}]", flush=True)  # fmt: skip
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,183 @@
+"""A unit host's learning loop without the federation: U envs stepped together, one agent acting for all of
+them, each unit with its own completion criterion, round by round.
+
+The host plays a round as its units would alone, side by side: every unit plays its round's episodes (one,
+or with ``trajectory_memory='per_round'`` whole episodes until its memory is filled) on its own env, from its
+own seed; at each time step the units still playing act in one call of the agent
+(:meth:`~fleetrl.agent.host_agent.HostAgent.act_units`). Each unit's criterion sees its own scores; the round
+ends with at most one update of the host's one network. The host's round result summarises its units (the
+mean score, the summed steps); :attr:`HostLearner.unit_rounds` keeps each unit's own.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import gymnasium
+import numpy as np
+
+from fleetrl.agent.criterion import CompletionCriterion
+from fleetrl.agent.host_agent import HostAgent
+from fleetrl.agent.learner import Episodes, RoundResult
+from fleetrl.agent.ppo import UpdateStats
+
+__all__ = ["HostLearner", "HostPlayed"]
+
+
+@dataclass(frozen=True)
+class HostPlayed:
+    """The first half of a host's round: each unit's episodes, and whether an update follows."""
+
+    units: tuple[Episodes, ...]
+    updates: bool
+    started: float
+    """``time.perf_counter()`` as the round began"""
+
+
+class HostLearner:
+    """Plays rounds of U units on one :class:`~fleetrl.agent.host_agent.HostAgent`.
+
+    :param envs: one Gymnasium env per unit (flat Box observations)
+    :param agent: the host's agent, with one seed per env
+    :param criteria: one completion criterion per unit
+    :param keep_learning: update every round, also once every unit's criterion holds (per-step schemes,
+        whose mature units stay); else update while some unit's does not hold
+    """
+
+    def __init__(
+        self,
+        envs: Sequence[gymnasium.Env[Any, Any]],
+        agent: HostAgent,
+        criteria: Sequence[CompletionCriterion],
+        keep_learning: bool = False,
+    ) -> None:
+        if not len(envs) == len(criteria) == agent.units:
+            raise ValueError(
+                f"a unit host needs one env, criterion and seed per unit: got {len(envs)} envs, "
+                f"{len(criteria)} criteria, {agent.units} seeds"
+            )
+        self.envs = list(envs)
+        self.agent = agent
+        self.criteria = list(criteria)
+        self.keep_learning = keep_learning
+        self.rounds = 0
+        self.episodes = [0] * agent.units
+        """learning episodes each unit played in all rounds"""
+        self.unit_rounds: tuple[RoundResult, ...] = ()
+        """each unit's result of the latest round"""
+        self.last_round: RoundResult | None = None
+        """the host's result of the latest round (its units' summary)"""
+
+    @property
+    def completed(self) -> bool:
+        """Every unit's criterion holds."""
+        return all(c.done for c in self.criteria)
+
+    def play_episodes(self) -> tuple[Episodes, ...]:
+        """Every unit's episodes of the round (Algorithm 2, lines 2-6), the units stepped together."""
+        agent, envs = self.agent, self.envs
+        to_env = None if agent.action_space.is_discrete else agent.env_action
+        obs = np.stack([self._reset(u) for u in range(len(envs))])
+        score = np.zeros(len(envs))
+        steps = np.zeros(len(envs), dtype=np.int64)
+        played: list[list[tuple[float, int]]] = [[] for _ in envs]
+        playing = np.ones(len(envs), dtype=bool)
+        while playing.any():
+            units = np.flatnonzero(playing)
+            actions = agent.act_units(obs[units], units)  # line 3, for every unit still playing
+            for u, action in zip(units.tolist(), actions, strict=True):
+                sent = action if to_env is None else to_env(action)
+                next_obs, reward, terminated, truncated, _ = envs[u].step(sent)  # line 4
+                agent.remember_unit(u, obs[u], action, float(reward), next_obs, terminated, truncated)
+                score[u] += float(reward)
+                steps[u] += 1
+                if not (terminated or truncated):
+                    obs[u] = next_obs
+                    continue
+                played[u].append((float(score[u]), int(steps[u])))
+                self.episodes[u] += 1
+                score[u], steps[u] = 0.0, 0
+                if agent.unit_needs_more_episodes(u):
+                    obs[u] = self._reset(u)
+                else:
+                    playing[u] = False
+        self.rounds += 1
+        episodes = []
+        for criterion, unit_played in zip(self.criteria, played, strict=True):
+            scores, lengths = zip(*unit_played, strict=True)
+            episodes.append(Episodes(scores, lengths))
+            criterion.add(episodes[-1].score)
+        return tuple(episodes)
+
+    def _reset(self, unit: int) -> np.ndarray:
+        seed = self.agent.seeds[unit] if self.episodes[unit] == 0 else None
+        obs, _ = self.envs[unit].reset(seed=seed)
+        return np.asarray(obs)
+
+    def wants_update(self) -> bool:
+        """Line 7 for the host: update unless every unit's learning is finished; always if keep_learning."""
+        return self.keep_learning or not self.completed
+
+    def begin_round(self) -> HostPlayed:
+        """:meth:`play_episodes` and line 7's decision; the caller updates the agent, or not, and hands its
+        statistics to :meth:`end_round`."""
+        started = time.perf_counter()
+        units = self.play_episodes()
+        return HostPlayed(units, self.wants_update(), started)
+
+    def play_round(self) -> RoundResult:
+        """A whole round alone: :meth:`begin_round`, the host's update if it makes one, :meth:`end_round`."""
+        played = self.begin_round()
+        return self.end_round(played, self.agent.update() if played.updates else None)
+
+    def end_round(self, played: HostPlayed, stats: UpdateStats | None) -> RoundResult:
+        """Each unit's result (:attr:`unit_rounds`) and the host's (returned): each unit's own episodes,
+        criterion and losses on its windows; the host's are their means (steps and episodes: sums)."""
+        seconds = time.perf_counter() - played.started
+        per_unit = self.agent.unit_stats if stats is not None else None
+        self.unit_rounds = tuple(
+            _result(self.rounds, episodes, criterion, None if per_unit is None else per_unit[u], seconds)
+            for u, (episodes, criterion) in enumerate(zip(played.units, self.criteria, strict=True))
+        )
+        host = _result(self.rounds, Episodes((), ()), None, stats, seconds)
+        units = self.unit_rounds
+        self.last_round = dataclasses.replace(
+            host,
+            score=float(np.mean([r.score for r in units])),
+            steps=sum(r.steps for r in units),
+            episodes=sum(r.episodes for r in units),
+            wma=float(np.mean([r.wma for r in units])),
+            completed=self.completed,
+        )
+        return self.last_round
+
+
+def _result(
+    round_: int,
+    episodes: Episodes,
+    criterion: CompletionCriterion | None,
+    stats: UpdateStats | None,
+    seconds: float,
+) -> RoundResult:
+    nan = math.nan
+    losses = (nan,) * 5 if stats is None else dataclasses.astuple(stats)
+    actor_loss, critic_loss, entropy, approx_kl, clip_fraction = losses
+    return RoundResult(
+        round_,
+        episodes.score if episodes.scores else nan,
+        sum(episodes.steps),
+        len(episodes.scores),
+        nan if criterion is None else criterion.wma,
+        False if criterion is None else criterion.done,
+        actor_loss,
+        critic_loss,
+        entropy,
+        seconds,
+        approx_kl,
+        clip_fraction,
+    )
