@@ -7,8 +7,9 @@ it in the welcome; the figure is the number of its own episodes until its comple
 
     python benchmarks/late_join.py --seeds 100 101 102 103 104 105 106 107 108 109 --out runs/late-join
 
-Each seed's run goes to OUT/seed-S; a seed whose record (OUT/seed-S/late_join.json) exists is read, not run
-again, so a sweep resumes. The fleet's seed is 1 and its units' learning seeds are S (as docs/results.md's
+Each seed's run goes to OUT/seed-S and its small record to RECORDS/seed-S.json (default
+benchmarks/results/late-join, committed); a seed whose record exists is read, not run again, so a sweep
+resumes across sessions. The fleet's seed is 1 and its units' learning seeds are S (as docs/results.md's
 held-out QUBE arms); seeds from 100 on were never used to tune anything. Not a timed test: the figure is
 episodes, not seconds, but a loaded machine changes when round ``--at`` closes relative to the new unit's
 start (it joins the round that is open when its process is up).
@@ -26,6 +27,8 @@ from pathlib import Path
 
 from fleetrl.transport.broker import EmbeddedBroker
 
+RECORDS = Path(__file__).parent / "results" / "late-join"
+"""the committed records, one per seed"""
 TIMEOUT = 1800.0
 """seconds a run may take before it is stopped (its record then says so)"""
 
@@ -111,16 +114,18 @@ def main() -> int:
     )
     parser.add_argument("--seeds", type=int, nargs="+", default=list(range(100, 110)))
     parser.add_argument("--at", type=int, default=40, help="the round after which the new unit joins (40)")
-    parser.add_argument("--out", type=Path, required=True)
+    parser.add_argument("--out", type=Path, required=True, help="where the runs go")
+    parser.add_argument("--records", type=Path, default=RECORDS, help=f"the records (default {RECORDS})")
     parser.add_argument("--extra", default="", help="more flags for every role, quoted")
     args = parser.parse_args()
     records = []
     for seed in args.seeds:
-        path = args.out / f"seed-{seed}" / "late_join.json"
+        path = args.records / f"seed-{seed}.json"
         if path.exists():
             record = json.loads(path.read_text())
         else:
             record = run_seed(seed, args.at, args.out / f"seed-{seed}", args.extra.split())
+            path.parent.mkdir(parents=True, exist_ok=True)
             path.write_text(json.dumps(record, indent=1) + "\n")
         records.append(record)
         print(json.dumps(record), flush=True)
