@@ -79,7 +79,8 @@ def build_parser() -> argparse.ArgumentParser:
         "experiment", help="reproduce the paper's figures and tables; writes report.md"
     )
     experiment.add_argument(
-        "name", help="fig5, fig6, cartpole-scaling, learning, continuous, uneven, table2, peers, or all"
+        "name",
+        help="fig5, fig6, cartpole-scaling, learning, continuous, uneven, table2, peers, or all (all but uneven)",
     )
     experiment.add_argument(
         "--seeds", type=int, default=10, help="how many learning seeds the headline arms run on (default 10)"

@@ -300,5 +300,8 @@ PLANS: dict[str, Callable[[Budget], Plan]] = {
     "uneven": uneven,
 }
 EXPERIMENTS = (*PLANS, "table2", "peers")
+ALL_EXPERIMENTS = tuple(name for name in EXPERIMENTS if name != "uneven")
+"""what ``fleetrl experiment all`` runs: the uneven fleet is run on its own, on the held-out fleet seed 1
+where each unit alone and ``pergrad`` already have records (the Makefile's ``results``)"""
 UNIT_TYPE_EXPERIMENTS = ("learning", "cartpole-scaling")
 """the experiments that are not about the paper's rig: they also train a user's unit type (``--env``)"""

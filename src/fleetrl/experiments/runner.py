@@ -8,7 +8,7 @@ from pathlib import Path
 
 from fleetrl.experiments.arms import Places
 from fleetrl.experiments.budget import FULL, QUICK, TUNING_FLEET_SEED, TUNING_SEEDS
-from fleetrl.experiments.catalog import EXPERIMENTS, PLANS, UNIT_TYPE_EXPERIMENTS
+from fleetrl.experiments.catalog import ALL_EXPERIMENTS, EXPERIMENTS, PLANS, UNIT_TYPE_EXPERIMENTS
 from fleetrl.experiments.plan import run_plan
 from fleetrl.experiments.sections import peers_section, table2_section
 
@@ -72,7 +72,7 @@ def run_experiment(
     train it instead of the built-ins. With ``run`` False nothing is run: the report is built from the records
     there are (a sweep under way, or one regenerated from committed records).
     """
-    names = list(EXPERIMENTS) if name == "all" else [name]
+    names = list(ALL_EXPERIMENTS) if name == "all" else [name]
     for one in names:
         if one not in EXPERIMENTS:
             raise ValueError(f"unknown experiment {one!r} (choose {', '.join(EXPERIMENTS)} or all)")
