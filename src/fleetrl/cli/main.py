@@ -80,7 +80,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     experiment.add_argument(
         "name",
-        help="fig5, fig6, cartpole-scaling, learning, continuous, uneven, table2, peers, or all (all but uneven)",
+        help="fig5, fig6, cartpole-scaling, learning, continuous, uneven, table2, peers, or all (but uneven)",
     )
     experiment.add_argument(
         "--seeds", type=int, default=10, help="how many learning seeds the headline arms run on (default 10)"
