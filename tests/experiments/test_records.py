@@ -77,3 +77,20 @@ def test_a_run_of_one_episode_per_round_has_no_episode_count(tmp_path: Path) -> 
         write_record_of(run, build_record(run.out, run.command(), run.expected, "h", unseen=0))
     )
     assert kept is not None and kept.episodes_to_completion() is None
+
+
+def test_a_unit_that_missed_rounds_keeps_their_numbers_and_its_time_on_the_rigs(tmp_path: Path) -> None:
+    fed = arm("cartpole", 2, "federated", "standard", 10, "fed", "pergrad")
+    run = fed.run(Places(tmp_path / "runs", tmp_path / "records"), 100)
+    write_run_dir(run, {0: [9.0, 20.0, 500.0], 1: [8.0, 7.0, 500.0]}, {0: 3, 1: 3})
+    metrics = run.out / "metrics.csv"
+    lines = metrics.read_text().splitlines()
+    metrics.write_text("\n".join(line for line in lines if not line.startswith("2,1,")) + "\n")  # a straggler
+    kept = read_record(
+        write_record_of(run, build_record(run.out, run.command(), run.expected, "h", unseen=0))
+    )
+    assert kept is not None
+    assert kept.data["workers"]["1"]["rounds"] == [1, 3] and "rounds" not in kept.data["workers"]["0"]
+    rig = kept.rig_time()
+    assert rig is not None and rig.complete  # round 3 is unit 1's second row, not a round it never played
+    assert rig.per_unit == {"0": pytest.approx(3.0), "1": pytest.approx(3.0)}  # 3 rounds of 50 steps × 20 ms

@@ -92,7 +92,12 @@ class RunRecord:
         workers = self.data["workers"]
         if period is None or any("steps" not in w and "episodes" in w for w in workers.values()):
             return None
-        steps = {k: w.get("steps") or [round(s or 0) for s in w["score"]] for k, w in workers.items()}
+        steps: dict[str, Any] = {
+            k: w.get("steps") or [round(s or 0) for s in w["score"]] for k, w in workers.items()
+        }
+        for k, w in workers.items():  # a unit that missed rounds (a straggler, an absence) keeps numbers
+            if "rounds" in w:
+                steps[k] = dict(zip(w["rounds"], steps[k], strict=True))
         completed = {k: w["completed_at_round"] for k, w in workers.items()}
         return rig_time(steps, completed, period, waiting_rule(settings.get("mode"), settings.get("scheme")))
 
@@ -150,8 +155,9 @@ def _compact(value: float) -> float | int | None:
 
 
 def read_worker_rows(run_dir: Path) -> dict[str, dict[str, Any]]:
-    """Per worker, from metrics.csv: score, WMA, steps, events other than plain sharing, and the episodes of
-    each round where a round held more than one (older files have no such column).
+    """Per worker, from metrics.csv: score, WMA, steps, events other than plain sharing, the episodes of each
+    round where a round held more than one (older files have no such column), and the rounds it played where
+    they are not 1 … n (a straggler's, an absent unit's).
 
     Read by column name, so columns added later do not break it.
     """
@@ -160,6 +166,7 @@ def read_worker_rows(run_dir: Path) -> dict[str, dict[str, Any]]:
         rows = sorted(csv.DictReader(f), key=lambda r: (int(r["worker"]), int(r["round"])))
     for row in rows:
         worker = workers.setdefault(row["worker"], {"score": [], "wma": [], "events": {}, "steps": []})
+        worker.setdefault("rounds", []).append(int(row["round"]))
         worker["score"].append(_compact(float(row["score"] or "nan")))
         worker["steps"].append(int(row["steps"]))
         worker["wma"].append(_compact(float(row["wma"] or "nan")))
@@ -169,6 +176,8 @@ def read_worker_rows(run_dir: Path) -> dict[str, dict[str, Any]]:
     for worker in workers.values():
         if all(n == 1 for n in worker["episodes"]):  # one episode per round: nothing worth keeping
             del worker["episodes"]
+        if worker["rounds"] == list(range(1, len(worker["rounds"]) + 1)):  # rounds 1 … n: implied
+            del worker["rounds"]
     return workers
 
 
