@@ -178,3 +178,15 @@ def get_preset(name: str) -> PPOConfig:
         choices = f"{', '.join(others)} or {last}" if others else last
         raise ValueError(f"unknown preset {name!r} (choose {choices})") from None
     return dataclasses.replace(preset)
+
+
+def host_config_problem(cfg: PPOConfig) -> str | None:
+    """Why a unit host cannot run an update of ``cfg`` (one line), or None if it can."""
+    if cfg.gae_scope != "memory":
+        return (
+            f"a unit host computes Â over each unit's memory: it needs gae_scope = 'memory' (this preset has "
+            f"{cfg.gae_scope!r}); choose --preset standard or --set gae_scope=memory"
+        )
+    if cfg.optimisers != "per_model":
+        return "a unit host takes one step per optimisation: it needs optimisers = 'per_model'"
+    return None

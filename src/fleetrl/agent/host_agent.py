@@ -18,8 +18,8 @@ import numpy as np
 import torch
 
 from fleetrl.agent.action_space import ActionSpace
-from fleetrl.agent.config import PPOConfig
-from fleetrl.agent.host_update import host_config_problem, host_update
+from fleetrl.agent.config import PPOConfig, host_config_problem
+from fleetrl.agent.host_update import host_update
 from fleetrl.agent.memory import TrajectoryMemory
 from fleetrl.agent.ppo import PPOAgent
 from fleetrl.agent.update import Gradient, UpdateStats

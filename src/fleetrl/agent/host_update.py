@@ -26,7 +26,7 @@ from dataclasses import dataclass
 import numpy as np
 import torch
 
-from fleetrl.agent.config import PPOConfig
+from fleetrl.agent.config import PPOConfig, host_config_problem
 from fleetrl.agent.losses import clipped_surrogate, critic_loss, td_targets
 from fleetrl.agent.memory import Transitions, sample_window
 from fleetrl.agent.update import (
@@ -49,18 +49,6 @@ class HostFinished:
     stats: UpdateStats
     """the mean of the units' statistics"""
     actor_gradient: Gradient
-
-
-def host_config_problem(cfg: PPOConfig) -> str | None:
-    """Why a unit host cannot run an update of ``cfg`` (one line), or None if it can."""
-    if cfg.gae_scope != "memory":
-        return (
-            f"a unit host computes Â over each unit's memory: it needs gae_scope = 'memory' (this preset has "
-            f"{cfg.gae_scope!r}); choose --preset standard or --set gae_scope=memory"
-        )
-    if cfg.optimisers != "per_model":
-        return "a unit host takes one step per optimisation: it needs optimisers = 'per_model'"
-    return None
 
 
 def concatenate(memories: Sequence[Transitions]) -> Transitions:

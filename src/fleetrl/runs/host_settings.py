@@ -2,8 +2,7 @@
 
 from __future__ import annotations
 
-from fleetrl.agent.config import PPOConfig
-from fleetrl.agent.host_update import host_config_problem
+from fleetrl.agent.config import PPOConfig, host_config_problem
 from fleetrl.federation.schemes.base import Scheme, StepScheme
 
 
