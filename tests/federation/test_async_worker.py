@@ -132,3 +132,12 @@ def test_a_worker_resumed_within_a_round_replays_it_from_the_welcomes_model() ->
     m.start(now=0.0)
     step = m.receive(chief("welcome", 4, 9), now=0.0)  # the chief took its round 3 before it died
     assert taken(step) == [9.0] and step.actions[-1] == PlayRound(3)
+
+
+def test_a_worker_back_after_its_fleet_went_on_records_the_round_it_went_down_in() -> None:
+    m = machine(start_round=3)
+    m.start(now=0.0)
+    step = m.receive(chief("welcome", 7, 9), now=0.0)
+    records = [a.record for a in step.actions if isinstance(a, Record)]
+    assert [(r.round, r.event, r.result.steps) for r in records] == [(3, WorkerEvent.INTERRUPTED, 0)]
+    assert step.actions[-1] == PlayRound(7)

@@ -4,6 +4,7 @@ in-process chief."""
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -224,8 +225,14 @@ def test_resume_at_the_welcome_s_round() -> None:
     kept = welcomed(machine(start_round=5), 6, flat=FLAT)
     assert kept.actions == (PlayRound(5),)  # θ* is not taken: the state is the checkpoint's
     rejoined = welcomed(machine(start_round=5), 9, flat=FLAT)
-    assert [type(a) for a in rejoined.actions] == [TakeParameters, PlayRound]
-    assert rejoined.actions[1] == PlayRound(9)
+    assert [type(a) for a in rejoined.actions] == [Record, TakeParameters, PlayRound]
+    assert rejoined.actions[2] == PlayRound(9)
+    # the round it went down in stays in its books, marked, without figures; a kept state records nothing
+    lost = rejoined.actions[0].record
+    assert (lost.worker_id, lost.round, lost.event) == ("1", 5, WorkerEvent.INTERRUPTED)
+    assert (lost.result.steps, lost.result.episodes, lost.result.completed) == (0, 0, False)
+    assert math.isnan(lost.result.score) and math.isnan(lost.result.wma)
+    assert not any(isinstance(a, Record) for a in kept.actions)
     reached = WorkerSummary("1", 4, finished=False, reason="reached M=4")
     assert welcomed(machine(max_rounds=4), 5).actions == (Finish(reached),)
 
@@ -313,4 +320,5 @@ def test_the_fleet_s_start_is_taken_by_a_joining_worker_and_its_config_goes_to_t
         5, {"mu": 0.5}
     )
     # a transfer's θ* is taken all the same
-    assert isinstance(welcomed(machine(start_round=2), 5, flat=FLAT, origin="2").actions[0], TakeParameters)
+    transferred = welcomed(machine(start_round=2), 5, flat=FLAT, origin="2").actions
+    assert [type(a) for a in transferred[:2]] == [Record, TakeParameters]

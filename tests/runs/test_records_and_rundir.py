@@ -8,6 +8,7 @@ import math
 import pytest
 
 from fleetrl.agent.learner import RoundResult
+from fleetrl.agent.round_result import interrupted_round
 from fleetrl.runs.records import CSV_COLUMNS, FIGURES, MetricsRow
 from fleetrl.runs.rundir import RunRecorder
 
@@ -137,3 +138,20 @@ def test_resuming_a_run_whose_metrics_predate_the_update_diagnostics(tmp_path) -
     assert [row["score"] for row in on_disk] == ["10.0", "14.0"]
     assert on_disk[0]["approx_kl"] == "nan" and on_disk[1]["approx_kl"] == "0.02"
     assert tuple(on_disk[0]) == CSV_COLUMNS
+
+
+def test_an_interrupted_round_is_a_row_without_figures_and_the_progress_keeps_the_last_ones(tmp_path) -> None:
+    recorder = RunRecorder(tmp_path / "run", {"mode": "federated", "scheme": "pergrad"}, [0])
+    recorder.add(make_record(0, 1, 40.0))
+    lost = MetricsRow.of(0, 2, interrupted_round(2), 0.0, "interrupted")
+    recorder.add(lost)
+    progress = recorder.progress[0]
+    assert (progress.round, progress.score, progress.wma) == (2, 40.0, 20.0)
+    recorder.add(make_record(0, 5, 60.0))
+    assert (progress.round, progress.score) == (5, 60.0)
+    recorder.finish()
+    rows = list(csv.DictReader((tmp_path / "run" / "metrics.csv").open()))
+    assert [(r["round"], r["event"], r["steps"]) for r in rows] == [
+        ("1", "", "40"), ("2", "interrupted", "0"), ("5", "", "60")
+    ]  # fmt: skip
+    assert rows[1]["score"] in ("", "nan")

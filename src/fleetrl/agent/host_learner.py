@@ -23,8 +23,8 @@ import numpy as np
 
 from fleetrl.agent.criterion import CompletionCriterion
 from fleetrl.agent.host_agent import HostAgent
-from fleetrl.agent.learner import Episodes, RoundResult
 from fleetrl.agent.ppo import UpdateStats
+from fleetrl.agent.round_result import Episodes, RoundResult
 
 __all__ = ["HostLearner", "HostPlayed"]
 

@@ -23,7 +23,8 @@ from fleetrl.federation.events import RoundEvent, Sent, WorkerEvent
 from fleetrl.federation.messages import Message
 from fleetrl.federation.rounds import WorkerStep, WorkerSummary, resume_round
 from fleetrl.federation.shared_settings import settings_difference
-from fleetrl.federation.worker_machine import NOTHING, Phase, WorkerMachine
+from fleetrl.federation.worker_machine import WorkerMachine
+from fleetrl.federation.worker_phase import NOTHING, Phase
 
 __all__ = ["AsyncWorkerMachine"]
 
@@ -75,7 +76,7 @@ class AsyncWorkerMachine(WorkerMachine):
             "worker %s: welcomed at round %d (fleet model version %d)", self.worker_id, welcome.round,
             welcome.model_version,
         )  # fmt: skip
-        return self._begin_round(welcome.round if resume is None else resume)
+        return self._round_lost(resume) + self._begin_round(welcome.round if resume is None else resume)
 
     def _begin_round(self, rnd: int) -> WorkerStep:
         """Take the newest fleet model seen, then play round ``rnd``."""

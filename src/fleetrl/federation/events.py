@@ -111,6 +111,9 @@ class WorkerEvent(StrEnum):
     """sent its parameters, but the peer's (a lower id) were forwarded in the same round; it left W"""
     RUN_ENDED = "run_ended"
     """the chief ended the run while it waited"""
+    INTERRUPTED = "interrupted"
+    """it went down while playing this round and came back (``--resume``) after its fleet had gone on: what
+    it played is lost (the row has no figures); the round stays in its books"""
 
     def label(self, peer: str | None = None) -> str:
         """The event as metrics files write it: ``completed+`` marks a round whose criterion held when the

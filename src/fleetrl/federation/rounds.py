@@ -26,7 +26,7 @@ from fleetrl.federation.messages import Message, RoundConfig
 from fleetrl.federation.schemes import FederatedAgent
 
 if TYPE_CHECKING:  # the learner (and torch) is not imported by the federation's pure parts
-    from fleetrl.agent.learner import RoundResult
+    from fleetrl.agent.round_result import RoundResult
 
 log = logging.getLogger(__name__)
 

@@ -28,10 +28,11 @@ from fleetrl.federation.events import Sent, WorkerEvent
 from fleetrl.federation.messages import Message
 from fleetrl.federation.rounds import WorkerStep, WorkerSummary, answer_for
 from fleetrl.federation.schemes import COMPLETED, Granularity, Scheme
-from fleetrl.federation.worker_machine import NOTHING, Phase, WorkerMachine
+from fleetrl.federation.worker_machine import WorkerMachine
+from fleetrl.federation.worker_phase import NOTHING, Phase
 
 if TYPE_CHECKING:  # the learner (and torch) is not imported by the pure machine
-    from fleetrl.agent.learner import RoundResult
+    from fleetrl.agent.round_result import RoundResult
 
 __all__ = ["StepWorkerMachine", "worker_machine"]
 

@@ -26,12 +26,11 @@ from __future__ import annotations
 import logging
 import math
 from collections.abc import Callable
-from dataclasses import dataclass
-from enum import Enum, auto
 from typing import TYPE_CHECKING
 
 import numpy as np
 
+from fleetrl.agent.round_result import interrupted_round
 from fleetrl.federation import rounds as act
 from fleetrl.federation.events import RoundEvent, Sent, WorkerEvent
 from fleetrl.federation.messages import Layout, Message, MessageRejected, RoundConfig, decode, encode
@@ -48,51 +47,14 @@ from fleetrl.federation.schemes import Scheme
 from fleetrl.federation.shared_settings import SharedSettings, settings_difference
 from fleetrl.federation.signing import FleetKey, status_payload
 from fleetrl.federation.topics import CHIEF_ID, OFFLINE, ONLINE, chief_topic, status_topic, worker_topic
+from fleetrl.federation.worker_phase import NOTHING, QUEUED, Phase, Wait
 
 if TYPE_CHECKING:  # the learner (and torch) is not imported by the pure machine
-    from fleetrl.agent.learner import RoundResult
+    from fleetrl.agent.round_result import RoundResult
 
-__all__ = ["Phase", "WorkerMachine"]
+__all__ = ["WorkerMachine"]
 
 log = logging.getLogger(__name__)
-
-NOTHING = WorkerStep()
-
-
-class Phase(Enum):
-    """Where the worker is: waiting for the chief (``WELCOME``, ``ANSWER``, ``STEP_ANSWER``, a per-step
-    straggler's ``WAIT_ROUND``), for the runner (``PLAYING`` a round, a per-step update's ``JOINING``,
-    ``COMPUTING`` a step, ``STEPS_DONE``: finishing the round), or applying answers already queued
-    (``CATCH_UP`` after a round, a per-step worker's ``DRAIN`` before its update)."""
-
-    NEW = auto()
-    WELCOME = auto()
-    PLAYING = auto()
-    DRAIN = auto()
-    WAIT_ROUND = auto()
-    JOINING = auto()
-    COMPUTING = auto()
-    STEP_ANSWER = auto()
-    STEPS_DONE = auto()
-    ANSWER = auto()
-    CATCH_UP = auto()
-    DONE = auto()
-
-
-QUEUED = (Phase.CATCH_UP, Phase.DRAIN)
-"""phases that read only what is already queued (due at once)"""
-
-
-@dataclass
-class _Wait:
-    """Waiting for a chief message: what is wanted, what is re-sent, the deadlines."""
-
-    wanted: Callable[[Message], bool]
-    what: str
-    resend: act.Publish
-    """what was sent (retained: the join, re-sent with the ``online`` status)"""
-    deadline: float | None
-    next_send: float | None
 
 
 class WorkerMachine:
@@ -158,7 +120,7 @@ class WorkerMachine:
         self.round = 0
         """the round being played (or waited for)"""
         self.summary: WorkerSummary | None = None
-        self._wait: _Wait | None = None
+        self._wait: Wait | None = None
         self._outcome: RoundResult | None = None
         self._caught_up_to = 0
         self._config: RoundConfig = {}  # the chief's configuration for the next round played
@@ -295,7 +257,17 @@ class WorkerMachine:
             out = (act.TakeParameters(welcome.flat),)
         self._config = dict(welcome.config)
         log.info("worker %s: welcomed at round %d (θ* of %s)", self.worker_id, welcome.round, welcome.origin)
-        return WorkerStep(out) + self._begin_round(welcome.round if resume is None else resume)
+        rejoined = self._round_lost(resume) + WorkerStep(out)
+        return rejoined + self._begin_round(welcome.round if resume is None else resume)
+
+    def _round_lost(self, resume: int | None) -> WorkerStep:
+        """Resumed from a checkpoint, welcomed after the fleet went on (``resume`` None): the round the
+        checkpoint was to play next, which this worker went down in, is recorded as interrupted."""
+        if resume is not None or self.start_round is None:
+            return NOTHING
+        result = interrupted_round(self.start_round)
+        lost = FederatedRound(self.worker_id, self.start_round, result, WorkerEvent.INTERRUPTED)
+        return WorkerStep((act.Record(lost),))
 
     def _begin_round(self, rnd: int) -> WorkerStep:
         if rnd > self.max_rounds:
@@ -391,7 +363,7 @@ class WorkerMachine:
         publish = act.Publish(self.topic, encode(message, layout=self.layout, key=self.key), retain, message)
         deadline = None if self.reply_timeout is None else now + self.reply_timeout
         next_send = None if self.resend_interval is None else now + self.resend_interval
-        self._wait = _Wait(wanted, what, publish, deadline, next_send)
+        self._wait = Wait(wanted, what, publish, deadline, next_send)
         return WorkerStep((publish,))
 
     def _timed_out(self, what: str) -> WorkerStep:

@@ -14,7 +14,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:  # reading metrics back (plots, experiments) needs no learner
-    from fleetrl.agent.learner import RoundResult
+    from fleetrl.agent.round_result import RoundResult
 
 nan = math.nan
 

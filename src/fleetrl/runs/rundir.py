@@ -126,8 +126,9 @@ class RunRecorder:
         self._progress(record)
         tag = f"worker_{record.worker}"
         board = self._board()
-        board.add_scalar(f"rollout/score/{tag}", record.score, record.round)
-        board.add_scalar(f"rollout/wma/{tag}", record.wma, record.round)
+        if math.isfinite(record.score):
+            board.add_scalar(f"rollout/score/{tag}", record.score, record.round)
+            board.add_scalar(f"rollout/wma/{tag}", record.wma, record.round)
         for name in ("actor_loss", "critic_loss", "entropy", "approx_kl", "clip_fraction"):
             value = getattr(record, name)
             if math.isfinite(value):
@@ -135,7 +136,9 @@ class RunRecorder:
 
     def _progress(self, record: MetricsRow) -> None:
         progress = self.progress.setdefault(record.worker, WorkerProgress())
-        progress.round, progress.score, progress.wma = record.round, record.score, record.wma
+        progress.round = record.round
+        if math.isfinite(record.score):  # an interrupted round's row has no figures: the last ones stay
+            progress.score, progress.wma = record.score, record.wma
         progress.episodes += record.episodes
         progress.state = "learning" if progress.completed_at_round is None else "completed"
         if record.event not in PLAIN_EVENTS:  # plain sharing rounds are in metrics.csv alone
