@@ -14,6 +14,7 @@ import matplotlib.pyplot as plt
 
 from fleetrl.experiments.arms import Arm, Places, completions, mean_score_curve, same_scores, wall_seconds
 from fleetrl.experiments.records import RunRecord
+from fleetrl.experiments.rig_phases import phases_lines
 from fleetrl.experiments.stats import bootstrap_median, bootstrap_ratio, markdown_table
 from fleetrl.experiments.sweep import Run, run_all
 from fleetrl.runs.plots import X_LABELS, by_worker, draw_worker
@@ -45,6 +46,8 @@ class Plan:
     mqtt_check: Arm | None = None
     """an arm run over the local bus that is run once more over MQTT, to show the numbers do not change"""
     notes: str = ""
+    rig_phases: bool = False
+    """the report says where each unit's time on the rigs goes (:mod:`.rig_phases`)"""
     headline: list[Arm] = field(default_factory=list)
     """the arms run on every seed (each unit alone, fedavg, the best new scheme); the others may run on fewer
     (``other_seeds`` of :func:`run_plan`)"""
@@ -124,6 +127,8 @@ def run_plan(
     if speed:
         lines += [speed, ""]
     lines += [_ratio_line(ratio, records) for ratio in plan.ratios]
+    if plan.rig_phases:
+        lines += phases_lines([(arm.label, records[arm.key]) for arm in plan.arms])
     local = records[plan.mqtt_check.key] if plan.mqtt_check else []
     if extra and plan.mqtt_check and local and local[0].result_settings["seed"] == seeds[0]:
         lines.append(transport_check_line(plan.mqtt_check.label, seeds[0], local[0], extra[0].result()))

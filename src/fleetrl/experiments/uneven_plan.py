@@ -50,5 +50,6 @@ def uneven(budget: Budget) -> Plan:
             Ratio(slow, slow_async, "uneven fleet: asynchronous vs the default scheme"),
         ],
         notes=NOTES,
+        rig_phases=True,
         headline=[alone, slow, slow_async, even_async],
     )
