@@ -100,17 +100,22 @@ class Fleet:
         self.processes.append(proc)
         return proc
 
-    def clean(self) -> None:
-        """Stop every process started (its group: TERM, then KILL); delete every namespace and its veths."""
+    def stop(self) -> None:
+        """Stop every process started that still runs (its group: TERM, then KILL after a grace)."""
         for proc in self.processes:
             if proc.poll() is None:
                 os.killpg(proc.pid, signal.SIGTERM)
+        grace = time.monotonic() + 5.0  # one grace for them all, not one each
         for proc in self.processes:
             try:
-                proc.wait(5)
+                proc.wait(max(0.1, grace - time.monotonic()))
             except subprocess.TimeoutExpired:
                 os.killpg(proc.pid, signal.SIGKILL)
                 proc.wait(5)
+
+    def clean(self) -> None:
+        """Stop every process started; delete every namespace and its veths."""
+        self.stop()
         for name in reversed(self.namespaces):
             sh("ip", "netns", "del", name, check=False)
         left = [n for n in self.namespaces if n in sh("ip", "netns", "list").stdout]
