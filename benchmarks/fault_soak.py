@@ -253,16 +253,22 @@ def soak_one(index: int, fault: str, rng: random.Random, broker: Broker, root: P
 def same_models(run: Run, workers: list[str]) -> bool:
     """Every worker's final network equals the chief's fleet model (its checkpoint's, after the last
     answer)."""
+    return holds_fleet_model(run.out / "chief", {w: run.out / f"w{w}" for w in workers})
+
+
+def holds_fleet_model(chief_out: Path, worker_outs: dict[str, Path]) -> bool:
+    """Every worker's final network (worker id → its ``--out``) equals, bit for bit, the fleet model in the
+    checkpoint of the chief whose ``--out`` is ``chief_out``."""
     import numpy as np
 
     from fleetrl.agent.ppo import PPOAgent
     from fleetrl.runs.checkpoints import ChiefCheckpoint, chief_checkpoint_dir
     from fleetrl.runs.rundir import model_path
 
-    _, tensors = ChiefCheckpoint(chief_checkpoint_dir(run.out / "chief")).store.load()
+    _, tensors = ChiefCheckpoint(chief_checkpoint_dir(chief_out)).store.load()
     chief = tensors.get("model")
-    for worker in workers:
-        path = model_path(run.out / f"w{worker}", int(worker))
+    for worker, out in worker_outs.items():
+        path = model_path(out, int(worker))
         if chief is None or not path.exists():
             return False
         mine = PPOAgent.load(path).model_parameters()

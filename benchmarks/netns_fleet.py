@@ -43,8 +43,12 @@ log = logging.getLogger("netns_fleet")
 SUBNET = "10.77.0"
 PORT = 1883
 STAMP = r"(\d{4}-\d\d-\d\d \d\d:\d\d:\d\d,\d{3})"
-SENT = re.compile(STAMP + r" DEBUG fleetrl\.federation\.worker: worker (\d+): sent \w+ for round (\d+)")
-APPLIED = re.compile(STAMP + r" INFO fleetrl\.federation\.worker: worker (\d+) round (\d+): ")
+SENT = re.compile(
+    STAMP + r" DEBUG fleetrl\.federation\.worker_machine: worker (\d+): sending (?!join )\w+ of round (\d+)"
+)
+APPLIED = re.compile(STAMP + r" INFO fleetrl\.federation\.worker_machine: worker (\d+) round (\d+): ")
+FLEETRL = [sys.executable, "-m", "fleetrl.cli.main", "-v"]
+"""a fleetrl role, its DEBUG log on (the measurements read it)"""
 
 
 def sh(*argv: str, check: bool = True) -> subprocess.CompletedProcess[str]:
@@ -96,17 +100,22 @@ class Fleet:
         self.processes.append(proc)
         return proc
 
-    def clean(self) -> None:
-        """Stop every process started (its group: TERM, then KILL); delete every namespace and its veths."""
+    def stop(self) -> None:
+        """Stop every process started that still runs (its group: TERM, then KILL after a grace)."""
         for proc in self.processes:
             if proc.poll() is None:
                 os.killpg(proc.pid, signal.SIGTERM)
+        grace = time.monotonic() + 5.0  # one grace for them all, not one each
         for proc in self.processes:
             try:
-                proc.wait(5)
+                proc.wait(max(0.1, grace - time.monotonic()))
             except subprocess.TimeoutExpired:
                 os.killpg(proc.pid, signal.SIGKILL)
                 proc.wait(5)
+
+    def clean(self) -> None:
+        """Stop every process started; delete every namespace and its veths."""
+        self.stop()
         for name in reversed(self.namespaces):
             sh("ip", "netns", "del", name, check=False)
         left = [n for n in self.namespaces if n in sh("ip", "netns", "list").stdout]
@@ -118,13 +127,53 @@ class Fleet:
         )
 
 
-def add_netem(ns: str, ifname: str, args: argparse.Namespace) -> str | None:
-    """Put netem on ``ifname``; None if done, else why not (the kernel's answer)."""
-    impair = ["delay", f"{args.delay_ms}ms", f"{args.jitter_ms}ms", "loss", f"{args.loss}%"]
+def add_netem(ns: str, ifname: str, delay_ms: float, jitter_ms: float, loss: float) -> str | None:
+    """Put netem (delay ± jitter, loss %) on ``ifname``; None if done, else why not (the kernel's answer)."""
+    impair = ["delay", f"{delay_ms}ms", f"{jitter_ms}ms", "loss", f"{loss}%"]
     done = sh(
         "ip", "netns", "exec", ns, "tc", "qdisc", "add", "dev", ifname, "root", "netem", *impair, check=False
     )
     return None if done.returncode == 0 else done.stderr.strip() or f"tc exited {done.returncode}"
+
+
+def start_broker(fleet: Fleet, ns: str, work: Path, name: str = "broker") -> None:
+    """mosquitto in namespace ``ns``, listening on every address at :data:`PORT` (its configuration and log
+    in ``work``, named after ``name``)."""
+    config = work / f"{name}.conf"
+    config.write_text(
+        f"listener {PORT} 0.0.0.0\nallow_anonymous true\nset_tcp_nodelay true\npersistence false\n"
+    )
+    mosquitto = find_mosquitto()
+    assert mosquitto is not None
+    fleet.start(ns, [mosquitto, "-c", str(config)], work / f"{name}.log")
+
+
+def run_args(run_id: str, rounds: int) -> list[str]:
+    """The settings every role of a run shares: CartPole, the standard preset, ``rounds`` rounds."""
+    return ["--run-id", run_id, "--env", "cartpole", "--preset", "standard", "--max-rounds", str(rounds)]
+
+
+def wait_all(roles: dict[str, subprocess.Popen[bytes]], deadline: float) -> dict[str, int | None]:
+    """Each role's exit code (None: still running at ``deadline``, a ``time.monotonic()`` value)."""
+    codes: dict[str, int | None] = {}
+    for role, proc in roles.items():
+        try:
+            codes[role] = proc.wait(max(1.0, deadline - time.monotonic()))
+        except subprocess.TimeoutExpired:
+            codes[role] = None
+    return codes
+
+
+def spread(values: list[float]) -> str:
+    """p50, p95 and max of ``values`` (ms), for a report line."""
+    ordered = sorted(values)
+    p95 = ordered[min(len(ordered) - 1, round(0.95 * (len(ordered) - 1)))]
+    return f"p50 {statistics.median(ordered):.1f} ms, p95 {p95:.1f} ms, max {ordered[-1]:.1f} ms"
+
+
+def timestamp(stamp: str) -> float:
+    """A log line's time (``asctime``), in seconds."""
+    return datetime.strptime(stamp, "%Y-%m-%d %H:%M:%S,%f").timestamp()
 
 
 def wait_for_broker(fleet: Fleet, ns: str, host: str, deadline: float) -> None:
@@ -144,8 +193,7 @@ def overheads(logs: list[Path]) -> dict[int, float]:
         for line in path.read_text(errors="replace").splitlines():
             for pattern, table in ((SENT, sent), (APPLIED, applied)):
                 if m := pattern.match(line):
-                    t = datetime.strptime(m.group(1), "%Y-%m-%d %H:%M:%S,%f").timestamp()
-                    rnd = int(m.group(3))
+                    rnd, t = int(m.group(3)), timestamp(m.group(1))
                     table[rnd] = max(table.get(rnd, 0.0), t)
     return {r: 1000.0 * (applied[r] - sent[r]) for r in sorted(sent) if r in applied}
 
@@ -161,38 +209,23 @@ def run(args: argparse.Namespace, fleet: Fleet, work: Path) -> int:
         near, broker_ip, far, _ = fleet.link(i, broker_ns, ns)
         hosts[node] = broker_ip
         if netem is None or netem is True:
-            why = add_netem(broker_ns, near, args) or add_netem(ns, far, args)
+            impair = (args.delay_ms, args.jitter_ms, args.loss)
+            why = add_netem(broker_ns, near, *impair) or add_netem(ns, far, *impair)
             netem = True if why is None else why
     if netem is True:
         impairment = f"delay {args.delay_ms} ms ± {args.jitter_ms} ms, loss {args.loss} %"
         print(f"netem: {impairment} on both ends of every veth")
     else:
         print(f"netem: not available in this kernel ({netem}); running without added latency or loss")
-    config = work / "mosquitto.conf"
-    config.write_text(
-        f"listener {PORT} 0.0.0.0\nallow_anonymous true\nset_tcp_nodelay true\npersistence false\n"
-    )
-    mosquitto = find_mosquitto()
-    assert mosquitto is not None
-    fleet.start(broker_ns, [mosquitto, "-c", str(config)], work / "broker.log")
+    start_broker(fleet, broker_ns, work)
     wait_for_broker(fleet, fleet.namespace("chief"), hosts["chief"], deadline)
-    common = [
-        "--run-id",
-        "netns",
-        "--env",
-        "cartpole",
-        "--preset",
-        "standard",
-        "--max-rounds",
-        str(args.rounds),
-    ]
-    fleetrl = [sys.executable, "-m", "fleetrl.cli.main", "-v"]
+    common = run_args("netns", args.rounds)
     started = time.monotonic()
     roles = {
         "chief": fleet.start(
             fleet.namespace("chief"),
             [
-                *fleetrl,
+                *FLEETRL,
                 "chief",
                 "--broker",
                 f"mqtt://{hosts['chief']}:{PORT}",
@@ -211,16 +244,11 @@ def run(args: argparse.Namespace, fleet: Fleet, work: Path) -> int:
         node = f"w{k}"
         roles[node] = fleet.start(
             fleet.namespace(node),
-            [*fleetrl, "worker", "--broker", f"mqtt://{hosts[node]}:{PORT}", *common, "--worker-id", str(k),
+            [*FLEETRL, "worker", "--broker", f"mqtt://{hosts[node]}:{PORT}", *common, "--worker-id", str(k),
              "--out", str(work / node), "--resend-interval", "2", "--reply-timeout", str(args.timeout)],
             work / f"{node}.log",
         )  # fmt: skip
-    codes: dict[str, int | None] = {}
-    for role, proc in roles.items():
-        try:
-            codes[role] = proc.wait(max(1.0, deadline - time.monotonic()))
-        except subprocess.TimeoutExpired:
-            codes[role] = None
+    codes = wait_all(roles, deadline)
     wall = time.monotonic() - started
     completed = all(code == 0 for code in codes.values())
     chief_json = work / "chief" / "chief.json"
@@ -230,11 +258,9 @@ def run(args: argparse.Namespace, fleet: Fleet, work: Path) -> int:
     per_round = overheads([work / f"w{k}.log" for k in range(args.workers)])
     per_round.pop(1, None)  # warm-up: first messages on fresh connections
     if per_round:
-        values = sorted(per_round.values())
-        p95 = values[min(len(values) - 1, round(0.95 * (len(values) - 1)))]
         print(
             f"round overhead, rounds 2-{max(per_round)} (last message sent → last answer applied): "
-            f"p50 {statistics.median(values):.1f} ms, p95 {p95:.1f} ms, max {values[-1]:.1f} ms"
+            f"{spread(list(per_round.values()))}"
         )
     print(f"completed: {'yes' if completed else 'NO'} ({args.workers} workers, {args.rounds} rounds)")
     if not completed or args.keep:
