@@ -57,8 +57,9 @@ __all__ = [
 MODES = ("individual", "federated")
 TRANSPORTS = ("mqtt", "local")
 DEVICE_LINKS = ("inprocess", "mqtt")
-NOT_RESULT_SETTINGS = ("out", "live", "broker", "broker_password_file")
-"""settings that cannot change what a run learns (where it writes, the live view, the broker's address)"""
+NOT_RESULT_SETTINGS = ("out", "live", "per_unit_detail", "broker", "broker_password_file")
+"""settings that cannot change what a run learns (where it writes, the live view and the plot, the broker's
+address)"""
 ALONE_SCHEME = PaperScheme.name
 """the scheme of a run whose units learn alone (``--mode individual``): its learners stop at completion, and
 the result settings stay those of the individual runs made before federated runs took another default"""
@@ -288,6 +289,10 @@ class RunSettings(RoundRules, BrokerLogin):
     bridges serve its simulated units)"""
     live: bool = True
     """show the live terminal view"""
+    per_unit_detail: bool = False
+    """show every unit however large the fleet: one plot panel, one live-view row and one TensorBoard
+    series per unit (by default a fleet of more than 16 units is summarised: units completed, WMA
+    quantiles, the slowest units)"""
     uneven: UnevenFleet = field(default_factory=UnevenFleet)
     """how the simulated fleet is made uneven (its fields are settings of their own: ``--pace``, ``--slow``,
     ``--link-delay``, ``--absent``, ``--absent-rounds``); not a learning setting, never shared at join"""
@@ -372,9 +377,10 @@ class RunSettings(RoundRules, BrokerLogin):
         """config.toml of the run directory: every setting (no password), so that
         ``fleetrl train --config runs/x/config.toml --out runs/y`` reruns the run. An uneven-fleet setting at
         its default is left out (an even run's file is the one written before those settings existed), and
-        so is ``units_per_host`` at 1."""
+        so are ``units_per_host`` at 1 and ``per_unit_detail`` off."""
         hosts = ("units_per_host",) if self.units_per_host == 1 else ()
-        table = toml_values(self, leave_out=(*self.uneven.default_names(), *hosts))
+        detail = () if self.per_unit_detail else ("per_unit_detail",)
+        table = toml_values(self, leave_out=(*self.uneven.default_names(), *hosts, *detail))
         if self.broker is not None:
             table["broker"] = self.public_broker
         header = (
