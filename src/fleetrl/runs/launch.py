@@ -160,7 +160,7 @@ def _train(settings: RunSettings) -> dict[str, Any]:
 
 def members(settings: RunSettings) -> list[list[int]]:
     """The units each member of the run carries: a unit host's units, or one unit per worker."""
-    return host_groups(settings.units, settings.units_per_host)
+    return host_groups(settings.units, settings.per_host)
 
 
 @contextmanager
@@ -248,7 +248,7 @@ def train_federated(
 ) -> None:
     """Chief in a thread of this process; workers as processes (MQTT at ``url``) or threads (local bus)."""
     shape = fleet_shape(settings.learning)
-    groups = host_groups(settings.units, settings.units_per_host) if settings.units_per_host > 1 else None
+    groups = host_groups(settings.units, settings.per_host) if settings.per_host > 1 else None
     chief = new_chief(
         run_id=run_id,
         workers=[str(k) for k in specs] if groups is None else [host_id(units) for units in groups],
@@ -316,8 +316,8 @@ def transports(
         from fleetrl.transport.local import LocalBus
 
         bus = LocalBus()
-        if settings.units_per_host > 1:
-            groups = {units[0]: units for units in host_groups(settings.units, settings.units_per_host)}
+        if settings.per_host > 1:
+            groups = {units[0]: units for units in host_groups(settings.units, settings.per_host)}
             hosts = {
                 k: host_thread([specs[u] for u in units], bus.client, run_id) for k, units in groups.items()
             }
