@@ -33,11 +33,12 @@ of which the shared libraries' pages count once across the processes)"""
 THREAD_UNIT_MB = 6.5
 """a unit run as its own worker thread of the command (``--transport local``): its env, learner and agent
 (measured 6.5 MB: benchmarks/run_memory.py, part ``thread``)"""
-HOST_MB = 10.0
-"""a unit host's own cost (its agent, optimiser and worker; benchmarks/run_memory.py, part ``host``)"""
-HOSTED_UNIT_MB = 1.0
-"""each unit a host carries: its env, trajectory memory and criterion (benchmarks/run_memory.py, part
+HOST_MB = 5.0
+"""a unit host's own cost: its agent, optimiser and worker (measured 4.3 MB: benchmarks/run_memory.py, part
 ``host``)"""
+HOSTED_UNIT_MB = 2.0
+"""each unit a host carries: its env, trajectory memory and criterion (measured 1.8 MB:
+benchmarks/run_memory.py, part ``host``)"""
 HEADROOM = 0.2
 """the share of the available memory a run leaves free"""
 MEMINFO = Path("/proc/meminfo")
