@@ -86,3 +86,10 @@ def test_the_snapshot_names_the_slowest_units_not_completed_and_counts_members_o
     assert (fleet.members_online, fleet.members) == (3, 3)
     assert snapshot(units, ended={4, 5}, members=[[0, 1], [2, 3], [4, 5]]).members_online == 2
     assert snapshot(units).members == 6 and snapshot(units).members_online == 5  # unit 2: no round yet
+
+
+def test_an_interrupted_round_without_figures_keeps_the_unit_s_last_wma() -> None:
+    fleet = fleet_rounds(
+        [row(0, 1, 10.0), row(1, 1, 30.0), row(0, 2, math.nan, "interrupted"), row(1, 2, 50.0)]
+    )
+    assert fleet.wma[1].tolist() == [20.0, 30.0]  # round 2: {10 (kept), 50}
