@@ -135,13 +135,12 @@ class RunRecorder:
         self.records.append(record)
         self._csv.writerow(record.csv_row())
         self._csv_file.flush()
-        if self.summarise:
-            if record.round > self._fleet_round:  # the round before has begun to end: the fleet's figures
-                self._board_fleet()
-                self._fleet_round = record.round
-            self._progress(record)
-            return
+        if self.summarise and record.round > self._fleet_round:  # the round before has begun to end
+            self._board_fleet()
+            self._fleet_round = record.round
         self._progress(record)
+        if self.summarise:  # the fleet's scalars only
+            return
         tag = f"worker_{record.worker}"
         board = self._board()
         if math.isfinite(record.score):
