@@ -155,3 +155,39 @@ def test_an_interrupted_round_is_a_row_without_figures_and_the_progress_keeps_th
         ("1", "", "40"), ("2", "interrupted", "0"), ("5", "", "60")
     ]  # fmt: skip
     assert rows[1]["score"] in ("", "nan")
+
+
+def board_tags(out) -> dict[str, list[tuple[int, float]]]:
+    from tensorboard.backend.event_processing.event_accumulator import EventAccumulator
+
+    events = EventAccumulator(str(out / "tensorboard"))
+    events.Reload()
+    return {tag: [(e.step, e.value) for e in events.Scalars(tag)] for tag in events.Tags()["scalars"]}
+
+
+def test_a_summarised_recorder_writes_the_fleet_s_scalars_and_one_row_per_unit(tmp_path) -> None:
+    out = tmp_path / "run"
+    config = {"mode": "federated", "env": "cartpole", "completion_threshold": 40.0}
+    recorder = RunRecorder(out, config, list(range(20)), summarise=True)
+    for round_ in (1, 2):
+        for unit in range(20):
+            done = "completed" if round_ == 2 and unit < 5 else "gradient"
+            recorder.add(make_record(unit, round_, 10.0 * round_ + unit, done))
+    recorder.finish()
+    assert len(list(csv.reader((out / "metrics.csv").open()))) == 1 + 2 * 20
+    tags = board_tags(out)
+    assert sorted(tags) == ["fleet/completed", "fleet/wma_median", "fleet/wma_p10", "fleet/wma_p90"]
+    assert tags["fleet/completed"] == [(1, 0.0), (2, 5.0)]
+    # WMA = score / 2: round 1 units at 5 … 14.5, round 2 at 10 … 19.5
+    assert tags["fleet/wma_median"] == [(1, pytest.approx(9.75)), (2, pytest.approx(14.75))]
+    assert (out / "scores.png").stat().st_size > 10_000
+
+
+def test_a_recorder_of_a_small_fleet_keeps_one_series_per_worker(tmp_path) -> None:
+    recorder = RunRecorder(tmp_path / "run", {"mode": "individual"}, [0, 1])
+    recorder.add(make_record(0, 1, 10.0))
+    recorder.add(make_record(1, 1, 20.0))
+    recorder.finish()
+    tags = board_tags(tmp_path / "run")
+    assert "rollout/wma/worker_0" in tags and "rollout/wma/worker_1" in tags
+    assert not any(tag.startswith("fleet/") for tag in tags)

@@ -3,6 +3,7 @@
 import argparse
 import json
 import logging
+import math
 import signal
 import sys
 import threading
@@ -147,7 +148,9 @@ def cmd_train(args: argparse.Namespace) -> int:
         settings = settings_from_args(RunSettings, args)
         from fleetrl.runs.launch import train
     summary = train(settings)
-    print_summary(summary, settings.out)
+    from fleetrl.runs.fleet_summary import summarised
+
+    print_summary(summary, settings.out, summarise=summarised(settings.units, settings.per_unit_detail))
     return exit_code(summary)
 
 
@@ -185,15 +188,18 @@ def duration(seconds: float) -> str:
     return f"{seconds / 60:.1f} min" if seconds < 7200 else f"{seconds / 3600:.1f} h"
 
 
-def print_summary(summary: dict[str, Any], out: Path) -> None:
-    """What a person wants to see when a run ends."""
+def print_summary(summary: dict[str, Any], out: Path, *, summarise: bool = False) -> None:
+    """What a person wants to see when a run ends: a line per worker, or with ``summarise`` (a large fleet)
+    the fleet's completions and final WMA quantiles and its slowest units."""
     print(f"run directory: {out}  ({summary['wall_seconds']:.1f} s, {summary['rounds']} rounds)")
-    for worker, info in summary["workers"].items():
+    workers = summary["workers"]
+    if summarise:
+        print_fleet_summary(workers)
+        workers = {}
+    for worker, info in workers.items():
         done = info["completed_at_round"]
-        wma = info["final_wma"]
-        wma_text = "-" if wma is None else f"{wma:.1f}"
         status = f"completed at round {done}" if done is not None else f"not completed ({info['state']})"
-        print(f"  worker {worker}: {status}, final WMA {wma_text}")
+        print(f"  worker {worker}: {status}, final WMA {wma_text(info['final_wma'])}")
     rig = summary.get("rig_seconds")
     if rig:
         bound = "" if rig["complete"] else "at least "
@@ -204,6 +210,31 @@ def print_summary(summary: dict[str, Any], out: Path) -> None:
             f"{duration(units[len(units) // 2])} per unit"
         )
     print(f"  plot: {out / 'scores.png'}   metrics: {out / 'metrics.csv'}   tensorboard --logdir {out}")
+
+
+def wma_text(wma: float | None) -> str:
+    """A final WMA as shown (``-``: none)."""
+    return "-" if wma is None or math.isnan(wma) else f"{wma:.1f}"
+
+
+def print_fleet_summary(workers: dict[str, dict[str, Any]]) -> None:
+    """A large fleet's outcome in a few lines: units completed, the final WMA's quantiles, the slowest
+    units."""
+    from fleetrl.runs.fleet_summary import SLOWEST_SHOWN, wma_quantiles
+
+    finals = [math.nan if info["final_wma"] is None else info["final_wma"] for info in workers.values()]
+    done = sum(info["completed_at_round"] is not None for info in workers.values())
+    p10, median, p90 = (wma_text(q) for q in wma_quantiles(finals))
+    print(f"  units: {done} of {len(workers)} completed; final WMA p10 {p10}, median {median}, p90 {p90}")
+    lagging = sorted(
+        (w for w, info in workers.items() if info["completed_at_round"] is None),
+        key=lambda w: (-math.inf if workers[w]["final_wma"] is None else workers[w]["final_wma"], int(w)),
+    )
+    for worker in lagging[:SLOWEST_SHOWN]:
+        info = workers[worker]
+        final = wma_text(info["final_wma"])
+        print(f"  slowest: unit {worker} not completed ({info['state']}), final WMA {final}")
+    print("  every unit: summary.json (workers), metrics.csv")
 
 
 def cmd_evaluate(args: argparse.Namespace) -> int:

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
+import functools
 import types
 from pathlib import Path
 from typing import Any, TypeVar, Union, get_args, get_origin
@@ -90,10 +91,24 @@ def add_setting_argument(
 
 
 def _parse_type(kind: Any) -> Any:
-    """The argparse ``type`` of a setting's type (its non-None option for an optional one)."""
+    """The argparse ``type`` of a setting's type (its non-None option for an optional one; for a choice of
+    types, such as a number or ``auto``, the first of them that reads the text)."""
     if get_origin(kind) in (Union, types.UnionType):
-        kind = next(a for a in get_args(kind) if a is not type(None))
+        options = [a for a in get_args(kind) if a is not type(None)]
+        if len(options) > 1:
+            return functools.partial(_first_that_reads, [_parse_type(option) for option in options])
+        kind = options[0]
     return kind if kind in (int, float, Path) else str
+
+
+def _first_that_reads(parsers: list[Any], text: str) -> Any:
+    """``text`` as the first of ``parsers`` reads it (as text if none does; the setting's check says why)."""
+    for parse in parsers:
+        try:
+            return parse(text)
+        except ValueError:
+            continue
+    return text
 
 
 def add_learning_argument(p: argparse.ArgumentParser, name: str, *, defaulted: bool = True) -> None:

@@ -78,10 +78,10 @@ def follow(fleet: Fleet, recorder: RunRecorder, view: LiveView) -> None:
             try:
                 event = fleet.events.get(timeout=0.25)
             except queue.Empty:
-                view.update(recorder.progress, recorder.elapsed())
+                view.update(recorder.progress, recorder.elapsed(), ended=ended)
                 continue
             apply_event(event, recorder, ended)
-            view.update(recorder.progress, recorder.elapsed())
+            view.update(recorder.progress, recorder.elapsed(), ended=ended)
     except KeyboardInterrupt:
         recorder.interrupted = True
         log.warning("interrupted: stopping the workers; the run directory stays valid")
@@ -97,7 +97,7 @@ def follow(fleet: Fleet, recorder: RunRecorder, view: LiveView) -> None:
             f"cannot write the run directory {recorder.out}: {err.strerror or err}; the run was stopped "
             f"and the rounds recorded so far are in {recorder.out / 'metrics.csv'}"
         ) from err
-    view.update(recorder.progress, recorder.elapsed(), force=True)
+    view.update(recorder.progress, recorder.elapsed(), force=True, ended=ended)
 
 
 def apply_event(event: FleetEvent, recorder: RunRecorder, ended: set[int]) -> None:

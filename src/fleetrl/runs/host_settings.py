@@ -2,6 +2,10 @@
 
 from __future__ import annotations
 
+import math
+import os
+from typing import Literal
+
 from fleetrl.agent.config import PPOConfig, host_config_problem
 from fleetrl.federation.schemes.base import Scheme, StepScheme
 
@@ -24,6 +28,36 @@ def host_setting_problem(
     if not even:
         return "a unit host steps its units together: it cannot make them uneven (--pace, --slow, --absent …)"
     return host_config_problem(ppo)
+
+
+AUTO: Literal["auto"] = "auto"
+"""``--units-per-host auto``: about one unit host per core for a large fleet (:func:`auto_units_per_host`)"""
+AUTO_HOSTS_ABOVE_UNITS = 16
+"""``auto`` keeps one worker per unit up to this many units, so small runs (and their records) stay as
+they were"""
+
+
+def usable_cores() -> int:
+    """The cores this process may run on."""
+    if hasattr(os, "sched_getaffinity"):
+        return len(os.sched_getaffinity(0))
+    return os.cpu_count() or 1
+
+
+def units_per_core(units: int, cores: int) -> int:
+    """Units per host for about one host per core."""
+    return max(1, math.ceil(units / max(cores, 1)))
+
+
+def hosts_possible(*, mode: str, transport: str, scheme: Scheme, ppo: PPOConfig, even: bool) -> bool:
+    """Whether a run of these settings can group its units into unit hosts."""
+    return host_setting_problem(2, mode=mode, transport=transport, scheme=scheme, ppo=ppo, even=even) is None
+
+
+def auto_units_per_host(units: int, *, possible: bool, cores: int) -> int:
+    """What ``auto`` chooses: about one host per core (:func:`units_per_core`) for a fleet of more than
+    :data:`AUTO_HOSTS_ABOVE_UNITS` units that can have hosts (``possible``), else 1 (a worker per unit)."""
+    return units_per_core(units, cores) if possible and units > AUTO_HOSTS_ABOVE_UNITS else 1
 
 
 def host_groups(units: int, per_host: int) -> list[list[int]]:

@@ -31,6 +31,7 @@ from fleetrl.federation.schemes.base import AsyncScheme, FleetStart, StepScheme
 from fleetrl.federation.shared_settings import shared_text
 from fleetrl.runs.factory import agent_for, make_learner, probe_agent
 from fleetrl.runs.fleet import Fleet, ThreadFleet, follow
+from fleetrl.runs.fleet_summary import summarised
 from fleetrl.runs.host_settings import host_groups, host_id
 from fleetrl.runs.live import LiveView
 from fleetrl.runs.processes import ProcessFleet, fork_available
@@ -117,7 +118,10 @@ def train(settings: RunSettings) -> dict[str, Any]:
 
 def _train(settings: RunSettings) -> dict[str, Any]:
     run_id = f"run-{uuid.uuid4().hex[:8]}"
-    recorder = RunRecorder(Path(settings.out), settings.to_config(), list(range(settings.units)))
+    summarise = summarised(settings.units, settings.per_unit_detail)
+    recorder = RunRecorder(
+        Path(settings.out), settings.to_config(), list(range(settings.units)), summarise=summarise
+    )
     (recorder.out / "config.toml").write_text(settings.to_toml())
     recorder.extra["run_id"] = run_id
     log.debug("run directory %s ready", recorder.out)
@@ -130,7 +134,9 @@ def _train(settings: RunSettings) -> dict[str, Any]:
             run_logging(recorder.out / "logs" / "run.log", quiet=settings.live),
             broker_url(settings) as url,
             device_bridges(settings, url, run_id),
-            LiveView(title, threshold, enabled=settings.live) as view,
+            LiveView(
+                title, threshold, enabled=settings.live, summarise=summarise, members=members(settings)
+            ) as view,
         ):
             device_url = url if settings.device_link == "mqtt" else None
             specs = worker_specs(settings, device_url, run_id)
@@ -150,6 +156,11 @@ def _train(settings: RunSettings) -> dict[str, Any]:
         if not recorder.finished:
             summary = recorder.finish()
     return summary
+
+
+def members(settings: RunSettings) -> list[list[int]]:
+    """The units each member of the run carries: a unit host's units, or one unit per worker."""
+    return host_groups(settings.units, settings.per_host)
 
 
 @contextmanager
@@ -237,7 +248,7 @@ def train_federated(
 ) -> None:
     """Chief in a thread of this process; workers as processes (MQTT at ``url``) or threads (local bus)."""
     shape = fleet_shape(settings.learning)
-    groups = host_groups(settings.units, settings.units_per_host) if settings.units_per_host > 1 else None
+    groups = host_groups(settings.units, settings.per_host) if settings.per_host > 1 else None
     chief = new_chief(
         run_id=run_id,
         workers=[str(k) for k in specs] if groups is None else [host_id(units) for units in groups],
@@ -305,8 +316,8 @@ def transports(
         from fleetrl.transport.local import LocalBus
 
         bus = LocalBus()
-        if settings.units_per_host > 1:
-            groups = {units[0]: units for units in host_groups(settings.units, settings.units_per_host)}
+        if settings.per_host > 1:
+            groups = {units[0]: units for units in host_groups(settings.units, settings.per_host)}
             hosts = {
                 k: host_thread([specs[u] for u in units], bus.client, run_id) for k, units in groups.items()
             }

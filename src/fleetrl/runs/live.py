@@ -1,4 +1,6 @@
-"""The live terminal view: one row per worker with its round, score, WMA and state.
+"""The live terminal view: one row per worker with its round, score, WMA and state; for a large fleet
+(``summarise``) one screen whatever its size: units completed of N, the WMA's p10 / median / p90, the slowest
+units (not completed, lowest WMA) and the members online (:mod:`fleetrl.runs.fleet_summary`).
 
 On a terminal it is a ``rich`` table redrawn in place; elsewhere (CI, a pipe) it prints one plain progress
 line every few seconds, so logs stay readable. A disabled view (``--no-live``) does not import ``rich``.
@@ -8,13 +10,15 @@ from __future__ import annotations
 
 import math
 import time
+from collections.abc import Collection, Sequence
 from types import TracebackType
 from typing import TYPE_CHECKING
 
+from fleetrl.runs.fleet_summary import FleetSnapshot, snapshot
 from fleetrl.runs.rundir import WorkerProgress
 
 if TYPE_CHECKING:
-    from rich.console import Console
+    from rich.console import Console, Group
     from rich.live import Live
     from rich.table import Table
 
@@ -29,12 +33,25 @@ class LiveView:
     :param title: shown above the table
     :param threshold: the completion threshold, shown next to the WMA
     :param enabled: ``False`` silences the view entirely
+    :param summarise: show the fleet's summary instead of one row per worker
+    :param members: the units each member of the federation carries (a worker: one; a unit host: its
+        units), for the summary's members online; default one member per unit
     """
 
-    def __init__(self, title: str, threshold: float, enabled: bool = True) -> None:
+    def __init__(
+        self,
+        title: str,
+        threshold: float,
+        enabled: bool = True,
+        *,
+        summarise: bool = False,
+        members: Sequence[Sequence[int]] | None = None,
+    ) -> None:
         self.title = title
         self.threshold = threshold
         self.enabled = enabled
+        self.summarise = summarise
+        self.members = members
         self.console: Console | None = None
         if enabled:
             from rich.console import Console
@@ -45,6 +62,7 @@ class LiveView:
         self._live: Live | None = None
         self._last_plain = 0.0
         self._plain_every = 5.0
+        self._fleet_every = 0.25  # a summary redrawn on a terminal: its quantiles at most this often
 
     def __enter__(self) -> LiveView:
         if self.console is not None and self.console.is_terminal:
@@ -79,15 +97,61 @@ class LiveView:
             )
         return table
 
-    def update(self, progress: dict[int, WorkerProgress], elapsed: float, force: bool = False) -> None:
-        """Redraw (terminal) or print a progress line at most every few seconds (elsewhere)."""
+    def fleet_tables(self, fleet: FleetSnapshot, elapsed: float) -> Group:
+        """The summary as it stands: one table of the fleet's figures, one of its slowest units."""
+        from rich.console import Group
+        from rich.table import Table
+
+        figures = Table(title=f"{self.title}  ·  {elapsed:.0f} s", title_justify="left")
+        for column in ("units completed", f"WMA p10 / median / p90 (→ {self.threshold:g})", "members online"):
+            figures.add_column(column, justify="right")
+        figures.add_row(
+            f"{fleet.completed} of {fleet.units}",
+            " / ".join(_fmt(q) for q in fleet.wma),
+            f"{fleet.members_online} of {fleet.members}",
+        )
+        slowest = Table(title="slowest units (not completed, lowest WMA)", title_justify="left")
+        for column in ("unit", "round", "score", "WMA", "state", "last event"):
+            slowest.add_column(column, justify="right" if column != "state" else "left")
+        for unit, p in fleet.slowest:
+            last = p.events[-1] if p.events else ""
+            slowest.add_row(str(unit), str(p.round), _fmt(p.score), _fmt(p.wma), p.state, last)
+        return Group(figures, slowest)
+
+    def fleet_line(self, fleet: FleetSnapshot) -> str:
+        """The summary as one plain progress line."""
+        p10, median, p90 = (_fmt(q) for q in fleet.wma)
+        slow = ", ".join(f"u{u} r{p.round} wma {_fmt(p.wma)}" for u, p in fleet.slowest) or "none"
+        return (
+            f"completed {fleet.completed}/{fleet.units} | WMA p10 {p10} median {median} p90 {p90} "
+            f"(→ {self.threshold:g}) | slowest: {slow} | "
+            f"members online {fleet.members_online}/{fleet.members}"
+        )
+
+    def update(
+        self,
+        progress: dict[int, WorkerProgress],
+        elapsed: float,
+        force: bool = False,
+        ended: Collection[int] = (),
+    ) -> None:
+        """Redraw (terminal) or print a progress line at most every few seconds (elsewhere); ``ended``: the
+        units whose worker has ended (the summary's members online)."""
         if self.console is None:
             return
-        if self._live is not None:
-            self._live.update(self.table(progress, elapsed))
-            return
         now = time.monotonic()
-        if force or now - self._last_plain >= self._plain_every:
-            self._last_plain = now
-            parts = [f"w{w} r{p.round} wma {_fmt(p.wma)} {p.state}" for w, p in sorted(progress.items())]
-            self.console.print(f"[{elapsed:6.1f}s] " + " | ".join(parts), highlight=False)
+        every = self._plain_every if self._live is None else self._fleet_every if self.summarise else 0.0
+        if not (force or now - self._last_plain >= every):
+            return
+        self._last_plain = now
+        fleet = snapshot(progress, ended, self.members) if self.summarise else None
+        if self._live is not None:
+            shown = self.table(progress, elapsed) if fleet is None else self.fleet_tables(fleet, elapsed)
+            self._live.update(shown)
+            return
+        if fleet is not None:
+            line = self.fleet_line(fleet)
+        else:
+            units = sorted(progress.items())
+            line = " | ".join(f"w{w} r{p.round} wma {_fmt(p.wma)} {p.state}" for w, p in units)
+        self.console.print(f"[{elapsed:6.1f}s] {line}", highlight=False)

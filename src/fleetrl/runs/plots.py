@@ -1,5 +1,7 @@
 """Figure-5-style plots: per worker, the score per round (blue), its WMA (red), the actor loss (green
-dotted, right axis, where the rows carry it), and model transfers as vertical lines.
+dotted, right axis, where the rows carry it), and model transfers as vertical lines. A large fleet's plot
+(:func:`fleet_figure`) is one panel: the fleet's median WMA per round in a 10-90 % band, and the units
+completed by each round on a right axis.
 
 The x-axis counts rounds (one update each) or, with ``x_axis="episodes"``, the episodes played by the end
 of each round; the two differ with the ``paper-code`` preset, whose rounds play several episodes. Every
@@ -19,6 +21,7 @@ import matplotlib.pyplot as plt
 from matplotlib.axes import Axes
 from matplotlib.figure import Figure
 
+from fleetrl.runs.fleet_summary import fleet_rounds
 from fleetrl.runs.records import MetricsRow
 
 XAxis = Literal["rounds", "episodes"]
@@ -31,6 +34,10 @@ SCORE_LABEL = "score (episode return)"
 """the left axis of a worker's panel: the score (blue) and its WMA (red) share it"""
 LOSS_LABEL = r"actor loss $-L^{\mathrm{CLIP}}$ (dotted)"
 """the right axis of a worker's panel: the PPO actor loss, a dimensionless objective"""
+FLEET_WMA_LABEL = "WMA of the last 10 scores\n(fleet median, 10-90 % band)"
+"""the left axis of a fleet's panel: the quantiles of the units' WMA"""
+COMPLETED_LABEL = "units completed (of {units})"
+"""the right axis of a fleet's panel: how many units' criterion had held by each round"""
 
 
 def by_worker(records: list[MetricsRow]) -> dict[int, list[MetricsRow]]:
@@ -94,9 +101,45 @@ def scores_figure(records: list[MetricsRow], title: str = "", x_axis: XAxis = "r
     return fig
 
 
-def plot_run(records: list[MetricsRow], path: Path, title: str = "", x_axis: XAxis = "rounds") -> None:
-    """Draw one panel per worker against rounds or episodes (``x_axis``) and save a PNG at ``path``."""
-    fig = scores_figure(records, title, x_axis)
+def fleet_figure(records: list[MetricsRow], title: str = "", target: float | None = None) -> Figure:
+    """One panel for the whole fleet against rounds: the median of the units' latest WMA with its 10-90 %
+    band, the completion ``target`` (if given) dashed, and the units completed by each round on a right axis
+    (:func:`fleetrl.runs.fleet_summary.fleet_rounds`); the caller saves and closes it."""
+    fleet = fleet_rounds(records)
+    fig, ax = plt.subplots(figsize=(9, 4.2))
+    p10, median, p90 = fleet.wma
+    ax.fill_between(fleet.rounds, p10, p90, color="tab:red", alpha=0.2, lw=0, label="WMA p10-p90")
+    ax.plot(fleet.rounds, median, color="tab:red", lw=1.5, label="WMA median")
+    if target is not None:
+        ax.axhline(target, color="tab:red", ls="--", lw=0.8, label=f"target {target:g}")
+    ax.set_ylabel(FLEET_WMA_LABEL)
+    ax.set_xlabel(X_LABELS["rounds"])
+    ax.grid(alpha=0.3)
+    done_ax = ax.twinx()
+    done_ax.step(fleet.rounds, fleet.completed, where="post", color="black", lw=1.2, label="completed")
+    done_ax.set_ylim(0, max(fleet.units, 1) * 1.05)
+    done_ax.set_ylabel(COMPLETED_LABEL.format(units=fleet.units))
+    lines = ax.get_legend_handles_labels()[0] + done_ax.get_legend_handles_labels()[0]
+    ax.legend(lines, [str(line.get_label()) for line in lines], loc="upper left", fontsize=8)
+    if title:
+        ax.set_title(title, fontsize=10)
+    fig.tight_layout()
+    return fig
+
+
+def plot_run(
+    records: list[MetricsRow],
+    path: Path,
+    title: str = "",
+    x_axis: XAxis = "rounds",
+    *,
+    summarise: bool = False,
+    target: float | None = None,
+) -> None:
+    """Draw one panel per worker against rounds or episodes (``x_axis``), or with ``summarise`` the fleet's
+    panel (:func:`fleet_figure`, against rounds; ``target`` the completion target), and save a PNG at
+    ``path``."""
+    fig = fleet_figure(records, title, target) if summarise else scores_figure(records, title, x_axis)
     fig.savefig(path, dpi=110)
     plt.close(fig)
 

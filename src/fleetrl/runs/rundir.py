@@ -1,5 +1,9 @@
 """A run directory: config.json, metrics.csv, TensorBoard events, models/, summary.json and the plot.
 
+A summarised run (a large fleet: :mod:`fleetrl.runs.fleet_summary`) writes the fleet's scalars to TensorBoard
+(``fleet/completed``, ``fleet/wma_p10`` …) and draws the fleet's plot instead of one series and one panel per
+unit; metrics.csv has one row per unit per round either way.
+
 Files are written as the run goes (every metrics row is flushed), so an interrupted run leaves a valid,
 partial directory; :meth:`RunRecorder.finish` writes the summary and the plot.
 """
@@ -13,6 +17,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from fleetrl.runs.fleet_summary import QUANTILES, snapshot
 from fleetrl.runs.records import CSV_COLUMNS, MetricsRow, read_metrics
 from fleetrl.runs.rig_time import rig_time, waiting_rule
 
@@ -64,6 +69,8 @@ class RunRecorder:
     :param workers: the worker ids taking part
     :param resume_from: continue the run already in ``out`` (``--resume``): worker id → the first round it
         will play again (from its checkpoint); its rows from that round on are dropped, the others kept
+    :param summarise: a large fleet: TensorBoard gets the fleet's scalars once per round (written when the
+        first row of the next round arrives, and at the end), the plot is the fleet's
     """
 
     def __init__(
@@ -72,8 +79,11 @@ class RunRecorder:
         config: dict[str, Any],
         workers: list[int],
         resume_from: dict[int, int] | None = None,
+        *,
+        summarise: bool = False,
     ) -> None:
         self.out = Path(out)
+        self.summarise = summarise
         kept: list[MetricsRow] = []
         if resume_from is not None and (self.out / "metrics.csv").exists():
             kept = [
@@ -105,6 +115,8 @@ class RunRecorder:
         self._csv_file = metrics.open("a", newline="")
         self._csv = csv.writer(self._csv_file)
         self._tb: SummaryWriter | None = None
+        self._fleet_round = max((r.round for r in kept), default=0)
+        """the latest round whose fleet scalars are (or, once a later round begins, will be) written"""
 
     def _board(self) -> "SummaryWriter":
         """The TensorBoard writer, made on the first round (its imports, ~0.3 s, stay out of the start-up)."""
@@ -123,7 +135,12 @@ class RunRecorder:
         self.records.append(record)
         self._csv.writerow(record.csv_row())
         self._csv_file.flush()
+        if self.summarise and record.round > self._fleet_round:  # the round before has begun to end
+            self._board_fleet()
+            self._fleet_round = record.round
         self._progress(record)
+        if self.summarise:  # the fleet's scalars only
+            return
         tag = f"worker_{record.worker}"
         board = self._board()
         if math.isfinite(record.score):
@@ -133,6 +150,19 @@ class RunRecorder:
             value = getattr(record, name)
             if math.isfinite(value):
                 board.add_scalar(f"train/{name}/{tag}", value, record.round)
+
+    def _board_fleet(self) -> None:
+        """The fleet's scalars at the latest round seen, from every unit's progress so far (nothing before
+        the first round)."""
+        if self._fleet_round < 1:
+            return
+        fleet = snapshot(self.progress)
+        board = self._board()
+        board.add_scalar("fleet/completed", fleet.completed, self._fleet_round)
+        for q, value in zip(QUANTILES, fleet.wma, strict=True):
+            name = "wma_median" if q == 50 else f"wma_p{q:g}"
+            if math.isfinite(value):
+                board.add_scalar(f"fleet/{name}", value, self._fleet_round)
 
     def _progress(self, record: MetricsRow) -> None:
         progress = self.progress.setdefault(record.worker, WorkerProgress())
@@ -203,12 +233,18 @@ class RunRecorder:
         """Close the files, write summary.json and the plot; returns the summary."""
         self.finished = True
         self._csv_file.close()
+        if self.summarise:
+            self._board_fleet()
         self._board().close()  # a run without a round has its (empty) events file too
         summary = self.summary()
         write_json_atomic(self.out / "summary.json", summary)
         from fleetrl.runs.plots import plot_run  # matplotlib loads only when a run ends
 
         title = _plot_title(self.config)
+        if self.summarise:  # the fleet's panel, against rounds
+            target = self.config.get("completion_threshold")
+            plot_run(self.records, self.out / "scores.png", title=title, summarise=True, target=target)
+            return summary
         plot_run(self.records, self.out / "scores.png", title=title)
         if any(r.episodes > 1 for r in self.records):  # rounds of several episodes: both x-axes
             plot_run(self.records, self.out / "scores-by-episode.png", title=title, x_axis="episodes")

@@ -20,7 +20,7 @@ import math
 import platform
 from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import Any, get_type_hints
+from typing import Any, Literal, get_type_hints
 
 from fleetrl.agent.config import PPOConfig, get_preset
 from fleetrl.envs.catalog import describe_env, get_env_spec
@@ -28,7 +28,14 @@ from fleetrl.federation.aggregation import get_aggregator
 from fleetrl.federation.schemes import DEFAULT_SCHEME, get_scheme
 from fleetrl.federation.schemes.paper import PaperScheme
 from fleetrl.federation.shared_settings import LearningSettings
-from fleetrl.runs.host_settings import host_setting_problem
+from fleetrl.runs.host_settings import (
+    AUTO,
+    auto_units_per_host,
+    host_setting_problem,
+    hosts_possible,
+    usable_cores,
+)
+from fleetrl.runs.memory_fit import run_memory_problem
 from fleetrl.runs.setting_values import (
     SettingError,
     check_readable_file,
@@ -57,8 +64,9 @@ __all__ = [
 MODES = ("individual", "federated")
 TRANSPORTS = ("mqtt", "local")
 DEVICE_LINKS = ("inprocess", "mqtt")
-NOT_RESULT_SETTINGS = ("out", "live", "broker", "broker_password_file")
-"""settings that cannot change what a run learns (where it writes, the live view, the broker's address)"""
+NOT_RESULT_SETTINGS = ("out", "live", "per_unit_detail", "broker", "broker_password_file")
+"""settings that cannot change what a run learns (where it writes, the live view and the plot, the broker's
+address)"""
 ALONE_SCHEME = PaperScheme.name
 """the scheme of a run whose units learn alone (``--mode individual``): its learners stop at completion, and
 the result settings stay those of the individual runs made before federated runs took another default"""
@@ -273,10 +281,10 @@ class RunSettings(RoundRules, BrokerLogin):
     """``individual`` (each unit alone, the paper's Fig. 5a) or ``federated`` (Algorithms 1 and 2)"""
     units: int = 3
     """units in the fleet, one worker each"""
-    units_per_host: int = 1
+    units_per_host: int | Literal["auto"] = 1
     """units each in-process worker carries (a unit host: their envs stepped together, one policy acting
     for all of them in one pass, one gradient per exchange; federated, local transport, pergrad); 1: one
-    worker per unit"""
+    worker per unit; ``auto``: about one host per core above 16 units where the run can have hosts, else 1"""
     transport: str = "mqtt"
     """federated: ``mqtt`` (a real broker, workers in processes) or ``local`` (in-process bus, threads)"""
     device_link: str = "inprocess"
@@ -288,6 +296,10 @@ class RunSettings(RoundRules, BrokerLogin):
     bridges serve its simulated units)"""
     live: bool = True
     """show the live terminal view"""
+    per_unit_detail: bool = False
+    """show every unit however large the fleet: one plot panel, one live-view row and one TensorBoard
+    series per unit (by default a fleet of more than 16 units is summarised: units completed, WMA
+    quantiles, the slowest units)"""
     uneven: UnevenFleet = field(default_factory=UnevenFleet)
     """how the simulated fleet is made uneven (its fields are settings of their own: ``--pace``, ``--slow``,
     ``--link-delay``, ``--absent``, ``--absent-rounds``); not a learning setting, never shared at join"""
@@ -315,27 +327,53 @@ class RunSettings(RoundRules, BrokerLogin):
                 f"{label('link_delay')} delays the messages of a federated run: it needs --mode federated"
             )
         self.validate_device_link(learning)
+        per_host = self.chosen_units_per_host(learning, uneven.even)
+        scheme_of, ppo = learning.federation_scheme(), learning.ppo()
         hosts = host_setting_problem(
-            self.units_per_host, mode=self.mode, transport=self.transport,
-            scheme=learning.federation_scheme(), ppo=learning.ppo(), even=uneven.even,
-        )  # fmt: skip
+            per_host, mode=self.mode, transport=self.transport, scheme=scheme_of, ppo=ppo, even=uneven.even
+        )
         if hosts is not None:
             raise SettingError(f"{label('units_per_host')} = {self.units_per_host}: {hosts}")
+        can_host = hosts_possible(
+            mode="federated", transport="local", scheme=scheme_of, ppo=ppo, even=uneven.even
+        )
+        memory = run_memory_problem(self.units, self.mode, self.transport, per_host, hosts_possible=can_host)
+        if memory is not None:
+            raise SettingError(memory)
         if (self.out / "metrics.csv").exists():
             raise SettingError(f"{label('out')} = {str(self.out)!r} already holds a run; choose another")
         check_writable_dir("out", self.out)
-        return replace(self, learning=learning, quorum=quorum, uneven=uneven)
+        return replace(self, learning=learning, quorum=quorum, uneven=uneven, units_per_host=per_host)
+
+    def chosen_units_per_host(self, learning: LearningSettings, even: bool) -> int:
+        """``units_per_host`` as a number: ``auto`` chooses for this run (:func:`auto_units_per_host`: 1 up
+        to 16 units or where the run cannot have hosts, else about one host per core)."""
+        if self.units_per_host != AUTO:
+            return self.units_per_host
+        possible = hosts_possible(
+            mode=self.mode, transport=self.transport, scheme=learning.federation_scheme(),
+            ppo=learning.ppo(), even=even,
+        )  # fmt: skip
+        return auto_units_per_host(self.units, possible=possible, cores=usable_cores())
+
+    @property
+    def per_host(self) -> int:
+        """The units each in-process worker carries (the settings are resolved: ``auto`` is a number)."""
+        assert self.units_per_host != AUTO, "resolved() chooses the units per host"
+        return self.units_per_host
 
     def learning_resolved(self) -> RunSettings:
         """These settings with their learning settings resolved (:func:`resolve_learning`; the scheme by
         default :data:`ALONE_SCHEME` for units alone, else the default scheme), the quorum (the scheme's own
         unless given) and the uneven fleet's units named as a resolved run names them, nothing else
-        checked: what :meth:`result_settings` needs, without building an agent."""
+        checked (``auto`` units per host chosen): what :meth:`result_settings` needs, without building an
+        agent."""
         scheme = ALONE_SCHEME if self.mode == "individual" else DEFAULT_SCHEME
         learning = resolve_learning(self.learning, default_scheme=scheme)
         uneven = self.uneven.resolved_uneven(get_env_spec(learning.env).control_period, self.units)
         quorum = learning.federation_scheme().default_quorum if self.quorum is None else self.quorum
-        return replace(self, learning=learning, quorum=quorum, uneven=uneven)
+        per_host = self.chosen_units_per_host(learning, uneven.even)
+        return replace(self, learning=learning, quorum=quorum, uneven=uneven, units_per_host=per_host)
 
     def validate_device_link(self, learning: LearningSettings) -> None:
         """With device bridges: the unit type can be reached through a link, and its driver function (a
@@ -372,9 +410,10 @@ class RunSettings(RoundRules, BrokerLogin):
         """config.toml of the run directory: every setting (no password), so that
         ``fleetrl train --config runs/x/config.toml --out runs/y`` reruns the run. An uneven-fleet setting at
         its default is left out (an even run's file is the one written before those settings existed), and
-        so is ``units_per_host`` at 1."""
+        so are ``units_per_host`` at 1 and ``per_unit_detail`` off."""
         hosts = ("units_per_host",) if self.units_per_host == 1 else ()
-        table = toml_values(self, leave_out=(*self.uneven.default_names(), *hosts))
+        detail = () if self.per_unit_detail else ("per_unit_detail",)
+        table = toml_values(self, leave_out=(*self.uneven.default_names(), *hosts, *detail))
         if self.broker is not None:
             table["broker"] = self.public_broker
         header = (

@@ -1,0 +1,172 @@
+"""Whether a run fits this machine's memory, checked with the settings before anything starts.
+
+The estimate adds up measured costs (``python benchmarks/run_memory.py`` on the development machine: 2 cores,
+24 GiB, CartPole, the peak of the process tree's summed proportional set sizes over a short run): the
+``fleetrl train`` process itself (imports, chief, recorder), each worker process, each unit run as a worker
+thread, each unit host and each unit it carries. It is compared with the memory the kernel says is
+available (``MemAvailable`` in /proc/meminfo; where there is no such file the check is skipped), keeping
+:data:`HEADROOM` of it free for what the short runs did not hold (a long run's rows, longer episodes). A
+run that does not fit is refused with one line that says what fits and what to type instead. Device
+bridges (``--device-link mqtt``: threads of the command) are not counted.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from pathlib import Path
+
+from fleetrl.runs.host_settings import units_per_core, usable_cores
+
+MB = 2**20
+
+COMMAND_MB = 320.0
+"""the ``fleetrl train`` process itself: torch and fleetrl imported, the chief, the run's recorder (measured
+310 MB: benchmarks/run_memory.py, part ``thread``, the intercept)"""
+FORKED_WORKER_MB = 145.0
+"""a worker process forked from the command (the default where the OS has ``fork``: it shares the command's
+imported pages) carrying one unit (measured 127 and 142 MB: benchmarks/run_memory.py, part ``process``)"""
+SPAWNED_WORKER_MB = 275.0
+"""a worker process started afresh (``FLEETRL_WORKER_START=spawn``, or no ``fork``): it imports torch and
+fleetrl itself (measured 272 MB: benchmarks/run_memory.py, part ``spawned``; its resident set is ~400 MB,
+of which the shared libraries' pages count once across the processes)"""
+THREAD_UNIT_MB = 6.5
+"""a unit run as its own worker thread of the command (``--transport local``): its env, learner and agent
+(measured 6.5 MB: benchmarks/run_memory.py, part ``thread``)"""
+HOST_MB = 5.0
+"""a unit host's own cost: its agent, optimiser and worker (measured 4.3 MB: benchmarks/run_memory.py, part
+``host``)"""
+HOSTED_UNIT_MB = 2.0
+"""each unit a host carries: its env, trajectory memory and criterion (measured 1.8 MB:
+benchmarks/run_memory.py, part ``host``)"""
+HEADROOM = 0.2
+"""the share of the available memory a run leaves free"""
+MEMINFO = Path("/proc/meminfo")
+
+
+def available_mb(meminfo: Path = MEMINFO) -> float | None:
+    """The memory the kernel says is available to new work (MB), or None where it does not say (no
+    /proc/meminfo, or no ``MemAvailable`` line: the check is skipped)."""
+    try:
+        lines = meminfo.read_text().splitlines()
+    except OSError:
+        return None
+    for line in lines:
+        if line.startswith("MemAvailable:"):
+            return int(line.split()[1]) * 1024 / MB
+    return None
+
+
+@dataclass(frozen=True)
+class RunLayout:
+    """Where a run's units live: worker processes, worker threads of the command, or unit hosts."""
+
+    units: int
+    """units in the fleet"""
+    processes: bool
+    """each unit is a worker process (``--mode individual``, or ``--transport mqtt``)"""
+    per_host: int = 1
+    """units each in-process worker carries (1: a worker thread per unit)"""
+    forked: bool = True
+    """worker processes are forked from the command (else spawned)"""
+
+    @classmethod
+    def of(cls, units: int, mode: str, transport: str, per_host: int, forked: bool) -> RunLayout:
+        """The layout of a run of these settings."""
+        processes = mode == "individual" or transport == "mqtt"
+        return cls(units, processes, 1 if processes else per_host, forked)
+
+    @property
+    def hosts(self) -> int:
+        """Unit hosts (0: none)."""
+        return 0 if self.processes or self.per_host == 1 else math.ceil(self.units / self.per_host)
+
+    def estimate_mb(self) -> float:
+        """The memory the run is expected to hold at its peak (MB)."""
+        if self.processes:
+            return COMMAND_MB + self.units * (FORKED_WORKER_MB if self.forked else SPAWNED_WORKER_MB)
+        if self.hosts:
+            return COMMAND_MB + self.hosts * HOST_MB + self.units * HOSTED_UNIT_MB
+        return COMMAND_MB + self.units * THREAD_UNIT_MB
+
+    def described(self) -> str:
+        """How the layout holds its units, in words."""
+        if self.processes:
+            each = FORKED_WORKER_MB if self.forked else SPAWNED_WORKER_MB
+            return f"{self.units} worker processes of ~{each:.0f} MB"
+        if self.hosts:
+            return f"{self.hosts} unit hosts of {self.per_host} units"
+        return f"{self.units} worker threads of ~{THREAD_UNIT_MB:.0f} MB"
+
+    def most_units(self, budget_mb: float) -> int:
+        """The most units this layout holds within ``budget_mb`` (0: not even one)."""
+        low, high = 0, max(self.units, 1)
+        while RunLayout(high, self.processes, self.per_host, self.forked).estimate_mb() <= budget_mb:
+            low, high = high, high * 2
+        while high - low > 1:  # estimate_mb grows with the units: bisect
+            middle = (low + high) // 2
+            fits = RunLayout(middle, self.processes, self.per_host, self.forked).estimate_mb() <= budget_mb
+            low, high = (middle, high) if fits else (low, middle)
+        return low
+
+
+def memory_problem(
+    layout: RunLayout,
+    available: float | None,
+    *,
+    threads_possible: bool,
+    hosts_possible: bool,
+    cores: int,
+) -> str | None:
+    """Why ``layout`` does not fit ``available`` MB (one line: what it needs, what fits, what to type
+    instead), or None when it fits or nothing is known of the memory. ``threads_possible``: the run can
+    have its workers in-process (federated); ``hosts_possible``: its scheme and settings allow unit hosts
+    (then the advice is hosts of about one per ``cores``)."""
+    if available is None:
+        return None
+    budget = available * (1 - HEADROOM)
+    need = layout.estimate_mb()
+    if need <= budget:
+        return None
+    hosted = RunLayout(layout.units, False, units_per_core(layout.units, cores), layout.forked)
+    threads = RunLayout(layout.units, False, 1, layout.forked)
+    if hosts_possible and hosted.estimate_mb() <= budget:
+        instead = f"--transport local --units-per-host {hosted.per_host} (about {_gb(hosted.estimate_mb())})"
+    elif threads_possible and layout.processes and threads.estimate_mb() <= budget:
+        instead = f"--transport local (worker threads, about {_gb(threads.estimate_mb())})"
+    else:
+        best = hosted if hosts_possible else threads if threads_possible else layout
+        most = best.most_units(budget)
+        how = f" --transport local --units-per-host {best.per_host}" if best.hosts else ""
+        instead = f"--units {most}{how}" if most else "a machine with more memory"
+    return (
+        f"--units {layout.units}: {layout.described()} need about {_gb(need)} but this machine has "
+        f"{_gb(available)} available (a run leaves {HEADROOM:.0%} of it free): at most "
+        f"{layout.most_units(budget)} units fit this way; type {instead} instead"
+    )
+
+
+def _gb(mb: float) -> str:
+    return f"{mb / 1024:.1f} GB"
+
+
+def run_memory_problem(
+    units: int, mode: str, transport: str, per_host: int, *, hosts_possible: bool
+) -> str | None:
+    """:func:`memory_problem` of a run of these settings on this machine: its worker processes forked or
+    spawned as :mod:`fleetrl.runs.processes` will start them, its available memory from /proc/meminfo."""
+    from fleetrl.runs.processes import fork_available
+
+    try:
+        forked = fork_available()
+    except ValueError:  # a bad FLEETRL_WORKER_START: the run refuses it when it starts its workers
+        forked = False
+    layout = RunLayout.of(units, mode, transport, per_host, forked)
+    federated = mode == "federated"
+    return memory_problem(
+        layout,
+        available_mb(),
+        threads_possible=federated,
+        hosts_possible=federated and hosts_possible,
+        cores=usable_cores(),
+    )
