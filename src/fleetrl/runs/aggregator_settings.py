@@ -9,9 +9,10 @@ from typing import Any
 
 from fleetrl.federation.edge import check_tree
 from fleetrl.federation.topics import validate_id, validate_worker_id
+from fleetrl.runs.learning_resolution import as_setting_error, positive
 from fleetrl.runs.role_settings import RoleSettings
 from fleetrl.runs.setting_values import SettingError, label
-from fleetrl.runs.settings import RoundRules, as_setting_error, positive
+from fleetrl.runs.settings import RoundRules
 
 
 @dataclass(frozen=True, kw_only=True)

@@ -11,6 +11,7 @@ from typing import Any
 from fleetrl.envs.catalog import get_env_spec
 from fleetrl.federation.signing import FleetKey
 from fleetrl.federation.topics import validate_id
+from fleetrl.runs.learning_resolution import positive
 from fleetrl.runs.setting_values import SettingError, check_readable_file, check_writable_dir, label
 from fleetrl.runs.settings import (
     DEVICE_LINKS,
@@ -21,7 +22,6 @@ from fleetrl.runs.settings import (
     as_setting_error,
     choose,
     path_text,
-    positive,
     resolve_and_probe,
 )
 from fleetrl.runs.spec import WorkerSpec

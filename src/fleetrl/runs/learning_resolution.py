@@ -1,0 +1,139 @@
+"""The learning settings resolved once before anything starts: every default filled in, every value checked
+(env, preset, scheme, overrides, target), and the fleet's shape the chief needs before any worker exists.
+
+Shared by every command that starts a run (:mod:`fleetrl.runs.settings`, :mod:`fleetrl.runs.role_settings`);
+the small checks (:func:`choose`, :func:`positive`, :func:`as_setting_error`) turn a lower layer's ValueError
+into a :class:`~fleetrl.runs.setting_values.SettingError` naming the setting.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, replace
+from typing import Any, get_type_hints
+
+from fleetrl.agent.config import PPOConfig, get_preset
+from fleetrl.envs.catalog import describe_env, get_env_spec
+from fleetrl.federation.schemes import DEFAULT_SCHEME, get_scheme
+from fleetrl.federation.shared_settings import LearningSettings
+from fleetrl.runs.setting_values import SettingError, coerce, label
+
+
+def choose(name: str, value: str, choices: tuple[str, ...]) -> None:
+    """SettingError unless ``value`` is one of ``choices``."""
+    if value not in choices:
+        what = name.replace("_", " ")
+        raise SettingError(f"{label(name)}: unknown {what} {value!r} (choose {' or '.join(choices)})")
+
+
+def positive(name: str, value: float | None, *, allow_zero: bool = False) -> None:
+    """SettingError unless ``value`` (if set) is > 0 (or ≥ 0)."""
+    if value is not None and not (value >= 0 if allow_zero else value > 0):
+        bound = "≥ 0" if allow_zero else "> 0"
+        raise SettingError(f"{label(name)} = {value!r}: must be {bound}")
+
+
+def as_setting_error(name: str, check: Any, *args: Any) -> Any:
+    """Run a lower layer's own check; its ValueError becomes a SettingError naming the setting."""
+    try:
+        return check(*args)
+    except SettingError:
+        raise
+    except ValueError as err:
+        raise SettingError(f"{label(name)}: {err}") from None
+
+
+def resolve_learning(learning: LearningSettings, *, default_scheme: str = DEFAULT_SCHEME) -> LearningSettings:
+    """``learning`` with every default filled in (the fleet profile's name, ``default_scheme`` if none is
+    named, the scheme's parameters, the typed overrides, the unit type's target score) and every value
+    checked (env, preset, scheme and its parameters, M, seeds, every PPO override's name, type and range;
+    unit 0 of the env is built once). A new value; SettingError naming the first setting that cannot work.
+    No agent is built (:func:`resolve_and_probe` builds one)."""
+    resolved, _ = _resolve(learning, default_scheme, probe=False)
+    return resolved
+
+
+def resolve_and_probe(
+    learning: LearningSettings, *, default_scheme: str = DEFAULT_SCHEME
+) -> tuple[LearningSettings, FleetShape]:
+    """:func:`resolve_learning`, and the fleet's shape read from the one agent built for it (so the env's
+    spaces are known to fit the agent, and the scheme to run with the preset)."""
+    resolved, shape = _resolve(learning, default_scheme, probe=True)
+    assert shape is not None
+    return resolved, shape
+
+
+def _resolve(
+    learning: LearningSettings, default_scheme: str, *, probe: bool
+) -> tuple[LearningSettings, FleetShape | None]:
+    env = as_setting_error("env", get_env_spec, learning.env)
+    profile = as_setting_error("fleet_profile", env.resolve_fleet_profile, learning.fleet_profile)
+    as_setting_error("preset", get_preset, learning.preset)
+    scheme = default_scheme if learning.scheme is None else learning.scheme
+    as_setting_error("scheme", get_scheme, scheme)
+    params = as_setting_error("scheme_params", lambda: get_scheme(scheme, **learning.scheme_params).params())
+    if learning.max_rounds < 1:
+        raise SettingError(f"{label('max_rounds')} = {learning.max_rounds}: must be at least 1")
+    if learning.seed < 0 or learning.fleet_seed < 0:
+        raise SettingError(f"{label('seed')}, {label('fleet_seed')}: must be non-negative integers")
+    overrides = typed_overrides(learning.overrides)
+    as_setting_error("overrides", replace(get_preset(learning.preset), **overrides).validate)
+    target = learning.target_score
+    if target is not None and not math.isfinite(target):
+        raise SettingError(f"{label('target_score')} = {target}: must be a finite number")
+    unit = as_setting_error("env", describe_env, learning.env)  # builds unit 0: a bad factory fails here
+    resolved = replace(
+        learning, fleet_profile=profile, scheme=scheme, scheme_params=params, overrides=overrides
+    )
+    agent = _probe_agent(resolved) if probe else None  # before the target: the agent is the deeper fault
+    if target is None:
+        target = as_setting_error("target_score", env.default_target, unit)
+    resolved = replace(resolved, target_score=target)
+    return resolved, None if agent is None else fleet_shape(resolved, agent)
+
+
+def _probe_agent(learning: LearningSettings) -> Any:
+    from fleetrl.runs.factory import probe_agent  # torch: only once the cheap checks passed
+
+    return as_setting_error("env", probe_agent, learning.env, learning.ppo())
+
+
+def typed_overrides(overrides: dict[str, Any]) -> dict[str, Any]:
+    """The ``--set`` overrides, each as its PPOConfig field's type; SettingError naming an unknown one."""
+    hints = get_type_hints(PPOConfig)
+    unknown = sorted(set(overrides) - set(hints))
+    if unknown:
+        raise SettingError(
+            f"--set {', '.join(unknown)}: unknown PPO setting(s) (known: {', '.join(sorted(hints))})"
+        )
+    return {k: coerce(f"--set {k}", v, hints[k]) for k, v in overrides.items()}
+
+
+@dataclass(frozen=True)
+class FleetShape:
+    """What the chief of resolved learning settings needs before any worker exists."""
+
+    layout: list[tuple[str, tuple[int, ...]]]
+    """names and shapes of what the scheme shares (the chief validates every message with it)"""
+    exchanges_per_round: int
+    """the chief's ``steps_per_round``: 1, or the optimisation steps of an update for a per-step scheme"""
+
+
+def fleet_shape(learning: LearningSettings, agent: Any = None) -> FleetShape:
+    """The shape of a fleet of resolved ``learning`` settings, read from ``agent`` or else from one agent
+    built for it (torch); SettingError if the env's spaces do not fit the agent or the scheme cannot run
+    with the preset."""
+    agent = _probe_agent(learning) if agent is None else agent
+    scheme = learning.federation_scheme()
+    steps = as_setting_error("scheme", scheme.exchanges_per_round, agent)
+    return FleetShape(list(scheme.layout(agent)), steps)
+
+
+def result_target_score(learning: LearningSettings) -> dict[str, float]:
+    """``target_score`` as a result setting: none for a built-in at its own target, so that the records of
+    built-in runs made before the setting existed keep their keys (like an empty ``scheme_params``)."""
+    spec = get_env_spec(learning.env)
+    if spec.builtin and learning.target_score == spec.declared_target:
+        return {}
+    assert learning.target_score is not None, "resolve_learning fills in the target score"
+    return {"target_score": learning.target_score}
