@@ -168,6 +168,25 @@ def test_a_per_round_memory_is_emptied_by_the_update(memory: str, left: int) -> 
     assert agent.needs_more_episodes() == (memory == "per_round")
 
 
+@pytest.mark.parametrize(("memory", "left"), [("ring", 200), ("per_round", 0)])
+def test_an_abandoned_update_keeps_the_steps_applied_and_the_next_update_runs(memory: str, left: int) -> None:
+    agent = agent_with_memory("standard", n=300, trajectory_memory=memory, memory_size=200)
+    before = agent.model_parameters().copy()
+    agent.begin_update()
+    agent.apply_step(agent.step_gradients(0))
+    stepped = agent.model_parameters().copy()
+    agent.abandon_update()
+    assert not np.array_equal(stepped, before) and np.array_equal(agent.model_parameters(), stepped)
+    assert len(agent.memory) == left
+    with pytest.raises(RuntimeError, match="no update under way"):
+        agent.end_update()
+    rng = np.random.default_rng(1)
+    for i in range(200):  # the next round's play, then a whole update through the step API
+        obs = rng.normal(size=OBS_DIM).astype(np.float32)
+        agent.remember(obs, agent.act(obs), 1.0, obs, terminated=(i % 40 == 39), truncated=False)
+    assert len(step_by_step(agent)) == agent.update_step_count()
+
+
 def test_the_critic_weight_scales_the_critic_gradient_only() -> None:
     torch.set_num_threads(1)
     unit = agent_with_memory("paper", critic_coef=1.0)

@@ -1,6 +1,7 @@
 """A per-step scheme's worker machine (no threads, transport or clock): each update step exchanged keyed
-(round, step), ``done`` and lost answers inside a round, a resumed worker replaying closed steps, and a
-straggler applying the fleet's answers it missed before joining the fleet's next round with its staleness."""
+(round, step), ``done`` and a fleet gone past the worker's step inside a round, a resumed worker replaying
+closed steps, and a straggler applying the fleet's answers it missed before joining the fleet's next round
+with its staleness."""
 
 from __future__ import annotations
 
@@ -9,9 +10,10 @@ from typing import Any
 import numpy as np
 
 from fleetrl.federation.chief import Chief
-from fleetrl.federation.events import Sent
+from fleetrl.federation.events import Sent, WorkerEvent
 from fleetrl.federation.messages import Message
 from fleetrl.federation.rounds import (
+    AbandonUpdate,
     ApplyFleetStep,
     ApplyStep,
     BeginUpdate,
@@ -99,7 +101,7 @@ def test_the_per_step_exchange_keyed_by_step() -> None:
     assert m.tick(now=0.0).actions == (Checkpoint(3), PlayRound(3))
 
 
-def test_done_or_a_lost_answer_mid_round_ends_without_a_record() -> None:
+def test_done_mid_round_ends_without_a_record() -> None:
     m = machine(steps=4)
     welcomed(m, 1)
     collected(m)
@@ -111,13 +113,24 @@ def test_done_or_a_lost_answer_mid_round_ends_without_a_record() -> None:
     ended = m.receive(Message("done", RUN, "chief", 1), now=11.0)
     assert not records(ended) and m.summary is not None
     assert (m.summary.rounds, m.summary.reason) == (0, "run ended")
+
+
+def test_a_fleet_gone_past_the_worker_s_step_ends_its_update_records_the_round_and_takes_its_model() -> None:
     m = machine(steps=4)
     welcomed(m, 3)
     collected(m, completed=True)
     m.update_begun(4, now=0.0)
     assert m.step_computed(0, FLAT, now=0.0).published[0].type == "parameters"
-    m.receive(answer(3, 2), now=0.0)  # step 0's and 1's answers never came
-    assert m.summary is not None and (m.summary.rounds, m.summary.reason) == (2, "out of step with the fleet")
+    overtaken = m.receive(answer(3, 2), now=0.0)  # step 0's and 1's answers never came
+    assert overtaken.actions == (AbandonUpdate(),) and m.summary is None
+    over = m.round_played(Outcome(completed=True), now=1.0)  # type: ignore[arg-type]
+    (record,) = records(over)
+    assert (record.record.round, record.record.event) == (3, WorkerEvent.LATE)
+    assert over.published[-1].type == "join" and m.summary is None  # joins again for the fleet's model
+    model = np.arange(15, dtype=np.float32)
+    back = m.receive(Message("welcome", RUN, "chief", 3, step=3, flat=model, origin="chief"), now=2.0)
+    assert [type(a) for a in back.actions] == [TakeParameters, PlayRound] and back.actions[1] == PlayRound(3)
+    assert m.fleet_at == (3, 3)
 
 
 def test_a_straggler_applies_what_the_fleet_did_and_joins_its_next_round_with_the_staleness() -> None:

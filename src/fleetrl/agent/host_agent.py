@@ -102,6 +102,10 @@ class HostAgent(PPOAgent):
 
     # ---- learning ----
 
+    def _clear_round_memory(self) -> None:
+        for memory in self.memories:
+            memory.clear()
+
     def update_steps(self) -> Generator[Gradient, Gradient, UpdateStats]:
         """The host's update (:func:`~fleetrl.agent.host_update.host_update`) as a generator, like
         :meth:`PPOAgent.update_steps`; keeps each unit's statistics in :attr:`unit_stats`.

@@ -249,6 +249,22 @@ class PPOAgent:
         self._exchange = None
         return exchange.stats
 
+    def abandon_update(self) -> None:
+        """Drop the update under way before its last step (the fleet went on past this agent's step: it
+        takes the fleet's model next). The steps applied stay; the acting copy follows θ; the round's
+        transitions are dropped where a round's memory is its own (``per_round``).
+
+        :raises RuntimeError: no update under way
+        """
+        self._exchange_under_way().abandon()
+        self._exchange = None
+        self._policy.refresh(self.net)
+        if self.config.trajectory_memory == "per_round":
+            self._clear_round_memory()
+
+    def _clear_round_memory(self) -> None:
+        self.memory.clear()
+
     def _exchange_under_way(self) -> StepExchange:
         if self._exchange is None:
             raise RuntimeError("no update under way: call begin_update() first")

@@ -252,6 +252,11 @@ class StepExchange:
         self._advance(lambda: self._steps.send(applied))
         self.step += 1
 
+    def abandon(self) -> None:
+        """Stop the update before its last step: the steps applied stay, nothing after them runs."""
+        self._steps.close()
+        self.gradient, self.taken = None, False
+
     def _advance(self, resume: Callable[[], Gradient]) -> None:
         self.taken = False
         try:

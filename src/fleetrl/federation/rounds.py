@@ -214,6 +214,11 @@ class EndUpdate:
 
 
 @dataclass(frozen=True)
+class AbandonUpdate:
+    """The fleet went on past this worker's step: ``agent.abandon_update()`` and let the round finish."""
+
+
+@dataclass(frozen=True)
 class Record:
     """A round is over: hand its record to ``on_record``."""
 
@@ -258,6 +263,7 @@ WorkerOutput = (
     | BeginUpdate
     | ComputeStep
     | ApplyStep
+    | AbandonUpdate
     | ApplyFleetStep
     | EndUpdate
     | Record

@@ -76,6 +76,8 @@ class StepWorkerMachine(WorkerMachine):
         self._last_answer: Message | None = None
         self._wait_until: float | None = None
         self._rejoining = False
+        self._overtaken: Message | None = None
+        """a later answer that came while this worker waited for its own step's: its update was abandoned"""
 
     # ---- reports of the runner ----
 
@@ -116,11 +118,17 @@ class StepWorkerMachine(WorkerMachine):
     def round_played(
         self, outcome: RoundResult, *, now: float, share: tuple[str, np.ndarray] | None = None
     ) -> WorkerStep:
-        """Every step of the round's update was applied: record the round."""
-        del now, share
+        """Every step of the round's update was applied: record the round. An update abandoned because the
+        fleet went on past it is recorded as ``late``, and the worker takes the fleet's model again."""
+        del share
         reply = self._last_answer
         if self.phase is not Phase.STEPS_DONE:
             raise RuntimeError(f"worker {self.worker_id}: round {self.round} ended without its steps")
+        if self._overtaken is not None:
+            overtaken, self._overtaken = self._overtaken, None
+            recorded = self._round_over(outcome, overtaken, WorkerEvent.LATE, None, False)
+            self._rejoining = True
+            return recorded + self.start(now=now)
         if reply is None:
             raise RuntimeError(f"worker {self.worker_id}: round {self.round} ended without an exchange")
         if reply.type == "done":
@@ -151,10 +159,19 @@ class StepWorkerMachine(WorkerMachine):
     def _answered(self, reply: Message) -> WorkerStep:
         """The chief's answer to this worker's step (Algorithm 2, lines 21 and 23, with the fleet's
         gradient)."""
-        if reply.type == "done" or (reply.round, reply.step) != (self.round, self._step):
-            # the run ended (or an answer was lost) inside the round
-            why = "run ended" if reply.type == "done" else "out of step with the fleet"
-            return self._finish(WorkerSummary(self.worker_id, self.round - 1, finished=False, reason=why))
+        if reply.type == "done":  # the run ended inside the round
+            return self._finish(
+                WorkerSummary(self.worker_id, self.round - 1, finished=False, reason="run ended")
+            )
+        if (reply.round, reply.step) != (self.round, self._step):
+            # the fleet went on past this step (its answer was lost, say with a restarted broker): the update
+            # stops here, the round is recorded, and the worker takes the fleet's model again
+            log.warning(
+                "worker %s: the fleet is at round %d step %d, past this worker's step %d of round %d; taking "
+                "the fleet's model again", self.worker_id, reply.round, reply.step, self._step, self.round,
+            )  # fmt: skip
+            self._overtaken, self.phase = reply, Phase.STEPS_DONE
+            return WorkerStep((act.AbandonUpdate(),))
         if reply.flat is None:
             raise AssertionError("decode guarantees tensors for an average")
         self._last_answer, self.fleet_at = reply, self._after(reply)

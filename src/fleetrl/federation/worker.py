@@ -43,6 +43,7 @@ from typing import Any
 
 from fleetrl.federation.messages import Layout, RoundConfig
 from fleetrl.federation.rounds import (
+    AbandonUpdate,
     Announce,
     ApplyAverage,
     ApplyFleetStep,
@@ -234,6 +235,8 @@ class FederatedWorker:
                 self.scheme.apply_step_answer(agent, flat)
             case EndUpdate():
                 self._end_round()
+            case AbandonUpdate():
+                self._end_round(abandoned=True)
             case Record(record):
                 if self.on_record is not None:
                     self.on_record(record)
@@ -269,10 +272,16 @@ class FederatedWorker:
         assert isinstance(self.machine, StepWorkerMachine), "per-step actions come to a per-step scheme"
         return self.machine
 
-    def _end_round(self) -> None:
-        """Every step of a per-step round was applied: finish the update and report the round."""
+    def _end_round(self, *, abandoned: bool = False) -> None:
+        """Every step of a per-step round was applied (or the fleet went on past this worker's step:
+        ``abandoned``): finish the update and report the round."""
         played, self._played = self._played, None
-        stats = self.learner.agent.end_update() if played.updates else None
+        agent = self.learner.agent
+        stats = None
+        if abandoned:
+            agent.abandon_update()
+        elif played.updates:
+            stats = agent.end_update()
         result = self.learner.end_round(played, stats)
         self._queue.extend(self.machine.round_played(result, now=self.clock()).outputs)
 

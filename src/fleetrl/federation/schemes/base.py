@@ -133,6 +133,10 @@ class FederatedAgent(Protocol):
         """Finish the update (every step applied); its statistics."""
         ...
 
+    def abandon_update(self) -> None:
+        """Drop the update under way before its last step (the fleet went on past it)."""
+        ...
+
 
 ExtraLoss: TypeAlias = "Callable[[torch.nn.Module], torch.Tensor]"
 """A term added to the loss of every optimisation step of local training: ``fn(model) -> scalar tensor``
