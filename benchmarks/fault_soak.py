@@ -5,8 +5,8 @@ checked after.
 Faults, one per run, chosen at random: kill -9 of a random worker that is restarted with ``--resume``; kill -9
 of a random worker that stays dead; kill -9 of the chief, restarted with ``--resume``; kill -9 of the broker,
 restarted; a worker added mid-run (a new unit: an id the chief was not started with, N for a fleet of N).
-The moment is after a random round (1 … M-2) of the killed role (of the chief, for the added worker or an
-uneven fleet), plus a random 0-0.3 s.
+The moment is after a random round (1 … M-2; 1 … M-5 for an added worker) of the killed role (of the
+chief, for the added worker or an uneven fleet), plus a random 0-0.3 s.
 ``--uneven`` gives every worker more flags (``--slow w1=4 --absent 0.2``, say: each applies its own entry).
 
 Checked per run: every role that ran to the end exited 0; no worker's metrics.csv holds a round twice (rounds
@@ -47,6 +47,9 @@ GRACE = 15.0
 """the chief's --dropout-grace by default: it must be longer than a worker's restart for a resumed worker to
 keep its place in W (a restart that takes longer loses the rounds played without it)"""
 RUN_TIMEOUT = 180.0
+
+ADDED_ROUNDS_LEFT = 5
+"""rounds an added worker has at least, after the moment it is started"""
 
 
 class Broker:
@@ -204,7 +207,9 @@ def soak_one(index: int, fault: str, rng: random.Random, broker: Broker, root: P
     victim = {"chief-resumed": "chief", "broker-restarted": "broker"}.get(fault) or str(
         workers if fault == "worker-added" else rng.randrange(workers)
     )
-    outcome = Outcome(index, fault, victim, after_round=rng.randint(1, rounds - 2))
+    # an added unit needs rounds left to join (a process starts in seconds, a CartPole round may take one)
+    last = max(1, rounds - (ADDED_ROUNDS_LEFT if fault == "worker-added" else 2))
+    outcome = Outcome(index, fault, victim, after_round=rng.randint(1, last))
     started = time.monotonic()
     try:
         run.start("chief")
