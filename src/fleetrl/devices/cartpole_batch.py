@@ -117,7 +117,7 @@ class CartPoleBatch:
         """
         moves = np.asarray(actions, dtype=np.int64)
         if moves.size and not bool(np.all((moves == 0) | (moves == 1))):
-            bad = moves[(moves != 0) & (moves != 1)][0]
+            bad = int(moves[(moves != 0) & (moves != 1)][0])
             raise ValueError(f"action {bad!r} is out of range (choose 0: push left, or 1: push right)")
         obs = np.empty((len(rows), 4), dtype=np.float32)
         _step_rows(self._params, self._state, np.asarray(rows, dtype=np.int64), moves, obs)
