@@ -79,8 +79,13 @@ class HostAgent(PPOAgent):
     @property
     def memories(self) -> list[TrajectoryMemory]:
         """Each unit's trajectory memory (unit u's is ``memories[u]``), its pending transitions moved in."""
-        self._pending.drain(self._memories)
+        self.store_pending()
         return self._memories
+
+    def store_pending(self) -> None:
+        """Move the transitions :meth:`remember_units` holds into each unit's memory (``memory``, unit 0's,
+        included); everything that reads the memories does it first."""
+        self._pending.drain(self._memories)
 
     # ---- acting ----
 

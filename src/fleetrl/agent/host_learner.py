@@ -115,6 +115,7 @@ class HostLearner:
                     playing[u] = False
             if ended.any():
                 units = np.flatnonzero(playing)
+        agent.store_pending()
         self.rounds += 1
         episodes = []
         for criterion, unit_played in zip(self.criteria, played, strict=True):
