@@ -22,18 +22,28 @@ import numpy as np
 from fleetrl.devices.cartpole import CartPoleDevice
 
 
-def _libm_function(name: str) -> Any:
-    """The C library's ``double name(double...)`` (the one this process's Python calls)."""
-    libm = ctypes.CDLL(ctypes.util.find_library("m"))
-    function = getattr(libm, name)
-    function.argtypes = [ctypes.c_double] * (2 if name == "pow" else 1)
-    function.restype = ctypes.c_double
-    return function
+def _libm_functions() -> tuple[Any, Any, Any] | None:
+    """The C library's ``cos``, ``sin`` and ``pow`` (those this process's Python calls), or None where
+    ctypes cannot find them (then no unit is stepped in a batch: :data:`AVAILABLE`)."""
+    name = ctypes.util.find_library("m")
+    if name is None:
+        return None
+    try:
+        libm = ctypes.CDLL(name)
+        cos, sin, pow_ = libm.cos, libm.sin, libm.pow
+    except (OSError, AttributeError):
+        return None
+    for function, arguments in ((cos, 1), (sin, 1), (pow_, 2)):
+        function.argtypes = [ctypes.c_double] * arguments
+        function.restype = ctypes.c_double
+    return cos, sin, pow_
 
 
-_COS = _libm_function("cos")
-_SIN = _libm_function("sin")
-_POW = _libm_function("pow")
+_FUNCTIONS = _libm_functions()
+AVAILABLE = _FUNCTIONS is not None
+"""whether CartPoles can be stepped in a batch in this process (the C library's functions were found)"""
+_NOT_FOUND: tuple[Any, Any, Any] = (None, None, None)
+_COS, _SIN, _POW = _FUNCTIONS or _NOT_FOUND
 
 # parameter columns
 _MASSCART, _MASSPOLE, _LENGTH, _FORCE_MAG, _TAU, _GRAVITY = range(6)

@@ -24,6 +24,7 @@ import gymnasium
 import numpy as np
 from gymnasium.wrappers import OrderEnforcing, PassiveEnvChecker, TimeLimit
 
+from fleetrl.devices import cartpole_batch
 from fleetrl.devices.cartpole import CartPoleDevice
 from fleetrl.devices.cartpole_batch import CartPoleBatch
 from fleetrl.envs.cartpole_unit import CartPoleUnitEnv
@@ -51,7 +52,10 @@ class StepRows:
 
 def batched_cartpole(env: gymnasium.Env[Any, Any]) -> tuple[CartPoleDevice, int | None] | None:
     """The in-process CartPole device and episode cap (None: none) of an env a batch can step, or None if
-    ``env`` is anything else (another unit type, a link, another wrapper, rendering)."""
+    ``env`` is anything else (another unit type, a link, another wrapper, rendering), or no batch can
+    step CartPoles in this process (:data:`~fleetrl.devices.cartpole_batch.AVAILABLE`)."""
+    if not cartpole_batch.AVAILABLE:
+        return None
     cap: int | None = None
     inner: Any = env
     while isinstance(inner, gymnasium.Wrapper):
