@@ -126,7 +126,10 @@ class TrajectoryMemory:
                 self._resize(2 * self._buffer_size)
         size = self._buffer_size
         first = max(0, n - size)  # a ring keeps only the last `size` of them
-        slots = (self._next + np.arange(first, n)) % size
+        start = (self._next + first) % size
+        slots: slice | np.ndarray = slice(start, start + n - first)
+        if start + n - first > size:  # the run wraps round the ring's end
+            slots = (start + np.arange(n - first)) % size
         kept = slice(first, n)
         self._obs[slots] = obs[kept]
         self._actions[slots] = actions[kept]
