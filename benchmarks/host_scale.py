@@ -5,7 +5,8 @@
 
 acting: the units' first ``--rounds`` episodes (no update) — N learners of one unit each, stepped one after
 the other as the worker threads of ``--transport local`` take turns, against one host of N units (one forward
-pass per time step for all of them); unit-steps per second of acting alone.
+pass per time step for all of them); unit-steps per second of acting alone, per wall second and per second of
+this process's CPU time (the machine is shared: the CPU figure moves less with the load).
 
 train: ``fleetrl train --env cartpole --mode federated --transport local --preset standard --seed 3`` for
 ``--rounds`` rounds, each configuration in a fresh process: N workers of one unit (``flat``), or hosts of
@@ -59,7 +60,7 @@ def acting(units: int, rounds: int, hosted: bool) -> dict[str, float]:
     if hosted:
         host = HostLearner(envs, HostAgent(4, 2, config, seeds), [CompletionCriterion(1e9) for _ in envs])
         host.play_episodes()  # compile and warm up
-        started = time.perf_counter()
+        started, cpu = time.perf_counter(), time.process_time()
         for _ in range(rounds):
             steps += sum(sum(e.steps) for e in host.play_episodes())
     else:
@@ -68,11 +69,12 @@ def acting(units: int, rounds: int, hosted: bool) -> dict[str, float]:
             for env, s in zip(envs, seeds, strict=True)
         ]
         learners[0].play_episode(learn=False)
-        started = time.perf_counter()
+        started, cpu = time.perf_counter(), time.process_time()
         for _ in range(rounds):
             steps += sum(learner.play_episode()[1] for learner in learners)
-    seconds = time.perf_counter() - started
-    return {"unit_steps": steps, "seconds": seconds, "unit_steps_per_s": steps / seconds}
+    seconds, cpu_seconds = time.perf_counter() - started, time.process_time() - cpu
+    return {"unit_steps": steps, "seconds": seconds, "unit_steps_per_s": steps / seconds,
+            "unit_steps_per_cpu_s": steps / cpu_seconds}  # fmt: skip
 
 
 def train_once(units: int, rounds: int, per_host: int) -> dict[str, float]:
@@ -132,8 +134,9 @@ def main() -> None:
             if args.part in ("acting", "all"):
                 before = load()
                 r = acting(units, args.rounds, hosted)
-                print(f"{label} acting: {r['unit_steps_per_s']:9.0f} unit-steps/s ({r['unit_steps']} "
-                      f"in {r['seconds']:.2f} s)  [{before} -> {load()}]", flush=True)  # fmt: skip
+                print(f"{label} acting: {r['unit_steps_per_s']:9.0f} unit-steps/s, "
+                      f"{r['unit_steps_per_cpu_s']:9.0f} per CPU-second ({r['unit_steps']} in "
+                      f"{r['seconds']:.2f} s)  [{before} -> {load()}]", flush=True)  # fmt: skip
             if args.part in ("train", "all"):
                 before = load()
                 t = train(units, args.rounds, per_host)

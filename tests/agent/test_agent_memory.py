@@ -93,3 +93,30 @@ def test_a_grown_memory_state_loads_into_a_fresh_one() -> None:
     assert fresh.transitions().rewards.tolist() == [0, 1, 2, 3, 4]
     fresh.add(np.array([5], np.float32), 0, 5.0, np.array([5], np.float32), False, False)
     assert fresh.transitions().rewards.tolist() == [0, 1, 2, 3, 4, 5]
+
+
+@pytest.mark.parametrize(("grows", "action_dim"), [(False, 0), (True, 0), (False, 2), (True, 2)])
+def test_extend_stores_what_one_add_per_transition_stores(grows: bool, action_dim: int) -> None:
+    rng = np.random.default_rng(4)
+    one_by_one = TrajectoryMemory(5, obs_dim=3, grows=grows, action_dim=action_dim)
+    at_once = TrajectoryMemory(5, obs_dim=3, grows=grows, action_dim=action_dim)
+    for n in (0, 2, 4, 1, 12, 3, 5, 0, 7):  # wraps a ring, runs longer than it, doubles a growing one twice
+        obs, next_obs = rng.normal(size=(2, n, 3)).astype(np.float32)
+        if action_dim == 0:
+            actions = rng.integers(0, 3, size=n)
+        else:
+            actions = rng.normal(size=(n, 2)).astype(np.float32)
+        rewards = rng.normal(size=n)  # float64: stored as float32 either way
+        terminated, truncated = rng.random((2, n)) < 0.3
+        for i in range(n):
+            one_by_one.add(obs[i], actions[i], float(rewards[i]), next_obs[i], terminated[i], truncated[i])
+        at_once.extend(obs, actions, rewards, next_obs, terminated, truncated)
+        if n == 3:
+            one_by_one.score(one_by_one.unscored()[:2], np.ones(2, dtype=np.float32))
+            at_once.score(at_once.unscored()[:2], np.ones(2, dtype=np.float32))
+        mine, theirs = at_once.state_arrays(), one_by_one.state_arrays()
+        assert mine.keys() == theirs.keys()
+        for name in mine:
+            assert np.array_equal(mine[name], theirs[name]), name
+    if grows:
+        assert len(at_once) == 34 and at_once.state_arrays()["actions"].shape[0] == 40

@@ -3,16 +3,18 @@
 Each unit keeps what makes it a unit: its own trajectory memory and its own random streams for actions and
 window starts, drawn from its own seed exactly as :class:`~fleetrl.agent.ppo.PPOAgent` draws them. So a host
 of one unit acts and learns as the agent of that unit alone. Acting takes one call for every unit's
-observation (:meth:`HostAgent.act_units`); the update is :func:`~fleetrl.agent.host_update.host_update` (one
-forward and one backward pass over the units' minibatches per step). The flat-vector API a per-step scheme
-drives (``begin_update`` … ``end_update``, ``apply_fleet_step``, the model and optimiser vectors) is the
-:class:`PPOAgent`'s, on the host's one network.
+observation (:meth:`HostAgent.act_units`: each unit's draw from its own stream in one compiled loop,
+:mod:`~fleetrl.agent.unit_draws`; the actions by matrix products, each the per-row kernel's,
+:mod:`~fleetrl.agent.row_acting`), and remembering one call for every unit's transition
+(:meth:`HostAgent.remember_units`, :mod:`~fleetrl.agent.pending`). The update is
+:func:`~fleetrl.agent.host_update.host_update` (one forward and one backward pass over the units' minibatches
+per step). The flat-vector API a per-step scheme drives (``begin_update`` … ``end_update``,
+``apply_fleet_step``, the model and optimiser vectors) is the :class:`PPOAgent`'s, on the host's one network.
 """
 
 from __future__ import annotations
 
 from collections.abc import Generator, Sequence
-from typing import Any
 
 import numpy as np
 import torch
@@ -21,7 +23,10 @@ from fleetrl.agent.action_space import ActionSpace
 from fleetrl.agent.config import PPOConfig, host_config_problem
 from fleetrl.agent.host_update import host_update
 from fleetrl.agent.memory import TrajectoryMemory
+from fleetrl.agent.pending import PendingTransitions
 from fleetrl.agent.ppo import PPOAgent
+from fleetrl.agent.row_acting import RowActing
+from fleetrl.agent.unit_draws import UniformDraws
 from fleetrl.agent.update import Gradient, UpdateStats
 
 __all__ = ["HostAgent"]
@@ -51,7 +56,7 @@ class HostAgent(PPOAgent):
         streams = [np.random.SeedSequence(seed).spawn(2) for seed in seeds[1:]]
         self._act_rngs = [self._act_rng, *(np.random.default_rng(act) for act, _ in streams)]
         self._window_rngs = [self._window_rng, *(np.random.default_rng(window) for _, window in streams)]
-        self.memories = [self.memory] + [
+        self._memories = [self.memory] + [
             TrajectoryMemory(
                 config.memory_size,
                 obs_dim,
@@ -60,6 +65,9 @@ class HostAgent(PPOAgent):
             )
             for _ in seeds[1:]
         ]
+        self._pending = PendingTransitions(len(seeds), obs_dim, self.action_space.dim)
+        self._draws = UniformDraws(self._act_rngs)
+        self._rows = RowActing(self._policy) if self._discrete else None
         self.unit_stats: tuple[UpdateStats, ...] | None = None
         """each unit's statistics of the last update (None before the first)"""
 
@@ -68,20 +76,48 @@ class HostAgent(PPOAgent):
         """U, the units this agent acts for."""
         return len(self.seeds)
 
+    @property
+    def memories(self) -> list[TrajectoryMemory]:
+        """Each unit's trajectory memory (unit u's is ``memories[u]``), its pending transitions moved in."""
+        self.store_pending()
+        return self._memories
+
+    def store_pending(self) -> None:
+        """Move the transitions :meth:`remember_units` holds into each unit's memory (``memory``, unit 0's,
+        included); everything that reads the memories does it first."""
+        self._pending.drain(self._memories)
+
     # ---- acting ----
 
-    def act_units(self, obs: np.ndarray, units: np.ndarray) -> list[Any]:
-        """Sample a_t ~ π_θ(·|s_t) for the units ``units`` at their observations ``obs`` (one row each),
-        each with its own draw: for a discrete space one call over every row (the same action each unit's
-        own agent would take), for a box one Gaussian draw per unit (as :meth:`PPOAgent.act`)."""
-        if self._discrete:
-            draws = np.array([self._act_rngs[u].random() for u in units])
-            return [int(a) for a in self._policy.act_rows(obs, draws)]
+    def act_units(self, obs: np.ndarray, units: np.ndarray) -> np.ndarray:
+        """Sample a_t ~ π_θ(·|s_t) for the distinct units ``units`` at their observations ``obs`` (one row
+        each), each with its own draw: the action each unit's own agent would take (as :meth:`PPOAgent.act`):
+        for a discrete space the indices (int64, one per unit), in one pass over every row; for a box the
+        sampled vectors (float32, one row per unit), one Gaussian draw per unit."""
+        if self._rows is not None:
+            return self._rows.act(obs, self._draws.draw(units))
         dim = self.action_space.dim
-        return [
-            self._policy.act_continuous(row, self._act_rngs[u].standard_normal(dim))
-            for row, u in zip(obs, units, strict=True)
-        ]
+        return np.array(
+            [
+                self._policy.act_continuous(row, self._act_rngs[u].standard_normal(dim))
+                for row, u in zip(obs, units.tolist(), strict=True)
+            ],
+            dtype=np.float32,
+        ).reshape(len(units), dim)
+
+    def remember_units(
+        self,
+        units: np.ndarray,
+        obs: np.ndarray,
+        actions: np.ndarray,
+        rewards: np.ndarray,
+        next_obs: np.ndarray,
+        terminated: np.ndarray,
+        truncated: np.ndarray,
+    ) -> None:
+        """:meth:`remember_unit` for each of the distinct units ``units`` (row j of each array is
+        ``units[j]``'s transition), in one call."""
+        self._pending.add(units, obs, actions, rewards, next_obs, terminated, truncated, self._memories)
 
     def remember_unit(
         self,
@@ -97,8 +133,11 @@ class HostAgent(PPOAgent):
         self.memories[unit].add(obs, action, reward, next_obs, terminated, truncated)
 
     def unit_needs_more_episodes(self, unit: int) -> bool:
-        """:meth:`PPOAgent.needs_more_episodes` for unit ``unit``'s memory."""
-        return self.config.trajectory_memory == "per_round" and not self.memories[unit].filled()
+        """:meth:`PPOAgent.needs_more_episodes` for unit ``unit``'s memory (its pending transitions
+        counted)."""
+        memory = self._memories[unit]
+        stored = len(memory) + int(self._pending.counts[unit])
+        return self.config.trajectory_memory == "per_round" and stored < memory.capacity
 
     # ---- learning ----
 

@@ -3,10 +3,13 @@ them, each unit with its own completion criterion, round by round.
 
 The host plays a round as its units would alone, side by side: every unit plays its round's episodes (one,
 or with ``trajectory_memory='per_round'`` whole episodes until its memory is filled) on its own env, from its
-own seed; at each time step the units still playing act in one call of the agent
-(:meth:`~fleetrl.agent.host_agent.HostAgent.act_units`). Each unit's criterion sees its own scores; the round
-ends with at most one update of the host's one network. The host's round result summarises its units (the
-mean score, the summed steps); :attr:`HostLearner.unit_rounds` keeps each unit's own.
+own seed. At each time step the units still playing act in one call of the agent
+(:meth:`~fleetrl.agent.host_agent.HostAgent.act_units`), step together where their envs allow
+(:class:`~fleetrl.envs.host_envs.HostEnvs`: in-process CartPoles in one compiled call, every other unit
+through its own env) and are remembered in one call
+(:meth:`~fleetrl.agent.host_agent.HostAgent.remember_units`). Each unit's criterion sees its own scores; the
+round ends with at most one update of the host's one network. The host's round result summarises its units
+(the mean score, the summed steps); :attr:`HostLearner.unit_rounds` keeps each unit's own.
 """
 
 from __future__ import annotations
@@ -25,6 +28,7 @@ from fleetrl.agent.criterion import CompletionCriterion
 from fleetrl.agent.host_agent import HostAgent
 from fleetrl.agent.ppo import UpdateStats
 from fleetrl.agent.round_result import Episodes, RoundResult
+from fleetrl.envs.host_envs import HostEnvs
 
 __all__ = ["HostLearner", "HostPlayed"]
 
@@ -62,6 +66,7 @@ class HostLearner:
                 f"{len(criteria)} criteria, {agent.units} seeds"
             )
         self.envs = list(envs)
+        self._envs = HostEnvs(self.envs)
         self.agent = agent
         self.criteria = list(criteria)
         self.keep_learning = keep_learning
@@ -80,25 +85,27 @@ class HostLearner:
 
     def play_episodes(self) -> tuple[Episodes, ...]:
         """Every unit's episodes of the round (Algorithm 2, lines 2-6), the units stepped together."""
-        agent, envs = self.agent, self.envs
+        agent, envs = self.agent, self._envs
         to_env = None if agent.action_space.is_discrete else agent.env_action
-        obs = np.stack([self._reset(u) for u in range(len(envs))])
-        score = np.zeros(len(envs))
-        steps = np.zeros(len(envs), dtype=np.int64)
-        played: list[list[tuple[float, int]]] = [[] for _ in envs]
-        playing = np.ones(len(envs), dtype=bool)
-        while playing.any():
-            units = np.flatnonzero(playing)
-            actions = agent.act_units(obs[units], units)  # line 3, for every unit still playing
-            for u, action in zip(units.tolist(), actions, strict=True):
-                sent = action if to_env is None else to_env(action)
-                next_obs, reward, terminated, truncated, _ = envs[u].step(sent)  # line 4
-                agent.remember_unit(u, obs[u], action, float(reward), next_obs, terminated, truncated)
-                score[u] += float(reward)
-                steps[u] += 1
-                if not (terminated or truncated):
-                    obs[u] = next_obs
-                    continue
+        obs = np.stack([self._reset(u) for u in range(agent.units)])
+        score = np.zeros(agent.units)
+        steps = np.zeros(agent.units, dtype=np.int64)
+        played: list[list[tuple[float, int]]] = [[] for _ in range(agent.units)]
+        playing = np.ones(agent.units, dtype=bool)
+        units = np.arange(agent.units)
+        while units.size:
+            before = obs[units]
+            actions = agent.act_units(before, units)  # line 3, for every unit still playing
+            sent = actions if to_env is None else [to_env(a) for a in actions]
+            step = envs.step(units, sent)  # line 4
+            agent.remember_units(
+                units, before, actions, step.rewards, step.obs, step.terminated, step.truncated
+            )
+            score[units] += step.rewards
+            steps[units] += 1
+            ended = step.terminated | step.truncated
+            obs[units[~ended]] = step.obs[~ended]
+            for u in units[ended].tolist():
                 played[u].append((float(score[u]), int(steps[u])))
                 self.episodes[u] += 1
                 score[u], steps[u] = 0.0, 0
@@ -106,6 +113,9 @@ class HostLearner:
                     obs[u] = self._reset(u)
                 else:
                     playing[u] = False
+            if ended.any():
+                units = np.flatnonzero(playing)
+        agent.store_pending()
         self.rounds += 1
         episodes = []
         for criterion, unit_played in zip(self.criteria, played, strict=True):
@@ -116,8 +126,7 @@ class HostLearner:
 
     def _reset(self, unit: int) -> np.ndarray:
         seed = self.agent.seeds[unit] if self.episodes[unit] == 0 else None
-        obs, _ = self.envs[unit].reset(seed=seed)
-        return np.asarray(obs)
+        return self._envs.reset(unit, seed)
 
     def wants_update(self) -> bool:
         """Line 7 for the host: update unless every unit's learning is finished; always if keep_learning."""

@@ -106,6 +106,42 @@ class TrajectoryMemory:
         self._next = (i + 1) % self._buffer_size
         self._size = min(self._size + 1, self._buffer_size)
 
+    def extend(
+        self,
+        obs: np.ndarray,
+        actions: np.ndarray,
+        rewards: np.ndarray,
+        next_obs: np.ndarray,
+        terminated: np.ndarray,
+        truncated: np.ndarray,
+    ) -> None:
+        """Store n transitions in order (row i of each array is the i-th): what n calls of :meth:`add` store,
+        in a few array assignments (a ring keeps the last ``capacity``, a growing buffer doubles until they
+        fit)."""
+        n = len(rewards)
+        if n == 0:
+            return
+        if self.grows:
+            while self._size + n > self._buffer_size:
+                self._resize(2 * self._buffer_size)
+        size = self._buffer_size
+        first = max(0, n - size)  # a ring keeps only the last `size` of them
+        start = (self._next + first) % size
+        slots: slice | np.ndarray = slice(start, start + n - first)
+        if start + n - first > size:  # the run wraps round the ring's end
+            slots = (start + np.arange(n - first)) % size
+        kept = slice(first, n)
+        self._obs[slots] = obs[kept]
+        self._actions[slots] = actions[kept]
+        self._rewards[slots] = rewards[kept]
+        self._next_obs[slots] = next_obs[kept]
+        ends = np.asarray(terminated[kept], dtype=bool)
+        self._terminated[slots] = ends
+        self._episode_end[slots] = ends | np.asarray(truncated[kept], dtype=bool)
+        self._scored[slots] = False
+        self._next = (self._next + n) % size
+        self._size = min(self._size + n, size)
+
     def filled(self) -> bool:
         """True once at least ``capacity`` transitions are stored (a ``per_round`` round may end)."""
         return self._size >= self.capacity

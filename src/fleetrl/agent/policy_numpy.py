@@ -235,12 +235,29 @@ class NumpyPolicy:
         rows = np.ascontiguousarray(obs, dtype=np.float64)
         if rows.ndim != 2 or rows.shape[1] != self._dims[0]:
             raise ValueError(f"observations have shape {rows.shape}, the policy expects (n, {self._dims[0]})")
-        draws = np.ascontiguousarray(u, dtype=np.float64)
         out = np.empty(rows.shape[0], dtype=np.int64)
-        _act_rows_kernel(
-            self._weights, self._biases, self._dims, self._activation, rows, self._a, self._b, draws, out
-        )
+        self.act_rows_exact(rows, np.ascontiguousarray(u, dtype=np.float64), out)
         return out
+
+    def act_rows_exact(self, rows: np.ndarray, u: np.ndarray, out: np.ndarray) -> None:
+        """:meth:`act_rows` without its checks: ``rows`` float64 (n, obs_dim) and ``u`` float64 (n,), both
+        C-contiguous; the actions into ``out`` (int64, n)."""
+        _act_rows_kernel(
+            self._weights, self._biases, self._dims, self._activation, rows, self._a, self._b, u, out
+        )
+
+    def layers(self) -> list[Layer]:
+        """The trunk's layers then the policy head's as float64 views (weight (out, in), bias (out,)) of the
+        arrays the kernels read: they follow every :meth:`refresh`."""
+        return [
+            (self._weights[i, : self._dims[i + 1], : self._dims[i]], self._biases[i, : self._dims[i + 1]])
+            for i in range(len(self._dims) - 1)
+        ]
+
+    @property
+    def activation(self) -> str:
+        """The trunk's activation: ``tanh`` or ``relu``."""
+        return "tanh" if self._activation == _TANH else "relu"
 
     def act_greedy(self, obs: np.ndarray) -> int:
         """The most probable action under π_θ(·|obs) (discrete)."""

@@ -67,6 +67,11 @@ class CartPoleDevice:
         """A copy of the state [x, x_dot, theta, theta_dot] in float64."""
         return np.array(self._state, dtype=np.float64)
 
+    def set_state(self, state: np.ndarray) -> None:
+        """Put the unit in state [x, x_dot, theta, theta_dot] (a batch that stepped it hands it back)."""
+        self._state = [float(v) for v in state]
+        self._obs[:] = self._state
+
     def reset(self, seed: int | None = None) -> np.ndarray:
         """Start state uniform in ±0.05 on every component, as CartPole-v1."""
         rng = np.random.default_rng(seed)

@@ -45,6 +45,14 @@ class CartPoleUnitEnv(LinkEnv):
         """CartPole-v1: +1 every step; terminate when the cart or the pole leaves its band."""
         return 1.0, not (abs(float(obs[0])) <= X_LIMIT and abs(float(obs[2])) <= THETA_LIMIT)
 
+    @staticmethod
+    def judge_rows(obs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`judge` for every row of ``obs`` (n, 4): rewards (float64) and terminations (bool), each
+        row's what :meth:`judge` says of it (compared in float64, as :meth:`judge` does)."""
+        x = np.abs(obs[:, 0].astype(np.float64))
+        theta = np.abs(obs[:, 2].astype(np.float64))
+        return np.ones(obs.shape[0]), ~((x <= X_LIMIT) & (theta <= THETA_LIMIT))
+
     def frame(self, obs: np.ndarray) -> np.ndarray:
         """An RGB picture of the unit in state ``obs``."""
         return cartpole_frame(obs)
