@@ -67,7 +67,7 @@ bench: install
 
 results: install
 	$(VENV)/bin/fleetrl experiment all --other-seeds 5 --out runs/experiments --records docs/results/records
-	$(VENV)/bin/fleetrl experiment uneven --other-seeds 5 --fleet-seed 1 --out runs/experiments \
+	$(VENV)/bin/fleetrl experiment uneven --fleet-seed 1 --out runs/experiments \
 		--records docs/results/records
 	$(VENV)/bin/fleetrl experiment fig5 --fleet-seed 1 --headline-only --out runs/experiments \
 		--records docs/results/records --publish docs/results.md
@@ -75,7 +75,7 @@ results: install
 # docs/results.md again from the committed records alone (runs nothing; arms not run yet are named as such)
 report: install
 	$(VENV)/bin/fleetrl experiment all --from-records --other-seeds 5 --out runs/report --records docs/results/records
-	$(VENV)/bin/fleetrl experiment uneven --from-records --other-seeds 5 --fleet-seed 1 --out runs/report \
+	$(VENV)/bin/fleetrl experiment uneven --from-records --fleet-seed 1 --out runs/report \
 		--records docs/results/records
 	$(VENV)/bin/fleetrl experiment fig5 --from-records --fleet-seed 1 --headline-only --out runs/report \
 		--records docs/results/records --publish docs/results.md
