@@ -32,6 +32,7 @@ import subprocess
 import sys
 import tempfile
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from datetime import datetime
 from pathlib import Path
@@ -288,8 +289,17 @@ def main() -> int:
         parser.error("mosquitto not found: apt-get install mosquitto")
     if not 1 <= args.workers <= 60:
         parser.error("--workers must be 1 … 60 (one /30 of 10.77.0.0/24 each)")
-    fleet = Fleet(tag=f"fl{os.getpid() % 100000}")
-    work = Path(tempfile.mkdtemp(prefix="netns-fleet-"))
+    return run_and_clean(args, "fl", run)
+
+
+def run_and_clean(
+    args: argparse.Namespace, tag: str, run: Callable[[argparse.Namespace, Fleet, Path], int]
+) -> int:
+    """``run(args, fleet, work)`` with a fleet of namespaces named ``tag``… and a fresh work directory; every
+    namespace and process removed after, on failure too; the work directory kept if the run failed or with
+    ``--keep``. The run's exit code."""
+    fleet = Fleet(tag=f"{tag}{os.getpid() % 100000}")
+    work = Path(tempfile.mkdtemp(prefix=f"netns-{tag}-"))
     code = 1
     try:
         code = run(args, fleet, work)

@@ -38,7 +38,6 @@ import re
 import shutil
 import subprocess
 import sys
-import tempfile
 import time
 from collections import Counter
 from collections.abc import Iterable
@@ -53,6 +52,7 @@ from netns_fleet import (
     Fleet,
     add_netem,
     overheads,
+    run_and_clean,
     run_args,
     sh,
     spread,
@@ -279,16 +279,7 @@ def main() -> int:
         parser.error("--workers must be 1 … 60 (one /30 of 10.77.0.0/24 each, after the three of the tree)")
     if args.rounds < 1:
         parser.error("--rounds must be >= 1")
-    fleet = Fleet(tag=f"ft{os.getpid() % 100000}")
-    work = Path(tempfile.mkdtemp(prefix="netns-tree-"))
-    code = 1
-    try:
-        code = run(args, fleet, work)
-    finally:
-        fleet.clean()
-        if code == 0 and not args.keep:
-            shutil.rmtree(work, ignore_errors=True)
-    return code
+    return run_and_clean(args, "ft", run)
 
 
 if __name__ == "__main__":
