@@ -180,6 +180,8 @@ def test_an_abandoned_update_keeps_the_steps_applied_and_the_next_update_runs(me
     assert len(agent.memory) == left
     with pytest.raises(RuntimeError, match="no update under way"):
         agent.end_update()
+    agent.abandon_update()  # a round dropped before its update began: nothing under way, nothing changes
+    assert np.array_equal(agent.model_parameters(), stepped) and len(agent.memory) == left
     rng = np.random.default_rng(1)
     for i in range(200):  # the next round's play, then a whole update through the step API
         obs = rng.normal(size=OBS_DIM).astype(np.float32)

@@ -227,3 +227,9 @@ def test_deeply_nested_payload_is_rejected_not_crashing() -> None:
     payload = b"\x91" * 3000 + b"\x01"
     assert reason_of(payload) in (Reason.NOT_MSGPACK, Reason.MALFORMED)
     assert nested is not None
+
+
+def test_only_a_join_may_name_round_0_the_round_its_worker_resumes_at_when_none() -> None:
+    join = encode(Message("join", "r1", "1", 0, settings={}), layout=LAYOUT)
+    assert dec(join).round == 0
+    assert reason_of(packed(round=0)) is Reason.BAD_ROUND

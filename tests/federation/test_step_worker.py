@@ -170,7 +170,10 @@ def test_a_straggler_that_finds_the_fleet_mid_round_waits_for_its_end() -> None:
 def test_a_gap_in_the_fleets_answers_while_behind_takes_the_fleet_s_model_again() -> None:
     m = machine(start_round=1)
     welcomed(m, 1)
-    again = collected(m, answer(1, 0), answer(1, 2))  # step 1's answer never came
+    gap = collected(m, answer(1, 0), answer(1, 2))  # step 1's answer never came
+    assert gap.actions[-1] == AbandonUpdate()  # the round it played is not contributed: recorded as late
+    again = m.round_played(Outcome(), now=0.5)  # type: ignore[arg-type]
+    assert [(r.record.round, r.record.event) for r in records(again)] == [(1, WorkerEvent.LATE)]
     assert [type(o).__name__ for o in again.outputs[-2:]] == ["Announce", "Publish"]  # online, then the join
     assert again.published[-1].type == "join" and m.summary is None
     model = np.arange(15, dtype=np.float32)

@@ -10,6 +10,7 @@ import pytest
 from fleetrl.federation.chief import Chief, ChiefStep
 from fleetrl.federation.chief_state import chief_from_state, chief_to_state
 from fleetrl.federation.messages import Message
+from fleetrl.federation.signing import status_payload
 from fleetrl.federation.stragglers import GRACE_FLOOR, quorum_count
 
 RUN = "straggle"
@@ -127,3 +128,46 @@ def test_what_the_pace_rules_keep_survives_a_checkpoint() -> None:
 def test_bad_staleness_bounds_are_refused() -> None:
     with pytest.raises(ValueError, match="max_staleness must be >= 0"):
         make(max_staleness=-1)
+
+
+def join(c: Chief, sender: str, resumes_at: int, now: float) -> ChiefStep:
+    """A new process of ``sender``: online, then its join naming the round it resumes at (0: none)."""
+    online(c, sender, int(now * 1000), now)
+    return c.receive(Message("join", RUN, sender, resumes_at), now=now)
+
+
+def online(c: Chief, sender: str, incarnation: int, now: float) -> ChiefStep:
+    payload = status_payload(b"online", run_id=RUN, node=sender, incarnation=incarnation)
+    return c.status(sender, payload, now=now)
+
+
+def test_a_process_that_will_not_replay_the_open_round_is_not_waited_for_in_its_later_steps() -> None:
+    c = make()
+    c.tick(0.0)
+    online(c, "2", 1, now=0.0)
+    for sender in ("0", "1", "2"):
+        step(c, sender, 1, 0, [1.0, 1.0], now=0.1)
+    assert c.state.step == 1 and c.state.pace.participants == {"0", "1", "2"}
+    step(c, "0", 1, 1, [2.0, 2.0], now=0.2)
+    step(c, "1", 1, 1, [4.0, 4.0], now=0.3)  # 2 of 3 waited for: the quorum, the grace starts
+    # worker 2 restarted without a checkpoint (join round 0): the step closes with 0 and 1 at once
+    assert answers(join(c, "2", 0, now=0.35)) == [(1, 1, [3.0, 3.0], ("0", "1"))]
+    assert c.round == 2 and c.state.pace.behind == {"2"}  # it joins round 2's first exchange as behind
+    # one resumed at the open round replays it: still waited for
+    c = make()
+    c.tick(0.0)
+    online(c, "2", 1, now=0.0)
+    for sender in ("0", "1", "2"):
+        step(c, sender, 1, 0, [1.0, 1.0], now=0.1)
+    step(c, "0", 1, 1, [2.0, 2.0], now=0.2)
+    step(c, "1", 1, 1, [4.0, 4.0], now=0.3)
+    assert answers(join(c, "2", 1, now=0.35)) == [] and "2" in c.state.pace.participants
+    assert answers(step(c, "2", 1, 1, [6.0, 6.0], now=0.4)) == [(1, 1, [4.0, 4.0], ("0", "1", "2"))]
+
+    # the retained join of a process this chief did not see restart (a resumed chief) changes nothing
+    c = make()
+    c.tick(0.0)
+    for sender in ("0", "1", "2"):
+        step(c, sender, 1, 0, [1.0, 1.0], now=0.1)
+    c.receive(Message("join", RUN, "2", 0), now=0.2)
+    assert "2" in c.state.pace.participants

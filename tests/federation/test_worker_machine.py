@@ -322,3 +322,12 @@ def test_the_fleet_s_start_is_taken_by_a_joining_worker_and_its_config_goes_to_t
     # a transfer's θ* is taken all the same
     transferred = welcomed(machine(start_round=2), 5, flat=FLAT, origin="2").actions
     assert [type(a) for a in transferred[:2]] == [Record, TakeParameters]
+
+
+def test_the_join_names_the_round_the_worker_resumes_at_or_0() -> None:
+    def joined(m: WorkerMachine) -> Message:
+        (join,) = [x for x in m.start(now=0.0).published if x.type == "join"]
+        return join
+
+    assert joined(machine()).round == 0
+    assert joined(machine(start_round=5)).round == 5

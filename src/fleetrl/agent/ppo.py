@@ -250,13 +250,11 @@ class PPOAgent:
         return exchange.stats
 
     def abandon_update(self) -> None:
-        """Drop the update under way before its last step (the fleet went on past this agent's step: it
-        takes the fleet's model next). The steps applied stay; the acting copy follows θ; the round's
-        transitions are dropped where a round's memory is its own (``per_round``).
-
-        :raises RuntimeError: no update under way
-        """
-        self._exchange_under_way().abandon()
+        """Drop the round's update, under way or not begun (the fleet went on past this agent: it takes the
+        fleet's model next). The steps applied stay; the acting copy follows θ; the round's transitions are
+        dropped where a round's memory is its own (``per_round``)."""
+        if self._exchange is not None:
+            self._exchange.abandon()
         self._exchange = None
         self._policy.refresh(self.net)
         if self.config.trajectory_memory == "per_round":

@@ -149,6 +149,7 @@ class Chief:
         """what the chief remembers (its checkpoint serialises it)"""
         self._opened_at: float | None = now
         self._pending: dict[str, Message] = {}  # the open exchange's answers (workers re-send them)
+        self._restarted: set[str] = set()  # workers seen restarting, until their join (not a replayed one)
         # the state's records, under the names the runner and people read (the same objects: never rebound)
         self.rejections, self.completed, self.transfers = state.rejections, state.completed, state.transfers
         self.dropouts, self.rejoins = state.dropouts, state.rejoins
@@ -229,7 +230,7 @@ class Chief:
         self._start_clock(now)
         sender, rnd = message.sender, message.round
         if message.type == "join":
-            return self._join(message)
+            return self._join(message, now)
         if sender not in self.all_workers:  # a new unit's first word is its join
             return self._reject(sender, Reason.UNKNOWN_SENDER, f"{message.type} before its join")
         if (why := self._gate.refusal(sender)) is not None:
@@ -285,6 +286,7 @@ class Chief:
                 self._gate.new_incarnation(worker)
                 if known is not None and status.state == "online":  # a restart: the new process re-sends
                     self._pending.pop(worker, None)  # what the dead one sent for the open exchange
+                    self._restarted.add(worker)  # its join says whether it replays the open round
             self.state.incarnations[worker] = inc
         if status.state == "offline":
             if retained or worker not in self.state.members:
@@ -324,9 +326,11 @@ class Chief:
         leave = self._waits.silent_leave(self.state.members, self._pending)
         return step + self._drop(sorted_workers(leave), DEADLINE_DROP) + self._close_round(now)
 
-    def _join(self, message: Message) -> ChiefStep:
+    def _join(self, message: Message, now: float) -> ChiefStep:
         """Check a worker's shared settings: refuse it (until a join that matches) if one differs. A worker
-        new to the run whose settings match is one of its workers from now on, welcomed at once."""
+        new to the run whose settings match is one of its workers from now on, welcomed at once. A restarted
+        process of a known worker that will not replay the open round (its join names the round it resumes
+        at, 0 for none) is not waited for in that round's later exchanges: it joins the fleet's next round."""
         worker = message.sender
         outcome = self._gate.join(worker, message.settings)
         if outcome == "duplicate":  # a re-sent or replayed join: nothing to do
@@ -334,7 +338,14 @@ class Chief:
         if outcome != "joined":
             return self._refusal(worker)
         if worker in self.all_workers:
-            return ChiefStep(events=(ChiefEvent("joined", self.state.round, sender=worker),))
+            joined = ChiefStep(events=(ChiefEvent("joined", self.state.round, sender=worker),))
+            restarted = worker in self._restarted
+            self._restarted.discard(worker)
+            if restarted and self._per_step and self.state.step > 0 and message.round != self.state.round:
+                self.state.pace.participants.discard(worker)
+                self._waits.note(self.state.pace, self.state.members, self.state.step, self._pending, now)
+                return joined + self._maybe_close(now)
+            return joined
         if self.finished:
             return ChiefStep()
         self.roster.admit(worker)

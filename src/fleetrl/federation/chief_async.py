@@ -70,7 +70,7 @@ class AsyncChief(Chief):
         self._start_clock(now)
         sender, rnd = message.sender, message.round
         if message.type == "join":
-            return self._join(message)
+            return self._join(message, now)
         if (why := self._gate.refusal(sender)) is not None:
             return self._reject(sender, Reason.REFUSED, why)
         refusal = self._admission(message)

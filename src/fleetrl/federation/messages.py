@@ -327,7 +327,8 @@ def decode(
     if not isinstance(sender, str) or sender not in known_senders:
         raise MessageRejected(Reason.UNKNOWN_SENDER, short(sender))
     rnd = env["round"]
-    if not isinstance(rnd, int) or isinstance(rnd, bool) or not 1 <= rnd <= _MAX_ROUND:
+    lowest = 0 if mtype == "join" else 1  # a join names the round its worker resumes at, 0 for none
+    if not isinstance(rnd, int) or isinstance(rnd, bool) or not lowest <= rnd <= _MAX_ROUND:
         raise MessageRejected(Reason.BAD_ROUND, short(rnd))
     metrics = check_metrics(env["metrics"])
     origin = env["origin"]

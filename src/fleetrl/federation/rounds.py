@@ -215,7 +215,8 @@ class EndUpdate:
 
 @dataclass(frozen=True)
 class AbandonUpdate:
-    """The fleet went on past this worker's step: ``agent.abandon_update()`` and let the round finish."""
+    """The fleet went on past this worker's round or step: ``agent.abandon_update()`` and let the round
+    finish without its update."""
 
 
 @dataclass(frozen=True)

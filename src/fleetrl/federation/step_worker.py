@@ -196,6 +196,9 @@ class StepWorkerMachine(WorkerMachine):
                 "worker %s: never got the answer of round %d step %d; taking the fleet's model again",
                 self.worker_id, *self.fleet_at,
             )  # fmt: skip
+            if self.phase in (Phase.DRAIN, Phase.WAIT_ROUND):  # a round played, not yet contributed
+                self._overtaken, self.phase = message, Phase.STEPS_DONE
+                return WorkerStep((act.AbandonUpdate(),))  # recorded as late, then the fleet's model
             self._rejoining = True
             return self.start(now=now)
         if message.flat is None:

@@ -138,7 +138,10 @@ class WorkerMachine:
     def start(self, *, now: float) -> WorkerStep:
         """Announce ``online`` and send the retained ``join``; wait for the welcome."""
         self.phase = Phase.WELCOME
-        join = Message("join", self.run_id, self.worker_id, 1, settings=self.settings)
+        # the round it resumes at (0: none): a per-step chief waits in the open round only for one that
+        # replays it
+        rnd = 0 if self.start_round is None else self.start_round
+        join = Message("join", self.run_id, self.worker_id, rnd, settings=self.settings)
         online = WorkerStep((act.Announce(self.own_status, self.status(ONLINE)),))
         welcome = "the chief's welcome"
         return online + self._send(join, self._welcome_wanted(), welcome, now, retain=True)

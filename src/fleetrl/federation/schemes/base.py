@@ -134,7 +134,7 @@ class FederatedAgent(Protocol):
         ...
 
     def abandon_update(self) -> None:
-        """Drop the update under way before its last step (the fleet went on past it)."""
+        """Drop the round's update, under way or not begun (the fleet went on past it)."""
         ...
 
 
