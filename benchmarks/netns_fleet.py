@@ -280,6 +280,14 @@ def main() -> int:
     parser.add_argument("--timeout", type=float, default=150.0, help="bound on the fleet's run (s)")
     parser.add_argument("--keep", action="store_true", help="keep the run directories and logs")
     args = parser.parse_args()
+    check_machine(parser)
+    if not 1 <= args.workers <= 60:
+        parser.error("--workers must be 1 … 60 (one /30 of 10.77.0.0/24 each)")
+    return run_and_clean(args, "fl", run)
+
+
+def check_machine(parser: argparse.ArgumentParser) -> None:
+    """Log to stderr with times; a usage error unless this runs as root with ``ip`` and mosquitto."""
     logging.basicConfig(level=logging.INFO, format="%(asctime)s %(levelname)s %(message)s")
     if os.geteuid() != 0:
         parser.error("network namespaces need root: run it with sudo")
@@ -287,9 +295,6 @@ def main() -> int:
         parser.error("`ip` not found: apt-get install iproute2")
     if find_mosquitto() is None:
         parser.error("mosquitto not found: apt-get install mosquitto")
-    if not 1 <= args.workers <= 60:
-        parser.error("--workers must be 1 … 60 (one /30 of 10.77.0.0/24 each)")
-    return run_and_clean(args, "fl", run)
 
 
 def run_and_clean(

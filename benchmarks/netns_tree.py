@@ -32,10 +32,7 @@ from __future__ import annotations
 import argparse
 import csv
 import json
-import logging
-import os
 import re
-import shutil
 import subprocess
 import sys
 import time
@@ -51,6 +48,7 @@ from netns_fleet import (
     STAMP,
     Fleet,
     add_netem,
+    check_machine,
     overheads,
     run_and_clean,
     run_args,
@@ -61,8 +59,6 @@ from netns_fleet import (
     wait_all,
     wait_for_broker,
 )
-
-from fleetrl.transport.broker import find_mosquitto
 
 ROOT_RUN, SITE_RUN, SITE_ID = "tree", "tree-site", "0"
 EDGE = r" INFO fleetrl\.federation\.edge_runner: site \S+: round (\d+): "
@@ -268,13 +264,7 @@ def main() -> int:
     parser.add_argument("--timeout", type=float, default=240.0, help="bound on the fleet's run (s)")
     parser.add_argument("--keep", action="store_true", help="keep the run directories and logs")
     args = parser.parse_args()
-    logging.basicConfig(level=logging.INFO, format="%(asctime)s %(levelname)s %(message)s")
-    if os.geteuid() != 0:
-        parser.error("network namespaces need root: run it with sudo")
-    if shutil.which("ip") is None:
-        parser.error("`ip` not found: apt-get install iproute2")
-    if find_mosquitto() is None:
-        parser.error("mosquitto not found: apt-get install mosquitto")
+    check_machine(parser)
     if not 1 <= args.workers <= 60:
         parser.error("--workers must be 1 … 60 (one /30 of 10.77.0.0/24 each, after the three of the tree)")
     if args.rounds < 1:
