@@ -77,7 +77,8 @@ class StepWorkerMachine(WorkerMachine):
         self._wait_until: float | None = None
         self._rejoining = False
         self._overtaken: Message | None = None
-        """a later answer that came while this worker waited for its own step's: its update was abandoned"""
+        """an answer past what this worker could take part in (its own step's answer, or one of a round it
+        played but had not contributed yet, was lost): its round ends without its update"""
 
     # ---- reports of the runner ----
 
@@ -127,8 +128,7 @@ class StepWorkerMachine(WorkerMachine):
         if self._overtaken is not None:
             overtaken, self._overtaken = self._overtaken, None
             recorded = self._round_over(outcome, overtaken, WorkerEvent.LATE, None, False)
-            self._rejoining = True
-            return recorded + self.start(now=now)
+            return recorded + self._rejoin_fleet(now)
         if reply is None:
             raise RuntimeError(f"worker {self.worker_id}: round {self.round} ended without an exchange")
         if reply.type == "done":
@@ -199,8 +199,7 @@ class StepWorkerMachine(WorkerMachine):
             if self.phase in (Phase.DRAIN, Phase.WAIT_ROUND):  # a round played, not yet contributed
                 self._overtaken, self.phase = message, Phase.STEPS_DONE
                 return WorkerStep((act.AbandonUpdate(),))  # recorded as late, then the fleet's model
-            self._rejoining = True
-            return self.start(now=now)
+            return self._rejoin_fleet(now)
         if message.flat is None:
             raise AssertionError("decode guarantees tensors for an average")
         self.fleet_at = self._after(message)
@@ -209,6 +208,11 @@ class StepWorkerMachine(WorkerMachine):
         if self.phase is Phase.WAIT_ROUND and self.fleet_at[1] == 0:
             return applied + self._join()
         return applied
+
+    def _rejoin_fleet(self, now: float) -> WorkerStep:
+        """Join again: the welcome hands the fleet's model as it is now (:meth:`_welcomed`)."""
+        self._rejoining = True
+        return self.start(now=now)
 
     def _queue_read(self, now: float) -> WorkerStep:
         """Nothing more is queued. After a round: play the fleet's open round. Before an update: join the
