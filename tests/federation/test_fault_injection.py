@@ -124,15 +124,16 @@ def test_broker_stopped_and_restarted_mid_run(
 def test_a_worker_ten_times_slower_does_not_slow_the_rounds_with_a_quorum(
     fleet_runner: Callable[..., Any], fake_learner: Any
 ) -> None:
-    # a fast worker's round well inside the deadline even on a loaded machine (the suite runs two processes)
-    rounds, fast, slow = 15, 0.03, 0.75
+    # a fast worker's round well inside the deadline even on a loaded machine (the suite runs two processes;
+    # a 0.2 s deadline once dropped a 0.03 s worker there), the slow one four times the deadline
+    rounds, fast, slow, deadline = 10, 0.03, 2.0, 0.5
     learners = {w: fake_learner(int(w), None, slow if w == "3" else fast) for w in ("1", "2", "3")}
     started = time.monotonic()
     result = fleet_runner(
         LocalBus().client,
         learners,
         max_rounds=rounds,
-        chief_kwargs={"quorum": 0.6, "round_timeout": 0.2},
+        chief_kwargs={"quorum": 0.6, "round_timeout": deadline},
     )
     elapsed = time.monotonic() - started
     assert result.chief.end_reason == f"reached M={rounds} rounds" and result.chief.dropouts == ()
