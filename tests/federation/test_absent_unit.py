@@ -28,7 +28,8 @@ class RecordingTransport:
 
 
 def test_an_absent_unit_sends_nothing_while_away_and_comes_back(fleet_runner: Any, fake_learner: Any) -> None:
-    rounds, round_seconds, away_rounds = 14, 0.05, 8
+    # the deadline 10× a round, so a loaded machine does not drop a present unit; away for two deadlines
+    rounds, round_seconds, away_rounds, deadline = 14, 0.05, 20, 0.5
     pauses: list[tuple[float, float]] = []
 
     def sleep(seconds: float) -> None:
@@ -53,7 +54,7 @@ def test_an_absent_unit_sends_nothing_while_away_and_comes_back(fleet_runner: An
         learners,
         max_rounds=rounds,
         role_transport=transport,
-        chief_kwargs={"quorum": 0.6, "round_timeout": 0.25},
+        chief_kwargs={"quorum": 0.6, "round_timeout": deadline},
     )
     assert len(pauses) == 1
     away_from, away_to = pauses[0]
