@@ -197,3 +197,32 @@ def fake_fleet() -> Callable[..., dict[str, FakeLearner]]:
 def fake_learner() -> type[FakeLearner]:
     """The fake learner class."""
     return FakeLearner
+
+
+class StepAgent:
+    """Just enough of an agent for a site's fleet model: a 2-value network and a 1-value optimiser state;
+    a fleet step subtracts the gradient's first two values and counts the step."""
+
+    def __init__(self) -> None:
+        self.model, self.optimiser = np.zeros(2, np.float32), np.zeros(1, np.float32)
+
+    def model_layout(self) -> list[tuple[str, tuple[int, ...]]]:
+        return [("m", (2,))]
+
+    def optimiser_layout(self) -> list[tuple[str, tuple[int, ...]]]:
+        return [("o", (1,))]
+
+    def model_parameters(self) -> np.ndarray:
+        return self.model.copy()
+
+    def optimiser_parameters(self) -> np.ndarray:
+        return self.optimiser.copy()
+
+    def set_model_parameters(self, flat: np.ndarray) -> None:
+        self.model = np.array(flat, np.float32)
+
+    def set_optimiser_parameters(self, flat: np.ndarray) -> None:
+        self.optimiser = np.array(flat, np.float32)
+
+    def apply_fleet_step(self, k: int, flat: np.ndarray) -> None:
+        self.model, self.optimiser = self.model - flat[:2], self.optimiser + 1

@@ -234,3 +234,10 @@ def test_a_deadline_that_passed_with_nobody_answering_is_not_due_again() -> None
     assert c.next_deadline() == 3.0
     assert kinds(c.tick(11.0)) == ["dropped", "dropped", "averaged"] and c.round == 2
     assert c.members == ("1",)
+
+
+def test_a_worker_s_status_saying_ended_is_rejected_and_changes_nothing() -> None:
+    c = make(round_timeout=5.0)
+    step = c.status("2", status("2", b"ended", 1), now=0.0)
+    assert [e.reason for e in step.events] == [Reason.MALFORMED] and not step.outgoing
+    assert c.members == ("1", "2", "3") and not c.state.suspects and not c.state.incarnations

@@ -7,6 +7,7 @@ import threading
 
 import numpy as np
 import pytest
+from conftest import StepAgent
 
 from fleetrl.federation.aggregation import mean, mean_of_parts, weighted_sum
 from fleetrl.federation.chief import Chief
@@ -265,35 +266,6 @@ def test_the_aggregator_s_loop_joins_the_root_and_raises_when_refused() -> None:
         )
     thread.join(10.0)
     assert chief_end and root.rejections[Reason.REFUSED] == 0  # refused at join, before anything was sent
-
-
-class StepAgent:
-    """Just enough of an agent for a site's fleet model: a 2-value network and a 1-value optimiser state;
-    a fleet step subtracts the gradient's first two values and counts the step."""
-
-    def __init__(self) -> None:
-        self.model, self.optimiser = f32(0.0, 0.0), f32(0.0)
-
-    def model_layout(self) -> list[tuple[str, tuple[int, ...]]]:
-        return [("m", (2,))]
-
-    def optimiser_layout(self) -> list[tuple[str, tuple[int, ...]]]:
-        return [("o", (1,))]
-
-    def model_parameters(self) -> np.ndarray:
-        return self.model.copy()
-
-    def optimiser_parameters(self) -> np.ndarray:
-        return self.optimiser.copy()
-
-    def set_model_parameters(self, flat: np.ndarray) -> None:
-        self.model = np.array(flat, np.float32)
-
-    def set_optimiser_parameters(self, flat: np.ndarray) -> None:
-        self.optimiser = np.array(flat, np.float32)
-
-    def apply_fleet_step(self, k: int, flat: np.ndarray) -> None:
-        self.model, self.optimiser = self.model - flat[:2], self.optimiser + 1
 
 
 def test_a_member_joining_late_is_welcomed_with_the_fleet_s_model_as_the_site_holds_it() -> None:

@@ -130,10 +130,16 @@ def test_oversized_is_rejected_before_parsing() -> None:
     assert reason_of(b"\x00" * (default_max_bytes(LAYOUT) + 1)) == Reason.OVERSIZED
 
 
-def test_done_must_not_carry_tensors() -> None:
+def test_done_carries_the_whole_layout_or_no_tensors() -> None:
     env = envelope(Message("done", "r1", "2", 3), layout=LAYOUT)
-    env["tensors"], env["data"] = [["w", [2, 3]], ["b", [3]]], FLAT.tobytes()
+    env["tensors"], env["data"] = [["w", [3, 3]]], FLAT.tobytes()
     assert reason_of(msgpack.packb(env)) == Reason.LAYOUT_MISMATCH
+    env["tensors"] = [["w", [2, 3]], ["b", [3]]]  # the fleet's final model, from a chief that keeps it
+    back = decode(msgpack.packb(env), run_id="r1", known_senders=("2",), layout=LAYOUT)
+    assert back.flat is not None and back.flat.tolist() == FLAT.tolist()
+    plain = decode(encode(Message("done", "r1", "2", 3), layout=LAYOUT), run_id="r1", known_senders=("2",),
+                   layout=LAYOUT)  # fmt: skip
+    assert plain.flat is None
 
 
 def test_encode_refuses_what_receivers_reject() -> None:

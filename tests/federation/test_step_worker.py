@@ -235,3 +235,27 @@ def test_a_worker_resumed_mid_round_replays_the_closed_steps_and_goes_on_at_the_
     np.testing.assert_array_equal(np.stack(applied), np.stack(expected))
     (record,) = records(m.round_played(Outcome(), now=10.0))  # type: ignore[arg-type]
     assert (record.record.round, record.record.event, m.summary) == (1, Sent("step_gradient"), None)
+
+
+def test_done_with_the_fleet_s_model_is_taken_before_the_end_mid_update_or_back_after_the_end() -> None:
+    m = machine(steps=4)
+    welcomed(m, 1)
+    collected(m)
+    m.update_begun(4, now=0.0)
+    m.step_computed(0, FLAT, now=0.0)
+    ended = m.receive(Message("done", RUN, "chief", 1, flat=FLAT + 7), now=1.0)
+    kinds = [type(o).__name__ for o in ended.outputs]
+    assert kinds[-2:] == ["TakeParameters", "Finish"] and (ended.outputs[-2].flat == FLAT + 7).all()
+    # resumed at round 8 after the run ended in round 10: the round it went down in, the model, the end
+    m = machine(start_round=8)
+    m.start(now=0.0)
+    back = m.receive(Message("done", RUN, "chief", 10, flat=FLAT + 9), now=1.0)
+    (lost,) = records(back)
+    assert (lost.record.round, lost.record.event) == (8, WorkerEvent.INTERRUPTED)
+    assert [type(o).__name__ for o in back.outputs][-2:] == ["TakeParameters", "Finish"]
+    assert m.summary is not None and m.summary.reason == "run ended"
+    # a done without a model (a chief that does not keep one) ends as before
+    m = machine()
+    m.start(now=0.0)
+    plain = m.receive(Message("done", RUN, "chief", 3), now=1.0)
+    assert [type(o).__name__ for o in plain.outputs] == ["Finish"]

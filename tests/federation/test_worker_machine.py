@@ -24,6 +24,7 @@ from fleetrl.federation.rounds import (
     Publish,
     Record,
     Refused,
+    RunEnded,
     TakeParameters,
     TimedOut,
     WorkerStep,
@@ -31,6 +32,7 @@ from fleetrl.federation.rounds import (
     resume_round,
 )
 from fleetrl.federation.schemes import resolve_scheme
+from fleetrl.federation.signing import FleetKey, status_payload
 from fleetrl.federation.topics import chief_topic, worker_of_topic
 from fleetrl.federation.worker import FederatedWorker
 from fleetrl.federation.worker_machine import WorkerMachine
@@ -214,6 +216,43 @@ def test_reply_timeout_before_the_welcome_and_in_a_round() -> None:
     played(m, now=100.0)
     assert m.tick(now=111.0).actions == ()  # resent twice by now, not timed out
     assert isinstance(m.tick(now=112.0).actions[0], TimedOut)
+
+
+def chief_status(state: bytes, key: FleetKey | None = None) -> bytes:
+    return status_payload(state, run_id=RUN, node="chief", incarnation=7, key=key)
+
+
+def test_a_run_whose_chief_says_ended_is_given_up_after_the_grace_unless_a_chief_comes_online() -> None:
+    m = machine(reply_timeout=600.0, ended_grace=30.0)
+    m.start(now=0.0)
+    assert m.receive_bytes(m.chief_status, chief_status(b"ended"), now=1.0) == WorkerStep()
+    assert m.next_deadline() == 5.0 and m.tick(now=5.0).outputs  # still re-sending its join meanwhile
+    assert m.next_deadline() == 10.0 and not any(isinstance(a, RunEnded) for a in m.tick(now=30.9).actions)
+    out = m.tick(now=31.0).actions
+    assert len(out) == 1 and isinstance(out[0], RunEnded) and "run 'machine-run' had ended" in out[0].detail
+    assert m.finished and m.next_deadline() is None
+    # a chief of the run that comes online within the grace (the run id used again) is waited for
+    m = machine(reply_timeout=600.0, ended_grace=30.0)
+    m.start(now=0.0)
+    m.receive_bytes(m.chief_status, chief_status(b"ended"), now=1.0)
+    m.receive_bytes(m.chief_status, chief_status(b"online"), now=2.0)
+    assert not any(isinstance(a, RunEnded) for t in range(3, 100) for a in m.tick(now=float(t)).actions)
+    assert isinstance(m.receive(chief("welcome", 1), now=100.0).actions[0], PlayRound)
+
+
+def test_ended_after_the_welcome_or_unsigned_under_a_key_changes_nothing() -> None:
+    m = machine(ended_grace=1.0)
+    welcomed(m, 1)
+    assert m.receive_bytes(m.chief_status, chief_status(b"ended"), now=0.0) == WorkerStep()
+    assert not any(isinstance(a, RunEnded) for a in m.tick(now=50.0).actions)
+    key = FleetKey(b"k" * 32)
+    m = machine(ended_grace=1.0, key=key)
+    m.start(now=0.0)
+    m.receive_bytes(m.chief_status, chief_status(b"ended"), now=0.0)  # unsigned: rejected
+    m.receive_bytes(m.chief_status, chief_status(b"ended", FleetKey(b"x" * 32)), now=0.0)  # forged
+    assert not any(isinstance(a, RunEnded) for a in m.tick(now=2.0).actions)
+    m.receive_bytes(m.chief_status, chief_status(b"ended", key), now=3.0)
+    assert isinstance(m.tick(now=4.0).actions[0], RunEnded)
 
 
 def test_resume_at_the_welcome_s_round() -> None:

@@ -37,6 +37,7 @@ from fleetrl.agent.update import (
     Objective,
     UpdateStats,
     both_models_at_once,
+    next_values,
 )
 
 
@@ -124,8 +125,7 @@ def host_update(
             for group, starts, length in groups
         ]))  # fmt: skip
         head, v = net(memory.obs[rows])  # line 14, one forward pass for every unit's window
-        with torch.no_grad():
-            v_next = net.value_of(memory.next_obs[rows])
+        v_next = next_values(model, memory.next_obs[rows])
         adv, baseline = advantages[rows], values[rows]  # line 15
         targets = variants.critic_target(memory, rows, v_next, adv, baseline, cfg.gamma)  # type: ignore[arg-type]
         log_probs, behaviour = net.log_probs_and_entropy(head, memory.actions[rows])[0], old_log_probs[rows]

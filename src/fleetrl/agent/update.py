@@ -98,8 +98,7 @@ def ppo_update(model: Model, data: Transitions, window_rng: np.random.Generator)
     for start, stop in windows:  # line 12: for k = 1 … K
         w = slice(start, stop)
         head, v = net(memory.obs[w])  # line 14: π_θ(·|s_t) and V_μ(s_t)
-        with torch.no_grad():
-            v_next = net.value_of(memory.next_obs[w])
+        v_next = next_values(model, memory.next_obs[w])
         adv, baseline = advantages(w, v.detach(), v_next)  # line 15: Â_t (Eq. 2)
         # line 16: V^target (Eq. 3: r + γV(s'); or the λ-return Â + V)
         targets = variants.critic_target(memory, w, v_next, adv, baseline, cfg.gamma)
@@ -216,6 +215,9 @@ class Variants:
     schedule: Schedule
     parts: tuple[tuple[str, ...], ...]
     """what each step of an optimisation moves, in the order its optimisers step"""
+    needs_next_values: bool
+    """whether a window's V(s_{t+1}) enters its advantages or critic target (Eq. 2 on each window, Eq. 3's
+    TD target); otherwise it is not computed (no gradient flows through it, so skipping it changes nothing)"""
 
 
 def hand_back(steps: Generator[Gradient, Gradient, T]) -> T:
@@ -324,4 +326,14 @@ def choose_variants(cfg: PPOConfig) -> Variants:
         critic_target=paper.td_target if cfg.critic_target == "td" else lambda_return,
         schedule=paper.critic_then_actor if sequential else both_models_at_once,
         parts=((CRITIC,), (ACTOR,)) if sequential else ((CRITIC, ACTOR),),
+        needs_next_values=cfg.gae_scope == "window" or cfg.critic_target == "td",
     )
+
+
+def next_values(model: Model, next_obs: torch.Tensor) -> torch.Tensor:
+    """V_μ(s_{t+1}) of a window's next states, without gradient; an empty tensor where the preset's
+    advantages and critic target do not read it."""
+    if not model.variants.needs_next_values:
+        return next_obs.new_empty(0)
+    with torch.no_grad():
+        return model.net.value_of(next_obs)

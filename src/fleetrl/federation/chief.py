@@ -161,7 +161,7 @@ class Chief:
 
     def layout_of(self, message_type: str) -> Layout:
         """The layout of the tensors a message of ``message_type`` from the chief carries."""
-        return self.welcome_layout if message_type == "welcome" else self.layout
+        return self.welcome_layout if message_type in ("welcome", "done") else self.layout
 
     @property
     def settings(self) -> dict[str, str] | None:
@@ -275,6 +275,8 @@ class Chief:
             status = parse_status(payload, run_id=self.run_id, node=worker, key=self.key)
         except MessageRejected as exc:
             return self._reject(worker, exc.reason, exc.detail)
+        if status.state == "ended":  # a chief's state: no worker may say it
+            return self._reject(worker, Reason.MALFORMED, "status 'ended' of a worker")
         if self.finished:
             return ChiefStep()
         known = self.state.incarnations.get(worker)
@@ -444,7 +446,9 @@ class Chief:
 
     def _end(self, reason: str) -> ChiefStep:
         self.state.end_reason = reason
-        done = Message("done", self.run_id, CHIEF_ID, self.state.round)
+        # a chief that keeps the fleet's model hands it out with the end: every worker ends with it
+        final = None if self.fleet_model is None else self.fleet_model.snapshot()
+        done = Message("done", self.run_id, CHIEF_ID, self.state.round, flat=final)
         self.state.answers.end(done)
         event = ChiefEvent("run_ended", self.state.round, detail=reason, remaining=self.members)
         return ChiefStep((done,), (event,))

@@ -132,7 +132,7 @@ class EdgeAggregator:
         try:
             message = decode(
                 payload, run_id=site.root_run, known_senders=(CHIEF_ID,), layout=site.layout, key=site.key,
-                layouts={"welcome": site.welcome_layout},
+                layouts={"welcome": site.welcome_layout, "done": site.welcome_layout},
             )  # fmt: skip
         except MessageRejected as exc:
             event = ChiefEvent("rejected", site.round, sender=CHIEF_ID, reason=exc.reason, detail=exc.detail)

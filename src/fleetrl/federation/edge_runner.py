@@ -23,6 +23,7 @@ from fleetrl.federation.shared_settings import SettingsRefused
 from fleetrl.federation.signing import status_payload
 from fleetrl.federation.topics import (
     CHIEF_ID,
+    ENDED,
     OFFLINE,
     ONLINE,
     chief_topic,
@@ -141,7 +142,7 @@ def run_edge(
             publish(_feed(edge, side, received, now))
             publish(edge.tick(now))
         upstream.publish(up_status, up_state(OFFLINE), retain=True)
-        downstream.publish(down_status, down_state(OFFLINE), retain=True)
+        downstream.publish(down_status, down_state(ENDED), retain=True)  # the site's run is over too
     finally:
         stop.set()
         for thread in readers:

@@ -84,7 +84,7 @@ MESSAGE_TYPES: Mapping[str, bool] = {
     "parameters": True,  # worker → chief: "my criterion holds", with the parameters its scheme shares
     "average": True,  # chief → workers: the aggregated gradient (Algorithm 1, line 13) or model (fedavg)
     "transfer": True,  # chief → workers: a mature worker's parameters (Algorithm 1, line 8)
-    "done": False,  # chief → workers: the run is over (W empty, or M rounds)
+    "done": False,  # chief → workers: the run is over (W empty, or M rounds); the fleet's model if kept
     "welcome": False,  # chief → workers: round i is open; the last transferred θ* if there was a transfer
     "join": False,  # worker → chief: its shared settings, checked against the chief's before it plays
     "refused": False,  # chief → workers: the join of the worker in ``finished`` is refused (``detail``: why)
@@ -94,7 +94,7 @@ round message (``gradient``, ``model``, ``step_gradient`` …: :func:`check_sche
 always carries tensors, and a receiver names the ones it takes (:func:`decode`'s ``scheme_types``)."""
 SCHEME_TYPE = re.compile(r"[a-z][a-z0-9_]{0,31}")
 """the form of a scheme's round-message type"""
-OPTIONAL_TENSORS = frozenset({"welcome"})
+OPTIONAL_TENSORS = frozenset({"welcome", "done"})
 """Types that carry either no tensors or the whole layout."""
 
 HEADER_ALLOWANCE = 64 * 1024

@@ -249,6 +249,18 @@ class Refused:
 
 
 @dataclass(frozen=True)
+class RunEnded:
+    """The chief's status said the run had ended before this worker was welcomed (raise
+    :class:`RunEndedError`)."""
+
+    detail: str
+
+
+class RunEndedError(OSError):
+    """A worker started after its run was over: it could not do its job (``fleetrl worker`` exits 1)."""
+
+
+@dataclass(frozen=True)
 class TimedOut:
     """Nothing from the chief for the whole reply timeout (raise :class:`TimeoutError`)."""
 
@@ -271,6 +283,7 @@ WorkerOutput = (
     | Checkpoint
     | Finish
     | Refused
+    | RunEnded
     | TimedOut
 )
 """Everything a :class:`WorkerStep` can hold."""

@@ -15,6 +15,7 @@ from fleetrl.federation.messages import Reason, encode
 from fleetrl.federation.signing import status_payload
 from fleetrl.federation.topics import (
     CHIEF_ID,
+    ENDED,
     OFFLINE,
     ONLINE,
     chief_topic,
@@ -189,7 +190,8 @@ def run_chief(
                     log.info("chief: node %s is %s", node, received.payload[:16].decode("ascii", "replace"))
                     publish(chief.status(node, received.payload, retained=received.retained, now=now))
             publish(chief.tick(now))
-        transport.publish(own_status, status(OFFLINE), retain=True)
+        # retained: a worker that starts after this learns the run is over, instead of waiting for a welcome
+        transport.publish(own_status, status(ENDED), retain=True)
     finally:
         transport.close()
     return ChiefSummary(

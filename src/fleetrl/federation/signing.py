@@ -79,9 +79,14 @@ class FleetKey:
         return self._tag(f"{run_id}/{node}/{state}/{incarnation}".encode()).hex()
 
 
+STATES = ("online", "offline", "ended")
+"""the states a status payload may name (``ended``: a chief's, once its run is over)"""
+
+
 @dataclass(frozen=True)
 class Status:
-    """A node's status: ``online`` or ``offline``, and the incarnation it belongs to (None if not given)."""
+    """A node's status: ``online``, ``offline`` or (a chief's) ``ended``, and the incarnation it belongs to
+    (None if not given)."""
 
     state: str
     incarnation: int | None = None
@@ -90,7 +95,8 @@ class Status:
 def status_payload(
     state: bytes, *, run_id: str, node: str, incarnation: int, key: FleetKey | None = None
 ) -> bytes:
-    """The payload announcing ``state`` (``b"online"``/``b"offline"``) of ``node``, signed if ``key``."""
+    """The payload announcing ``state`` (``b"online"``/``b"offline"``/``b"ended"``) of ``node``, signed if
+    ``key``."""
     text = f"{state.decode('ascii')} {incarnation}"
     if key is not None:
         text += " " + key.status_tag(run_id, node, state.decode("ascii"), incarnation)
@@ -106,7 +112,7 @@ def parse_status(payload: bytes, *, run_id: str, node: str, key: FleetKey | None
         parts = payload.decode("ascii").split(" ") if len(payload) <= 256 else []
     except UnicodeDecodeError:
         parts = []
-    if not parts or parts[0] not in ("online", "offline") or len(parts) > 3:
+    if not parts or parts[0] not in STATES or len(parts) > 3:
         raise MessageRejected(Reason.MALFORMED, f"status {payload[:32]!r}")
     if len(parts) > 1 and not (parts[1].isdigit() and len(parts[1]) <= 20):
         raise MessageRejected(Reason.MALFORMED, f"status incarnation {parts[1][:24]!r}")

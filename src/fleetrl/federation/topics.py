@@ -23,6 +23,8 @@ ONLINE = b"online"
 """Status payload of a connected node."""
 OFFLINE = b"offline"
 """Status payload of a node that left (its last will, or a clean goodbye)."""
+ENDED = b"ended"
+"""Status payload of a chief whose run has ended (retained: a worker that starts later learns it)."""
 
 _ID = re.compile(r"[A-Za-z0-9_.-]{1,64}")
 

@@ -59,6 +59,8 @@ from fleetrl.federation.rounds import (
     Record,
     Refused,
     RoundPlayer,
+    RunEnded,
+    RunEndedError,
     TakeParameters,
     TimedOut,
     WorkerOutput,
@@ -70,6 +72,7 @@ from fleetrl.federation.shared_settings import SettingsRefused, SharedSettings
 from fleetrl.federation.signing import FleetKey
 from fleetrl.federation.step_worker import StepWorkerMachine, worker_machine
 from fleetrl.federation.topics import OFFLINE, validate_id, validate_worker_id
+from fleetrl.federation.worker_machine import ENDED_GRACE
 from fleetrl.transport.base import Transport, Will
 
 __all__ = ["FederatedRound", "FederatedWorker", "RoundPlayer", "WorkerSummary"]
@@ -109,6 +112,9 @@ class FederatedWorker:
     :param clock: the time source handed to the state machine (seconds).
     :param units: the units the learner plays (a unit host: U), said in every message it contributes; the
         chief weighs its answers by them.
+    :param ended_grace: seconds to wait, unwelcomed, for a new chief once the chief's retained status says
+        the run has ended; then :meth:`run` raises
+        :class:`~fleetrl.federation.rounds.RunEndedError`.
     """
 
     def __init__(
@@ -129,6 +135,7 @@ class FederatedWorker:
         settings: SharedSettings | None = None,
         clock: Callable[[], float] = time.monotonic,
         units: int = 1,
+        ended_grace: float = ENDED_GRACE,
     ) -> None:
         """Prepare the worker; nothing is sent before :meth:`run`."""
         self.learner = learner
@@ -157,6 +164,7 @@ class FederatedWorker:
             start_round=start_round,
             incarnation=time.time_ns(),
             units=units,
+            ended_grace=ended_grace,
         )
         self._queue: deque[WorkerOutput] = deque()
         self._played: Any = None
@@ -247,6 +255,8 @@ class FederatedWorker:
                 raise SettingsRefused(reason)
             case TimedOut(detail):
                 raise TimeoutError(detail)
+            case RunEnded(detail):
+                raise RunEndedError(detail)
             case _:
                 raise AssertionError(f"worker {self.worker_id}: {output} out of turn")
 

@@ -45,16 +45,20 @@ from fleetrl.federation.rounds import (
 )
 from fleetrl.federation.schemes import Scheme
 from fleetrl.federation.shared_settings import SharedSettings, settings_difference
-from fleetrl.federation.signing import FleetKey, status_payload
-from fleetrl.federation.topics import CHIEF_ID, OFFLINE, ONLINE, chief_topic, status_topic, worker_topic
+from fleetrl.federation.signing import FleetKey, parse_status, status_payload
+from fleetrl.federation.topics import CHIEF_ID, ONLINE, chief_topic, status_topic, worker_topic
 from fleetrl.federation.worker_phase import NOTHING, QUEUED, Phase, Wait
 
 if TYPE_CHECKING:  # the learner (and torch) is not imported by the pure machine
     from fleetrl.agent.round_result import RoundResult
 
-__all__ = ["WorkerMachine"]
+__all__ = ["ENDED_GRACE", "WorkerMachine"]
 
 log = logging.getLogger(__name__)
+
+ENDED_GRACE = 30.0
+"""seconds a worker waiting for its welcome gives a new chief of a run whose chief's status says it ended
+(a run id used again: the new chief's ``online`` replaces the retained ``ended``)"""
 
 
 class WorkerMachine:
@@ -73,6 +77,8 @@ class WorkerMachine:
     :param start_round: resuming from a checkpoint: the first round the learner's state has not played.
     :param incarnation: this process's incarnation (newer than any earlier one with the same id).
     :param units: the units this worker carries (a unit host: U), said in every message it contributes.
+    :param ended_grace: seconds to wait for a new chief once the chief's status says the run ended, before
+        giving up (:class:`~fleetrl.federation.rounds.RunEnded`), if no welcome came yet.
     """
 
     current_model = False
@@ -95,6 +101,7 @@ class WorkerMachine:
         start_round: int | None = None,
         incarnation: int = 0,
         units: int = 1,
+        ended_grace: float = ENDED_GRACE,
     ) -> None:
         """Prepare the machine; nothing happens before :meth:`start`."""
         if units < 1:
@@ -112,6 +119,9 @@ class WorkerMachine:
         self.resend_interval = resend_interval
         self.start_round = start_round
         self.incarnation = incarnation
+        self.ended_grace = ended_grace
+        self._run_ended_at: float | None = None
+        """when the chief's status said ``ended`` (None: it did not, or a chief came online since)"""
         self.chief_topic = chief_topic(run_id)
         self.chief_status = status_topic(run_id, CHIEF_ID)
         self.own_status = status_topic(run_id, worker_id)
@@ -153,21 +163,42 @@ class WorkerMachine:
     def receive_bytes(self, topic: str, payload: bytes, *, now: float) -> WorkerStep:
         """A payload from the chief's topic or its status topic."""
         if topic == self.chief_status:
-            if payload.startswith(OFFLINE):
-                log.warning("worker %s: the chief went offline; waiting", self.worker_id)
-            return NOTHING
+            return self._chief_status(payload, now)
         try:
             message = decode(
                 payload, run_id=self.run_id, known_senders=(CHIEF_ID,), layout=self.layout, key=self.key,
-                layouts={"welcome": self.welcome_layout},
+                layouts={"welcome": self.welcome_layout, "done": self.welcome_layout},
             )  # fmt: skip
         except MessageRejected as exc:
             log.warning("worker %s: rejected a chief message: %s", self.worker_id, exc)
             return NOTHING
         return self.receive(message, now=now)
 
+    def _chief_status(self, payload: bytes, now: float) -> WorkerStep:
+        """The chief's status: ``offline`` is logged; ``ended`` before the welcome starts the grace after
+        which this worker gives up (a run that is over); ``online`` ends that grace (the run's new chief)."""
+        try:
+            status = parse_status(payload, run_id=self.run_id, node=CHIEF_ID, key=self.key)
+        except MessageRejected as exc:
+            log.warning("worker %s: rejected the chief's status: %s", self.worker_id, exc)
+            return NOTHING
+        if status.state == "online":
+            self._run_ended_at = None
+        elif status.state == "offline":
+            log.warning("worker %s: the chief went offline; waiting", self.worker_id)
+        elif self.phase is Phase.WELCOME and self._run_ended_at is None:
+            self._run_ended_at = now
+            log.warning(
+                "worker %s: the chief of run %r says the run has ended; waiting %g s for a new chief of it",
+                self.worker_id, self.run_id, self.ended_grace,
+            )  # fmt: skip
+        return NOTHING
+
     def receive(self, message: Message, *, now: float) -> WorkerStep:
-        """A decoded chief message."""
+        """A decoded chief message (a ``done`` that carries the fleet's final model: taken before the end)."""
+        return _final_model_first(self._dispatch(message, now), message)
+
+    def _dispatch(self, message: Message, now: float) -> WorkerStep:
         if self.phase is Phase.DONE:
             return NOTHING
         if message.type == "refused":
@@ -186,6 +217,8 @@ class WorkerMachine:
         """Time passed with nothing received: re-send, time out, or (catching up) nothing more is queued."""
         if self.phase in QUEUED:
             return self._queue_read(now)
+        if (over := self._run_over_at()) is not None and now >= over:
+            return self._run_ended()
         wait = self._wait
         if wait is None:
             return NOTHING
@@ -206,8 +239,14 @@ class WorkerMachine:
             return -math.inf  # due at once: only what is already queued is read
         if self._wait is None:
             return None
-        times = [t for t in (self._wait.deadline, self._wait.next_send) if t is not None]
+        times = [t for t in (self._wait.deadline, self._wait.next_send, self._run_over_at()) if t is not None]
         return min(times, default=None)
+
+    def _run_over_at(self) -> float | None:
+        """When this worker, still unwelcomed, gives up on a run its chief said has ended (None: not due)."""
+        if self._run_ended_at is None or self.phase is not Phase.WELCOME:
+            return None
+        return self._run_ended_at + self.ended_grace
 
     @property
     def finished(self) -> bool:
@@ -247,7 +286,7 @@ class WorkerMachine:
 
     def _welcomed(self, welcome: Message) -> WorkerStep:
         if welcome.type == "done":
-            return self._finish(WorkerSummary(self.worker_id, 0, finished=False, reason="run ended"))
+            return self._run_over_unwelcomed(welcome)
         why = settings_difference(welcome.settings, self.settings) if welcome.settings else None
         if why is not None:
             return self._refused(why)
@@ -262,6 +301,16 @@ class WorkerMachine:
         log.info("worker %s: welcomed at round %d (θ* of %s)", self.worker_id, welcome.round, welcome.origin)
         rejoined = self._round_lost(resume) + WorkerStep(out)
         return rejoined + self._begin_round(welcome.round if resume is None else resume)
+
+    def _run_over_unwelcomed(self, done: Message) -> WorkerStep:
+        """``done`` before any welcome (back after the run ended): the round a resumed worker went down in
+        is recorded as interrupted, as when welcomed after the fleet went on."""
+        lost = (
+            self._round_lost(None)
+            if self.start_round is not None and done.round >= self.start_round
+            else NOTHING
+        )
+        return lost + self._finish(WorkerSummary(self.worker_id, 0, finished=False, reason="run ended"))
 
     def _round_lost(self, resume: int | None) -> WorkerStep:
         """Resumed from a checkpoint, welcomed after the fleet went on (``resume`` None): the round the
@@ -376,6 +425,14 @@ class WorkerMachine:
             f"{self.reply_timeout:g} s (--reply-timeout) while waiting for {what}"
         ),))  # fmt: skip
 
+    def _run_ended(self) -> WorkerStep:
+        self.phase, self._wait = Phase.DONE, None
+        return WorkerStep((act.RunEnded(
+            f"worker {self.worker_id}: run {self.run_id!r} had ended before this worker was welcomed (its "
+            f"chief's status says so, and no new chief of it came within {self.ended_grace:g} s); nothing to "
+            "train: start a new run under another --run-id"
+        ),))  # fmt: skip
+
     def _finish(self, summary: WorkerSummary) -> WorkerStep:
         self.phase, self._wait, self.summary = Phase.DONE, None, summary
         return WorkerStep((act.Finish(summary),))
@@ -386,3 +443,14 @@ class WorkerMachine:
             f"worker {self.worker_id}: refused by the chief of run {self.run_id!r}: {why}; start it with the"
             " chief's settings"
         ),))  # fmt: skip
+
+
+def _final_model_first(step: WorkerStep, message: Message) -> WorkerStep:
+    """A ``done`` that ends this worker's run and carries the fleet's final model (a chief that keeps it):
+    the model is taken before the run's :class:`~fleetrl.federation.rounds.Finish`, so every worker ends
+    with the chief's model, also one that was down when the run ended."""
+    outputs = step.outputs
+    if message.type != "done" or message.flat is None or not any(isinstance(o, act.Finish) for o in outputs):
+        return step
+    at = next(i for i, o in enumerate(outputs) if isinstance(o, act.Finish))
+    return WorkerStep((*outputs[:at], act.TakeParameters(message.flat), *outputs[at:]))
