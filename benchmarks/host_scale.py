@@ -1,7 +1,7 @@
 """Unit hosts at scale: a CartPole fleet of N units with and without hosts, in this process.
 
     python benchmarks/host_scale.py [--units 8 64 256] [--rounds 3] [--per-host 0] [--part acting|train|all]
-                                    [--kinds flat host]
+                                    [--kinds flat host] [--set KEY=VALUE ...] [--transport local|mqtt]
 
 acting: the units' first ``--rounds`` episodes (no update) — N learners of one unit each, stepped one after
 the other as the worker threads of ``--transport local`` take turns, against one host of N units (one forward
@@ -10,10 +10,12 @@ this process's CPU time (the machine is shared: the CPU figure moves less with t
 
 train: ``fleetrl train --env cartpole --mode federated --transport local --preset standard --seed 3`` for
 ``--rounds`` rounds, each configuration in a fresh process: N workers of one unit (``flat``), or hosts of
-``--per-host`` units (0: one host of all N). Per configuration: wall seconds per round (rounds 2 … R, from
-metrics.csv's wall times: no start-up), unit-steps per second of those rounds including the updates and the
-exchanges, and the process's peak memory (its maximum resident set). The run's scores plot is not drawn
-(one panel per unit: drawing 1000 took longer than the run).
+``--per-host`` units (0: one host of all N), with the preset's ``--set`` overrides (e.g. ``batch_size=16``),
+over ``--transport`` (``mqtt``: each host its own process on the embedded broker). Per configuration: wall
+seconds per round (rounds 2 … R, from metrics.csv's wall times: no start-up), unit-steps per second of those
+rounds including the updates and the exchanges, and the process's peak memory (its maximum resident set;
+with ``mqtt`` the command's alone). The run's scores plot is not drawn (one panel per unit: drawing 1000
+took longer than the run).
 
 The machine is shared: the script prints the load average before and after each measurement.
 """
@@ -77,8 +79,11 @@ def acting(units: int, rounds: int, hosted: bool) -> dict[str, float]:
             "unit_steps_per_cpu_s": steps / cpu_seconds}  # fmt: skip
 
 
-def train_once(units: int, rounds: int, per_host: int) -> dict[str, float]:
-    """One ``fleetrl train`` run in this process (1: flat); its figures and this process's peak memory."""
+def train_once(
+    units: int, rounds: int, per_host: int, overrides: tuple[str, ...] = (), transport: str = "local"
+) -> dict[str, float]:
+    """One ``fleetrl train`` run in this process (1: flat); its figures and this process's peak memory (with
+    ``transport='mqtt'`` the hosts are processes of their own, not counted in it)."""
     from fleetrl.cli.main import main
     from fleetrl.runs import plots
 
@@ -86,9 +91,9 @@ def train_once(units: int, rounds: int, per_host: int) -> dict[str, float]:
     with tempfile.TemporaryDirectory() as tmp:
         out = Path(tmp) / "run"
         argv = ["train", "--env", "cartpole", "--units", str(units), "--mode", "federated",
-                "--transport", "local", "--preset", "standard", "--seed", str(SEED), "--max-rounds",
+                "--transport", transport, "--preset", "standard", "--seed", str(SEED), "--max-rounds",
                 str(rounds), "--no-live", "--target-score", "1e9", "--units-per-host", str(per_host),
-                "--out", str(out)]  # fmt: skip
+                "--out", str(out)] + [a for o in overrides for a in ("--set", o)]  # fmt: skip
         started = time.perf_counter()
         code = main(argv)
         seconds = time.perf_counter() - started
@@ -107,9 +112,12 @@ def train_once(units: int, rounds: int, per_host: int) -> dict[str, float]:
             "unit_steps_per_s": steps / (timed * (done - 1)), "peak_mb": peak_mb}  # fmt: skip
 
 
-def train(units: int, rounds: int, per_host: int) -> dict[str, float]:
+def train(
+    units: int, rounds: int, per_host: int, overrides: tuple[str, ...] = (), transport: str = "local"
+) -> dict[str, float]:
     """:func:`train_once` in a fresh process (its own peak memory, its own imports)."""
-    code = f"import json, host_scale; print(json.dumps(host_scale.train_once({units}, {rounds}, {per_host})))"
+    call = f"host_scale.train_once({units}, {rounds}, {per_host}, {overrides!r}, {transport!r})"
+    code = f"import json, host_scale; print(json.dumps({call}))"
     env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(Path(__file__).parent), *sys.path])}
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, check=True)
     result: dict[str, float] = json.loads(done.stdout.strip().splitlines()[-1])
@@ -125,6 +133,9 @@ def main() -> None:
     parser.add_argument("--per-host", type=int, default=0, help="units per host (0: one host of all)")
     parser.add_argument("--part", choices=("acting", "train", "all"), default="all")
     parser.add_argument("--kinds", nargs="+", choices=("flat", "host"), default=["flat", "host"])
+    parser.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
+                        help="a preset override for --part train (repeatable)")  # fmt: skip
+    parser.add_argument("--transport", choices=("local", "mqtt"), default="local")
     args = parser.parse_args()
     for units in args.units:
         for name in args.kinds:
@@ -139,7 +150,7 @@ def main() -> None:
                       f"{r['seconds']:.2f} s)  [{before} -> {load()}]", flush=True)  # fmt: skip
             if args.part in ("train", "all"):
                 before = load()
-                t = train(units, args.rounds, per_host)
+                t = train(units, args.rounds, per_host, tuple(args.overrides), args.transport)
                 print(f"{label} train: {t['seconds_per_round']:7.2f} s/round, {t['unit_steps_per_s']:8.0f} "
                       f"unit-steps/s incl. updates, peak {t['peak_mb']:.0f} MB over {t['rounds']} rounds  "
                       f"[{before} -> {load()}]", flush=True)  # fmt: skip
