@@ -67,7 +67,9 @@ def test_federated_run_writes_the_same_files_as_an_individual_run(
     rows = list(csv.DictReader((local_run / "metrics.csv").open()))
     assert {r["event"] for r in rows} == {"step_gradient"}  # the default scheme, pergrad: gradients per step
     chief = json.loads((local_run / "chief.json").read_text())
-    assert chief["rounds"] == ROUNDS and chief["rejections"] == {}
+    # a worker that waited past its resend interval on a loaded machine re-sends: its copy arrives stale or
+    # twice (once seen under load: {'stale round': 3}); nothing else may be rejected
+    assert chief["rounds"] == ROUNDS and set(chief["rejections"]) <= {"stale round", "duplicate (sender, round)"}
 
 
 @pytest.mark.mqtt
