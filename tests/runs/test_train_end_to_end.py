@@ -39,10 +39,15 @@ def individual_run(tmp_path_factory: pytest.TempPathFactory) -> Path:
     return out
 
 
+SYNCHRONOUS = ("--quorum", "1")
+"""every exchange waits for every worker: the default quorum (0.6) lets a worker slow to connect miss steps
+(once in CI: the amqtt broker dropped a worker's first connection), and the runs would differ by timing"""
+
+
 @pytest.fixture(scope="module")
 def local_run(tmp_path_factory: pytest.TempPathFactory) -> Path:
     out = tmp_path_factory.mktemp("local") / "run"
-    train(out, "--mode", "federated", "--transport", "local")
+    train(out, "--mode", "federated", "--transport", "local", *SYNCHRONOUS)
     return out
 
 
@@ -77,7 +82,7 @@ def test_federated_run_writes_the_same_files_as_an_individual_run(
 def test_same_seed_same_scores_over_mqtt_and_the_local_bus(
     local_run: Path, tmp_path: Path, broker: EmbeddedBroker
 ) -> None:
-    summary = train(tmp_path / "run", "--mode", "federated", "--broker", broker.url)
+    summary = train(tmp_path / "run", "--mode", "federated", "--broker", broker.url, *SYNCHRONOUS)
     assert summary["broker"] == broker.url
     assert scores(tmp_path / "run") == scores(local_run)
 
@@ -108,7 +113,9 @@ def test_evaluate_refuses_bad_models(
 
 @pytest.mark.mqtt
 def test_devices_behind_mqtt_bridges_give_the_same_scores(local_run: Path, tmp_path: Path) -> None:
-    summary = train(tmp_path / "run", "--mode", "federated", "--transport", "local", "--device-link", "mqtt")
+    summary = train(
+        tmp_path / "run", "--mode", "federated", "--transport", "local", "--device-link", "mqtt", *SYNCHRONOUS
+    )
     assert summary["broker"].startswith("mqtt://127.0.0.1:")
     assert scores(tmp_path / "run") == scores(local_run)
 
