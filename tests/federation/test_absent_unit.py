@@ -28,8 +28,9 @@ class RecordingTransport:
 
 
 def test_an_absent_unit_sends_nothing_while_away_and_comes_back(fleet_runner: Any, fake_learner: Any) -> None:
-    # the deadline 10× a round, so a loaded machine does not drop a present unit; away for two deadlines
-    rounds, round_seconds, away_rounds, deadline = 14, 0.05, 20, 0.5
+    # the deadline 40× a round, so a loaded machine does not drop a present unit (a 0.5 s deadline dropped
+    # two in a loaded CI run); away for two deadlines
+    rounds, round_seconds, away_rounds, deadline = 14, 0.05, 80, 2.0
     pauses: list[tuple[float, float]] = []
 
     def sleep(seconds: float) -> None:

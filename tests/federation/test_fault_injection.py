@@ -125,8 +125,9 @@ def test_a_worker_ten_times_slower_does_not_slow_the_rounds_with_a_quorum(
     fleet_runner: Callable[..., Any], fake_learner: Any
 ) -> None:
     # a fast worker's round well inside the deadline even on a loaded machine (the suite runs two processes;
-    # a 0.2 s deadline once dropped a 0.03 s worker there), the slow one four times the deadline
-    rounds, fast, slow, deadline = 10, 0.03, 2.0, 0.5
+    # a 0.2 s deadline once dropped a 0.03 s worker there, and 0.5 s two workers of another test), the slow
+    # one four times the deadline
+    rounds, fast, slow, deadline = 10, 0.03, 4.0, 1.0
     learners = {w: fake_learner(int(w), None, slow if w == "3" else fast) for w in ("1", "2", "3")}
     started = time.monotonic()
     result = fleet_runner(
