@@ -305,11 +305,8 @@ class WorkerMachine:
     def _run_over_unwelcomed(self, done: Message) -> WorkerStep:
         """``done`` before any welcome (back after the run ended): the round a resumed worker went down in
         is recorded as interrupted, as when welcomed after the fleet went on."""
-        lost = (
-            self._round_lost(None)
-            if self.start_round is not None and done.round >= self.start_round
-            else NOTHING
-        )
+        # (a fresh worker's _round_lost records nothing)
+        lost = NOTHING if done.round < (self.start_round or 0) else self._round_lost(None)
         return lost + self._finish(WorkerSummary(self.worker_id, 0, finished=False, reason="run ended"))
 
     def _round_lost(self, resume: int | None) -> WorkerStep:
