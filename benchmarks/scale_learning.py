@@ -1,19 +1,23 @@
 """Learning at scale: a CartPole fleet of N units under the default scheme, until every unit completes.
 
     python benchmarks/scale_learning.py --units 1000 --seeds 100 101 102 103 104 [--per-host 500]
-        [--set batch_size=16 ...] [--max-rounds 60] [--out DIR] [--records benchmarks/results/scale]
+        [--transport local|mqtt] [--set batch_size=16 ...] [--max-rounds 60] [--out DIR]
+        [--records benchmarks/results/scale]
 
 Each (arm, seed) runs once as the real command, in its own process::
 
-    fleetrl train --env cartpole --units N --mode federated --transport local --units-per-host U
+    fleetrl train --env cartpole --units N --mode federated --transport T --units-per-host U
                   --seed S --max-rounds M --no-live [--set KEY=VALUE ...] --out OUT/ARM-seed-S
 
-and leaves a small JSON record in ``--records`` (a run whose record exists is not run again: a sweep resumes
-across sessions). Per run: whether every unit completed within M, the round at which the last one did (the
-fleet), the median over units of the round at which each first completed (per unit), the command's wall time,
-the median wall time of the rounds in which every unit played a full-length episode (500 steps), the load
-average before and after, the machine and the commit. The table prints the medians over the seeds of each
-arm given. Compare with each unit alone: docs/results.md, "CartPole scaling" (1 worker, pergrad).
+(``--transport local``, the default: the hosts are threads of the command; ``mqtt``: processes on the
+embedded broker, the arm's name ending ``-mqtt``) and leaves a small JSON record in ``--records`` (a run
+whose record exists is not run again: a sweep resumes across sessions). Per run: whether every unit
+completed within M, the round at which the last one did (the fleet), the median over units of the round at
+which each first completed (per unit), the command's wall time, the median wall time of the rounds in which
+every unit played a full-length episode (500 steps), the peak of the process tree's summed proportional set
+size (sampled every 2 s), the load average before and after, the machine and the commit. The table prints
+the medians over the seeds of each arm given. Compare with each unit alone: docs/results.md, "CartPole
+scaling" (1 worker, pergrad).
 """
 
 from __future__ import annotations
@@ -27,19 +31,23 @@ import shutil
 import statistics
 import subprocess
 import sys
+import tempfile
 import time
 from collections import defaultdict
 from pathlib import Path
+
+from run_memory import children, pss_bytes
 
 FLEETRL = Path(sys.executable).with_name("fleetrl")
 FULL_LENGTH = 500
 """CartPole's step cap: a round in which every unit reached it is a full-length round"""
 
 
-def arm_name(units: int, per_host: int, overrides: list[str], max_rounds: int) -> str:
-    """The arm's record name: its fleet size, host size, overrides and M."""
+def arm_name(units: int, per_host: int, overrides: list[str], max_rounds: int, transport: str) -> str:
+    """The arm's record name: its fleet size, host size, overrides, M and a transport other than local."""
     extra = "".join(f"-{o.replace('=', '')}" for o in sorted(overrides))
-    return f"cartpole-n{units}-u{per_host}-m{max_rounds}{extra}"
+    where = "" if transport == "local" else f"-{transport}"
+    return f"cartpole-n{units}-u{per_host}-m{max_rounds}{extra}{where}"
 
 
 def figures(run: Path) -> dict[str, object]:
@@ -85,14 +93,21 @@ def run_one(argv: list[str], out: Path, record: Path) -> dict[str, object]:
         shutil.rmtree(out)
     load_before = os.getloadavg()[0]
     started = time.perf_counter()
-    done = subprocess.run(argv, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
-    wall = time.perf_counter() - started
-    if done.returncode != 0:
-        raise SystemExit(f"{' '.join(argv)} exited {done.returncode}: {done.stderr.strip()[-500:]}")
+    peak = 0
+    with tempfile.TemporaryFile("w+") as errors:  # a file, not a pipe: a full pipe would stop the run
+        command = subprocess.Popen(argv, stdout=subprocess.DEVNULL, stderr=errors, text=True)
+        while command.poll() is None:
+            peak = max(peak, sum(pss_bytes(p) for p in children(command.pid)))
+            time.sleep(2.0)
+        wall = time.perf_counter() - started
+        if command.returncode != 0:
+            errors.seek(0)
+            raise SystemExit(f"{' '.join(argv)} exited {command.returncode}: {errors.read()[-500:]}")
     data: dict[str, object] = {
         "command": " ".join(["fleetrl", *argv[1:]]),
         **figures(out),
         "wall_s": round(wall, 1),
+        "peak_tree_pss_mb": round(peak / 2**20),
         "load_before": round(load_before, 1),
         "load_after": round(os.getloadavg()[0], 1),
         "machine": f"{platform.processor() or platform.machine()}, {os.cpu_count()} cores",
@@ -109,13 +124,14 @@ def main() -> None:
     )
     parser.add_argument("--units", type=int, default=1000)
     parser.add_argument("--per-host", type=int, default=500)
+    parser.add_argument("--transport", choices=("local", "mqtt"), default="local")
     parser.add_argument("--seeds", type=int, nargs="+", required=True)
     parser.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE")
     parser.add_argument("--max-rounds", type=int, default=60)
     parser.add_argument("--out", type=Path, default=Path("/tmp/fleetrl-scale"))
     parser.add_argument("--records", type=Path, default=Path(__file__).parent / "results" / "scale")
     args = parser.parse_args()
-    arm = arm_name(args.units, args.per_host, args.overrides, args.max_rounds)
+    arm = arm_name(args.units, args.per_host, args.overrides, args.max_rounds, args.transport)
     results = []
     for seed in args.seeds:
         record = args.records / arm / f"seed-{seed}.json"
@@ -123,8 +139,8 @@ def main() -> None:
             data = json.loads(record.read_text())
         else:
             out = args.out / f"{arm}-seed-{seed}"
-            argv = [str(FLEETRL), "train", "--env", "cartpole", "--units", str(args.units),
-                    "--mode", "federated", "--transport", "local", "--units-per-host", str(args.per_host),
+            argv = [str(FLEETRL), "train", "--env", "cartpole", "--units", str(args.units), "--mode",
+                    "federated", "--transport", args.transport, "--units-per-host", str(args.per_host),
                     "--seed", str(seed), "--max-rounds", str(args.max_rounds), "--no-live",
                     "--out", str(out)]  # fmt: skip
             argv += [a for o in args.overrides for a in ("--set", o)]
@@ -132,7 +148,8 @@ def main() -> None:
         results.append(data)
         print(f"{arm} seed {seed}: {data['completed']}/{data['units']} completed, "
               f"fleet {data['fleet_rounds']}, per unit {data['per_unit_median']}, "
-              f"full-length round {data['full_length_round_s_median']} s, wall {data['wall_s']} s "
+              f"full-length round {data['full_length_round_s_median']} s, wall {data['wall_s']} s, "
+              f"peak {data.get('peak_tree_pss_mb', '?')} MB "
               f"(load {data['load_before']} -> {data['load_after']})", flush=True)  # fmt: skip
     fleets = [r["fleet_rounds"] for r in results]
     per_unit = [r["per_unit_median"] for r in results if r["per_unit_median"] is not None]

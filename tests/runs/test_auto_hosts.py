@@ -1,5 +1,5 @@
-"""``--units-per-host auto``: about one unit host per core for a fleet of more than 16 units that can have
-hosts; one worker per unit otherwise, so small runs and their records stay as they were."""
+"""``--units-per-host auto`` (the default): about one unit host per core for a fleet of more than 16 units
+that can have hosts; one worker per unit otherwise, so small runs and their records stay as they were."""
 
 from pathlib import Path
 
@@ -30,7 +30,11 @@ def test_auto_resolves_to_a_number_before_the_run_and_its_records(tmp_path: Path
     assert f"units_per_host = {large.per_host}" in large.to_toml()  # a rerun of config.toml: the same hosts
     small = chosen(tmp_path, AUTO_HOSTS_ABOVE_UNITS, mode="federated", transport="local")
     assert small.per_host == 1 and "units_per_host" not in small.result_settings()
-    assert chosen(tmp_path, 40, transport="mqtt").per_host == 1  # hosts run in-process only
+    assert chosen(tmp_path, 40, transport="mqtt").per_host == large.per_host  # processes on the broker
+    assert chosen(tmp_path, 40, mode="individual").per_host == 1  # units alone are not members
+    values = {"env": "cartpole", "units": 40, "out": str(tmp_path / "run")}
+    unnamed = build(RunSettings, values, {}, resolve=False)
+    assert unnamed.units_per_host == "auto" and unnamed.learning_resolved().per_host == large.per_host
     assert chosen(tmp_path, 40, transport="local", scheme="fedavg").per_host == 1  # not a one-policy scheme
 
 

@@ -9,6 +9,7 @@ from fleetrl.cli.main import main
 from fleetrl.runs.host_settings import units_per_core
 from fleetrl.runs.memory_fit import (
     COMMAND_MB,
+    FORKED_WORKER_MB,
     HEADROOM,
     RunLayout,
     available_mb,
@@ -44,10 +45,8 @@ def test_a_hundred_spawned_worker_processes_are_refused_with_hosts_to_type_inste
     assert why is not None and "\n" not in why
     assert why.startswith("--units 100: 100 worker processes of ~")
     assert "24.0 GB available" in why
-    hosts = RunLayout.of(100, "federated", "local", 50, forked=False).estimate_mb() / GB
-    assert why.endswith(
-        f"type --transport local --units-per-host 50 (about {hosts:.1f} GB) instead"
-    )  # 2 cores
+    hosts = RunLayout.of(100, "federated", "mqtt", 50, forked=False).estimate_mb() / GB
+    assert why.endswith(f"type --units-per-host 50 (about {hosts:.1f} GB) instead")  # 2 cores, processes
     most = int(why.split("at most ")[1].split(" units")[0])
     budget = 24 * GB * (1 - HEADROOM)
     assert RunLayout.of(most, "federated", "mqtt", 1, forked=False).estimate_mb() <= budget
@@ -67,8 +66,18 @@ def test_a_fleet_too_large_even_for_hosts_is_told_the_most_units_hosts_hold() ->
     layout = RunLayout.of(10**6, "federated", "local", 1000, forked=True)
     why = str(problem(layout, 4 * GB))
     most = int(why.rsplit("--units ", 1)[1].split()[0])
-    assert f"--units {most} --transport local --units-per-host {units_per_core(10**6, 2)} instead" in why
+    assert f"--units {most} --units-per-host {units_per_core(most, 2)} instead" in why
     assert 0 < most < 10**6
+
+
+def test_unit_hosts_as_processes_cost_a_worker_process_each_beside_their_units() -> None:
+    threads = RunLayout.of(1000, "federated", "local", 500, forked=True)
+    processes = RunLayout.of(1000, "federated", "mqtt", 500, forked=True)
+    assert processes.hosts == threads.hosts == 2
+    assert processes.estimate_mb() - threads.estimate_mb() == 2 * FORKED_WORKER_MB
+    assert processes.described() == "2 unit hosts of 500 units (processes)"
+    flat = RunLayout.of(1000, "federated", "mqtt", 1, forked=True)
+    assert flat.estimate_mb() > 50 * processes.estimate_mb()
 
 
 def test_a_machine_without_room_for_the_command_itself_says_so() -> None:
@@ -82,8 +91,11 @@ def test_train_refuses_a_fleet_larger_than_the_machine_before_creating_anything(
 ) -> None:
     out = tmp_path / "run"
     argv = ["train", "--env", "cartpole", "--units", "100000", "--transport", "mqtt", "--out", str(out)]
-    assert main(argv) == 2
+    assert main([*argv, "--units-per-host", "1"]) == 2
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1 and "--units 100000: 100000 worker processes" in err
-    assert "--transport local --units-per-host" in err  # pergrad, the default scheme, allows hosts
+    assert "--units-per-host" in err.split("type ")[1]  # pergrad, the default scheme, allows hosts
+    assert main(argv) == 2  # by default hosts (about one per core), which do not fit 100000 units either
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "unit hosts of" in err and "(processes)" in err
     assert not out.exists()

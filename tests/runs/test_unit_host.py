@@ -51,6 +51,23 @@ def test_two_hosts_of_three_units_train_cartpole_end_to_end(tmp_path: Path) -> N
 
 @pytest.mark.slow
 @pytest.mark.mqtt
+def test_hosts_as_processes_on_the_embedded_broker_play_as_hosts_in_process(tmp_path: Path) -> None:
+    processes, threads = tmp_path / "processes", tmp_path / "threads"
+    same = ("--units-per-host", "3", "--max-rounds", "3", "--quorum", "1")  # every exchange waits for both
+    assert train(processes, *same, "--transport", "mqtt") == 0
+    assert train(threads, *same) == 0
+    played = {(r["worker"], r["round"], r["score"], r["event"]) for r in rows(processes)}
+    assert played == {(r["worker"], r["round"], r["score"], r["event"]) for r in rows(threads)}
+    assert {(w, r) for w, r, _, _ in played} == {(str(u), str(r)) for u in range(6) for r in (1, 2, 3)}
+    summary = json.loads((processes / "summary.json").read_text())
+    assert summary["chief"]["rounds"] == 3 and not summary["chief"]["rejections"]
+    assert "answered host-0,host-3" in (processes / "logs" / "chief.log").read_text()  # two members
+    assert "learner ready" in (processes / "logs" / "host-3.log").read_text()  # one process per host
+    assert all((processes / "models" / f"worker-{unit}.safetensors").exists() for unit in range(6))
+
+
+@pytest.mark.slow
+@pytest.mark.mqtt
 def test_units_of_a_host_behind_device_bridges_play_as_in_process(tmp_path: Path) -> None:
     bridged, local = tmp_path / "bridged", tmp_path / "local"
     assert train(bridged, "--units-per-host", "3", "--device-link", "mqtt", "--max-rounds", "1") == 0
@@ -65,7 +82,7 @@ def test_units_of_a_host_behind_device_bridges_play_as_in_process(tmp_path: Path
     [
         (("--units-per-host", "0"), "at least 1"),
         (("--units-per-host", "2", "--scheme", "fedavg"), "pergrad"),
-        (("--units-per-host", "2", "--transport", "mqtt"), "--transport local"),
+        (("--units-per-host", "2", "--mode", "individual"), "--mode federated"),
         (("--units-per-host", "2", "--preset", "paper"), "gae_scope"),
         (("--units-per-host", "2", "--slow", "w1=2"), "uneven"),
     ],

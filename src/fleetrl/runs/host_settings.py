@@ -11,15 +11,16 @@ from fleetrl.federation.schemes.base import Scheme, StepScheme
 
 
 def host_setting_problem(
-    per_host: int, *, mode: str, transport: str, scheme: Scheme, ppo: PPOConfig, even: bool
+    per_host: int, *, mode: str, scheme: Scheme, ppo: PPOConfig, even: bool
 ) -> str | None:
-    """Why a run cannot have ``per_host`` units per host (one line, naming what to change), or None."""
+    """Why a run cannot have ``per_host`` units per host (one line, naming what to change), or None. A host
+    is a worker process on a broker (``--transport mqtt``) or a thread on the in-process bus (``local``)."""
     if per_host < 1:
         return f"must be at least 1, got {per_host}"
     if per_host == 1:
         return None
-    if mode != "federated" or transport != "local":
-        return "unit hosts run in this process: they need --mode federated --transport local"
+    if mode != "federated":
+        return "a unit host is one member of a federation: it needs --mode federated"
     if not (isinstance(scheme, StepScheme) and scheme.shared_start):
         return (
             f"a unit host is one policy for its units: it needs a one-policy per-step scheme (pergrad), "
@@ -49,9 +50,9 @@ def units_per_core(units: int, cores: int) -> int:
     return max(1, math.ceil(units / max(cores, 1)))
 
 
-def hosts_possible(*, mode: str, transport: str, scheme: Scheme, ppo: PPOConfig, even: bool) -> bool:
+def hosts_possible(*, mode: str, scheme: Scheme, ppo: PPOConfig, even: bool) -> bool:
     """Whether a run of these settings can group its units into unit hosts."""
-    return host_setting_problem(2, mode=mode, transport=transport, scheme=scheme, ppo=ppo, even=even) is None
+    return host_setting_problem(2, mode=mode, scheme=scheme, ppo=ppo, even=even) is None
 
 
 def auto_units_per_host(units: int, *, possible: bool, cores: int) -> int:

@@ -8,6 +8,9 @@ federated      one process each (``mqtt``)      a thread of this process, on the
 federated      threads of this process          a thread, on the in-process bus (``local``)
 =============  ===============================  =============================================
 
+With more than one unit per host (``--units-per-host``) a federated run's workers are unit hosts
+(:mod:`fleetrl.runs.host`): processes of ``mqtt``, threads of ``local``.
+
 Every worker reports its rounds as :class:`~fleetrl.runs.records.MetricsRow` objects; this process
 owns the run directory and the live view. Worker processes are forked from this one where the OS can
 (:mod:`fleetrl.runs.processes`: torch and fleetrl are imported once), before the chief's thread starts.
@@ -206,11 +209,14 @@ def run_logging(path: Path, quiet: bool) -> Iterator[None]:
             console.setLevel(level)
 
 
-def process_fleet(settings: RunSettings, commands: dict[int, list[str]]) -> ProcessFleet:
-    """The run's worker processes (:func:`worker_args` each); forked ones start with the kernels loaded."""
+def process_fleet(
+    settings: RunSettings, commands: dict[int, list[str]], units: dict[int, list[int]] | None = None
+) -> ProcessFleet:
+    """The run's worker processes (:func:`worker_args` each; ``units``: what each reports for, as
+    :class:`ProcessFleet` takes it); forked ones start with the kernels loaded."""
     if fork_available():
         load_kernels(settings)
-    return ProcessFleet(commands, Path(settings.out) / "logs")
+    return ProcessFleet(commands, Path(settings.out) / "logs", units)
 
 
 def load_kernels(settings: RunSettings) -> None:
@@ -231,6 +237,11 @@ def load_kernels(settings: RunSettings) -> None:
         built.env.step(action if agent.action_space.is_discrete else agent.env_action(action))
     finally:
         built.env.close()
+
+
+def host_args(units: list[int]) -> list[str]:
+    """The arguments that make a worker process the unit host of ``units`` (none for one unit)."""
+    return [] if len(units) == 1 else ["--host-units", str(len(units))]
 
 
 def worker_args(spec: WorkerSpec, *extra: str) -> list[str]:
@@ -328,8 +339,12 @@ def transports(
     from fleetrl.transport.mqtt import MqttTransport
 
     def federated_fleet() -> Fleet:
-        commands = {k: worker_args(s, "--broker", url, "--run-id", run_id) for k, s in specs.items()}
-        return process_fleet(settings, commands)
+        groups = {units[0]: units for units in host_groups(settings.units, settings.per_host)}
+        commands = {
+            k: worker_args(specs[k], "--broker", url, "--run-id", run_id, *host_args(units))
+            for k, units in groups.items()
+        }
+        return process_fleet(settings, commands, units=groups)
 
     return (lambda: MqttTransport(url, clean_session=False)), federated_fleet
 

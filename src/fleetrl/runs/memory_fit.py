@@ -3,11 +3,11 @@
 The estimate adds up measured costs (``python benchmarks/run_memory.py`` on the development machine: 2 cores,
 24 GiB, CartPole, the peak of the process tree's summed proportional set sizes over a short run): the
 ``fleetrl train`` process itself (imports, chief, recorder), each worker process, each unit run as a worker
-thread, each unit host and each unit it carries. It is compared with the memory the kernel says is
-available (``MemAvailable`` in /proc/meminfo; where there is no such file the check is skipped), keeping
-:data:`HEADROOM` of it free for what the short runs did not hold (a long run's rows, longer episodes). A
-run that does not fit is refused with one line that says what fits and what to type instead. Device
-bridges (``--device-link mqtt``: threads of the command) are not counted.
+thread, each unit host (a thread, or a worker process of its own) and each unit it carries. It is compared
+with the memory the kernel says is available (``MemAvailable`` in /proc/meminfo; where there is no such
+file the check is skipped), keeping :data:`HEADROOM` of it free for what the short runs did not hold (a
+long run's rows, longer episodes). A run that does not fit is refused with one line that says what fits
+and what to type instead. Device bridges (``--device-link mqtt``: threads of the command) are not counted.
 """
 
 from __future__ import annotations
@@ -59,14 +59,15 @@ def available_mb(meminfo: Path = MEMINFO) -> float | None:
 
 @dataclass(frozen=True)
 class RunLayout:
-    """Where a run's units live: worker processes, worker threads of the command, or unit hosts."""
+    """Where a run's units live: worker processes or worker threads of the command, each carrying one unit
+    or a unit host's."""
 
     units: int
     """units in the fleet"""
     processes: bool
-    """each unit is a worker process (``--mode individual``, or ``--transport mqtt``)"""
+    """the workers are processes (``--mode individual``, or ``--transport mqtt``), else threads"""
     per_host: int = 1
-    """units each in-process worker carries (1: a worker thread per unit)"""
+    """units each worker carries (1: a worker per unit)"""
     forked: bool = True
     """worker processes are forked from the command (else spawned)"""
 
@@ -74,28 +75,34 @@ class RunLayout:
     def of(cls, units: int, mode: str, transport: str, per_host: int, forked: bool) -> RunLayout:
         """The layout of a run of these settings."""
         processes = mode == "individual" or transport == "mqtt"
-        return cls(units, processes, 1 if processes else per_host, forked)
+        return cls(units, processes, per_host, forked)
 
     @property
     def hosts(self) -> int:
         """Unit hosts (0: none)."""
-        return 0 if self.processes or self.per_host == 1 else math.ceil(self.units / self.per_host)
+        return 0 if self.per_host == 1 else math.ceil(self.units / self.per_host)
+
+    @property
+    def process_mb(self) -> float:
+        """One worker process's own cost (forked or spawned)."""
+        return FORKED_WORKER_MB if self.forked else SPAWNED_WORKER_MB
 
     def estimate_mb(self) -> float:
         """The memory the run is expected to hold at its peak (MB)."""
-        if self.processes:
-            return COMMAND_MB + self.units * (FORKED_WORKER_MB if self.forked else SPAWNED_WORKER_MB)
         if self.hosts:
-            return COMMAND_MB + self.hosts * HOST_MB + self.units * HOSTED_UNIT_MB
+            each = HOST_MB + (self.process_mb if self.processes else 0.0)
+            return COMMAND_MB + self.hosts * each + self.units * HOSTED_UNIT_MB
+        if self.processes:
+            return COMMAND_MB + self.units * self.process_mb
         return COMMAND_MB + self.units * THREAD_UNIT_MB
 
     def described(self) -> str:
         """How the layout holds its units, in words."""
-        if self.processes:
-            each = FORKED_WORKER_MB if self.forked else SPAWNED_WORKER_MB
-            return f"{self.units} worker processes of ~{each:.0f} MB"
         if self.hosts:
-            return f"{self.hosts} unit hosts of {self.per_host} units"
+            where = " (processes)" if self.processes else ""
+            return f"{self.hosts} unit hosts of {self.per_host} units{where}"
+        if self.processes:
+            return f"{self.units} worker processes of ~{self.process_mb:.0f} MB"
         return f"{self.units} worker threads of ~{THREAD_UNIT_MB:.0f} MB"
 
     def most_units(self, budget_mb: float) -> int:
@@ -128,16 +135,17 @@ def memory_problem(
     need = layout.estimate_mb()
     if need <= budget:
         return None
-    hosted = RunLayout(layout.units, False, units_per_core(layout.units, cores), layout.forked)
+    hosted = RunLayout(layout.units, layout.processes, units_per_core(layout.units, cores), layout.forked)
     threads = RunLayout(layout.units, False, 1, layout.forked)
-    if hosts_possible and hosted.estimate_mb() <= budget:
-        instead = f"--transport local --units-per-host {hosted.per_host} (about {_gb(hosted.estimate_mb())})"
+    if hosts_possible and hosted.hosts and hosted.estimate_mb() <= budget:
+        instead = f"--units-per-host {hosted.per_host} (about {_gb(hosted.estimate_mb())})"
     elif threads_possible and layout.processes and threads.estimate_mb() <= budget:
         instead = f"--transport local (worker threads, about {_gb(threads.estimate_mb())})"
     else:
         best = hosted if hosts_possible else threads if threads_possible else layout
         most = best.most_units(budget)
-        how = f" --transport local --units-per-host {best.per_host}" if best.hosts else ""
+        per_host = units_per_core(most, cores)  # hosts of about one per core for the units that fit
+        how = f" --units-per-host {per_host}" if best.hosts and per_host > 1 else ""
         instead = f"--units {most}{how}" if most else "a machine with more memory"
     return (
         f"--units {layout.units}: {layout.described()} need about {_gb(need)} but this machine has "

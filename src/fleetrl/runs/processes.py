@@ -142,17 +142,26 @@ class ProcessFleet:
     """Starts one child per worker and streams their records.
 
     :param commands: worker id → the arguments of its :mod:`fleetrl.runs.worker_main`
-    :param log_dir: where each child's stderr goes
+    :param log_dir: where each child's stderr goes (``worker-K.log``; a unit host's ``host-K.log``)
+    :param units: worker id → the units its process reports for (a unit host: its units, each unit's exit
+        reported when the process ends); by default each worker is the unit of its id
     """
 
-    def __init__(self, commands: Mapping[int, Sequence[str]], log_dir: Path) -> None:
+    def __init__(
+        self,
+        commands: Mapping[int, Sequence[str]],
+        log_dir: Path,
+        units: Mapping[int, list[int]] | None = None,
+    ) -> None:
         log_dir.mkdir(parents=True, exist_ok=True)
         self.events: queue.Queue[FleetEvent] = queue.Queue()
         self.children: dict[int, Child] = {}
+        self.units = {worker: [worker] for worker in commands} if units is None else dict(units)
         self._threads: list[threading.Thread] = []
         fork = fork_available()
         for worker, args in commands.items():
-            log_path = log_dir / f"worker-{worker}.log"
+            role = "worker" if self.units[worker] == [worker] else "host"
+            log_path = log_dir / f"{role}-{worker}.log"
             child, stdout = self._fork(args, log_path) if fork else self._spawn(args, log_path)
             self.children[worker] = child
             log.debug("worker %d: process %d %s", worker, child.pid, "forked" if fork else "started")
@@ -199,11 +208,13 @@ class ProcessFleet:
                     log.warning(
                         "worker %d printed a line that is not a round record (%s): %.200s", worker, err, line
                     )
-        self.events.put(WorkerExit(worker, child.wait()))
+        code = child.wait()
+        for unit in self.units[worker]:
+            self.events.put(WorkerExit(unit, code))
 
     def size(self) -> int:
-        """How many children were started."""
-        return len(self.children)
+        """How many units the children report for (one per child unless they are unit hosts)."""
+        return sum(len(self.units[worker]) for worker in self.children)
 
     def interrupt(self, grace_seconds: float = 15.0) -> None:
         """Ask every child to stop (SIGINT: they save their model and exit), then kill what remains."""

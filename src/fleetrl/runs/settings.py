@@ -167,12 +167,13 @@ class RunSettings(RoundRules, BrokerLogin):
     """``individual`` (each unit alone, the paper's Fig. 5a) or ``federated`` (Algorithms 1 and 2)"""
     units: int = 3
     """units in the fleet, one worker each"""
-    units_per_host: int | Literal["auto"] = 1
-    """units each in-process worker carries (a unit host: their envs stepped together, one policy acting
-    for all of them in one pass, one gradient per exchange; federated, local transport, pergrad); 1: one
-    worker per unit; ``auto``: about one host per core above 16 units where the run can have hosts, else 1"""
+    units_per_host: int | Literal["auto"] = AUTO
+    """units each worker carries (a unit host: their envs stepped together, one policy acting for all of
+    them in one pass, one gradient per exchange; federated, pergrad); 1: one worker per unit; ``auto`` (the
+    default): about one host per core above 16 units where the run can have hosts, else 1"""
     transport: str = "mqtt"
-    """federated: ``mqtt`` (a real broker, workers in processes) or ``local`` (in-process bus, threads)"""
+    """federated: ``mqtt`` (a real broker, workers or unit hosts in processes) or ``local`` (in-process
+    bus, threads)"""
     device_link: str = "inprocess"
     """how workers reach their devices: ``inprocess`` or ``mqtt`` (one device bridge per unit, over the
     broker)"""
@@ -215,14 +216,10 @@ class RunSettings(RoundRules, BrokerLogin):
         self.validate_device_link(learning)
         per_host = self.chosen_units_per_host(learning, uneven.even)
         scheme_of, ppo = learning.federation_scheme(), learning.ppo()
-        hosts = host_setting_problem(
-            per_host, mode=self.mode, transport=self.transport, scheme=scheme_of, ppo=ppo, even=uneven.even
-        )
+        hosts = host_setting_problem(per_host, mode=self.mode, scheme=scheme_of, ppo=ppo, even=uneven.even)
         if hosts is not None:
             raise SettingError(f"{label('units_per_host')} = {self.units_per_host}: {hosts}")
-        can_host = hosts_possible(
-            mode="federated", transport="local", scheme=scheme_of, ppo=ppo, even=uneven.even
-        )
+        can_host = hosts_possible(mode="federated", scheme=scheme_of, ppo=ppo, even=uneven.even)
         memory = run_memory_problem(self.units, self.mode, self.transport, per_host, hosts_possible=can_host)
         if memory is not None:
             raise SettingError(memory)
@@ -237,14 +234,13 @@ class RunSettings(RoundRules, BrokerLogin):
         if self.units_per_host != AUTO:
             return self.units_per_host
         possible = hosts_possible(
-            mode=self.mode, transport=self.transport, scheme=learning.federation_scheme(),
-            ppo=learning.ppo(), even=even,
-        )  # fmt: skip
+            mode=self.mode, scheme=learning.federation_scheme(), ppo=learning.ppo(), even=even
+        )
         return auto_units_per_host(self.units, possible=possible, cores=usable_cores())
 
     @property
     def per_host(self) -> int:
-        """The units each in-process worker carries (the settings are resolved: ``auto`` is a number)."""
+        """The units each worker carries (the settings are resolved: ``auto`` is a number)."""
         assert self.units_per_host != AUTO, "resolved() chooses the units per host"
         return self.units_per_host
 

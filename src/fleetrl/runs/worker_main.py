@@ -1,7 +1,9 @@
 """Entry point of one worker process of a run launched by ``fleetrl train``.
 
 ``python -m fleetrl.runs.worker_main SPEC_JSON`` trains alone (individual mode);
-``python -m fleetrl.runs.worker_main SPEC_JSON --broker URL --run-id R`` joins a federated run.
+``python -m fleetrl.runs.worker_main SPEC_JSON --broker URL --run-id R`` joins a federated run;
+``… --host-units U`` joins it as a unit host (:mod:`fleetrl.runs.host`) of the spec's unit and the U − 1
+after it.
 It prints one JSON round record per line on stdout (the launcher reads them) and logs to stderr. SIGINT
 stops it after saving its model.
 """
@@ -10,6 +12,7 @@ import argparse
 import logging
 import signal
 import sys
+from dataclasses import replace
 from pathlib import Path
 
 from fleetrl.runs.factory import make_learner
@@ -34,7 +37,14 @@ def main(argv: list[str] | None = None) -> int:
         "--checkpoint-dir", type=Path, default=None, help="federated: checkpoint every round here"
     )
     parser.add_argument("--resume", action="store_true", help="federated: continue from --checkpoint-dir")
+    parser.add_argument(
+        "--host-units", type=int, default=1, help="federated: host the spec's unit and the next ones"
+    )
     args = parser.parse_args(argv)
+    if args.host_units < 1:
+        parser.error(f"--host-units {args.host_units}: must be at least 1")
+    if args.host_units > 1 and (args.broker is None or args.checkpoint_dir is not None):
+        parser.error("--host-units: a unit host joins a federated run (--broker) and keeps no checkpoints")
     # the launcher stops workers with SIGINT; re-arm it in case this process inherited it ignored
     signal.signal(signal.SIGINT, signal.default_int_handler)
     logging.basicConfig(level=logging.INFO, format="%(asctime)s %(name)s %(levelname)s %(message)s")
@@ -42,6 +52,8 @@ def main(argv: list[str] | None = None) -> int:
     log = logging.getLogger(__name__)
     log.info("worker %d: process up", spec.worker)
     try:
+        if args.host_units > 1:
+            return host_main(spec, args.host_units, args.broker, args.run_id, args.reply_timeout)
         learner = make_learner(spec)
         log.info("worker %d: learner ready", spec.worker)
         if args.broker is None:
@@ -62,6 +74,19 @@ def main(argv: list[str] | None = None) -> int:
     except KeyboardInterrupt:
         log.info("interrupted; the model was saved")
         return 130
+    return 0
+
+
+def host_main(first: WorkerSpec, units: int, broker: str, run_id: str, reply_timeout: float) -> int:
+    """A unit host of ``units`` units from ``first``'s on, over MQTT at ``broker``; the exit code."""
+    from fleetrl.runs.host import make_host_learner, train_host
+    from fleetrl.transport.mqtt import MqttTransport
+
+    specs = [replace(first, worker=k, unit=k) for k in range(first.worker, first.worker + units)]
+    learner = make_host_learner(specs)
+    logging.getLogger(__name__).info("host of units %d-%d: learner ready", specs[0].worker, specs[-1].worker)
+    transport = MqttTransport(broker, clean_session=False)
+    train_host(specs, transport, run_id, print_record, reply_timeout=reply_timeout, learner=learner)
     return 0
 
 
