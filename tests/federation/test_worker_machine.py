@@ -37,6 +37,7 @@ from fleetrl.federation.topics import chief_topic, worker_of_topic
 from fleetrl.federation.worker import FederatedWorker
 from fleetrl.federation.worker_machine import WorkerMachine
 from fleetrl.transport.base import Received, Will
+from fleetrl.transport.local import LocalBus
 
 RUN = "machine-run"
 FAKE_LAYOUT: list[tuple[str, tuple[int, ...]]] = [("trunk.weight", (4, 3)), ("head.bias", (3,))]
@@ -274,6 +275,33 @@ def test_resume_at_the_welcome_s_round() -> None:
     assert not any(isinstance(a, Record) for a in kept.actions)
     reached = WorkerSummary("1", 4, finished=False, reason="reached M=4")
     assert welcomed(machine(max_rounds=4), 5).actions == (Finish(reached),)
+
+
+def test_a_worker_restarted_before_its_first_checkpoint_records_round_1_interrupted_if_missed() -> None:
+    later = welcomed(machine(restarted=True), 3, flat=FLAT)
+    assert [type(a) for a in later.actions] == [Record, TakeParameters, PlayRound]
+    lost = later.actions[0].record
+    assert (lost.round, lost.event, lost.result.steps) == (1, WorkerEvent.INTERRUPTED, 0)
+    # welcomed in round 1 (the fleet waited for it): it plays round 1 itself, nothing is recorded for it
+    assert welcomed(machine(restarted=True), 1).actions == (PlayRound(1),)
+    assert welcomed(machine(), 3).actions == (PlayRound(3),)  # a fresh worker has no round it went down in
+    # the run ended before it came back: round 1 is recorded, then it stops
+    m = machine(restarted=True)
+    m.start(now=0.0)
+    ended = m.receive(chief("done", 4), now=1.0).actions
+    assert [type(a) for a in ended] == [Record, Finish] and ended[0].record.round == 1
+
+
+def test_the_worker_hands_its_machine_whether_it_was_restarted(fake_learner: Any) -> None:
+    def worker(**options: Any) -> FederatedWorker:
+        return FederatedWorker(
+            fake_learner(14, None), LocalBus().client(), run_id=RUN, worker_id="1", max_rounds=5,
+            scheme="paper", **options,
+        )  # fmt: skip
+
+    assert worker(restarted=True).machine.went_down_in == 1
+    assert worker(start_round=4).machine.went_down_in == 4
+    assert worker().machine.went_down_in is None
 
 
 # ---- the runner, over a chief in the same thread ----

@@ -76,7 +76,8 @@ class AsyncWorkerMachine(WorkerMachine):
             "worker %s: welcomed at round %d (fleet model version %d)", self.worker_id, welcome.round,
             welcome.model_version,
         )  # fmt: skip
-        return self._round_lost(resume) + self._begin_round(welcome.round if resume is None else resume)
+        first = welcome.round if resume is None else resume
+        return self._round_lost(resume, welcome.round) + self._begin_round(first)
 
     def _begin_round(self, rnd: int) -> WorkerStep:
         """Take the newest fleet model seen, then play round ``rnd``."""

@@ -101,6 +101,8 @@ class FederatedWorker:
         ``welcome`` for that round or the next keeps the state as it is and plays that round (see
         docs/protocol.md, "Checkpoints and resume"); a later one means rounds were missed while down, and the
         worker rejoins like a fresh one; an earlier one is an error (the chief lost rounds).
+    :param restarted: resumed with no checkpoint to resume from (it went down before its first one): round
+        1 is recorded as interrupted if the fleet went on without it.
     :param on_round_done: called with the next round to play after each round's answer was applied and
         before that round starts (the moment to checkpoint the learner).
     :param scheme: the federation scheme (or its name); the chief's must be the same. If it
@@ -130,6 +132,7 @@ class FederatedWorker:
         resend_interval: float | None = 5.0,
         key: FleetKey | None = None,
         start_round: int | None = None,
+        restarted: bool = False,
         on_round_done: Callable[[int], None] | None = None,
         scheme: str | Scheme,
         settings: SharedSettings | None = None,
@@ -162,6 +165,7 @@ class FederatedWorker:
             reply_timeout=reply_timeout,
             resend_interval=resend_interval,
             start_round=start_round,
+            restarted=restarted,
             incarnation=time.time_ns(),
             units=units,
             ended_grace=ended_grace,

@@ -75,6 +75,8 @@ class WorkerMachine:
     :param reply_timeout: seconds to wait for the chief (at start, each round, each step); None: forever.
     :param resend_interval: seconds without an answer before re-sending; None: never.
     :param start_round: resuming from a checkpoint: the first round the learner's state has not played.
+    :param restarted: resumed with no checkpoint to resume from: an earlier process of this worker went down
+        before its first checkpoint, in round 1 (recorded as interrupted if the fleet went on without it).
     :param incarnation: this process's incarnation (newer than any earlier one with the same id).
     :param units: the units this worker carries (a unit host: U), said in every message it contributes.
     :param ended_grace: seconds to wait for a new chief once the chief's status says the run ended, before
@@ -99,6 +101,7 @@ class WorkerMachine:
         reply_timeout: float | None = 600.0,
         resend_interval: float | None = 5.0,
         start_round: int | None = None,
+        restarted: bool = False,
         incarnation: int = 0,
         units: int = 1,
         ended_grace: float = ENDED_GRACE,
@@ -118,6 +121,7 @@ class WorkerMachine:
         self.reply_timeout = reply_timeout
         self.resend_interval = resend_interval
         self.start_round = start_round
+        self.restarted = restarted
         self.incarnation = incarnation
         self.ended_grace = ended_grace
         self._run_ended_at: float | None = None
@@ -299,23 +303,29 @@ class WorkerMachine:
             out = (act.TakeParameters(welcome.flat),)
         self._config = dict(welcome.config)
         log.info("worker %s: welcomed at round %d (θ* of %s)", self.worker_id, welcome.round, welcome.origin)
-        rejoined = self._round_lost(resume) + WorkerStep(out)
+        rejoined = self._round_lost(resume, welcome.round) + WorkerStep(out)
         return rejoined + self._begin_round(welcome.round if resume is None else resume)
 
     def _run_over_unwelcomed(self, done: Message) -> WorkerStep:
-        """``done`` before any welcome (back after the run ended): the round a resumed worker went down in
-        is recorded as interrupted, as when welcomed after the fleet went on."""
-        # (a fresh worker's _round_lost records nothing)
-        lost = NOTHING if done.round < (self.start_round or 0) else self._round_lost(None)
+        """``done`` before any welcome (back after the run ended): the round a resumed or restarted worker
+        went down in is recorded as interrupted, as when welcomed after the fleet went on."""
+        lost = self._round_lost(None, done.round + 1)  # (a fresh worker's records nothing)
         return lost + self._finish(WorkerSummary(self.worker_id, 0, finished=False, reason="run ended"))
 
-    def _round_lost(self, resume: int | None) -> WorkerStep:
-        """Resumed from a checkpoint, welcomed after the fleet went on (``resume`` None): the round the
-        checkpoint was to play next, which this worker went down in, is recorded as interrupted."""
-        if resume is not None or self.start_round is None:
+    @property
+    def went_down_in(self) -> int | None:
+        """The round an earlier process of this worker went down in: the round its checkpoint was to play
+        next, or round 1 for a worker restarted before its first checkpoint; None for a fresh worker."""
+        return self.start_round if self.start_round is not None else 1 if self.restarted else None
+
+    def _round_lost(self, resume: int | None, welcome_round: int) -> WorkerStep:
+        """Resumed or restarted, welcomed at ``welcome_round`` after the fleet went on (``resume`` None, the
+        round it went down in closed without it): that round is recorded as interrupted."""
+        down = self.went_down_in
+        if resume is not None or down is None or welcome_round <= down:
             return NOTHING
-        result = interrupted_round(self.start_round)
-        lost = FederatedRound(self.worker_id, self.start_round, result, WorkerEvent.INTERRUPTED)
+        result = interrupted_round(down)
+        lost = FederatedRound(self.worker_id, down, result, WorkerEvent.INTERRUPTED)
         return WorkerStep((act.Record(lost),))
 
     def _begin_round(self, rnd: int) -> WorkerStep:

@@ -100,6 +100,7 @@ def train_federated(
         resend_interval=resend_interval,
         key=key,
         start_round=start_round,
+        restarted=resume and start_round is None,
         on_round_done=None if store is None else lambda next_round: store.save(learner, next_round),
         scheme=spec.learning.federation_scheme(),
         settings=shared_text(spec.learning),
