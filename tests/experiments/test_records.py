@@ -94,3 +94,36 @@ def test_a_unit_that_missed_rounds_keeps_their_numbers_and_its_time_on_the_rigs(
     rig = kept.rig_time()
     assert rig is not None and rig.complete  # round 3 is unit 1's second row, not a round it never played
     assert rig.per_unit == {"0": pytest.approx(3.0), "1": pytest.approx(3.0)}  # 3 rounds of 50 steps × 20 ms
+
+
+def test_unseen_units_score_each_distinct_model_once_and_every_worker_its_own(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    from fleetrl.agent.config import PPOConfig
+    from fleetrl.envs.catalog import describe_env
+    from fleetrl.experiments import records
+    from fleetrl.runs import evaluate
+    from fleetrl.runs.factory import agent_for
+    from fleetrl.runs.rundir import model_path
+
+    unit = describe_env("cartpole")
+    shared, own = (agent_for(unit, PPOConfig(), seed=s) for s in (1, 2))
+    for worker, agent in ((0, shared), (1, shared), (2, own)):  # workers 0 and 1: one policy's files
+        model_path(tmp_path, worker).parent.mkdir(parents=True, exist_ok=True)
+        agent.save(model_path(tmp_path, worker))
+    calls: list[tuple[str, int]] = []
+    real = evaluate.evaluate_model
+
+    def counted(model: Path, env: str, unit: int, *args: object) -> list[float]:
+        calls.append((model.name, unit))
+        return real(model, env, unit, *args)  # type: ignore[arg-type]
+
+    monkeypatch.setattr(evaluate, "evaluate_model", counted)
+    settings = {"units": 3, "env": "cartpole", "fleet_seed": 0, "fleet_profile": None}
+    unseen = records.evaluate_unseen(tmp_path, settings, 2)
+    assert sorted(calls) == [(f"worker-{w}.safetensors", u) for w in (0, 2) for u in (10, 11)]
+    scores = unseen["scores"]
+    assert scores["0"] == scores["1"] and len(scores["2"]) == 2
+    for unit_index, u in enumerate((10, 11)):  # each score is the model's own evaluation on that unit
+        alone = real(model_path(tmp_path, 1), "cartpole", u, 0, 1, 0, None)[0]
+        assert scores["1"][unit_index] == pytest.approx(alone, abs=0.01)

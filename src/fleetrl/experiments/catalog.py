@@ -1,5 +1,6 @@
 """The training experiments ``fleetrl experiment NAME`` knows: the paper's Fig. 5 and Fig. 6, the CartPole
-scaling study, the uneven fleet (:mod:`fleetrl.experiments.uneven_plan`) (Table 2 and the SB3 peer are in
+scaling study, the uneven fleet (:mod:`fleetrl.experiments.uneven_plan`), fleets of up to 1,000 units
+(:mod:`fleetrl.experiments.scale_plan`) (Table 2 and the SB3 peer are in
 :mod:`fleetrl.experiments.sections`)."""
 
 from collections.abc import Callable
@@ -7,6 +8,7 @@ from collections.abc import Callable
 from fleetrl.experiments.arms import Arm
 from fleetrl.experiments.budget import Budget, arm
 from fleetrl.experiments.plan import Plan, Ratio
+from fleetrl.experiments.scale_plan import fleet_scale
 from fleetrl.experiments.uneven_plan import uneven
 
 SERVER_OPTIMISERS = {
@@ -298,10 +300,12 @@ PLANS: dict[str, Callable[[Budget], Plan]] = {
     "learning": learning,
     "continuous": continuous,
     "uneven": uneven,
+    "fleet-scale": fleet_scale,
 }
 EXPERIMENTS = (*PLANS, "table2", "peers")
-ALL_EXPERIMENTS = tuple(name for name in EXPERIMENTS if name != "uneven")
+ALL_EXPERIMENTS = tuple(name for name in EXPERIMENTS if name not in ("uneven", "fleet-scale"))
 """what ``fleetrl experiment all`` runs: the uneven fleet is run on its own, on the held-out fleet seed 1
-where each unit alone and ``pergrad`` already have records (the Makefile's ``results``)"""
+where each unit alone and ``pergrad`` already have records, and so are the fleets of up to 1,000 units, on 5
+seeds (the Makefile's ``results``)"""
 UNIT_TYPE_EXPERIMENTS = ("learning", "cartpole-scaling")
 """the experiments that are not about the paper's rig: they also train a user's unit type (``--env``)"""

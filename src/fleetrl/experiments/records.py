@@ -20,6 +20,7 @@ carries the run's result settings: a sweep reuses it only while they equal what 
 """
 
 import csv
+import hashlib
 import json
 import math
 from dataclasses import dataclass
@@ -187,6 +188,20 @@ def unseen_units(trained: int, count: int) -> list[int]:
     return list(range(first, first + count))
 
 
+def weights_digest(model: Path) -> str:
+    """A digest of what a model file's greedy policy depends on: its weights, architecture and config, not
+    the seed its agent drew with (nor the file's bytes: safetensors writes its header in any order)."""
+    from fleetrl.agent.checkpoint import read_checkpoint
+
+    tensors, metadata = read_checkpoint(model)
+    policy = {k: v for k, v in metadata.items() if k != "seed"}
+    digest = hashlib.sha256(json.dumps(policy, sort_keys=True).encode())
+    for name in sorted(tensors):
+        digest.update(name.encode())
+        digest.update(tensors[name].tobytes())
+    return digest.hexdigest()
+
+
 def evaluate_unseen(run_dir: Path, settings: dict[str, Any], count: int) -> dict[str, Any]:
     """Each worker's final policy, greedily, one episode on each of ``count`` unseen units of its fleet."""
     from fleetrl.envs.catalog import describe_env
@@ -194,17 +209,17 @@ def evaluate_unseen(run_dir: Path, settings: dict[str, Any], count: int) -> dict
 
     units = unseen_units(int(settings["units"]), count)
     scores = {}
+    by_content: dict[str, list[float]] = {}  # a fleet of one policy: each distinct model file evaluated once
     for worker in range(int(settings["units"])):
         model = model_path(run_dir, worker)
         if model.is_file():
-            scores[str(worker)] = [
-                _compact(
-                    evaluate_model(
-                        model, settings["env"], unit, settings["fleet_seed"], 1, 0, settings["fleet_profile"]
-                    )[0]
-                )
-                for unit in units
-            ]
+            digest = weights_digest(model)
+            if digest not in by_content:
+                env, fleet_seed, profile = settings["env"], settings["fleet_seed"], settings["fleet_profile"]
+                by_content[digest] = [
+                    _compact(evaluate_model(model, env, unit, fleet_seed, 1, 0, profile)[0]) for unit in units
+                ]
+            scores[str(worker)] = list(by_content[digest])
     return {"units": units, "cap": describe_env(settings["env"]).episode_cap, "scores": scores}
 
 
