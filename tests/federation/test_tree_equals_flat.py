@@ -82,16 +82,19 @@ def flat_run(fleet_runner: FleetRunner, scheme: str, units: dict[str, Any]) -> t
     return outcome(result.records), result.chief
 
 
-def tree_run(scheme: str, units: dict[str, Any]) -> tuple[Outcome, ChiefSummary, list[EdgeSummary]]:
-    """A root chief of the two sites, each site an edge aggregator of two workers under its own run id, all
-    on one bus."""
+def tree_run(
+    scheme: str, units: dict[str, Any], regional: bool = False, sites: dict[str, tuple[str, ...]] = SITES
+) -> tuple[Outcome, ChiefSummary, list[EdgeSummary]]:
+    """A root chief of the sites, each site an edge aggregator of its workers under its own run id, all on
+    one bus; ``regional``: the sites are members of a regional aggregator, the root's only member."""
     options = chief_options(scheme)
     rounds = ARMS[scheme][0]
     agent = units["0"].agent
     layout = None if options["start"] is None else options["start"].layout
     step_layout = list(units["0"].agent.step_layout(0)) if scheme == "pergrad" else list(agent.model_layout())
     bus = LocalBus()
-    root = Chief(run_id="tree", workers=tuple(SITES), layout=step_layout, max_rounds=rounds, **options)
+    top = ("region",) if regional else tuple(sites)
+    root = Chief(run_id="tree", workers=top, layout=step_layout, max_rounds=rounds, **options)
     records: dict[str, list[FederatedRound]] = {w: [] for w in UNITS}
     results: dict[str, Any] = {}
     errors: list[BaseException] = []
@@ -106,20 +109,21 @@ def tree_run(scheme: str, units: dict[str, Any]) -> tuple[Outcome, ChiefSummary,
         return threading.Thread(target=body, name=name)
 
     threads = [guarded("root", lambda: run_chief(root, bus.client(), idle_timeout=TIMEOUT))]
-    for site, members in SITES.items():
+
+    def aggregator(site: str, upstream_run: str, members: tuple[str, ...]) -> threading.Thread:
         edge = EdgeAggregator(
-            site_id=site, root_run="tree", run_id=f"tree-{site}", members=members, layout=step_layout,
+            site_id=site, root_run=upstream_run, run_id=f"tree-{site}", members=members, layout=step_layout,
             welcome_layout=layout, scheme=scheme, max_rounds=rounds,
             steps_per_round=options["steps_per_round"], quorum=1.0,
         )  # fmt: skip
-        threads.append(
-            guarded(
-                site,
-                lambda e=edge: run_edge(
-                    e, upstream=bus.client(), downstream=bus.client(), idle_timeout=TIMEOUT
-                ),
-            )
+        return guarded(
+            site, lambda: run_edge(edge, upstream=bus.client(), downstream=bus.client(), idle_timeout=TIMEOUT)
         )
+
+    if regional:
+        threads.append(aggregator("region", "tree", tuple(sites)))
+    for site, members in sites.items():
+        threads.append(aggregator(site, "tree-region" if regional else "tree", members))
         for w in members:
             worker = FederatedWorker(
                 units[w], bus.client(), run_id=f"tree-{site}", worker_id=w, max_rounds=rounds,
@@ -132,7 +136,7 @@ def tree_run(scheme: str, units: dict[str, Any]) -> tuple[Outcome, ChiefSummary,
         thread.join(TIMEOUT + 10)
     assert not errors, errors
     assert not any(t.is_alive() for t in threads), "a role hung"
-    return outcome(records), results["root"], [results[s] for s in SITES]
+    return outcome(records), results["root"], [results[s] for s in sites]
 
 
 @pytest.fixture(autouse=True)
@@ -164,3 +168,21 @@ def test_a_tree_of_two_sites_gives_the_flat_fleet_s_scores_and_models(
     if scheme == "fedavg":  # ended by completion: the root's finished reached every member through its site
         assert root.end_reason == "every unit completed" and root.rounds < ARMS[scheme][0]
         assert all(rows[-1][1] == "completed" for rows in tree.values()), tree
+
+
+@pytest.mark.slow  # two 4-unit CartPole runs
+def test_a_regional_tier_of_aggregators_gives_the_flat_fleet_s_scores_and_models(
+    fleet_runner: FleetRunner,
+) -> None:
+    """Three tiers: the root's one member is a regional aggregator whose members are two sites' aggregators
+    of 3 units and 1 (the 100k arithmetic's shape, docs/deploy.md): each tier weighs by the units behind
+    each member, so the fleet's step is the flat fleet's."""
+    flat_units, tree_units = learners("pergrad"), learners("pergrad")
+    flat, flat_chief = flat_run(fleet_runner, "pergrad", flat_units)
+    uneven_sites = {"site-a": ("0", "1", "2"), "site-b": ("3",)}
+    tree, root, _ = tree_run("pergrad", tree_units, regional=True, sites=uneven_sites)
+    assert tree == flat
+    assert {u.agent.model_parameters().tobytes() for u in tree_units.values()} == {
+        flat_units["0"].agent.model_parameters().tobytes()
+    }
+    assert (root.rounds, root.end_reason) == (flat_chief.rounds, flat_chief.end_reason)

@@ -34,7 +34,8 @@ def fleet_scale(budget: Budget) -> Plan:
 
     def fleet(n: int) -> Arm:
         window = {"batch_size": LARGE_FLEET_WINDOW} if n >= 1000 else None
-        label = f"{n} units · pergrad" + (f" · window {LARGE_FLEET_WINDOW}" if window else "")
+        label = ("1 unit alone" if n == 1 else f"{n} units") + " · pergrad"
+        label += f" · window {LARGE_FLEET_WINDOW}" if window else ""
         return arm(env, n, "federated", "standard", m, label, "pergrad", budget.fleet_seed, overrides=window)
 
     arms = {n: fleet(n) for n in FLEET_SIZES}
