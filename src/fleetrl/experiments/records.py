@@ -209,7 +209,8 @@ def evaluate_unseen(run_dir: Path, settings: dict[str, Any], count: int) -> dict
 
     units = unseen_units(int(settings["units"]), count)
     scores = {}
-    by_content: dict[str, list[float]] = {}  # a fleet of one policy: each distinct model file evaluated once
+    # a fleet of one policy: each distinct policy evaluated once
+    by_content: dict[str, list[float | int | None]] = {}
     for worker in range(int(settings["units"])):
         model = model_path(run_dir, worker)
         if model.is_file():

@@ -33,7 +33,7 @@ def fleet_scale(budget: Budget) -> Plan:
     env = budget.unit_type or "cartpole"
 
     def fleet(n: int) -> Arm:
-        window = {"batch_size": LARGE_FLEET_WINDOW} if n >= 1000 else None
+        window: dict[str, object] | None = {"batch_size": LARGE_FLEET_WINDOW} if n >= 1000 else None
         label = ("1 unit alone" if n == 1 else f"{n} units") + " · pergrad"
         label += f" · window {LARGE_FLEET_WINDOW}" if window else ""
         return arm(env, n, "federated", "standard", m, label, "pergrad", budget.fleet_seed, overrides=window)
