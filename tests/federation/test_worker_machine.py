@@ -282,8 +282,12 @@ def test_a_worker_restarted_before_its_first_checkpoint_records_round_1_interrup
     assert [type(a) for a in later.actions] == [Record, TakeParameters, PlayRound]
     lost = later.actions[0].record
     assert (lost.round, lost.event, lost.result.steps) == (1, WorkerEvent.INTERRUPTED, 0)
-    # welcomed in round 1 (the fleet waited for it): it plays round 1 itself, nothing is recorded for it
+    # welcomed at round 1's first exchange (the fleet waited for it): it plays round 1 itself, nothing recorded
     assert welcomed(machine(restarted=True), 1).actions == (PlayRound(1),)
+    # welcomed inside round 1 (a per-step scheme's fleet past step 0): what it plays goes to round 2
+    inside = welcomed(machine(restarted=True), 1, step=3, flat=FLAT)
+    assert [type(a) for a in inside.actions] == [Record, TakeParameters, PlayRound]
+    assert inside.actions[0].record.round == 1
     assert welcomed(machine(), 3).actions == (PlayRound(3),)  # a fresh worker has no round it went down in
     # the run ended before it came back: round 1 is recorded, then it stops
     m = machine(restarted=True)

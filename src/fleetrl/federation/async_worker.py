@@ -77,7 +77,7 @@ class AsyncWorkerMachine(WorkerMachine):
             welcome.model_version,
         )  # fmt: skip
         first = welcome.round if resume is None else resume
-        return self._round_lost(resume, welcome.round) + self._begin_round(first)
+        return self._round_lost(resume, (welcome.round, 0)) + self._begin_round(first)
 
     def _begin_round(self, rnd: int) -> WorkerStep:
         """Take the newest fleet model seen, then play round ``rnd``."""

@@ -76,7 +76,8 @@ class WorkerMachine:
     :param resend_interval: seconds without an answer before re-sending; None: never.
     :param start_round: resuming from a checkpoint: the first round the learner's state has not played.
     :param restarted: resumed with no checkpoint to resume from: an earlier process of this worker went down
-        before its first checkpoint, in round 1 (recorded as interrupted if the fleet went on without it).
+        before its first checkpoint, in round 1 (recorded as interrupted if the fleet is past round 1's first
+        exchange when it is welcomed: what it plays then goes to a later exchange).
     :param incarnation: this process's incarnation (newer than any earlier one with the same id).
     :param units: the units this worker carries (a unit host: U), said in every message it contributes.
     :param ended_grace: seconds to wait for a new chief once the chief's status says the run ended, before
@@ -303,13 +304,13 @@ class WorkerMachine:
             out = (act.TakeParameters(welcome.flat),)
         self._config = dict(welcome.config)
         log.info("worker %s: welcomed at round %d (θ* of %s)", self.worker_id, welcome.round, welcome.origin)
-        rejoined = self._round_lost(resume, welcome.round) + WorkerStep(out)
+        rejoined = self._round_lost(resume, (welcome.round, welcome.step)) + WorkerStep(out)
         return rejoined + self._begin_round(welcome.round if resume is None else resume)
 
     def _run_over_unwelcomed(self, done: Message) -> WorkerStep:
         """``done`` before any welcome (back after the run ended): the round a resumed or restarted worker
         went down in is recorded as interrupted, as when welcomed after the fleet went on."""
-        lost = self._round_lost(None, done.round + 1)  # (a fresh worker's records nothing)
+        lost = self._round_lost(None, (done.round + 1, 0))  # (a fresh worker's records nothing)
         return lost + self._finish(WorkerSummary(self.worker_id, 0, finished=False, reason="run ended"))
 
     @property
@@ -318,11 +319,12 @@ class WorkerMachine:
         next, or round 1 for a worker restarted before its first checkpoint; None for a fresh worker."""
         return self.start_round if self.start_round is not None else 1 if self.restarted else None
 
-    def _round_lost(self, resume: int | None, welcome_round: int) -> WorkerStep:
-        """Resumed or restarted, welcomed at ``welcome_round`` after the fleet went on (``resume`` None, the
-        round it went down in closed without it): that round is recorded as interrupted."""
+    def _round_lost(self, resume: int | None, fleet_at: tuple[int, int]) -> WorkerStep:
+        """Resumed or restarted, welcomed with the fleet at exchange ``fleet_at`` (round, step), past the
+        start of the round it went down in (``resume`` None: it plays another round than that one, or plays it
+        again only to contribute it to a later one): that round is recorded as interrupted."""
         down = self.went_down_in
-        if resume is not None or down is None or welcome_round <= down:
+        if resume is not None or down is None or fleet_at <= (down, 0):
             return NOTHING
         result = interrupted_round(down)
         lost = FederatedRound(self.worker_id, down, result, WorkerEvent.INTERRUPTED)
