@@ -282,7 +282,7 @@ def test_a_worker_restarted_before_its_first_checkpoint_records_round_1_interrup
     assert [type(a) for a in later.actions] == [Record, TakeParameters, PlayRound]
     lost = later.actions[0].record
     assert (lost.round, lost.event, lost.result.steps) == (1, WorkerEvent.INTERRUPTED, 0)
-    # welcomed at round 1's first exchange (the fleet waited for it): it plays round 1 itself, nothing recorded
+    # welcomed at round 1's first exchange (the fleet waited for it): it plays round 1, nothing recorded
     assert welcomed(machine(restarted=True), 1).actions == (PlayRound(1),)
     # welcomed inside round 1 (a per-step scheme's fleet past step 0): what it plays goes to round 2
     inside = welcomed(machine(restarted=True), 1, step=3, flat=FLAT)
