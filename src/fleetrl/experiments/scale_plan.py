@@ -30,13 +30,13 @@ def fleet_scale(budget: Budget) -> Plan:
     """CartPole fleets of :data:`FLEET_SIZES` units under ``pergrad``, preset ``standard``, M =
     :data:`SCALE_ROUNDS` (or the budget's CartPole rounds if fewer: ``--quick``)."""
     m = min(SCALE_ROUNDS, budget.cartpole_rounds)
-    env = budget.unit_type or "cartpole"
 
     def fleet(n: int) -> Arm:
         window: dict[str, object] | None = {"batch_size": LARGE_FLEET_WINDOW} if n >= 1000 else None
         label = ("1 unit alone" if n == 1 else f"{n} units") + " · pergrad"
         label += f" · window {LARGE_FLEET_WINDOW}" if window else ""
-        return arm(env, n, "federated", "standard", m, label, "pergrad", budget.fleet_seed, overrides=window)
+        fleet_seed = budget.fleet_seed
+        return arm("cartpole", n, "federated", "standard", m, label, "pergrad", fleet_seed, overrides=window)
 
     arms = {n: fleet(n) for n in FLEET_SIZES}
     alone = arms[1]
