@@ -83,7 +83,9 @@ def train_host(
 ) -> WorkerSummary:
     """Federated mode for a host of the specs' units over ``transport``: one worker carrying them; every
     unit's rows emitted each round; every unit's model file (the host's one network) saved at the end."""
-    learner = learner or make_host_learner(specs)
+    if learner is None:
+        learner = make_host_learner(specs)
+        log.info("host of units %d-%d: learner ready", specs[0].worker, specs[-1].worker)
     first = specs[0]
     started = time.monotonic()
 

@@ -370,10 +370,8 @@ def host_thread(
     """The body of a unit host's thread on the in-process bus (:mod:`fleetrl.runs.host`)."""
 
     def body(emit: Emit) -> None:
-        from fleetrl.runs.host import make_host_learner, train_host
+        from fleetrl.runs.host import train_host
 
-        learner = make_host_learner(specs)
-        log.info("host of units %d-%d: learner ready", specs[0].worker, specs[-1].worker)
-        train_host(specs, make_transport(), run_id, emit, reply_timeout=CHIEF_IDLE_TIMEOUT, learner=learner)
+        train_host(specs, make_transport(), run_id, emit, reply_timeout=CHIEF_IDLE_TIMEOUT)
 
     return body

@@ -79,14 +79,12 @@ def main(argv: list[str] | None = None) -> int:
 
 def host_main(first: WorkerSpec, units: int, broker: str, run_id: str, reply_timeout: float) -> int:
     """A unit host of ``units`` units from ``first``'s on, over MQTT at ``broker``; the exit code."""
-    from fleetrl.runs.host import make_host_learner, train_host
+    from fleetrl.runs.host import train_host
     from fleetrl.transport.mqtt import MqttTransport
 
     specs = [replace(first, worker=k, unit=k) for k in range(first.worker, first.worker + units)]
-    learner = make_host_learner(specs)
-    logging.getLogger(__name__).info("host of units %d-%d: learner ready", specs[0].worker, specs[-1].worker)
     transport = MqttTransport(broker, clean_session=False)
-    train_host(specs, transport, run_id, print_record, reply_timeout=reply_timeout, learner=learner)
+    train_host(specs, transport, run_id, print_record, reply_timeout=reply_timeout)
     return 0
 
 
