@@ -2,11 +2,18 @@
 
     python benchmarks/host_scale.py [--units 8 64 256] [--rounds 3] [--per-host 0] [--part acting|train|all]
                                     [--kinds flat host] [--set KEY=VALUE ...] [--transport local|mqtt]
+                                    [--policy MODEL]
 
 acting: the units' first ``--rounds`` episodes (no update) — N learners of one unit each, stepped one after
 the other as the worker threads of ``--transport local`` take turns, against one host of N units (one forward
 pass per time step for all of them); unit-steps per second of acting alone, per wall second and per second of
-this process's CPU time (the machine is shared: the CPU figure moves less with the load).
+this process's CPU time (the machine is shared: the CPU figure moves less with the load). With ``--policy``
+every unit plays that model file (e.g. a trained fleet's ``models/worker-0.safetensors``: full-length
+episodes, as in a round of a fleet that learned) instead of the preset's initial network. With
+``--per-host U`` below N the hosts are processes of U units each (units 0 … U-1, U … 2U-1, …), playing at
+the same time after each has warmed up; the figure is every host's unit-steps over the wall time from the
+first host's start to the last one's end — what the hosts of ``fleetrl train --transport mqtt`` do in a
+round's playing part.
 
 train: ``fleetrl train --env cartpole --mode federated --transport local --preset standard --seed 3`` for
 ``--rounds`` rounds, each configuration in a fresh process: N workers of one unit (``flat``), or hosts of
@@ -41,11 +48,21 @@ def load() -> str:
     return f"load {os.getloadavg()[0]:.1f} on {os.cpu_count()} cores"
 
 
-def acting(units: int, rounds: int, hosted: bool) -> dict[str, float]:
-    """Unit-steps per second of ``rounds`` episodes of every unit, no update."""
+def acting(
+    units: int,
+    rounds: int,
+    hosted: bool,
+    policy: str | None = None,
+    first: int = 0,
+    start_at: float | None = None,
+) -> dict[str, float]:
+    """Unit-steps per second of ``rounds`` episodes of every unit (ids ``first`` …), no update; every unit
+    on the weights of the model file ``policy`` if given; the timed part starts at the wall-clock time
+    ``start_at`` if given (after the warm-up)."""
     import gymnasium
     import torch
 
+    from fleetrl.agent.checkpoint import read_checkpoint
     from fleetrl.agent.config import get_preset
     from fleetrl.agent.criterion import CompletionCriterion
     from fleetrl.agent.host_agent import HostAgent
@@ -56,12 +73,19 @@ def acting(units: int, rounds: int, hosted: bool) -> dict[str, float]:
 
     torch.set_num_threads(1)
     config = get_preset("standard")
-    envs = [gymnasium.make(CARTPOLE_UNIT_ID, unit=u, fleet_seed=0) for u in range(units)]
-    seeds = [SEED * 100_000 + u for u in range(units)]
+    ids = range(first, first + units)
+    envs = [gymnasium.make(CARTPOLE_UNIT_ID, unit=u, fleet_seed=0) for u in ids]
+    seeds = [SEED * 100_000 + u for u in ids]
     steps = 0
     if hosted:
-        host = HostLearner(envs, HostAgent(4, 2, config, seeds), [CompletionCriterion(1e9) for _ in envs])
+        agent = HostAgent(4, 2, config, seeds)
+        if policy is not None:
+            agent.load_weights(read_checkpoint(policy)[0], policy)
+        host = HostLearner(envs, agent, [CompletionCriterion(1e9) for _ in envs])
         host.play_episodes()  # compile and warm up
+        if start_at is not None:
+            time.sleep(max(0.0, start_at - time.time()))
+        began = time.time()
         started, cpu = time.perf_counter(), time.process_time()
         for _ in range(rounds):
             steps += sum(sum(e.steps) for e in host.play_episodes())
@@ -70,11 +94,55 @@ def acting(units: int, rounds: int, hosted: bool) -> dict[str, float]:
             Learner(env, PPOAgent(4, 2, config, seed=s), CompletionCriterion(1e9), seed=s)
             for env, s in zip(envs, seeds, strict=True)
         ]
+        for learner in learners if policy is not None else ():
+            learner.agent.load_weights(read_checkpoint(policy)[0], policy)
         learners[0].play_episode(learn=False)
+        began = time.time()
         started, cpu = time.perf_counter(), time.process_time()
         for _ in range(rounds):
             steps += sum(learner.play_episode()[1] for learner in learners)
     seconds, cpu_seconds = time.perf_counter() - started, time.process_time() - cpu
+    return {"unit_steps": steps, "seconds": seconds, "unit_steps_per_s": steps / seconds,
+            "unit_steps_per_cpu_s": steps / cpu_seconds, "began": began, "ended": time.time()}  # fmt: skip
+
+
+WARM_UP_S = 30.0
+"""how long the host processes of :func:`acting_hosts` are given to start, build their units and warm up
+before they play together"""
+
+
+def acting_hosts(units: int, per_host: int, rounds: int, policy: str | None) -> dict[str, float]:
+    """:func:`acting` in ``units / per_host`` processes of ``per_host`` units each, playing at the same
+    time: every host's unit-steps over the wall time from the first one's start to the last one's end."""
+    if units % per_host:
+        raise SystemExit(f"--per-host {per_host} must divide --units {units}")
+    start_at = time.time() + WARM_UP_S
+    calls = [
+        f"host_scale.acting({per_host}, {rounds}, True, {policy!r}, {first}, {start_at!r})"
+        for first in range(0, units, per_host)
+    ]
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(Path(__file__).parent), *sys.path])}
+    hosts = [
+        subprocess.Popen(
+            [sys.executable, "-c", f"import json, host_scale; print(json.dumps({call}))"],
+            stdout=subprocess.PIPE,
+            text=True,
+            env=env,
+        )
+        for call in calls
+    ]
+    results = []
+    for host in hosts:
+        out, _ = host.communicate()
+        if host.returncode != 0:
+            raise SystemExit(f"a host process exited {host.returncode}")
+        results.append(json.loads(out.strip().splitlines()[-1]))
+    late = max(r["began"] for r in results) - start_at
+    if late > 0.5:
+        print(f"  (a host started {late:.1f} s late: its warm-up outlasted {WARM_UP_S:.0f} s)")
+    steps = sum(r["unit_steps"] for r in results)
+    seconds = max(r["ended"] for r in results) - min(r["began"] for r in results)
+    cpu_seconds = sum(r["unit_steps"] / r["unit_steps_per_cpu_s"] for r in results)
     return {"unit_steps": steps, "seconds": seconds, "unit_steps_per_s": steps / seconds,
             "unit_steps_per_cpu_s": steps / cpu_seconds}  # fmt: skip
 
@@ -136,6 +204,7 @@ def main() -> None:
     parser.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
                         help="a preset override for --part train (repeatable)")  # fmt: skip
     parser.add_argument("--transport", choices=("local", "mqtt"), default="local")
+    parser.add_argument("--policy", help="--part acting: the model file every unit plays")
     args = parser.parse_args()
     for units in args.units:
         for name in args.kinds:
@@ -144,7 +213,10 @@ def main() -> None:
             label = f"N={units:5d} {name:4s} (U={per_host})"
             if args.part in ("acting", "all"):
                 before = load()
-                r = acting(units, args.rounds, hosted)
+                if hosted and per_host < units:
+                    r = acting_hosts(units, per_host, args.rounds, args.policy)
+                else:
+                    r = acting(units, args.rounds, hosted, args.policy)
                 print(f"{label} acting: {r['unit_steps_per_s']:9.0f} unit-steps/s, "
                       f"{r['unit_steps_per_cpu_s']:9.0f} per CPU-second ({r['unit_steps']} in "
                       f"{r['seconds']:.2f} s)  [{before} -> {load()}]", flush=True)  # fmt: skip
