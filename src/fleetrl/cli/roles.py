@@ -133,7 +133,7 @@ def cmd_chief(args: argparse.Namespace) -> int:
     shape = fleet_shape(settings.learning)
     chief = new_chief(
         run_id=settings.run_id,
-        workers=[str(k) for k in range(settings.workers)],
+        workers=settings.member_ids(),
         layout=shape.layout,
         steps_per_round=shape.exchanges_per_round,
         scheme=settings.learning.federation_scheme(),
@@ -197,8 +197,10 @@ def cmd_worker(args: argparse.Namespace) -> int:
         from fleetrl.runs.rundir import RunRecorder
 
         settings = settings_from_args(WorkerSettings, args)
-    spec = settings.worker_spec()
     config = worker_config(settings)
+    if settings.units > 1:
+        return _serve_host(settings, config)
+    spec = settings.worker_spec()
     checkpoints = worker_checkpoint_dir(settings.out, settings.worker_id)
     resume = settings.resume
     where = WorkerCheckpoint(checkpoints, spec, settings.run_id).where() if resume else None
@@ -217,6 +219,41 @@ def cmd_worker(args: argparse.Namespace) -> int:
             key=settings.fleet_key(),
             checkpoint_dir=checkpoints,
             resume=resume,
+        )
+        recorder.extra["worker"] = {
+            "rounds": outcome.rounds,
+            "finished": outcome.finished,
+            "reason": outcome.reason,
+        }
+    except KeyboardInterrupt:
+        recorder.interrupted = True
+    finally:
+        summary = recorder.finish()
+    print(json.dumps(summary["workers"]))
+    return 130 if recorder.interrupted else 0
+
+
+def _serve_host(settings: Any, config: dict[str, Any]) -> int:
+    """Serve as the unit host of ``settings.unit_ids()``: its run directory gets each unit's rows, model."""
+    from dataclasses import replace
+
+    from fleetrl.runs.fleet_summary import summarised
+    from fleetrl.runs.host import train_host
+    from fleetrl.runs.rundir import RunRecorder
+
+    first = settings.worker_spec()
+    ids = settings.unit_ids()
+    specs = [replace(first, worker=k, unit=k) for k in ids]
+    recorder = RunRecorder(settings.out, config, ids, summarise=summarised(len(ids), False))
+    try:
+        outcome = train_host(
+            specs,
+            settings.transport(),
+            settings.run_id,
+            recorder.add,
+            reply_timeout=settings.reply_timeout,
+            resend_interval=settings.resend_interval,
+            key=settings.fleet_key(),
         )
         recorder.extra["worker"] = {
             "rounds": outcome.rounds,
@@ -274,7 +311,7 @@ def worker_config(settings: Any) -> dict[str, Any]:
     return config | {
         "role": "worker",
         "mode": "federated",
-        "units": 1,
+        "units": settings.units,
         "broker": settings.public_broker,
         "unit": settings.device_unit,
         "ppo": asdict(settings.learning.ppo()),

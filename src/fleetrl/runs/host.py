@@ -18,6 +18,7 @@ from fleetrl.agent.host_learner import HostLearner
 from fleetrl.federation.events import WorkerEvent
 from fleetrl.federation.rounds import FederatedRound
 from fleetrl.federation.shared_settings import shared_text
+from fleetrl.federation.signing import FleetKey
 from fleetrl.federation.worker import FederatedWorker, WorkerSummary
 from fleetrl.runs.factory import action_space_of, agent_for, unit_criterion, unit_env
 from fleetrl.runs.host_settings import host_id
@@ -79,10 +80,13 @@ def train_host(
     emit: Emit,
     *,
     reply_timeout: float | None = 600.0,
+    resend_interval: float | None = 5.0,
+    key: FleetKey | None = None,
     learner: HostLearner | None = None,
 ) -> WorkerSummary:
-    """Federated mode for a host of the specs' units over ``transport``: one worker carrying them; every
-    unit's rows emitted each round; every unit's model file (the host's one network) saved at the end."""
+    """Federated mode for a host of the specs' units over ``transport``: one worker carrying them (its
+    messages signed with ``key`` if given); every unit's rows emitted each round; every unit's model file
+    (the host's one network) saved at the end."""
     if learner is None:
         learner = make_host_learner(specs)
         log.info("host of units %d-%d: learner ready", specs[0].worker, specs[-1].worker)
@@ -101,6 +105,8 @@ def train_host(
         max_rounds=first.learning.max_rounds,
         on_record=record,
         reply_timeout=reply_timeout,
+        resend_interval=resend_interval,
+        key=key,
         scheme=first.learning.federation_scheme(),
         settings=shared_text(first.learning),
         units=len(specs),

@@ -11,6 +11,7 @@ from typing import Any
 from fleetrl.envs.catalog import get_env_spec
 from fleetrl.federation.signing import FleetKey
 from fleetrl.federation.topics import validate_id
+from fleetrl.runs.host_settings import host_groups, host_id, host_setting_problem
 from fleetrl.runs.learning_resolution import positive
 from fleetrl.runs.setting_values import SettingError, check_readable_file, check_writable_dir, label
 from fleetrl.runs.settings import (
@@ -90,7 +91,10 @@ class ChiefSettings(RoleSettings, RoundRules):
     """``fleetrl chief``: serve one run as its chief (Algorithm 1)."""
 
     workers: int
-    """N: the workers are ids 0 … N-1"""
+    """N: the workers are ids 0 … N-1 (the units, with --units-per-host)"""
+    units_per_host: int = 1
+    """the N units are in unit hosts of this many (``fleetrl worker --units``, the last host what is left):
+    the members are host-0, host-U, …; 1: a worker per unit"""
     out: Path | None = None
     """write chief.json, chief.log and a checkpoint every round (checkpoints/chief/) here"""
     resume: bool = False
@@ -109,6 +113,12 @@ class ChiefSettings(RoleSettings, RoundRules):
         quorum = self.resolved_quorum(learning, shape)
         if self.workers < 1:
             raise SettingError(f"{label('workers')} = {self.workers}: must be at least 1")
+        hosts = host_setting_problem(
+            self.units_per_host, mode="federated", scheme=learning.federation_scheme(), ppo=learning.ppo(),
+            even=True,
+        )  # fmt: skip
+        if hosts is not None:
+            raise SettingError(f"{label('units_per_host')} = {self.units_per_host}: {hosts}")
         positive("idle_timeout", self.idle_timeout)
         positive("dropout_grace", self.dropout_grace, allow_zero=True)
         if self.out is None:
@@ -117,6 +127,12 @@ class ChiefSettings(RoleSettings, RoundRules):
         else:
             check_writable_dir("out", self.out)
         return replace(self, learning=learning, quorum=quorum)
+
+    def member_ids(self) -> list[str]:
+        """W at the start: the worker ids 0 … N-1, or with hosts each host's id (host-0, host-U, …)."""
+        if self.units_per_host == 1:
+            return [str(k) for k in range(self.workers)]
+        return [host_id(units) for units in host_groups(self.workers, self.units_per_host)]
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -128,6 +144,9 @@ class WorkerSettings(RoleSettings):
     with --closed-fleet)"""
     out: Path
     """this worker's run directory (metrics, model, a checkpoint every round in checkpoints/)"""
+    units: int = 1
+    """more than 1: this process is a unit host of the simulated units worker_id … worker_id+units-1, one
+    member (host-<worker_id>) of a chief run with --units-per-host; it keeps no checkpoints"""
     unit: int | None = None
     """device unit to train on (unset: the worker id)"""
     resume: bool = False
@@ -157,8 +176,29 @@ class WorkerSettings(RoleSettings):
         positive("reply_timeout", self.reply_timeout)
         positive("resend_interval", self.resend_interval)
         uneven = self.uneven.resolved_uneven(get_env_spec(learning.env).control_period, None)
+        self._check_host(learning, uneven.even)
         check_writable_dir("out", self.out)
         return replace(self, learning=learning, uneven=uneven)
+
+    def _check_host(self, learning: LearningSettings, even: bool) -> None:
+        """SettingError if this worker cannot be the unit host ``units`` asks for."""
+        if self.units == 1:
+            return
+        problem = host_setting_problem(
+            self.units, mode="federated", scheme=learning.federation_scheme(), ppo=learning.ppo(), even=even
+        )
+        if problem is None and self.resume:
+            problem = "a unit host keeps no checkpoints, so it cannot --resume (restart it without)"
+        if problem is None and self.unit is not None:
+            problem = "a unit host's units are its ids from --worker-id on: leave --unit unset"
+        if problem is None and self.device_link != "inprocess":
+            problem = "a standalone unit host runs simulated units (a unit behind its bridge: --units 1)"
+        if problem is not None:
+            raise SettingError(f"{label('units')} = {self.units}: {problem}")
+
+    def unit_ids(self) -> list[int]:
+        """The units this worker trains: its own id, or a host's ids from it on."""
+        return list(range(self.worker_id, self.worker_id + self.units))
 
     @property
     def device_unit(self) -> int:
