@@ -1,12 +1,13 @@
-"""Learning at scale: a CartPole fleet of N units under the default scheme, until every unit completes.
+"""Learning at scale: a CartPole (or QUBE) fleet of N units under the default scheme, until every unit
+completes.
 
     python benchmarks/scale_learning.py --units 1000 --seeds 100 101 102 103 104 [--per-host 500]
-        [--transport local|mqtt] [--set batch_size=16 ...] [--max-rounds 60] [--out DIR]
-        [--records benchmarks/results/scale]
+        [--env cartpole|qube] [--transport local|mqtt] [--set batch_size=16 ...] [--max-rounds 60]
+        [--out DIR] [--records benchmarks/results/scale]
 
 Each (arm, seed) runs once as the real command, in its own process::
 
-    fleetrl train --env cartpole --units N --mode federated --transport T --units-per-host U
+    fleetrl train --env E --units N --mode federated --transport T --units-per-host U
                   --seed S --max-rounds M --no-live [--set KEY=VALUE ...] --out OUT/ARM-seed-S
 
 (``--transport local``, the default: the hosts are threads of the command; ``mqtt``: processes on the
@@ -14,10 +15,10 @@ embedded broker, the arm's name ending ``-mqtt``) and leaves a small JSON record
 whose record exists is not run again: a sweep resumes across sessions). Per run: whether every unit
 completed within M, the round at which the last one did (the fleet), the median over units of the round at
 which each first completed (per unit), the command's wall time, the median wall time of the rounds in which
-every unit played a full-length episode (500 steps), the peak of the process tree's summed proportional set
-size (sampled every 2 s), the load average before and after, the machine and the commit. The table prints
-the medians over the seeds of each arm given. Compare with each unit alone: docs/results.md, "CartPole
-scaling" (1 worker, pergrad).
+every unit played a full-length episode (500 steps; QUBE 2,500), the peak of the process tree's summed
+proportional set size (sampled every 2 s), the load average before and after, the machine and the commit. The
+table prints the medians over the seeds of each arm given. Compare with each unit alone: docs/results.md,
+"CartPole scaling" (1 worker, pergrad), and the QUBE arms there.
 """
 
 from __future__ import annotations
@@ -39,18 +40,21 @@ from pathlib import Path
 from run_memory import children, pss_bytes
 
 FLEETRL = Path(sys.executable).with_name("fleetrl")
-FULL_LENGTH = 500
-"""CartPole's step cap: a round in which every unit reached it is a full-length round"""
+FULL_LENGTH = {"cartpole": 500, "qube": 2500}
+"""each unit type's step cap: a round in which every unit reached it is a full-length round"""
 
 
-def arm_name(units: int, per_host: int, overrides: list[str], max_rounds: int, transport: str) -> str:
-    """The arm's record name: its fleet size, host size, overrides, M and a transport other than local."""
+def arm_name(
+    env: str, units: int, per_host: int, overrides: list[str], max_rounds: int, transport: str
+) -> str:
+    """The arm's record name: its unit type, fleet size, host size, overrides, M and a transport other than
+    local."""
     extra = "".join(f"-{o.replace('=', '')}" for o in sorted(overrides))
     where = "" if transport == "local" else f"-{transport}"
-    return f"cartpole-n{units}-u{per_host}-m{max_rounds}{extra}{where}"
+    return f"{env}-n{units}-u{per_host}-m{max_rounds}{extra}{where}"
 
 
-def figures(run: Path) -> dict[str, object]:
+def figures(run: Path, full_length: int) -> dict[str, object]:
     """What a finished run's metrics.csv says (see the module docstring)."""
     with (run / "metrics.csv").open() as f:
         rows = list(csv.DictReader(f))
@@ -61,7 +65,7 @@ def figures(run: Path) -> dict[str, object]:
     for r in rows:
         rnd = int(r["round"])
         ends[rnd] = max(ends[rnd], float(r["wall_time"]))
-        if int(r["steps"]) < FULL_LENGTH:
+        if int(r["steps"]) < full_length:
             short.add(rnd)
         if r["event"] == "completed":
             first.setdefault(r["worker"], rnd)
@@ -87,7 +91,7 @@ def commit() -> str:
     return head.stdout.strip() + ("+" if dirty.stdout.strip() else "")
 
 
-def run_one(argv: list[str], out: Path, record: Path) -> dict[str, object]:
+def run_one(argv: list[str], out: Path, record: Path, full_length: int) -> dict[str, object]:
     """Run the command, read its figures, write and return the record."""
     if out.exists():
         shutil.rmtree(out)
@@ -105,7 +109,7 @@ def run_one(argv: list[str], out: Path, record: Path) -> dict[str, object]:
             raise SystemExit(f"{' '.join(argv)} exited {command.returncode}: {errors.read()[-500:]}")
     data: dict[str, object] = {
         "command": " ".join(["fleetrl", *argv[1:]]),
-        **figures(out),
+        **figures(out, full_length),
         "wall_s": round(wall, 1),
         "peak_tree_pss_mb": round(peak / 2**20),
         "load_before": round(load_before, 1),
@@ -123,6 +127,7 @@ def main() -> None:
         description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
     )
     parser.add_argument("--units", type=int, default=1000)
+    parser.add_argument("--env", choices=sorted(FULL_LENGTH), default="cartpole")
     parser.add_argument("--per-host", type=int, default=500)
     parser.add_argument("--transport", choices=("local", "mqtt"), default="local")
     parser.add_argument("--seeds", type=int, nargs="+", required=True)
@@ -131,7 +136,7 @@ def main() -> None:
     parser.add_argument("--out", type=Path, default=Path("/tmp/fleetrl-scale"))
     parser.add_argument("--records", type=Path, default=Path(__file__).parent / "results" / "scale")
     args = parser.parse_args()
-    arm = arm_name(args.units, args.per_host, args.overrides, args.max_rounds, args.transport)
+    arm = arm_name(args.env, args.units, args.per_host, args.overrides, args.max_rounds, args.transport)
     results = []
     for seed in args.seeds:
         record = args.records / arm / f"seed-{seed}.json"
@@ -139,12 +144,12 @@ def main() -> None:
             data = json.loads(record.read_text())
         else:
             out = args.out / f"{arm}-seed-{seed}"
-            argv = [str(FLEETRL), "train", "--env", "cartpole", "--units", str(args.units), "--mode",
+            argv = [str(FLEETRL), "train", "--env", args.env, "--units", str(args.units), "--mode",
                     "federated", "--transport", args.transport, "--units-per-host", str(args.per_host),
                     "--seed", str(seed), "--max-rounds", str(args.max_rounds), "--no-live",
                     "--out", str(out)]  # fmt: skip
             argv += [a for o in args.overrides for a in ("--set", o)]
-            data = run_one(argv, out, record)
+            data = run_one(argv, out, record, FULL_LENGTH[args.env])
         results.append(data)
         print(f"{arm} seed {seed}: {data['completed']}/{data['units']} completed, "
               f"fleet {data['fleet_rounds']}, per unit {data['per_unit_median']}, "
