@@ -106,6 +106,36 @@ def test_each_unit_of_a_host_keeps_its_own_env_seed_and_criterion() -> None:
     assert lone.unit_rounds[0].score == rounds[0].score
 
 
+class ScriptedCriterion(CompletionCriterion):
+    """A criterion that holds in the rounds its script says (the host's bookkeeping, not a unit's scores)."""
+
+    def __init__(self, holds: list[bool]) -> None:
+        super().__init__(0.0, window=1)
+        self._script, self._holds = iter(holds), False
+
+    def add(self, score: float) -> None:
+        super().add(score)
+        self._holds = next(self._script)
+
+    @property
+    def done(self) -> bool:
+        return self._holds
+
+
+def test_a_host_completes_once_every_unit_has_completed_not_when_all_hold_in_one_round() -> None:
+    config = dataclasses.replace(get_preset("standard"), hidden=(16,))
+    envs = [gymnasium.make(CARTPOLE_UNIT_ID, unit=u, fleet_seed=0) for u in range(2)]
+    # unit 0 completes in round 1 and then falls below its target; unit 1 completes in round 3
+    criteria = [ScriptedCriterion([True, False, False]), ScriptedCriterion([False, False, True])]
+    host = HostLearner(envs, HostAgent(4, 2, config, [7, 8]), criteria, keep_learning=True)
+    completed = []
+    for _ in range(3):
+        host.play_episodes()
+        completed.append(host.completed)
+    assert completed == [False, False, True]  # as two workers' first completions: rounds 1 and 3
+    assert host.wants_update()  # a per-step scheme's units learn on with the fleet
+
+
 def test_batched_acting_takes_each_rows_own_action() -> None:
     host = HostAgent(OBS_DIM, N_ACTIONS, small_config(), SEEDS)
     rng = np.random.default_rng(0)

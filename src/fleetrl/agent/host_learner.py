@@ -73,6 +73,8 @@ class HostLearner:
         self.rounds = 0
         self.episodes = [0] * agent.units
         """learning episodes each unit played in all rounds"""
+        self.completed_once = [False] * agent.units
+        """whether each unit's criterion has held at some round (a unit completes once, as a worker does)"""
         self.unit_rounds: tuple[RoundResult, ...] = ()
         """each unit's result of the latest round"""
         self.last_round: RoundResult | None = None
@@ -80,8 +82,11 @@ class HostLearner:
 
     @property
     def completed(self) -> bool:
-        """Every unit's criterion holds."""
-        return all(c.done for c in self.criteria)
+        """Every unit has completed: its criterion held at some round, not necessarily this one (as
+        :attr:`Learner.completed <fleetrl.agent.learner.Learner.completed>` for one unit). Units that stay
+        and learn with the fleet move around their target; waiting until all of a host's hold in the same
+        round kept a 1,000-unit run going for 69 rounds after its last unit had completed."""
+        return all(self.completed_once)
 
     def play_episodes(self) -> tuple[Episodes, ...]:
         """Every unit's episodes of the round (Algorithm 2, lines 2-6), the units stepped together."""
@@ -118,10 +123,11 @@ class HostLearner:
         agent.store_pending()
         self.rounds += 1
         episodes = []
-        for criterion, unit_played in zip(self.criteria, played, strict=True):
+        for u, (criterion, unit_played) in enumerate(zip(self.criteria, played, strict=True)):
             scores, lengths = zip(*unit_played, strict=True)
             episodes.append(Episodes(scores, lengths))
             criterion.add(episodes[-1].score)
+            self.completed_once[u] = self.completed_once[u] or criterion.done
         return tuple(episodes)
 
     def _reset(self, unit: int) -> np.ndarray:
@@ -129,8 +135,8 @@ class HostLearner:
         return self._envs.reset(unit, seed)
 
     def wants_update(self) -> bool:
-        """Line 7 for the host: update unless every unit's learning is finished; always if keep_learning."""
-        return self.keep_learning or not self.completed
+        """Line 7 for the host: update unless every unit's criterion holds; always if keep_learning."""
+        return self.keep_learning or not all(c.done for c in self.criteria)
 
     def begin_round(self) -> HostPlayed:
         """:meth:`play_episodes` and line 7's decision; the caller updates the agent, or not, and hands its
