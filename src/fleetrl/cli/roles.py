@@ -9,6 +9,7 @@ import argparse
 import json
 import logging
 import time
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -207,8 +208,9 @@ def cmd_worker(args: argparse.Namespace) -> int:
     resume_from = {settings.worker_id: 1 if where is None else where.next_round} if resume else None
     learner = make_learner(spec, settings.device_transport())  # a device bridge is reached before any file
     recorder = RunRecorder(settings.out, config, [settings.worker_id], resume_from=resume_from)
-    try:
-        outcome = train_federated(
+    return _recorded(
+        recorder,
+        lambda: train_federated(
             spec,
             settings.transport(),
             settings.run_id,
@@ -219,18 +221,8 @@ def cmd_worker(args: argparse.Namespace) -> int:
             key=settings.fleet_key(),
             checkpoint_dir=checkpoints,
             resume=resume,
-        )
-        recorder.extra["worker"] = {
-            "rounds": outcome.rounds,
-            "finished": outcome.finished,
-            "reason": outcome.reason,
-        }
-    except KeyboardInterrupt:
-        recorder.interrupted = True
-    finally:
-        summary = recorder.finish()
-    print(json.dumps(summary["workers"]))
-    return 130 if recorder.interrupted else 0
+        ),
+    )
 
 
 def _serve_host(settings: Any, config: dict[str, Any]) -> int:
@@ -245,8 +237,9 @@ def _serve_host(settings: Any, config: dict[str, Any]) -> int:
     ids = settings.unit_ids()
     specs = [replace(first, worker=k, unit=k) for k in ids]
     recorder = RunRecorder(settings.out, config, ids, summarise=summarised(len(ids), False))
-    try:
-        outcome = train_host(
+    return _recorded(
+        recorder,
+        lambda: train_host(
             specs,
             settings.transport(),
             settings.run_id,
@@ -254,7 +247,15 @@ def _serve_host(settings: Any, config: dict[str, Any]) -> int:
             reply_timeout=settings.reply_timeout,
             resend_interval=settings.resend_interval,
             key=settings.fleet_key(),
-        )
+        ),
+    )
+
+
+def _recorded(recorder: Any, train: Callable[[], Any]) -> int:
+    """Run a standalone worker's ``train`` into ``recorder``: how it ended in summary.json, the summary
+    printed as JSON, whether interrupted (Ctrl-C) or not; the exit code."""
+    try:
+        outcome = train()
         recorder.extra["worker"] = {
             "rounds": outcome.rounds,
             "finished": outcome.finished,
