@@ -21,7 +21,8 @@ LARGE_FLEET: dict[str, object] = {
     "actor_lr": 2e-3,
     "critic_lr": 2e-3,
 }
-"""the preset overrides of the 1,000-unit fleet (docs/tuning.md, "1,000 CartPole units")"""
+"""the preset overrides of the 1,000-unit fleet (docs/tuning.md, "How the update scales with the fleet's
+batch")"""
 
 NOTES = (
     "Above 16 units the units of a fleet run in unit hosts, about one per core (two on the machine that made "

@@ -70,3 +70,11 @@ def host_groups(units: int, per_host: int) -> list[list[int]]:
 def host_id(units: list[int]) -> str:
     """A host's federation id: ``host-`` and its first unit (its units' own ids stay in the metrics)."""
     return f"host-{units[0]}"
+
+
+def member_ids(units: int, per_host: int) -> list[str]:
+    """The federation's members for ``units`` units in hosts of ``per_host``: the worker ids 0 … N-1 (one
+    unit each), or each host's :func:`host_id`."""
+    if per_host == 1:
+        return [str(k) for k in range(units)]
+    return [host_id(group) for group in host_groups(units, per_host)]

@@ -35,7 +35,7 @@ from fleetrl.federation.shared_settings import shared_text
 from fleetrl.runs.factory import agent_for, make_learner, probe_agent
 from fleetrl.runs.fleet import Fleet, ThreadFleet, follow
 from fleetrl.runs.fleet_summary import summarised
-from fleetrl.runs.host_settings import host_groups, host_id
+from fleetrl.runs.host_settings import host_groups, member_ids
 from fleetrl.runs.live import LiveView
 from fleetrl.runs.processes import ProcessFleet, fork_available
 from fleetrl.runs.roles import Emit
@@ -259,10 +259,9 @@ def train_federated(
 ) -> None:
     """Chief in a thread of this process; workers as processes (MQTT at ``url``) or threads (local bus)."""
     shape = fleet_shape(settings.learning)
-    groups = host_groups(settings.units, settings.per_host) if settings.per_host > 1 else None
     chief = new_chief(
         run_id=run_id,
-        workers=[str(k) for k in specs] if groups is None else [host_id(units) for units in groups],
+        workers=member_ids(settings.units, settings.per_host),
         layout=shape.layout,
         steps_per_round=shape.exchanges_per_round,
         max_rounds=settings.learning.max_rounds,

@@ -11,7 +11,7 @@ from typing import Any
 from fleetrl.envs.catalog import get_env_spec
 from fleetrl.federation.signing import FleetKey
 from fleetrl.federation.topics import validate_id
-from fleetrl.runs.host_settings import host_groups, host_id, host_setting_problem
+from fleetrl.runs.host_settings import host_setting_problem, member_ids
 from fleetrl.runs.learning_resolution import positive
 from fleetrl.runs.setting_values import SettingError, check_readable_file, check_writable_dir, label
 from fleetrl.runs.settings import (
@@ -130,9 +130,7 @@ class ChiefSettings(RoleSettings, RoundRules):
 
     def member_ids(self) -> list[str]:
         """W at the start: the worker ids 0 … N-1, or with hosts each host's id (host-0, host-U, …)."""
-        if self.units_per_host == 1:
-            return [str(k) for k in range(self.workers)]
-        return [host_id(units) for units in host_groups(self.workers, self.units_per_host)]
+        return member_ids(self.workers, self.units_per_host)
 
 
 @dataclass(frozen=True, kw_only=True)
