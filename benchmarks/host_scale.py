@@ -76,11 +76,12 @@ def acting(
     ids = range(first, first + units)
     envs = [gymnasium.make(CARTPOLE_UNIT_ID, unit=u, fleet_seed=0) for u in ids]
     seeds = [SEED * 100_000 + u for u in ids]
+    weights = None if policy is None else read_checkpoint(policy)[0]  # read once, whatever the units
     steps = 0
     if hosted:
         agent = HostAgent(4, 2, config, seeds)
-        if policy is not None:
-            agent.load_weights(read_checkpoint(policy)[0], policy)
+        if weights is not None:
+            agent.load_weights(weights, str(policy))
         host = HostLearner(envs, agent, [CompletionCriterion(1e9) for _ in envs])
         host.play_episodes()  # compile and warm up
         if start_at is not None:
@@ -94,8 +95,8 @@ def acting(
             Learner(env, PPOAgent(4, 2, config, seed=s), CompletionCriterion(1e9), seed=s)
             for env, s in zip(envs, seeds, strict=True)
         ]
-        for learner in learners if policy is not None else ():
-            learner.agent.load_weights(read_checkpoint(policy)[0], policy)
+        for learner in learners if weights is not None else ():
+            learner.agent.load_weights(weights, str(policy))
         learners[0].play_episode(learn=False)
         began = time.time()
         started, cpu = time.perf_counter(), time.process_time()
