@@ -11,6 +11,7 @@ import time
 
 import pytest
 
+from fleetrl.transport.amqtt_mended import SnapshotSubscriptions
 from fleetrl.transport.base import Transport, Will
 from fleetrl.transport.broker import EmbeddedBroker, free_port, mqtt_ready
 from fleetrl.transport.mqtt import BrokerAddress, MqttTransport
@@ -79,6 +80,39 @@ def test_retained_status_reaches_a_late_subscriber(broker: EmbeddedBroker) -> No
         assert got is not None and (got.payload, got.retained) == (b"online", True)
     finally:
         late.close()
+
+
+@pytest.mark.mqtt
+def test_a_retained_message_reaches_only_its_subscribers(broker: EmbeddedBroker) -> None:
+    # amqtt 0.12.1 handed every connecting client the retained messages of every client's subscriptions
+    owner = client(broker.url, "own-a")
+    other = None
+    try:
+        owner.subscribe("own/a")
+        owner.publish("own/a", b"for a only", retain=True)
+        got = owner.receive(5)
+        assert got is not None and got.payload == b"for a only"
+        other = client(broker.url, "own-b")
+        other.subscribe("own/b")
+        assert other.receive(1.0) is None
+    finally:
+        owner.close()
+        if other is not None:
+            other.close()
+
+
+def test_amqtt_subscriptions_loop_over_a_snapshot() -> None:
+    subscriptions = SnapshotSubscriptions({"a": [], "b": []})
+    seen = []
+    for topic in subscriptions:  # a SUBSCRIBE and a disconnect while amqtt loops (across an await)
+        seen.append(topic)
+        subscriptions["c"] = []
+        subscriptions.pop("b", None)
+    for topic, _subscribers in subscriptions.items():
+        subscriptions[topic + "+"] = []
+    assert seen == ["a", "b"]
+    assert set(subscriptions) == {"a", "c", "a+", "c+"}
+    assert subscriptions.get("a") == [] and "b" not in subscriptions
 
 
 DYING_CLIENT = """

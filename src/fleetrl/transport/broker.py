@@ -3,7 +3,8 @@ amqtt.
 
 mosquitto gets a generated config (explicit 127.0.0.1 listener, ``set_tcp_nodelay true``, anonymous access, no
 persistence) in a temporary directory and is killed on close. amqtt runs in-process on its own event-loop
-thread with an explicit 127.0.0.1 listener and no $SYS plugin. Readiness is an MQTT CONNECT answered by a
+thread with an explicit 127.0.0.1 listener and no $SYS plugin, two of its faults mended
+(``fleetrl.transport.amqtt_mended``). Readiness is an MQTT CONNECT answered by a
 CONNACK, not a bare TCP connect (which makes amqtt log an error and leak a socket).
 """
 
@@ -142,7 +143,9 @@ class _Amqtt:
         self._broker: Any = None
 
     def start(self, port: int) -> None:
-        from amqtt.broker import Broker  # imported lazily: ~200 ms, and only needed without mosquitto
+        from fleetrl.transport.amqtt_mended import mended_broker_class  # amqtt only without mosquitto
+
+        broker_class = mended_broker_class()
 
         for name in ("amqtt", "transitions"):  # they log every connection and state change at INFO
             if logging.getLogger(name).level == logging.NOTSET:
@@ -158,7 +161,7 @@ class _Amqtt:
         self._thread.start()
 
         async def boot() -> Any:
-            broker = Broker(config, loop=loop)
+            broker = broker_class(config, loop=loop)
             await broker.start()
             return broker
 
