@@ -70,6 +70,7 @@ results: install
 	$(VENV)/bin/fleetrl experiment uneven --fleet-seed 1 --out runs/experiments \
 		--records docs/results/records
 	$(VENV)/bin/fleetrl experiment fleet-scale --seeds 5 --out runs/experiments --records docs/results/records
+	$(VENV)/bin/fleetrl experiment qube-scale --seeds 5 --out runs/experiments --records docs/results/records
 	$(VENV)/bin/fleetrl experiment fig5 --fleet-seed 1 --headline-only --out runs/experiments \
 		--records docs/results/records --publish docs/results.md
 
@@ -79,6 +80,8 @@ report: install
 	$(VENV)/bin/fleetrl experiment uneven --from-records --fleet-seed 1 --out runs/report \
 		--records docs/results/records
 	$(VENV)/bin/fleetrl experiment fleet-scale --from-records --seeds 5 --out runs/report \
+		--records docs/results/records
+	$(VENV)/bin/fleetrl experiment qube-scale --from-records --seeds 5 --out runs/report \
 		--records docs/results/records
 	$(VENV)/bin/fleetrl experiment fig5 --from-records --fleet-seed 1 --headline-only --out runs/report \
 		--records docs/results/records --publish docs/results.md

@@ -8,7 +8,7 @@ from collections.abc import Callable
 from fleetrl.experiments.arms import Arm
 from fleetrl.experiments.budget import Budget, arm
 from fleetrl.experiments.plan import Plan, Ratio
-from fleetrl.experiments.scale_plan import fleet_scale
+from fleetrl.experiments.scale_plan import fleet_scale, qube_scale
 from fleetrl.experiments.uneven_plan import uneven
 
 SERVER_OPTIMISERS = {
@@ -301,9 +301,10 @@ PLANS: dict[str, Callable[[Budget], Plan]] = {
     "continuous": continuous,
     "uneven": uneven,
     "fleet-scale": fleet_scale,
+    "qube-scale": qube_scale,
 }
 EXPERIMENTS = (*PLANS, "table2", "peers")
-ALL_EXPERIMENTS = tuple(name for name in EXPERIMENTS if name not in ("uneven", "fleet-scale"))
+ALL_EXPERIMENTS = tuple(name for name in EXPERIMENTS if name not in ("uneven", "fleet-scale", "qube-scale"))
 """what ``fleetrl experiment all`` runs: the uneven fleet is run on its own, on the held-out fleet seed 1
 where each unit alone and ``pergrad`` already have records, and so are the fleets of up to 1,000 units, on 5
 seeds (the Makefile's ``results``)"""

@@ -1,10 +1,11 @@
-"""A fleet of any size (issue 24's learning at scale): CartPole fleets of 1, 8, 64, 256 and 1,000 units
-under the default scheme (``pergrad``, every member waited for), preset ``standard``; above 16 units the
-units run in unit hosts of about one per core (``--units-per-host auto``, the default). The 1,000-unit fleet
-updates with the large-fleet settings of docs/tuning.md (tuning seeds 0-2): windows of 16 transitions per
-unit instead of the preset's 128 (an eighth of the update's arithmetic), and the fleet's 16,000-transition
-minibatch bought with K = 40 steps at learning rates of 2e-3 (the preset: 20 at 1e-3). The figures that
-matter: rounds per unit against each unit alone, and whether a larger fleet keeps paying."""
+"""A fleet of any size (issue 24's learning at scale): CartPole fleets (``fleet-scale``) and QUBE fleets
+(``qube-scale``) of 1, 8, 64, 256 and 1,000 units under the default scheme (``pergrad``, every member
+waited for), preset ``standard``; above 16 units the units run in unit hosts of about one per core
+(``--units-per-host auto``, the default). The 1,000-unit fleet updates with the large-fleet settings of
+docs/tuning.md (tuning seeds 0-2): windows of 16 transitions per unit instead of the preset's 128 (an
+eighth of the update's arithmetic), and the fleet's 16,000-transition minibatch bought with K = 40 steps at
+learning rates of 2e-3 (the preset: 20 at 1e-3). The figures that matter: rounds per unit against each unit
+alone, and whether a larger fleet keeps paying."""
 
 from fleetrl.experiments.arms import Arm
 from fleetrl.experiments.budget import Budget, arm
@@ -13,8 +14,11 @@ from fleetrl.experiments.plan import Plan, Ratio
 FLEET_SIZES = (1, 8, 64, 256, 1000)
 """the fleets measured"""
 SCALE_ROUNDS = 100
-"""M of every arm (each unit alone completes within it on every held-out seed measured: median 60); a full
-budget's 400 would let one slow unit of 1,000 hold the fleet for an hour"""
+"""M of every CartPole arm (each unit alone completes within it on every held-out seed measured: median 60);
+a full budget's 400 would let one slow unit of 1,000 hold the fleet for an hour"""
+QUBE_SCALE_ROUNDS = 400
+"""M of every QUBE arm: each QUBE unit alone needs a median of 139 rounds (Fig. 5's 30 units: 97-242; 340 on
+a tuning seed), and the large fleets about 25"""
 LARGE_FLEET: dict[str, object] = {
     "batch_size": 16,
     "n_optimisations": 40,
@@ -38,25 +42,36 @@ def fleet_scale(budget: Budget) -> Plan:
     """CartPole fleets of :data:`FLEET_SIZES` units under ``pergrad``, preset ``standard``, M =
     :data:`SCALE_ROUNDS` (or the budget's CartPole rounds if fewer: ``--quick``)."""
     m = min(SCALE_ROUNDS, budget.cartpole_rounds)
+    claim = "target at 1,000 units: ≥ 3× fewer rounds per unit than alone"
+    return _scale_plan("fleet-scale", "cartpole", "CartPole", m, claim, budget.fleet_seed, NOTES)
+
+
+def qube_scale(budget: Budget) -> Plan:
+    """QUBE fleets of :data:`FLEET_SIZES` units under ``pergrad``, preset ``standard``, M =
+    :data:`QUBE_SCALE_ROUNDS` (or the budget's QUBE rounds if fewer: ``--quick``)."""
+    m = min(QUBE_SCALE_ROUNDS, budget.qube_rounds)
+    claim = "target at 1,000 units: ≥ 5× fewer rounds per unit than alone"
+    notes = NOTES + " The large-fleet settings were tuned on CartPole and are used on QUBE unchanged."
+    return _scale_plan("qube-scale", "qube", "QUBE", m, claim, budget.fleet_seed, notes)
+
+
+def _scale_plan(name: str, env: str, unit_type: str, m: int, claim: str, fleet_seed: int, notes: str) -> Plan:
+    """Fleets of ``env`` units of every size of :data:`FLEET_SIZES`, each against one unit alone."""
 
     def fleet(n: int) -> Arm:
         large = dict(LARGE_FLEET) if n >= 1000 else None
         label = ("1 unit alone" if n == 1 else f"{n} units") + " · pergrad"
         label += " · large-fleet settings" if large else ""
-        fleet_seed = budget.fleet_seed
-        return arm("cartpole", n, "federated", "standard", m, label, "pergrad", fleet_seed, overrides=large)
+        return arm(env, n, "federated", "standard", m, label, "pergrad", fleet_seed, overrides=large)
 
     arms = {n: fleet(n) for n in FLEET_SIZES}
     alone = arms[1]
     return Plan(
-        name="fleet-scale",
-        title="A fleet of any size: 1 to 1,000 CartPole units under pergrad",
+        name=name,
+        title=f"A fleet of any size: 1 to 1,000 {unit_type} units under pergrad",
         arms=list(arms.values()),
         max_rounds=m,
-        ratios=[
-            Ratio(alone, arms[n], "target at 1,000 units: ≥ 3× fewer rounds per unit than alone")
-            for n in FLEET_SIZES[1:]
-        ],
-        notes=NOTES,
+        ratios=[Ratio(alone, arms[n], claim) for n in FLEET_SIZES[1:]],
+        notes=notes,
         headline=list(arms.values()),
     )
