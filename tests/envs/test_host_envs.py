@@ -1,13 +1,14 @@
-"""A unit host's envs: in-process CartPoles stepped in one batch, every other unit through its own env, and
-every unit's steps what its own env gives alone; a host of such mixed units plays its first round as each
-unit's own learner would."""
+"""A unit host's envs: in-process CartPoles stepped in one batch, in-process QUBEs in another, every other
+unit through its own env, and every unit's steps what its own env gives alone; a host of such mixed units
+plays its first round as each unit's own learner would."""
 
 import dataclasses
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from typing import Any
 
 import gymnasium
 import numpy as np
+import pytest
 
 from fleetrl.agent.config import get_preset
 from fleetrl.agent.criterion import CompletionCriterion
@@ -18,9 +19,10 @@ from fleetrl.agent.ppo import PPOAgent
 from fleetrl.agent.row_acting import FEW_ROWS
 from fleetrl.devices.cartpole import CartPoleDevice
 from fleetrl.envs.cartpole_unit import CartPoleUnitEnv
-from fleetrl.envs.host_envs import HostEnvs, batched_cartpole
+from fleetrl.envs.host_envs import HostEnvs, batched_device
 from fleetrl.envs.paced import PacedEnv
-from fleetrl.envs.registration import CARTPOLE_UNIT_ID
+from fleetrl.envs.qube_balance import QubeBalanceEnv
+from fleetrl.envs.registration import CARTPOLE_UNIT_ID, QUBE_BALANCE_CONTINUOUS_ID, QUBE_BALANCE_ID
 from fleetrl.link.base import NO_INFO
 
 
@@ -52,22 +54,40 @@ def unit_envs(cap: int | None = 15, units: int = 6) -> list[gymnasium.Env[Any, A
     return envs
 
 
-def test_only_in_process_cartpoles_are_batched() -> None:
+def qube_envs(cap: int = 40, units: int = 5) -> list[gymnasium.Env[Any, Any]]:
+    """QUBE units 0 … ``units`` - 1 of fleet 0, unit 1 paced (stepped alone), episodes capped at ``cap``."""
+    limit = {"max_episode_steps": cap}
+    envs = [gymnasium.make(QUBE_BALANCE_ID, unit=u, fleet_seed=0, **limit) for u in range(units)]
+    envs[1] = PacedEnv(envs[1], 1e-6)
+    return envs
+
+
+def test_only_in_process_cartpoles_and_qubes_are_batched() -> None:
     assert HostEnvs(unit_envs()).batched.tolist() == [0, 1, 3, 5]
+    assert HostEnvs(unit_envs() + qube_envs(units=3)).batched.tolist() == [0, 1, 3, 5, 6, 8]
     rendered = gymnasium.make(CARTPOLE_UNIT_ID, unit=0, fleet_seed=0, render_mode="rgb_array")
-    assert batched_cartpole(rendered) is None
-    assert batched_cartpole(CartPoleUnitEnv(1, 0)) is not None  # no TimeLimit: never truncated
+    assert batched_device(rendered) is None
+    assert batched_device(CartPoleUnitEnv(1, 0)) is not None  # no TimeLimit: never truncated
+    assert batched_device(QubeBalanceEnv(1, 0)) is not None
+    assert batched_device(gymnasium.make(QUBE_BALANCE_CONTINUOUS_ID, unit=0, fleet_seed=0)) is None
 
 
-def test_every_unit_steps_as_its_env_alone_bit_for_bit() -> None:
-    host, alone = HostEnvs(unit_envs()), unit_envs()
+@pytest.mark.parametrize(
+    ("envs", "steps"),
+    [(unit_envs, 400), (lambda: unit_envs() + qube_envs(units=3), 300)],
+    ids=["cartpoles", "cartpoles-and-qubes"],
+)
+def test_every_unit_steps_as_its_env_alone_bit_for_bit(
+    envs: Callable[[], list[gymnasium.Env[Any, Any]]], steps: int
+) -> None:
+    host, alone = HostEnvs(envs()), envs()
     rng = np.random.default_rng(7)
     for u, env in enumerate(alone):
         assert np.array_equal(host.reset(u, 100 + u), env.reset(seed=100 + u)[0])
     ends = truncations = 0
-    for _ in range(400):
-        units = np.flatnonzero(rng.random(6) < 0.8)
-        actions = rng.integers(0, 2, size=units.size)
+    for _ in range(steps):
+        units = np.flatnonzero(rng.random(len(alone)) < 0.8)
+        actions = rng.integers(0, 2, size=units.size)  # a push either way, or QUBE power -60 and 0
         step = host.step(units, actions)
         for j, u in enumerate(units.tolist()):
             next_obs, reward, terminated, truncated, _ = alone[u].step(int(actions[j]))

@@ -1,13 +1,15 @@
 """The envs of a unit host's units, stepped together where they can be.
 
-A unit simulated in-process as a built-in CartPole (``fleetrl/CartPoleUnit-v0`` as ``gymnasium.make`` builds
-it: its env over an :class:`~fleetrl.link.inprocess.InProcessLink` to a
-:class:`~fleetrl.devices.cartpole.CartPoleDevice`, under gymnasium's ``TimeLimit``, ``OrderEnforcing`` and
-``PassiveEnvChecker`` only, no rendering) is stepped with every other such unit of the host in a
-:class:`~fleetrl.devices.cartpole_batch.CartPoleBatch`: one compiled call per time step, judged by
-:meth:`~fleetrl.envs.cartpole_unit.CartPoleUnitEnv.judge_rows` and truncated at its ``TimeLimit``, each
-unit's numbers those its own env would give. Every other unit (behind a device bridge, paced, a QUBE, a
-user's unit type) is stepped through its own env, one call each.
+A unit simulated in-process as a built-in CartPole or QUBE (``fleetrl/CartPoleUnit-v0`` or
+``fleetrl/QubeBalance-v0`` as ``gymnasium.make`` builds it: its env over an
+:class:`~fleetrl.link.inprocess.InProcessLink` to a :class:`~fleetrl.devices.cartpole.CartPoleDevice` or a
+:class:`~fleetrl.devices.qube.device.QubeDevice`, under gymnasium's ``TimeLimit``, ``OrderEnforcing`` and
+``PassiveEnvChecker`` only, no rendering) is stepped with every other such unit of its type in the host in
+one batch (:class:`~fleetrl.devices.cartpole_batch.CartPoleBatch`,
+:class:`~fleetrl.devices.qube.batch.QubeBatch`): one compiled call per time step, judged by its env class's
+``judge_rows`` and truncated at its ``TimeLimit``, each unit's numbers those its own env would give. Every
+other unit (behind a device bridge, paced, the continuous QUBE, a user's unit type) is stepped through its
+own env, one call each.
 
 Resets always go through the unit's own env (its seeding is the env's); the batch then takes the device's
 state. While the batch steps a unit, its env's own wrappers do not see the steps (its ``TimeLimit`` count
@@ -16,7 +18,7 @@ stays at 0); the device's state is handed back at every episode's end.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -27,10 +29,13 @@ from gymnasium.wrappers import OrderEnforcing, PassiveEnvChecker, TimeLimit
 from fleetrl.devices import cartpole_batch
 from fleetrl.devices.cartpole import CartPoleDevice
 from fleetrl.devices.cartpole_batch import CartPoleBatch
+from fleetrl.devices.qube.batch import QubeBatch
+from fleetrl.devices.qube.device import QubeDevice
 from fleetrl.envs.cartpole_unit import CartPoleUnitEnv
+from fleetrl.envs.qube_balance import QubeBalanceEnv
 from fleetrl.link.inprocess import InProcessLink
 
-__all__ = ["HostEnvs", "StepRows", "batched_cartpole"]
+__all__ = ["HostEnvs", "StepRows", "batched_device"]
 
 _TRANSPARENT = (OrderEnforcing, PassiveEnvChecker)
 """wrappers that change no number of a step"""
@@ -50,12 +55,29 @@ class StepRows:
     """bool"""
 
 
-def batched_cartpole(env: gymnasium.Env[Any, Any]) -> tuple[CartPoleDevice, int | None] | None:
-    """The in-process CartPole device and episode cap (None: none) of an env a batch can step, or None if
-    ``env`` is anything else (another unit type, a link, another wrapper, rendering), or no batch can
-    step CartPoles in this process (:data:`~fleetrl.devices.cartpole_batch.AVAILABLE`)."""
-    if not cartpole_batch.AVAILABLE:
-        return None
+@dataclass(frozen=True)
+class _Kind:
+    """A unit type whose in-process units a batch can step."""
+
+    env: type[gymnasium.Env[Any, Any]]
+    device: type
+    batch: Callable[[list[Any]], Any]
+    """the batch of a list of such devices"""
+    available: bool = True
+    """whether such a batch can run in this process"""
+
+
+_KINDS = (
+    _Kind(CartPoleUnitEnv, CartPoleDevice, CartPoleBatch, cartpole_batch.AVAILABLE),
+    _Kind(QubeBalanceEnv, QubeDevice, QubeBatch),
+)
+"""the unit types stepped in batches, the kind's index its batch's"""
+
+
+def batched_device(env: gymnasium.Env[Any, Any]) -> tuple[int, Any, int | None] | None:
+    """The batch kind (an index into the kinds), the in-process device and the episode cap (None: none) of
+    an env a batch can step, or None if ``env`` is anything else (another unit type, a link, another
+    wrapper, rendering), or no batch of its type can step in this process."""
     cap: int | None = None
     inner: Any = env
     while isinstance(inner, gymnasium.Wrapper):
@@ -64,12 +86,24 @@ def batched_cartpole(env: gymnasium.Env[Any, Any]) -> tuple[CartPoleDevice, int 
         elif type(inner) not in _TRANSPARENT:
             return None
         inner = inner.env
-    if type(inner) is not CartPoleUnitEnv or inner.render_mode is not None:
-        return None
-    link = inner.link
-    if type(link) is not InProcessLink or type(link.device) is not CartPoleDevice:
-        return None
-    return link.device, cap
+    for index, kind in enumerate(_KINDS):
+        if type(inner) is not kind.env:
+            continue
+        link = getattr(inner, "link", None)
+        if not kind.available or inner.render_mode is not None or type(link) is not InProcessLink:
+            return None
+        return (index, link.device, cap) if type(link.device) is kind.device else None
+    return None
+
+
+@dataclass
+class _Batch:
+    """One kind's batch in a host: its rows' units, episode caps and steps so far."""
+
+    kind: _Kind
+    stepper: Any
+    cap: np.ndarray
+    elapsed: np.ndarray
 
 
 class HostEnvs:
@@ -80,53 +114,65 @@ class HostEnvs:
 
     def __init__(self, envs: Sequence[gymnasium.Env[Any, Any]]) -> None:
         self.envs = list(envs)
-        found = [batched_cartpole(env) for env in self.envs]
-        batched = [u for u, f in enumerate(found) if f is not None]
+        found = [batched_device(env) for env in self.envs]
+        self._kind = np.full(len(self.envs), -1, dtype=np.int64)
+        """unit → its batch's kind (-1: stepped through its own env)"""
         self._row = np.full(len(self.envs), -1, dtype=np.int64)
-        """unit → its row in the batch (-1: stepped through its own env)"""
-        self._row[batched] = np.arange(len(batched))
-        self._batch = CartPoleBatch([found[u][0] for u in batched])  # type: ignore[index]
-        self._cap = np.array([found[u][1] or np.iinfo(np.int64).max for u in batched], dtype=np.int64)  # type: ignore[index]
-        self._elapsed = np.zeros(len(batched), dtype=np.int64)
+        """unit → its row in its batch"""
+        self._batches: dict[int, _Batch] = {}
+        for index, kind in enumerate(_KINDS):
+            units = [u for u, f in enumerate(found) if f is not None and f[0] == index]
+            if not units:
+                continue
+            self._kind[units] = index
+            self._row[units] = np.arange(len(units))
+            caps = [found[u][2] or np.iinfo(np.int64).max for u in units]  # type: ignore[index]
+            stepper = kind.batch([found[u][1] for u in units])  # type: ignore[index]
+            self._batches[index] = _Batch(
+                kind, stepper, np.array(caps, dtype=np.int64), np.zeros(len(units), dtype=np.int64)
+            )
         self._obs_dtype: np.dtype[Any] | None = None
 
     @property
     def batched(self) -> np.ndarray:
-        """The units stepped in the batch."""
-        return np.flatnonzero(self._row >= 0)
+        """The units stepped in a batch."""
+        return np.flatnonzero(self._kind >= 0)
 
     def reset(self, unit: int, seed: int | None) -> np.ndarray:
         """Reset unit ``unit``'s env (with ``seed``, if given); its first observation."""
         obs, _ = self.envs[unit].reset(seed=seed)
-        row = int(self._row[unit])
-        if row >= 0:
-            self._batch.load(row)
-            self._elapsed[row] = 0
+        kind = int(self._kind[unit])
+        if kind >= 0:
+            row = int(self._row[unit])
+            self._batches[kind].stepper.load(row)
+            self._batches[kind].elapsed[row] = 0
         first = np.asarray(obs)
         self._obs_dtype = first.dtype if self._obs_dtype is None else np.result_type(self._obs_dtype, first)
         return first
 
     def step(self, units: np.ndarray, actions: Sequence[Any] | np.ndarray) -> StepRows:
         """Step every unit of ``units`` with its action (row j: ``actions[j]``, as its env takes it), all
-        reset before; the batched units in one call, the others one by one."""
+        reset before; the batched units in one call per batch, the others one by one."""
         n = len(units)
-        rows = self._row[units]
-        in_batch = rows >= 0
+        kinds = self._kind[units]
         dtype = self._obs_dtype if self._obs_dtype is not None else np.float32
         obs = np.empty((n, *self._obs_shape(units)), dtype=dtype)
         rewards = np.empty(n, dtype=np.float64)
         terminated = np.empty(n, dtype=bool)
         truncated = np.empty(n, dtype=bool)
-        if in_batch.any():
-            batch_rows = rows[in_batch]
-            stepped = self._batch.step(batch_rows, np.asarray(actions)[in_batch])
-            obs[in_batch] = stepped
-            rewards[in_batch], terminated[in_batch] = CartPoleUnitEnv.judge_rows(stepped)
-            self._elapsed[batch_rows] += 1
-            truncated[in_batch] = self._elapsed[batch_rows] >= self._cap[batch_rows]
-            for row in batch_rows[terminated[in_batch] | truncated[in_batch]].tolist():
-                self._batch.store(row)  # the episode ends: the device holds its last state again
-        for j in np.flatnonzero(~in_batch).tolist():
+        for index, batch in self._batches.items():
+            mine = kinds == index
+            if not mine.any():
+                continue
+            rows = self._row[units[mine]]
+            stepped = batch.stepper.step(rows, np.asarray(actions)[mine])
+            obs[mine] = stepped
+            rewards[mine], terminated[mine] = batch.kind.env.judge_rows(stepped)  # type: ignore[attr-defined]
+            batch.elapsed[rows] += 1
+            truncated[mine] = batch.elapsed[rows] >= batch.cap[rows]
+            for row in rows[terminated[mine] | truncated[mine]].tolist():
+                batch.stepper.store(row)  # the episode ends: the device holds its last state again
+        for j in np.flatnonzero(kinds < 0).tolist():
             action = actions[j]
             if isinstance(action, np.integer):  # an env stepped alone is sent a plain index, as before
                 action = int(action)

@@ -80,6 +80,15 @@ class QubeBalanceEnv(LinkEnv):
             return 1.0, False
         return 0.0, True
 
+    @staticmethod
+    def judge_rows(obs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`judge` for every row of ``obs`` (n, 4): rewards (float64) and terminations (bool), each
+        row's what :meth:`judge` says of it (compared in float64, as :meth:`judge` does)."""
+        alpha = np.abs(obs[:, 0].astype(np.float64))
+        theta = np.abs(obs[:, 2].astype(np.float64))
+        held = (alpha <= PENDULUM_LIMIT) & (theta <= ARM_LIMIT)
+        return held.astype(np.float64), ~held
+
     def frame(self, obs: np.ndarray) -> np.ndarray:
         """An RGB picture of the unit in state ``obs``."""
         return qube_frame(obs)
