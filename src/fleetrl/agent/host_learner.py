@@ -5,8 +5,8 @@ The host plays a round as its units would alone, side by side: every unit plays 
 or with ``trajectory_memory='per_round'`` whole episodes until its memory is filled) on its own env, from its
 own seed. At each time step the units still playing act in one call of the agent
 (:meth:`~fleetrl.agent.host_agent.HostAgent.act_units`), step together where their envs allow
-(:class:`~fleetrl.envs.host_envs.HostEnvs`: in-process CartPoles in one compiled call, every other unit
-through its own env) and are remembered in one call
+(:class:`~fleetrl.envs.host_envs.HostEnvs`: in-process CartPoles in one compiled call, in-process QUBEs in
+another, every other unit through its own env) and are remembered in one call
 (:meth:`~fleetrl.agent.host_agent.HostAgent.remember_units`). Each unit's criterion sees its own scores; the
 round ends with at most one update of the host's one network. The host's round result summarises its units
 (the mean score, the summed steps); :attr:`HostLearner.unit_rounds` keeps each unit's own.
