@@ -3,6 +3,7 @@ stepped alone (CartPoleDevice.step), on random states, parameters and actions.""
 
 import numpy as np
 import pytest
+from batch_checks import steps_match_alone
 
 from fleetrl.devices.cartpole import CartPoleDevice, CartPoleParams, cartpole_unit_params
 from fleetrl.devices.cartpole_batch import CartPoleBatch
@@ -33,15 +34,8 @@ def test_a_batch_steps_each_unit_as_it_steps_alone_bit_for_bit() -> None:
         device.set_state(start)
         batch.devices[row].set_state(start)
         batch.load(row)
-    for _ in range(60):
-        rows = np.flatnonzero(rng.random(len(params)) < 0.7)  # some units rest this step
-        actions = rng.integers(0, 2, size=rows.size)
-        obs = batch.step(rows, actions)
-        assert obs.dtype == np.float32 and obs.shape == (rows.size, 4)
-        for j, (row, action) in enumerate(zip(rows.tolist(), actions.tolist(), strict=True)):
-            expected = alone[row].step(action)
-            assert np.array_equal(obs[j], expected)
-            assert np.array_equal(batch.state(row), alone[row].state)
+    for _ in steps_match_alone(batch, alone, rng, n_actions=2, steps=60):
+        pass
     for row in range(len(params)):  # handed back, the devices hold the states the units reached alone
         batch.store(row)
         assert np.array_equal(batch.devices[row].state, alone[row].state)

@@ -3,6 +3,7 @@ the same unit stepped alone (QubeDevice.step), over resets, random actions and u
 
 import numpy as np
 import pytest
+from batch_checks import steps_match_alone
 
 from fleetrl.devices.qube.batch import QubeBatch
 from fleetrl.devices.qube.device import QubeDevice
@@ -23,22 +24,14 @@ def test_a_batch_steps_each_unit_as_it_steps_alone_bit_for_bit() -> None:
         assert np.array_equal(device.reset(seed=row), batched[row].reset(seed=row))
         batch.load(row)
     ends = 0
-    for _ in range(600):
-        rows = np.flatnonzero(rng.random(len(alone)) < 0.7)  # some units rest this step
-        actions = rng.integers(0, 3, size=rows.size)
-        obs = batch.step(rows, actions)
-        assert obs.dtype == np.float32 and obs.shape == (rows.size, 4)
-        for j, (row, action) in enumerate(zip(rows.tolist(), actions.tolist(), strict=True)):
-            expected = alone[row].step(action)
-            assert np.array_equal(obs[j], expected)
-            assert np.array_equal(batch.state(row), alone[row].state)
-            assert np.array_equal(batch.sensor(row), alone[row]._sensor)
-            if abs(float(expected[0])) > 0.3 or abs(float(expected[2])) > 1.5:  # fallen: reset both
-                ends += 1
-                batch.store(row)
-                seed = 1000 + ends
-                assert np.array_equal(alone[row].reset(seed=seed), batched[row].reset(seed=seed))
-                batch.load(row)
+    for row, obs in steps_match_alone(batch, alone, rng, n_actions=3, steps=600):
+        assert np.array_equal(batch.sensor(row), alone[row]._sensor)
+        if abs(float(obs[0])) > 0.3 or abs(float(obs[2])) > 1.5:  # fallen: reset both
+            ends += 1
+            batch.store(row)
+            seed = 1000 + ends
+            assert np.array_equal(alone[row].reset(seed=seed), batched[row].reset(seed=seed))
+            batch.load(row)
     for row in range(len(alone)):  # handed back, the devices hold what the units reached alone
         batch.store(row)
         assert np.array_equal(batched[row].state, alone[row].state)
