@@ -63,13 +63,17 @@ class _Kind:
     device: type
     batch: Callable[[list[Any]], Any]
     """the batch of a list of such devices"""
+    judge_rows: Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]]
+    """the env's reward and termination of each row of observations"""
     available: bool = True
     """whether such a batch can run in this process"""
 
 
 _KINDS = (
-    _Kind(CartPoleUnitEnv, CartPoleDevice, CartPoleBatch, cartpole_batch.AVAILABLE),
-    _Kind(QubeBalanceEnv, QubeDevice, QubeBatch),
+    _Kind(
+        CartPoleUnitEnv, CartPoleDevice, CartPoleBatch, CartPoleUnitEnv.judge_rows, cartpole_batch.AVAILABLE
+    ),
+    _Kind(QubeBalanceEnv, QubeDevice, QubeBatch, QubeBalanceEnv.judge_rows),
 )
 """the unit types stepped in batches, the kind's index its batch's"""
 
@@ -98,7 +102,7 @@ def batched_device(env: gymnasium.Env[Any, Any]) -> tuple[int, Any, int | None] 
 
 @dataclass
 class _Batch:
-    """One kind's batch in a host: its rows' units, episode caps and steps so far."""
+    """One kind's batch in a host, with each of its rows' episode cap and steps so far."""
 
     kind: _Kind
     stepper: Any
@@ -167,7 +171,7 @@ class HostEnvs:
             rows = self._row[units[mine]]
             stepped = batch.stepper.step(rows, np.asarray(actions)[mine])
             obs[mine] = stepped
-            rewards[mine], terminated[mine] = batch.kind.env.judge_rows(stepped)  # type: ignore[attr-defined]
+            rewards[mine], terminated[mine] = batch.kind.judge_rows(stepped)
             batch.elapsed[rows] += 1
             truncated[mine] = batch.elapsed[rows] >= batch.cap[rows]
             for row in rows[terminated[mine] | truncated[mine]].tolist():
