@@ -8,6 +8,9 @@ unit by itself. Prints one JSON line: rounds until the last unit completes and p
 Use tuning seeds (0-9) only; docs/tuning.md keeps what was tried. ``--lr-scale``, ``--k-scale`` and
 ``--b-scale`` multiply the preset's learning rates, K and the minibatch U (the memory grows to fit);
 ``--set KEY=VALUE`` (repeatable) replaces a field of the preset first, as ``fleetrl train --set`` does.
+``--focus F`` weighs each unit's step gradient by 1 − F·min(1, WMA/target) (normalised to sum 1) instead of
+the plain mean (F = 0): the units furthest from their criterion steer the one policy most. Each run also
+reports the fleet's time on real-time rigs (the synchronous rule of ``fleetrl.runs.rig_time``).
 """
 
 from __future__ import annotations
@@ -28,6 +31,7 @@ from fleetrl.agent.learner import Learner
 from fleetrl.envs.catalog import get_env_spec
 from fleetrl.portable import describe_host
 from fleetrl.runs.factory import agent_for
+from fleetrl.runs.rig_time import rig_time
 from fleetrl.runs.spec import derive_seed
 
 
@@ -48,6 +52,7 @@ def run(
     preset: str,
     fleet_seed: int,
     overrides: dict[str, object],
+    focus: float = 0.0,
 ) -> dict:
     torch.set_num_threads(1)
     spec = get_env_spec(env_name)
@@ -79,11 +84,13 @@ def run(
         for learner in learners[1:]:
             learner.agent.set_model_parameters(start)
     done_at: list[int | None] = [None] * units
+    steps: list[list[int]] = [[] for _ in range(units)]
     started = time.monotonic()
     for rnd in range(1, m + 1):
         active = [i for i in range(units) if arm != "alone" or done_at[i] is None]
         for i in active:
-            learners[i].play_episodes()
+            played = learners[i].play_episodes()
+            steps[i].append(int(sum(played.steps)))
             if done_at[i] is None and learners[i].criterion.done:
                 done_at[i] = rnd
         if all(d is not None for d in done_at):
@@ -94,16 +101,29 @@ def run(
                     learners[i].agent.update()
             continue
         agents = [learners[i].agent for i in active]
+        progress = np.array(
+            [min(1.0, learners[i].criterion.wma / learners[i].criterion.threshold) for i in active]
+        )
+        weights = 1.0 - focus * np.clip(progress, 0.0, 1.0)
+        weights = weights / weights.sum()
         (n_steps,) = {a.begin_update() for a in agents}  # every agent begins; all take the same K
         for step in range(n_steps):
             grads = np.stack([a.step_gradients(step) for a in agents])
-            mean = grads.mean(axis=0).astype(np.float32)
+            mean = (grads.mean(axis=0) if focus == 0 else weights @ grads).astype(np.float32)
             for a in agents:
                 a.apply_step(mean)
         for a in agents:
             a.end_update()
     rounds = [m if d is None else d for d in done_at]
+    rule = "alone" if arm == "alone" else "synchronous"
+    rig = rig_time(
+        {str(i): steps[i] for i in range(units)},
+        {str(i): d for i, d in enumerate(done_at)},
+        spec.control_period or 0.006,
+        rule,
+    )
     return {
+        "rig_fleet_min": round(rig.fleet / 60, 2),
         "seed": seed,
         "fleet": max(rounds),
         "units": rounds,
@@ -133,6 +153,7 @@ def main() -> None:
     p.add_argument("--preset", default="standard")
     p.add_argument("--fleet-seed", type=int, default=0)
     p.add_argument("--set", type=override_arg, action="append", default=[], metavar="KEY=VALUE")
+    p.add_argument("--focus", type=float, default=0.0)
     a = p.parse_args()
     overrides = dict(a.set)
     results = [
@@ -148,6 +169,7 @@ def main() -> None:
             a.preset,
             a.fleet_seed,
             overrides,
+            a.focus,
         )
         for s in a.seeds
     ]
