@@ -18,7 +18,7 @@ SCALE_ROUNDS = 100
 a full budget's 400 would let one slow unit of 1,000 hold the fleet for an hour"""
 QUBE_SCALE_ROUNDS = 400
 """M of every QUBE arm: each QUBE unit alone needs a median of 139 rounds (Fig. 5's 30 units: 97-242; 340 on
-a tuning seed), and the large fleets about 25"""
+a tuning seed), a unit of 64 or 256 about 30"""
 LARGE_FLEET: dict[str, object] = {
     "batch_size": 16,
     "n_optimisations": 40,

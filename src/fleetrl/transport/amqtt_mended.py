@@ -23,6 +23,7 @@ only its subscriber; a subscription made while another client connects does not 
 from __future__ import annotations
 
 from collections.abc import Iterator
+from functools import cache
 from typing import Any
 
 
@@ -37,6 +38,7 @@ class SnapshotSubscriptions(dict[str, Any]):
         return list(dict.items(self))
 
 
+@cache
 def mended_broker_class() -> type:
     """amqtt's ``Broker`` with both faults mended (amqtt is imported here, lazily: ~200 ms)."""
     from amqtt.broker import Broker
