@@ -10,7 +10,8 @@ Use tuning seeds (0-9) only; docs/tuning.md keeps what was tried. ``--lr-scale``
 ``--set KEY=VALUE`` (repeatable) replaces a field of the preset first, as ``fleetrl train --set`` does.
 ``--focus F`` weighs each unit's step gradient by 1 − F·min(1, WMA/target) (normalised to sum 1) instead of
 the plain mean (F = 0): the units furthest from their criterion steer the one policy most. Each run also
-reports the fleet's time on real-time rigs (the synchronous rule of ``fleetrl.runs.rig_time``).
+reports the fleet's time on real-time rigs (the synchronous rule of ``fleetrl.runs.rig_time``; null for a
+unit type whose control period is not known).
 """
 
 from __future__ import annotations
@@ -115,15 +116,14 @@ def run(
         for a in agents:
             a.end_update()
     rounds = [m if d is None else d for d in done_at]
-    rule = "alone" if arm == "alone" else "synchronous"
-    rig = rig_time(
-        {str(i): steps[i] for i in range(units)},
-        {str(i): d for i, d in enumerate(done_at)},
-        spec.control_period or 0.006,
-        rule,
-    )
+    rig_minutes = None  # a unit type whose control period is not known has no time on the rigs
+    if spec.control_period is not None:
+        rule = "alone" if arm == "alone" else "synchronous"
+        played = {str(i): steps[i] for i in range(units)}
+        rig = rig_time(played, {str(i): d for i, d in enumerate(done_at)}, spec.control_period, rule)
+        rig_minutes = round(rig.fleet / 60, 2)
     return {
-        "rig_fleet_min": round(rig.fleet / 60, 2),
+        "rig_fleet_min": rig_minutes,
         "seed": seed,
         "fleet": max(rounds),
         "units": rounds,

@@ -164,12 +164,13 @@ class HostEnvs:
         rewards = np.empty(n, dtype=np.float64)
         terminated = np.empty(n, dtype=bool)
         truncated = np.empty(n, dtype=bool)
+        chosen = np.asarray(actions) if self._batches else np.empty(0)  # once a step, not once a batch
         for index, batch in self._batches.items():
             mine = kinds == index
             if not mine.any():
                 continue
             rows = self._row[units[mine]]
-            stepped = batch.stepper.step(rows, np.asarray(actions)[mine])
+            stepped = batch.stepper.step(rows, chosen[mine])
             obs[mine] = stepped
             rewards[mine], terminated[mine] = batch.kind.judge_rows(stepped)
             batch.elapsed[rows] += 1
