@@ -68,6 +68,41 @@ def test_the_host_gradient_is_the_mean_of_its_units_gradients(normalise: bool) -
     assert np.allclose(host.model_parameters(), units[0].model_parameters(), rtol=1e-5, atol=1e-6)
 
 
+def test_a_host_weighs_its_units_gradients_by_their_weights_and_checks_them() -> None:
+    """Each unit's minibatch gradient weighted: Σ_u w_u g_u / Σ_u w_u (a scheme weighing units by need);
+    the weights count for the update they start only."""
+    torch.set_num_threads(1)
+    config = small_config()
+    host = HostAgent(OBS_DIM, N_ACTIONS, config, SEEDS)
+    units = [PPOAgent(OBS_DIM, N_ACTIONS, config, seed=s) for s in SEEDS]
+    for agent in units:
+        agent.set_model_parameters(host.model_parameters())
+    weights = np.array([1.0, 0.3, 0.65])
+    fill(units, host, (9, 4, 12), seed=0)
+    with pytest.raises(ValueError, match="3 positive finite numbers"):
+        host.begin_update([1.0, 0.0, 1.0])
+    with pytest.raises(ValueError, match="positive finite"):
+        units[0].begin_update([1.0, 1.0])  # one unit: one weight
+    steps = host.begin_update(weights.tolist())
+    assert all(a.begin_update([0.5]) == steps for a in units)  # one unit's own gradient, whatever its weight
+    for k in range(steps):
+        own = np.array([agent.step_gradients(k) for agent in units])
+        weighted = (weights @ own / weights.sum()).astype(np.float32)
+        assert np.allclose(host.step_gradients(k), weighted, rtol=1e-5, atol=1e-7)
+        assert not np.allclose(weighted, own.mean(0), rtol=1e-3)  # the weights change the step
+        for agent in [host, *units]:
+            agent.apply_step(weighted)
+    host.end_update()
+    for agent in units:
+        agent.end_update()
+    fill(units, host, (5, 4, 3), seed=1)  # the next update, given no weights, is the plain mean again
+    host.begin_update()
+    assert all(a.begin_update() == steps for a in units)
+    assert np.allclose(
+        host.step_gradients(0), np.mean([a.step_gradients(0) for a in units], 0), rtol=1e-5, atol=1e-7
+    )
+
+
 @pytest.mark.parametrize("memory", ["ring", "per_round"])
 def test_a_host_of_one_unit_plays_and_learns_as_that_unit_alone(memory: str) -> None:
     torch.set_num_threads(1)

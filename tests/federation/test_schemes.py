@@ -364,3 +364,25 @@ def test_the_chief_weighs_answers_by_their_units_and_configures_each_round() -> 
     assert answer.flat is not None and answer.flat.tolist() == [3.0, 6.0]  # (1·[1,2] + 2·[4,8]) / 3
     assert (answer.units, answer.samples) == (3, 500)
     assert answer.config == {"round": 2.0, "members": "1,2"}  # it opens round 2
+
+
+def test_pergrad_with_focus_weighs_each_unit_by_its_need_and_the_mean_by_each_answer_s_weight() -> None:
+    plain, focused = get_scheme("pergrad"), get_scheme("pergrad", focus=0.7)
+    assert plain.params() == {"focus": 0.0} and focused.params() == {"focus": 0.7}
+    assert isinstance(plain, StepScheme) and isinstance(focused, StepScheme)
+    assert plain.unit_weights([0.2, 1.0]) is None  # focus 0: every unit counts once, the weight is its units
+    # 1 - 0.7·p, p clipped to [0, 1]: at zero 1, half way 0.65, at or past the target 0.3
+    np.testing.assert_allclose(focused.unit_weights([0.0, 0.5, 1.0, 1.4, -0.2]), [1.0, 0.65, 0.3, 0.3, 1.0])
+    for bad in (1.0, -0.1, float("nan")):
+        with pytest.raises(ValueError, match="focus"):
+            get_scheme("pergrad", focus=bad)
+    grads = {
+        "1": Message("step_gradient", RUN, "1", 1, flat=np.array([1.0, 4.0], np.float32), weight=0.25),
+        "2": Message("step_gradient", RUN, "2", 1, flat=np.array([3.0, -2.0], np.float32), units=2),
+        "3": Message(
+            "step_gradient", RUN, "3", 1, flat=np.array([2.0, 2.0], np.float32), units=2, weight=1.5
+        ),
+    }
+    step = focused.combine(grads, RoundContext(get_aggregator("mean"), ("1", "2", "3"), {}, 0, False))
+    # (0.25·[1, 4] + 2·[3, -2] + 1.5·[2, 2]) / 3.75 = [9.25, 0] / 3.75
+    np.testing.assert_allclose(step.flat, [9.25 / 3.75, 0.0], rtol=1e-6)

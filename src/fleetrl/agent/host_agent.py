@@ -156,7 +156,7 @@ class HostAgent(PPOAgent):
             raise RuntimeError(f"update() needs a transition in every unit's memory; units {empty} have none")
         self._score_new_transitions()
         data = [memory.transitions() for memory in self.memories]
-        finished = yield from host_update(self._model, data, self._window_rngs)
+        finished = yield from host_update(self._model, data, self._window_rngs, self._unit_weights)
         self._last_actor_gradient = finished.actor_gradient
         self.unit_stats = finished.unit_stats
         self._policy.refresh(self.net)

@@ -88,6 +88,11 @@ class HostLearner:
         round kept a 1,000-unit run going for 69 rounds after its last unit had completed."""
         return all(self.completed_once)
 
+    def unit_progress(self) -> list[float]:
+        """Each unit's progress towards its criterion (:attr:`CompletionCriterion.progress`), unit 0's
+        first."""
+        return [criterion.progress for criterion in self.criteria]
+
     def play_episodes(self) -> tuple[Episodes, ...]:
         """Every unit's episodes of the round (Algorithm 2, lines 2-6), the units stepped together."""
         agent, envs = self.agent, self._envs

@@ -11,7 +11,9 @@ where L_u is what :func:`fleetrl.agent.update.ppo_update` differentiates for tha
 and L^V as means over the unit's window, with Â standardised over the unit's window (per minibatch, as a
 worker does). One forward pass over the concatenated windows and one backward pass give the host's gradient.
 With U units per message and the chief weighing answers by their ``units`` (the mean rule), a fleet of hosts
-takes the same step as the flat fleet of its units: Σ_h U_h·ḡ_h / Σ_h U_h = (1/N) Σ_i g_i.
+takes the same step as the flat fleet of its units: Σ_h U_h·ḡ_h / Σ_h U_h = (1/N) Σ_i g_i. With weights w_u
+per unit (a scheme that weighs units by need) the loss is the weighted mean, Σ_u w_u L_u / Σ_u w_u, and the
+host's message weighs Σ_u w_u: again the flat fleet's weighted step.
 
 What a host does not reproduce: a robust aggregation rule (median, trimmed mean) then sees one vector per
 host, not per unit, and ``gae_scope='window'`` (the paper's per-window GAE) is not supported (the host
@@ -92,11 +94,15 @@ HostSteps = Generator[Gradient, Gradient, HostFinished]
 
 
 def host_update(
-    model: Model, memories: Sequence[Transitions], window_rngs: Sequence[np.random.Generator]
+    model: Model,
+    memories: Sequence[Transitions],
+    window_rngs: Sequence[np.random.Generator],
+    weights: np.ndarray | None = None,
 ) -> HostSteps:
     """Lines 11-24 for the units whose memories are ``memories`` (each non-empty), unit u drawing its K
     window starts from ``window_rngs[u]`` as a worker of that unit alone does; each step yields the host's
-    gradient (the mean of the units' minibatch gradients) and applies what is sent back.
+    gradient (the mean of the units' minibatch gradients, weighted by ``weights`` if given: one positive
+    number per unit) and applies what is sent back.
 
     :raises ValueError: ``model.config`` is not one a host can update (:func:`host_config_problem`)
     """
@@ -116,6 +122,8 @@ def host_update(
         for n, rng in zip(lengths, window_rngs, strict=True)
     ]
     units = len(lengths)
+    unit_weights = None if weights is None else torch.as_tensor(weights, dtype=torch.float32)
+    total_weight = units if unit_weights is None else unit_weights.sum()
     totals = np.zeros((units, 5))  # per unit: actor loss, critic loss, entropy, approx KL, clip fraction
     actor_gradient: Gradient = []
     for k in range(cfg.n_optimisations):  # line 12
@@ -146,18 +154,22 @@ def host_update(
             l_clip = clipped_surrogate(new, old, unit_adv, cfg.clip_eps, dim=1)
             entropy = entropies[part].reshape(shape).mean(1)
             l_v = critic_loss(v[part].reshape(shape), targets[part].reshape(shape), cfg.critic_loss, dim=1)
-            objective = objective + (-l_clip - cfg.entropy_coef * entropy).sum()
-            value_loss = value_loss + l_v.sum()
+            unit_objective, unit_value_loss = -l_clip - cfg.entropy_coef * entropy, l_v
+            if unit_weights is not None:  # Σ_u w_u L_u: each unit's loss weighted by its need
+                unit_objective = unit_objective * unit_weights[group]
+                unit_value_loss = unit_value_loss * unit_weights[group]
+            objective = objective + unit_objective.sum()
+            value_loss = value_loss + unit_value_loss.sum()
             with torch.no_grad():
                 log_ratio = new - old
                 ratio = log_ratio.exp()
                 kl = ((ratio - 1.0) - log_ratio).mean(1)
                 clipped = ((ratio - 1.0).abs() > cfg.clip_eps).float().mean(1)
                 totals[group] += torch.stack([-l_clip, l_v, entropy, kl, clipped], 1).numpy()
-        # lines 19-23: the mean of the units' losses, differentiated once, stepped as a worker steps
-        # (the schedule reads the batch's head and critic loss; its window is the units' ``rows``)
-        batch = Minibatch(slice(0, 0), memory.obs[rows], head, adv, value_loss / units)
-        actor_gradient = yield from both_models_at_once(model, batch, _fixed(objective / units))
+        # lines 19-23: the (weighted) mean of the units' losses, differentiated once, stepped as a worker
+        # steps (the schedule reads the batch's head and critic loss; its window is the units' ``rows``)
+        batch = Minibatch(slice(0, 0), memory.obs[rows], head, adv, value_loss / total_weight)
+        actor_gradient = yield from both_models_at_once(model, batch, _fixed(objective / total_weight))
     means = totals / cfg.n_optimisations
     unit_stats = tuple(UpdateStats(*(float(x) for x in row)) for row in means)
     host_stats = UpdateStats(*(float(x) for x in means.mean(0)))

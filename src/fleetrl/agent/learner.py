@@ -57,6 +57,11 @@ class Learner:
         self.last_round: RoundResult | None = None
         """the result of the latest :meth:`play_round`"""
 
+    def unit_progress(self) -> list[float]:
+        """The unit's progress towards its criterion (:attr:`CompletionCriterion.progress`), as a list of
+        one (a unit host's has one per unit)."""
+        return [self.criterion.progress]
+
     def play_episode(self, greedy: bool = False, learn: bool = True) -> tuple[float, int]:
         """One episode (Algorithm 2, lines 2-6), storing transitions if ``learn``; returns (score, steps)."""
         seed = self.seed if self.episodes == 0 else None

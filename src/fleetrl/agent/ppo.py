@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from collections.abc import Generator
+from collections.abc import Generator, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -34,6 +34,16 @@ from fleetrl.agent.update import (
 )
 
 __all__ = ["PPOAgent", "UpdateStats"]
+
+
+def checked_weights(weights: Sequence[float] | None, units: int) -> np.ndarray | None:
+    """``weights`` as float64, one positive finite number per unit (None stays None); else a ValueError."""
+    if weights is None:
+        return None
+    w = np.asarray(weights, dtype=np.float64)
+    if w.shape != (units,) or not np.isfinite(w).all() or not (w > 0).all():
+        raise ValueError(f"unit weights must be {units} positive finite numbers, got {list(weights)}")
+    return w
 
 
 class PPOAgent:
@@ -98,6 +108,13 @@ class PPOAgent:
         self._last_actor_gradient: Gradient | None = None
         """line 25's gradient: the last actor gradient the update applied (as applied, i.e. clipped)"""
         self._exchange: StepExchange | None = None
+        self._unit_weights: np.ndarray | None = None
+        """the units' weights of the update :meth:`begin_update` starts (None: the same; read as it starts)"""
+
+    @property
+    def units(self) -> int:
+        """The units this agent acts for: one (a unit host's agent: U)."""
+        return 1
 
     # ---- acting (Algorithm 2, lines 3 and 5) ------------------------------------------------------------
 
@@ -181,14 +198,22 @@ class PPOAgent:
             (f"{part}:{name}", shape) for part, named in self._step_named(k) for name, shape in layout(named)
         ]
 
-    def begin_update(self) -> int:
+    def begin_update(self, unit_weights: Sequence[float] | None = None) -> int:
         """Start :meth:`update_steps` (line 11 and step 0's gradient); the number of steps it takes.
 
+        :param unit_weights: what each unit's minibatch gradient weighs in the update's gradient (one per
+            unit; None: the same). One unit's gradient is its own whatever its weight (the weight counts
+            at the chief, in the fleet's mean); a unit host weighs its units' gradients by them.
         :raises RuntimeError: the trajectory memory is empty, or an update is already under way
+        :raises ValueError: ``unit_weights`` is not one positive finite number per unit
         """
         if self._exchange is not None:
             raise RuntimeError("an update is already under way: finish it with end_update()")
-        self._exchange = StepExchange(self.update_steps())
+        self._unit_weights = checked_weights(unit_weights, self.units)
+        try:  # the update reads the weights as it starts (StepExchange computes step 0 at once)
+            self._exchange = StepExchange(self.update_steps())
+        finally:
+            self._unit_weights = None
         return self.update_step_count()
 
     def step_gradients(self, k: int) -> np.ndarray:

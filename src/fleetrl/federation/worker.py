@@ -234,8 +234,12 @@ class FederatedWorker:
             case PlayRound(_, config):
                 self._play_round(config)
             case BeginUpdate():  # a per-step round joins the fleet's exchange: line 11
-                steps = agent.begin_update() if self._played.updates else 0
-                self._queue.extend(self._step_machine.update_begun(steps, now=self.clock()).outputs)
+                assert isinstance(self.scheme, StepScheme), "a per-step round comes to a per-step scheme"
+                weights = self.scheme.unit_weights(self.learner.unit_progress())
+                steps = agent.begin_update(weights) if self._played.updates else 0
+                weight = None if weights is None else float(sum(weights))
+                begun = self._step_machine.update_begun(steps, now=self.clock(), weight=weight)
+                self._queue.extend(begun.outputs)
             case ApplyFleetStep(k, flat):  # behind the fleet: its step, taken outside an update
                 assert isinstance(self.scheme, StepScheme), "step answers come to a per-step scheme"
                 self.scheme.catch_up_step(agent, k, flat)

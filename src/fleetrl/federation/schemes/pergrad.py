@@ -10,7 +10,13 @@ workers' minibatches: an N× larger batch per step, with the units' differences 
 criterion holds says so (its step messages are typed ``parameters``) and stays; the run ends after the round
 in which every member of W has completed, as with ``fedavg``.
 
-Per step the chief combines with the run's aggregation rule (mean by default; a robust rule also works). No
+Per step the chief combines with the run's aggregation rule (mean by default; a robust rule also works).
+With ``focus`` F > 0 (``--scheme-param focus=0.8``) the mean weighs each unit by its need, 1 − F·p where p
+is its progress towards its criterion (WMA / target, clipped to [0, 1]), computed on the worker after the
+round's episodes: the units furthest from their criterion steer the step, a unit holding its target counts
+1 − F as much as one at zero, and everyone still applies the same step (docs/tuning.md, "The units furthest
+from their criterion steer the step"). A unit host weighs each unit's minibatch gradient so inside its one
+backward pass and says the sum as its message's ``weight``; an edge aggregator adds the weights up. No
 straggler stalls the fleet: an exchange closes once a quorum answered and the others' grace ran out; a
 straggler applies the answers it missed and contributes to the next round (docs/protocol.md, "Stragglers").
 The fleet starts from one network whatever each worker's own seed, and the chief keeps the fleet's model —
@@ -22,7 +28,8 @@ checkpoint), which then steps on exactly as the fleet does.
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
+from typing import Any
 
 import numpy as np
 
@@ -37,13 +44,34 @@ from fleetrl.federation.schemes.base import (
 
 
 class PerStepGradientScheme(StepScheme):
-    """Synchronous per-step gradient averaging (Wijmans et al.'s DD-PPO, with the chief as the all-reduce)."""
+    """Synchronous per-step gradient averaging (Wijmans et al.'s DD-PPO, with the chief as the all-reduce).
+
+    :param focus: F in [0, 1): each unit weighs 1 − F·(its progress towards its criterion) in the mean
+        (0, the default: every unit the same).
+    :raises ValueError: ``focus`` out of range.
+    """
 
     name = "pergrad"
     summary = "average the workers' minibatch gradients at every optimisation step; mature workers stay"
     round_message = "step_gradient"
     stays_after_completion = True
     shared_start = True
+
+    def __init__(self, *, focus: float = 0.0) -> None:
+        if not (math.isfinite(focus) and 0.0 <= focus < 1.0):
+            raise ValueError(f"focus = {focus!r}: must be in [0, 1) (a unit at its target must still count)")
+        self.focus = float(focus)
+
+    def params(self) -> dict[str, Any]:
+        """F."""
+        return {"focus": self.focus}
+
+    def unit_weights(self, progress: Sequence[float]) -> list[float] | None:
+        """1 − F·p per unit (None with F = 0: every unit counts once)."""
+        if self.focus == 0.0:
+            return None
+        weights = 1.0 - self.focus * np.clip(np.asarray(progress, dtype=np.float64), 0.0, 1.0)
+        return [float(w) for w in weights]
 
     def layout(self, agent: FederatedAgent) -> Layout:
         """One step's gradient: the whole actor-critic (every step moves the same parameters)."""
