@@ -7,6 +7,7 @@ import pytest
 
 from fleetrl.federation.aggregation import get_aggregator
 from fleetrl.federation.chief import Chief
+from fleetrl.federation.chief_answer import check_round_rules
 from fleetrl.federation.messages import Message, Reason, encode
 from fleetrl.federation.schemes import (
     COMPLETED,
@@ -386,3 +387,13 @@ def test_pergrad_with_focus_weighs_each_unit_by_its_need_and_the_mean_by_each_an
     step = focused.combine(grads, RoundContext(get_aggregator("mean"), ("1", "2", "3"), {}, 0, False))
     # (0.25·[1, 4] + 2·[3, -2] + 1.5·[2, 2]) / 3.75 = [9.25, 0] / 3.75
     np.testing.assert_allclose(step.flat, [9.25 / 3.75, 0.0], rtol=1e-6)
+
+
+def test_a_chief_refuses_focus_with_a_rule_that_counts_members() -> None:
+    focused = get_scheme("pergrad", focus=0.5)
+    for rule in ("median", "trimmed_mean:0.2"):
+        with pytest.raises(ValueError, match="counts members and would ignore the weights"):
+            check_round_rules(focused, 10, 0.6, None, 20, aggregation=rule)
+    for rule in ("mean", "clipped_mean:1.0"):
+        check_round_rules(focused, 10, 0.6, None, 20, aggregation=rule)
+    check_round_rules(get_scheme("pergrad"), 10, 0.6, None, 20, aggregation="median")  # focus 0: no weights

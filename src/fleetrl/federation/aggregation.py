@@ -157,6 +157,12 @@ def decomposes(spec: str) -> bool:
     return spec.partition(":")[0] == "mean"
 
 
+def weighs(spec: str) -> bool:
+    """Whether the rule ``spec`` names weighs its vectors (``mean``, ``clipped_mean``); the robust rules
+    count members."""
+    return spec.partition(":")[0] in ("mean", "clipped_mean")
+
+
 @register_aggregator("median")
 def median(gradients: Sequence[np.ndarray], weights: Sequence[float] | None = None) -> np.ndarray:
     """Coordinate-wise median (the mean of the two middle values for an even count), float32; every member
