@@ -163,11 +163,13 @@ def test_a_host_completes_once_every_unit_has_completed_not_when_all_hold_in_one
     # unit 0 completes in round 1 and then falls below its target; unit 1 completes in round 3
     criteria = [ScriptedCriterion([True, False, False]), ScriptedCriterion([False, False, True])]
     host = HostLearner(envs, HostAgent(4, 2, config, [7, 8]), criteria, keep_learning=True)
-    completed = []
+    completed, units = [], []
     for _ in range(3):
         host.play_episodes()
         completed.append(host.completed)
+        units.append(host.units_completed())
     assert completed == [False, False, True]  # as two workers' first completions: rounds 1 and 3
+    assert units == [[True, False], [True, False], [True, True]]  # each unit once it has completed
     assert host.wants_update()  # a per-step scheme's units learn on with the fleet
 
 

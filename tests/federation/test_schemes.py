@@ -369,14 +369,26 @@ def test_the_chief_weighs_answers_by_their_units_and_configures_each_round() -> 
 
 def test_pergrad_with_focus_weighs_each_unit_by_its_need_and_the_mean_by_each_answer_s_weight() -> None:
     plain, focused = get_scheme("pergrad"), get_scheme("pergrad", focus=0.7)
-    assert plain.params() == {"focus": 0.0} and focused.params() == {"focus": 0.7}
-    assert isinstance(plain, StepScheme) and isinstance(focused, StepScheme)
-    assert plain.unit_weights([0.2, 1.0]) is None  # focus 0: every unit counts once, the weight is its units
+    mature = get_scheme("pergrad", mature_weight=0.05)
+    assert plain.params() == {"focus": 0.0, "mature_weight": 1.0}
+    assert focused.params() == {"focus": 0.7, "mature_weight": 1.0}
+    assert (
+        isinstance(plain, StepScheme) and isinstance(focused, StepScheme) and isinstance(mature, StepScheme)
+    )
+    # defaults: every unit counts once, the weight is its units
+    assert plain.unit_weights([0.2, 1.0], [False, True]) is None
     # 1 - 0.7·p, p clipped to [0, 1]: at zero 1, half way 0.65, at or past the target 0.3
-    np.testing.assert_allclose(focused.unit_weights([0.0, 0.5, 1.0, 1.4, -0.2]), [1.0, 0.65, 0.3, 0.3, 1.0])
-    for bad in (1.0, -0.1, float("nan")):
-        with pytest.raises(ValueError, match="focus"):
-            get_scheme("pergrad", focus=bad)
+    progress, learning = [0.0, 0.5, 1.0, 1.4, -0.2], [False] * 5
+    np.testing.assert_allclose(focused.unit_weights(progress, learning), [1.0, 0.65, 0.3, 0.3, 1.0])
+    # a unit that has completed counts 0.05 as much as one still learning, whatever its progress now
+    np.testing.assert_allclose(mature.unit_weights([0.9, 1.0, 0.4], [False, True, True]), [1.0, 0.05, 0.05])
+    both = get_scheme("pergrad", focus=0.5, mature_weight=0.1)
+    assert isinstance(both, StepScheme)
+    np.testing.assert_allclose(both.unit_weights([0.5, 1.0], [False, True]), [0.75, 0.05])
+    for key, bad in (("focus", 1.0), ("focus", -0.1), ("focus", float("nan")), ("mature_weight", 0.0),
+                     ("mature_weight", 1.5)):  # fmt: skip
+        with pytest.raises(ValueError, match=key):
+            get_scheme("pergrad", **{key: bad})
     grads = {
         "1": Message("step_gradient", RUN, "1", 1, flat=np.array([1.0, 4.0], np.float32), weight=0.25),
         "2": Message("step_gradient", RUN, "2", 1, flat=np.array([3.0, -2.0], np.float32), units=2),

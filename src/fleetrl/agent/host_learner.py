@@ -93,6 +93,10 @@ class HostLearner:
         first."""
         return [criterion.progress for criterion in self.criteria]
 
+    def units_completed(self) -> list[bool]:
+        """Whether each unit has completed (its criterion held at some round), unit 0's first."""
+        return list(self.completed_once)
+
     def play_episodes(self) -> tuple[Episodes, ...]:
         """Every unit's episodes of the round (Algorithm 2, lines 2-6), the units stepped together."""
         agent, envs = self.agent, self._envs

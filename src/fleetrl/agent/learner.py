@@ -62,6 +62,10 @@ class Learner:
         one (a unit host's has one per unit)."""
         return [self.criterion.progress]
 
+    def units_completed(self) -> list[bool]:
+        """Whether the unit has completed (its criterion held at some round), as a list of one."""
+        return [self.completed]
+
     def play_episode(self, greedy: bool = False, learn: bool = True) -> tuple[float, int]:
         """One episode (Algorithm 2, lines 2-6), storing transitions if ``learn``; returns (score, steps)."""
         seed = self.seed if self.episodes == 0 else None

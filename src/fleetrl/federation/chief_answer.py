@@ -43,10 +43,15 @@ def check_round_rules(
             f"scheme {scheme.name!r} mixes one model at a time into the fleet's: aggregation {aggregation!r} "
             "does not apply (leave it unset)"
         )
-    if isinstance(scheme, StepScheme) and scheme.unit_weights([0.0]) is not None and not weighs(aggregation):
+    if (
+        isinstance(scheme, StepScheme)
+        and scheme.unit_weights([0.0], [True]) is not None
+        and not weighs(aggregation)
+    ):
         raise ValueError(
-            f"scheme {scheme.name!r} weighs its units by their need (its focus): aggregation {aggregation!r} "
-            "counts members and would ignore the weights (choose mean or clipped_mean, or focus 0)"
+            f"scheme {scheme.name!r} weighs its units by their need or maturity (its focus, mature_weight): "
+            f"aggregation {aggregation!r} counts members and would ignore the weights (choose mean or "
+            "clipped_mean, or leave the weights at their defaults)"
         )
     per_step = scheme.granularity is Granularity.STEP
     if quorum < 1.0 and round_timeout is None and not per_step:

@@ -56,6 +56,10 @@ class RoundPlayer(Protocol):
         one)."""
         ...
 
+    def units_completed(self) -> list[bool]:
+        """Whether each unit has completed (its criterion held at some round)."""
+        ...
+
     def begin_round(self) -> Any:
         """The round's episodes alone; the result's ``updates`` says whether an update follows (a per-step
         scheme's worker then drives it, exchanging every step with the chief)."""

@@ -235,7 +235,8 @@ class FederatedWorker:
                 self._play_round(config)
             case BeginUpdate():  # a per-step round joins the fleet's exchange: line 11
                 assert isinstance(self.scheme, StepScheme), "a per-step round comes to a per-step scheme"
-                weights = self.scheme.unit_weights(self.learner.unit_progress())
+                units = self.learner
+                weights = self.scheme.unit_weights(units.unit_progress(), units.units_completed())
                 steps = agent.begin_update(weights) if self._played.updates else 0
                 weight = None if weights is None else float(sum(weights))
                 begun = self._step_machine.update_begun(steps, now=self.clock(), weight=weight)

@@ -235,6 +235,10 @@ class UnevenUnit:
         """The learner's units' progress towards their criteria (its own figures: no time passes)."""
         return list(self.learner.unit_progress())
 
+    def units_completed(self) -> list[bool]:
+        """Whether each of the learner's units has completed."""
+        return list(self.learner.units_completed())
+
     def play_round(self) -> Any:
         """A whole round (per-round schemes), after an absence if one is due."""
         self._begin()

@@ -332,11 +332,12 @@ class StepScheme(Scheme):
     def apply_step_answer(self, agent: FederatedAgent, flat: np.ndarray) -> None:
         """Apply the chief's combination of the workers' gradients of the step."""
 
-    def unit_weights(self, progress: Sequence[float]) -> list[float] | None:
+    def unit_weights(self, progress: Sequence[float], completed: Sequence[bool]) -> list[float] | None:
         """What each of a worker's units weighs in the fleet's mean this round, from each unit's
-        ``progress`` towards its criterion (WMA / target, clipped to [0, 1]): a weight in (0, 1] per unit,
-        or None for the default, every unit counting once (a worker's weight is then its units)."""
-        del progress
+        ``progress`` towards its criterion (WMA / target, clipped to [0, 1]) and whether it has
+        ``completed``: a weight in (0, 1] per unit, or None for the default, every unit counting once (a
+        worker's weight is then its units)."""
+        del progress, completed
         return None
 
     def catch_up_step(self, agent: FederatedAgent, step: int, flat: np.ndarray) -> None:

@@ -16,7 +16,9 @@ is its progress towards its criterion (WMA / target, clipped to [0, 1]), compute
 round's episodes: the units furthest from their criterion steer the step, a unit holding its target counts
 1 − F as much as one at zero, and everyone still applies the same step (docs/tuning.md, "The units furthest
 from their criterion steer the step"). A unit host weighs each unit's minibatch gradient so inside its one
-backward pass and says the sum as its message's ``weight``; an edge aggregator adds the weights up. No
+backward pass and says the sum as its message's ``weight``; an edge aggregator adds the weights up. With
+``mature_weight`` ε < 1 (``--scheme-param mature_weight=0.05``) a unit that has completed counts ε as much
+as one still learning: in a large fleet whose majority has completed, the last units steer the step. No
 straggler stalls the fleet: an exchange closes once a quorum answered and the others' grace ran out; a
 straggler applies the answers it missed and contributes to the next round (docs/protocol.md, "Stragglers").
 The fleet starts from one network whatever each worker's own seed, and the chief keeps the fleet's model —
@@ -48,7 +50,9 @@ class PerStepGradientScheme(StepScheme):
 
     :param focus: F in [0, 1): each unit weighs 1 − F·(its progress towards its criterion) in the mean
         (0, the default: every unit the same).
-    :raises ValueError: ``focus`` out of range.
+    :param mature_weight: in (0, 1]: what a unit that has completed weighs against one still learning (1,
+        the default: the same), times its weight by ``focus``.
+    :raises ValueError: a parameter out of range.
     """
 
     name = "pergrad"
@@ -57,20 +61,27 @@ class PerStepGradientScheme(StepScheme):
     stays_after_completion = True
     shared_start = True
 
-    def __init__(self, *, focus: float = 0.0) -> None:
+    def __init__(self, *, focus: float = 0.0, mature_weight: float = 1.0) -> None:
         if not (math.isfinite(focus) and 0.0 <= focus < 1.0):
             raise ValueError(f"focus = {focus!r}: must be in [0, 1) (a unit at its target must still count)")
+        if not (math.isfinite(mature_weight) and 0.0 < mature_weight <= 1.0):
+            raise ValueError(
+                f"mature_weight = {mature_weight!r}: must be in (0, 1] (a mature unit still counts)"
+            )
         self.focus = float(focus)
+        self.mature_weight = float(mature_weight)
 
     def params(self) -> dict[str, Any]:
-        """F."""
-        return {"focus": self.focus}
+        """F and the mature units' weight."""
+        return {"focus": self.focus, "mature_weight": self.mature_weight}
 
-    def unit_weights(self, progress: Sequence[float]) -> list[float] | None:
-        """1 − F·p per unit (None with F = 0: every unit counts once)."""
-        if self.focus == 0.0:
+    def unit_weights(self, progress: Sequence[float], completed: Sequence[bool]) -> list[float] | None:
+        """(1 − F·p) per unit, times ``mature_weight`` for a unit that has completed (None with F = 0 and
+        mature units weighing 1: every unit counts once)."""
+        if self.focus == 0.0 and self.mature_weight == 1.0:
             return None
         weights = 1.0 - self.focus * np.clip(np.asarray(progress, dtype=np.float64), 0.0, 1.0)
+        weights = np.where(np.asarray(completed, dtype=bool), weights * self.mature_weight, weights)
         return [float(w) for w in weights]
 
     def layout(self, agent: FederatedAgent) -> Layout:
