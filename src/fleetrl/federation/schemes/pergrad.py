@@ -72,8 +72,14 @@ class PerStepGradientScheme(StepScheme):
         self.mature_weight = float(mature_weight)
 
     def params(self) -> dict[str, Any]:
-        """F and the mature units' weight."""
-        return {"focus": self.focus, "mature_weight": self.mature_weight}
+        """F and the mature units' weight, each only where it is not its default: the plain mean has no
+        parameters, so its runs' records, welcomes and checkpoints are those made before either existed."""
+        params: dict[str, Any] = {}
+        if self.focus != 0.0:
+            params["focus"] = self.focus
+        if self.mature_weight != 1.0:
+            params["mature_weight"] = self.mature_weight
+        return params
 
     def unit_weights(self, progress: Sequence[float], completed: Sequence[bool]) -> list[float] | None:
         """(1 − F·p) per unit, times ``mature_weight`` for a unit that has completed (None with F = 0 and
