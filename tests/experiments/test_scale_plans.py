@@ -21,7 +21,7 @@ def test_a_scale_plan_runs_every_fleet_size_under_pergrad_against_one_unit_alone
             "pergrad",
             rounds,
         )
-        large = arm.settings["units"] >= 1000
+        large = arm.settings["units"] >= 1000 and env == "cartpole"  # QUBE keeps the preset's update
         assert arm.settings.get("overrides", {}) == (LARGE_FLEET if large else {})
     alone = plan.arms[0]
     assert [(r.slower, r.faster) for r in plan.ratios] == [(alone, arm) for arm in plan.arms[1:]]
