@@ -22,6 +22,7 @@ from fleetrl.federation.schemes import (
     get_scheme,
 )
 from fleetrl.federation.schemes.base import aggregate
+from fleetrl.federation.schemes.pergrad import WEIGHT_GRID
 from fleetrl.federation.signing import status_payload
 
 RUN = "r1"
@@ -380,12 +381,23 @@ def test_pergrad_with_focus_weighs_each_unit_by_its_need_and_the_mean_by_each_an
     assert plain.unit_weights([0.2, 1.0], [False, True]) is None
     # 1 - 0.7·p, p clipped to [0, 1]: at zero 1, half way 0.65, at or past the target 0.3
     progress, learning = [0.0, 0.5, 1.0, 1.4, -0.2], [False] * 5
-    np.testing.assert_allclose(focused.unit_weights(progress, learning), [1.0, 0.65, 0.3, 0.3, 1.0])
+    # (each on the grid of 2^-12, the nearest multiple: within half a step)
+    near = {"atol": WEIGHT_GRID / 2, "rtol": 0.0}
+    np.testing.assert_allclose(focused.unit_weights(progress, learning), [1.0, 0.65, 0.3, 0.3, 1.0], **near)
     # a unit that has completed counts 0.05 as much as one still learning, whatever its progress now
-    np.testing.assert_allclose(mature.unit_weights([0.9, 1.0, 0.4], [False, True, True]), [1.0, 0.05, 0.05])
+    np.testing.assert_allclose(
+        mature.unit_weights([0.9, 1.0, 0.4], [False, True, True]), [1.0, 0.05, 0.05], **near
+    )
     both = get_scheme("pergrad", focus=0.5, mature_weight=0.1)
     assert isinstance(both, StepScheme)
-    np.testing.assert_allclose(both.unit_weights([0.5, 1.0], [False, True]), [0.75, 0.05])
+    np.testing.assert_allclose(both.unit_weights([0.5, 1.0], [False, True]), [0.75, 0.05], **near)
+    tiny = get_scheme("pergrad", focus=0.5, mature_weight=1e-6)
+    assert isinstance(tiny, StepScheme)
+    assert tiny.unit_weights([1.0], [True]) == [WEIGHT_GRID]  # never 0: a mature unit still counts
+    for scheme in (focused, mature, both):
+        assert isinstance(scheme, StepScheme)
+        weights = scheme.unit_weights([0.1234, 0.77, 1.0], [False, True, True])
+        assert weights is not None and all((w / WEIGHT_GRID).is_integer() for w in weights)
     for key, bad in (("focus", 1.0), ("focus", -0.1), ("focus", float("nan")), ("mature_weight", 0.0),
                      ("mature_weight", 1.5)):  # fmt: skip
         with pytest.raises(ValueError, match=key):

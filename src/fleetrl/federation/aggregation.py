@@ -22,7 +22,8 @@ weights give exactly the unweighted numbers.
 order (:func:`weighted_sum`). So it decomposes: an edge aggregator sends its members' weighted sum in float64
 with their total weight, and the chief adds it as one more term (:func:`mean_of_parts`) — the same numbers as
 if the members had answered the chief themselves whenever the float64 additions are exact (float32 inputs,
-small integer weights). The robust rules do not decompose (:func:`decomposes`).
+small integer weights, or ``pergrad``'s weights by need on their grid of 2⁻¹²). The robust rules do not
+decompose (:func:`decomposes`).
 """
 
 from __future__ import annotations

@@ -44,6 +44,10 @@ from fleetrl.federation.schemes.base import (
     average_until_all_completed,
 )
 
+WEIGHT_GRID = 2.0**-12
+"""a unit's weight by need or maturity is a multiple of this (≥ one step): 12 bits, whose products with a
+float32 gradient are exact in float64"""
+
 
 class PerStepGradientScheme(StepScheme):
     """Synchronous per-step gradient averaging (Wijmans et al.'s DD-PPO, with the chief as the all-reduce).
@@ -82,13 +86,17 @@ class PerStepGradientScheme(StepScheme):
         return params
 
     def unit_weights(self, progress: Sequence[float], completed: Sequence[bool]) -> list[float] | None:
-        """(1 − F·p) per unit, times ``mature_weight`` for a unit that has completed (None with F = 0 and
-        mature units weighing 1: every unit counts once)."""
+        """(1 − F·p) per unit, times ``mature_weight`` for a unit that has completed, rounded to a multiple
+        of :data:`WEIGHT_GRID` (None with F = 0 and mature units weighing 1: every unit counts once)."""
         if self.focus == 0.0 and self.mature_weight == 1.0:
             return None
         weights = 1.0 - self.focus * np.clip(np.asarray(progress, dtype=np.float64), 0.0, 1.0)
         weights = np.where(np.asarray(completed, dtype=bool), weights * self.mature_weight, weights)
-        return [float(w) for w in weights]
+        # On a grid of WEIGHT_GRID (at least one step): w·g is then exact in float64 for a float32 g, so an
+        # edge aggregator's partial sums add up to the flat fleet's sum, as integer weights do
+        # (fleetrl.federation.aggregation, "decomposes").
+        steps = np.maximum(np.round(weights / WEIGHT_GRID), 1.0)
+        return [float(w) for w in steps * WEIGHT_GRID]
 
     def layout(self, agent: FederatedAgent) -> Layout:
         """One step's gradient: the whole actor-critic (every step moves the same parameters)."""
