@@ -17,6 +17,7 @@ from fleetrl.experiments.records import RunRecord
 from fleetrl.experiments.rig_phases import phases_lines
 from fleetrl.experiments.stats import bootstrap_median, bootstrap_ratio, markdown_table
 from fleetrl.experiments.sweep import Run, run_all
+from fleetrl.experiments.throughput import throughput_lines
 from fleetrl.runs.plots import X_LABELS, by_worker, draw_worker
 
 log = logging.getLogger(__name__)
@@ -48,6 +49,9 @@ class Plan:
     notes: str = ""
     rig_phases: bool = False
     """the report says where each unit's time on the rigs goes (:mod:`.rig_phases`)"""
+    throughput: bool = False
+    """the report says what each arm cost the machine: wall time per round, unit-steps per second
+    (:mod:`.throughput`)"""
     headline: list[Arm] = field(default_factory=list)
     """the arms run on every seed (each unit alone, fedavg, the best new scheme); the others may run on fewer
     (``other_seeds`` of :func:`run_plan`)"""
@@ -129,6 +133,8 @@ def run_plan(
     lines += [_ratio_line(ratio, records) for ratio in plan.ratios]
     if plan.rig_phases:
         lines += phases_lines([(arm.label, records[arm.key]) for arm in plan.arms])
+    if plan.throughput:
+        lines += throughput_lines([(arm.label, records[arm.key]) for arm in plan.arms])
     local = records[plan.mqtt_check.key] if plan.mqtt_check else []
     if extra and plan.mqtt_check and local and local[0].result_settings["seed"] == seeds[0]:
         lines.append(transport_check_line(plan.mqtt_check.label, seeds[0], local[0], extra[0].result()))

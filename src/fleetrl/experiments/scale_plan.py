@@ -84,4 +84,5 @@ def _scale_plan(name: str, env: str, unit_type: str, m: int, claim: str, fleet_s
         ratios=[Ratio(alone, arms[n], claim) for n in FLEET_SIZES[1:]],
         notes=notes,
         headline=list(arms.values()),
+        throughput=True,
     )
