@@ -35,6 +35,7 @@ here, on the agent through the scheme).
 
 from __future__ import annotations
 
+import contextlib
 import logging
 import time
 from collections import deque
@@ -187,6 +188,13 @@ class FederatedWorker:
             assert isinstance(finish, Finish)
             summary = finish.summary
             self.transport.publish(machine.own_status, machine.status(OFFLINE), retain=True)
+        except BaseException:
+            # A worker dying of an error closes its connection cleanly, so its last will never fires: it says
+            # what the will would have, or the chief waits for it at every exchange (without a deadline,
+            # for ever). What went wrong goes on up.
+            with contextlib.suppress(Exception):
+                self.transport.publish(machine.own_status, machine.status(OFFLINE), retain=True)
+            raise
         finally:
             self.transport.close()
         log.info("worker %s: %s after %d rounds", self.worker_id, summary.reason, summary.rounds)
