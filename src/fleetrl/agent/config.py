@@ -78,11 +78,6 @@ class PPOConfig:
     """standardise Â inside each window before Eq. 6 (the paper does not)"""
     max_grad_norm: float = 0.0
     """clip each optimiser's gradient to this global norm before its step (0: no clipping)"""
-    temperature_at_target: float = 1.0
-    """the acting temperature a unit reaches as its WMA reaches its criterion's target: each learning
-    episode samples from softmax(logits / T), T = 1 − (1 − this)·p³ for the unit's progress p (WMA / target,
-    in [0, 1]), so a unit explores as π_θ does until it holds its task, then acts more and more surely (1:
-    always π_θ itself; discrete actions only; docs/algorithm.md, "Acting surer near the target")"""
 
     def to_dict(self) -> dict[str, Any]:
         """Plain JSON-ready dict (``hidden`` as a list)."""
@@ -129,15 +124,6 @@ class PPOConfig:
                 "optimisers 'one_sequential' steps the trunk with both losses: it needs trunk_split 'shared'",
             ),
             (self.max_grad_norm >= 0.0, f"max_grad_norm must be >= 0, got {self.max_grad_norm}"),
-            (
-                0.0 < self.temperature_at_target <= 1.0,
-                f"temperature_at_target must be in (0, 1], got {self.temperature_at_target}",
-            ),
-            (
-                self.temperature_at_target == 1.0 or self.old_policy == "behaviour",
-                "temperature_at_target < 1 acts with another policy than π_θ: it needs old_policy = "
-                "'behaviour' (the ratio against the policy that acted; presets standard and paper-code)",
-            ),
         ]
         for ok, message in checks:
             if not ok:
@@ -203,9 +189,4 @@ def host_config_problem(cfg: PPOConfig) -> str | None:
         )
     if cfg.optimisers != "per_model":
         return "a unit host takes one step per optimisation: it needs optimisers = 'per_model'"
-    if cfg.temperature_at_target != 1.0:
-        return (
-            "a unit host acts for its units at temperature 1: temperature_at_target needs a worker per unit "
-            "(--units-per-host 1)"
-        )
     return None

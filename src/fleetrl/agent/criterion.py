@@ -63,11 +63,3 @@ class CompletionCriterion:
     def reset(self) -> None:
         """Forget all scores."""
         self._scores.clear()
-
-
-def acting_temperature(at_target: float, progress: float) -> float:
-    """The temperature a unit acts at: T = 1 − (1 − ``at_target``)·p³ for its ``progress`` p (WMA / target,
-    clipped to [0, 1]). Cubed, so a unit explores as π_θ does while it learns to hold its task (p ½: T still
-    1 − (1 − T_target)/8) and acts surer only as it nears its target; T_target = 1 keeps π_θ itself."""
-    p = min(1.0, max(0.0, progress))
-    return 1.0 - (1.0 - at_target) * p**3

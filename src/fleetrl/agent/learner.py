@@ -11,7 +11,7 @@ from typing import Any
 import gymnasium
 import numpy as np
 
-from fleetrl.agent.criterion import CompletionCriterion, acting_temperature
+from fleetrl.agent.criterion import CompletionCriterion
 from fleetrl.agent.ppo import PPOAgent, UpdateStats
 from fleetrl.agent.round_result import Episodes, RoundResult
 
@@ -70,9 +70,6 @@ class Learner:
         """One episode (Algorithm 2, lines 2-6), storing transitions if ``learn``; returns (score, steps)."""
         seed = self.seed if self.episodes == 0 else None
         obs, _ = self.env.reset(seed=seed)
-        if learn and not greedy:  # surer as the unit nears its target (1: π_θ itself)
-            at_target = self.agent.config.temperature_at_target
-            self.agent.set_temperature(acting_temperature(at_target, self.criterion.progress))
         act = self.agent.act_greedy if greedy else self.agent.act
         # a box's sample goes to the env clipped, to the memory as drawn (PPOAgent.env_action)
         to_env = None if self.agent.action_space.is_discrete else self.agent.env_action

@@ -75,11 +75,8 @@ def _act_kernel(
     a: np.ndarray,
     b: np.ndarray,
     u: float,
-    inv_t: float,
 ) -> int:
-    """Sample an action by inverse CDF with uniform ``u`` in [0, 1) from the softmax of the logits ×
-    ``inv_t`` (1 / the temperature; 1.0: π_θ itself, the same numbers as without it); ``u < 0`` means argmax
-    (greedy)."""
+    """Sample an action by inverse CDF with uniform ``u`` in [0, 1); ``u < 0`` means argmax (greedy)."""
     logits = _logits_kernel(weights, biases, dims, activation, obs, a, b)
     n = logits.shape[0]
     best = 0
@@ -90,7 +87,7 @@ def _act_kernel(
         return best
     total = 0.0
     for k in range(n):
-        b[k] = np.exp((logits[k] - logits[best]) * inv_t)
+        b[k] = np.exp(logits[k] - logits[best])
         total += b[k]
     threshold = u * total
     cumulative = 0.0
@@ -116,7 +113,7 @@ def _act_rows_kernel(
     """:func:`_act_kernel` for every row of ``obs`` (n, obs_dim) with its draw ``u[i]``, into ``out`` (n,):
     each row's action is the one :func:`_act_kernel` returns for it alone (the same arithmetic)."""
     for row in range(obs.shape[0]):
-        out[row] = _act_kernel(weights, biases, dims, activation, obs[row], a, b, u[row], 1.0)
+        out[row] = _act_kernel(weights, biases, dims, activation, obs[row], a, b, u[row])
 
 
 @numba.njit(cache=True, fastmath=_FASTMATH)
@@ -213,9 +210,8 @@ class NumpyPolicy:
             raise ValueError(f"observation has {flat.shape[0]} values, the policy expects {self._dims[0]}")
         return flat
 
-    def act(self, obs: np.ndarray, u: float, temperature: float = 1.0) -> int:
-        """Action sampled from π_θ(·|obs) using the uniform draw ``u`` in [0, 1) (discrete); at a
-        ``temperature`` T < 1 from the softmax of its logits / T (sharper: T → 0 is the arg-max)."""
+    def act(self, obs: np.ndarray, u: float) -> int:
+        """Action sampled from π_θ(·|obs) using the uniform draw ``u`` in [0, 1) (discrete)."""
         if not self.discrete:
             raise TypeError("a Gaussian policy acts with act_continuous(obs, z)")
         return int(
@@ -228,7 +224,6 @@ class NumpyPolicy:
                 self._a,
                 self._b,
                 u,
-                1.0 / temperature,
             )
         )
 

@@ -93,13 +93,6 @@ class PPOAgent:
         )
         self._policy = NumpyPolicy(self.net)
         self._discrete = self.action_space.is_discrete
-        if config.temperature_at_target != 1.0 and not self._discrete:
-            raise ValueError(
-                "temperature_at_target tempers a discrete policy's logits: this unit type's actions are "
-                "continuous (a Gaussian's σ is learnt); leave it at 1"
-            )
-        self._temperature = 1.0
-        """what :meth:`act` samples at (:meth:`set_temperature`)"""
         self._model = Model(
             self.net,
             [p for _, p in self._actor_named],
@@ -129,28 +122,8 @@ class PPOAgent:
         """Sample a_t ~ π_θ(·|s_t) (line 3) on the numba copy of the actor: an action index, or for a box a
         float32 vector as sampled (not clipped; send the env :meth:`env_action` of it, remember it as is)."""
         if self._discrete:
-            return self._policy.act(obs, float(self._act_rng.random()), self._temperature)
+            return self._policy.act(obs, float(self._act_rng.random()))
         return self._policy.act_continuous(obs, self._act_rng.standard_normal(self.action_space.dim))
-
-    @property
-    def temperature(self) -> float:
-        """The temperature :meth:`act` samples at (1: π_θ itself)."""
-        return self._temperature
-
-    def set_temperature(self, temperature: float) -> None:
-        """Act at ``temperature`` T from now on: a discrete action from softmax(logits / T) (the learner sets
-        it before each learning episode, ``PPOConfig.temperature_at_target``). The transitions acted at the
-        old temperature get their behaviour log-probabilities at it first.
-
-        :raises ValueError: T not in (0, 1], or T ≠ 1 for a Gaussian policy
-        """
-        if not 0.0 < temperature <= 1.0:
-            raise ValueError(f"temperature must be in (0, 1], got {temperature}")
-        if temperature != 1.0 and not self._discrete:
-            raise ValueError("a Gaussian policy acts at temperature 1")
-        if temperature != self._temperature:
-            self._score_new_transitions()
-            self._temperature = temperature
 
     def act_greedy(self, obs: np.ndarray) -> Any:
         """The most probable action under π_θ (evaluation): the arg-max index, or the Gaussian's mean
@@ -325,20 +298,13 @@ class PPOAgent:
         return [(part, named[part]) for part in self._parts[k % len(self._parts)]]
 
     def _score_new_transitions(self) -> None:
-        """Record log π(a|s) of the acting policy (π_θ at the acting temperature) for transitions stored
-        since θ or the temperature last changed."""
+        """Record log π(a|s) of the acting policy for transitions stored since θ last changed."""
         slots = self.memory.unscored()
         if slots.size == 0:
             return
         obs, actions = self.memory.slots(slots)
         with torch.no_grad():
-            if self._temperature == 1.0:
-                log_probs = self.net.log_probs(torch.from_numpy(obs), torch.from_numpy(actions))
-            else:  # they were acted at T: log softmax(logits / T) of the action taken
-                head, _ = self.net(torch.from_numpy(obs))
-                log_probs = self.net.log_probs_and_entropy(
-                    head / self._temperature, torch.from_numpy(actions)
-                )[0]
+            log_probs = self.net.log_probs(torch.from_numpy(obs), torch.from_numpy(actions))
         self.memory.score(slots, log_probs.numpy())
 
     # ---- what the federation exchanges (lines 8, 25, 29, 31) -------------------------------------------

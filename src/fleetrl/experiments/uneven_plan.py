@@ -11,9 +11,6 @@ UNEVEN = {"slow": {"w2": 4.0}, "absent": 0.2}
 """the uneven fleet: unit 2 computes at a quarter of the others' speed; each unit absent for 20 % of rounds"""
 DEFAULT_QUORUM = 0.6
 """``pergrad``'s own quorum (the other experiments' arms pin 1, the rule their records were made with)"""
-COOLED: dict[str, object] = {"temperature_at_target": 0.3}
-"""acting surer as a unit nears its target (docs/tuning.md, "Time on the rigs of 3 QUBE units: acting surer
-near the target"; tuned on seeds 0-9): the same setting for the fleet and for each unit alone"""
 
 NOTES = (
     "Unit 2 computes 4× slower (`--slow w2=4`: it waits 3× the time each piece of its own work took); every "
@@ -26,38 +23,23 @@ NOTES = (
 
 def uneven(budget: Budget) -> Plan:
     """3 QUBE units alone, and federated even and uneven under ``pergrad`` (quorum 1 and its default 0.6) and
-    ``fedasync``, preset ``standard``; and alone, even and uneven acting surer near the target
-    (:data:`COOLED`)."""
+    ``fedasync``, preset ``standard``."""
     m, fleet_seed = budget.qube_rounds, budget.fleet_seed
 
-    def fed(scheme: str, label: str, overrides: dict[str, object] | None = None, **run: object) -> Arm:
-        return arm(
-            "qube", 3, "federated", "standard", m, label, scheme, fleet_seed, overrides=overrides, run=run
-        )
+    def fed(scheme: str, label: str, **run: object) -> Arm:
+        return arm("qube", 3, "federated", "standard", m, label, scheme, fleet_seed, run=run)
 
     alone = arm("qube", 3, "individual", "standard", m, "each unit alone", fleet_seed=fleet_seed)
-    alone_cooled = arm(
-        "qube",
-        3,
-        "individual",
-        "standard",
-        m,
-        "each unit alone · cooled",
-        fleet_seed=fleet_seed,
-        overrides=COOLED,
-    )
     even_sync = fed("pergrad", "even · pergrad · everyone waited for")
     even = fed("pergrad", "even · pergrad", quorum=DEFAULT_QUORUM)
     slow = fed("pergrad", "uneven · pergrad", quorum=DEFAULT_QUORUM, **UNEVEN)
     even_async = fed("fedasync", "even · fedasync")
     slow_async = fed("fedasync", "uneven · fedasync", **UNEVEN)
-    even_cooled = fed("pergrad", "even · pergrad · cooled · everyone waited for", COOLED)
-    slow_cooled = fed("pergrad", "uneven · pergrad · cooled", COOLED, quorum=DEFAULT_QUORUM, **UNEVEN)
     target = "target: the uneven fleet's time on the rigs ≤ 1/2.5 of each unit alone's"
     return Plan(
         name="uneven",
         title="An uneven fleet: 3 QUBE units, one at a quarter speed, each absent 20 % of rounds",
-        arms=[alone, even_sync, even, slow, even_async, slow_async, alone_cooled, even_cooled, slow_cooled],
+        arms=[alone, even_sync, even, slow, even_async, slow_async],
         max_rounds=m,
         ratios=[
             Ratio(alone, even_sync, "the default scheme, every worker waited for (Fig. 5's arm)"),
@@ -66,16 +48,8 @@ def uneven(budget: Budget) -> Plan:
             Ratio(alone, even_async, "the asynchronous scheme, even fleet"),
             Ratio(alone, slow_async, f"the asynchronous scheme, uneven fleet ({target})"),
             Ratio(slow, slow_async, "uneven fleet: asynchronous vs the default scheme"),
-            Ratio(alone, even_cooled, "the default scheme acting surer near the target, even fleet"),
-            Ratio(
-                alone,
-                slow_cooled,
-                f"the default scheme acting surer near the target, uneven fleet ({target})",
-            ),
-            Ratio(alone_cooled, slow_cooled, "uneven fleet against each unit alone, both acting surer"),
-            Ratio(alone, alone_cooled, "each unit alone, acting surer near the target"),
         ],
         notes=NOTES,
         rig_phases=True,
-        headline=[alone, slow, slow_async, even_async, alone_cooled, even_cooled, slow_cooled],
+        headline=[alone, slow, slow_async, even_async],
     )
