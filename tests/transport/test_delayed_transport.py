@@ -25,11 +25,12 @@ def test_messages_arrive_a_delay_later_in_order_and_the_sender_does_not_wait() -
         sender.publish(f"up/{k}", str(k).encode())
     sender.announce("up/status", b"online")
     assert time.monotonic() - started < DELAY / 2  # six messages sent, none waited for
-    assert listener.receive(timeout=DELAY / 3) is None  # nothing has arrived before its delay
-    arrived = [listener.receive(timeout=5) for _ in range(6)]
-    elapsed = time.monotonic() - started
+    arrived, waited = [], []
+    for _ in range(6):
+        arrived.append(listener.receive(timeout=5))
+        waited.append(time.monotonic() - started)
     assert [m.topic for m in arrived if m is not None] == [f"up/{k}" for k in range(5)] + ["up/status"]
-    assert elapsed >= DELAY
+    assert min(waited) >= DELAY  # none arrived before its delay (however late a loaded machine woke us)
     sender.close()
 
 

@@ -8,6 +8,7 @@ See docs/deploy.md and docs/security.md. Start order does not matter: workers wa
 import argparse
 import json
 import logging
+import sys
 import time
 from collections.abc import Callable
 from pathlib import Path
@@ -122,6 +123,7 @@ def cmd_secure_config(args: argparse.Namespace) -> int:
 def cmd_chief(args: argparse.Namespace) -> int:
     """Serve one run as its chief; print how it ended as JSON."""
     with collector_paused():
+        from fleetrl.federation.chief import EVERY_WORKER_DROPPED
         from fleetrl.federation.chief_async import new_chief
         from fleetrl.federation.runner import run_chief
         from fleetrl.federation.shared_settings import shared_text
@@ -158,6 +160,9 @@ def cmd_chief(args: argparse.Namespace) -> int:
     if settings.out is not None:
         write_json_atomic(settings.out / "chief.json", result)
     print(json.dumps(result))
+    if summary.end_reason == EVERY_WORKER_DROPPED:  # no fleet left to train: the run did not do its job
+        print(f"fleetrl chief: error: run {settings.run_id!r}: {EVERY_WORKER_DROPPED}", file=sys.stderr)
+        return 1
     return 0
 
 

@@ -55,6 +55,8 @@ __all__ = ["Chief", "ChiefEvent", "ChiefStep"]
 
 DEADLINE_DROP = "no message within the round deadline"
 OFFLINE_DROP = "went offline"
+EVERY_WORKER_DROPPED = "every worker dropped out"
+"""the end of a run whose last member left W: the run did not do its job (``fleetrl chief`` exits 1)"""
 
 
 class Chief:
@@ -385,7 +387,7 @@ class Chief:
 
     def _maybe_close(self, now: float) -> ChiefStep:
         if not self._pending and not self.state.members:
-            return self._end("every worker dropped out")
+            return self._end(EVERY_WORKER_DROPPED)
         if self._all_in():
             return self._close_round(now)
         return ChiefStep()

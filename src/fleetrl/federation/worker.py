@@ -188,6 +188,8 @@ class FederatedWorker:
             assert isinstance(finish, Finish)
             summary = finish.summary
             self.transport.publish(machine.own_status, machine.status(OFFLINE), retain=True)
+        except SettingsRefused:  # never admitted: the chief keeps waiting for a worker with its settings
+            raise
         except BaseException:
             # A worker dying of an error closes its connection cleanly, so its last will never fires: it says
             # what the will would have, or the chief waits for it at every exchange (without a deadline,
