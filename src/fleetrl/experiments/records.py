@@ -93,9 +93,7 @@ class RunRecord:
         workers = self.data["workers"]
         if period is None or any("steps" not in w and "episodes" in w for w in workers.values()):
             return None
-        steps: dict[str, Any] = {
-            k: w.get("steps") or [round(s or 0) for s in w["score"]] for k, w in workers.items()
-        }
+        steps: dict[str, Any] = {k: played_steps(w) for k, w in workers.items()}
         for k, w in workers.items():  # a unit that missed rounds (a straggler, an absence) keeps numbers
             if "rounds" in w:
                 steps[k] = dict(zip(w["rounds"], steps[k], strict=True))
@@ -125,6 +123,12 @@ class RunRecord:
     def episode_cap(self) -> int:
         """The episode cap the unseen units were evaluated at."""
         return int((self.data.get("generalisation") or {}).get("cap", 0))
+
+
+def played_steps(worker: dict[str, Any]) -> list[int]:
+    """Each round's steps of one worker's record; a record made before runs kept their steps reads them from
+    its scores (reward 1 per step: at most one step short per episode)."""
+    return list(worker.get("steps") or [round(s or 0) for s in worker["score"]])
 
 
 def _number(value: float | None) -> float:

@@ -13,7 +13,7 @@ import statistics
 from collections.abc import Sequence
 from dataclasses import dataclass
 
-from fleetrl.experiments.records import RunRecord
+from fleetrl.experiments.records import RunRecord, played_steps
 
 LONG_SHARE = 0.4
 """an episode at least this share of the episode cap is a long one (QUBE: 1,000 of 2,500 steps)"""
@@ -52,7 +52,7 @@ def run_phases(record: RunRecord) -> list[UnitPhases]:
         return []
     phases = []
     for worker in record.data["workers"].values():
-        steps = worker.get("steps") or [round(s or 0) for s in worker["score"]]
+        steps = played_steps(worker)
         split = unit_phases(steps, worker.get("completed_at_round"), cap, period)
         if split is not None:
             phases.append(split)

@@ -12,7 +12,7 @@ import statistics
 from collections.abc import Sequence
 from dataclasses import dataclass
 
-from fleetrl.experiments.records import RunRecord
+from fleetrl.experiments.records import RunRecord, played_steps
 
 
 @dataclass(frozen=True)
@@ -26,11 +26,10 @@ class RunThroughput:
 
 
 def run_throughput(record: RunRecord) -> RunThroughput | None:
-    """One run's figures (None for a run without rounds or wall time). A record made before runs kept their
-    steps reads each round's steps from its score (reward 1 per step)."""
+    """One run's figures (None for a run without rounds or wall time)."""
     workers = record.data["workers"].values()
     rounds = max((len(w["score"]) for w in workers), default=0)
-    steps = sum(sum(w.get("steps") or [round(s or 0) for s in w["score"]]) for w in workers)
+    steps = sum(sum(played_steps(w)) for w in workers)
     wall = record.wall_seconds
     if rounds == 0 or wall <= 0:
         return None
