@@ -37,7 +37,7 @@ def test_a_worker_that_fails_leaves_the_fleet_instead_of_stalling_it() -> None:
         max_rounds=ROUNDS,
         scheme="paper",
         dropout_grace=0.2,
-    )  # fmt: skip  (quorum 1, no round deadline: every worker waited for)
+    )  # quorum 1 and no round deadline: every worker is waited for
     outcome: dict[str, ChiefSummary] = {}
     errors: dict[str, BaseException] = {}
     rounds: dict[str, int] = {}
