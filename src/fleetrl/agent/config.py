@@ -78,6 +78,12 @@ class PPOConfig:
     """standardise Â inside each window before Eq. 6 (the paper does not)"""
     max_grad_norm: float = 0.0
     """clip each optimiser's gradient to this global norm before its step (0: no clipping)"""
+    greedy_once_held: bool = False
+    """once a round's score reaches the unit's target, play the next round's episode by π_θ's arg-max (the
+    policy as deployed: ``fleetrl control``), stored nowhere, and go on so until one falls short; then
+    sample again (the update still runs each round on the ring memory). Off: every episode is sampled
+    (the paper). Needs ``trajectory_memory='ring'`` (docs/tuning.md, "Proving a unit by the policy it
+    will run")"""
 
     def to_dict(self) -> dict[str, Any]:
         """Plain JSON-ready dict (``hidden`` as a list)."""
@@ -124,6 +130,11 @@ class PPOConfig:
                 "optimisers 'one_sequential' steps the trunk with both losses: it needs trunk_split 'shared'",
             ),
             (self.max_grad_norm >= 0.0, f"max_grad_norm must be >= 0, got {self.max_grad_norm}"),
+            (
+                not self.greedy_once_held or self.trajectory_memory == "ring",
+                "greedy_once_held plays a held unit's episodes without storing them, and a 'per_round' "
+                "memory would have nothing to update on: it needs trajectory_memory 'ring'",
+            ),
         ]
         for ok, message in checks:
             if not ok:
@@ -189,4 +200,9 @@ def host_config_problem(cfg: PPOConfig) -> str | None:
         )
     if cfg.optimisers != "per_model":
         return "a unit host takes one step per optimisation: it needs optimisers = 'per_model'"
+    if cfg.greedy_once_held:
+        return (
+            "a unit host samples every unit's episodes: greedy_once_held needs a worker per unit "
+            "(--units-per-host 1)"
+        )
     return None

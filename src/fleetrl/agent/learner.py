@@ -52,7 +52,7 @@ class Learner:
         self.keep_learning = keep_learning
         self.rounds = 0
         self.episodes = 0
-        """learning episodes played in all rounds"""
+        """episodes played in all rounds (not :meth:`evaluate`'s)"""
         self.completed = False
         self.last_round: RoundResult | None = None
         """the result of the latest :meth:`play_round`"""
@@ -90,10 +90,16 @@ class Learner:
 
     def play_episodes(self) -> Episodes:
         """The first half of a round: one episode, or whole episodes until the agent's trajectory memory
-        holds what its update needs (``trajectory_memory='per_round'``); the criterion sees the mean."""
-        played = [self.play_episode()]
-        while self.agent.needs_more_episodes():
-            played.append(self.play_episode())
+        holds what its update needs (``trajectory_memory='per_round'``); the criterion sees the mean. With
+        ``greedy_once_held``, a round after one whose score reached the target plays its episode by the
+        arg-max and stores nothing (:meth:`plays_greedy`)."""
+        if self.plays_greedy():
+            played = [self.play_episode(greedy=True, learn=False)]
+            self.episodes += 1
+        else:
+            played = [self.play_episode()]
+            while self.agent.needs_more_episodes():
+                played.append(self.play_episode())
         scores, steps = zip(*played, strict=True)
         episodes = Episodes(scores, steps)
         self.rounds += 1
@@ -101,6 +107,15 @@ class Learner:
         if self.criterion.done:
             self.completed = True
         return episodes
+
+    def plays_greedy(self) -> bool:
+        """Whether this round's episode is played by π_θ's arg-max: ``greedy_once_held`` is set and the last
+        round's score (the criterion's newest) reached the target. Read from the criterion, so a resumed
+        unit plays as it would have."""
+        if not self.agent.config.greedy_once_held:
+            return False
+        history = self.criterion.history()
+        return bool(history) and history[-1] >= self.criterion.threshold
 
     def wants_update(self) -> bool:
         """Line 7: update unless learning is finished (the worker then sends θ); always if keep_learning."""

@@ -9,6 +9,8 @@ from fleetrl.experiments.plan import Plan, Ratio
 
 UNEVEN = {"slow": {"w2": 4.0}, "absent": 0.2}
 """the uneven fleet: unit 2 computes at a quarter of the others' speed; each unit absent for 20 % of rounds"""
+GREEDY_ONCE_HELD = {"greedy_once_held": True}
+"""a unit proves itself by the policy it will run: once a round held the target, the arg-max plays on"""
 DEFAULT_QUORUM = 0.6
 """``pergrad``'s own quorum (the other experiments' arms pin 1, the rule their records were made with)"""
 
@@ -26,20 +28,30 @@ def uneven(budget: Budget) -> Plan:
     ``fedasync``, preset ``standard``."""
     m, fleet_seed = budget.qube_rounds, budget.fleet_seed
 
-    def fed(scheme: str, label: str, **run: object) -> Arm:
-        return arm("qube", 3, "federated", "standard", m, label, scheme, fleet_seed, run=run)
+    def fed(scheme: str, label: str, overrides: dict[str, object] | None = None, **run: object) -> Arm:
+        return arm(
+            "qube", 3, "federated", "standard", m, label, scheme, fleet_seed, overrides=overrides, run=run
+        )
 
     alone = arm("qube", 3, "individual", "standard", m, "each unit alone", fleet_seed=fleet_seed)
+    alone_greedy = arm(
+        "qube", 3, "individual", "standard", m, "each unit alone · arg-max once held", fleet_seed=fleet_seed,
+        overrides=GREEDY_ONCE_HELD,
+    )  # fmt: skip
     even_sync = fed("pergrad", "even · pergrad · everyone waited for")
     even = fed("pergrad", "even · pergrad", quorum=DEFAULT_QUORUM)
     slow = fed("pergrad", "uneven · pergrad", quorum=DEFAULT_QUORUM, **UNEVEN)
     even_async = fed("fedasync", "even · fedasync")
     slow_async = fed("fedasync", "uneven · fedasync", **UNEVEN)
+    even_greedy = fed("pergrad", "even · pergrad · everyone waited for · arg-max once held", GREEDY_ONCE_HELD)
+    slow_greedy = fed(
+        "pergrad", "uneven · pergrad · arg-max once held", GREEDY_ONCE_HELD, quorum=DEFAULT_QUORUM, **UNEVEN
+    )
     target = "target: the uneven fleet's time on the rigs ≤ 1/2.5 of each unit alone's"
     return Plan(
         name="uneven",
         title="An uneven fleet: 3 QUBE units, one at a quarter speed, each absent 20 % of rounds",
-        arms=[alone, even_sync, even, slow, even_async, slow_async],
+        arms=[alone, even_sync, even, slow, even_async, slow_async, alone_greedy, even_greedy, slow_greedy],
         max_rounds=m,
         ratios=[
             Ratio(alone, even_sync, "the default scheme, every worker waited for (Fig. 5's arm)"),
@@ -48,8 +60,24 @@ def uneven(budget: Budget) -> Plan:
             Ratio(alone, even_async, "the asynchronous scheme, even fleet"),
             Ratio(alone, slow_async, f"the asynchronous scheme, uneven fleet ({target})"),
             Ratio(slow, slow_async, "uneven fleet: asynchronous vs the default scheme"),
+            Ratio(
+                alone,
+                alone_greedy,
+                "each unit alone: proved by the arg-max once held vs every episode sampled",
+            ),
+            Ratio(
+                alone_greedy,
+                even_greedy,
+                "the default scheme, every worker waited for, both proved by the arg-max",
+            ),
+            Ratio(
+                alone_greedy,
+                slow_greedy,
+                f"the default scheme, uneven fleet, both proved by the arg-max ({target})",
+            ),
+            Ratio(alone, slow_greedy, "uneven fleet proved by the arg-max vs each unit alone as it is"),
         ],
         notes=NOTES,
         rig_phases=True,
-        headline=[alone, slow, slow_async, even_async],
+        headline=[alone, slow, slow_async, even_async, alone_greedy, slow_greedy],
     )
