@@ -229,10 +229,12 @@ def _ratio_line(ratio: Ratio, records: Records) -> str:
     point, low, high = bootstrap_ratio(_fleet(slower), _fleet(faster))
     unit, unit_low, unit_high = bootstrap_ratio(_per_unit(slower), _per_unit(faster))
     bound = _bound(slower, faster)
+    rig = _rig_ratio(slower, faster)
+    on_rigs = "" if rig == "-" else f"; in time on the rigs, fleet / per unit: {rig}"
     return (
-        f"- **{ratio.slower.label} → {ratio.faster.label}**: fleet speed-up "
+        f"- **{ratio.slower.label} → {ratio.faster.label}**: fleet speed-up in rounds "
         f"{bound}{point:.2f}× (95 % bootstrap {low:.2f}–{high:.2f}), per unit {bound}{unit:.2f}× "
-        f"({unit_low:.2f}–{unit_high:.2f}); {ratio.claim}"
+        f"({unit_low:.2f}–{unit_high:.2f}){on_rigs}; {ratio.claim}"
     )
 
 

@@ -7,9 +7,9 @@ from fleetrl.experiments.arms import Arm
 from fleetrl.experiments.budget import Budget, arm
 from fleetrl.experiments.plan import Plan, Ratio
 
-UNEVEN = {"slow": {"w2": 4.0}, "absent": 0.2}
+UNEVEN: dict[str, object] = {"slow": {"w2": 4.0}, "absent": 0.2}
 """the uneven fleet: unit 2 computes at a quarter of the others' speed; each unit absent for 20 % of rounds"""
-GREEDY_ONCE_HELD = {"greedy_once_held": True}
+GREEDY_ONCE_HELD: dict[str, object] = {"greedy_once_held": True}
 """a unit proves itself by the policy it will run: once a round held the target, the arg-max plays on"""
 DEFAULT_QUORUM = 0.6
 """``pergrad``'s own quorum (the other experiments' arms pin 1, the rule their records were made with)"""
@@ -28,9 +28,23 @@ def uneven(budget: Budget) -> Plan:
     ``fedasync``, preset ``standard``."""
     m, fleet_seed = budget.qube_rounds, budget.fleet_seed
 
-    def fed(scheme: str, label: str, overrides: dict[str, object] | None = None, **run: object) -> Arm:
+    def fed(
+        scheme: str,
+        label: str,
+        run: dict[str, object] | None = None,
+        overrides: dict[str, object] | None = None,
+    ) -> Arm:
         return arm(
-            "qube", 3, "federated", "standard", m, label, scheme, fleet_seed, overrides=overrides, run=run
+            "qube",
+            3,
+            "federated",
+            "standard",
+            m,
+            label,
+            scheme,
+            fleet_seed,
+            overrides=overrides,
+            run=run or {},
         )
 
     alone = arm("qube", 3, "individual", "standard", m, "each unit alone", fleet_seed=fleet_seed)
@@ -38,15 +52,17 @@ def uneven(budget: Budget) -> Plan:
         "qube", 3, "individual", "standard", m, "each unit alone · arg-max once held", fleet_seed=fleet_seed,
         overrides=GREEDY_ONCE_HELD,
     )  # fmt: skip
+    quorum: dict[str, object] = {"quorum": DEFAULT_QUORUM}
     even_sync = fed("pergrad", "even · pergrad · everyone waited for")
-    even = fed("pergrad", "even · pergrad", quorum=DEFAULT_QUORUM)
-    slow = fed("pergrad", "uneven · pergrad", quorum=DEFAULT_QUORUM, **UNEVEN)
+    even = fed("pergrad", "even · pergrad", quorum)
+    slow = fed("pergrad", "uneven · pergrad", {**quorum, **UNEVEN})
     even_async = fed("fedasync", "even · fedasync")
-    slow_async = fed("fedasync", "uneven · fedasync", **UNEVEN)
-    even_greedy = fed("pergrad", "even · pergrad · everyone waited for · arg-max once held", GREEDY_ONCE_HELD)
-    slow_greedy = fed(
-        "pergrad", "uneven · pergrad · arg-max once held", GREEDY_ONCE_HELD, quorum=DEFAULT_QUORUM, **UNEVEN
+    slow_async = fed("fedasync", "uneven · fedasync", UNEVEN)
+    label = "arg-max once held"
+    even_greedy = fed(
+        "pergrad", f"even · pergrad · everyone waited for · {label}", overrides=GREEDY_ONCE_HELD
     )
+    slow_greedy = fed("pergrad", f"uneven · pergrad · {label}", {**quorum, **UNEVEN}, GREEDY_ONCE_HELD)
     target = "target: the uneven fleet's time on the rigs ≤ 1/2.5 of each unit alone's"
     return Plan(
         name="uneven",
