@@ -25,49 +25,51 @@ NOTES = (
 
 def uneven(budget: Budget) -> Plan:
     """3 QUBE units alone, and federated even and uneven under ``pergrad`` (quorum 1 and its default 0.6) and
-    ``fedasync``, preset ``standard``."""
+    ``fedasync``, preset ``standard``; then alone, ``pergrad`` and ``fedasync`` again with every unit proved
+    by its arg-max once a round held the target (``greedy_once_held``)."""
     m, fleet_seed = budget.qube_rounds, budget.fleet_seed
 
+    def alone_arm(label: str, overrides: dict[str, object] | None = None) -> Arm:
+        return arm("qube", 3, "individual", "standard", m, label, fleet_seed=fleet_seed, overrides=overrides)
+
     def fed(
-        scheme: str,
-        label: str,
-        run: dict[str, object] | None = None,
-        overrides: dict[str, object] | None = None,
+        scheme: str, label: str, run: dict[str, object], overrides: dict[str, object] | None = None
     ) -> Arm:
         return arm(
-            "qube",
-            3,
-            "federated",
-            "standard",
-            m,
-            label,
-            scheme,
-            fleet_seed,
-            overrides=overrides,
-            run=run or {},
+            "qube", 3, "federated", "standard", m, label, scheme, fleet_seed, overrides=overrides, run=run
         )
 
-    alone = arm("qube", 3, "individual", "standard", m, "each unit alone", fleet_seed=fleet_seed)
-    alone_greedy = arm(
-        "qube", 3, "individual", "standard", m, "each unit alone · arg-max once held", fleet_seed=fleet_seed,
-        overrides=GREEDY_ONCE_HELD,
-    )  # fmt: skip
     quorum: dict[str, object] = {"quorum": DEFAULT_QUORUM}
-    even_sync = fed("pergrad", "even · pergrad · everyone waited for")
+    alone = alone_arm("each unit alone")
+    even_sync = fed("pergrad", "even · pergrad · everyone waited for", {})
     even = fed("pergrad", "even · pergrad", quorum)
     slow = fed("pergrad", "uneven · pergrad", {**quorum, **UNEVEN})
-    even_async = fed("fedasync", "even · fedasync")
+    even_async = fed("fedasync", "even · fedasync", {})
     slow_async = fed("fedasync", "uneven · fedasync", UNEVEN)
-    label = "arg-max once held"
-    even_greedy = fed(
-        "pergrad", f"even · pergrad · everyone waited for · {label}", overrides=GREEDY_ONCE_HELD
-    )
-    slow_greedy = fed("pergrad", f"uneven · pergrad · {label}", {**quorum, **UNEVEN}, GREEDY_ONCE_HELD)
+    held, greedy = "arg-max once held", GREEDY_ONCE_HELD
+    alone_greedy = alone_arm(f"each unit alone · {held}", greedy)
+    even_greedy = fed("pergrad", f"even · pergrad · everyone waited for · {held}", {}, greedy)
+    slow_greedy = fed("pergrad", f"uneven · pergrad · {held}", {**quorum, **UNEVEN}, greedy)
+    even_async_greedy = fed("fedasync", f"even · fedasync · {held}", {}, greedy)
+    slow_async_greedy = fed("fedasync", f"uneven · fedasync · {held}", UNEVEN, greedy)
     target = "target: the uneven fleet's time on the rigs ≤ 1/2.5 of each unit alone's"
+    both = "both proved by the arg-max"
     return Plan(
         name="uneven",
         title="An uneven fleet: 3 QUBE units, one at a quarter speed, each absent 20 % of rounds",
-        arms=[alone, even_sync, even, slow, even_async, slow_async, alone_greedy, even_greedy, slow_greedy],
+        arms=[
+            alone,
+            even_sync,
+            even,
+            slow,
+            even_async,
+            slow_async,
+            alone_greedy,
+            even_greedy,
+            slow_greedy,
+            even_async_greedy,
+            slow_async_greedy,
+        ],
         max_rounds=m,
         ratios=[
             Ratio(alone, even_sync, "the default scheme, every worker waited for (Fig. 5's arm)"),
@@ -81,19 +83,19 @@ def uneven(budget: Budget) -> Plan:
                 alone_greedy,
                 "each unit alone: proved by the arg-max once held vs every episode sampled",
             ),
+            Ratio(alone_greedy, even_greedy, f"the default scheme, every worker waited for, {both}"),
+            Ratio(alone_greedy, slow_greedy, f"the default scheme, uneven fleet, {both} ({target})"),
+            Ratio(alone_greedy, even_async_greedy, f"the asynchronous scheme, even fleet, {both}"),
             Ratio(
-                alone_greedy,
-                even_greedy,
-                "the default scheme, every worker waited for, both proved by the arg-max",
+                alone_greedy, slow_async_greedy, f"the asynchronous scheme, uneven fleet, {both} ({target})"
             ),
             Ratio(
-                alone_greedy,
-                slow_greedy,
-                f"the default scheme, uneven fleet, both proved by the arg-max ({target})",
+                alone,
+                slow_async_greedy,
+                "uneven fleet, asynchronous, proved by the arg-max vs each unit alone as it is",
             ),
-            Ratio(alone, slow_greedy, "uneven fleet proved by the arg-max vs each unit alone as it is"),
         ],
         notes=NOTES,
         rig_phases=True,
-        headline=[alone, slow, slow_async, even_async, alone_greedy, slow_greedy],
+        headline=[alone, slow, slow_async, even_async, alone_greedy, slow_greedy, slow_async_greedy],
     )
