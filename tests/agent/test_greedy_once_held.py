@@ -92,3 +92,17 @@ def test_settings_it_cannot_run_with_are_refused_before_anything_starts() -> Non
     problem = host_config_problem(host)
     assert problem is not None and "--units-per-host 1" in problem
     assert host_config_problem(get_preset("standard")) is None
+
+
+def test_a_completed_unit_that_stays_with_its_fleet_samples_again() -> None:
+    learner = make_learner(threshold=0.0)
+    learner.keep_learning = True  # a scheme whose mature units stay (pergrad, fedavg, fedasync)
+    counts = ActionCounts(learner.agent)
+    results = [learner.play_round() for _ in range(10)]
+    assert results[-1].completed and not results[-2].completed  # ten scores: the criterion holds
+    assert counts.greedy == sum(r.steps for r in results[1:])  # rounds 2-10 proved it
+    stored = len(learner.agent.memory)
+    assert not learner.plays_greedy()
+    after = learner.play_round()
+    assert counts.sampled == results[0].steps + after.steps  # its episodes feed the fleet again
+    assert len(learner.agent.memory) == min(stored + after.steps, learner.agent.config.memory_size)

@@ -80,10 +80,10 @@ class PPOConfig:
     """clip each optimiser's gradient to this global norm before its step (0: no clipping)"""
     greedy_once_held: bool = False
     """once a round's score reaches the unit's target, play the next round's episode by π_θ's arg-max (the
-    policy as deployed: ``fleetrl control``), stored nowhere, and go on so until one falls short; then
-    sample again (the update still runs each round on the ring memory). Off: every episode is sampled
-    (the paper). Needs ``trajectory_memory='ring'`` (docs/tuning.md, "Proving a unit by the policy it
-    will run")"""
+    policy as deployed: ``fleetrl control``), stored nowhere, and go on so until one falls short or the
+    unit completes; then sample again (the update still runs each round on the ring memory). Off: every
+    episode is sampled (the paper). Needs ``trajectory_memory='ring'`` (docs/tuning.md, "Proving a unit by
+    the policy it will run")"""
 
     def to_dict(self) -> dict[str, Any]:
         """Plain JSON-ready dict (``hidden`` as a list)."""

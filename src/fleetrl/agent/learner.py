@@ -109,10 +109,11 @@ class Learner:
         return episodes
 
     def plays_greedy(self) -> bool:
-        """Whether this round's episode is played by π_θ's arg-max: ``greedy_once_held`` is set and the last
-        round's score (the criterion's newest) reached the target. Read from the criterion, so a resumed
-        unit plays as it would have."""
-        if not self.agent.config.greedy_once_held:
+        """Whether this round's episode is played by π_θ's arg-max: ``greedy_once_held`` is set, the unit has
+        not completed yet, and the last round's score (the criterion's newest) reached the target. Read from
+        the criterion, so a resumed unit plays as it would have. A completed unit that stays with its fleet
+        samples again: the fleet learns from its fresh episodes, not from a memory the proof left stale."""
+        if not self.agent.config.greedy_once_held or self.completed:
             return False
         history = self.criterion.history()
         return bool(history) and history[-1] >= self.criterion.threshold
