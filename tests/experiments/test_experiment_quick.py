@@ -60,7 +60,7 @@ def test_a_training_experiment_writes_parseable_runs(quick_report: Path) -> None
         assert int(row["fleet_rounds"]) >= 1 and float(row["wall_seconds"]) > 0
         assert all(int(r) >= 1 for r in row["worker_rounds"].split(";"))
     section = (quick_report / name / "section.md").read_text()
-    assert re.findall(r"speed-up (?:≥ |≤ |~)?(\d+\.\d+)×", section)
+    assert re.findall(r"speed-up in rounds (?:≥ |≤ |~)?(\d+\.\d+)×", section)
     if "Transport check" in section:
         assert "scores identical to the in-process bus" in section
 
