@@ -46,12 +46,12 @@ def uneven(budget: Budget) -> Plan:
     slow = fed("pergrad", "uneven · pergrad", {**quorum, **UNEVEN})
     even_async = fed("fedasync", "even · fedasync", {})
     slow_async = fed("fedasync", "uneven · fedasync", UNEVEN)
-    held, greedy = "arg-max once held", GREEDY_ONCE_HELD
-    alone_greedy = alone_arm(f"each unit alone · {held}", greedy)
-    even_greedy = fed("pergrad", f"even · pergrad · everyone waited for · {held}", {}, greedy)
-    slow_greedy = fed("pergrad", f"uneven · pergrad · {held}", {**quorum, **UNEVEN}, greedy)
-    even_async_greedy = fed("fedasync", f"even · fedasync · {held}", {}, greedy)
-    slow_async_greedy = fed("fedasync", f"uneven · fedasync · {held}", UNEVEN, greedy)
+    held = "arg-max once held"
+    alone_greedy = alone_arm(f"each unit alone · {held}", GREEDY_ONCE_HELD)
+    even_greedy = fed("pergrad", f"even · pergrad · everyone waited for · {held}", {}, GREEDY_ONCE_HELD)
+    slow_greedy = fed("pergrad", f"uneven · pergrad · {held}", {**quorum, **UNEVEN}, GREEDY_ONCE_HELD)
+    even_async_greedy = fed("fedasync", f"even · fedasync · {held}", {}, GREEDY_ONCE_HELD)
+    slow_async_greedy = fed("fedasync", f"uneven · fedasync · {held}", UNEVEN, GREEDY_ONCE_HELD)
     target = "target: the uneven fleet's time on the rigs ≤ 1/2.5 of each unit alone's"
     both = "both proved by the arg-max"
     return Plan(
