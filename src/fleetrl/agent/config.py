@@ -16,6 +16,7 @@ OldPolicy = Literal["round_start", "behaviour"]
 CriticLoss = Literal["abs", "mse", "huber"]
 TrajectoryMemoryKind = Literal["ring", "per_round"]
 Optimisers = Literal["per_model", "one_sequential"]
+Criterion = Literal["sampled", "argmax"]
 
 
 @dataclass
@@ -78,12 +79,13 @@ class PPOConfig:
     """standardise Â inside each window before Eq. 6 (the paper does not)"""
     max_grad_norm: float = 0.0
     """clip each optimiser's gradient to this global norm before its step (0: no clipping)"""
-    greedy_once_held: bool = False
-    """once a round's score reaches the unit's target, play the next round's episode by π_θ's arg-max (the
-    policy as deployed: ``fleetrl control``), stored nowhere, and go on so until one falls short or the
-    unit completes; then sample again (the update still runs each round on the ring memory). Off: every
-    episode is sampled (the paper). Needs ``trajectory_memory='ring'`` (docs/tuning.md, "Proving a unit by
-    the policy it will run")"""
+    criterion: Criterion = "sampled"
+    """what a unit's completion proves. 'sampled' (the paper's): the WMA of its last 10 rounds, every
+    episode sampled from π_θ, reaches the target. 'argmax', a deployment check: once a round reached the
+    target the next is played by π_θ's arg-max (the policy ``fleetrl control`` runs), stored nowhere, and so
+    on until one falls short; the WMA counts those episodes, so completion says the deployed policy held
+    the target. The two prove different things: compare runs of one criterion only (docs/algorithm.md,
+    "Completion criteria"). 'argmax' needs ``trajectory_memory='ring'``"""
 
     def to_dict(self) -> dict[str, Any]:
         """Plain JSON-ready dict (``hidden`` as a list)."""
@@ -131,8 +133,8 @@ class PPOConfig:
             ),
             (self.max_grad_norm >= 0.0, f"max_grad_norm must be >= 0, got {self.max_grad_norm}"),
             (
-                not self.greedy_once_held or self.trajectory_memory == "ring",
-                "greedy_once_held plays a held unit's episodes without storing them, and a 'per_round' "
+                self.criterion == "sampled" or self.trajectory_memory == "ring",
+                "criterion 'argmax' plays a held unit's episodes without storing them, and a 'per_round' "
                 "memory would have nothing to update on: it needs trajectory_memory 'ring'",
             ),
         ]
@@ -200,9 +202,9 @@ def host_config_problem(cfg: PPOConfig) -> str | None:
         )
     if cfg.optimisers != "per_model":
         return "a unit host takes one step per optimisation: it needs optimisers = 'per_model'"
-    if cfg.greedy_once_held:
+    if cfg.criterion != "sampled":
         return (
-            "a unit host samples every unit's episodes: greedy_once_held needs a worker per unit "
+            "a unit host samples every unit's episodes: criterion 'argmax' needs a worker per unit "
             "(--units-per-host 1)"
         )
     return None

@@ -91,7 +91,7 @@ class Learner:
     def play_episodes(self) -> Episodes:
         """The first half of a round: one episode, or whole episodes until the agent's trajectory memory
         holds what its update needs (``trajectory_memory='per_round'``); the criterion sees the mean. With
-        ``greedy_once_held``, a round after one whose score reached the target plays its episode by the
+        the ``argmax`` criterion, a round after one whose score reached the target plays its episode by the
         arg-max and stores nothing (:meth:`plays_greedy`)."""
         if self.plays_greedy():
             played = [self.play_episode(greedy=True, learn=False)]
@@ -109,11 +109,11 @@ class Learner:
         return episodes
 
     def plays_greedy(self) -> bool:
-        """Whether this round's episode is played by π_θ's arg-max: ``greedy_once_held`` is set, the unit has
+        """Whether this round's episode is played by π_θ's arg-max: the criterion is ``argmax``, the unit has
         not completed yet, and the last round's score (the criterion's newest) reached the target. Read from
         the criterion, so a resumed unit plays as it would have. A completed unit that stays with its fleet
         samples again: the fleet learns from its fresh episodes, not from a memory the proof left stale."""
-        if not self.agent.config.greedy_once_held or self.completed:
+        if self.agent.config.criterion != "argmax" or self.completed:
             return False
         history = self.criterion.history()
         return bool(history) and history[-1] >= self.criterion.threshold

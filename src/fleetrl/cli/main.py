@@ -81,8 +81,8 @@ def build_parser() -> argparse.ArgumentParser:
     )
     experiment.add_argument(
         "name",
-        help="fig5, fig6, cartpole-scaling, learning, continuous, uneven, fleet-scale, qube-scale, table2, "
-        "peers, or all (but uneven, fleet-scale and qube-scale)",
+        help="fig5, fig6, cartpole-scaling, learning, continuous, uneven, argmax, fleet-scale, qube-scale, "
+        "table2, peers, or all (but uneven, argmax, fleet-scale and qube-scale)",
     )
     experiment.add_argument(
         "--seeds", type=int, default=10, help="how many learning seeds the headline arms run on (default 10)"

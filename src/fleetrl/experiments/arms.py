@@ -69,6 +69,11 @@ class Arm:
         return arm_key(self.settings)
 
     @property
+    def criterion(self) -> str:
+        """What a unit's completion proves in this arm's runs (``sampled``, the paper's, or ``argmax``)."""
+        return str((self.settings.get("overrides") or {}).get("criterion", "sampled"))
+
+    @property
     def units(self) -> int:
         """Units (one worker each)."""
         return int(self.settings["units"])

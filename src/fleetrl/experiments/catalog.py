@@ -9,7 +9,7 @@ from fleetrl.experiments.arms import Arm
 from fleetrl.experiments.budget import Budget, arm
 from fleetrl.experiments.plan import Plan, Ratio
 from fleetrl.experiments.scale_plan import fleet_scale, qube_scale
-from fleetrl.experiments.uneven_plan import uneven
+from fleetrl.experiments.uneven_plan import argmax, uneven
 
 SERVER_OPTIMISERS = {
     "fedavgm": {"server_lr": 1.0, "momentum": 0.5},
@@ -300,13 +300,15 @@ PLANS: dict[str, Callable[[Budget], Plan]] = {
     "learning": learning,
     "continuous": continuous,
     "uneven": uneven,
+    "argmax": argmax,
     "fleet-scale": fleet_scale,
     "qube-scale": qube_scale,
 }
 EXPERIMENTS = (*PLANS, "table2", "peers")
-ALL_EXPERIMENTS = tuple(name for name in EXPERIMENTS if name not in ("uneven", "fleet-scale", "qube-scale"))
-"""what ``fleetrl experiment all`` runs: the uneven fleet is run on its own, on the held-out fleet seed 1
-where each unit alone and ``pergrad`` already have records, and so are the fleets of up to 1,000 units, on 5
-seeds (the Makefile's ``results``)"""
+ALL_EXPERIMENTS = tuple(
+    name for name in EXPERIMENTS if name not in ("uneven", "argmax", "fleet-scale", "qube-scale")
+)
+"""what ``fleetrl experiment all`` runs: the uneven fleet and its argmax twin run on their own, on the
+held-out fleet seed 1, and so do the fleets of up to 1,000 units, on 5 seeds (the Makefile's ``results``)"""
 UNIT_TYPE_EXPERIMENTS = ("learning", "cartpole-scaling")
 """the experiments that are not about the paper's rig: they also train a user's unit type (``--env``)"""

@@ -32,6 +32,13 @@ class Ratio:
     claim: str
     """what the paper reports for it (or what we aim at)"""
 
+    def __post_init__(self) -> None:
+        if self.slower.criterion != self.faster.criterion:  # two criteria prove two things: no ratio
+            raise ValueError(
+                f"ratio {self.slower.label!r} → {self.faster.label!r} divides criterion "
+                f"{self.slower.criterion!r} by {self.faster.criterion!r}: compare arms of one criterion"
+            )
+
 
 @dataclass
 class Plan:
@@ -52,6 +59,9 @@ class Plan:
     throughput: bool = False
     """the report says what each arm cost the machine: wall time per round, unit-steps per second
     (:mod:`.throughput`)"""
+    seed_history: str = ""
+    """which held-out seed sets informed which choice of this plan's arms (empty: none did; the report then
+    says its seeds were never used while tuning)"""
     headline: list[Arm] = field(default_factory=list)
     """the arms run on every seed (each unit alone, fedavg, the best new scheme); the others may run on fewer
     (``other_seeds`` of :func:`run_plan`)"""

@@ -33,13 +33,13 @@ def seed_range(seeds: list[int] | range) -> str:
     return ", ".join(map(str, seeds))
 
 
-def seeds_line(seeds: list[int], fleet_seed: int, other_seeds: int | None = None) -> str:
+def seeds_line(seeds: list[int], fleet_seed: int, other_seeds: int | None = None, history: str = "") -> str:
     """The report's statement of the tuning and the reported seed sets (``other_seeds``: how many of them the
-    arms other than the headline arms run on)."""
+    arms other than the headline arms run on; ``history``: which held-out seeds informed a choice, if any)."""
     tuning = f"tuning seeds {seed_range(TUNING_SEEDS)} on fleet seed {TUNING_FLEET_SEED}"
     used = sorted(set(seeds) & set(TUNING_SEEDS))
     honesty = (
-        "never used while tuning"
+        ("never used while tuning" if not history else f"not used while tuning, but: {history}")
         if not used
         else f"WARNING: seed(s) {seed_range(used)} are tuning seeds, so these figures are not held out"
     )
@@ -93,10 +93,11 @@ def run_experiment(
             out, seeds, quick, places.records, fleet_seed, other_seeds, headline_only, unit_type, target_score
         )
         command = experiment_command(one, request)
-        preamble = [f"Command: `{command}`", "", seeds_line(seeds, fleet_seed, other_seeds), ""]
+        plan = PLANS[one](budget) if one in PLANS else None
+        history = "" if plan is None else plan.seed_history
+        preamble = [f"Command: `{command}`", "", seeds_line(seeds, fleet_seed, other_seeds, history), ""]
         where = section_name(one, fleet_seed, headline_only and one in PLANS, unit_type)
-        if one in PLANS:
-            plan = PLANS[one](budget)
+        if plan is not None:
             if headline_only:
                 plan = plan.headline_only()
             if fleet_seed:

@@ -190,6 +190,7 @@ class RunRecorder:
             "env": self.config.get("env"),
             "preset": self.config.get("preset"),
             "seed": self.config.get("seed"),
+            "criterion": self.criterion(),
             "rounds": rounds,
             "wall_seconds": round(self.elapsed(), 3),
             "interrupted": self.interrupted,
@@ -207,6 +208,12 @@ class RunRecorder:
             "rig_seconds": self.rig_seconds(),
             **self.extra,
         }
+
+    def criterion(self) -> dict[str, Any]:
+        """What a unit's completion proves in this run: the criterion (``sampled``, the paper's, or
+        ``argmax``, the deployed policy's) and its target WMA."""
+        ppo = self.config.get("ppo") or {}
+        return {"kind": ppo.get("criterion", "sampled"), "target": self.config.get("completion_threshold")}
 
     def rig_seconds(self) -> dict[str, Any] | None:
         """The time the rounds played so far would take on real-time rigs (:mod:`fleetrl.runs.rig_time`),

@@ -1,5 +1,5 @@
-"""``greedy_once_held``: after a round that reached the target a unit plays by π_θ's arg-max, stores nothing,
-and samples again once an episode falls short."""
+"""The ``argmax`` criterion: after a round that reached the target a unit plays by π_θ's arg-max, stores
+nothing, and samples again once an episode falls short."""
 
 import dataclasses
 from typing import Any
@@ -8,16 +8,16 @@ import gymnasium
 import pytest
 
 import fleetrl  # noqa: F401  (registers the fleetrl envs)
-from fleetrl.agent.config import PPOConfig, get_preset, host_config_problem
+from fleetrl.agent.config import Criterion, PPOConfig, get_preset, host_config_problem
 from fleetrl.agent.criterion import CompletionCriterion
 from fleetrl.agent.learner import Learner
 from fleetrl.agent.ppo import PPOAgent
 from fleetrl.envs.registration import CARTPOLE_UNIT_ID
 
 
-def make_learner(threshold: float, *, greedy_once_held: bool = True) -> Learner:
+def make_learner(threshold: float, *, criterion: Criterion = "argmax") -> Learner:
     env: gymnasium.Env[Any, Any] = gymnasium.make(CARTPOLE_UNIT_ID, unit=0, fleet_seed=0)
-    config = dataclasses.replace(get_preset("standard"), greedy_once_held=greedy_once_held)
+    config = dataclasses.replace(get_preset("standard"), criterion=criterion)
     agent = PPOAgent(4, 2, config, seed=3)
     return Learner(env, agent, CompletionCriterion(threshold), seed=3)
 
@@ -67,8 +67,8 @@ def test_an_episode_short_of_the_target_sends_the_unit_back_to_sampling() -> Non
 
 
 def test_off_by_default_every_round_is_sampled() -> None:
-    assert PPOConfig().greedy_once_held is False
-    learner = make_learner(threshold=0.0, greedy_once_held=False)
+    assert PPOConfig().criterion == "sampled"
+    learner = make_learner(threshold=0.0, criterion="sampled")
     counts = ActionCounts(learner.agent)
     results = [learner.play_round() for _ in range(3)]
     assert counts.greedy == 0 and counts.sampled == sum(r.steps for r in results)
@@ -85,10 +85,10 @@ def test_a_resumed_unit_plays_as_its_criterion_says() -> None:
 
 
 def test_settings_it_cannot_run_with_are_refused_before_anything_starts() -> None:
-    per_round = dataclasses.replace(get_preset("paper-code"), greedy_once_held=True)
-    with pytest.raises(ValueError, match=r"greedy_once_held .* needs trajectory_memory 'ring'"):
+    per_round = dataclasses.replace(get_preset("paper-code"), criterion="argmax")
+    with pytest.raises(ValueError, match=r"criterion 'argmax' .* needs trajectory_memory 'ring'"):
         per_round.validate()
-    host = dataclasses.replace(get_preset("standard"), greedy_once_held=True)
+    host = dataclasses.replace(get_preset("standard"), criterion="argmax")
     problem = host_config_problem(host)
     assert problem is not None and "--units-per-host 1" in problem
     assert host_config_problem(get_preset("standard")) is None
