@@ -69,15 +69,21 @@ results: install
 	$(VENV)/bin/fleetrl experiment all --other-seeds 5 --out runs/experiments --records docs/results/records
 	$(VENV)/bin/fleetrl experiment uneven --fleet-seed 1 --out runs/experiments \
 		--records docs/results/records
+	$(VENV)/bin/fleetrl experiment argmax --first-seed 200 --fleet-seed 1 --out runs/experiments \
+		--records docs/results/records
 	$(VENV)/bin/fleetrl experiment fleet-scale --seeds 5 --out runs/experiments --records docs/results/records
 	$(VENV)/bin/fleetrl experiment qube-scale --seeds 5 --out runs/experiments --records docs/results/records
 	$(VENV)/bin/fleetrl experiment fig5 --fleet-seed 1 --headline-only --out runs/experiments \
 		--records docs/results/records --publish docs/results.md
+	$(PY) -m fleetrl.experiments.headline --records docs/results/records --readme README.md
 
-# docs/results.md again from the committed records alone (runs nothing; arms not run yet are named as such)
+# docs/results.md and README's results table again from the committed records alone (runs nothing; arms not
+# run yet are named as such)
 report: install
 	$(VENV)/bin/fleetrl experiment all --from-records --other-seeds 5 --out runs/report --records docs/results/records
 	$(VENV)/bin/fleetrl experiment uneven --from-records --fleet-seed 1 --out runs/report \
+		--records docs/results/records
+	$(VENV)/bin/fleetrl experiment argmax --from-records --first-seed 200 --fleet-seed 1 --out runs/report \
 		--records docs/results/records
 	$(VENV)/bin/fleetrl experiment fleet-scale --from-records --seeds 5 --out runs/report \
 		--records docs/results/records
@@ -85,6 +91,7 @@ report: install
 		--records docs/results/records
 	$(VENV)/bin/fleetrl experiment fig5 --from-records --fleet-seed 1 --headline-only --out runs/report \
 		--records docs/results/records --publish docs/results.md
+	$(PY) -m fleetrl.experiments.headline --records docs/results/records --readme README.md
 
 clean:
 	rm -rf $(VENV) .lock-venv build *.egg-info src/*.egg-info
