@@ -1,7 +1,7 @@
 """The uneven fleet (issue 23's QUBE target): 3 QUBE units with one at a quarter of the others' speed and
 every unit absent for a random 20 % of rounds, under the default scheme (``pergrad``, its quorum 0.6) and the
 asynchronous one (``fedasync``), beside the even fleet and each unit alone. The figure that matters is the
-time on the rigs (``fleetrl.runs.rig_time``: each scheme's own waiting rule) until every unit completes."""
+time on the rigs (``fleetrl.runs.rig_time``: one accounting for every arm) until every unit completes."""
 
 from fleetrl.experiments.arms import Arm
 from fleetrl.experiments.budget import Budget, arm
@@ -15,11 +15,13 @@ DEFAULT_QUORUM = 0.6
 """``pergrad``'s own quorum (the other experiments' arms pin 1, the rule their records were made with)"""
 
 NOTES = (
-    "Unit 2 computes 4× slower (`--slow w2=4`: it waits 3× the time each piece of its own work took); every "
-    "unit is absent for a random 20 % of rounds (`--absent 0.2`). Time on the rigs counts the episodes only "
-    "(6 ms a step), under each scheme's waiting rule: a per-step scheme's round lasts as long as the longest "
-    "episode it waited for; under the asynchronous scheme each unit plays back to back, as alone. fedasync "
-    "is not reproducible bit for bit: the order in which models arrive decides the fleet model."
+    "Unit 2 computes 4× slower (`--slow w2=4`: it waits 3× the time each piece of its own work took); "
+    "every unit is absent for a random 20 % of rounds (`--absent 0.2`). Time on the rigs is one accounting "
+    "for every arm: play (6 ms a step), each unit's swing-up before each episode, absences (replayed from "
+    "the seed), and under `pergrad` the waits for each round's last contributor and the grace given to a "
+    "unit that missed a round; under `fedasync` and alone nobody waits. Computing is left out, so the slow "
+    "unit costs what it made the fleet do (rounds it missed, graces), not its own slowness. fedasync is not "
+    "reproducible bit for bit: the order in which models arrive decides the fleet model."
 )
 
 
