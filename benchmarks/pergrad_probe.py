@@ -10,8 +10,8 @@ Use tuning seeds (0-9) only; docs/tuning.md keeps what was tried. ``--lr-scale``
 ``--set KEY=VALUE`` (repeatable) replaces a field of the preset first, as ``fleetrl train --set`` does.
 ``--focus F`` weighs each unit's step gradient by 1 − F·min(1, WMA/target) (normalised to sum 1) instead of
 the plain mean (F = 0): the units furthest from their criterion steer the one policy most. Each run also
-reports the fleet's time on real-time rigs (the synchronous rule of ``fleetrl.runs.rig_time``; null for a
-unit type whose control period is not known).
+reports the fleet's time on real-time rigs (``fleetrl.runs.rig_time`` under a round barrier, resets included;
+null for a unit type whose control period is not known).
 """
 
 from __future__ import annotations
@@ -32,7 +32,7 @@ from fleetrl.agent.learner import Learner
 from fleetrl.envs.catalog import get_env_spec
 from fleetrl.portable import describe_host
 from fleetrl.runs.factory import agent_for
-from fleetrl.runs.rig_time import rig_time
+from fleetrl.runs.rig_time import NO_BARRIER, Waits, rig_time, run_units
 from fleetrl.runs.spec import derive_seed
 
 
@@ -118,9 +118,11 @@ def run(
     rounds = [m if d is None else d for d in done_at]
     rig_minutes = None  # a unit type whose control period is not known has no time on the rigs
     if spec.control_period is not None:
-        rule = "alone" if arm == "alone" else "synchronous"
+        waits = NO_BARRIER if arm == "alone" else Waits(barrier=True)
         played = {str(i): steps[i] for i in range(units)}
-        rig = rig_time(played, {str(i): d for i, d in enumerate(done_at)}, spec.control_period, rule)
+        settings = {"env": env_name, "fleet_seed": fleet_seed}
+        plays = run_units(played, {str(i): d for i, d in enumerate(done_at)}, settings)
+        rig = rig_time(plays, spec.control_period, waits)
         rig_minutes = round(rig.fleet / 60, 2)
     return {
         "rig_fleet_min": rig_minutes,

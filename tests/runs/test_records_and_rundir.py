@@ -65,10 +65,14 @@ def test_recorder_writes_metrics_summary_and_plot(tmp_path) -> None:
     # each unit alone on CartPole rigs (20 ms a step): unit 0 played 10 + 500 steps, unit 1 20 + 30
     rig = {
         "period": 0.02,
-        "rule": "alone",
+        "rule": "nobody waits",
         "fleet": 10.2,
         "per_unit": {"0": 10.2, "1": 1.0},
         "complete": False,
+        "parts": {
+            "0": {"played": 10.2, "reset": 0.0, "absent": 0.0, "waited": 0.0},
+            "1": {"played": 1.0, "reset": 0.0, "absent": 0.0, "waited": 0.0},
+        },
     }
     assert on_disk["rig_seconds"] == rig
     assert json.loads((out / "config.json").read_text())["env"] == "cartpole"

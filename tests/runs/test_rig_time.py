@@ -1,4 +1,4 @@
-"""Time on the rigs, on hand-computed runs."""
+"""Time on the rigs, on hand-made timelines (one accounting: play, resets, absences, waits for the fleet)."""
 
 from __future__ import annotations
 
@@ -8,65 +8,93 @@ from fleetrl.devices.cartpole import CartPoleParams
 from fleetrl.devices.qube.params import QubeConfig
 from fleetrl.envs.catalog import get_env_spec
 from fleetrl.experiments.records import RunRecord
-from fleetrl.runs.rig_time import rig_time, waiting_rule
+from fleetrl.runs.rig_time import NO_BARRIER, UnitPlay, Waits, reset_seconds, rig_time, run_units, waits_of
+from fleetrl.runs.uneven import absences
 
-# unit "0" completes in round 2, unit "1" in round 3, unit "2" never (it played 3 rounds)
-STEPS = {"0": [10, 40, 5], "1": [30, 20, 50], "2": [20, 20, 20]}
-COMPLETED = {"0": 2, "1": 3, "2": None}
-
-
-def test_a_synchronous_round_lasts_as_long_as_its_longest_episode() -> None:
-    t = rig_time(STEPS, COMPLETED, 0.5, "synchronous")
-    # rounds last max(10, 30, 20) = 30, max(40, 20, 20) = 40, max(5, 50, 20) = 50 steps of 0.5 s
-    assert t.per_unit == {"0": 35.0, "1": 60.0, "2": 60.0}
-    assert t.fleet == 60.0 and not t.complete
+EVERYONE = Waits(barrier=True)
+"""a round barrier that waits for every unit (quorum 1)"""
 
 
-def test_units_alone_play_back_to_back_and_the_fleet_waits_for_the_slowest() -> None:
-    t = rig_time(STEPS, COMPLETED, 0.5, "alone")
-    assert t.per_unit == {"0": 25.0, "1": 50.0, "2": 30.0}
-    assert t.fleet == 50.0
+def test_a_unit_alone_plays_and_resets_back_to_back() -> None:
+    t = rig_time({"a": UnitPlay([10, 20, 30], completed_at=2, reset=1.0)}, 0.5, NO_BARRIER)
+    # rounds 1 and 2: (10 + 20) steps of 0.5 s and two resets of 1 s; round 3 is after its criterion held
+    assert t.fleet == t.per_unit["a"] == 17.0 and t.complete
+    assert (t.clocks["a"].played, t.clocks["a"].reset, t.clocks["a"].waited) == (15.0, 2.0, 0.0)
 
 
-def test_a_unit_that_left_the_fleet_no_longer_makes_rounds_longer() -> None:
-    # unit "a" transferred and left after round 1: rounds 2 and 3 wait for "b" alone
-    t = rig_time({"a": [100], "b": [10, 20, 30]}, {"a": 1, "b": 3}, 1.0, "synchronous")
-    assert t.per_unit == {"a": 100.0, "b": 150.0} and t.fleet == 150.0 and t.complete
+def test_a_barrier_fleet_waits_for_its_straggler_whose_episode_overlaps_the_rounds_it_missed() -> None:
+    """Unit s contributes to rounds 1 and 4 only: its second episode starts when round 1 closes (30) and
+    ends at 80, after a's rounds 2 and 3 (40, 50); round 4 closes when s is ready."""
+    units = {"a": UnitPlay([10, 10, 10, 10], 4), "s": UnitPlay({1: 30, 4: 50}, 4)}
+    t = rig_time(units, 1.0, EVERYONE)
+    assert t.fleet == 80 and t.per_unit == {"a": 80, "s": 80}
+    assert (t.clocks["a"].played, t.clocks["a"].waited) == (40, 40)  # 20 in round 1, 20 in round 4
+    assert (t.clocks["s"].played, t.clocks["s"].waited) == (80, 0)
 
 
-def test_inconsistent_input_is_refused() -> None:
+def test_a_quorum_round_without_a_unit_closes_at_its_deadline_and_the_absent_unit_s_clock_runs() -> None:
+    """pergrad, quorum 0.6 of 3 (2 units): c is absent before its second round for 1 round's worth of its
+    own time (12 s), so round 2 closes without it at the deadline: a and b ready at 30, the round opened at
+    20, a grace of 0.25 × 10 s. Round 3 waits only for a and b (c was behind); c, ready at 42, is in it."""
+    units = {
+        "a": UnitPlay([10, 10, 10], 3),
+        "b": UnitPlay([20, 10, 10], 3),
+        "c": UnitPlay({1: 12, 3: 10}, 3, absent=[1]),
+    }
+    quorum = Waits(barrier=True, quorum=0.6, grace=True)
+    t = rig_time(units, 1.0, quorum)
+    assert t.fleet == 42.5 and t.per_unit == {"a": 42.5, "b": 42.5, "c": 42.5}
+    c = t.clocks["c"]
+    assert (c.played, c.absent, c.waited) == (22, 12, 8.5)
+    assert t.clocks["a"].waited == 12.5  # 10 in round 1, the grace of 2.5
+    assert rig_time(units, 0.01, quorum).clocks["a"].waited == pytest.approx(0.1 + 0.25)  # the grace's floor
+    everyone = rig_time(units, 1.0, Waits(barrier=True, quorum=1.0, grace=True))  # no quorum, no deadline
+    assert everyone.fleet == 42 and everyone.clocks["a"].waited == 12  # 10 in round 1, 2 in round 3, for c
+
+
+def test_an_absent_unit_is_charged_its_absence_without_a_barrier() -> None:
+    """fedasync: nobody waits, but the unit's clock runs while it is absent: before its third round, 2 rounds'
+    worth of its second round (20 steps and a reset)."""
+    t = rig_time({"a": UnitPlay([10, 20, 30], 3, reset=1.0, absent=[0, 2])}, 1.0, NO_BARRIER)
+    assert t.per_unit == {"a": 60 + 3 + 42} and t.clocks["a"].absent == 42
+
+
+def test_a_round_of_several_episodes_resets_before_each() -> None:
+    t = rig_time({"a": UnitPlay({1: 100}, 1, reset=2.0, episodes={1: 3})}, 0.02, NO_BARRIER)
+    assert t.per_unit["a"] == pytest.approx(2.0 + 6.0)
+
+
+def test_a_unit_that_never_completed_counts_what_it_played_and_the_fleet_waits_on() -> None:
+    units = {"a": UnitPlay([10, 40, 5], 2), "b": UnitPlay([30, 20, 50], 3), "n": UnitPlay([20, 20, 20], None)}
+    t = rig_time(units, 0.5, EVERYONE)
+    # rounds last 30, 40, 50 steps of 0.5 s: a stops when round 2 closes, b and n when round 3 does
+    assert t.per_unit == {"a": 35.0, "b": 60.0, "n": 60.0} and t.fleet == 60.0 and not t.complete
+    alone = rig_time(units, 0.5, NO_BARRIER)
+    assert alone.per_unit == {"a": 25.0, "b": 50.0, "n": 30.0} and alone.fleet == 50.0
     with pytest.raises(ValueError, match="completed at round 4 but played up to round 3"):
-        rig_time({"0": [1, 2, 3]}, {"0": 4}, 1.0, "alone")
+        rig_time({"a": UnitPlay([1, 2, 3], 4)}, 1.0, NO_BARRIER)
     with pytest.raises(ValueError, match="must be > 0"):
-        rig_time(STEPS, COMPLETED, 0.0, "alone")
-    with pytest.raises(ValueError, match="units with steps"):
-        rig_time(STEPS, {"0": 1}, 1.0, "alone")
+        rig_time(units, 0.0, NO_BARRIER)
 
 
-def test_the_waiting_rule_follows_the_mode() -> None:
-    assert waiting_rule("individual") == "alone" and waiting_rule("federated") == "synchronous"
+def test_who_waits_follows_the_mode_the_scheme_and_the_quorum() -> None:
+    assert waits_of("individual", "pergrad") == waits_of("federated", "fedasync") == NO_BARRIER
+    assert waits_of("federated", "pergrad", 0.6) == Waits(barrier=True, quorum=0.6, grace=True)
+    assert waits_of("federated", "fedavg") == waits_of("federated") == EVERYONE
+    assert waits_of("federated", "pergrad", 0.6).rule == "round barrier, quorum 0.6"
+    assert NO_BARRIER.rule == "nobody waits"
 
 
-def test_under_an_asynchronous_scheme_no_unit_waits_for_another() -> None:
-    assert waiting_rule("federated", "fedasync") == "asynchronous"
-    assert waiting_rule("federated", "pergrad") == waiting_rule("federated", "fedavg") == "synchronous"
-    assert waiting_rule("individual", "fedasync") == "alone"
-    # each unit's own rounds back to back: 0 until its round 2 (10 + 40), 1 until its round 3, 2 all three
-    t = rig_time(STEPS, COMPLETED, 0.5, "asynchronous")
-    assert t.per_unit == {"0": 25.0, "1": 50.0, "2": 30.0} and t.fleet == 50.0 and not t.complete
-
-
-def test_an_asynchronous_record_is_timed_back_to_back() -> None:
-    workers = {"0": {"completed_at_round": 1, "score": [10.0], "steps": [10]},
-               "1": {"completed_at_round": 2, "score": [30.0, 5.0], "steps": [30, 5]}}  # fmt: skip
-    record = RunRecord(
-        {"result_settings": {"env": "cartpole", "mode": "federated", "scheme": "fedasync"},
-         "max_rounds": 2, "workers": workers}
-    )  # fmt: skip
-    time = record.rig_time()
-    assert time is not None
-    period = CartPoleParams().tau
-    assert time.per_unit == pytest.approx({"0": 10 * period, "1": 35 * period})  # synchronous: 1 waits 30
+def test_the_absences_are_replayed_and_the_resets_measured_per_unit() -> None:
+    settings = {"env": "qube", "fleet_seed": 1, "fleet_profile": "table2", "seed": 100, "absent": 0.2}
+    plays = run_units({"0": [5] * 40, "2": [5] * 40}, {"0": None, "2": None}, settings)
+    for worker in (0, 2):
+        drawn = absences(0.2, 3.0, 100, worker)
+        assert list(plays[str(worker)].absent) == [next(drawn) for _ in range(39)]
+    assert any(plays["0"].absent) and plays["0"].absent != plays["2"].absent
+    assert 1.0 < plays["0"].reset < 10.0 and plays["0"].reset == reset_seconds("qube", 0, 1, "table2")
+    assert run_units({"0": [5]}, {"0": 1}, {"env": "cartpole"})["0"] == UnitPlay([5], 1)
+    assert run_units({"0": [5]}, {"0": 1}, settings, resets=False)["0"].reset == 0
 
 
 def test_the_built_in_control_periods_are_the_devices_own() -> None:
@@ -75,8 +103,13 @@ def test_the_built_in_control_periods_are_the_devices_own() -> None:
     assert get_env_spec("cartpole").control_period == CartPoleParams().tau
 
 
-def _record(mode: str, workers: dict[str, dict[str, object]], env: str = "cartpole") -> RunRecord:
-    return RunRecord({"result_settings": {"env": env, "mode": mode}, "max_rounds": 3, "workers": workers})
+def _record(mode: str, workers: dict[str, dict[str, object]], scheme: str = "pergrad") -> RunRecord:
+    settings = {"env": "cartpole", "mode": mode, "scheme": scheme}
+    return RunRecord({"result_settings": settings, "max_rounds": 3, "workers": workers})
+
+
+STEPS = {"0": [10, 40, 5], "1": [30, 20, 50], "2": [20, 20, 20]}
+COMPLETED = {"0": 2, "1": 3, "2": None}
 
 
 def test_a_record_gives_its_time_on_the_rigs_from_its_steps_or_else_its_scores() -> None:
@@ -86,21 +119,10 @@ def test_a_record_gives_its_time_on_the_rigs_from_its_steps_or_else_its_scores()
     from_scores = {k: {"score": s, "completed_at_round": COMPLETED[k]} for k, s in STEPS.items()}
     for workers in (with_steps, from_scores):
         t = _record("federated", workers).rig_time()
-        assert t is not None and t.per_unit == pytest.approx(
-            {"0": 1.4, "1": 2.4, "2": 2.4}
-        )  # 70 and 120 steps of 20 ms
+        assert t is not None and t.per_unit == pytest.approx({"0": 1.4, "1": 2.4, "2": 2.4})  # 20 ms steps
     alone = _record("individual", with_steps).rig_time()
     assert alone is not None and alone.fleet == pytest.approx(2.0)  # unit 1: 100 steps
+    fedasync = _record("federated", with_steps, "fedasync").rig_time()
+    assert fedasync is not None and fedasync.per_unit == pytest.approx(alone.per_unit)
     several = {"0": {"score": [5.0], "episodes": [3], "completed_at_round": 1}}
     assert _record("individual", several).rig_time() is None  # rounds of several episodes, no steps kept
-
-
-def test_a_straggler_s_rounds_count_where_it_played_them() -> None:
-    """Under a quorum a slow unit plays rounds 1 and 4 only: the fleet's rounds last as long as their members'
-    episodes, and the straggler has spent the fleet's time until the round it completed in."""
-    t = rig_time({"a": [10, 10, 10, 10], "s": {1: 30, 4: 50}}, {"a": 4, "s": 4}, 1.0, "synchronous")
-    assert (t.fleet, t.per_unit) == (30 + 10 + 10 + 50, {"a": 100, "s": 100})
-    alone = rig_time({"s": {1: 30, 4: 50}}, {"s": 4}, 1.0, "alone")
-    assert alone.per_unit == {"s": 80}
-    with pytest.raises(ValueError, match="completed at round 5 but played up to round 4"):
-        rig_time({"s": {1: 30, 4: 50}}, {"s": 5}, 1.0, "alone")

@@ -202,11 +202,18 @@ def _per_unit(records: list[RunRecord]) -> list[int]:
 
 
 RIG_TIME_NOTE = (
-    "Time on the rigs: what the episodes would take on real-time units (QUBE 6 ms a step, CartPole 20 ms),"
-    " under each arm's waiting rule — a federated round lasts as long as its longest episode, each unit alone"
-    " plays back to back — until the last unit completes and until each unit does; resets and updates are"
-    " left out (`fleetrl.runs.rig_time`). Records made before runs kept their steps read each round's steps"
-    " from its score (reward 1 per step, at most one step short per episode)."
+    "Time on the rigs: what the run would take on real-time units, one accounting for every arm"
+    " (`fleetrl.runs.rig_time`). A unit's clock runs while it plays (QUBE 6 ms a step, CartPole 20 ms), while"
+    " it is reset before each episode (a QUBE unit's swing-up: the mean of 10 seeded resets of its simulated"
+    " device, 1.3–3.6 s a unit on fleet seeds 0 and 1; one that does not settle is put upright by hand,"
+    " charged 30 s more; CartPole 0), while it is absent (its draws replayed from the seed, each k rounds'"
+    " worth of its own last round) and while it waits for the fleet: under a round barrier a round closes"
+    " when the last unit that contributed to it is ready (with `pergrad`'s quorum, at the deadline — the"
+    " quorum plus its grace — when a unit it waited for missed it); a straggler's episode overlaps the rounds"
+    " it missed. Each unit alone and `fedasync` wait for nobody. Computing is left out (a slow unit computes"
+    " slower, its device's period unchanged: what it costs is the rounds it missed and the grace given to"
+    " it). The fleet's clock runs until its last unit completes. Records made before runs kept their steps"
+    " read each round's steps from its score (reward 1 per step, at most one step short per episode)."
 )
 
 

@@ -29,7 +29,7 @@ from typing import Any
 
 from fleetrl.experiments.stats import Completion
 from fleetrl.runs.records import MetricsRow
-from fleetrl.runs.rig_time import RigTime, rig_time, waiting_rule
+from fleetrl.runs.rig_time import RigTime, rig_time, run_units, waits_of
 from fleetrl.runs.rundir import PLAIN_EVENTS, model_path
 
 FORMAT = 1
@@ -79,10 +79,11 @@ class RunRecord:
         return result
 
     def rig_time(self) -> RigTime | None:
-        """The time the run would take on real-time rigs under its mode's and scheme's waiting rule
-        (:mod:`fleetrl.runs.rig_time`); None for a unit type without a known control period, or a record
-        whose rounds held several episodes and kept no steps. Records made before the steps were kept read
-        each round's steps from its score (reward 1 per step: at most one step short per episode)."""
+        """The time the run would take on real-time rigs (:mod:`fleetrl.runs.rig_time`: play, resets,
+        absences replayed from the seed, waits for the fleet as its scheme waits); None for a unit type
+        without a known control period, or a record whose rounds held several episodes and kept no steps.
+        Records made before the steps were kept read each round's steps from its score (reward 1 per step:
+        at most one step short per episode)."""
         from fleetrl.envs.catalog import get_env_spec
 
         settings = self.result_settings
@@ -94,11 +95,16 @@ class RunRecord:
         if period is None or any("steps" not in w and "episodes" in w for w in workers.values()):
             return None
         steps: dict[str, Any] = {k: played_steps(w) for k, w in workers.items()}
+        episodes: dict[str, Any] = {k: w.get("episodes") or [1] * len(steps[k]) for k, w in workers.items()}
         for k, w in workers.items():  # a unit that missed rounds (a straggler, an absence) keeps numbers
             if "rounds" in w:
                 steps[k] = dict(zip(w["rounds"], steps[k], strict=True))
+                episodes[k] = dict(zip(w["rounds"], episodes[k], strict=True))
         completed = {k: w["completed_at_round"] for k, w in workers.items()}
-        return rig_time(steps, completed, period, waiting_rule(settings.get("mode"), settings.get("scheme")))
+        units = run_units(steps, completed, settings, episodes=episodes)
+        return rig_time(
+            units, period, waits_of(settings.get("mode"), settings.get("scheme"), settings.get("quorum"))
+        )
 
     def scores(self) -> dict[int, list[float]]:
         """Each worker's score per round (round 1 first)."""

@@ -4,7 +4,8 @@ A unit's rounds split at its first long episode (at least :data:`LONG_SHARE` of 
 it the unit is learning (short episodes: little time on a rig however many rounds); from it on, until its
 criterion holds, it mostly plays long episodes, and the completion criterion (for QUBE the WMA of the last
 10 scores at 98 % of the cap) waits for ten near-perfect ones in a row. Counted on each unit's own
-episodes, back to back (its own rig, not the fleet's waiting rule), so arms compare on what a unit plays.
+episodes and their resets (its swing-up, :func:`fleetrl.runs.rig_time.reset_seconds`), back to back (its own
+rig: no absences, no waits for the fleet), so arms compare on what a unit plays.
 """
 
 from __future__ import annotations
@@ -29,31 +30,43 @@ class UnitPhases:
     minutes_after: float
 
 
-def unit_phases(steps: Sequence[int], completed_at: int | None, cap: int, period: float) -> UnitPhases | None:
-    """Split one unit's rounds (each round's steps, in order) at its first long episode; up to the round its
-    criterion held (all of them if it never did). None if no episode was long."""
+def unit_phases(
+    steps: Sequence[int], completed_at: int | None, cap: int, period: float, reset: float = 0.0
+) -> UnitPhases | None:
+    """Split one unit's rounds (each round's steps, in order; each after a reset of ``reset`` seconds) at its
+    first long episode; up to the round its criterion held (all of them if it never did). None if no
+    episode was long."""
     played = list(steps if completed_at is None else steps[:completed_at])
     first = next((i for i, n in enumerate(played) if n >= LONG_SHARE * cap), None)
     if first is None:
         return None
     before, after = played[:first], played[first:]
-    return UnitPhases(len(before), len(after), sum(before) * period / 60, sum(after) * period / 60)
+    return UnitPhases(
+        len(before),
+        len(after),
+        (sum(before) * period + len(before) * reset) / 60,
+        (sum(after) * period + len(after) * reset) / 60,
+    )
 
 
 def run_phases(record: RunRecord) -> list[UnitPhases]:
     """Every unit's phases in one run (units without a long episode left out; none for a unit type without
     a control period or an episode cap)."""
     from fleetrl.envs.catalog import describe_env, get_env_spec
+    from fleetrl.runs.rig_time import reset_seconds
 
-    env = str(record.result_settings["env"])
+    settings = record.result_settings
+    env = str(settings["env"])
     period = get_env_spec(env).control_period
     cap = describe_env(env).episode_cap
     if period is None or cap is None:
         return []
     phases = []
-    for worker in record.data["workers"].values():
+    fleet_seed, profile = int(settings.get("fleet_seed") or 0), settings.get("fleet_profile")
+    for key, worker in record.data["workers"].items():
         steps = played_steps(worker)
-        split = unit_phases(steps, worker.get("completed_at_round"), cap, period)
+        reset = reset_seconds(env, int(key), fleet_seed, profile)
+        split = unit_phases(steps, worker.get("completed_at_round"), cap, period, reset)
         if split is not None:
             phases.append(split)
     return phases
@@ -91,8 +104,8 @@ def phases_lines(arms: Sequence[tuple[str, Sequence[RunRecord]]]) -> list[str]:
     if not table:
         return []
     note = (
-        "Where each unit's own time on the rig goes (its episodes back to back, up to the round "
-        f"its criterion held): before its first long episode (≥ {LONG_SHARE:.0%} of the cap) it "
+        "Where each unit's own time on the rig goes (its episodes and their resets back to back, up to "
+        f"the round its criterion held): before its first long episode (≥ {LONG_SHARE:.0%} of the cap) it "
         "learns to hold the task in short episodes; from it on it plays long ones until the "
         "criterion (the WMA of its last 10 scores) holds. Medians over every unit of the arm's "
         "runs (`fleetrl.experiments.rig_phases`)."

@@ -14,9 +14,13 @@ DEFAULT_QUORUM = 0.6
 """``pergrad``'s own quorum (the other experiments' arms pin 1, the rule their records were made with)"""
 
 NOTES = (
-    "Unit 2 computes 4× slower (`--slow w2=4`: it waits 3× the time each piece of its own work took); every "
-    "unit is absent for a random 20 % of rounds (`--absent 0.2`). fedasync is not reproducible bit for bit: "
-    "the order in which models arrive decides the fleet model."
+    "Unit 2 computes 4× slower (`--slow w2=4`: it waits 3× the time each piece of its own work took); "
+    "every unit is absent for a random 20 % of rounds (`--absent 0.2`). Time on the rigs is one accounting "
+    "for every arm: play (6 ms a step), each unit's swing-up before each episode, absences (replayed from "
+    "the seed), and under `pergrad` the waits for each round's last contributor and the grace given to a "
+    "unit that missed a round; under `fedasync` and alone nobody waits. Computing is left out, so the slow "
+    "unit costs what it made the fleet do (rounds it missed, graces), not its own slowness. fedasync is not "
+    "reproducible bit for bit: the order in which models arrive decides the fleet model."
 )
 UNEVEN_SEEDS = (
     "held-out seed 100 of fleet seed 1 showed a fleet acting cooler near its target collapse, and that "

@@ -1,33 +1,108 @@
-"""Time on the rigs: what a fleet would spend on real-time hardware until its units complete.
+"""Time on the rigs: what a fleet would spend on real-time hardware until its units complete, one accounting
+for every scheme and every uneven condition (issue 41, item 3).
 
-A simulated run costs rounds; a fleet of real units costs time, each step one control period of its unit
-(QUBE-Servo 2: 6 ms; CartPole: 20 ms). How rounds become time depends on who waits for whom:
+A simulated run costs rounds; a fleet of real units costs time. A unit's clock runs while it
 
-* **synchronous** (a federation scheme with a round barrier): a round closes when its last member has played
-  its episode, so round r lasts as long as the longest episode played in it, ``max_w steps[w][r] × period``;
-  a unit has spent the rounds up to the one in which its criterion held (under a quorum a straggler's
-  episodes count in the round it contributed to, and a round the fleet closed without it lasts as long as
-  its members' episodes);
-* **alone** (each unit trains by itself): a unit plays its episodes back to back, ``Σ_r steps[u][r] ×
-  period``; the fleet is done when its slowest unit is;
-* **asynchronous** (a scheme without a round barrier, ``fedasync``): no unit waits for another, so each plays
-  back to back as alone (its rounds are its own count), the fleet done when its slowest unit is.
+* **plays**: each step one control period of its unit type (QUBE-Servo 2: 6 ms; CartPole: 20 ms);
+* **is reset**: before each episode, its reset time (:func:`reset_seconds`): the QUBE's device-side swing-up,
+  a CartPole's nothing;
+* **is absent** (``--absent``): the simulation pauses the unit ``k`` times its own last round's time before a
+  round; on a rig that is ``k`` times its last round's play and resets (the draws are replayed from the
+  learning seed and worker id, :func:`fleetrl.runs.uneven.absences`);
+* **waits for the fleet**, under a scheme with a round barrier (every federated scheme but an asynchronous
+  one): a unit contributes to a round what it played since the last round it contributed to closed, and
+  starts its next episode when that round closes. A round closes when the last unit that contributed to it
+  is ready. Under a per-step scheme (``pergrad``) with a quorum < 1 a round's first exchange waits for the
+  units that took part in the round before (not for one that missed it); if one of those is not among the
+  round's contributors, the round closed at its deadline: when ⌈quorum·n⌉ of them were ready, plus a grace
+  of a quarter of the time that took (at least :data:`~fleetrl.federation.stragglers.GRACE_FLOOR` s), as
+  :class:`~fleetrl.federation.stragglers.StepWaits` does. Who contributed to which round is the run's own
+  (a record's ``rounds``); a straggler's episode overlaps the rounds it missed.
 
-Only the episodes count: the device-side reset between episodes (the QUBE's swing-up) and the learner's
-updates are left out, the same for every rule. A unit that never completed counts all the rounds it played
-(a lower bound, flagged by :attr:`RigTime.complete`).
+Computing is left out (acting, updates, messages): on a rig the agent acts within the device's period and
+an update is the same work on any schedule. A slow unit (``--slow``) computes slower, its device's period is
+unchanged, so by itself it costs a rig nothing; what its slowness cost the fleet is in the run: the rounds it
+missed (then it waits for the round it joins) and the grace the fleet gave it. (Under a barrier that waits
+for everyone, quorum 1, a slow unit's updates would hold the fleet for their computing time: not counted, no
+arm of an uneven fleet runs so.) Without a barrier (``fedasync``; each unit alone) a unit never waits.
+
+A unit's clock stops when its criterion held (under a barrier: when the round it held in closed), the fleet's
+when its last unit completed. A unit that never completed counts all it played (a lower bound, flagged by
+:attr:`RigTime.complete`).
 """
 
 from __future__ import annotations
 
+import contextlib
+import functools
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
-from typing import Literal
+from dataclasses import dataclass, field
+from typing import Any
 
-from fleetrl.federation.schemes import Granularity, scheme_class
+from fleetrl.federation.stragglers import GRACE_FLOOR, GRACE_SHARE, quorum_count
 
-WaitingRule = Literal["synchronous", "alone", "asynchronous"]
-"""how a fleet's units wait for each other (see the module docstring)"""
+HAND_RESET_SECONDS = 30.0
+"""a reset whose swing-up does not settle is ended by a person (the pendulum put upright by hand), charged
+this much of the unit's clock on top of the device's own time (its 20 s of failed swing-up and the settle)"""
+RESET_SAMPLES = 10
+"""seeded resets (seeds 0 … 9) whose mean is a QUBE unit's reset time"""
+
+
+@dataclass(frozen=True)
+class Waits:
+    """Who waits for whom: a round barrier (federated, not asynchronous) or none; under a per-step scheme,
+    the quorum after which a unit that took part in the round before gets a grace, then is left behind."""
+
+    barrier: bool
+    """a round closes when its contributors are ready; they start their next episode then"""
+    quorum: float = 1.0
+    """``pergrad``'s quorum (1: every unit that took part in the round before is waited for)"""
+    grace: bool = False
+    """a per-step scheme's deadline: the quorum's time plus a grace (a per-round scheme waits for all)"""
+    grace_floor: float = GRACE_FLOOR
+    """the shortest grace, seconds of wall (= rig) time"""
+
+    @property
+    def rule(self) -> str:
+        """How the waiting reads in a summary: ``nobody waits``, ``round barrier`` (with its quorum)."""
+        if not self.barrier:
+            return "nobody waits"
+        return f"round barrier, quorum {self.quorum:g}" if self.grace and self.quorum < 1 else "round barrier"
+
+
+NO_BARRIER = Waits(barrier=False)
+"""each unit alone, or an asynchronous scheme: nobody waits"""
+
+
+@dataclass(frozen=True)
+class UnitPlay:
+    """What one unit played: its rounds' steps, when its criterion held, its resets and absences."""
+
+    steps: Mapping[int, int] | Sequence[int]
+    """round → steps played for it (the round it contributed to; a sequence: rounds 1, 2, …)"""
+    completed_at: int | None
+    """the round in which its criterion held (None: never)"""
+    reset: float = 0.0
+    """seconds of reset before each episode"""
+    episodes: Mapping[int, int] | Sequence[int] | None = None
+    """round → episodes in it (as ``steps``; None: one each)"""
+    absent: Sequence[int] = ()
+    """before its own 2nd, 3rd, … round: how many rounds' worth it is absent (0: present; missing: 0)"""
+
+
+@dataclass(frozen=True)
+class UnitClock:
+    """One unit's clock until it completed (or played its last round), in parts."""
+
+    played: float = 0.0
+    reset: float = 0.0
+    absent: float = 0.0
+    waited: float = 0.0
+
+    @property
+    def total(self) -> float:
+        """Seconds on its rig."""
+        return self.played + self.reset + self.absent + self.waited
 
 
 @dataclass(frozen=True)
@@ -40,6 +115,8 @@ class RigTime:
     """unit → until its own criterion held (or it played its last round)"""
     complete: bool
     """every unit completed (False: the figures are lower bounds)"""
+    clocks: dict[str, UnitClock] = field(default_factory=dict)
+    """unit → where its time went"""
 
     def to_dict(self) -> dict[str, object]:
         """A JSON-ready account, rounded to milliseconds."""
@@ -47,70 +124,195 @@ class RigTime:
             "fleet": round(self.fleet, 3),
             "per_unit": {unit: round(s, 3) for unit, s in self.per_unit.items()},
             "complete": self.complete,
+            "parts": {
+                unit: {k: round(getattr(c, k), 3) for k in ("played", "reset", "absent", "waited")}
+                for unit, c in self.clocks.items()
+            },
         }
 
 
 def _by_round(played: Mapping[int, int] | Sequence[int]) -> dict[int, int]:
-    """Round → steps (a sequence: rounds 1, 2, … in order)."""
+    """Round → count (a sequence: rounds 1, 2, … in order)."""
     return dict(played) if isinstance(played, Mapping) else {i + 1: s for i, s in enumerate(played)}
 
 
-def rig_time(
-    steps: Mapping[str, Mapping[int, int] | Sequence[int]],
-    completed_at: Mapping[str, int | None],
-    period: float,
-    rule: WaitingRule,
-) -> RigTime:
-    """The time on the rigs of one run.
+@dataclass
+class _Unit:
+    """A unit's rounds as its clock runs through them."""
 
-    :param steps: unit → the steps of each round it played: round → steps, or a sequence for rounds 1, 2, …
-        (a unit that left the fleet, or a straggler, has fewer rounds than the others).
-    :param completed_at: unit → the round in which its criterion held, None if it never did.
+    rounds: list[tuple[int, float, float]]
+    """(round, play seconds, reset seconds) in order"""
+    stop: int
+    """the round its clock stops at: the last it played up to the one its criterion held in (0: none)"""
+    absent: Sequence[int]
+    free: float = 0.0
+    """when it may start its next round (under a barrier: when the last round it contributed to closed)"""
+    clock: UnitClock = field(default_factory=UnitClock)
+    """its own time up to its stop (played, reset, absent)"""
+
+
+def _units(units: Mapping[str, UnitPlay], period: float) -> dict[str, _Unit]:
+    built = {}
+    for name, play in units.items():
+        steps = _by_round(play.steps)
+        episodes = _by_round(play.episodes) if play.episodes is not None else {}
+        played_up_to = max(steps, default=0)
+        last = played_up_to if play.completed_at is None else play.completed_at
+        if last > played_up_to:
+            raise ValueError(f"unit {name} completed at round {last} but played up to round {played_up_to}")
+        rounds = [(r, steps[r] * period, episodes.get(r, 1) * play.reset) for r in sorted(steps)]
+        built[name] = _Unit(rounds, max((r for r in steps if r <= last), default=0), play.absent)
+    return built
+
+
+def _play(unit: _Unit, index: int, start: float) -> float:
+    """Unit's own round ``index`` (0-based) from ``start``, absent first if due: when it is ready. Its own
+    time counts up to its stop."""
+    r, play, reset = unit.rounds[index]
+    away = 0.0
+    if index and index - 1 < len(unit.absent) and unit.absent[index - 1]:
+        _, last_play, last_reset = unit.rounds[index - 1]
+        away = unit.absent[index - 1] * (last_play + last_reset)
+    if r <= unit.stop:
+        c = unit.clock
+        unit.clock = UnitClock(c.played + play, c.reset + reset, c.absent + away)
+    return start + away + reset + play
+
+
+def rig_time(units: Mapping[str, UnitPlay], period: float, waits: Waits) -> RigTime:
+    """The time on the rigs of one run (see the module's docstring).
+
+    :param units: unit → what it played.
     :param period: seconds per step (the unit type's control period).
-    :param rule: who waits for whom.
+    :param waits: who waits for whom (:func:`waits_of`).
     """
     if period <= 0:
         raise ValueError(f"control period {period!r}: must be > 0")
+    built = _units(units, period)
+    stopped = _barrier(built, waits) if waits.barrier else _back_to_back(built)
+    clocks = {}
+    for name, unit in built.items():
+        c = unit.clock
+        clocks[name] = UnitClock(c.played, c.reset, c.absent, max(stopped[name] - c.total, 0.0))
+    complete = all(play.completed_at is not None for play in units.values())
+    return RigTime(max(stopped.values(), default=0.0), stopped, complete, clocks)
+
+
+def _back_to_back(built: dict[str, _Unit]) -> dict[str, float]:
+    """Each unit's time with nobody to wait for: its rounds back to back, up to its stop."""
+    stopped = {}
+    for name, unit in built.items():
+        t = 0.0
+        for i, (r, _, _) in enumerate(unit.rounds):
+            if r > unit.stop:
+                break
+            t = _play(unit, i, t)
+        stopped[name] = t
+    return stopped
+
+
+def _barrier(built: dict[str, _Unit], waits: Waits) -> dict[str, float]:
+    """Each unit's time under a round barrier: until the round it stops at closed."""
+    by_round: dict[int, list[tuple[str, int]]] = {}
+    for name, unit in built.items():
+        for i, (r, _, _) in enumerate(unit.rounds):
+            by_round.setdefault(r, []).append((name, i))
+    closed, before = 0.0, set(built)  # round 1 waits for every unit
+    stopped = {name: 0.0 for name in built}
+    for r in range(1, max((u.stop for u in built.values()), default=0) + 1):
+        members = by_round.get(r, [])
+        if not members:
+            continue
+        ready = {name: _play(built[name], i, built[name].free) for name, i in members}
+        close = max(closed, *ready.values())
+        present = before & set(ready)
+        if waits.grace and before - present and present:  # a unit waited for missed it: the deadline
+            need = quorum_count(waits.quorum, len(before))
+            answered = sorted(ready[u] for u in present)
+            if len(answered) >= need:
+                opened = closed if r > 1 else min(ready.values())
+                quorum_at = max(answered[need - 1], opened)
+                close = max(close, quorum_at + max(GRACE_SHARE * (quorum_at - opened), waits.grace_floor))
+        for name in ready:
+            built[name].free = close
+            if built[name].stop == r:
+                stopped[name] = close
+        closed, before = close, set(ready)
+    return stopped
+
+
+def waits_of(mode: str | None, scheme: str | None = None, quorum: float | None = None) -> Waits:
+    """Who waits for whom in a run of ``mode`` under ``scheme`` (its name) with ``quorum``: ``individual``
+    units and an asynchronous scheme's wait for nobody; a per-step scheme waits as
+    :class:`~fleetrl.federation.stragglers.StepWaits` does; any other federated fleet waits for each round's
+    last contributor."""
+    from fleetrl.federation.schemes import Granularity, scheme_class
+
+    if mode == "individual":
+        return NO_BARRIER
+    granularity = Granularity.ROUND
+    if scheme is not None:
+        with contextlib.suppress(ValueError):  # a user's scheme that no longer imports: a round barrier
+            granularity = scheme_class(scheme).granularity
+    if granularity is Granularity.ASYNC:
+        return NO_BARRIER
+    step = granularity is Granularity.STEP
+    return Waits(barrier=True, quorum=1.0 if quorum is None else float(quorum), grace=step)
+
+
+@functools.lru_cache(maxsize=4096)
+def reset_seconds(env: str, unit: int, fleet_seed: int, fleet_profile: str | None = None) -> float:
+    """A unit's reset time: a QUBE unit's device-side swing-up (``fleetrl.devices.qube``), the mean of its
+    simulated device's :data:`RESET_SAMPLES` seeded resets (a reset it could not settle: its device time,
+    which holds the failed 20 s swing-up, plus :data:`HAND_RESET_SECONDS`); any other unit type: 0 (a
+    CartPole's reset is the simulator's, no time on a rig is known)."""
+    from fleetrl.envs.catalog import get_env_spec
+
+    try:
+        spec = get_env_spec(env)
+    except ValueError:
+        return 0.0
+    if spec.device != "qube":
+        return 0.0
+    from fleetrl.devices.factory import make_device
+    from fleetrl.devices.qube.device import QubeDevice
+
+    device = make_device("qube", unit, fleet_seed, fleet_profile=spec.resolve_fleet_profile(fleet_profile))
+    assert isinstance(device, QubeDevice)
+    total = 0.0
+    for seed in range(RESET_SAMPLES):
+        device.reset(seed=seed)
+        total += device.last_reset_seconds + (HAND_RESET_SECONDS if device.last_reset_by_hand else 0.0)
+    return total / RESET_SAMPLES
+
+
+def run_units(
+    steps: Mapping[str, Mapping[int, int] | Sequence[int]],
+    completed_at: Mapping[str, int | None],
+    settings: Mapping[str, Any],
+    *,
+    episodes: Mapping[str, Mapping[int, int] | Sequence[int]] | None = None,
+    resets: bool = True,
+) -> dict[str, UnitPlay]:
+    """Each worker's :class:`UnitPlay` in a run of ``settings`` (a record's result settings, or a run's
+    config: ``env``, ``fleet_seed``, ``fleet_profile``, ``seed``, ``absent``, ``absent_rounds``): its absences
+    replayed from the learning seed and its id (worker K trains unit K), its resets measured
+    (``resets=False``: none, as a paced simulation, whose resets are not paced)."""
+    from fleetrl.runs.uneven import absences
+
     if set(steps) != set(completed_at):
         raise ValueError(f"units with steps {sorted(steps)} != units with completions {sorted(completed_at)}")
-    by_round = {unit: _by_round(played) for unit, played in steps.items()}
-    last: dict[str, int] = {}
-    for unit, played in by_round.items():
-        done = completed_at[unit]
-        last[unit] = max(played, default=0) if done is None else done
-        if last[unit] > max(played, default=0):
-            raise ValueError(
-                f"unit {unit} completed at round {last[unit]} but played up to round {max(played, default=0)}"
-            )
-    if rule in ("alone", "asynchronous"):
-        per_unit = {
-            u: sum(s for r, s in played.items() if r <= last[u]) * period for u, played in by_round.items()
-        }
-        fleet = max(per_unit.values(), default=0.0)
-    elif rule == "synchronous":
-        rounds = max(last.values(), default=0)
-        durations = [max((p.get(i + 1, 0) for p in by_round.values()), default=0) for i in range(rounds)]
-        elapsed = [0.0]
-        for duration in durations:
-            elapsed.append(elapsed[-1] + duration * period)
-        per_unit = {u: elapsed[last[u]] for u in steps}
-        fleet = elapsed[-1]
-    else:
-        raise ValueError(f"unknown waiting rule {rule!r} (choose synchronous, alone or asynchronous)")
-    complete = all(c is not None for c in completed_at.values())
-    return RigTime(fleet, per_unit, complete)
-
-
-def waiting_rule(mode: str | None, scheme: str | None = None) -> WaitingRule:
-    """The waiting rule of a run's mode and federation scheme (its name): ``individual`` units play alone, a
-    fleet under an asynchronous scheme waits for nobody, any other federated fleet waits for each round's
-    slowest member."""
-    if mode == "individual":
-        return "alone"
-    if scheme is not None:
-        try:
-            if scheme_class(scheme).granularity is Granularity.ASYNC:
-                return "asynchronous"
-        except ValueError:  # a user's scheme that no longer imports: its records were synchronous
-            pass
-    return "synchronous"
+    absent = float(settings.get("absent") or 0.0)
+    absent_rounds = float(settings.get("absent_rounds") or 3.0)
+    env, fleet_seed = str(settings.get("env")), int(settings.get("fleet_seed") or 0)
+    profile = settings.get("fleet_profile")
+    plays = {}
+    for worker, played in steps.items():
+        drawn: list[int] = []
+        if absent:
+            draws = absences(absent, absent_rounds, int(settings.get("seed") or 0), int(worker))
+            drawn = [next(draws) for _ in range(max(len(played) - 1, 0))]
+        reset = reset_seconds(env, int(worker), fleet_seed, profile) if resets else 0.0
+        per_round = None if episodes is None else episodes.get(worker)
+        plays[worker] = UnitPlay(played, completed_at[worker], reset, per_round, tuple(drawn))
+    return plays

@@ -19,7 +19,7 @@ from typing import TYPE_CHECKING, Any
 
 from fleetrl.runs.fleet_summary import QUANTILES, snapshot
 from fleetrl.runs.records import CSV_COLUMNS, MetricsRow, read_metrics
-from fleetrl.runs.rig_time import rig_time, waiting_rule
+from fleetrl.runs.rig_time import rig_time, run_units, waits_of
 
 if TYPE_CHECKING:
     from torch.utils.tensorboard import SummaryWriter
@@ -216,9 +216,9 @@ class RunRecorder:
         return {"kind": ppo.get("criterion", "sampled"), "target": self.config.get("completion_threshold")}
 
     def rig_seconds(self) -> dict[str, Any] | None:
-        """The time the rounds played so far would take on real-time rigs (:mod:`fleetrl.runs.rig_time`),
-        under the run's waiting rule; None before any round, or for a unit type whose control period is not
-        known."""
+        """The time the rounds played so far would take on real-time rigs (:mod:`fleetrl.runs.rig_time`:
+        play, resets, absences, waits for the fleet); None before any round, or for a unit type whose control
+        period is not known."""
         from fleetrl.envs.catalog import get_env_spec
 
         if not self.records:
@@ -230,11 +230,14 @@ class RunRecorder:
         if period is None:
             return None
         steps: dict[str, dict[int, int]] = {}
+        episodes: dict[str, dict[int, int]] = {}
         for record in sorted(self.records, key=lambda r: (r.worker, r.round)):
             steps.setdefault(str(record.worker), {})[record.round] = record.steps
+            episodes.setdefault(str(record.worker), {})[record.round] = record.episodes
         completed = {w: self.progress[int(w)].completed_at_round for w in steps}
-        rule = waiting_rule(self.config.get("mode"), self.config.get("scheme"))
-        return {"period": period, "rule": rule, **rig_time(steps, completed, period, rule).to_dict()}
+        waits = waits_of(self.config.get("mode"), self.config.get("scheme"), self.config.get("quorum"))
+        units = run_units(steps, completed, self.config, episodes=episodes)
+        return {"period": period, "rule": waits.rule, **rig_time(units, period, waits).to_dict()}
 
     def finish(self) -> dict[str, Any]:
         """Close the files, write summary.json and the plot; returns the summary."""
