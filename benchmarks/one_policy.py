@@ -190,7 +190,7 @@ def compare(held: Iterable[Held]) -> OnePolicy:
                 f"{w}{' (caught up)' if w in behind else ''}: {'/'.join(sorted(d))}"
                 for w, d in sorted(workers.items())
             )
-            report.mismatches.append(f"round {exchange[0]} step {exchange[1]}: {held_by}")
+            report.mismatches.append(f"before round {exchange[0]} step {exchange[1]}: {held_by}")
     return report
 
 
