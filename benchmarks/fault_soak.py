@@ -13,13 +13,20 @@ Checked per run: every role that ran to the end exited 0; no worker's metrics.cs
 duplicated); every round in which the chief's log lists a worker as answering is in that worker's metrics.csv
 (rounds lost); when every worker is waited for (quorum 1, an even fleet), every surviving or restarted worker
 holds rounds 1 … n, n being the chief's last round (chief.json), and a worker killed for good was dropped by
-the chief in the round after it died (or the one after that); under a one-policy scheme (``pergrad``), every
-worker that ran to the end holds the chief's final model (the network in the chief's checkpoint), bit for bit.
+the chief in the round after it died (or the one after that); under a one-policy scheme (``pergrad``, with
+``--one-policy``), every worker that ran to the end holds the chief's final model (the network in the chief's
+checkpoint), bit for bit — which a worker ended by the chief's ``done`` takes from it, so that check cannot
+show a broken catch-up — and, during the run, at every exchange every worker that reached it held the same
+network and Adam state: a worker after a catch-up checked against one never behind (benchmarks/one_policy.py
+records each worker's; a run with no catch-up shows nothing about catch-up and is counted apart).
+``--mutate skip|swap|perturb`` breaks every worker's catch-up on purpose (in the harness, not in fleetrl) to
+show that check fail.
 Recovery: seconds from the fault until the chief has closed two more rounds (the one the fault hit and the
 next), or the run ended.
 
     python benchmarks/fault_soak.py --runs 50 --out /tmp/fault-soak      # see docs/benchmarks.md
     python benchmarks/fault_soak.py --runs 50 --workers 3 --uneven "--slow w1=4 --absent 0.2"
+    python benchmarks/fault_soak.py --runs 2 --one-policy --uneven "--slow w1=4" --mutate skip   # must fail
 """
 
 from __future__ import annotations
@@ -40,7 +47,11 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
 
+from one_policy import MUTATIONS, compare, load
+
 from fleetrl.transport.broker import find_mosquitto, free_port, mqtt_ready
+
+ONE_POLICY = Path(__file__).resolve().parent / "one_policy.py"
 
 FAULTS = ("worker-resumed", "worker-gone", "chief-resumed", "broker-restarted", "worker-added")
 GRACE = 15.0
@@ -100,6 +111,9 @@ class Outcome:
     duplicated: int = 0
     chief_agrees: bool = True
     same_model: bool | None = None
+    one_policy: bool | None = None
+    """no worker off the fleet's policy at any exchange (None: not checked, or no catch-up to check)"""
+    one_policy_summary: str = ""
     recovery_s: float | None = None
     wall_s: float = 0.0
     notes: list[str] = field(default_factory=list)
@@ -117,9 +131,12 @@ class Run:
         grace: float,
         workers: int,
         uneven: list[str],
+        recorder: list[str] | None = None,
     ) -> None:
         self.index, self.broker, self.out, self.rounds, self.grace = index, broker, out, rounds, grace
         self.workers, self.uneven = workers, uneven
+        self.recorder = recorder
+        """one_policy.py's flags before a worker's: record its holdings (None: run fleetrl plainly)"""
         self.run_id = f"soak-{index}"
         self.procs: dict[str, subprocess.Popen[bytes]] = {}
         self.common = ["--broker", broker.url, "--run-id", self.run_id, "--env", "cartpole"]
@@ -142,8 +159,12 @@ class Run:
                 *self.uneven,
             ]
         log = (self.out / f"{role}.log").open("ab")
+        command = [sys.executable, "-m", "fleetrl.cli.main"]
+        if role != "chief" and self.recorder is not None:
+            digests = str(self.out / f"w{role}.digests.jsonl")
+            command = [sys.executable, str(ONE_POLICY), "--digests", digests, *self.recorder, "--"]
         self.procs[role] = subprocess.Popen(
-            [sys.executable, "-m", "fleetrl.cli.main", *argv, *self.common, *extra],
+            [*command, *argv, *self.common, *extra],
             stdout=log, stderr=subprocess.STDOUT, start_new_session=True,
         )  # fmt: skip
         log.close()
@@ -203,7 +224,8 @@ def soak_one(index: int, fault: str, rng: random.Random, broker: Broker, root: P
     out = root / f"run-{index:03d}"
     out.mkdir(parents=True)
     rounds, workers = args.rounds, args.workers
-    run = Run(index, broker, out, rounds, args.grace, workers, shlex.split(args.uneven))
+    recorder = (["--mutate", args.mutate] if args.mutate else []) if args.one_policy else None
+    run = Run(index, broker, out, rounds, args.grace, workers, shlex.split(args.uneven), recorder)
     victim = {"chief-resumed": "chief", "broker-restarted": "broker"}.get(fault) or str(
         workers if fault == "worker-added" else rng.randrange(workers)
     )
@@ -249,6 +271,9 @@ def soak_one(index: int, fault: str, rng: random.Random, broker: Broker, root: P
         check_books(run, outcome, finished_by_victim, synchronous=not args.uneven and workers <= 2)
         if args.one_policy:
             outcome.same_model = same_models(run, [r for r in alive if r.isdigit()])
+            held = compare(load(out.glob("w*.digests.jsonl")))
+            outcome.one_policy = False if held.mismatches else (True if held.after_catch_up else None)
+            outcome.one_policy_summary = held.summary()
     finally:
         run.stop_all()
         outcome.wall_s = round(time.monotonic() - started, 1)
@@ -324,8 +349,8 @@ def report(outcomes: list[Outcome], seconds: float) -> str:
     """The figures, as a Markdown table."""
     lines = [
         "| fault | runs | completed | rounds lost | rounds duplicated | chief's record agrees "
-        "| final models = the chief's | longest recovery |",
-        "|---|---|---|---|---|---|---|---|",
+        "| final models = the chief's | one policy at every exchange, after catch-ups | longest recovery |",
+        "|---|---|---|---|---|---|---|---|---|",
     ]
     for fault in (*FAULTS, "all"):
         group = [o for o in outcomes if fault in ("all", o.fault)]
@@ -333,10 +358,14 @@ def report(outcomes: list[Outcome], seconds: float) -> str:
         longest = f"{max(recoveries):.1f} s" if recoveries else "-"
         models = [o.same_model for o in group if o.same_model is not None]
         same = f"{sum(models)}/{len(models)}" if models else "-"
+        checked = [o.one_policy for o in group if o.one_policy is not None]
+        vacuous = sum(o.one_policy is None and bool(o.one_policy_summary) for o in group)
+        policy = f"{sum(checked)}/{len(checked)}" if checked else "-"
+        policy += f" ({vacuous} without a catch-up)" if vacuous else ""
         lines.append(
             f"| {fault} | {len(group)} | {sum(o.completed for o in group)} | {sum(o.lost for o in group)} | "
             f"{sum(o.duplicated for o in group)} | {sum(o.chief_agrees for o in group)} | {same} "
-            f"| {longest} |"
+            f"| {policy} | {longest} |"
         )
     lines.append(f"\n{len(outcomes)} runs in {seconds / 60:.1f} min")
     return "\n".join(lines)
@@ -352,7 +381,14 @@ def main() -> int:
     parser.add_argument(
         "--one-policy",
         action="store_true",
-        help="check every worker's final model equals the chief's (pergrad)",
+        help="check every worker's final model equals the chief's, and every worker holds the same policy "
+        "at every exchange (pergrad)",
+    )
+    parser.add_argument(
+        "--mutate",
+        choices=MUTATIONS,
+        default=None,
+        help="break every worker's catch-up on purpose (implies --one-policy): the check must fail",
     )
     parser.add_argument("--rounds", type=int, default=8, help="M of every run (default 8)")
     parser.add_argument("--seed", type=int, default=0, help="seed of the faults and their moments")
@@ -366,6 +402,7 @@ def main() -> int:
         help=f"the kinds to draw from ({','.join(FAULTS)})",
     )
     args = parser.parse_args()
+    args.one_policy = args.one_policy or args.mutate is not None
     kinds = args.faults.split(",") if args.faults else list(FAULTS)
     if unknown := set(kinds) - set(FAULTS):
         parser.error(f"unknown fault(s) {sorted(unknown)} (choose from {', '.join(FAULTS)})")
@@ -388,6 +425,7 @@ def main() -> int:
     bad = [
         o for o in outcomes
         if not o.completed or o.lost or o.duplicated or not o.chief_agrees or o.same_model is False
+        or o.one_policy is False
     ]  # fmt: skip
     return 1 if bad else 0
 

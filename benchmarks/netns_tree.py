@@ -15,8 +15,15 @@ aggregator ↔ centre link (the site's uplink), the ``--site-*`` ones on both en
 
 Checks (exit 1 if any fails): every role exited 0; every worker's metrics.csv holds rounds 1 … n once each (n:
 the chief's rounds); every worker's final model equals the chief's fleet model bit for bit (the default
-scheme, pergrad, keeps one policy); the chief's only member is the site, and its last answer stood for the
-site's N units; the aggregator ended because the root ended the run.
+scheme, pergrad, keeps one policy; a worker ended by the chief's ``done`` takes that model first, so this
+cannot show a broken catch-up); during the run, at every exchange every worker that reached it held the same
+network and Adam state — a unit after a catch-up against one never behind (benchmarks/one_policy.py records
+each worker's; with ``--uneven`` a catch-up must have been checked); the chief's only member is the site, and
+its last answer stood for the site's N units; the aggregator ended because the root ended the run.
+``--uneven "--slow w1=4"`` gives every worker more flags (a straggler: unit 1 four times slower; its
+metrics.csv then holds some of the rounds, and the root's last answer may stand for fewer units);
+``--mutate skip|swap|perturb`` breaks every worker's catch-up on purpose (in the harness, not in fleetrl): the
+one-policy check must fail.
 
 Measured, from the roles' DEBUG/INFO logs (one machine, one clock), rounds 2 … n (round 1 is warm-up):
 round overhead as in netns_fleet.py — for round r, the last worker's record of r minus the last worker's
@@ -33,6 +40,7 @@ import argparse
 import csv
 import json
 import re
+import shlex
 import subprocess
 import sys
 import time
@@ -41,7 +49,7 @@ from collections.abc import Iterable
 from dataclasses import dataclass
 from pathlib import Path
 
-from fault_soak import holds_fleet_model
+from fault_soak import ONE_POLICY, holds_fleet_model
 from netns_fleet import (
     FLEETRL,
     PORT,
@@ -59,6 +67,7 @@ from netns_fleet import (
     wait_all,
     wait_for_broker,
 )
+from one_policy import MUTATIONS, compare, load
 
 ROOT_RUN, SITE_RUN, SITE_ID = "tree", "tree-site", "0"
 EDGE = r" INFO fleetrl\.federation\.edge_runner: site \S+: round (\d+): "
@@ -126,12 +135,16 @@ def start_roles(
             work / "agg.log",
         ),
     }  # fmt: skip
+    mutate = ["--mutate", args.mutate] if args.mutate else []
+    options = FLEETRL[FLEETRL.index("fleetrl.cli.main") + 1 :]  # fleetrl's own (-v), before the command
     for node, host in tree.site_for_worker.items():
+        digests = str(work / f"{node}.digests.jsonl")
+        recorded = [sys.executable, str(ONE_POLICY), "--digests", digests, *mutate, "--", *options]
         roles[node] = fleet.start(
             fleet.namespace(node),
-            [*FLEETRL, "worker", "--broker", f"mqtt://{host}:{PORT}", *run_args(SITE_RUN, rounds),
-             "--worker-id", node[1:], "--out", str(work / node), "--resend-interval", "2",
-             "--reply-timeout", timeout],
+            [*recorded, "worker", "--broker", f"mqtt://{host}:{PORT}",
+             *run_args(SITE_RUN, rounds), "--worker-id", node[1:], "--out", str(work / node),
+             "--resend-interval", "2", "--reply-timeout", timeout, *shlex.split(args.uneven)],
             work / f"{node}.log",
         )  # fmt: skip
     return roles
@@ -170,9 +183,15 @@ def checks(work: Path, args: argparse.Namespace, codes: dict[str, int | None]) -
     chief_json = work / "chief" / "chief.json"
     n = json.loads(chief_json.read_text())["rounds"] if chief_json.exists() else 0
     result[f"the chief ran {n} of {args.rounds} rounds"] = n >= 1
-    result[f"every worker's metrics.csv: rounds 1 … {n} once each"] = n >= 1 and all(
-        metrics_rounds(out / "metrics.csv") == list(range(1, n + 1)) for out in workers.values()
-    )
+    if args.uneven:  # a straggler plays fewer rounds than the fleet
+        result[f"every worker's metrics.csv: rounds of 1 … {n} once each, in order"] = n >= 1 and all(
+            len(rs) > 0 and rs == sorted(set(rs)) and rs[-1] <= n
+            for rs in (metrics_rounds(out / "metrics.csv") for out in workers.values())
+        )
+    else:
+        result[f"every worker's metrics.csv: rounds 1 … {n} once each"] = n >= 1 and all(
+            metrics_rounds(out / "metrics.csv") == list(range(1, n + 1)) for out in workers.values()
+        )
     checkpoint = ChiefCheckpoint(chief_checkpoint_dir(work / "chief"))
     if checkpoint.exists():
         fields, _ = checkpoint.store.load()
@@ -180,10 +199,18 @@ def checks(work: Path, args: argparse.Namespace, codes: dict[str, int | None]) -
         result["every worker's final model is the chief's, bit for bit"] = holds_fleet_model(
             work / "chief", workers
         )
-        result[f"the chief's one member is the site, its answer for {args.workers} units"] = (
+        held = compare(load(work / f"w{w}.digests.jsonl" for w in workers))
+        label = f"every worker held one policy at every exchange ({held.summary()})"
+        result[label] = not held.mismatches and (held.after_catch_up > 0 or not (args.uneven or args.mutate))
+        units = f"1 … {args.workers}" if args.uneven else str(args.workers)  # a straggler may be left out
+        result[f"the chief's one member is the site, its answer for {units} units"] = (
             fields["members"] == [SITE_ID]
             and answer.get("contributors") == [SITE_ID]
-            and answer.get("units") == args.workers
+            and (
+                1 <= answer.get("units", 0) <= args.workers
+                if args.uneven
+                else answer.get("units") == args.workers
+            )
         )
     else:
         result["the chief's checkpoint exists"] = False
@@ -262,6 +289,10 @@ def main() -> int:
         parser.add_argument(f"--{where}-jitter-ms", type=float, default=0.0, help="netem jitter (ms)")
         parser.add_argument(f"--{where}-loss", type=float, default=0.0, help="netem loss per qdisc (%%)")
     parser.add_argument("--timeout", type=float, default=240.0, help="bound on the fleet's run (s)")
+    parser.add_argument("--uneven", default="", help="more flags for every worker, quoted")
+    parser.add_argument(
+        "--mutate", choices=MUTATIONS, default=None, help="break every worker's catch-up: the check must fail"
+    )
     parser.add_argument("--keep", action="store_true", help="keep the run directories and logs")
     args = parser.parse_args()
     check_machine(parser)

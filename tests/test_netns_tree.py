@@ -63,6 +63,7 @@ def test_a_two_broker_tree_across_namespaces_passes_every_check(namespaces: None
         "ok  every worker's metrics.csv: rounds 1 … 3 once each",
         "ok  every worker's final model is the chief's, bit for bit",
         "ok  the chief's one member is the site, its answer for 2 units",
+        "ok  every worker held one policy at every exchange (",
     ):
         assert check in done.stdout, done.stdout[-3000:]
     assert "bytes per exchange at the root" in done.stdout
