@@ -113,7 +113,8 @@ def headline_table(records: Path) -> str:
         "minutes on the rigs per unit: alone → fleet",
         "speed-up, last unit / per unit: rounds · time",
     ]
-    body, notes = [], []
+    body: list[list[str]] = []
+    notes: list[str] = []
     for row in rows():
         a = _figures(_records(row.ratio.slower, row.seeds, records))
         b = _figures(_records(row.ratio.faster, row.seeds, records))
