@@ -15,7 +15,7 @@ import numpy as np
 from fleetrl.experiments.arms import Arm
 from fleetrl.experiments.budget import FULL
 from fleetrl.experiments.catalog import PLANS
-from fleetrl.experiments.plan import Ratio
+from fleetrl.experiments.plan import Ratio, bound_mark
 from fleetrl.experiments.records import RunRecord, read_record, record_path
 from fleetrl.experiments.runner import seed_range
 from fleetrl.experiments.stats import markdown_table
@@ -116,8 +116,13 @@ def headline_table(records: Path) -> str:
     body: list[list[str]] = []
     notes: list[str] = []
     for row in rows():
-        a = _figures(_records(row.ratio.slower, row.seeds, records))
-        b = _figures(_records(row.ratio.faster, row.seeds, records))
+        slower = _records(row.ratio.slower, row.seeds, records)
+        faster = _records(row.ratio.faster, row.seeds, records)
+        a, b = _figures(slower), _figures(faster)
+        at_least = [
+            "≥ " if not all(r.completion().complete for r in runs) else "" for runs in (slower, faster)
+        ]
+        ratio = bound_mark(slower, faster)
         mark = ""
         if row.note:
             notes.append(f"{'†' * (len(notes) + 1)} {row.note}")
@@ -125,12 +130,17 @@ def headline_table(records: Path) -> str:
         body.append(
             [
                 f"{row.task} ({seed_range(row.seeds)}{mark})",
-                f"{a[0]:g} → {b[0]:g}",
-                f"{a[1]:g} → {b[1]:g}",
-                f"{a[2]:.1f} → {b[2]:.1f}",
-                f"{a[3]:.1f} → {b[3]:.1f}",
-                f"{a[0] / b[0]:.2f}× / {a[1] / b[1]:.2f}× · {a[2] / b[2]:.2f}× / {a[3] / b[3]:.2f}×",
+                f"{at_least[0]}{a[0]:g} → {at_least[1]}{b[0]:g}",
+                f"{at_least[0]}{a[1]:g} → {at_least[1]}{b[1]:g}",
+                f"{at_least[0]}{a[2]:.1f} → {at_least[1]}{b[2]:.1f}",
+                f"{at_least[0]}{a[3]:.1f} → {at_least[1]}{b[3]:.1f}",
+                f"{ratio}{a[0] / b[0]:.2f}× / {ratio}{a[1] / b[1]:.2f}× · "
+                f"{ratio}{a[2] / b[2]:.2f}× / {ratio}{a[3] / b[3]:.2f}×",
             ]
+        )
+    if any("≥" in cell for line in body for cell in line[1:]):
+        notes.append(
+            "≥: some runs of the arm did not complete within M and count as M, so the figure is a bound"
         )
     table = markdown_table(header, body)
     return "\n\n".join([table.rstrip(), *notes]) + "\n"

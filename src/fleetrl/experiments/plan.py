@@ -184,7 +184,7 @@ def _write_csv(path: Path, records: Records) -> None:
                 )
 
 
-def _bound(slower: list[RunRecord], faster: list[RunRecord]) -> str:
+def bound_mark(slower: list[RunRecord], faster: list[RunRecord]) -> str:
     """An arm whose runs hit M without completing gives a bound, not a ratio (both: no direction)."""
     censored = (
         not all(c.complete for c in completions(slower)),
@@ -233,7 +233,7 @@ def _rig_ratio(slower: list[RunRecord], faster: list[RunRecord]) -> str:
     a, b = _rig_minutes(slower), _rig_minutes(faster)
     if a is None or b is None:
         return "-"
-    bound = _bound(slower, faster)
+    bound = bound_mark(slower, faster)
     point, low, high = bootstrap_ratio(a[0], b[0])
     unit, unit_low, unit_high = bootstrap_ratio(a[1], b[1])
     return f"{bound}{point:.2f}× ({low:.2f}–{high:.2f}) / {bound}{unit:.2f}× ({unit_low:.2f}–{unit_high:.2f})"
@@ -245,7 +245,7 @@ def _ratio_line(ratio: Ratio, records: Records) -> str:
         return f"- **{ratio.slower.label} → {ratio.faster.label}**: {NOT_RUN}; {ratio.claim}"
     point, low, high = bootstrap_ratio(_fleet(slower), _fleet(faster))
     unit, unit_low, unit_high = bootstrap_ratio(_per_unit(slower), _per_unit(faster))
-    bound = _bound(slower, faster)
+    bound = bound_mark(slower, faster)
     rig = _rig_ratio(slower, faster)
     on_rigs = "" if rig == "-" else f"; in time on the rigs, fleet / per unit: {rig}"
     return (
@@ -366,7 +366,7 @@ def _speed_up_table(plan: Plan, records: Records) -> str:
         slower, faster = records[alone.key], records[arm.key]
         if not slower or not faster:
             continue
-        bound = _bound(slower, faster)
+        bound = bound_mark(slower, faster)
         point, low, high = bootstrap_ratio(_fleet(slower), _fleet(faster))
         unit, unit_low, unit_high = bootstrap_ratio(_per_unit(slower), _per_unit(faster))
         rows.append(
