@@ -127,6 +127,7 @@ def cmd_chief(args: argparse.Namespace) -> int:
         from fleetrl.federation.chief_async import new_chief
         from fleetrl.federation.runner import run_chief
         from fleetrl.federation.shared_settings import shared_text
+        from fleetrl.runs.dirlock import DirectoryLock
         from fleetrl.runs.launch import fleet_model, fleet_start
         from fleetrl.runs.role_settings import ChiefSettings
         from fleetrl.runs.rundir import write_json_atomic
@@ -155,10 +156,11 @@ def cmd_chief(args: argparse.Namespace) -> int:
     if settings.out is None:
         summary = run_chief(chief, settings.transport(), idle_timeout=settings.idle_timeout)
     else:
-        summary = _serve_with_checkpoints(chief, settings)
+        with DirectoryLock(settings.out, "chief").acquire():  # one chief per run directory, for its life
+            summary = _serve_with_checkpoints(chief, settings)
+            result = {"run_id": settings.run_id, **summary.to_dict()}
+            write_json_atomic(settings.out / "chief.json", result)
     result = {"run_id": settings.run_id, **summary.to_dict()}
-    if settings.out is not None:
-        write_json_atomic(settings.out / "chief.json", result)
     print(json.dumps(result))
     if summary.end_reason == EVERY_WORKER_DROPPED:  # no fleet left to train: the run did not do its job
         print(f"fleetrl chief: error: run {settings.run_id!r}: {EVERY_WORKER_DROPPED}", file=sys.stderr)
@@ -196,22 +198,31 @@ def _serve_with_checkpoints(chief: Any, settings: Any) -> Any:
 def cmd_worker(args: argparse.Namespace) -> int:
     """Serve as one worker; its run directory gets the same files as a ``fleetrl train`` run."""
     with collector_paused():
-        from fleetrl.runs.checkpoints import WorkerCheckpoint, worker_checkpoint_dir
+        from fleetrl.runs.dirlock import DirectoryLock
         from fleetrl.runs.factory import make_learner
         from fleetrl.runs.role_settings import WorkerSettings
-        from fleetrl.runs.roles import train_federated
-        from fleetrl.runs.rundir import RunRecorder
 
         settings = settings_from_args(WorkerSettings, args)
     config = worker_config(settings)
     if settings.units > 1:
-        return _serve_host(settings, config)
+        with DirectoryLock(settings.out, f"unit host {settings.worker_id}").acquire():
+            return _serve_host(settings, config)
     spec = settings.worker_spec()
+    learner = make_learner(spec, settings.device_transport())  # a device bridge is reached before any file
+    with DirectoryLock(settings.out, f"worker {settings.worker_id}").acquire():  # one process per directory
+        return _serve_worker(settings, spec, config, learner)
+
+
+def _serve_worker(settings: Any, spec: Any, config: dict[str, Any], learner: Any) -> int:
+    """Serve as one worker in the run directory this process has locked."""
+    from fleetrl.runs.checkpoints import WorkerCheckpoint, worker_checkpoint_dir
+    from fleetrl.runs.roles import train_federated
+    from fleetrl.runs.rundir import RunRecorder
+
     checkpoints = worker_checkpoint_dir(settings.out, settings.worker_id)
     resume = settings.resume
     where = WorkerCheckpoint(checkpoints, spec, settings.run_id).where() if resume else None
     resume_from = {settings.worker_id: 1 if where is None else where.next_round} if resume else None
-    learner = make_learner(spec, settings.device_transport())  # a device bridge is reached before any file
     recorder = RunRecorder(settings.out, config, [settings.worker_id], resume_from=resume_from)
     return _recorded(
         recorder,
