@@ -132,8 +132,8 @@ class DirectoryLock:
                 self.directory.rmdir()
 
     def __enter__(self) -> DirectoryLock:
-        """:meth:`acquire`."""
-        return self.acquire()
+        """:meth:`acquire` (unless already held: a second flock of this process would conflict with it)."""
+        return self if self._fd is not None else self.acquire()
 
     def __exit__(self, *exc: object) -> None:
         """:meth:`release`."""
