@@ -158,14 +158,19 @@ def test_a_second_chief_on_the_same_directory_is_refused(
 def test_a_second_chief_of_a_live_run_id_is_refused(
     url: str, procs: list[subprocess.Popen[str]], tmp_path: Path
 ) -> None:
-    first = chief(procs, url, "same-run", tmp_path / "a")
+    a = tmp_path / "a"
+    first = chief(procs, url, "same-run", a)
+    wait_until(lambda: (a / "checkpoints" / "chief" / "chief.json").exists(), "the first chief's checkpoint")
     wait_until(lambda: status(url, "same-run", "chief") == "online", "the first chief online")
-    b = tmp_path / "b"
-    done = refused(url, "same-run", b, "chief", "--workers", "2", "--resume")
-    line = one_line(done)
-    assert done.returncode == 1, done.stderr
-    assert f"run 'same-run' has a live chief (epoch 0): pid {first.pid} on host" in line, line
-    assert not b.exists()  # nothing written
+    b, c = tmp_path / "b", tmp_path / "c"
+    shutil.copytree(a / "checkpoints", c / "checkpoints")  # as an operator resuming elsewhere would
+    before = snapshot(c)
+    for out, extra in ((b, []), (c, ["--resume"])):  # a new chief of the run id, and a resumed one
+        done = refused(url, "same-run", out, "chief", "--workers", "2", *extra)
+        line = one_line(done)
+        assert done.returncode == 1, done.stderr
+        assert f"run 'same-run' has a live chief (epoch 0): pid {first.pid} on host" in line, line
+    assert not b.exists() and snapshot(c) == before  # nothing written
     assert first.poll() is None and status(url, "same-run", "chief") == "online"
 
 

@@ -79,6 +79,7 @@ class DirectoryLock:
         self.directory = Path(directory)
         self.role = role
         self._fd: int | None = None
+        self._new_file = False
         self.created = False
         """whether :meth:`acquire` created the directory (a refused start removes what it created)"""
 
@@ -92,6 +93,7 @@ class DirectoryLock:
         another process has it. Nothing is written unless the lock was taken."""
         self.created = not self.directory.exists()
         self.directory.mkdir(parents=True, exist_ok=True)
+        self._new_file = not self.path.exists()
         fd = os.open(self.path, os.O_RDWR | os.O_CREAT | os.O_CLOEXEC, 0o644)
         try:
             fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
@@ -123,12 +125,14 @@ class DirectoryLock:
             self._fd = None
 
     def abandon(self) -> None:
-        """Release the lock and remove what :meth:`acquire` created, for a start refused after it (the
-        directory only if this lock made it and nothing else was put there)."""
+        """Remove what :meth:`acquire` created (the lock file, and the directory if this lock made it and
+        nothing else was put there) and release the lock, for a start refused after it."""
+        if self._fd is not None and self._new_file:
+            with contextlib.suppress(OSError):
+                self.path.unlink()
         self.release()
         if self.created:
             with contextlib.suppress(OSError):
-                self.path.unlink()
                 self.directory.rmdir()
 
     def __enter__(self) -> DirectoryLock:
