@@ -318,7 +318,8 @@ class Chief:
                     self._restarted.add(worker)  # its join says whether it replays the open round
             self.state.incarnations[worker] = inc
         if status.state == "offline":
-            if retained or worker not in self.state.members:
+            # a worker refused at join leaves: the chief goes on waiting for one with its settings
+            if retained or worker not in self.state.members or self._gate.refusal(worker) is not None:
                 return ChiefStep()
             self.state.suspects[worker] = now + self.dropout_grace
             return self.tick(now)

@@ -184,6 +184,8 @@ def run_chief(
         if checkpoint is not None and (fields := chief_fields(chief)) != committed[0]:
             checkpoint(chief)
             committed[0] = fields
+            if lease.in_doubt():  # stopped while it wrote: the checkpoint may lead the answers (write-ahead)
+                confirm_lease()
         for message in step.outgoing:
             stamped = replace(message, epoch=chief.epoch)
             transport.publish(out_topic, encode(stamped, layout=chief.layout_of(message.type), key=chief.key))
@@ -204,7 +206,7 @@ def run_chief(
             deposed_by(seen)
         mine = seen.incarnation == incarnation
         if not (mine and seen.state == "online") and not chief.finished:
-            if not mine:
+            if not mine and seen.state == "online":
                 log.warning(
                     "chief: an older chief's status (%s, %s): announcing this one", seen.state, describe(seen)
                 )
@@ -275,7 +277,7 @@ def run_chief(
                 node = node_of_status_topic(run_id, received.topic)
                 if node == CHIEF_ID:
                     chief_status(received.payload)
-                elif node is not None and received.payload:  # empty: a status cleared
+                elif node is not None:
                     log.info("chief: node %s is %s", node, received.payload[:16].decode("ascii", "replace"))
                     publish(chief.status(node, received.payload, retained=received.retained, now=now))
             publish(chief.tick(now))

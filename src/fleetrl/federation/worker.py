@@ -193,10 +193,9 @@ class FederatedWorker:
             summary = finish.summary
             self.transport.publish(machine.own_status, machine.status(OFFLINE), retain=True)
         except SettingsRefused:  # never admitted: the chief keeps waiting for a worker with its settings
-            # no offline (the chief would drop the id it waits for), but no stale online either: the place
-            # is free for a process with the chief's settings
+            # offline, so no stale online holds the place (the chief that refused it does not drop the id)
             with contextlib.suppress(Exception):
-                self.transport.publish(machine.own_status, b"", retain=True)
+                self.transport.publish(machine.own_status, machine.status(OFFLINE), retain=True)
             raise
         except BaseException:
             # A worker dying of an error closes its connection cleanly, so its last will never fires: it says
