@@ -12,7 +12,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from fleetrl.federation.chief import Chief, ChiefStep
-from fleetrl.federation.messages import Message, Reason, decode, encode, envelope
+from fleetrl.federation.messages import VERSION, Message, Reason, decode, encode, envelope
 
 LAYOUT = [("w", (2,))]
 RUN = "r1"
@@ -155,7 +155,7 @@ def _raw(**changes: Any) -> bytes:
 
 
 BAD = [
-    (_raw(version=7), Reason.WRONG_VERSION),
+    (_raw(version=VERSION + 1), Reason.WRONG_VERSION),
     (_raw(tensors=[["w", [3]]], data=b"\0" * 12), Reason.LAYOUT_MISMATCH),
     (_raw(data=np.array([np.nan, 0], "<f4").tobytes()), Reason.NOT_FINITE),
     (_raw(data=np.array([np.inf, 0], "<f4").tobytes()), Reason.NOT_FINITE),

@@ -5,11 +5,17 @@ writes the tensors to a new file ``<name>-<n>.safetensors`` (temp file, fsync, `
 record ``<name>.json`` naming that blob and its SHA-256 (same way), then removes older blobs. The record's
 rename is the commit point: a process killed at any instant leaves either the previous state or the new
 one, never a mix. Nothing is pickled; safetensors and JSON only.
+
+Every temporary file has a name of its own (the process id and a counter), so two writers never rename each
+other's half-written file; a write that fails (disk full, directory gone, permissions) raises
+:class:`StateWriteError`, one line naming the file, and leaves the last committed state loadable. One writer
+per directory is still the rule (a role locks its run directory: :mod:`fleetrl.runs.dirlock`).
 """
 
 from __future__ import annotations
 
 import hashlib
+import itertools
 import json
 import logging
 import os
@@ -26,8 +32,16 @@ FORMAT = "fleetrl.state/1"
 """``format`` of every state record this module writes."""
 
 
+_TEMP_NAMES = itertools.count()
+
+
 class StateError(ValueError):
     """A state directory that cannot be used: missing, corrupt, or written for something else."""
+
+
+class StateWriteError(OSError):
+    """A state could not be committed (disk full, directory removed, no permission): its message is one line
+    naming the file; the last committed state is untouched."""
 
 
 class StateStore:
@@ -56,7 +70,21 @@ class StateStore:
         return self.record.is_file()
 
     def save(self, fields: dict[str, Any], tensors: dict[str, np.ndarray]) -> None:
-        """Commit ``fields`` and ``tensors`` atomically; unchanged tensors reuse the current blob."""
+        """Commit ``fields`` and ``tensors`` atomically; unchanged tensors reuse the current blob.
+
+        :raises StateWriteError: the write failed (one line naming the file); the previous state stays the
+            committed one.
+        """
+        try:
+            self._save(fields, tensors)
+        except (OSError, _WriteFailed) as exc:
+            target, why = _what_failed(exc, self.record)
+            raise StateWriteError(
+                f"cannot write the {self.name} checkpoint {target}: {why}; the last committed state in "
+                f"{self.directory} stays loadable"
+            ) from exc
+
+    def _save(self, fields: dict[str, Any], tensors: dict[str, np.ndarray]) -> None:
         self.directory.mkdir(parents=True, exist_ok=True)
         contiguous = {k: np.ascontiguousarray(v) for k, v in sorted(tensors.items())}
         digest = _tensor_digest(contiguous)
@@ -67,10 +95,14 @@ class StateStore:
         if digest != self._tensor_digest or self._blob is None:
             self._serial += 1
             blob = f"{self.name}-{self._serial}.safetensors"
-            partial = self.directory / f".{blob}.partial"
-            save_file(contiguous, str(partial))
-            _fsync(partial)
-            os.replace(partial, self.directory / blob)
+            partial = _temp_name(self.directory / blob)
+            try:
+                save_file(contiguous, str(partial))
+                _fsync(partial)
+            except (OSError, SafetensorError) as exc:  # safetensors reports a failed write as its own error
+                partial.unlink(missing_ok=True)
+                raise _WriteFailed(partial, exc) from exc
+            _replace(partial, self.directory / blob)
             self._blob, self._tensor_digest = blob, digest
             self._blob_digest = _file_digest(self.directory / blob)
         record = {
@@ -111,6 +143,8 @@ class StateStore:
         for stale in self.directory.glob(f"{self.name}-*.safetensors"):
             if stale.name != blob.name:  # a blob written by a save that crashed before its commit
                 stale.unlink(missing_ok=True)
+        for partial in self.directory.glob(f".{self.name}*.partial"):  # a save's temp file, cut short
+            partial.unlink(missing_ok=True)
         return dict(record["fields"]), tensors
 
 
@@ -133,13 +167,50 @@ def _file_digest(path: Path) -> str:
     return hashlib.sha256(path.read_bytes()).hexdigest()
 
 
+class _WriteFailed(Exception):
+    """A blob's write failed (the file, and why)."""
+
+    def __init__(self, path: Path, cause: BaseException) -> None:
+        super().__init__(str(path))
+        self.path, self.cause = path, cause
+
+
+def _what_failed(exc: BaseException, record: Path) -> tuple[str, str]:
+    """(the file, why) of a failed write, in words for one line."""
+    if isinstance(exc, _WriteFailed):
+        path, exc = str(exc.path), exc.cause
+    else:
+        # os.replace names its source first and its target second: the target is the file that failed
+        path = str(getattr(exc, "filename2", None) or getattr(exc, "filename", None) or record)
+    why = exc.strerror if isinstance(exc, OSError) and exc.strerror else str(exc)
+    return path, (why.splitlines() or [type(exc).__name__])[0]
+
+
+def _temp_name(path: Path) -> Path:
+    """A temporary name beside ``path`` that no other write (of this process or another) uses."""
+    return path.with_name(f".{path.name}.{os.getpid()}.{next(_TEMP_NAMES)}.partial")
+
+
+def _replace(partial: Path, path: Path) -> None:
+    """Rename ``partial`` onto ``path``; if that fails, remove ``partial`` and raise."""
+    try:
+        os.replace(partial, path)
+    except OSError:
+        partial.unlink(missing_ok=True)
+        raise
+
+
 def _write_atomic(path: Path, text: str) -> None:
-    partial = path.with_name(f".{path.name}.partial")
-    with open(partial, "w") as handle:
-        handle.write(text)
-        handle.flush()
-        os.fsync(handle.fileno())
-    os.replace(partial, path)
+    partial = _temp_name(path)
+    try:
+        with open(partial, "w") as handle:
+            handle.write(text)
+            handle.flush()
+            os.fsync(handle.fileno())
+    except OSError:
+        partial.unlink(missing_ok=True)
+        raise
+    _replace(partial, path)
     _fsync_dir(path.parent)
 
 

@@ -125,8 +125,11 @@ def cmd_chief(args: argparse.Namespace) -> int:
     with collector_paused():
         from fleetrl.federation.chief import EVERY_WORKER_DROPPED
         from fleetrl.federation.chief_async import new_chief
+        from fleetrl.federation.lease import chief_epoch
         from fleetrl.federation.runner import run_chief
         from fleetrl.federation.shared_settings import shared_text
+        from fleetrl.federation.topics import CHIEF_ID
+        from fleetrl.runs.dirlock import DirectoryLock
         from fleetrl.runs.launch import fleet_model, fleet_start
         from fleetrl.runs.role_settings import ChiefSettings
         from fleetrl.runs.rundir import write_json_atomic
@@ -153,12 +156,22 @@ def cmd_chief(args: argparse.Namespace) -> int:
         start=fleet_start(settings.learning),
     )
     if settings.out is None:
-        summary = run_chief(chief, settings.transport(), idle_timeout=settings.idle_timeout)
+        retained = claim_place(settings, CHIEF_ID)  # one chief per run on the broker
+        chief.take_epoch(chief_epoch(checkpoint=None, retained=retained))
+        _forget_previous_session(settings, retained)
+        summary = run_chief(
+            chief, settings.transport(), idle_timeout=settings.idle_timeout, **_lease_options(settings)
+        )
     else:
-        summary = _serve_with_checkpoints(chief, settings)
+        lock = DirectoryLock(settings.out, "chief").acquire()  # one chief per run directory, for its life
+        try:
+            retained = claim_place(settings, CHIEF_ID, lock)
+            summary = _serve_with_checkpoints(chief, settings, retained)
+            result = {"run_id": settings.run_id, **summary.to_dict()}
+            write_json_atomic(settings.out / "chief.json", result)
+        finally:
+            lock.release()
     result = {"run_id": settings.run_id, **summary.to_dict()}
-    if settings.out is not None:
-        write_json_atomic(settings.out / "chief.json", result)
     print(json.dumps(result))
     if summary.end_reason == EVERY_WORKER_DROPPED:  # no fleet left to train: the run did not do its job
         print(f"fleetrl chief: error: run {settings.run_id!r}: {EVERY_WORKER_DROPPED}", file=sys.stderr)
@@ -166,21 +179,74 @@ def cmd_chief(args: argparse.Namespace) -> int:
     return 0
 
 
-def _serve_with_checkpoints(chief: Any, settings: Any) -> Any:
+def claim_place(settings: Any, node: str, lock: Any = None) -> Any:
+    """The retained status of ``node``'s place in the run (``chief``, a worker's or a host's id), read
+    before this process connects under its client id; RoleConflict (exit 1, one line naming the holder) if
+    a live process holds it — after releasing ``lock`` and removing what it created."""
+    from fleetrl.federation.lease import place_refusal
+    from fleetrl.federation.topics import status_topic
+    from fleetrl.runs.dirlock import RoleConflict
+
+    try:
+        retained = settings.read_status(node)
+        refusal = place_refusal(settings.run_id, node, retained, status_topic(settings.run_id, node))
+        if refusal is not None:
+            raise RoleConflict(refusal)
+    except BaseException:
+        if lock is not None:
+            lock.abandon()
+        raise
+    return retained
+
+
+def _lease_options(settings: Any) -> dict[str, Any]:
+    """What ``run_chief`` needs to hold the run's lease: who this process is, and how to read the chief
+    status after the connection was lost or the process stalled."""
+    from fleetrl.federation.lease import holder_fields
+    from fleetrl.federation.topics import CHIEF_ID
+
+    return {
+        "read_lease": lambda: settings.read_status(CHIEF_ID),
+        "status_fields": holder_fields(settings.keepalive),
+    }
+
+
+def _forget_previous_session(settings: Any, retained: Any) -> None:
+    """Remove the broker session of the chief this one replaces (its own epoch's client id): nobody would
+    read the worker messages the broker keeps queuing there."""
+    from fleetrl.federation.runner import chief_client_id
+
+    if retained is None:
+        return
+    transport = settings.transport(clean_session=True)
+    try:  # a clean-session connection under that id discards the stored session
+        transport.connect(chief_client_id(settings.run_id, retained.number("epoch") or 0))
+        transport.close()
+    except ConnectionError as exc:
+        log.info("could not remove the previous chief's broker session: %s", exc)
+
+
+def _serve_with_checkpoints(chief: Any, settings: Any, retained: Any) -> Any:
     """Run the chief with a checkpoint every round in ``settings.out`` (resuming from it with ``--resume``)
-    and its events appended to chief.log as they happen."""
+    and its events appended to chief.log as they happen. ``retained``: the chief status the broker kept
+    (the epoch taken is one more than the newest of it and the checkpoint's)."""
     from fleetrl.federation.chief_state import replay_last_answer
+    from fleetrl.federation.lease import chief_epoch
     from fleetrl.federation.runner import run_chief
     from fleetrl.runs.checkpoints import ChiefCheckpoint, chief_checkpoint_dir
 
     out: Path = settings.out
     store = ChiefCheckpoint(chief_checkpoint_dir(out))
     first = None
+    saved = None
     if settings.resume:
         chief = store.load(key=chief.key, now=time.monotonic(), expect=chief)
+        saved = chief.epoch
         first = replay_last_answer(chief)
     elif store.exists():
         raise FileExistsError(f"{out} holds a chief checkpoint: add --resume, or choose another --out")
+    chief.take_epoch(chief_epoch(checkpoint=saved, retained=retained))  # checkpointed at the start
+    _forget_previous_session(settings, retained)
     out.mkdir(parents=True, exist_ok=True)
     with open(out / "chief.log", "a") as log_file:
         return run_chief(
@@ -190,28 +256,42 @@ def _serve_with_checkpoints(chief: Any, settings: Any) -> Any:
             idle_timeout=settings.idle_timeout,
             checkpoint=store.save,
             first_step=first,
+            **_lease_options(settings),
         )
 
 
 def cmd_worker(args: argparse.Namespace) -> int:
     """Serve as one worker; its run directory gets the same files as a ``fleetrl train`` run."""
     with collector_paused():
-        from fleetrl.runs.checkpoints import WorkerCheckpoint, worker_checkpoint_dir
+        from fleetrl.runs.dirlock import DirectoryLock
         from fleetrl.runs.factory import make_learner
+        from fleetrl.runs.host_settings import host_id
         from fleetrl.runs.role_settings import WorkerSettings
-        from fleetrl.runs.roles import train_federated
-        from fleetrl.runs.rundir import RunRecorder
 
         settings = settings_from_args(WorkerSettings, args)
     config = worker_config(settings)
     if settings.units > 1:
-        return _serve_host(settings, config)
+        with DirectoryLock(settings.out, f"unit host {settings.worker_id}").acquire() as lock:
+            claim_place(settings, host_id(settings.unit_ids()), lock)
+            return _serve_host(settings, config)
     spec = settings.worker_spec()
+    learner = make_learner(spec, settings.device_transport())  # a device bridge is reached before any file
+    with DirectoryLock(settings.out, f"worker {settings.worker_id}").acquire() as lock:  # one per directory
+        claim_place(settings, str(settings.worker_id), lock)  # one process per worker id on the broker
+        return _serve_worker(settings, spec, config, learner)
+
+
+def _serve_worker(settings: Any, spec: Any, config: dict[str, Any], learner: Any) -> int:
+    """Serve as one worker in the run directory this process has locked."""
+    from fleetrl.federation.lease import holder_fields
+    from fleetrl.runs.checkpoints import WorkerCheckpoint, worker_checkpoint_dir
+    from fleetrl.runs.roles import train_federated
+    from fleetrl.runs.rundir import RunRecorder
+
     checkpoints = worker_checkpoint_dir(settings.out, settings.worker_id)
     resume = settings.resume
     where = WorkerCheckpoint(checkpoints, spec, settings.run_id).where() if resume else None
     resume_from = {settings.worker_id: 1 if where is None else where.next_round} if resume else None
-    learner = make_learner(spec, settings.device_transport())  # a device bridge is reached before any file
     recorder = RunRecorder(settings.out, config, [settings.worker_id], resume_from=resume_from)
     return _recorded(
         recorder,
@@ -226,6 +306,7 @@ def cmd_worker(args: argparse.Namespace) -> int:
             key=settings.fleet_key(),
             checkpoint_dir=checkpoints,
             resume=resume,
+            status_fields=holder_fields(settings.keepalive),
         ),
     )
 
@@ -234,6 +315,7 @@ def _serve_host(settings: Any, config: dict[str, Any]) -> int:
     """Serve as the unit host of ``settings.unit_ids()``: its run directory gets each unit's rows, model."""
     from dataclasses import replace
 
+    from fleetrl.federation.lease import holder_fields
     from fleetrl.runs.fleet_summary import summarised
     from fleetrl.runs.host import train_host
     from fleetrl.runs.rundir import RunRecorder
@@ -252,6 +334,7 @@ def _serve_host(settings: Any, config: dict[str, Any]) -> int:
             reply_timeout=settings.reply_timeout,
             resend_interval=settings.resend_interval,
             key=settings.fleet_key(),
+            status_fields=holder_fields(settings.keepalive),
         ),
     )
 

@@ -155,6 +155,20 @@ class Chief:
         # the state's records, under the names the runner and people read (the same objects: never rebound)
         self.rejections, self.completed, self.transfers = state.rejections, state.completed, state.transfers
         self.dropouts, self.rejoins = state.dropouts, state.rejoins
+        self.superseded: str | None = None
+        """set when an input showed a chief of a newer epoch (what showed it): this chief must stop acting"""
+
+    @property
+    def epoch(self) -> int:
+        """The chief's epoch (:mod:`.lease`), stamped on every message it sends."""
+        return self.state.epoch
+
+    def take_epoch(self, epoch: int) -> None:
+        """Run as the chief of ``epoch`` from now on (a chief taking over a run: one more than the newest
+        it knew of)."""
+        if epoch < self.state.epoch:
+            raise ValueError(f"epoch {epoch} is older than this chief's {self.state.epoch}")
+        self.state.epoch = epoch
 
     @property
     def all_workers(self) -> tuple[str, ...]:
@@ -226,9 +240,20 @@ class Chief:
             return self._reject(topic_worker, Reason.TOPIC_MISMATCH, f"envelope says {message.sender!r}")
         return self.receive(message, now=now)
 
+    def _newer_epoch(self, message: Message) -> ChiefStep | None:
+        """A worker message stamped with a newer epoch than this chief's: its worker follows a newer chief,
+        so this one is deposed (nothing changes; the runner stops it)."""
+        if message.epoch <= self.state.epoch:
+            return None  # an older stamp: sent (or re-sent) before the worker heard of this chief
+        self.superseded = f"worker {message.sender}'s {message.type} carries epoch {message.epoch}"
+        event = ChiefEvent("deposed", self.state.round, sender=message.sender, detail=self.superseded)
+        return ChiefStep(events=(event,))
+
     def receive(self, message: Message, *, now: float) -> ChiefStep:
         """Handle one decoded message from a worker (Algorithm 1, lines 2–5; closes the round when
         complete)."""
+        if (deposed := self._newer_epoch(message)) is not None:
+            return deposed
         self._start_clock(now)
         sender, rnd = message.sender, message.round
         if message.type == "join":
@@ -293,7 +318,8 @@ class Chief:
                     self._restarted.add(worker)  # its join says whether it replays the open round
             self.state.incarnations[worker] = inc
         if status.state == "offline":
-            if retained or worker not in self.state.members:
+            # a worker refused at join leaves: the chief goes on waiting for one with its settings
+            if retained or worker not in self.state.members or self._gate.refusal(worker) is not None:
                 return ChiefStep()
             self.state.suspects[worker] = now + self.dropout_grace
             return self.tick(now)

@@ -138,6 +138,8 @@ class ChiefState:
     rounds closed without it and the contributions left out for their staleness"""
     contributions: dict[str, Contributions] = field(default_factory=dict)
     """an asynchronous scheme's: worker → its contributions taken (:mod:`.contributions`)"""
+    epoch: int = 0
+    """the chief's epoch (:mod:`.lease`): 0, or one more than the newest it knew of when it took over"""
 
     def drop(self, workers: Iterable[str], reason: str) -> tuple[ChiefEvent, ...]:
         """``workers`` leave W (they may come back) for ``reason``; their events."""
@@ -193,6 +195,7 @@ class ChiefState:
             "dropouts": [list(d) for d in self.dropouts],
             "rejoins": [list(r) for r in self.rejoins],
             "pace": self.pace.fields(),
+            "epoch": self.epoch,
             **({"contributions": self.contribution_counts()} if self.contributions else {}),
         }
 
@@ -236,6 +239,7 @@ class ChiefState:
             contributions={
                 str(w): Contributions.from_dict(c) for w, c in fields.get("contributions", {}).items()
             },
+            epoch=int(fields.get("epoch", 0)),  # a state written before epochs: the run's first chief
         )
 
 

@@ -18,9 +18,10 @@ class ChiefEvent:
         (a worker left W: offline or silent past the deadline), ``rejoined`` (a dropped worker is back in W),
         ``welcome`` (the open round was announced to a worker coming online), ``resent`` (the last answer
         was sent again for a worker that re-sent a closed round), ``admitted`` (a worker new to the run
-        joined W: :mod:`.roster`), ``joined`` (a worker's shared settings
-        match the chief's), ``refused`` (they differ: ``detail`` names the setting) or, at an edge
-        aggregator, ``forwarded`` (an exchange closed at the site: its members' sum went to the root).
+        joined W: :mod:`.roster`), ``joined`` (a worker's shared settings match the chief's), ``refused``
+        (they differ: ``detail`` names the setting), ``deposed`` (an input showed a chief of a newer epoch:
+        this one stops) or, at an edge aggregator, ``forwarded`` (an exchange closed at the site: its
+        members' sum went to the root).
     :param round: the chief's open round when it happened (the closed round for ``averaged``/``transfer``).
     :param sender: who sent the message concerned, or the worker dropped, rejoined or welcomed.
     :param reason: why a message was rejected.
@@ -80,6 +81,8 @@ class ChiefEvent:
                 f"transfer parameters of {self.origin} to {ids(self.remaining) or 'nobody'}; "
                 f"dropped {ids(self.dropped)}; W={{{ids(self.remaining)}}} scores {scores}"
             )
+        if self.kind == "deposed":
+            return f"round {self.round}: a newer chief runs this run ({self.detail}): stopping"
         return f"round {self.round}: run ended: {self.detail}"
 
 

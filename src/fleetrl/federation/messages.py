@@ -17,8 +17,10 @@ contributes; 0: it played the round it answers), ``model_version`` (int ≥ 0: a
 fleet model version — in a worker's contribution the version it started its round from, in the chief's
 answer or welcome the version of the model it carries; 0 otherwise), ``weight`` (a number in (0, ``units``]
 or nil: what a contribution weighs in a mean when that is not its units — a per-step scheme that weighs its
-units by their need, ``pergrad``'s ``focus``; nil: its units), ``tensors`` (list of ``[name, shape]``) and
-``data`` (bin: the tensors concatenated in that order as little-endian float32).
+units by their need, ``pergrad``'s ``focus``; nil: its units), ``epoch`` (int ≥ 0: the chief's epoch —
+in a chief message its own, in a worker message the highest the worker has seen; :mod:`.lease`),
+``tensors`` (list of ``[name, shape]``) and ``data`` (bin: the tensors concatenated in that order as
+little-endian float32).
 
 A round message of an edge aggregator (a site's gateway, :mod:`fleetrl.federation.edge`) carries its
 members' weighted sum Σ wᵢ·xᵢ exactly: its ``data`` is little-endian float64 (8 bytes a value; ``weight`` is
@@ -27,7 +29,7 @@ a chief whose rule decomposes).
 
 Version 2 added ``step``, ``settings``, ``detail`` and the ``join`` / ``refused`` types; version 3 added
 ``samples``, ``units`` and ``config``, and a scheme's own round-message type; version 4 added ``staleness``;
-version 5 added ``model_version``; version 6 added ``weight``.
+version 5 added ``model_version``; version 6 added ``weight``; version 7 added ``epoch``.
 
 :func:`decode` validates all of it and raises :class:`MessageRejected` with a :class:`Reason` for anything
 wrong; it never raises anything else, whatever the bytes.
@@ -75,7 +77,7 @@ __all__ = [
     "layout_size",
 ]
 
-VERSION = 6
+VERSION = 7
 """Envelope version; a receiver rejects any other."""
 
 Layout = Sequence[tuple[str, tuple[int, ...]]]
@@ -123,6 +125,7 @@ _KEYS = frozenset(
         "staleness",
         "model_version",
         "weight",
+        "epoch",
         "tensors",
         "data",
     }
@@ -164,6 +167,8 @@ class Message:
         started from; the chief's answer or welcome: the one it carries); 0 otherwise.
     :param weight: what the contribution weighs in a mean when that is not ``units`` (in (0, ``units``]; an
         edge aggregator's sum: its members' total weight); None: ``units``.
+    :param epoch: the chief's epoch (:mod:`.lease`): a chief message's own, a worker message's the highest
+        its worker has seen; 0 before any takeover.
     :param version: envelope version.
     :param summed: ``flat`` is an edge aggregator's weighted sum of its members' vectors, float64 (sent as
         8 bytes a value), standing for ``weight``.
@@ -187,6 +192,7 @@ class Message:
     staleness: int = 0
     model_version: int = 0
     weight: float | None = None
+    epoch: int = 0
     version: int = VERSION
     summed: bool = False
 
@@ -253,6 +259,7 @@ def envelope(message: Message, *, layout: Layout) -> dict[str, Any]:
         "staleness": message.staleness,
         "model_version": message.model_version,
         "weight": None if message.weight is None else float(message.weight),
+        "epoch": message.epoch,
         "tensors": tensors,
         "data": data,
     }
@@ -384,6 +391,7 @@ def decode(
         summed=wide,
         model_version=check_count(env["model_version"], "model_version"),
         weight=None if weight is None else float(weight),
+        epoch=check_count(env["epoch"], "epoch"),
     )
 
 

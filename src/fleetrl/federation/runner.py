@@ -2,17 +2,19 @@
 
 from __future__ import annotations
 
+import contextlib
 import logging
 import time
 from collections import Counter
-from collections.abc import Callable
-from dataclasses import dataclass, field
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 from fleetrl.federation.chief import Chief, ChiefEvent, ChiefStep
 from fleetrl.federation.chief_state import chief_fields
-from fleetrl.federation.messages import Reason, encode
-from fleetrl.federation.signing import status_payload
+from fleetrl.federation.lease import Deposed, deposed_line, describe, supersedes
+from fleetrl.federation.messages import MessageRejected, Reason, encode
+from fleetrl.federation.signing import Status, parse_status, status_payload
 from fleetrl.federation.topics import (
     CHIEF_ID,
     ENDED,
@@ -33,6 +35,14 @@ IDLE_LOG_INTERVAL = 30.0
 """seconds between the chief's log lines while nothing arrives"""
 MIN_WAIT = 0.005
 """the shortest wait for a deadline that is due (a state machine bug would otherwise spin a core)"""
+LEASE_RETRY = 0.2
+"""seconds between two looks at the broker while a chief's lease is in doubt"""
+
+
+def chief_client_id(run_id: str, epoch: int) -> str:
+    """The chief's MQTT client id in ``epoch``: each epoch has its own session, so a deposed chief that
+    reconnects never takes over the session (or the connection) of the chief that replaced it."""
+    return f"fleetrl-{run_id}-chief" + (f"-e{epoch}" if epoch else "")
 
 
 class IdleTimeout(TimeoutError):
@@ -86,6 +96,8 @@ def run_chief(
     checkpoint: Callable[[Chief], None] | None = None,
     first_step: ChiefStep | None = None,
     idle_log_interval: float = IDLE_LOG_INTERVAL,
+    read_lease: Callable[[], Status | None] | None = None,
+    status_fields: Mapping[str, str | int] | None = None,
 ) -> ChiefSummary:
     """Serve one run: connect, announce the chief online, answer every round until the chief ends the run.
 
@@ -109,64 +121,141 @@ def run_chief(
         acts on an answer the checkpoint does not hold (write-ahead).
     :param first_step: published right after the chief announces itself online (a resumed chief passes
         :func:`~fleetrl.federation.chief_state.replay_last_answer`).
+    :param read_lease: reads the retained chief status of the run over a connection of its own (None: there
+        is none). After the connection was lost, or the loop stalled for half the transport's keep-alive (a
+        stopped process), the chief reads it before it acts again, and stops with
+        :class:`~fleetrl.federation.lease.Deposed` if a newer chief took the run (docs/protocol.md, "One chief
+        per run"). None: only the chief statuses it receives are checked.
+    :param status_fields: who this chief is (pid, host, keep-alive: :func:`~.lease.holder_fields`), said in
+        its status beside its epoch.
+    :raises Deposed: a chief status or a worker message showed a newer epoch; nothing was published or
+        checkpointed after it.
     """
     run_id = chief.run_id
     own_status = status_topic(run_id, CHIEF_ID)
     out_topic = chief_topic(run_id)
     incarnation = time.time_ns()
+    keepalive = getattr(transport, "keepalive", None)
+    # a main loop late by this much may have been stopped (or starved) towards the end of its lease (1.5 ×
+    # the keep-alive): look at the broker before acting again
+    guard = None if keepalive is None else keepalive / 2
 
     def status(state: bytes) -> bytes:
-        return status_payload(state, run_id=run_id, node=CHIEF_ID, incarnation=incarnation, key=chief.key)
+        fields = {"epoch": chief.epoch, **(status_fields or {})}
+        return status_payload(
+            state, run_id=run_id, node=CHIEF_ID, incarnation=incarnation, key=chief.key, fields=fields
+        )
+
+    def deposed_by(other: Status) -> None:
+        epoch = other.number("epoch") or 0
+        raise Deposed(deposed_line(run_id, chief.epoch, f"epoch {epoch}, {describe(other)}"))
+
+    lease = _Lease(transport, clock, guard)
+
+    def confirm_lease() -> None:
+        """The connection was lost or this process was stopped: act again only once connected, and only if
+        no newer chief took the run meanwhile (then re-announce online: the will may have fired)."""
+        log.info("chief: connection lost or process stalled; checking that no newer chief took over")
+        while True:
+            if lease.connected():
+                try:
+                    seen = None if read_lease is None else read_lease()
+                except ConnectionError as exc:
+                    log.info("chief: cannot read the chief status yet (%s)", exc)
+                else:
+                    if seen is not None and supersedes(seen, epoch=chief.epoch, incarnation=incarnation):
+                        deposed_by(seen)
+                    transport.publish(own_status, status(ONLINE), retain=True)
+                    lease.confirmed()
+                    return
+            if idle_timeout is not None and clock() - last_input[0] >= idle_timeout:
+                raise IdleTimeout(f"cut off from the broker for {idle_timeout:g} s (--idle-timeout)")
+            time.sleep(LEASE_RETRY)
 
     committed = [chief_fields(chief) if checkpoint is not None else None]
     if checkpoint is not None:  # a chief killed before its first round closes can be resumed too
         checkpoint(chief)
 
     def publish(step: ChiefStep) -> None:
+        if chief.superseded is not None:  # a worker follows a newer chief: act no more
+            raise Deposed(deposed_line(run_id, chief.epoch, chief.superseded))
+        if lease.in_doubt():
+            confirm_lease()
         if checkpoint is not None and (fields := chief_fields(chief)) != committed[0]:
             checkpoint(chief)
             committed[0] = fields
+            if lease.in_doubt():  # stopped while it wrote: the checkpoint may lead the answers (write-ahead)
+                confirm_lease()
         for message in step.outgoing:
-            transport.publish(out_topic, encode(message, layout=chief.layout_of(message.type), key=chief.key))
+            stamped = replace(message, epoch=chief.epoch)
+            transport.publish(out_topic, encode(stamped, layout=chief.layout_of(message.type), key=chief.key))
         for event in step.events:
             _log_event(event)
             if on_event is not None:
                 on_event(event)
 
-    transport.connect(f"fleetrl-{run_id}-chief", will=Will(own_status, status(OFFLINE)))
+    def chief_status(payload: bytes) -> None:
+        """Another chief's status (or this one's, replayed): a newer chief deposes this one; an older one's
+        (or this chief's will, fired while it was away) is answered by announcing this chief again."""
+        try:
+            seen = parse_status(payload, run_id=run_id, node=CHIEF_ID, key=chief.key)
+        except MessageRejected as exc:
+            log.warning("chief: rejected a chief status: %s", exc)
+            return
+        if supersedes(seen, epoch=chief.epoch, incarnation=incarnation):
+            deposed_by(seen)
+        mine = seen.incarnation == incarnation
+        if not (mine and seen.state == "online") and not chief.finished:
+            if not mine and seen.state == "online":
+                log.warning(
+                    "chief: an older chief's status (%s, %s): announcing this one", seen.state, describe(seen)
+                )
+            transport.publish(own_status, status(ONLINE), retain=True)
+
+    transport.connect(chief_client_id(run_id, chief.epoch), will=Will(own_status, status(OFFLINE)))
+    last_input = [clock()]
+    clean_exit = False
     try:
         transport.subscribe(worker_filter(run_id))
         transport.subscribe(status_filter(run_id))
-        # after subscribing: workers may send once they see it
-        transport.announce(own_status, status(ONLINE))
+        # after subscribing: workers may send once they see it. Not re-announced by the transport on a
+        # reconnect: the lease is checked first (confirm_lease)
+        transport.publish(own_status, status(ONLINE), retain=True)
+        lease.confirmed()
         members = ",".join(chief.members)
         params = " ".join(f"{k}={v}" for k, v in chief.scheme.params().items())
         log.info(
-            "chief of run %s online: W={%s}, M=%d, scheme %s%s, %s",
+            "chief of run %s online: W={%s}, M=%d, scheme %s%s, %s, epoch %d",
             run_id,
             members,
             chief.max_rounds,
             chief.scheme.name,
             f" ({params})" if params else "",
             chief.aggregator_name,
+            chief.epoch,
         )
         if first_step is not None:
             publish(first_step)
-        last_input = clock()
-        next_note = last_input + idle_log_interval  # the next "still waiting" log line
+        next_note = last_input[0] + idle_log_interval  # the next "still waiting" log line
         while not chief.finished:
             now = clock()
             waits = [next_note - now]
             if idle_timeout is not None:
-                waits.append(last_input + idle_timeout - now)
+                waits.append(last_input[0] + idle_timeout - now)
             if (deadline := chief.next_deadline()) is not None:
                 waits.append(max(deadline - now + 0.001, MIN_WAIT))  # MIN_WAIT: never a busy loop
-            received = transport.receive(max(0.0, min(waits)))
+            wait = max(0.0, min(waits))
+            if guard is not None:  # waking often enough that a stop of more than the guard shows
+                wait = min(wait, guard / 2)
+            lease.expect_back(now + wait)
+            received = transport.receive(wait)
+            if lease.in_doubt():  # before anything that came is looked at
+                confirm_lease()
             now = clock()
             if received is None:
                 publish(chief.tick(now))
                 waiting = sorted(set(chief.members) - set(chief.answered))
-                if idle_timeout is not None and now - last_input >= idle_timeout:
+                if idle_timeout is not None and now - last_input[0] >= idle_timeout:
                     raise IdleTimeout(
                         f"no worker message for {idle_timeout:g} s (--idle-timeout) in round {chief.round}; "
                         f"waiting for {waiting}"
@@ -174,25 +263,36 @@ def run_chief(
                 if now >= next_note:
                     log.info(
                         "chief: round %d, idle for %.0f s, waiting for %s%s",
-                        chief.round, now - last_input, waiting,
+                        chief.round, now - last_input[0], waiting,
                         "" if idle_timeout is None else f" (giving up after {idle_timeout:g} s)",
                     )  # fmt: skip
                     next_note = now + idle_log_interval
                 continue
-            last_input = now
+            last_input[0] = now
             next_note = now + idle_log_interval
             worker = worker_of_topic(run_id, received.topic)
             if worker is not None:
                 publish(chief.receive_bytes(received.payload, topic_worker=worker, now=now))
             else:
                 node = node_of_status_topic(run_id, received.topic)
-                if node is not None and node != CHIEF_ID:
+                if node == CHIEF_ID:
+                    chief_status(received.payload)
+                elif node is not None:
                     log.info("chief: node %s is %s", node, received.payload[:16].decode("ascii", "replace"))
                     publish(chief.status(node, received.payload, retained=received.retained, now=now))
             publish(chief.tick(now))
         # retained: a worker that starts after this learns the run is over, instead of waiting for a welcome
         transport.publish(own_status, status(ENDED), retain=True)
+        clean_exit = True
+    except Deposed:
+        clean_exit = True  # the newer chief's status stands: say nothing
+        raise
     finally:
+        if (
+            not clean_exit
+        ):  # an error or an interrupt: say what the will would have (a clean close fires none)
+            with contextlib.suppress(Exception):
+                transport.publish(own_status, status(OFFLINE), retain=True)
         transport.close()
     return ChiefSummary(
         rounds=chief.round,
@@ -214,3 +314,45 @@ def _log_event(event: ChiefEvent) -> None:
         log.debug("chief: %s", event)
     else:
         log.info("chief: %s", event)
+
+
+class _Lease:
+    """Whether the chief may act without looking at the broker first: not if its connection was lost since
+    it last looked, or its loop came back late by more than ``guard`` s (it was stopped, or the machine
+    stalled: the broker may have fired its will meanwhile)."""
+
+    def __init__(self, transport: Transport, clock: Callable[[], float], guard: float | None) -> None:
+        self.transport, self.clock, self.guard = transport, clock, guard
+        self._losses = self._lost()
+        self._back_by: float | None = None
+        self._alive_at = clock()
+
+    def _lost(self) -> int:
+        return int(getattr(self.transport, "connection_losses", 0))
+
+    def connected(self) -> bool:
+        """Whether the transport's connection is up (a transport that cannot tell: yes)."""
+        return bool(getattr(self.transport, "connected", True))
+
+    def expect_back(self, when: float) -> None:
+        """The loop is about to wait until ``when`` at most."""
+        self._back_by = when
+
+    def in_doubt(self) -> bool:
+        """The connection was lost, or the loop is late by more than the guard, since the last look."""
+        now = self.clock()
+        late = False
+        if self.guard is not None:
+            expected = self._alive_at if self._back_by is None else max(self._alive_at, self._back_by)
+            late = now - expected > self.guard
+        self._back_by = None
+        if self._lost() != self._losses or late or not self.connected():
+            return True
+        self._alive_at = now
+        return False
+
+    def confirmed(self) -> None:
+        """The chief looked and still holds the run."""
+        self._losses = self._lost()
+        self._alive_at = self.clock()
+        self._back_by = None

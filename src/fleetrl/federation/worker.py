@@ -39,7 +39,7 @@ import contextlib
 import logging
 import time
 from collections import deque
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from typing import Any
 
 from fleetrl.federation.messages import Layout, RoundConfig
@@ -118,6 +118,8 @@ class FederatedWorker:
     :param ended_grace: seconds to wait, unwelcomed, for a new chief once the chief's retained status says
         the run has ended; then :meth:`run` raises
         :class:`~fleetrl.federation.rounds.RunEndedError`.
+    :param status_fields: who this process is (pid, host, keep-alive: :func:`~.lease.holder_fields`), said
+        in its status so a second process with its id is refused naming it.
     """
 
     def __init__(
@@ -140,6 +142,7 @@ class FederatedWorker:
         clock: Callable[[], float] = time.monotonic,
         units: int = 1,
         ended_grace: float = ENDED_GRACE,
+        status_fields: Mapping[str, str | int] | None = None,
     ) -> None:
         """Prepare the worker; nothing is sent before :meth:`run`."""
         self.learner = learner
@@ -170,6 +173,7 @@ class FederatedWorker:
             incarnation=time.time_ns(),
             units=units,
             ended_grace=ended_grace,
+            status_fields=status_fields,
         )
         self._queue: deque[WorkerOutput] = deque()
         self._played: Any = None
@@ -189,6 +193,9 @@ class FederatedWorker:
             summary = finish.summary
             self.transport.publish(machine.own_status, machine.status(OFFLINE), retain=True)
         except SettingsRefused:  # never admitted: the chief keeps waiting for a worker with its settings
+            # offline, so no stale online holds the place (the chief that refused it does not drop the id)
+            with contextlib.suppress(Exception):
+                self.transport.publish(machine.own_status, machine.status(OFFLINE), retain=True)
             raise
         except BaseException:
             # A worker dying of an error closes its connection cleanly, so its last will never fires: it says

@@ -25,7 +25,8 @@ from __future__ import annotations
 
 import logging
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
+from dataclasses import replace
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -106,6 +107,7 @@ class WorkerMachine:
         incarnation: int = 0,
         units: int = 1,
         ended_grace: float = ENDED_GRACE,
+        status_fields: Mapping[str, str | int] | None = None,
     ) -> None:
         """Prepare the machine; nothing happens before :meth:`start`."""
         if units < 1:
@@ -125,6 +127,10 @@ class WorkerMachine:
         self.restarted = restarted
         self.incarnation = incarnation
         self.ended_grace = ended_grace
+        self.status_fields = dict(status_fields or {})
+        self.epoch = 0
+        """the highest chief epoch seen (:mod:`.lease`): chief messages of an older one are ignored, and
+        every message this worker sends carries it"""
         self._run_ended_at: float | None = None
         """when the chief's status said ``ended`` (None: it did not, or a chief came online since)"""
         self.chief_topic = chief_topic(run_id)
@@ -147,8 +153,9 @@ class WorkerMachine:
     def status(self, state: bytes) -> bytes:
         """This worker's signed live status ``state`` (``online``/``offline``; the runner's last will)."""
         return status_payload(
-            state, run_id=self.run_id, node=self.worker_id, incarnation=self.incarnation, key=self.key
-        )
+            state, run_id=self.run_id, node=self.worker_id, incarnation=self.incarnation, key=self.key,
+            fields=self.status_fields,
+        )  # fmt: skip
 
     def start(self, *, now: float) -> WorkerStep:
         """Announce ``online`` and send the retained ``join``; wait for the welcome."""
@@ -177,7 +184,21 @@ class WorkerMachine:
         except MessageRejected as exc:
             log.warning("worker %s: rejected a chief message: %s", self.worker_id, exc)
             return NOTHING
+        if message.epoch < self.epoch:  # a deposed chief's (or one it sent before it was replaced)
+            log.info(
+                "worker %s: ignoring %s of round %d from a chief of epoch %d (following epoch %d)",
+                self.worker_id, message.type, message.round, message.epoch, self.epoch,
+            )  # fmt: skip
+            return NOTHING
+        self._follow(message.epoch, f"its {message.type} of round {message.round}")
         return self.receive(message, now=now)
+
+    def _follow(self, epoch: int, what: str) -> None:
+        """Follow the chief of ``epoch`` from now on if it is newer than the one followed (a takeover: the
+        rounds in flight go on with the new chief, which resumed from the old one's checkpoint)."""
+        if epoch > self.epoch:
+            log.warning("worker %s: following the chief of epoch %d (%s)", self.worker_id, epoch, what)
+            self.epoch = epoch
 
     def _chief_status(self, payload: bytes, now: float) -> WorkerStep:
         """The chief's status: ``offline`` is logged; ``ended`` before the welcome starts the grace after
@@ -187,6 +208,9 @@ class WorkerMachine:
         except MessageRejected as exc:
             log.warning("worker %s: rejected the chief's status: %s", self.worker_id, exc)
             return NOTHING
+        epoch = status.number("epoch")
+        if epoch is not None and epoch > self.epoch:
+            self._follow(epoch, f"its status says {status.state}")
         if status.state == "online":
             self._run_ended_at = None
         elif status.state == "offline":
@@ -421,6 +445,7 @@ class WorkerMachine:
     ) -> WorkerStep:
         """Publish ``message`` on the worker topic, then wait for what ``wanted`` accepts, re-sending it."""
         log.debug("worker %s: sending %s of round %d", self.worker_id, message.type, message.round)
+        message = replace(message, epoch=self.epoch)  # so an older chief that hears it knows it was replaced
         publish = act.Publish(self.topic, encode(message, layout=self.layout, key=self.key), retain, message)
         deadline = None if self.reply_timeout is None else now + self.reply_timeout
         next_send = None if self.resend_interval is None else now + self.resend_interval

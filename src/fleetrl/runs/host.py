@@ -8,7 +8,7 @@ learner is a :class:`~fleetrl.agent.host_learner.HostLearner` and whose messages
 
 import logging
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 
 import torch
@@ -83,6 +83,7 @@ def train_host(
     resend_interval: float | None = 5.0,
     key: FleetKey | None = None,
     learner: HostLearner | None = None,
+    status_fields: Mapping[str, str | int] | None = None,
 ) -> WorkerSummary:
     """Federated mode for a host of the specs' units over ``transport``: one worker carrying them (its
     messages signed with ``key`` if given); every unit's rows emitted each round; every unit's model file
@@ -110,6 +111,7 @@ def train_host(
         scheme=first.learning.federation_scheme(),
         settings=shared_text(first.learning),
         units=len(specs),
+        status_fields=status_fields,
     )
     try:
         return worker.run()

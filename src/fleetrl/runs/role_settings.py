@@ -4,13 +4,17 @@ process."""
 
 from __future__ import annotations
 
+import os
+import time
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
 from fleetrl.envs.catalog import get_env_spec
-from fleetrl.federation.signing import FleetKey
-from fleetrl.federation.topics import validate_id
+from fleetrl.federation.lease import DEFAULT_KEEPALIVE
+from fleetrl.federation.messages import MessageRejected
+from fleetrl.federation.signing import FleetKey, Status, parse_status
+from fleetrl.federation.topics import status_topic, validate_id
 from fleetrl.runs.host_settings import host_setting_problem, member_ids
 from fleetrl.runs.learning_resolution import positive
 from fleetrl.runs.setting_values import SettingError, check_readable_file, check_writable_dir, label
@@ -48,6 +52,9 @@ class RoleSettings(BrokerLogin):
     connect_timeout: float = 60.0
     """seconds to keep retrying an unreachable broker, with backoff, before exiting 1 (start order does not
     matter)"""
+    keepalive: int = DEFAULT_KEEPALIVE
+    """MQTT keep-alive in seconds (1–3600): the broker fires the last will of a role silent for 1.5 × this
+    (its lease: how long the place of a stopped or cut-off chief or worker stays held)"""
 
     def resolved_learning(self) -> tuple[LearningSettings, FleetShape]:
         """The learning settings resolved (and the fleet's shape, from the one agent built for them), then
@@ -61,6 +68,14 @@ class RoleSettings(BrokerLogin):
             check_readable_file(name, getattr(self, name))
         self.fleet_key()
         positive("connect_timeout", self.connect_timeout)
+        if (
+            isinstance(self.keepalive, bool)
+            or not isinstance(self.keepalive, int)
+            or not 1 <= self.keepalive <= 3600
+        ):
+            raise SettingError(
+                f"{label('keepalive')} = {self.keepalive!r}: must be a whole number of seconds, 1 to 3600"
+            )
         return learning, shape
 
     def fleet_key(self) -> FleetKey | None:
@@ -83,7 +98,32 @@ class RoleSettings(BrokerLogin):
             clean_session=clean_session,
             connect_timeout=self.connect_timeout,
             password=self.broker_password,
+            keepalive=self.keepalive,
         )
+
+    def read_status(self, node: str) -> Status | None:
+        """The retained status of ``node`` (``chief`` or a worker id) of this run, read over a connection of
+        its own (no role's session is touched); None if there is none, or it cannot be read as a status.
+        ConnectionError if the broker cannot be reached within ``connect_timeout`` s."""
+        from fleetrl.transport.mqtt import read_retained
+
+        assert self.broker is not None, "resolution requires a broker"
+        payload = read_retained(
+            self.broker,
+            status_topic(self.run_id, node),
+            client_id=f"fleetrl-{self.run_id}-probe-{os.getpid()}-{time.monotonic_ns() % 10**9}",
+            timeout=self.connect_timeout,
+            ca_file=path_text(self.ca_file),
+            cert_file=path_text(self.client_cert),
+            key_file=path_text(self.client_key),
+            password=self.broker_password,
+        )
+        if payload is None:
+            return None
+        try:
+            return parse_status(payload, run_id=self.run_id, node=node, key=self.fleet_key())
+        except MessageRejected:
+            return None
 
 
 @dataclass(frozen=True, kw_only=True)

@@ -7,7 +7,7 @@ worker's model when they end, however they end. An uneven unit (its spec's ``une
 
 import logging
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from pathlib import Path
 
 from fleetrl.agent.learner import Learner, RoundResult
@@ -64,6 +64,7 @@ def train_federated(
     key: FleetKey | None = None,
     checkpoint_dir: Path | None = None,
     resume: bool = False,
+    status_fields: Mapping[str, str | int] | None = None,
 ) -> WorkerSummary:
     """Federated mode (Algorithm 2): one worker of run ``run_id`` over ``transport``; save the model.
 
@@ -71,6 +72,8 @@ def train_federated(
         :class:`~fleetrl.runs.checkpoints.WorkerCheckpoint`); None: no checkpoints.
     :param resume: first restore the state committed in ``checkpoint_dir`` (if there is one) and continue
         from its round; a worker whose run was already over returns at once.
+    :param status_fields: who this process is, said in its status
+        (:func:`~fleetrl.federation.lease.holder_fields`).
     """
     learner = learner or make_learner(spec)
     started = time.monotonic()
@@ -104,6 +107,7 @@ def train_federated(
         on_round_done=None if store is None else lambda next_round: store.save(learner, next_round),
         scheme=spec.learning.federation_scheme(),
         settings=shared_text(spec.learning),
+        status_fields=status_fields,
     )
     try:
         summary = worker.run()

@@ -40,7 +40,7 @@ topic write fleetrl/+/chief
 topic readwrite fleetrl/+/status/#
 
 pattern write fleetrl/+/worker/%u
-pattern write fleetrl/+/status/%u
+pattern readwrite fleetrl/+/status/%u
 pattern read fleetrl/+/chief
 pattern read fleetrl/+/status/chief
 """

@@ -128,6 +128,18 @@ class MqttTransport:
         self._refused: str | None = None
         self._unacked: list[paho.MQTTMessageInfo] = []
         self._client: paho.Client | None = None
+        self.connection_losses = 0
+        """how many times the connection was lost after it was made (a chief's lease is in doubt after one)"""
+
+    @property
+    def keepalive(self) -> int:
+        """The MQTT keep-alive in seconds (the broker fires the will after 1.5 × this of silence)."""
+        return self._keepalive
+
+    @property
+    def connected(self) -> bool:
+        """Whether the connection is up now (the broker acknowledged it and it was not lost since)."""
+        return self._connected.is_set() and self._refused is None
 
     def connect(self, client_id: str, *, will: Will | None = None, timeout: float | None = None) -> None:
         """Connect as ``client_id`` and start the network thread; ConnectionError on failure (a refused login
@@ -263,6 +275,8 @@ class MqttTransport:
         self, client: paho.Client, userdata: Any, flags: Any, reason: Any, properties: Any
     ) -> None:
         self._connected.clear()
+        if self._client is not None:
+            self.connection_losses += 1
         if self._client is not None and reason.is_failure:
             log.warning("lost connection to %s (%s); reconnecting with backoff", self.address.url, reason)
 
@@ -276,6 +290,49 @@ def probe_broker(url: str, *, timeout: float, **options: Any) -> None:
     transport = MqttTransport(url, connect_timeout=timeout, **options)
     transport.connect(f"fleetrl-probe-{os.getpid()}-{time.monotonic_ns() % 10**6}")
     transport.close()
+
+
+RETAINED_GRACE = 0.5
+"""seconds :func:`read_retained` waits after the broker acknowledged its subscription (a retained message
+follows the SUBACK at once)"""
+
+
+def read_retained(
+    url: str, topic: str, *, client_id: str, timeout: float, grace: float = RETAINED_GRACE, **options: Any
+) -> bytes | None:
+    """The message retained on ``topic`` (None: there is none), read over a connection of its own under
+    ``client_id`` with a clean session, so no role's session is touched; ConnectionError if the broker cannot
+    be reached or refuses the login within ``timeout`` s. ``options`` are :class:`MqttTransport`'s.
+
+    The answer is known when a retained message arrives, or ``grace`` s after the subscription's SUBACK."""
+    transport = MqttTransport(url, connect_timeout=timeout, clean_session=True, **options)
+    acked = threading.Event()
+    transport.connect(client_id)
+    try:
+        client = transport._require()
+        client.on_subscribe = lambda *_: acked.set()
+        result, _ = client.subscribe(topic, qos=1)
+        if result != paho.MQTT_ERR_SUCCESS:
+            raise ConnectionError(
+                f"cannot read {topic} on {transport.address.url}: {paho.error_string(result)}"
+            )
+        deadline = time.monotonic() + timeout
+        acked_at: float | None = None
+        while True:
+            now = time.monotonic()
+            if acked_at is None and acked.is_set():
+                acked_at = now
+            if acked_at is not None and now >= acked_at + grace:
+                return None
+            if now >= deadline:
+                raise ConnectionError(
+                    f"cannot read {topic} on {transport.address.url}: no SUBACK within {timeout:g} s"
+                )
+            received = transport.receive(0.05)
+            if received is not None and received.topic == topic and received.retained:
+                return received.payload or None  # an empty retained message is none
+    finally:
+        transport.close(flush_timeout=0.5)
 
 
 def _settled(info: paho.MQTTMessageInfo) -> bool:

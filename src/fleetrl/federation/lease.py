@@ -1,0 +1,115 @@
+"""One chief per run and one process per worker id on a broker: the lease MQTT gives, and the chief's epoch.
+
+**The lease.** Every role connects with a last will ``offline`` (retained) on its status topic and announces
+``online`` (retained) with who it is: ``pid``, ``host``, its ``keepalive`` K and, for the chief, its
+``epoch``. The broker fires the will when the connection closes, or after 1.5 × K s without a packet (a
+stopped process, a host or a network gone): that is how long a place stays held by a role nobody hears from.
+A role that starts reads the retained status of its place first, over a connection of its own (so it never
+takes over the session of a live one): ``online`` means the place is held, and the start is refused in one
+line naming the holder.
+
+**The epoch.** A chief starts epoch 0, or — taking over a run that had a chief (``--resume``, or a run id
+whose chief's status is still retained) — one more than the highest it knows of (its checkpoint's, the
+retained status's). The epoch is in its checkpoint, its status and every message it sends; workers follow
+the highest epoch they have seen and ignore chief messages of an older one, and stamp their own messages with
+it. A chief that sees a newer epoch (a chief status, or a worker message) has been deposed: it stops acting —
+nothing published, nothing checkpointed — and exits non-zero with one line.
+
+Pure functions of statuses; no sockets (the roles read the retained status through their transport).
+"""
+
+from __future__ import annotations
+
+import os
+import re
+import socket
+from datetime import UTC, datetime
+
+from fleetrl.federation.signing import Status
+
+LEASE_FACTOR = 1.5
+"""the broker fires a silent client's will after this many keep-alive periods (MQTT 3.1.1, 3.1.2.10)"""
+DEFAULT_KEEPALIVE = 30
+"""the roles' MQTT keep-alive in seconds (``--keepalive``): a silent role's place is free after 45 s"""
+
+
+class Deposed(OSError):
+    """A chief learned that a chief of a newer epoch runs its run: it stopped without acting (exit 1)."""
+
+
+def holder_fields(keepalive: int, epoch: int | None = None) -> dict[str, str | int]:
+    """The ``name=value`` fields of this process's status: pid, host, keep-alive (and a chief's epoch)."""
+    host = re.sub(r"[^A-Za-z0-9_.:-]", "_", socket.gethostname())[:64] or "unknown"
+    fields: dict[str, str | int] = {"pid": os.getpid(), "host": host, "keepalive": int(keepalive)}
+    return fields if epoch is None else {"epoch": int(epoch), **fields}
+
+
+def since_text(incarnation: int | None) -> str:
+    """When a node started (its incarnation, nanoseconds since 1970), as ISO 8601 UTC."""
+    if incarnation is None:
+        return "an unknown time"
+    return datetime.fromtimestamp(incarnation / 1e9, UTC).isoformat(timespec="seconds")
+
+
+def describe(status: Status) -> str:
+    """``pid 12 on host h since 2024-…`` (what its status says)."""
+    pid, host = status.fields.get("pid"), status.fields.get("host")
+    who = " ".join(filter(None, (f"pid {pid}" if pid else "", f"on host {host}" if host else "")))
+    return f"{who or 'a process'} since {since_text(status.incarnation)}"
+
+
+def lease_seconds(status: Status) -> float | None:
+    """How long after its last packet the broker keeps a silent holder's place (None: not said)."""
+    keepalive = status.number("keepalive")
+    return None if keepalive is None else LEASE_FACTOR * keepalive
+
+
+def place_refusal(run_id: str, node: str, status: Status | None, topic: str) -> str | None:
+    """The one line refusing a start in ``node``'s place (``chief`` or a worker id) of ``run_id`` when its
+    retained ``status`` says a live process holds it; None: the place is free."""
+    if status is None or status.state != "online":
+        return None
+    lease = lease_seconds(status)
+    wait = f"{lease:g} s" if lease is not None else "1.5 × its keep-alive"
+    epoch = status.number("epoch")
+    role = "chief" if node == "chief" else f"worker {node}"
+    if node == "chief":
+        what = (
+            f"run {run_id!r} has a live chief (epoch {epoch if epoch is not None else 0}): {describe(status)}"
+        )
+        then = f"once its lease ({wait} after its last word) has run out, start the new chief with --resume"
+    else:
+        what = f"worker id {node} of run {run_id!r} is live: {describe(status)}"
+        then = f"once its lease ({wait} after its last word) has run out, start it again (with --resume)"
+    return (
+        f"{what}; only one {role} may run: stop that process first; if it was cut off or stopped, {then}; "
+        f"if it is gone for good and its status is stale (a broker that crashed keeps it), clear it with "
+        f"`mosquitto_pub -r -n -t {topic}`"
+    )
+
+
+def chief_epoch(*, checkpoint: int | None, retained: Status | None) -> int:
+    """The epoch a starting chief takes: one more than the newest it knows of (its checkpoint's epoch when
+    resuming, the retained chief status's), or 0 for the first chief of a run."""
+    known = [
+        e for e in (checkpoint, None if retained is None else retained.number("epoch") or 0) if e is not None
+    ]
+    return max(known) + 1 if known else 0
+
+
+def supersedes(status: Status, *, epoch: int, incarnation: int) -> bool:
+    """Whether a chief status of another incarnation than ``incarnation`` shows a chief newer than one of
+    ``epoch``: a higher epoch, or the same epoch started later (two chiefs that took the same epoch at
+    once: the later one stays)."""
+    if status.incarnation is None or status.incarnation == incarnation:
+        return False
+    other = status.number("epoch") or 0
+    return other > epoch or (other == epoch and status.incarnation > incarnation)
+
+
+def deposed_line(run_id: str, epoch: int, by: str) -> str:
+    """The one line of a chief that stops because a newer epoch runs its run."""
+    return (
+        f"run {run_id!r}: this chief (epoch {epoch}) was replaced by a newer chief ({by}); it stopped "
+        "without publishing or checkpointing anything more: let the new chief run the run"
+    )

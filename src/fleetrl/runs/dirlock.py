@@ -1,0 +1,161 @@
+"""One process per run directory: an exclusive lock a role holds on its ``--out`` for its whole life.
+
+``fleetrl chief --out DIR`` and ``fleetrl worker --out DIR`` take ``fcntl.flock(LOCK_EX | LOCK_NB)`` on
+``DIR/.lock-chief`` (the chief) or ``DIR/.lock-worker`` (a worker or unit host: one per directory, whatever
+its id, as with its metrics.csv) before they read or write anything else there, then write who holds it
+(JSON: role, pid, host, since) into that file; a chief and a worker may still share a directory. The
+operating system releases the lock when the process ends, however it ends, so a role killed with ``kill -9``
+can be resumed at once. A second process on the same directory — resuming or not — is refused in one line
+naming the holder, and writes nothing. A stopped (SIGSTOP) or hung process still holds its lock: that is the
+point (it may wake up and write again).
+
+flock is per open file and works on local filesystems; on a network filesystem (NFS) it may not exclude
+another machine: keep a role's run directory on a local disk.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import fcntl
+import json
+import os
+import socket
+from dataclasses import dataclass
+from datetime import UTC, datetime
+from pathlib import Path
+from typing import Any
+
+LOCK_PREFIX = ".lock-"
+"""the lock files inside a run directory: ``.lock-chief``, ``.lock-worker``"""
+
+
+class RoleConflict(OSError):
+    """Another process holds what this role needs (its run directory, or its place in the run on the
+    broker): the command did not start (exit 1). Its message is one line naming the holder."""
+
+
+@dataclass(frozen=True)
+class Holder:
+    """Who holds a run directory (or a place in a run): what the refusal names."""
+
+    role: str
+    pid: int | None
+    host: str | None
+    since: str | None
+    """when it started (ISO 8601, UTC)"""
+
+    def describe(self) -> str:
+        """``pid 123 on host h since 2024-…`` (what is known of it)."""
+        parts = []
+        if self.pid is not None:
+            parts.append(f"pid {self.pid}")
+        if self.host:
+            parts.append(f"on host {self.host}")
+        if self.since:
+            parts.append(f"since {self.since}")
+        return " ".join(parts) or "a process that did not say who it is"
+
+
+def this_process(role: str) -> Holder:
+    """The holder this process is: its pid, host name and start time."""
+    return Holder(role, os.getpid(), socket.gethostname(), now_text())
+
+
+def now_text() -> str:
+    """The current time as the holder records name it (ISO 8601, UTC, seconds)."""
+    return datetime.now(UTC).isoformat(timespec="seconds")
+
+
+class DirectoryLock:
+    """The exclusive lock of ``directory`` for ``role`` (``chief``, ``worker K``, ``unit host K``): the
+    lock file is ``.lock-chief`` for the chief and ``.lock-worker`` for the others.
+
+    Use :meth:`acquire` (or the lock as a context manager); the lock lasts until :meth:`release` or the
+    process's end.
+    """
+
+    def __init__(self, directory: Path, role: str) -> None:
+        """Bind to ``directory``; nothing is touched before :meth:`acquire`."""
+        self.directory = Path(directory)
+        self.role = role
+        self._fd: int | None = None
+        self._new_file = False
+        self.created = False
+        """whether :meth:`acquire` created the directory (a refused start removes what it created)"""
+
+    @property
+    def path(self) -> Path:
+        """The lock file."""
+        return self.directory / (LOCK_PREFIX + ("chief" if self.role == "chief" else "worker"))
+
+    def acquire(self) -> DirectoryLock:
+        """Take the lock (creating the directory if needed); :class:`RoleConflict` naming the holder if
+        another process has it. Nothing is written unless the lock was taken."""
+        self.created = not self.directory.exists()
+        self.directory.mkdir(parents=True, exist_ok=True)
+        self._new_file = not self.path.exists()
+        fd = os.open(self.path, os.O_RDWR | os.O_CREAT | os.O_CLOEXEC, 0o644)
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            holder = _read_holder(fd)
+            os.close(fd)
+            raise RoleConflict(
+                f"{self.directory} is in use by the {holder.role} {holder.describe()} (it holds "
+                f"{self.path}): only one process may use a run directory; stop that one first (it keeps "
+                "the lock while it lives, even stopped), or choose another --out"
+            ) from None
+        except OSError:
+            os.close(fd)
+            raise
+        me = this_process(self.role)
+        record = json.dumps({"role": me.role, "pid": me.pid, "host": me.host, "since": me.since}) + "\n"
+        os.ftruncate(fd, 0)
+        os.pwrite(fd, record.encode(), 0)
+        os.fsync(fd)
+        self._fd = fd
+        return self
+
+    def release(self) -> None:
+        """Let the lock go (the file stays: removing it could race a process taking it)."""
+        if self._fd is not None:
+            with contextlib.suppress(OSError):
+                fcntl.flock(self._fd, fcntl.LOCK_UN)
+            os.close(self._fd)
+            self._fd = None
+
+    def abandon(self) -> None:
+        """Remove what :meth:`acquire` created (the lock file, and the directory if this lock made it and
+        nothing else was put there) and release the lock, for a start refused after it."""
+        if self._fd is not None and self._new_file:
+            with contextlib.suppress(OSError):
+                self.path.unlink()
+        self.release()
+        if self.created:
+            with contextlib.suppress(OSError):
+                self.directory.rmdir()
+
+    def __enter__(self) -> DirectoryLock:
+        """:meth:`acquire` (unless already held: a second flock of this process would conflict with it)."""
+        return self if self._fd is not None else self.acquire()
+
+    def __exit__(self, *exc: object) -> None:
+        """:meth:`release`."""
+        self.release()
+
+
+def _read_holder(fd: int) -> Holder:
+    """The holder recorded in a lock file (what can be read of it)."""
+    try:
+        data: Any = json.loads(os.pread(fd, 4096, 0).decode() or "{}")
+    except (OSError, ValueError):
+        data = {}
+    if not isinstance(data, dict):
+        data = {}
+    pid = data.get("pid")
+    return Holder(
+        str(data.get("role") or "process"),
+        pid if isinstance(pid, int) else None,
+        str(data["host"]) if data.get("host") else None,
+        str(data["since"]) if data.get("since") else None,
+    )
