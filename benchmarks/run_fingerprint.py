@@ -1,6 +1,6 @@
 """A digest of short seeded runs, to show that a refactoring of the learning code changed no number.
 
-    python benchmarks/run_fingerprint.py [--rounds 30] [--fleet-rounds 10] [--part alone|fleet|all]
+    python benchmarks/run_fingerprint.py [--rounds 30] [--fleet-rounds 10] [--part alone|fleet|hosts|all]
 
 Alone: for each preset (``paper``, ``paper-code``, ``standard``) and each env (CartPoleUnit, QubeBalance;
 unit 0, fleet seed 0, seed 3), plays ``--rounds`` rounds with one learner and prints the SHA-256 of the round
@@ -10,6 +10,9 @@ Fleet: for each preset × every federation scheme × env (cartpole, qube), runs 
 federated --transport local --seed 3`` for ``--fleet-rounds`` rounds through the command line (so a
 refactoring of settings, schemes, chief or worker is covered as a user runs them) and prints the SHA-256 of
 metrics.csv's (round, worker, score) rows and of every worker's final model.
+
+Hosts: ``fedavg``, ``pergrad`` and ``fedprox`` again with 6 units in unit hosts of 3 (``--units-per-host 3``,
+preset ``standard``).
 
 Run it before and after a change on the same machine (``git stash`` or a worktree of the old commit): equal
 digests mean bit-identical runs.
@@ -55,15 +58,22 @@ def fingerprint(preset: str, env_id: str, rounds: int) -> tuple[str, str]:
 
 
 PRESETS = ("paper", "paper-code", "standard")
-SCHEMES = ("paper", "fedavg", "pergrad", "fedavgm", "fedavgm:momentum=0.5", "fedadam")
+SCHEMES = ("paper", "fedavg", "pergrad", "fedavgm", "fedavgm:momentum=0.5", "fedadam", "fedprox")
 """each scheme with its defaults (fedavgm's momentum 0 is fedavg), and fedavgm with momentum"""
+HOST_SCHEMES = ("fedavg", "pergrad", "fedprox")
+"""the schemes run again with the units in unit hosts (6 units, 3 a host; preset ``standard``, the one hosts
+take)"""
 
 
-def fleet_fingerprint(preset: str, scheme: str, env: str, rounds: int) -> tuple[str, str]:
-    """Digests of a 3-unit federated run on the in-process bus, run as a user runs it."""
+def fleet_fingerprint(
+    preset: str, scheme: str, env: str, rounds: int, units: int = 3, per_host: int = 1
+) -> tuple[str, str]:
+    """Digests of a federated run of ``units`` units (``per_host`` to a unit host) on the in-process bus, run
+    as a user runs it."""
     with tempfile.TemporaryDirectory() as tmp:
         out = Path(tmp) / "run"
-        command = [sys.executable, "-m", "fleetrl.cli.main", "train", "--env", env, "--units", "3"]
+        command = [sys.executable, "-m", "fleetrl.cli.main", "train", "--env", env, "--units", str(units)]
+        command += ["--units-per-host", str(per_host)]
         name, _, param = scheme.partition(":")
         command += ["--mode", "federated", "--transport", "local", "--scheme", name, "--preset", preset]
         command += ["--scheme-param", param] if param else []
@@ -90,7 +100,7 @@ def main() -> int:
     )
     parser.add_argument("--rounds", type=int, default=30, help="rounds of each run alone")
     parser.add_argument("--fleet-rounds", type=int, default=10, help="rounds of each federated run")
-    parser.add_argument("--part", choices=("alone", "fleet", "all"), default="all")
+    parser.add_argument("--part", choices=("alone", "fleet", "hosts", "all"), default="all")
     args = parser.parse_args()
     torch.set_num_threads(1)
     print(f"# seed {SEED}; {portable.describe_host()}")
@@ -109,6 +119,12 @@ def main() -> int:
                     print(
                         f"{env:8s} {preset:10s} {scheme:8s} scores {scores} parameters {params}", flush=True
                     )
+    if args.part in ("hosts", "all"):
+        print(f"# 6 units federated in unit hosts of 3 on the in-process bus, {args.fleet_rounds} rounds")
+        for env in ("cartpole", "qube"):
+            for scheme in HOST_SCHEMES:
+                scores, params = fleet_fingerprint("standard", scheme, env, args.fleet_rounds, 6, 3)
+                print(f"{env:8s} hosts      {scheme:8s} scores {scores} parameters {params}", flush=True)
     return 0
 
 
