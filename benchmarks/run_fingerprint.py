@@ -11,8 +11,8 @@ federated --transport local --seed 3`` for ``--fleet-rounds`` rounds through the
 refactoring of settings, schemes, chief or worker is covered as a user runs them) and prints the SHA-256 of
 metrics.csv's (round, worker, score) rows and of every worker's final model.
 
-Hosts: ``fedavg``, ``pergrad`` and ``fedprox`` again with 6 units in unit hosts of 3 (``--units-per-host 3``,
-preset ``standard``).
+Hosts: ``pergrad`` again with 6 units in unit hosts of 3 (``--units-per-host 3``, preset ``standard``; a
+host carries a per-step scheme only).
 
 Run it before and after a change on the same machine (``git stash`` or a worktree of the old commit): equal
 digests mean bit-identical runs.
@@ -60,9 +60,9 @@ def fingerprint(preset: str, env_id: str, rounds: int) -> tuple[str, str]:
 PRESETS = ("paper", "paper-code", "standard")
 SCHEMES = ("paper", "fedavg", "pergrad", "fedavgm", "fedavgm:momentum=0.5", "fedadam", "fedprox")
 """each scheme with its defaults (fedavgm's momentum 0 is fedavg), and fedavgm with momentum"""
-HOST_SCHEMES = ("fedavg", "pergrad", "fedprox")
+HOST_SCHEMES = ("pergrad",)
 """the schemes run again with the units in unit hosts (6 units, 3 a host; preset ``standard``, the one hosts
-take)"""
+take; a host carries a per-step scheme only)"""
 
 
 def fleet_fingerprint(
