@@ -396,9 +396,10 @@ class Chief:
         rnd, exchange = self.state.round, self.state.step
         last_step = exchange == self.steps_per_round - 1
         closed = ClosedExchange.of(rnd, self._pending, self.state.members)
-        if last_step:
-            for worker in closed.completed:
-                self.state.completed.setdefault(worker, rnd)
+        # a completion counts from any exchange of the round its message got into, not only the last: a unit
+        # that misses a round's later exchanges (a straggler, a unit paused whole) still has it counted
+        for worker in closed.completed:
+            self.state.completed.setdefault(worker, rnd)
         context = RoundContext(
             self._aggregate, self.members, dict(self.state.completed), step=exchange, last_step=last_step
         )
