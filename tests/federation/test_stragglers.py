@@ -140,9 +140,9 @@ def test_a_completion_counts_from_the_round_s_first_exchange_when_the_unit_misse
     assert c.end_reason == "every unit completed" and done.round == 1
 
 
-def test_a_member_that_missed_an_exchange_gets_no_grace_until_it_answers_one_again() -> None:
-    """A participant paused whole: its first missed exchange costs one grace, the next ones none; the
-    exchange it gets into again makes it waited for (with its grace) once more. K = 4 here."""
+def test_a_silent_member_that_missed_an_exchange_gets_no_grace_until_it_answers_again() -> None:
+    """A participant paused whole: its first missed exchange costs one grace, the next ones none while it is
+    silent; the exchange it gets into again makes it waited for (with its grace) once more. K = 4 here."""
     c = Chief(
         run_id=RUN,
         workers=("0", "1", "2"),
@@ -176,9 +176,36 @@ def test_a_member_that_missed_an_exchange_gets_no_grace_until_it_answers_one_aga
     assert c.next_deadline() == pytest.approx(0.7 + GRACE_FLOOR)
 
 
-def test_a_member_that_missed_the_last_exchange_of_a_round_is_not_waited_for_at_the_next_round_s_first() -> (
-    None
-):
+def test_a_member_that_answers_late_is_not_silent_and_is_waited_for_again() -> None:
+    """A unit that is only slow: its answer to the exchange it missed comes late, so the next one waits for it
+    (with its grace) as before; a late answer of an older round says nothing of the open one."""
+    c = Chief(
+        run_id=RUN, workers=("0", "1", "2"), layout=LAYOUT, scheme="pergrad", steps_per_round=4, quorum=0.6,
+        max_rounds=20,
+    )  # fmt: skip
+    c.tick(0.0)
+    for sender in ("0", "1", "2"):
+        step(c, sender, 1, 0, [3.0, 3.0], now=0.1)
+    step(c, "0", 1, 1, [1.0, 1.0], now=0.15)
+    step(c, "1", 1, 1, [3.0, 3.0], now=0.2)
+    c.tick(0.45)  # step 1 closed without worker 2
+    assert c.state.pace.missed == {"2"}
+    step(c, "2", 1, 1, [9.0, 9.0], now=0.5)  # its answer to step 1, late: rejected, answered again
+    assert c.state.pace.missed == set()
+    step(c, "0", 1, 2, [1.0, 1.0], now=0.55)
+    assert answers(step(c, "1", 1, 2, [1.0, 1.0], now=0.6)) == []  # waiting for worker 2: the grace
+    assert c.next_deadline() == pytest.approx(0.6 + GRACE_FLOOR)
+    assert answers(step(c, "2", 1, 2, [4.0, 4.0], now=0.65)) == [(1, 2, [2.0, 2.0], ("0", "1", "2"))]
+    # missed again at step 3 (its grace runs out); a late answer of round 1 heard in round 2 does not count
+    step(c, "0", 1, 3, [1.0, 1.0], now=0.7)
+    step(c, "1", 1, 3, [1.0, 1.0], now=0.75)
+    c.tick(0.75 + GRACE_FLOOR)
+    assert c.round == 2 and c.state.pace.missed == {"2"}
+    step(c, "2", 1, 3, [1.0, 1.0], now=1.1)
+    assert c.state.pace.missed == {"2"}
+
+
+def test_a_silent_member_that_missed_a_round_s_last_exchange_is_not_waited_for_at_the_next_s_first() -> None:
     c = make()  # K = 2
     c.tick(0.0)
     for sender in ("0", "1", "2"):

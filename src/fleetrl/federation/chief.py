@@ -247,6 +247,8 @@ class Chief:
             # a stale message (a resend after a lost answer, a straggler, a resumed worker replaying its
             # round): answer that exchange again, change nothing
             stale = refusal[0] in (Reason.STALE_ROUND, Reason.RUN_OVER) and (rnd, message.step) < open_at
+            if stale and rnd == self.state.round and not self.finished:  # late, not silent: waited for again
+                self._waits.heard(self.state.pace, sender)
             return step + self._resend(sender, (rnd, message.step), now) if stale else step
         step = self._rejoin(sender, f"sent {message.type} for round {rnd}")
         self.state.suspects.pop(sender, None)

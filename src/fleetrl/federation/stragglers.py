@@ -10,10 +10,12 @@ collection closes when 60 % of the workers are done):
   *behind*: still playing a round the fleet has moved past). A later exchange of the round waits for the
   round's participants.
 * With a quorum below 1, a member that did not answer the last exchange that closed (it *missed* it) is not
-  waited for until it answers one again: the grace is granted once, not again and again to a unit that
-  stopped answering (a unit paused whole — its process stopped, its link down — would otherwise cost the
-  fleet a grace at every exchange of its pause, the whole pause). Its answers are still taken whenever they
-  come before an exchange closes; the first it gets in makes it waited for again.
+  waited for until the chief hears from it again about the open round — an answer to one of the round's
+  exchanges, in time or late: the grace is granted once, not again and again to a unit that went silent (a
+  unit paused whole — its process stopped, its link down — would otherwise cost the fleet a grace at every
+  exchange of its pause: the whole pause). A unit that is only slow keeps answering, late, and so is waited
+  for again at once, as before. A silent member's answers are still taken whenever they come before an
+  exchange closes.
 * Once ⌈quorum·n⌉ of the n waited for have answered, the others get a grace of a quarter of the time the
   quorum took (at least :data:`GRACE_FLOOR`); then the exchange closes with whoever answered. With the
   ``round_timeout`` set, it also closes that long after it opened, with whoever answered (at least one).
@@ -64,8 +66,8 @@ class FleetPace:
     stale: Counter[str] = field(default_factory=Counter)
     """per member: contributions left out of the average for their staleness"""
     missed: set[str] = field(default_factory=set)
-    """members that did not answer the last exchange that closed: not waited for (under a quorum below 1)
-    until they answer one again"""
+    """members that did not answer the last exchange that closed and have not been heard from about the open
+    round since: not waited for (under a quorum below 1)"""
 
     def fields(self) -> dict[str, object]:
         """As JSON."""
@@ -120,6 +122,10 @@ class RoundWaits:
     def deadline(self, opened: float | None) -> float | None:
         """When the open exchange closes with whoever answered (None: not before everyone waited for)."""
         return None if opened is None or self.round_timeout is None else opened + self.round_timeout
+
+    def heard(self, pace: FleetPace, worker: str) -> None:
+        """``worker`` answered an exchange of the open round that had already closed (a late answer)."""
+        del pace, worker
 
     def silent_leave(self, members: set[str], pending: Mapping[str, Message]) -> set[str]:
         """At the deadline: the members that leave W as the exchange closes."""
@@ -179,6 +185,12 @@ class StepWaits(RoundWaits):
             times.append(opened + self.round_timeout)
         return min(times, default=None)
 
+    def heard(self, pace: FleetPace, worker: str) -> None:
+        """``worker`` answered an exchange of the open round late: it is not silent, so it is waited for again
+        (under a quorum below 1; see the module's docstring)."""
+        if self.quorum < 1:
+            pace.missed.discard(worker)
+
     def silent_leave(self, members: set[str], pending: Mapping[str, Message]) -> set[str]:
         """Nobody leaves W for being late: a straggler catches up."""
         del members, pending
@@ -198,7 +210,7 @@ class StepWaits(RoundWaits):
     def closed(self, pace: FleetPace, members: set[str], answered: tuple[str, ...], last_step: bool) -> None:
         """An exchange closed with ``answered``: the members that did not answer it missed it (an exchange
         closed with no answer — a site's, the root having gone on without it — changes nothing of that); at
-        the round's last, who missed the round is behind."""
+        the round's last, who took no part in the round is behind."""
         self.quorum_at = None
         if answered:
             pace.missed = members - set(answered)
