@@ -5,9 +5,12 @@ while the unit waits for one, is handed over when the pause ends, and so is a re
 in it (a stopped process notices neither before it runs again).
 
 Innermost of a unit's transports: a message in a slow uplink
-(:class:`~fleetrl.transport.delayed.DelayedTransport`) that comes due during a pause waits too. What the
-broker does meanwhile is its own: it keeps what it would deliver (the unit's session), and a last will is
-the broker's, so it is not held.
+(:class:`~fleetrl.transport.delayed.DelayedTransport`) that comes due during a pause waits too. What reaches
+the unit during a pause waits in its client's queue rather than in the broker's session or the kernel's
+socket buffer: the same for the rest of the fleet, which hears nothing from the unit either way. The client's
+own connection is kept alive meanwhile (its keepalive runs): a pause long enough for a broker to drop a
+stopped process's connection (1.5× the keepalive, a minute) is not simulated. A last will is the broker's, so
+it is not held.
 """
 
 from __future__ import annotations
