@@ -1,6 +1,7 @@
-"""An uneven simulated fleet end to end: ``fleetrl train`` with a slow unit, a slow link, real-time pacing
-and absences finishes, records its settings, and — with the fully synchronous rule (``--quorum 1``) — learns
-exactly what the even fleet learns (the conditions change when things happen, never what is computed)."""
+"""An uneven simulated fleet end to end: ``fleetrl train`` with a slow unit, a slow link, real-time pacing,
+absences and a stalling unit finishes, records its settings, and — with the fully synchronous rule
+(``--quorum 1``) — learns exactly what the even fleet learns (the conditions change when things happen, never
+what is computed)."""
 
 from __future__ import annotations
 
@@ -17,7 +18,7 @@ from fleetrl.runs.uneven import absences
 pytestmark = pytest.mark.slow
 RUN = ["train", "--env", "cartpole", "--units", "3", "--transport", "local"]
 UNEVEN = ["--slow", "w2=2", "--absent", "0.3", "--absent-rounds", "1", "--pace", "0.1"]
-UNEVEN += ["--link-delay", "w1=0.02"]
+UNEVEN += ["--link-delay", "w1=0.02", "--stall", "w1=0.5"]  # w1's link both slow and stalling
 
 
 def scores(out: Path) -> list[tuple[str, str, str]]:
@@ -42,5 +43,5 @@ def test_an_uneven_fleet_finishes_and_learns_what_the_even_fleet_learns(
     assert "error" not in summary["chief"]
     config = json.loads((uneven / "config.json").read_text())
     assert config["slow"] == {"w2": 2.0} and config["link_delay"] == {"w1": 0.02}
-    assert config["absent"] == 0.3 and config["pace"] == 0.1
+    assert config["absent"] == 0.3 and config["pace"] == 0.1 and config["stall"] == {"w1": 0.5}
     assert len(scores(uneven)) == 9 and scores(uneven) == scores(even)

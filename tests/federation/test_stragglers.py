@@ -122,7 +122,113 @@ def test_what_the_pace_rules_keep_survives_a_checkpoint() -> None:
     fields, tensors = chief_to_state(c)
     back = chief_from_state(fields, tensors, now=0.0)
     assert back.state.pace == c.state.pace and back.max_staleness == c.max_staleness
-    assert back.state.pace.behind == {"2"}
+    assert back.state.pace.behind == {"2"} and back.state.pace.missed == {"2"}
+
+
+def test_a_completion_counts_from_the_round_s_first_exchange_when_the_unit_misses_the_last() -> None:
+    """Worker 2 completed and got into round 1's step 0 only (then it stalled): its completion is counted,
+    and the run ends at the round's last exchange once every member has completed."""
+    c = make()  # K = 2
+    c.tick(0.0)
+    for w in ("0", "1", "2"):
+        c.receive(Message("parameters", RUN, w, 1, step=0, flat=np.ones(2, np.float32)), now=0.1)
+    assert c.completed == {"0": 1, "1": 1, "2": 1} and c.end_reason is None  # not before the round's end
+    for w in ("0", "1"):
+        c.receive(Message("parameters", RUN, w, 1, step=1, flat=np.ones(2, np.float32)), now=0.2)
+    assert c.end_reason is None
+    (done,) = [m for m in c.tick(0.2 + GRACE_FLOOR).outgoing if m.type == "done"]
+    assert c.end_reason == "every unit completed" and done.round == 1
+
+
+def test_a_silent_member_that_missed_an_exchange_gets_no_grace_until_it_answers_again() -> None:
+    """A participant paused whole: its first missed exchange costs one grace, the next ones none while it is
+    silent; the exchange it gets into again makes it waited for (with its grace) once more. K = 4 here."""
+    c = Chief(
+        run_id=RUN,
+        workers=("0", "1", "2"),
+        layout=LAYOUT,
+        scheme="pergrad",
+        steps_per_round=4,
+        quorum=0.6,
+        max_rounds=20,
+    )
+    c.tick(0.0)
+    for sender in ("0", "1", "2"):
+        step(c, sender, 1, 0, [3.0, 3.0], now=0.1)
+    assert c.state.pace.participants == {"0", "1", "2"} and c.state.pace.missed == set()
+    # step 1: worker 2 stops answering; the quorum at 0.2, the grace (the floor) runs out at 0.45
+    step(c, "0", 1, 1, [1.0, 1.0], now=0.15)
+    step(c, "1", 1, 1, [3.0, 3.0], now=0.2)
+    assert c.next_deadline() == pytest.approx(0.2 + GRACE_FLOOR)
+    assert answers(c.tick(0.45)) == [(1, 1, [2.0, 2.0], ("0", "1"))]
+    assert c.state.pace.missed == {"2"}
+    # step 2: worker 2 missed the last exchange: not waited for, no grace — 0 and 1 close it at once
+    step(c, "0", 1, 2, [1.0, 1.0], now=0.5)
+    assert answers(step(c, "1", 1, 2, [5.0, 5.0], now=0.55)) == [(1, 2, [3.0, 3.0], ("0", "1"))]
+    # step 3: back, worker 2 answers before the others close the exchange: it is in, and waited for again
+    step(c, "2", 1, 3, [6.0, 6.0], now=0.6)
+    step(c, "0", 1, 3, [0.0, 0.0], now=0.61)
+    assert answers(step(c, "1", 1, 3, [0.0, 0.0], now=0.62)) == [(1, 3, [2.0, 2.0], ("0", "1", "2"))]
+    assert c.state.pace.missed == set() and c.round == 2 and c.state.pace.behind == set()
+    # round 2 step 0 waits for it with its grace as for anyone: 0 and 1 at 0.7, the floor until 0.95
+    step(c, "0", 2, 0, [1.0, 1.0], now=0.65)
+    step(c, "1", 2, 0, [1.0, 1.0], now=0.7)
+    assert c.next_deadline() == pytest.approx(0.7 + GRACE_FLOOR)
+
+
+def test_a_member_that_answers_late_is_not_silent_and_is_waited_for_again() -> None:
+    """A unit that is only slow: its answer to the exchange it missed comes late, so the next one waits for it
+    (with its grace) as before; a late answer of an older round says nothing of the open one."""
+    c = Chief(
+        run_id=RUN, workers=("0", "1", "2"), layout=LAYOUT, scheme="pergrad", steps_per_round=4, quorum=0.6,
+        max_rounds=20,
+    )  # fmt: skip
+    c.tick(0.0)
+    for sender in ("0", "1", "2"):
+        step(c, sender, 1, 0, [3.0, 3.0], now=0.1)
+    step(c, "0", 1, 1, [1.0, 1.0], now=0.15)
+    step(c, "1", 1, 1, [3.0, 3.0], now=0.2)
+    c.tick(0.45)  # step 1 closed without worker 2
+    assert c.state.pace.missed == {"2"}
+    step(c, "2", 1, 1, [9.0, 9.0], now=0.5)  # its answer to step 1, late: rejected, answered again
+    assert c.state.pace.missed == set()
+    step(c, "0", 1, 2, [1.0, 1.0], now=0.55)
+    assert answers(step(c, "1", 1, 2, [1.0, 1.0], now=0.6)) == []  # waiting for worker 2: the grace
+    assert c.next_deadline() == pytest.approx(0.6 + GRACE_FLOOR)
+    assert answers(step(c, "2", 1, 2, [4.0, 4.0], now=0.65)) == [(1, 2, [2.0, 2.0], ("0", "1", "2"))]
+    # missed again at step 3 (its grace runs out); a late answer of round 1 heard in round 2 does not count
+    step(c, "0", 1, 3, [1.0, 1.0], now=0.7)
+    step(c, "1", 1, 3, [1.0, 1.0], now=0.75)
+    c.tick(0.75 + GRACE_FLOOR)
+    assert c.round == 2 and c.state.pace.missed == {"2"}
+    step(c, "2", 1, 3, [1.0, 1.0], now=1.1)
+    assert c.state.pace.missed == {"2"}
+
+
+def test_a_silent_member_that_missed_a_round_s_last_exchange_is_not_waited_for_at_the_next_s_first() -> None:
+    c = make()  # K = 2
+    c.tick(0.0)
+    for sender in ("0", "1", "2"):
+        step(c, sender, 1, 0, [1.0, 1.0], now=0.1)
+    step(c, "0", 1, 1, [1.0, 1.0], now=0.2)
+    step(c, "1", 1, 1, [1.0, 1.0], now=0.3)
+    assert answers(c.tick(0.3 + GRACE_FLOOR)) != []  # worker 2 missed round 1's last exchange
+    assert c.state.pace.behind == set() and c.state.pace.missed == {"2"}  # it took part in round 1
+    step(c, "0", 2, 0, [1.0, 1.0], now=0.6)
+    assert answers(step(c, "1", 2, 0, [3.0, 3.0], now=0.7)) == [(2, 0, [2.0, 2.0], ("0", "1"))]
+
+
+def test_with_quorum_1_a_member_that_missed_an_exchange_is_still_waited_for() -> None:
+    c = make(quorum=1.0, round_timeout=1.0)
+    c.tick(0.0)
+    for sender in ("0", "1", "2"):
+        step(c, sender, 1, 0, [1.0, 1.0], now=0.1)
+    step(c, "0", 1, 1, [1.0, 1.0], now=0.2)
+    step(c, "1", 1, 1, [1.0, 1.0], now=0.3)
+    assert answers(c.tick(1.1)) != []  # the round timeout closed step 1 without worker 2
+    step(c, "0", 2, 0, [1.0, 1.0], now=1.2)
+    assert answers(step(c, "1", 2, 0, [1.0, 1.0], now=1.3)) == []  # still waiting for worker 2
+    assert answers(step(c, "2", 2, 0, [1.0, 1.0], now=1.4)) == [(2, 0, [1.0, 1.0], ("0", "1", "2"))]
 
 
 def test_bad_staleness_bounds_are_refused() -> None:

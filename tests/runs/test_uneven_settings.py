@@ -92,6 +92,10 @@ def test_a_paced_unit_steps_in_a_paced_env(tmp_path: Path) -> None:
         (["--slow", "w1=0.5"], r"--slow w1=0.5: must be ≥ 1"),
         (["--slow", "w1=fast"], r"--slow w1='fast': expected a number"),
         (["--link-delay", "w0=-0.1"], r"--link-delay w0=-0.1: must be ≥ 0 seconds"),
+        (["--stall", "w2=1"], r"--stall w2=1: must be in \[0, 1\) \(the share of each second paused\)"),
+        (["--stall", "w2=-0.25"], r"--stall w2=-0.25: must be in \[0, 1\)"),
+        (["--stall", "w5=0.5"], r"--stall w5=0.5: unknown unit 'w5' \(this fleet: w0 … w2\)"),
+        (["--stall", "w2=often"], r"--stall w2='often': expected a number"),
         (["--absent", "1"], r"--absent = 1.0: must be in \[0, 1\)"),
         (["--absent", "-0.1"], r"--absent = -0.1: must be in \[0, 1\)"),
         (["--absent", "0.8"], r"with absences of 3 rounds a unit is absent at most 0.75"),
@@ -112,6 +116,19 @@ def test_a_bad_value_is_one_line_before_anything_starts(
     assert code == 2 and len(err.splitlines()) == 1 and "Traceback" not in err
     assert re.search(message, err), err
     assert not out.exists()
+
+
+def test_a_stalling_unit_from_a_flag_or_a_stall_table(tmp_path: Path) -> None:
+    run = settings(tmp_path, "--env", "cartpole", "--stall", "2=0.75", "--slow", "w1=2")
+    assert run.uneven.stall == {"w2": 0.75}
+    specs = worker_specs(run, None, "r")
+    assert specs[2].uneven == UnitConditions(stall=0.75) and specs[0].uneven is None
+    assert run.result_settings()["stall"] == {"w2": 0.75}
+    assert tomllib.loads(run.to_toml())["stall"] == {"w2": 0.75}
+    path = tmp_path / "config.toml"
+    path.write_text('env = "cartpole"\n\n[stall]\nw1 = 0.5\n')
+    assert settings(tmp_path, "--config", str(path)).uneven.stall == {"w1": 0.5}
+    assert "stall" not in settings(tmp_path, "--env", "cartpole").result_settings()
 
 
 def test_pacing_a_unit_type_without_a_control_period_is_refused(tmp_path: Path) -> None:

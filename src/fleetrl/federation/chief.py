@@ -272,6 +272,8 @@ class Chief:
             # a stale message (a resend after a lost answer, a straggler, a resumed worker replaying its
             # round): answer that exchange again, change nothing
             stale = refusal[0] in (Reason.STALE_ROUND, Reason.RUN_OVER) and (rnd, message.step) < open_at
+            if stale and rnd == self.state.round and not self.finished:  # late, not silent: waited for again
+                self._waits.heard(self.state.pace, sender)
             return step + self._resend(sender, (rnd, message.step), now) if stale else step
         step = self._rejoin(sender, f"sent {message.type} for round {rnd}")
         self.state.suspects.pop(sender, None)
@@ -422,9 +424,10 @@ class Chief:
         rnd, exchange = self.state.round, self.state.step
         last_step = exchange == self.steps_per_round - 1
         closed = ClosedExchange.of(rnd, self._pending, self.state.members)
-        if last_step:
-            for worker in closed.completed:
-                self.state.completed.setdefault(worker, rnd)
+        # a completion counts from any exchange of the round its message got into, not only the last: a unit
+        # that misses a round's later exchanges (a straggler, a unit paused whole) still has it counted
+        for worker in closed.completed:
+            self.state.completed.setdefault(worker, rnd)
         context = RoundContext(
             self._aggregate, self.members, dict(self.state.completed), step=exchange, last_step=last_step
         )

@@ -96,9 +96,8 @@ class SiteChief(Chief):
             staleness=min(m.staleness for m in answers.values()), summed=True,
             metrics={"score": float(np.mean(scores))} if scores else {},
         )  # fmt: skip
-        if last_step:
-            for worker in closed.completed:
-                self.state.completed.setdefault(worker, rnd)
+        for worker in closed.completed:  # from any exchange of the round, as at the root
+            self.state.completed.setdefault(worker, rnd)
         self.awaiting, self._pending = (closed, answers), {}
         self.upward.append(up)
         event = ChiefEvent(

@@ -9,6 +9,13 @@ collection closes when 60 % of the workers are done):
 * A round's first exchange waits for the members that took part in the round before (the others are
   *behind*: still playing a round the fleet has moved past). A later exchange of the round waits for the
   round's participants.
+* With a quorum below 1, a member that did not answer the last exchange that closed (it *missed* it) is not
+  waited for until the chief hears from it again about the open round — an answer to one of the round's
+  exchanges, in time or late: the grace is granted once, not again and again to a unit that went silent (a
+  unit paused whole — its process stopped, its link down — would otherwise cost the fleet a grace at every
+  exchange of its pause: the whole pause). A unit that is only slow keeps answering, late, and so is waited
+  for again at once, as before. A silent member's answers are still taken whenever they come before an
+  exchange closes.
 * Once ⌈quorum·n⌉ of the n waited for have answered, the others get a grace of a quarter of the time the
   quorum took (at least :data:`GRACE_FLOOR`); then the exchange closes with whoever answered. With the
   ``round_timeout`` set, it also closes that long after it opened, with whoever answered (at least one).
@@ -20,7 +27,9 @@ collection closes when 60 % of the workers are done):
   it left out (``stale``).
 
 With quorum 1 every member that took part in the last round is waited for: the fully synchronous rule, and
-for an even fleet the same runs as before stragglers were allowed for.
+for an even fleet the same runs as before stragglers were allowed for. A member misses an exchange only when
+a grace (or the ``round_timeout``) ran out without it, so the rule of missed exchanges changes no run in
+which that never happens (an even fleet's runs, the fingerprinted ones among them).
 """
 
 from __future__ import annotations
@@ -56,6 +65,9 @@ class FleetPace:
     """per member: rounds that closed without it"""
     stale: Counter[str] = field(default_factory=Counter)
     """per member: contributions left out of the average for their staleness"""
+    missed: set[str] = field(default_factory=set)
+    """members that did not answer the last exchange that closed and have not been heard from about the open
+    round since: not waited for (under a quorum below 1)"""
 
     def fields(self) -> dict[str, object]:
         """As JSON."""
@@ -64,6 +76,7 @@ class FleetPace:
             "participants": sorted(self.participants),
             "late": dict(sorted(self.late.items())),
             "stale": dict(sorted(self.stale.items())),
+            "missed": sorted(self.missed),
         }
 
     @classmethod
@@ -78,6 +91,7 @@ class FleetPace:
             participants={str(w) for w in fields["participants"]},  # type: ignore[attr-defined]
             late=Counter({str(w): int(n) for w, n in late.items()}),
             stale=Counter({str(w): int(n) for w, n in stale.items()}),
+            missed={str(w) for w in fields.get("missed", ())},  # type: ignore[attr-defined]
         )
 
 
@@ -109,6 +123,10 @@ class RoundWaits:
         """When the open exchange closes with whoever answered (None: not before everyone waited for)."""
         return None if opened is None or self.round_timeout is None else opened + self.round_timeout
 
+    def heard(self, pace: FleetPace, worker: str) -> None:
+        """``worker`` answered an exchange of the open round that had already closed (a late answer)."""
+        del pace, worker
+
     def silent_leave(self, members: set[str], pending: Mapping[str, Message]) -> set[str]:
         """At the deadline: the members that leave W as the exchange closes."""
         answered = members.intersection(pending)
@@ -139,9 +157,8 @@ class StepWaits(RoundWaits):
 
     def waited_for(self, pace: FleetPace, members: set[str], step: int) -> set[str]:
         """The members the open exchange (``step`` of its round) waits for."""
-        if step == 0:
-            return members - pace.behind
-        return members & pace.participants
+        waited = members - pace.behind if step == 0 else members & pace.participants
+        return waited - pace.missed if self.quorum < 1 else waited
 
     def all_in(self, pace: FleetPace, members: set[str], step: int, pending: Mapping[str, Message]) -> bool:
         """Everyone waited for has answered (and someone has)."""
@@ -168,6 +185,12 @@ class StepWaits(RoundWaits):
             times.append(opened + self.round_timeout)
         return min(times, default=None)
 
+    def heard(self, pace: FleetPace, worker: str) -> None:
+        """``worker`` answered an exchange of the open round late: it is not silent, so it is waited for again
+        (under a quorum below 1; see the module's docstring)."""
+        if self.quorum < 1:
+            pace.missed.discard(worker)
+
     def silent_leave(self, members: set[str], pending: Mapping[str, Message]) -> set[str]:
         """Nobody leaves W for being late: a straggler catches up."""
         del members, pending
@@ -185,8 +208,12 @@ class StepWaits(RoundWaits):
         return fresh
 
     def closed(self, pace: FleetPace, members: set[str], answered: tuple[str, ...], last_step: bool) -> None:
-        """An exchange closed with ``answered``; at the round's last, who missed the round is behind."""
+        """An exchange closed with ``answered``: the members that did not answer it missed it (an exchange
+        closed with no answer — a site's, the root having gone on without it — changes nothing of that); at
+        the round's last, who took no part in the round is behind."""
         self.quorum_at = None
+        if answered:
+            pace.missed = members - set(answered)
         pace.participants.update(answered)
         if last_step:
             pace.behind = members - pace.participants

@@ -14,8 +14,10 @@ from fleetrl.agent.ppo import PPOAgent
 from fleetrl.envs.catalog import describe_env, get_env_spec
 from fleetrl.envs.paced import PacedEnv
 from fleetrl.envs.spaces import UnitDescription
+from fleetrl.envs.stalled import StalledEnv
 from fleetrl.link.mqtt import MqttLink, open_mqtt_link
 from fleetrl.runs.spec import WorkerSpec
+from fleetrl.runs.uneven import unit_stall
 from fleetrl.transport.base import Transport
 
 
@@ -56,7 +58,8 @@ def make_learner(spec: WorkerSpec, device_transport: Transport | None = None) ->
     the one the run's seed draws (its actions and windows still come from its own seed).
 
     A unit paced in real time (``spec.uneven.step_seconds``) has its env wrapped in a
-    :class:`~fleetrl.envs.paced.PacedEnv`.
+    :class:`~fleetrl.envs.paced.PacedEnv`, a stalling one (``spec.uneven.stall``) in a
+    :class:`~fleetrl.envs.stalled.StalledEnv`.
     """
     torch.set_num_threads(1)
     learning = spec.learning
@@ -74,7 +77,8 @@ def unit_env(
     spec: WorkerSpec, device_transport: Transport | None = None
 ) -> tuple[gymnasium.Env[Any, Any], UnitDescription]:
     """The env of the spec's unit and its description: simulated in-process, or through its device bridge
-    (``spec.device_url``, over ``device_transport`` or a plain transport), paced if its spec says so."""
+    (``spec.device_url``, over ``device_transport`` or a plain transport), paced and stalling if its spec
+    says so."""
     learning = spec.learning
     env_spec = get_env_spec(learning.env)
     if spec.device_url is None:
@@ -84,6 +88,9 @@ def unit_env(
         env, unit = env_spec.make(spec.unit, learning.fleet_seed, link=link)
     if spec.uneven is not None and spec.uneven.step_seconds is not None:
         env = PacedEnv(env, spec.uneven.step_seconds)
+    stall = unit_stall(spec.uneven, seed=learning.seed, worker=spec.worker)
+    if stall is not None:
+        env = StalledEnv(env, stall.wait)
     return env, unit
 
 

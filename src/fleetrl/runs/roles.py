@@ -2,7 +2,8 @@
 
 Both modes report every round as a :class:`~fleetrl.runs.records.MetricsRow` through ``emit`` and save the
 worker's model when they end, however they end. An uneven unit (its spec's ``uneven``:
-:mod:`fleetrl.runs.uneven`) plays through its wrappers here: slowed, absent at times, its messages delayed.
+:mod:`fleetrl.runs.uneven`) plays through its wrappers here: slowed, absent at times, its messages delayed,
+its work and its link paused at times.
 """
 
 import logging
@@ -19,9 +20,10 @@ from fleetrl.runs.factory import make_learner
 from fleetrl.runs.records import MetricsRow
 from fleetrl.runs.rundir import model_path
 from fleetrl.runs.spec import WorkerSpec
-from fleetrl.runs.uneven import uneven_unit
+from fleetrl.runs.uneven import uneven_unit, unit_stall
 from fleetrl.transport.base import Transport
 from fleetrl.transport.delayed import DelayedTransport
+from fleetrl.transport.stalled import StalledTransport
 
 log = logging.getLogger(__name__)
 
@@ -90,6 +92,9 @@ def train_federated(
         start_round = where.next_round
     elif resume:
         log.warning("worker %d: nothing to resume in %s; starting afresh", spec.worker, checkpoint_dir)
+    stall = unit_stall(spec.uneven, seed=spec.learning.seed, worker=spec.worker)
+    if stall is not None:  # innermost: a message due to leave a slow uplink during a pause waits too
+        transport = StalledTransport(transport, stall.wait)
     if spec.uneven is not None and spec.uneven.link_delay > 0:
         transport = DelayedTransport(transport, spec.uneven.link_delay)
     worker = FederatedWorker(

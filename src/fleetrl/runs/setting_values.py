@@ -49,9 +49,10 @@ TABLE_FLAGS = {
     "scheme_params": "--scheme-param",
     "slow": "--slow",
     "link_delay": "--link-delay",
+    "stall": "--stall",
 }
 """table-valued settings and their repeatable ``KEY=VALUE`` flag"""
-TABLE_METAVARS = {"slow": "UNIT=FACTOR", "link_delay": "UNIT=SECONDS"}
+TABLE_METAVARS = {"slow": "UNIT=FACTOR", "link_delay": "UNIT=SECONDS", "stall": "UNIT=SHARE"}
 """how a table flag's help shows its entries, where ``KEY=VALUE`` says too little"""
 
 

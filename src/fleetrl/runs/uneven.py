@@ -16,6 +16,23 @@ one control period when the computation fits in it, as on a rig), is not inflate
 competing for the cores, and changes nothing the unit computes (the same numbers, later). An absent unit
 pauses before a round: its worker stays connected and sends nothing for ``k`` times its own last round's
 time (its work in wall time, slowed, without the waits for the chief), then plays on.
+
+A stalling unit (``--stall wK=F``) is paused whole a share F of each second — the OS stops its process, its
+Wi-Fi drops — and its link with it: during a pause it neither computes nor sends nor receives, and whatever
+it would do waits until the pause ends (:class:`StallSchedule`). The pause is cooperative: the unit looks at
+its schedule before each env step and reset (:class:`~fleetrl.envs.stalled.StalledEnv`), each call of its
+agent by the worker and each piece of its own work (:class:`UnevenUnit`), and each send and receive of its
+transport (:class:`~fleetrl.transport.stalled.StalledTransport`, innermost: a message in a slow uplink waits
+too); a message that arrived during a pause is delivered when it resumes, one it sends leaves when it
+resumes. Why cooperative rather than SIGSTOP/SIGCONT from the parent: the same mechanism holds for worker
+processes and in-process worker threads (which no signal can stop alone), for a standalone ``fleetrl
+worker`` without a parent, and on a fake clock in tests; it changes no number the unit computes; and a
+paused unit sleeps, leaving the CPU to the others as a stopped process does. What it cannot stop is a piece
+of work already under way when the pause begins: that piece ends in the pause (an env step, one action, one
+gradient step of an update: milliseconds against a pause of a share of a second), and what follows waits.
+The pauses are the first F of each period of :data:`STALL_PERIOD` seconds on the system's monotonic clock
+(one clock for every process of the machine), shifted by a phase drawn from the learning seed and the worker
+id: every unit stalling at F has its own phase, the same on every rerun.
 """
 
 from __future__ import annotations
@@ -31,6 +48,10 @@ import numpy as np
 from fleetrl.runs.setting_values import SettingError, label
 
 ABSENCE_STREAM = 0xAB5E
+STALL_STREAM = 0x57A1
+"""the third word of a stall phase's seed ([seed, worker, this])"""
+STALL_PERIOD = 1.0
+"""seconds of one stall cycle: a unit stalling at F is paused F × this of every such period"""
 """the third word of an absence generator's seed ([seed, worker, this]): no learning stream draws from it"""
 TIMED_AGENT_CALLS = ("begin_update", "step_gradients", "apply_step", "end_update")
 """the agent's own work in a per-step round's update (the worker calls them between exchanges)"""
@@ -50,6 +71,8 @@ class UnitConditions:
     """the share of rounds the unit is absent"""
     absent_rounds: float = 3.0
     """the mean length of an absence, in rounds"""
+    stall: float = 0.0
+    """the share of each second the unit is paused whole (computing, sending, receiving), in [0, 1)"""
 
     def to_dict(self) -> dict[str, Any]:
         """The conditions as a JSON-plain dict (:meth:`from_dict` reads it back)."""
@@ -80,6 +103,11 @@ class UnevenFleet:
     learning seed and its worker id), pauses for some rounds' worth of its own round time, comes back"""
     absent_rounds: float = 3.0
     """with ``absent``: the mean length of one absence, in rounds (≥ 1)"""
+    stall: dict[str, float] = field(default_factory=dict)
+    """units that stall whole, e.g. ``--stall w2=0.75``: worker 2 is paused 0.75 of every second — its
+    computing, its sends and its receives wait until the pause ends, as for a process the OS stops or a unit
+    whose Wi-Fi drops (a share in [0, 1); the phase is drawn from the learning seed and the worker id; the
+    ``[stall]`` table)"""
 
     @property
     def even(self) -> bool:
@@ -105,6 +133,12 @@ class UnevenFleet:
         for unit, seconds in delay.items():
             if not seconds >= 0:
                 raise SettingError(f"{label('link_delay')} {unit}={seconds:g}: must be ≥ 0 seconds")
+        stall = _per_unit("stall", self.stall, units)
+        for unit, share in stall.items():
+            if not 0 <= share < 1:
+                raise SettingError(
+                    f"{label('stall')} {unit}={share:g}: must be in [0, 1) (the share of each second paused)"
+                )
         if not 0 <= self.absent < 1:
             raise SettingError(f"{label('absent')} = {self.absent!r}: must be in [0, 1) (a share of rounds)")
         if not self.absent_rounds >= 1:
@@ -115,7 +149,7 @@ class UnevenFleet:
                 f"{label('absent')} = {self.absent!r}: with absences of {self.absent_rounds:g} rounds a unit "
                 f"is absent at most {most:.3g} of the rounds (raise {label('absent_rounds')})"
             )
-        return replace(self, slow=slow, link_delay=delay)
+        return replace(self, slow=slow, link_delay=delay, stall=stall)
 
     def for_worker(self, worker: int, control_period: float | None) -> UnitConditions | None:
         """Worker ``worker``'s conditions under these resolved settings (None: it is an even unit)."""
@@ -127,6 +161,7 @@ class UnevenFleet:
             link_delay=self.link_delay.get(name, 0.0),
             absent=self.absent,
             absent_rounds=self.absent_rounds,
+            stall=self.stall.get(name, 0.0),
         )
         return None if conditions == UnitConditions() else conditions
 
@@ -183,6 +218,77 @@ def absences(absent: float, absent_rounds: float, seed: int, worker: int) -> Ite
         yield int(rng.geometric(1 / absent_rounds)) if leave > 0 and rng.random() < leave else 0
 
 
+@dataclass(frozen=True)
+class StallSchedule:
+    """When a stalling unit is paused: the first ``share × period`` seconds of every ``period`` of the clock,
+    shifted by ``phase`` (the pause of the period that starts at ``phase + k·period``).
+
+    :param share: the share of each period paused, in [0, 1)
+    :param phase: seconds the periods are shifted by, in [0, period)
+    :param period: seconds of one cycle
+    """
+
+    share: float
+    phase: float
+    period: float = STALL_PERIOD
+
+    def resumes_at(self, now: float) -> float | None:
+        """When the pause under way at ``now`` ends (None: the unit is not paused at ``now``)."""
+        into = (now - self.phase) % self.period
+        paused = self.share * self.period
+        return now + (paused - into) if into < paused else None
+
+
+def stall_schedule(share: float, seed: int, worker: int) -> StallSchedule:
+    """Worker ``worker``'s pauses at ``share``: its phase drawn from the learning seed and its id (the same
+    (seed, worker) gives the same phase, in every process of the machine)."""
+    rng = np.random.default_rng([seed, worker, STALL_STREAM])
+    return StallSchedule(share, float(rng.random()) * STALL_PERIOD)
+
+
+class Stall:
+    """A unit's pauses as it lives through them: :meth:`wait` returns at once when the unit is not paused,
+    else when its pause ends (thread-safe: the schedule is read, never changed).
+
+    :param schedule: when the unit is paused
+    :param clock: the time source the schedule is on (seconds; :func:`time.monotonic` is one clock for every
+        process of the machine)
+    :param sleep: how to wait (seconds)
+    """
+
+    def __init__(
+        self,
+        schedule: StallSchedule,
+        *,
+        clock: Callable[[], float] = time.monotonic,
+        sleep: Callable[[float], None] = time.sleep,
+    ) -> None:
+        self.schedule = schedule
+        self._clock = clock
+        self._sleep = sleep
+
+    def wait(self) -> float:
+        """Wait until the pause under way (if any) ends; the seconds waited (0.0: not paused). A sleep that
+        ends early is resumed; one that overshoots into the next pause does not wait that one out (it
+        returns)."""
+        waited = 0.0
+        now = self._clock()
+        resume = self.schedule.resumes_at(now)
+        while resume is not None and now < resume:
+            self._sleep(resume - now)
+            later = self._clock()
+            waited += later - now
+            now = later
+        return waited
+
+
+def unit_stall(conditions: UnitConditions | None, *, seed: int, worker: int) -> Stall | None:
+    """The stall of a unit under ``conditions`` (None: it never stalls)."""
+    if conditions is None or conditions.stall == 0:
+        return None
+    return Stall(stall_schedule(conditions.stall, seed, worker))
+
+
 class UnevenUnit:
     """A learner (:class:`~fleetrl.federation.rounds.RoundPlayer`) that plays as an uneven unit: each piece
     of its own work is followed by ``(slowdown − 1)×`` its computing time asleep, and before a round it may
@@ -192,6 +298,8 @@ class UnevenUnit:
     :param slowdown: the factor its computing time is stretched by (1: not slowed)
     :param absent_for: for each round after the first, the rounds' worth it is absent before it
         (:func:`absences`); None: always present
+    :param stall: the unit's pauses: each piece of its own work and each call of its agent waits out a
+        pause first (its env steps wait in :class:`~fleetrl.envs.stalled.StalledEnv`); None: never paused
     :param clock: the wall-time source (seconds)
     :param cpu_clock: the computing-time source (seconds of this thread's CPU)
     :param sleep: how to wait (seconds)
@@ -203,6 +311,7 @@ class UnevenUnit:
         *,
         slowdown: float = 1.0,
         absent_for: Iterator[int] | None = None,
+        stall: Stall | None = None,
         clock: Callable[[], float] = time.perf_counter,
         cpu_clock: Callable[[], float] = time.thread_time,
         sleep: Callable[[float], None] = time.sleep,
@@ -213,7 +322,8 @@ class UnevenUnit:
         self.absent_for = absent_for
         self._clock = clock
         self._sleep = sleep
-        self._agent = _TimedAgent(learner.agent, self._timed)
+        self.stall = stall
+        self._agent = _TimedAgent(learner.agent, self._timed, None if stall is None else stall.wait)
         self.own_time = 0.0
         """the unit's own time in the round under way (its work, slowed; not its waits)"""
         self.last_round_time: float | None = None
@@ -268,8 +378,12 @@ class UnevenUnit:
             self._sleep(pause)
 
     def _timed(self, work: Callable[[], Any]) -> Any:
-        """Do ``work``, then sleep (slowdown − 1)× its computing time; count both as the unit's own time."""
-        started, computing = self._clock(), self._cpu_clock()
+        """Do ``work`` (after a pause under way, if the unit stalls), then sleep (slowdown − 1)× its computing
+        time; count both as the unit's own time."""
+        started = self._clock()
+        if self.stall is not None:
+            self.stall.wait()
+        computing = self._cpu_clock()
         result = work()
         extra = (self.slowdown - 1) * (self._cpu_clock() - computing)
         if extra > 0:
@@ -279,28 +393,47 @@ class UnevenUnit:
 
 
 class _TimedAgent:
-    """An agent whose update steps (:data:`TIMED_AGENT_CALLS`) go through ``timed``; everything else is the
-    agent's own."""
+    """An agent whose update steps (:data:`TIMED_AGENT_CALLS`) go through ``timed``; with ``before`` (a
+    stalling unit's wait), every other method call waits on it first; everything else is the agent's own."""
 
-    def __init__(self, agent: Any, timed: Callable[[Callable[[], Any]], Any]) -> None:
+    def __init__(
+        self,
+        agent: Any,
+        timed: Callable[[Callable[[], Any]], Any],
+        before: Callable[[], Any] | None = None,
+    ) -> None:
         self._agent = agent
         self._timed_call = timed
+        self._before = before
         if hasattr(agent, "set_extra_loss"):  # on the object itself: a protocol check looks it up there
-            self.set_extra_loss = agent.set_extra_loss
+            self.set_extra_loss = self._waiting(agent.set_extra_loss)
 
     def __getattr__(self, name: str) -> Any:
         attribute = getattr(self._agent, name)
-        if name not in TIMED_AGENT_CALLS:
-            return attribute
-        return lambda *args, **kwargs: self._timed_call(lambda: attribute(*args, **kwargs))
+        if name in TIMED_AGENT_CALLS:
+            return lambda *args, **kwargs: self._timed_call(lambda: attribute(*args, **kwargs))
+        return self._waiting(attribute) if callable(attribute) else attribute
+
+    def _waiting(self, method: Any) -> Any:
+        before = self._before
+        if before is None:
+            return method
+
+        def call(*args: Any, **kwargs: Any) -> Any:
+            before()
+            return method(*args, **kwargs)
+
+        return call
 
 
 def uneven_unit(learner: Any, conditions: UnitConditions | None, *, seed: int, worker: int) -> Any:
-    """``learner`` as the unit ``conditions`` describe (slowed, absent at times), or itself when the unit
-    is not slowed and never absent (pacing is in its env; a link delay in its transport)."""
-    if conditions is None or (conditions.slowdown == 1 and conditions.absent == 0):
+    """``learner`` as the unit ``conditions`` describe (slowed, absent at times, stalling), or itself when
+    the unit is not slowed, never absent and never stalls (pacing and a stall's env steps are in its env; a
+    link delay and a stall's messages in its transport)."""
+    if conditions is None or (conditions.slowdown == 1 and conditions.absent == 0 and conditions.stall == 0):
         return learner
     schedule = None
     if conditions.absent:
         schedule = absences(conditions.absent, conditions.absent_rounds, seed, worker)
-    return UnevenUnit(learner, slowdown=conditions.slowdown, absent_for=schedule)
+    stall = unit_stall(conditions, seed=seed, worker=worker)
+    return UnevenUnit(learner, slowdown=conditions.slowdown, absent_for=schedule, stall=stall)
