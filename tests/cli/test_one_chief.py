@@ -186,16 +186,20 @@ def test_a_cut_off_chief_is_replaced_after_its_lease_and_exits_on_the_newer_epoc
     url: str, procs: list[subprocess.Popen[str]], tmp_path: Path
 ) -> None:
     a, b, run = tmp_path / "a", tmp_path / "b", "takeover"
-    old = chief(procs, url, run, a)
-    workers = [worker(procs, url, run, tmp_path, k) for k in (0, 1)]
+    # units stepped in real time (CartPole: 20 ms a step) and twice the rounds: the chief waits for their
+    # episodes, so it has quiet moments before its run ends (unpaced, 4 rounds end within 2 s of round 1)
+    longer = ["--max-rounds", str(2 * ROUNDS)]
+    old = chief(procs, url, run, a, *longer)
+    workers = [worker(procs, url, run, tmp_path, k, *longer, "--pace", "1") for k in (0, 1)]
     wait_until(lambda: answered(a, 1), "round 1")
     # cut off while it waits (a step under way when stopped is finished when it wakes: docs/protocol.md,
     # "One chief per run", Limits): no keep-alive reaches the broker any more
     wait_until(lambda: quiet(a), "a moment the old chief waits")
     os.kill(old.pid, signal.SIGSTOP)
+    assert old.poll() is None, "the old chief ended its run before it could be cut off"
     wait_until(lambda: status(url, run, "chief") == "offline", "the old chief's lease to run out", 30)
     shutil.copytree(a / "checkpoints", b / "checkpoints")  # the operator moves the run to another machine
-    new = chief(procs, url, run, b, "--resume")
+    new = chief(procs, url, run, b, "--resume", *longer)
     wait_until(
         lambda: (b / "chief.log").exists() and "after resume" in (b / "chief.log").read_text(),
         "the new chief",
@@ -209,7 +213,7 @@ def test_a_cut_off_chief_is_replaced_after_its_lease_and_exits_on_the_newer_epoc
     assert new.wait(300) == 0
     assert [w.wait(60) for w in workers] == [0, 0]
     for k in (0, 1):
-        assert rounds(tmp_path / f"w{k}") == list(range(1, ROUNDS + 1)), f"worker {k}"
+        assert rounds(tmp_path / f"w{k}") == list(range(1, 2 * ROUNDS + 1)), f"worker {k}"
     assert status(url, run, "chief") == "ended"
 
 
