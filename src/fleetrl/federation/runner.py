@@ -288,9 +288,8 @@ def run_chief(
         clean_exit = True  # the newer chief's status stands: say nothing
         raise
     finally:
-        if (
-            not clean_exit
-        ):  # an error or an interrupt: say what the will would have (a clean close fires none)
+        # an error or an interrupt: say what the will would have said (a clean close fires none)
+        if not clean_exit:
             with contextlib.suppress(Exception):
                 transport.publish(own_status, status(OFFLINE), retain=True)
         transport.close()

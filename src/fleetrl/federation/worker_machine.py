@@ -208,8 +208,7 @@ class WorkerMachine:
         except MessageRejected as exc:
             log.warning("worker %s: rejected the chief's status: %s", self.worker_id, exc)
             return NOTHING
-        epoch = status.number("epoch")
-        if epoch is not None and epoch > self.epoch:
+        if (epoch := status.number("epoch")) is not None:
             self._follow(epoch, f"its status says {status.state}")
         if status.state == "online":
             self._run_ended_at = None

@@ -59,8 +59,6 @@ class Waits:
     """``pergrad``'s quorum (1: every unit that took part in the round before is waited for)"""
     grace: bool = False
     """a per-step scheme's deadline: the quorum's time plus a grace (a per-round scheme waits for all)"""
-    grace_floor: float = GRACE_FLOOR
-    """the shortest grace, seconds of wall (= rig) time"""
 
     @property
     def rule(self) -> str:
@@ -232,7 +230,7 @@ def _barrier(built: dict[str, _Unit], waits: Waits) -> dict[str, float]:
             if len(answered) >= need:
                 opened = closed if r > 1 else min(ready.values())
                 quorum_at = max(answered[need - 1], opened)
-                close = max(close, quorum_at + max(GRACE_SHARE * (quorum_at - opened), waits.grace_floor))
+                close = max(close, quorum_at + max(GRACE_SHARE * (quorum_at - opened), GRACE_FLOOR))
         for name in ready:
             built[name].free = close
             if built[name].stop == r:

@@ -48,11 +48,11 @@ import numpy as np
 from fleetrl.runs.setting_values import SettingError, label
 
 ABSENCE_STREAM = 0xAB5E
+"""the third word of an absence generator's seed ([seed, worker, this]): no learning stream draws from it"""
 STALL_STREAM = 0x57A1
 """the third word of a stall phase's seed ([seed, worker, this])"""
 STALL_PERIOD = 1.0
 """seconds of one stall cycle: a unit stalling at F is paused F × this of every such period"""
-"""the third word of an absence generator's seed ([seed, worker, this]): no learning stream draws from it"""
 TIMED_AGENT_CALLS = ("begin_update", "step_gradients", "apply_step", "end_update")
 """the agent's own work in a per-step round's update (the worker calls them between exchanges)"""
 
