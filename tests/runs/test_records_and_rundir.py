@@ -195,3 +195,16 @@ def test_a_recorder_of_a_small_fleet_keeps_one_series_per_worker(tmp_path) -> No
     tags = board_tags(tmp_path / "run")
     assert "rollout/wma/worker_0" in tags and "rollout/wma/worker_1" in tags
     assert not any(tag.startswith("fleet/") for tag in tags)
+
+
+def test_the_summary_names_the_run_s_completion_criterion(tmp_path) -> None:
+    argmax = {"mode": "individual", "ppo": {"criterion": "argmax"}, "completion_threshold": 2450.0}
+    assert RunRecorder(tmp_path / "a", argmax, [0]).finish()["criterion"] == {
+        "kind": "argmax",
+        "target": 2450.0,
+    }
+    sampled = {"mode": "individual", "ppo": {"criterion": "sampled"}, "completion_threshold": 475.0}
+    assert RunRecorder(tmp_path / "s", sampled, [0]).finish()["criterion"] == {
+        "kind": "sampled",
+        "target": 475.0,
+    }
