@@ -11,7 +11,7 @@ import pytest
 
 from fleetrl.cli.main import build_parser, main
 from fleetrl.cli.settings_args import settings_from_args
-from fleetrl.devices.qube import QubeDevice
+from fleetrl.devices.qube.device import QubeDevice
 from fleetrl.link.driver import simulated_driver
 from fleetrl.runs.factory import make_learner
 from fleetrl.runs.launch import worker_specs

@@ -17,8 +17,8 @@ from fleetrl.agent.action_space import ActionSpace
 from fleetrl.control.controller import run_on_unit
 from fleetrl.control.export import export_policy
 from fleetrl.control.policies import load_policy
-from fleetrl.devices.qube import QubeDevice
 from fleetrl.devices.qube.controllers import balance_volts, controller_constants
+from fleetrl.devices.qube.device import QubeDevice
 from fleetrl.link.qube_spi import QubeFault, QubeSpiDriver
 
 PERIOD = 0.006

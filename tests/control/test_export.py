@@ -15,7 +15,7 @@ from onnx import numpy_helper
 from fleetrl.agent.policy_file import read_policy_file
 from fleetrl.agent.ppo import PPOAgent
 from fleetrl.cli.main import main
-from fleetrl.control import onnx_graph
+from fleetrl.control import export, onnx_graph
 from fleetrl.control.export import draw_observations, export_policy
 from fleetrl.envs.catalog import get_env_spec
 
@@ -106,7 +106,7 @@ def test_a_graph_that_disagrees_fails_the_check_and_is_not_written(
                 model.graph.initializer[i].CopyFrom(numpy_helper.from_array(negated, tensor.name))
         return model
 
-    monkeypatch.setattr(onnx_graph, "policy_graph", flipped)
+    monkeypatch.setattr(export, "policy_graph", flipped)
     out = tmp_path / "policy.onnx"
     assert main(["export", str(models["balancing"]), "--out", str(out)]) == 1
     printed = capsys.readouterr().out

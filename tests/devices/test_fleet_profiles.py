@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from fleetrl.devices.homogeneity import homogeneity_test, pooled_homogeneity
-from fleetrl.devices.qube import QubeDevice
+from fleetrl.devices.qube.device import QubeDevice
 from fleetrl.devices.qube.fleet_profiles import DEFAULT_FLEET_PROFILE, FLEET_PROFILES, fleet_profile
 from fleetrl.devices.qube.units import QubeVariation, qube_unit_params
 

@@ -7,9 +7,10 @@ from dataclasses import asdict
 import numpy as np
 import pytest
 
-from fleetrl.devices.qube import NOMINAL, QubeConfig, QubeDevice
 from fleetrl.devices.qube.controllers import BALANCE_GAINS
+from fleetrl.devices.qube.device import QubeDevice
 from fleetrl.devices.qube.fleet_profiles import FLEET_PROFILES
+from fleetrl.devices.qube.params import NOMINAL, QubeConfig
 from fleetrl.devices.qube.units import qube_unit_params
 
 FLEET = range(10)

@@ -6,7 +6,8 @@ import math
 
 import numpy as np
 
-from fleetrl.devices.qube import QubeConfig, QubeDevice
+from fleetrl.devices.qube.device import QubeDevice
+from fleetrl.devices.qube.params import QubeConfig
 
 
 def hand_off_window_holds(obs: np.ndarray) -> bool:

@@ -6,8 +6,9 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from fleetrl.devices.qube import NOMINAL, QubeConfig, QubeDevice
 from fleetrl.devices.qube import dynamics as d
+from fleetrl.devices.qube.device import QubeDevice
+from fleetrl.devices.qube.params import NOMINAL, QubeConfig
 
 # the reference's linearisation at upright with workbook damping (Dr = 1.5e-3, Dp = 5e-4)
 THETA_DD = (149.28, -17.01, -4.91, 49.73)  # coefficients of alpha, theta_dot, alpha_dot, V

@@ -6,7 +6,8 @@ from __future__ import annotations
 import hashlib
 from dataclasses import replace
 
-from fleetrl.devices.qube import NOMINAL, QubeDevice
+from fleetrl.devices.qube.device import QubeDevice
+from fleetrl.devices.qube.params import NOMINAL
 
 UNITS = [
     replace(NOMINAL, Dr=2e-4, Dp=2e-5),

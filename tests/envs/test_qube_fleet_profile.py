@@ -6,7 +6,7 @@ import pytest
 
 import fleetrl  # noqa: F401  (registers the envs)
 from fleetrl.devices.factory import make_device
-from fleetrl.devices.qube import QubeDevice
+from fleetrl.devices.qube.device import QubeDevice
 from fleetrl.envs.catalog import get_env_spec
 from fleetrl.envs.qube_balance import QubeBalanceEnv
 from fleetrl.envs.registration import QUBE_BALANCE_ID

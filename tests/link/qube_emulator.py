@@ -14,7 +14,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from fleetrl.devices.qube import QubeConfig, QubeDevice, QubeParams
+from fleetrl.devices.qube.device import QubeDevice
+from fleetrl.devices.qube.params import QubeConfig, QubeParams
 from fleetrl.link.driver import precise_sleep_until
 
 QUBE_ID = 0x0309

@@ -8,8 +8,8 @@ import math
 import numpy as np
 import pytest
 
-from fleetrl.devices.qube import QubeConfig, QubeDevice
-from fleetrl.devices.qube.device import RESET_PERTURBATION, DeviceResetError
+from fleetrl.devices.qube.device import RESET_PERTURBATION, DeviceResetError, QubeDevice
+from fleetrl.devices.qube.params import QubeConfig
 from fleetrl.link.driver import SimulatedDriver, simulated_driver
 from fleetrl.link.qube_reset import ResetSettings, reset_through_driver
 

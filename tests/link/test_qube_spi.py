@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 from qube_emulator import QUBE_ID, EmulatedQube, FakeSpiDev
 
-from fleetrl.devices.qube import DeviceResetError, QubeDevice
+from fleetrl.devices.qube.device import DeviceResetError, QubeDevice
 from fleetrl.link.driver import DeviceDriver
 from fleetrl.link.qube_reset import ResetSettings
 from fleetrl.link.qube_spi import QubeFault, QubeSpiDriver

@@ -12,8 +12,8 @@ import numpy as np
 import pytest
 from qube_emulator import EmulatedQube, FakeSpiDev
 
-from fleetrl.devices.qube import QubeDevice
 from fleetrl.devices.qube.controllers import balance_volts, controller_constants
+from fleetrl.devices.qube.device import QubeDevice
 from fleetrl.envs.qube_balance import QubeBalanceEnv
 from fleetrl.link.bridge import DeviceBridge
 from fleetrl.link.mqtt import DeviceLinkError, MqttLink

@@ -1,8 +1,8 @@
 """``fleetrl export`` (a model file's greedy policy as ONNX, checked) and ``fleetrl control`` (a saved policy
 run on one unit through its driver, with the device bridge's safety; no torch, no broker).
 
-Registered on the main parser by ``register(subparsers)``; every import of the work is inside the handlers,
-so neither the parser nor ``fleetrl control`` loads torch (docs/on-device.md).
+Registered on the main parser by ``register(subparsers)``; the handlers import the work, which loads numba
+(neither the parser nor ``fleetrl control`` loads torch: docs/on-device.md).
 """
 
 from __future__ import annotations
@@ -12,15 +12,16 @@ import json
 from pathlib import Path
 from typing import Any
 
-from fleetrl.cli.device_command import DRIVERS, add_driver_arguments
+from fleetrl.cli.device_command import DRIVERS, add_driver_arguments, make_driver
+from fleetrl.cli.settings_args import add_fleet_profile_argument
+from fleetrl.envs.catalog import get_env_spec
+from fleetrl.link.realtime import request_realtime_priority
 
 DEFAULT_ENV = "qube"
 
 
 def register(subparsers: Any) -> None:
     """Add the ``export`` and ``control`` subcommands to ``subparsers``."""
-    from fleetrl.cli.settings_args import add_fleet_profile_argument
-
     export: argparse.ArgumentParser = subparsers.add_parser(
         "export", help="write a saved policy as ONNX (observation -> greedy action) and check it"
     )
@@ -102,11 +103,8 @@ def cmd_export(args: argparse.Namespace) -> int:
 def cmd_control(args: argparse.Namespace) -> int:
     """Run the episodes, printing each score as it ends and their mean; the motor is off when this returns
     (Ctrl-C and SIGTERM included)."""
-    from fleetrl.cli.device_command import make_driver
     from fleetrl.control.controller import run_on_unit
     from fleetrl.control.policies import load_policy
-    from fleetrl.envs.catalog import get_env_spec
-    from fleetrl.link.realtime import request_realtime_priority
 
     if args.episodes < 1:
         raise ValueError(f"--episodes must be at least 1, got {args.episodes}")

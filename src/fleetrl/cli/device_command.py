@@ -13,6 +13,11 @@ import argparse
 import signal
 from typing import TYPE_CHECKING, Any
 
+from fleetrl.cli.settings_args import add_broker_arguments, add_connect_timeout, add_fleet_profile_argument
+from fleetrl.envs.unit_factory import DRIVER_FORM, is_factory_reference, load_driver_function
+from fleetrl.link.realtime import request_realtime_priority
+from fleetrl.runs.settings import BrokerLogin
+
 if TYPE_CHECKING:  # the driver modules load numba: only when the command runs
     from fleetrl.link.driver import DeviceDriver
 
@@ -24,8 +29,6 @@ def register(subparsers: Any) -> None:
     p: argparse.ArgumentParser = subparsers.add_parser(
         "device", help="serve one unit (simulated, or a QUBE on SPI) over MQTT through a device bridge"
     )
-    from fleetrl.cli.settings_args import add_broker_arguments, add_connect_timeout
-
     add_broker_arguments(p, "default: an embedded broker")
     p.add_argument("--run-id", default="default", help="run whose device topics to serve (default: default)")
     p.add_argument("--unit", type=int, required=True, help="index of the unit in the fleet")
@@ -45,8 +48,6 @@ def add_driver_arguments(p: argparse.ArgumentParser) -> None:
     """The options that choose and configure a unit's driver and its safety (``fleetrl device`` and
     ``fleetrl control`` take the same): ``--driver``, the simulated unit's fleet, the SPI bus, the period,
     real time, the watchdog."""
-    from fleetrl.cli.settings_args import add_fleet_profile_argument
-
     p.add_argument("--fleet-seed", type=int, default=0, help="seed of the fleet's per-unit dynamics")
     add_fleet_profile_argument(p)
     p.add_argument("--realtime", action="store_true", help="fixed control period, last command held")
@@ -83,8 +84,6 @@ def cmd_device(args: argparse.Namespace) -> int:
     """Run the bridge until interrupted (Ctrl-C or SIGTERM); the motor is off and ``offline`` announced
     when it returns."""
     from fleetrl.link.bridge import DeviceBridge
-    from fleetrl.link.realtime import request_realtime_priority
-    from fleetrl.runs.settings import BrokerLogin
     from fleetrl.transport.broker import EmbeddedBroker
     from fleetrl.transport.mqtt import MqttTransport
 
@@ -161,7 +160,6 @@ def user_driver(args: argparse.Namespace, realtime: bool) -> DeviceDriver:
     """The driver a user's driver function (``--driver package.module:function``) returns for ``--unit`` of
     ``--fleet-seed``; a ValueError (exit 2) for a reference that names no such function, for what it returns,
     or for options that configure the built-in units."""
-    from fleetrl.envs.unit_factory import DRIVER_FORM, is_factory_reference, load_driver_function
     from fleetrl.link.driver import driver_of
 
     if not is_factory_reference(args.driver):

@@ -19,16 +19,20 @@ from typing import Any, TypeVar, Union, get_args, get_origin
 from fleetrl.cli.parsing import parse_overrides
 from fleetrl.federation.schemes import DEFAULT_SCHEME
 from fleetrl.federation.shared_settings import LearningSettings
+from fleetrl.runs.role_settings import RoleSettings
 from fleetrl.runs.setting_values import (
     NEGATED_FLAGS,
     TABLE_FLAGS,
     TABLE_METAVARS,
+    build,
     field_default,
     field_docs,
     flag,
+    load_toml,
     required,
     setting_fields,
 )
+from fleetrl.runs.settings import BrokerLogin
 
 S = TypeVar("S")
 
@@ -135,8 +139,6 @@ def add_fleet_profile_argument(p: argparse.ArgumentParser) -> None:
 
 def add_broker_arguments(p: argparse.ArgumentParser, note: str) -> None:
     """``--broker`` and the password file (never the password itself on a command line)."""
-    from fleetrl.runs.settings import BrokerLogin
-
     add_setting_argument(p, BrokerLogin, "broker", note=note)
     add_setting_argument(p, BrokerLogin, "broker_password_file")
 
@@ -144,16 +146,12 @@ def add_broker_arguments(p: argparse.ArgumentParser, note: str) -> None:
 def add_connect_timeout(p: argparse.ArgumentParser) -> None:
     """``--connect-timeout``: how long a role retries an unreachable broker (start order does not matter)
     before it exits 1; the flag's default is the roles' setting's."""
-    from fleetrl.runs.role_settings import RoleSettings
-
     timeout = next(f for f in dataclasses.fields(RoleSettings) if f.name == "connect_timeout")
     add_setting_argument(p, RoleSettings, "connect_timeout", default=timeout.default)
 
 
 def settings_from_args(cls: type[S], args: argparse.Namespace) -> S:
     """The command's resolved settings value from ``--config`` and the flags given."""
-    from fleetrl.runs.setting_values import build, load_toml
-
     file_values: dict[str, Any] = {} if args.config is None else load_toml(args.config)
     flags = {k: v for k, v in vars(args).items() if k not in NOT_SETTINGS}
     for table, table_flag in TABLE_FLAGS.items():

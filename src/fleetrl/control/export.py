@@ -18,6 +18,7 @@ from typing import Any
 import numpy as np
 
 from fleetrl.agent.policy_file import PolicyFile, read_policy_file
+from fleetrl.control.onnx_graph import policy_graph
 from fleetrl.control.policies import ModelPolicy, OnnxPolicy, check_fits
 from fleetrl.envs.catalog import describe_env, get_env_spec
 
@@ -75,8 +76,6 @@ def export_policy(
     :raises FileNotFoundError: no model file
     :raises ValueError: not a fleetrl model, not one for ``env``, or a bad setting
     """
-    from fleetrl.control.onnx_graph import policy_graph
-
     if observations < 1:
         raise ValueError(f"--check must be at least 1 observation, got {observations}")
     if out.suffix != ".onnx":

@@ -16,6 +16,7 @@ from typing import Any, NamedTuple
 
 import gymnasium
 
+from fleetrl.devices.qube.fleet_profiles import fleet_profile
 from fleetrl.envs.registration import CARTPOLE_UNIT_ID, QUBE_BALANCE_CONTINUOUS_ID, QUBE_BALANCE_ID
 from fleetrl.envs.spaces import UnitDescription, describe_unit
 from fleetrl.envs.unit_factory import (
@@ -139,8 +140,6 @@ def _factory_builder(factory: UnitFactory) -> UnitBuilder:
 
 
 def _qube_fleet_profile(name: str | None) -> str:
-    from fleetrl.devices.qube.fleet_profiles import fleet_profile  # compiles the physics: only when asked
-
     return fleet_profile(name).name
 
 

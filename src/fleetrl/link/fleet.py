@@ -18,6 +18,7 @@ from types import TracebackType
 
 from fleetrl.link.bridge import WATCHDOG_SECONDS, DeviceBridge
 from fleetrl.link.driver import DeviceDriver, DriverFunction, driver_of, simulated_driver
+from fleetrl.transport.mqtt import MqttTransport
 
 
 class BridgeFleet:
@@ -69,8 +70,6 @@ def start_bridges(
     :param period: control period in seconds (QUBE only; default 6 ms; not with a driver function)
     :param watchdog: seconds without a command before a bridge switches its motor off
     """
-    from fleetrl.transport.mqtt import MqttTransport
-
     if callable(env) and (fleet_profile is not None or period is not None):
         raise ValueError(
             "fleet_profile and period configure the built-in simulated units, not a driver function"

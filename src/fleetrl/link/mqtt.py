@@ -35,6 +35,7 @@ from fleetrl.link.wire import (
     encode_command,
 )
 from fleetrl.transport.base import Transport
+from fleetrl.transport.mqtt import MqttTransport
 
 log = logging.getLogger(__name__)
 
@@ -192,6 +193,4 @@ def open_mqtt_link(
 ) -> MqttLink:
     """An ``MqttLink`` over a new ``MqttTransport`` to the broker at ``url`` (``timeouts``: ``MqttLink``'s;
     ``obs_size``: the observation size the env declares)."""
-    from fleetrl.transport.mqtt import MqttTransport
-
     return MqttLink(MqttTransport(url), run_id, unit, obs_size=obs_size, **timeouts)

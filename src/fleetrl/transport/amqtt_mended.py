@@ -1,23 +1,8 @@
-"""amqtt's broker with two faults of amqtt 0.12.1 (the version requirements.lock pins) mended.
+"""amqtt's broker (amqtt 0.12.1, as requirements.lock pins it) with two of its faults mended.
 
-The embedded broker falls back to amqtt where mosquitto is not installed — a fresh machine's ``make demo``.
-Tried there as a new user would (``FLEETRL_HIDE_MOSQUITTO=1 fleetrl train --env cartpole --units 3
---max-rounds 1 --transport mqtt``, 20 runs), 2 runs started one worker a second late, each time for both
-reasons below at once:
-
-1. **Another client's retained messages.** When a client connects, amqtt publishes to it the retained
-   messages of *every* topic filter any client has subscribed to (``Broker._handle_client_session`` loops
-   over all of ``_subscriptions``), not only its own. A worker was handed the other workers' welcomes and
-   statuses, which it rejected ("unknown sender"). MQTT sends a retained message to a client only for a
-   subscription of its own, as mosquitto does: that is what the mended broker does.
-2. **The subscriptions changing under a loop.** That loop, and the broadcast of each published message
-   (``Broker._run_broadcast``), iterate over ``_subscriptions`` across ``await``: another client's
-   SUBSCRIBE in between raised "dictionary changed size during iteration" in the connecting client's
-   handler, amqtt dropped the connection, and the worker came back after its reconnect delay. The mended
-   broker's subscriptions iterate over a snapshot of their keys and items.
-
-Nothing else of amqtt changes. Tested in tests/transport/test_mqtt_transport.py (a retained message reaches
-only its subscriber; a subscription made while another client connects does not break either).
+A connecting client gets the retained messages of its own subscriptions only (amqtt sent those of every
+client's, as mosquitto does not), and the loops over the subscriptions run on a snapshot (a SUBSCRIBE during
+an ``await`` broke another client's connection). Tested in tests/transport/test_mqtt_transport.py.
 """
 
 from __future__ import annotations

@@ -23,6 +23,8 @@ from pathlib import Path
 from types import TracebackType
 from typing import Any, Literal, Protocol
 
+from fleetrl.transport.amqtt_mended import mended_broker_class
+
 log = logging.getLogger(__name__)
 
 Preference = Literal["auto", "mosquitto", "amqtt"]
@@ -143,8 +145,6 @@ class _Amqtt:
         self._broker: Any = None
 
     def start(self, port: int) -> None:
-        from fleetrl.transport.amqtt_mended import mended_broker_class  # amqtt only without mosquitto
-
         broker_class = mended_broker_class()
 
         for name in ("amqtt", "transitions"):  # they log every connection and state change at INFO

@@ -1,6 +1,3 @@
-"""The QUBE-Servo 2 rotary inverted pendulum: parameters, compiled physics, controllers, the unit."""
-
-from fleetrl.devices.qube.device import ACTION_VOLTS, DeviceResetError, QubeDevice
-from fleetrl.devices.qube.params import NOMINAL, QubeConfig, QubeParams
-
-__all__ = ["ACTION_VOLTS", "NOMINAL", "DeviceResetError", "QubeConfig", "QubeDevice", "QubeParams"]
+"""The QUBE-Servo 2 rotary inverted pendulum: parameters (``params``), compiled physics (``dynamics``),
+reset and balance controllers (``controllers``), per-unit variation (``units``, ``fleet_profiles``), the unit
+(``device``) and units stepped together (``batch``)."""
