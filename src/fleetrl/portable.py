@@ -1,17 +1,8 @@
 """Portable mode (``FLEETRL_PORTABLE=1``): seeded runs whose scores do not depend on the host CPU.
 
-numba compiles for the host CPU and PyTorch and MKL pick kernels by CPU capability, so by default a seed
-fixes a run only on one kind of CPU (docs/algorithm.md, "Seeding"). In portable mode every library takes
-code paths that every x86-64 CPU runs alike:
-
-- PyTorch's own kernels without SIMD (``ATEN_CPU_CAPABILITY=default``);
-- MKL's matrix products in its compatible, conditionally reproducible mode (``MKL_CBWR=COMPATIBLE``);
-- numba for the baseline x86-64 CPU (``NUMBA_CPU_NAME=generic``) and the acting kernel without fastmath;
-- numpy's ufuncs on the x86-64-v2 baseline, its AVX2 and AVX-512 kernels off (``NPY_DISABLE_CPU_FEATURES``).
-
-Set the variable before the process starts; child processes inherit it. It is applied when ``fleetrl`` is
-imported, which must come before PyTorch runs its first operation (or the import fails, saying so) and
-should come before numpy is imported (or a warning says what to set; the ``fleetrl`` command does it so).
+Applied when ``fleetrl`` is imported, before numpy, numba or PyTorch choose code paths by CPU capability:
+it sets their variables (:data:`LIBRARY_SETTINGS`) so every x86-64 CPU runs the same kernels
+(docs/algorithm.md, "Seeding").
 """
 
 from __future__ import annotations

@@ -1,22 +1,9 @@
 """``fleetrl control``: a saved policy run greedily on one unit, at its control period, through its driver.
 
-The unit is served by the device bridge itself (``fleetrl.link.bridge.DeviceBridge``, the code ``fleetrl
-device`` runs), in this process, over the in-process bus; the unit's env reaches it through the same link a
-worker uses (``MqttLink``), so the policy acts on exactly what a worker's agent would see. The unit thus
-keeps every safety of the bridge, in the same code:
-
-* the watchdog: no command for ``watchdog`` seconds (a stalled policy) switches the motor off;
-* the protective stop: the arm past its limit switches the motor off and refuses steps until a reset;
-* any driver fault (the QUBE's ``QubeFault``: a wrong device id, a stuck encoder, a dead bus) ends the run
-  with the amplifier disabled and the fault's own message;
-* Ctrl-C or SIGTERM, or any error, stops the bridge: motor off, driver closed. The bridge runs in the
-  calling (main) thread, as under ``fleetrl device``, so an interrupt reaches it wherever it is — in a
-  device-side reset too; the policy plays its episodes in a second thread.
-
-In lockstep (a simulated unit, default) each step holds its command for one period of simulated time,
-exactly as an in-process step does: the scores are ``fleetrl evaluate``'s. In real time (``--realtime``,
-always on hardware) the bridge ticks every control period on the driver's clock, the rig's answer-before-
-acting order (one period of actuation delay, as the simulator models it).
+The unit is served by the device bridge itself, in this process, and its env reaches it through the link a
+worker uses, so the policy sees what a worker's agent would and the unit keeps every safety of the bridge
+(docs/on-device.md). The bridge runs in the main thread, so an interrupt stops it; the policy plays in a
+second thread.
 """
 
 from __future__ import annotations

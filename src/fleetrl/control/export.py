@@ -1,12 +1,6 @@
-"""``fleetrl export``: a model file's greedy policy written as ONNX, then checked — onnxruntime must pick
-fleetrl's actions on observations drawn from the unit's own episodes and around them.
-
-The check's observations: half are states the unit visits (episodes of the simulated unit under the
-policy's own sampled actions, so a mature policy's states and an untrained one's both appear), half are
-drawn uniformly from a box around them (their range widened by half on each side, within the observation
-space's finite bounds), so states a real unit reaches off the training distribution are covered too.
-Discrete actions must be equal; a box's within ``tolerance`` (the graph computes in float32, fleetrl in
-float64 from the same float32 weights).
+"""``fleetrl export``: a model file's greedy policy written as ONNX, then checked: onnxruntime must pick
+fleetrl's actions on observations half from the unit's own episodes and half drawn around them (a box's
+actions within ``tolerance``: the graph computes in float32, fleetrl in float64).
 """
 
 from __future__ import annotations

@@ -1,20 +1,7 @@
-"""The greedy policy of a model file as an ONNX graph, built node by node from the actor's weights.
-
-The graph (opset 17, IR version 8: what onnxruntime and the common embedded runtimes load):
-
-* input ``observation``: float32 ``(batch, obs_dim)``, the observation as the env returns it;
-* the trunk: ``Gemm`` (x·Wᵀ + b) then ``Tanh`` or ``Relu`` per layer, the policy head a last ``Gemm``;
-* output ``action``:
-  - discrete: int64 ``(batch,)``, the **index** of the most probable action (``ArgMax`` of the logits,
-    the first on a tie, as fleetrl's own argmax) — the index the env takes; what it commands on the unit
-    is the unit's (the QUBE's three indices are −1.44, 0, +1.44 V: ``fleetrl.link.driver.qube_spec``);
-  - a box: float32 ``(batch, dim)``, the Gaussian's mean in the env's units, ``centre + half_range·head``,
-    clipped to ``[low, high]`` per component — the command itself (the QUBE's: volts).
-
-The model's ``metadata_props`` carry ``fleetrl``: a JSON object with the format, the observation size, the
-action space (``ActionSpace.to_dict``) and the env it was checked on, so ``fleetrl control`` can run the
-file and check it against its unit without the model file it came from. Needs the ``onnx`` package (the
-``export`` extra); running the graph needs only onnxruntime.
+"""The greedy policy of a model file as an ONNX graph (opset 17), built node by node from the actor's weights:
+``observation`` (float32) in; ``action`` out, a discrete action's index (``ArgMax``, the first on a tie) or a
+box's clipped Gaussian mean. The model's ``fleetrl`` metadata names the observation size, the action space
+and the env (docs/on-device.md). Needs the ``onnx`` package (the ``export`` extra).
 """
 
 from __future__ import annotations

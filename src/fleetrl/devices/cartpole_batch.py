@@ -1,12 +1,6 @@
-"""Many CartPole units stepped together: one compiled call per time step for every unit of a unit host.
-
-Each unit keeps its own parameters and state (rows of two arrays); a step does, row by row, exactly the
-arithmetic of :meth:`CartPoleDevice.step <fleetrl.devices.cartpole.CartPoleDevice.step>`: the same IEEE
-operations in the same order, and for ``cos``, ``sin`` and ``**2`` the C library's own ``cos``, ``sin`` and
-``pow`` (what Python's ``math`` module and its ``**`` call), reached through ctypes so that the compiler can
-neither fuse nor replace them (LLVM rewrites ``pow(x, 2)`` as ``x * x``, which differs from the C library's
-``pow`` in the last bit about once in a thousand). So a unit stepped in a batch and the same unit stepped
-alone give equal states, bit for bit (``tests/devices/test_cartpole_batch.py``).
+"""Many CartPole units stepped together: one compiled call per time step for every unit of a unit host,
+each unit a row of two arrays, bit for bit the states :class:`~fleetrl.devices.cartpole.CartPoleDevice`
+steps alone to (``tests/devices/test_cartpole_batch.py``).
 """
 
 from __future__ import annotations
@@ -22,6 +16,9 @@ import numpy as np
 from fleetrl.devices.cartpole import CartPoleDevice
 
 
+# A batch step is CartPoleDevice.step's arithmetic, the same IEEE operations in the same order, with the C
+# library's cos, sin and pow (what math and ** call) reached through ctypes: the compiler can then neither
+# fuse nor replace them (LLVM makes pow(x, 2) x * x, which differs in the last bit about once in 1,000).
 def _libm_functions() -> tuple[Any, Any, Any] | None:
     """The C library's ``cos``, ``sin`` and ``pow`` (those this process's Python calls), or None where
     ctypes cannot find them (then no unit is stepped in a batch: :data:`AVAILABLE`)."""

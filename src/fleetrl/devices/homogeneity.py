@@ -1,12 +1,6 @@
-"""The paper's homogeneity test (section 5.3, Table 2) on simulated QUBE units.
-
-Every unit receives the same sequence of ``impulses`` motor impulses — a fixed voltage for a fixed time, in a
-direction (sign) drawn from ``seed`` — one after another, without a reset in between, starting from rest with
-the pendulum hanging, as one would on the rig. After each impulse the unit coasts (0 V) for an observation
-window; the changes of the arm and pendulum encoder readings from the start of the impulse to the end of the
-window are recorded. The Pearson correlation between units of those change sequences is the result: 1 for
-identical units, lower the more their dynamics differ (the response depends on the motion left over from
-earlier impulses, so small parameter differences accumulate).
+"""The paper's homogeneity test (section 5.3, Table 2) on simulated QUBE units: every unit gets the same
+seeded sequence of motor impulses from rest, the arm's and pendulum's encoder changes after each are
+recorded, and the units' Pearson correlation is the result (1 for identical units).
 """
 
 import csv

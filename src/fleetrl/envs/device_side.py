@@ -1,12 +1,6 @@
-"""The device side of a unit type behind device bridges: which driver a bridge serves, and whether it fits the
-env's spaces.
-
-A built-in's bridges serve its simulated units (``qube`` for both QUBE tasks, ``cartpole``); a user's unit
-type names its driver function, ``driver(unit, fleet_seed, *, realtime) -> DeviceDriver``, as
-``package.module:function`` (:func:`fleetrl.envs.unit_factory.load_driver_function`). A driver fits an env
-when its sensor vector is what the env reads from its link (the env's observation, or the ``sensor_size`` an
-env that composes its observation declares) and its commands are the env's actions: as many discrete
-commands as a ``Discrete(n)`` env has actions, or a command vector of a ``Box`` env's action size.
+"""The device side of a unit type behind device bridges: which driver a bridge serves (a built-in's
+simulated units, or a user's driver function) and whether it fits the env: its sensors what the env reads
+from its link, its commands the env's actions.
 """
 
 from __future__ import annotations

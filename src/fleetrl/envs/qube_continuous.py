@@ -1,12 +1,8 @@
 """``fleetrl/QubeBalanceContinuous-v0``: the QUBE balance task with the motor voltage as a continuous action.
 
-The same simulated units, observation, reward (+1 while |pendulum angle| ≤ 7.5°, 0 and the end otherwise),
-arm limit and 2500-step cap as ``fleetrl/QubeBalance-v0``; only the action differs: a float32 vector
-``[volts]`` in ``Box(-ACTION_VOLTS, +ACTION_VOLTS, (1,))`` instead of the three indices −1.44, 0, +1.44 V.
-Values beyond the box are clipped (as the amplifier would saturate); a wrong shape or a value that is not
-finite is a ValueError. docs/devices.md, "Environments" says why ±3 V. Over a device link each step sends
-the command vector ``[volts]``: a QUBE device bridge clamps it to the amplifier's ±10 V and serves this task
-and the discrete one alike.
+Everything but the action is ``fleetrl/QubeBalance-v0``'s; the action is ``[volts]`` in
+``Box(-ACTION_VOLTS, +ACTION_VOLTS, (1,))``, clipped beyond it as the amplifier saturates (docs/devices.md,
+"Environments").
 """
 
 import gymnasium

@@ -1,13 +1,7 @@
-"""A user's unit type, named on the command line as ``--env package.module:factory``, and its device side,
-``--device-driver package.module:function``.
-
-``factory(unit: int, fleet_seed: int, link=None) -> gymnasium.Env`` builds unit ``unit`` of the user's fleet
-(its per-unit parameters drawn from ``fleet_seed``); the ``link`` keyword is optional, needed only to put the
-unit behind a device bridge (the env then reaches its device through that ``DeviceLink``; without one it
-simulates the unit in-process). ``driver(unit: int, fleet_seed: int, *, realtime: bool) -> DeviceDriver`` is
-the device side a bridge serves (``fleetrl.link.driver``). The module is imported like ``python -m`` would:
-from the current directory or the installed packages. Every way the text can fail to name such a callable is
-a ValueError of one line that names the text and the problem.
+"""A user's unit type named on the command line: ``--env package.module:factory`` with ``factory(unit,
+fleet_seed, link=None) -> gymnasium.Env``, and its device side ``--device-driver package.module:function``
+with ``driver(unit, fleet_seed, *, realtime) -> DeviceDriver``. Modules are imported as ``python -m`` would;
+a text that names no such callable is a one-line ValueError.
 """
 
 from __future__ import annotations

@@ -1,29 +1,7 @@
-"""The device bridge (the Raspberry Pi's role): one unit, driven through a ``DeviceDriver``, on MQTT topics.
-
-It takes commands on ``fleetrl/<run_id>/device/<unit>/cmd`` and answers each with a state on ``…/state``
-(QoS 0; both messages in ``fleetrl.link.wire``), keeps a retained ``online`` on ``…/status`` (``offline`` is
-its last will), and keeps the unit safe on its own:
-
-* **watchdog**: when no command has arrived for ``watchdog`` seconds the motor is switched off (0 V);
-* **protective stop**: when the arm (cart) passes its limit the motor is switched off and steps are refused
-  until the next reset; the step that meets the stop first is answered with the reading that tripped it,
-  flagged (not acted on), so the env sees the arm past its limit and ends its episode — in real time too,
-  where the tripping reading may come at a tick with no command waiting.
-
-A step command carries a discrete action index or a command vector (``fleetrl.link.wire``). The bridge turns
-an index into the driver's actuator command vector (``DriverSpec.command_of``: QUBE ``[volts]``, CartPole
-``[force fraction]``) and clamps a vector to the spec's bounds (``DriverSpec.clamp``: the QUBE's ±10 V), so
-the driver never sees an index nor an out-of-bound value; a vector of another size, or with a value that is
-not finite, is refused with its reason. A QUBE bridge thus serves both the discrete and the continuous QUBE
-task.
-
-Two modes. *Lockstep* (simulation): each step command applies its command for one control period and
-answers with the observation at its end — exactly what an in-process step does. *Real time* (as on the rig):
-a loop ticks every control period on the driver's clock; at each tick it reads the sensors, answers the
-command that arrived since the last tick with that reading, then applies the command, which the motor
-holds until the next command (the rig's answer-before-acting order: one period of actuation delay).
-
-The bridge runs in one thread (``serve``); ``start`` runs it in a daemon thread.
+"""The device bridge (the Raspberry Pi's role): one unit, driven through a ``DeviceDriver``, served on its
+MQTT device topics (``fleetrl.link.wire``), with the unit's safety on its own side: a watchdog and a
+protective stop. Lockstep (simulation: one command, one period) or real time (a tick every control period,
+answer then act, as on the rig). docs/devices.md and docs/hardware.md describe both.
 """
 
 from __future__ import annotations

@@ -1,24 +1,7 @@
 """The hardware seam of the device bridge: ``DeviceDriver`` (read the sensors, write an actuator command
-vector, time), with simulated units as one implementation (``SimulatedDriver``: a built-in unit, or any
-simulated ``fleetrl.link.base.Device`` a user declares a ``DriverSpec`` for) and the QUBE-Servo 2 over SPI
-(``fleetrl.link.qube_spi``) as another.
-
-The bridge (``fleetrl.link.bridge``) knows only this interface. A driver declares in its ``DriverSpec`` the
-actuator command it takes (``command_size`` floats of ``command_dtype``, each inside its
-``command_low``/``command_high`` bound: QUBE ``[volts]`` within ±10 V, CartPole ``[force fraction]`` within
-±1) and the sensor vector it returns. A step's discrete action index is mapped to a command vector by
-``spec.discrete_commands`` in the bridge; a step's command vector goes through ``spec.clamp``. One agent step
-on the bridge is::
-
-    driver.write_command(spec.command_of(action))  # or spec.clamp(vector); held until the next write
-    driver.wait_until(driver.time() + period)      # hardware: sleep; simulator: integrate
-    obs = driver.read_sensors()
-
-``motor_off()`` is the safe state (the watchdog, the protective stop, shutdown): on hardware it also
-disables the amplifier; the next ``write_command`` enables it again.
-
-A unit type's device side is a *driver function* ``driver(unit, fleet_seed, *, realtime) -> DeviceDriver``
-(:data:`DriverFunction`): ``fleetrl device --driver package.module:function`` serves what it returns.
+vector, keep time), its ``DriverSpec`` (the commands a unit takes, the sensors it returns, its protective
+stop), simulated units as one driver, and a unit type's *driver function* ``driver(unit, fleet_seed, *,
+realtime) -> DeviceDriver`` (docs/devices.md, "Putting your unit behind a device bridge").
 """
 
 from __future__ import annotations

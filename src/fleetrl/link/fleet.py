@@ -1,14 +1,6 @@
-"""Start one simulated device bridge per unit, for ``fleetrl train … --device-link mqtt``.
-
-The bridges run as daemon threads of the calling process, each with its own MQTT connection (a Raspberry Pi
-hosting several units). Threads, not processes: a lockstep bridge spends its time waiting on the network and
-one compiled physics call per step, so the GIL costs little, and a run needs no extra process management.
-For process isolation run ``fleetrl device --unit K …`` per unit instead; the workers cannot tell.
-
-    with start_bridges(url, run_id, "qube", range(3), fleet_seed=0) as bridges:
-        env = QubeBalanceEnv(unit, fleet_seed, link=open_mqtt_link(url, run_id, unit))
-
-A user's unit type is served the same way, its driver function in place of the built-in's name.
+"""Start one simulated device bridge per unit as daemon threads, each with its own MQTT connection, for
+``fleetrl train … --device-link mqtt`` (``fleetrl device --unit K`` serves one per process instead; the
+workers cannot tell). A user's unit type is served the same way, its driver function in place of a name.
 """
 
 from __future__ import annotations

@@ -1,14 +1,9 @@
 """``MqttLink``: a ``DeviceLink`` to a unit served by a device bridge, over any ``Transport``.
 
-Each command carries the link's session id (random, one per link) and the next sequence number; the link
-then waits for the state carrying the same pair. Anything else on the state topic — an answer to an earlier
-command that timed out, another link's traffic, garbage — is counted in ``stale`` and dropped, never taken
-as fresh. No answer in time raises ``DeviceTimeoutError``; a refusal by the bridge raises ``DeviceLinkError``
-with its reason; so does the bridge going offline while the link waits, and (when the link knows the size
-its env declares) an observation of another size.
-
-A step carries what the unit takes: a discrete action index (an int) or a command vector (floats, sent as
-float32); the bridge refuses what its unit does not take, with the reason.
+Each command carries the link's session id and the next sequence number, and only the state with the same
+pair answers it (anything else is counted in ``stale`` and dropped). No answer in time is a
+``DeviceTimeoutError``; a refusal, the bridge going offline or an observation of the wrong size a
+``DeviceLinkError`` with its reason.
 """
 
 from __future__ import annotations

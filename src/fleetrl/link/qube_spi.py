@@ -1,16 +1,8 @@
 """``QubeSpiDriver``: a QUBE-Servo 2 (Raspberry Pi variant) on the Pi's SPI bus, behind ``DeviceDriver``.
 
-Every read and every write is one full-duplex transfer of the 17-byte frames (``fleetrl.link.qube_frames``):
-a write sends the new motor word, a read resends the held one. Safety, on the driver's side:
-
-* the command is clamped to ±10 V (Quanser's recommended range) before it becomes a duty word;
-* every reply's device id is checked; a wrong one is a ``QubeFault``;
-* an arm encoder that does not move while ≥ ``STUCK_VOLTS`` are held for ``STUCK_SECONDS`` is a fault;
-* on any fault, on ``motor_off``, on ``close`` and on leaving ``with``, the amplifier is disabled (bit 15
-  clear, duty 0); after a fault the driver refuses everything but ``motor_off`` and ``close``.
-
-``spidev`` is optional (``pip install 'fleetrl[pi]'``) and imported only when no ``spi_factory`` is given;
-the clock and the sleep are injectable, so the tests run it against an emulated QUBE on a simulated clock.
+One full-duplex transfer of the 17-byte frames (``fleetrl.link.qube_frames``) per read or write; the
+command clamped to ±10 V, every reply's device id checked, a stuck arm encoder a fault, and the amplifier
+disabled on any fault, ``motor_off`` or ``close`` (docs/hardware.md). ``spidev`` is the ``pi`` extra.
 """
 
 from __future__ import annotations

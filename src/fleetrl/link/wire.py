@@ -1,20 +1,7 @@
-"""Device topics and the two small msgpack messages on them: a command (link → bridge) and a state
-(bridge → link).
-
-Topics, one set per unit under the run: ``fleetrl/<run_id>/device/<unit>/cmd``, ``…/state`` and ``…/status``
-(retained ``online`` / ``offline``, the bridge's last will). Both messages are msgpack maps with short keys;
-the decoders check every field (version, types, ranges, size) and raise :class:`WireError` with a reason, so
-a bad message is rejected and logged, never acted on. No pickle.
-
-Command: ``{"v": 2, "sid": session, "seq": n, "op": "step", "a": action}`` or
-``{"v": 2, "sid": session, "seq": n, "op": "reset", "seed": seed | None}``, where a step's action is either a
-discrete action index (an integer, for a unit whose driver declares discrete commands) or a command vector
-(float32 little-endian bytes of the unit's declared command size).
-State: ``{"v": 2, "sid": session, "seq": n, "t": device seconds, "obs": float32 LE bytes, "flags": bits}``
-plus ``"err": reason`` when the bridge refused the command.
-
-Sizes follow from the unit's declared spaces (``DriverSpec.command_size``, ``sensor_size``) under one absolute
-cap, :data:`MAX_VECTOR` components each way; :data:`MAX_PAYLOAD` is derived from it.
+"""Device topics (``fleetrl/<run_id>/device/<unit>/cmd``, ``…/state``, ``…/status``) and their two msgpack
+messages: a command (link → bridge) and a state (bridge → link). The decoders check every field and raise
+:class:`WireError` with a reason, so a bad message is refused, never acted on; sizes are capped by
+:data:`MAX_VECTOR`. The fields are in docs/protocol.md, "Device bridges".
 """
 
 from __future__ import annotations

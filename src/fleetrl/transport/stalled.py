@@ -1,16 +1,7 @@
-"""A unit's link that stalls with the unit (``--stall``, :mod:`fleetrl.runs.uneven`): while the unit is
-paused nothing leaves it and nothing reaches it. A message it sends during a pause leaves when the pause ends
-(the sender waits, as a stopped process's socket does not send); a message that arrives during a pause, or
-while the unit waits for one, is handed over when the pause ends, and so is a receive's timeout that ran out
-in it (a stopped process notices neither before it runs again).
-
-Innermost of a unit's transports: a message in a slow uplink
-(:class:`~fleetrl.transport.delayed.DelayedTransport`) that comes due during a pause waits too. What reaches
-the unit during a pause waits in its client's queue rather than in the broker's session or the kernel's
-socket buffer: the same for the rest of the fleet, which hears nothing from the unit either way. The client's
-own connection is kept alive meanwhile (its keepalive runs): a pause long enough for a broker to drop a
-stopped process's connection (1.5× the keepalive, a minute) is not simulated. A last will is the broker's, so
-it is not held.
+"""A unit's transport that stalls with the unit (``--stall``, :mod:`fleetrl.runs.uneven`): while the unit
+is paused nothing leaves it and nothing reaches it; what it sends, what arrives and a receive's timeout all
+wait for the pause's end, as for a stopped process. Innermost of a unit's transports; the client's keepalive
+runs meanwhile and a last will is the broker's, so neither is held.
 """
 
 from __future__ import annotations

@@ -1,12 +1,8 @@
 """The device-side controllers of the rig: Quanser's balance law and an energy swing-up.
 
-They run on the sensor pipeline's readings (never the true state) and use nominal parameters, as a
-controller on a real unit would (a unit's cable torque and amplifier dead zone are unknown to them too).
-``reset_phase_step`` is the reset's phase logic for one reading (swing up, catch, drop back, settle); it is
-driven two ways, never copied: ``device_reset`` runs it with the simulated plant in one compiled loop, and
-``ResetPhases`` runs it one reading at a time from Python, for a reset through any device driver
-(``fleetrl.link.reset``). The gains were tuned on 200 simulated units of fleet profile v1 (docs/devices.md,
-"Device-side reset").
+They read the sensor pipeline (never the true state) with nominal parameters, as on a real unit.
+``reset_phase_step`` is one reading's phase logic (swing up, catch, drop back, settle), run in one compiled
+loop by ``device_reset`` and one reading at a time by ``ResetPhases`` (docs/devices.md, "Device-side reset").
 """
 
 import math

@@ -1,19 +1,7 @@
-"""Compiled QUBE-Servo 2 physics and sensor pipeline: one numba call per control period.
+"""Compiled QUBE-Servo 2 physics and sensor pipeline: one allocation-free numba call per control period.
 
-Equations of motion (alpha = 0 upright), from ``reference/qube-servo2-model.md``::
-
-    M(alpha) · [theta_dd, alpha_dd] = r
-    M11 = Jr + mp·Lr² + ¼·mp·Lp²·sin²α      M12 = M21 = −½·mp·Lp·Lr·cos α      M22 = Jp + ¼·mp·Lp²
-    r1 = τ − Dr·θ̇ − Kc·θ − ½·mp·Lp²·sinα·cosα·θ̇·α̇ − ½·mp·Lp·Lr·sinα·α̇²
-    r2 = −Dp·α̇ + ¼·mp·Lp²·sinα·cosα·θ̇² + ½·mp·Lp·g·sinα
-    τ  = km·(V − km·θ̇)/Rm            (back-EMF damps the arm)
-
-Kc is the stiffness of the cable torque on the arm (0 in the reference's model). The amplifier turns a
-commanded voltage u into V = sign(u)·max(|u| − Vd, 0), a dead zone of Vd volts (0 in the reference's model).
-
-State arrays are float64 ``[theta, alpha, theta_dot, alpha_dot]``; parameters come from
-``QubeParams.coefficients()``; the pipeline settings from ``pipeline_settings``. Everything here is
-allocation-free so the env pays one compiled call per step.
+The equations of motion are ``reference/qube-servo2-model.md``'s (at :func:`accelerations`); state arrays
+are float64 ``[theta, alpha, theta_dot, alpha_dot]``, parameters ``QubeParams.coefficients()``.
 """
 
 import math
@@ -77,6 +65,13 @@ def wrap_angle(a: float) -> float:
     return a - TWO_PI * math.floor((a + math.pi) / TWO_PI)
 
 
+# M(alpha)·[theta_dd, alpha_dd] = r, alpha = 0 upright (reference/qube-servo2-model.md):
+#   M11 = Jr + mp·Lr² + ¼·mp·Lp²·sin²α      M12 = M21 = −½·mp·Lp·Lr·cos α      M22 = Jp + ¼·mp·Lp²
+#   r1 = τ − Dr·θ̇ − Kc·θ − ½·mp·Lp²·sinα·cosα·θ̇·α̇ − ½·mp·Lp·Lr·sinα·α̇²
+#   r2 = −Dp·α̇ + ¼·mp·Lp²·sinα·cosα·θ̇² + ½·mp·Lp·g·sinα
+#   τ  = km·(V − km·θ̇)/Rm   (back-EMF damps the arm)
+# Kc, the cable's stiffness on the arm, is 0 in the reference, as is the amplifier's dead zone Vd
+# (V = sign(u)·max(|u| − Vd, 0), in dead_zone).
 @njit(cache=True, inline="always")
 def accelerations(
     theta: float, alpha: float, theta_dot: float, alpha_dot: float, volts: float, c: np.ndarray
