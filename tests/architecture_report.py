@@ -178,7 +178,7 @@ def import_cycles() -> list[list[str]]:
             elif other in on_stack:
                 low[module] = min(low[module], index[other])
         if low[module] == index[module]:
-            component = []
+            component: list[str] = []
             while not component or component[-1] != module:
                 component.append(stack.pop())
                 on_stack.discard(component[-1])

@@ -1,1 +1,3 @@
-"""Device physics: QUBE-Servo 2 and CartPole units with per-unit deviations (knows nothing of RL or MQTT)."""
+"""Device physics, knowing nothing of RL or MQTT: QUBE-Servo 2 units (``qube``) and CartPole units
+(``cartpole``, many stepped together in ``cartpole_batch``), their per-unit deviations drawn from a seed
+(``variation``), a unit built by name (``factory``), and the paper's homogeneity test (``homogeneity``)."""
