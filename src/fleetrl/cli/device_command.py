@@ -1,10 +1,7 @@
 """``fleetrl device``: serve one unit over MQTT through a device bridge (the Raspberry Pi's role): a
-simulated unit (``--driver sim``, the default), a QUBE-Servo 2 on the Pi's SPI bus (``--driver qube-spi``,
-always in real time; needs ``pip install 'fleetrl[pi]'``), or a user's own unit type (``--driver
-package.module:function`` with ``driver(unit, fleet_seed, *, realtime) -> DeviceDriver``).
-
-Registered on the main parser by ``register(subparsers)``. Without ``--broker`` an embedded broker is
-started and its URL printed (the one line this command prints).
+simulated unit (``--driver sim``), a QUBE-Servo 2 on the Pi's SPI bus (``--driver qube-spi``, always in
+real time) or a user's driver (``--driver package.module:function``). Without ``--broker`` it starts an
+embedded broker and prints its URL.
 """
 
 from __future__ import annotations

@@ -1,10 +1,8 @@
 """Settings from a ``--config`` TOML file and the flags given (flags win): ``train``, ``chief``, ``worker``.
 
-The flags of those commands are generated from the fields of the command's settings class
-(:mod:`fleetrl.runs.settings`, :mod:`fleetrl.runs.role_settings`): a field's name is its flag's ``dest`` and
-its config-file key, its type the flag's type, its docstring the flag's help, and its default (the only one)
-is shown there. Every generated flag has ``default=None`` (not given), so a config file can set what no flag
-gives.
+The flags are made from the fields of the command's settings class: a field's name is its flag and its
+config-file key, its type the flag's type, its docstring the help. Every flag defaults to None (not given),
+so a config file can set what no flag gives.
 """
 
 from __future__ import annotations

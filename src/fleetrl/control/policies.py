@@ -14,7 +14,6 @@ from fleetrl.agent.policy_file import PolicyFile, read_policy_file
 from fleetrl.envs.spaces import UnitDescription
 
 ONNX_HINT = "pip install 'fleetrl[onnx]'"
-MODEL_SUFFIXES = (".safetensors", ".onnx")
 
 
 class GreedyPolicy(Protocol):

@@ -1,9 +1,6 @@
-"""Deterministic per-unit deviations: unit ``u`` of fleet ``s`` always gets the same parameters.
-
-Each draw uses its own ``numpy.random.Generator`` seeded by ``SeedSequence(fleet_seed, spawn_key=(family,
-unit))``, so units are independent of one another and of how many units a fleet has. Each device type
-draws its own parameters with these helpers (``qube.units``, ``cartpole``); docs/devices.md lists the
-ranges with their sources.
+"""Deterministic per-unit deviations: unit ``u`` of fleet ``s`` always gets the same parameters, drawn from
+its own generator (``SeedSequence(fleet_seed, spawn_key=(family, unit))``), independent of the other units
+and of the fleet's size. docs/devices.md lists the ranges with their sources.
 """
 
 import math

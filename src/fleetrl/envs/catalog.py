@@ -1,10 +1,6 @@
-"""The unit types a fleet can train on: the built-ins by their short names, and a user's own unit type named
-``package.module:factory`` (:mod:`fleetrl.envs.unit_factory`).
-
-Both are an :class:`EnvSpec`: a builder of unit ``unit`` of fleet ``fleet_seed``, the target it declares (or
-none), and the fleet profiles it offers (or none). Every run builds its units through :meth:`EnvSpec.make`,
-which checks what the builder returned (:func:`fleetrl.envs.spaces.describe_unit`), so a built-in and a
-user's factory take one path.
+"""The unit types a fleet can train on, each an :class:`EnvSpec`: the built-ins by their short names and a
+user's own ``package.module:factory``. Every run builds its units through :meth:`EnvSpec.make`, which
+checks what the builder returned, so both take one path.
 """
 
 from __future__ import annotations

@@ -1,11 +1,6 @@
-"""A simulated unit stepped in real time: each step lasts (at least) one control period of wall time, as on
-the rig, so that a simulated fleet's wall time behaves as the hardware's would.
-
-The rule: a step returns no sooner than one period after the previous step returned (a step's own
-computation that fits in the period is hidden, as on the rig, where the agent computes while the device
-holds its command; computation beyond it makes the step late). The deadlines are kept, not the times the
-sleeps happened to end, so a sleep's overshoot does not add up over an episode. A reset (the device-side
-swing-up) is not paced: it starts the episode's clock.
+"""A simulated unit stepped in real time, as on the rig: a step returns no sooner than one control period
+after the previous one returned, its computation hidden within the period. The deadlines are kept (a
+sleep's overshoot does not add up); a reset is not paced.
 """
 
 from __future__ import annotations

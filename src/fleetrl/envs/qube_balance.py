@@ -1,11 +1,8 @@
 """``fleetrl/QubeBalance-v0``: balance an (already swung-up) QUBE-Servo 2 pendulum, as in the paper.
 
-Observation (float32): [pendulum angle, pendulum velocity, motor angle, motor velocity] — encoder readings
-(pendulum angle wrapped to [−π, π), 0 = upright) and their velocity estimates. Actions: index 0, 1, 2 =
-motor power −60, 0, +60 (≈ −1.44, 0, +1.44 V; positive power accelerates the arm in +θ). Reward +1 per step
-while |pendulum angle| ≤ 7.5°; a failing step (beyond 7.5°, or the arm beyond ±π/2) gets 0 and terminates.
-The 2500-step cap is a truncation added by ``gymnasium.make`` (TimeLimit, registration.QUBE_EPISODE_CAP);
-an env built directly has no cap. Each reset runs the device-side swing-up and settle.
+Observation: pendulum angle (0 upright) and velocity, motor angle and velocity, as the encoders read them.
+Actions 0, 1, 2: motor power −60, 0, +60 (≈ −1.44, 0, +1.44 V). Reward +1 while |pendulum angle| ≤ 7.5°;
+beyond it, or the arm beyond ±π/2, 0 and the end. ``gymnasium.make`` caps an episode at 2500 steps.
 """
 
 import math

@@ -1,8 +1,7 @@
 """What a run needs to know about one unit's env, read from a built env: its spaces, episode cap and target.
 
-A unit type's spaces are described generally (the observation's shape; the actions as ``discrete`` with
-``n`` choices or ``box`` with a shape), so that a layer that cannot handle one kind says so in its own words
-(``fleetrl.runs.factory.agent_for`` is where continuous actions are refused today).
+The spaces are described generally (the observation's shape; the actions ``discrete`` with ``n`` choices
+or a ``box`` with a shape), so a layer that cannot handle one kind says so in its own words.
 """
 
 from __future__ import annotations

@@ -19,8 +19,6 @@ FRAME_BYTES = 17
 
 MODE_WRITE = 0x01
 """command byte 0: write what the mask selects"""
-MODE_READ_ONLY = 0x00
-"""command byte 0: write nothing"""
 MASK_MOTOR = 1 << 0
 """write mask bit 0: write the motor command"""
 MASK_ENABLE = 1 << 1
@@ -29,9 +27,9 @@ MASK_RED, MASK_GREEN, MASK_BLUE = 1 << 2, 1 << 3, 1 << 4
 """write mask bits 2-4: write the red, green, blue LED"""
 MASK_PRESET_ARM, MASK_PRESET_PENDULUM = 1 << 5, 1 << 6
 """write mask bits 5-6: preset encoder 0 (arm), encoder 1 (pendulum)"""
-STEP_MASK = 0x1F
+STEP_MASK = MASK_MOTOR | MASK_ENABLE | MASK_RED | MASK_GREEN | MASK_BLUE
 """what the lab's code wrote every control step: motor, enable, three LEDs"""
-RESET_MASK = 0x7F
+RESET_MASK = STEP_MASK | MASK_PRESET_ARM | MASK_PRESET_PENDULUM
 """what it wrote once at reset: the same and both encoder presets (zeroing both encoders)"""
 LED_FULL = 999
 """an LED's full brightness (0x03E7), big-endian in two bytes"""

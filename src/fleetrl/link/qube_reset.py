@@ -1,11 +1,6 @@
 """The QUBE's device-side reset run step by step through any ``DeviceDriver`` (wait still → swing up →
-catch → settle), with the same control laws and phase logic as the simulator's compiled reset.
-
-The phase logic is ``fleetrl.devices.qube.controllers.reset_phase_step`` (through ``ResetPhases``); this
-module only drives it: read the angles, estimate the velocities through Quanser's 50 rad/s filter (the
-simulator's ``filtered_rate``, at the measured time between readings), write the volts, wait for the next
-period on the driver's clock. The clock is the driver's (``time``/``wait_until``): inject a simulated one
-into the driver and the reset runs without sleeping.
+catch → settle): the simulator's phase logic (``controllers.reset_phase_step``) fed with the driver's
+readings and Quanser's velocity filter, on the driver's clock (a simulated clock runs it without sleeping).
 """
 
 from __future__ import annotations

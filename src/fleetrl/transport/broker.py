@@ -1,11 +1,6 @@
-"""An embedded MQTT broker on a free 127.0.0.1 port: a mosquitto child process if one is installed, else
-amqtt.
-
-mosquitto gets a generated config (explicit 127.0.0.1 listener, ``set_tcp_nodelay true``, anonymous access, no
-persistence) in a temporary directory and is killed on close. amqtt runs in-process on its own event-loop
-thread with an explicit 127.0.0.1 listener and no $SYS plugin, two of its faults mended
-(``fleetrl.transport.amqtt_mended``). Readiness is an MQTT CONNECT answered by a
-CONNACK, not a bare TCP connect (which makes amqtt log an error and leak a socket).
+"""An embedded MQTT broker on a free 127.0.0.1 port: a mosquitto child process with a generated config if
+mosquitto is installed, else amqtt in this process (``amqtt_mended``). It is ready when it answers an MQTT
+CONNECT, not a bare TCP connect.
 """
 
 from __future__ import annotations

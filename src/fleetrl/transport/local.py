@@ -1,9 +1,6 @@
-"""An in-process publish/subscribe bus with MQTT's semantics that matter here, for runs whose roles are
-threads.
-
-Delivery is immediate and in publish order; retained messages and last wills behave as on a broker. It is
-thread-safe and deterministic, and the chief and workers use it through the same :class:`Transport` interface
-as MQTT, so their code does not know which one it runs on.
+"""An in-process publish/subscribe bus for runs whose roles are threads: immediate delivery in publish
+order, retained messages and last wills as on a broker, thread-safe and deterministic, behind the same
+:class:`Transport` interface as MQTT.
 """
 
 from __future__ import annotations

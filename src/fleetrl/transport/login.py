@@ -1,9 +1,6 @@
-"""The broker password, kept off command lines and out of files a run writes.
-
-A role's broker URL names the user only (``mqtts://chief@host:8883``); the password comes from a file
-(``--broker-password-file``, mode 0600, as ``fleetrl secure-config`` writes them) or from the environment
-variable ``FLEETRL_BROKER_PASSWORD`` (a process's environment is readable by its own user only, unlike its
-argv). A password inside the URL still works but is warned about: ``ps`` shows it to every local user.
+"""The broker password, kept off command lines and out of files a run writes: the URL names the user, the
+password comes from a 0600 file (``--broker-password-file``) or ``FLEETRL_BROKER_PASSWORD``. One in the
+URL still works, with a warning (``ps`` shows it to every local user).
 """
 
 from __future__ import annotations

@@ -1,11 +1,7 @@
-"""A :class:`~fleetrl.transport.base.Transport` over MQTT 3.1.1 with paho-mqtt 2.x.
-
-TCP_NODELAY is set on the socket in ``on_connect`` (without it QoS 1 round trips stall 44–88 ms on Nagle; see
-docs/protocol.md). paho's network thread reconnects with exponential backoff; subscriptions are renewed on
-every connect and QoS 1 messages published while disconnected are sent after reconnecting. The federation
-roles ask for persistent sessions (``clean_session=False``, fixed client ids), so a broker that keeps
-sessions queues QoS 1 messages for them while they are away; the default stays a clean session (a device
-link must not receive stale commands queued while it was away).
+"""A :class:`~fleetrl.transport.base.Transport` over MQTT 3.1.1 with paho-mqtt 2.x: TCP_NODELAY on every
+connection (docs/protocol.md), reconnection with backoff, subscriptions renewed on every connect. The
+federation roles ask for persistent sessions; the default is a clean one (a device link must not receive
+commands queued while it was away).
 """
 
 from __future__ import annotations

@@ -1,11 +1,7 @@
-"""Many QUBE units stepped together: one compiled call per time step for every unit of a unit host.
-
-Each unit keeps its own state, coefficients, sensor pipeline and pipeline settings (rows of arrays); a step
-runs, row by row, the very compiled control period a unit's own :meth:`QubeDevice.step
-<fleetrl.devices.qube.device.QubeDevice.step>` runs (:func:`~fleetrl.devices.qube.dynamics.agent_step`), so
-a unit stepped in a batch and the same unit stepped alone give equal states, readings and observations, bit
-for bit (``tests/devices/test_qube_batch.py``). What the batch saves is the Python around each call: the
-gymnasium wrappers, the link and the device's method, about 30 µs a step against about 1 µs of physics.
+"""Many QUBE units stepped together: one compiled call per time step for every unit of a unit host, each
+unit a row of arrays run through the very control period a lone ``QubeDevice`` runs
+(:func:`~fleetrl.devices.qube.dynamics.agent_step`), so the states are equal bit for bit
+(``tests/devices/test_qube_batch.py``).
 """
 
 from __future__ import annotations

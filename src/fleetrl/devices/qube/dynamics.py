@@ -25,7 +25,6 @@ from numba import njit, prange
     C_CABLE,
     C_DEADBAND,
 ) = range(13)
-N_COEFFICIENTS = 13
 
 # indices into the sensor array: readings (unwrapped), velocity estimates, the actuator's voltages
 S_THETA, S_ALPHA, S_THETA_VEL, S_ALPHA_VEL, S_HELD, S_APPLIED = range(6)
@@ -33,7 +32,6 @@ N_SENSOR = 6
 
 # indices into the pipeline settings array (see pipeline_settings)
 P_H, P_NSUB, P_QUANTISE, P_FILTER, P_DELAY, P_VMAX = range(6)
-N_SETTINGS = 6
 
 RESOLUTION = 2.0 * math.pi / 2048.0
 TWO_PI = 2.0 * math.pi

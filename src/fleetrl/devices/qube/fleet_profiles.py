@@ -1,9 +1,6 @@
-"""Named fleet profiles: the per-unit variations a simulated QUBE fleet can be drawn with.
-
-A profile fixes which parameters vary between units and by how much (``QubeVariation``); the fleet seed
-then fixes the draws. ``table2``, the default, is calibrated to the paper's Table 2 (docs/devices.md, "Fleet
-profiles"; measured with ``benchmarks/fleet_homogeneity.py``); ``v1`` is the first fleet, the one the results
-before the calibration were measured on, kept so that they can be rerun (``--fleet-profile v1``).
+"""Named fleet profiles: which parameters vary between simulated QUBE units and by how much
+(``QubeVariation``); the fleet seed fixes the draws. ``table2``, the default, matches the paper's Table 2;
+``v1`` is the first fleet, for the results measured on it (docs/devices.md, "Per-unit deviations").
 """
 
 from dataclasses import dataclass
