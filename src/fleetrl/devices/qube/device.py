@@ -128,12 +128,10 @@ class QubeDevice:
     def reset(self, seed: int | None = None) -> np.ndarray:
         """Device-side reset like the rig: from a (seeded) hanging start, swing up, catch, settle.
 
-        Where the swing-up has not settled within ``config.reset_timeout`` (a few units of a large fleet: a
-        cable torque that holds the balanced arm outside the hand-off window, or swings that never slow to a
-        catch; 12 of 5,000 resets of the default fleet's first 1,000 units) the pendulum is put upright by
-        hand, as a person at the rig would: at rest, arm centred, then settled by the balance law like any
-        reset (``last_reset_by_hand``; ``hand_resets`` counts them). A reset that settles in time is never
-        touched, so a unit's episodes are those of the swing-up alone wherever it works.
+        Where the swing-up has not settled within ``config.reset_timeout`` (a few units of a large fleet,
+        docs/devices.md) the pendulum is put upright by hand, as a person at the rig would: at rest, arm
+        centred, then settled by the balance law like any reset (``last_reset_by_hand``; ``hand_resets``
+        counts them). A reset that settles in time is never touched.
 
         Returns the first observation of an episode (a buffer the device reuses: copy it to keep it).
         Raises DeviceResetError if even the pendulum put upright has not settled within
