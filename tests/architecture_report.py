@@ -32,7 +32,6 @@ it on its row nor above it. The package's own ``__init__`` (it registers the env
 LAZY_IMPORTS: dict[tuple[str, str], str] = {
     ("fleetrl", "torch"): "about 1 s to import; the chief, a device bridge and --help never need it",
     ("fleetrl", "numba"): "about 0.2 s to import; the chief, the broker and --help never need it",
-    ("fleetrl", "matplotlib"): "about 0.4 s to import; only the plots of a finished run draw",
     ("fleetrl", "onnx"): "an optional extra (fleetrl[export]) of about 0.6 s; only `fleetrl export` writes",
     ("fleetrl", "onnxruntime"): "an optional extra (fleetrl[onnx]); only an exported policy runs on it",
     ("fleetrl", "spidev"): "an optional extra (fleetrl[pi]); only the QUBE's SPI driver on a Raspberry Pi",
@@ -223,6 +222,16 @@ def _top_level_imports() -> dict[str, list[str]]:
             parts = imp.imported.split(".")
             found.setdefault(imp.importer, []).extend(".".join(parts[:n]) for n in range(1, len(parts) + 1))
     return found
+
+
+def unused_lazy_entries() -> list[tuple[str, str]]:
+    """Entries of :data:`LAZY_IMPORTS` that no function-level import needs any more."""
+    nested = [imp for imp in imports() if imp.nested]
+    return [
+        (who, what)
+        for who, what in LAZY_IMPORTS
+        if not any(_within(imp.importer, who) and _within(imp.imported, what) for imp in nested)
+    ]
 
 
 def unlisted_function_imports() -> list[Import]:

@@ -10,6 +10,7 @@ from architecture_report import (
     modules,
     unlisted_function_imports,
     unplaced_modules,
+    unused_lazy_entries,
     upward_imports,
 )
 
@@ -40,6 +41,11 @@ def test_no_import_cycle() -> None:
 def test_no_file_over_the_limit() -> None:
     long = [f"{n} lines: {path}" for path, n in long_files().items()]
     assert not long, f"files over {MAX_LINES} lines:\n{listing(long)}"
+
+
+def test_every_lazy_entry_is_still_needed() -> None:
+    unused = unused_lazy_entries()
+    assert not unused, f"LAZY_IMPORTS entries no import needs (remove them):\n{listing(unused)}"
 
 
 def test_function_level_imports_only_from_the_list() -> None:
