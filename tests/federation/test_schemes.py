@@ -7,7 +7,6 @@ import pytest
 
 from fleetrl.federation.aggregation import get_aggregator
 from fleetrl.federation.chief import Chief
-from fleetrl.federation.chief_answer import check_round_rules
 from fleetrl.federation.messages import Message, Reason, encode
 from fleetrl.federation.schemes import (
     COMPLETED,
@@ -22,7 +21,6 @@ from fleetrl.federation.schemes import (
     get_scheme,
 )
 from fleetrl.federation.schemes.base import aggregate
-from fleetrl.federation.schemes.pergrad import WEIGHT_GRID
 from fleetrl.federation.signing import status_payload
 
 RUN = "r1"
@@ -366,59 +364,3 @@ def test_the_chief_weighs_answers_by_their_units_and_configures_each_round() -> 
     assert answer.flat is not None and answer.flat.tolist() == [3.0, 6.0]  # (1·[1,2] + 2·[4,8]) / 3
     assert (answer.units, answer.samples) == (3, 500)
     assert answer.config == {"round": 2.0, "members": "1,2"}  # it opens round 2
-
-
-def test_pergrad_with_focus_weighs_each_unit_by_its_need_and_the_mean_by_each_answer_s_weight() -> None:
-    plain, focused = get_scheme("pergrad"), get_scheme("pergrad", focus=0.7)
-    mature = get_scheme("pergrad", mature_weight=0.05)
-    assert plain.params() == {}  # the plain mean: the records and checkpoints made before either existed
-    assert focused.params() == {"focus": 0.7}
-    assert mature.params() == {"mature_weight": 0.05}
-    assert (
-        isinstance(plain, StepScheme) and isinstance(focused, StepScheme) and isinstance(mature, StepScheme)
-    )
-    # defaults: every unit counts once, the weight is its units
-    assert plain.unit_weights([0.2, 1.0], [False, True]) is None
-    # 1 - 0.7·p, p clipped to [0, 1]: at zero 1, half way 0.65, at or past the target 0.3
-    progress, learning = [0.0, 0.5, 1.0, 1.4, -0.2], [False] * 5
-    # (each on the grid of 2^-12, the nearest multiple: within half a step)
-    near = {"atol": WEIGHT_GRID / 2, "rtol": 0.0}
-    np.testing.assert_allclose(focused.unit_weights(progress, learning), [1.0, 0.65, 0.3, 0.3, 1.0], **near)
-    # a unit that has completed counts 0.05 as much as one still learning, whatever its progress now
-    np.testing.assert_allclose(
-        mature.unit_weights([0.9, 1.0, 0.4], [False, True, True]), [1.0, 0.05, 0.05], **near
-    )
-    both = get_scheme("pergrad", focus=0.5, mature_weight=0.1)
-    assert isinstance(both, StepScheme)
-    np.testing.assert_allclose(both.unit_weights([0.5, 1.0], [False, True]), [0.75, 0.05], **near)
-    tiny = get_scheme("pergrad", focus=0.5, mature_weight=1e-6)
-    assert isinstance(tiny, StepScheme)
-    assert tiny.unit_weights([1.0], [True]) == [WEIGHT_GRID]  # never 0: a mature unit still counts
-    for scheme in (focused, mature, both):
-        assert isinstance(scheme, StepScheme)
-        weights = scheme.unit_weights([0.1234, 0.77, 1.0], [False, True, True])
-        assert weights is not None and all((w / WEIGHT_GRID).is_integer() for w in weights)
-    for key, bad in (("focus", 1.0), ("focus", -0.1), ("focus", float("nan")), ("mature_weight", 0.0),
-                     ("mature_weight", 1.5)):  # fmt: skip
-        with pytest.raises(ValueError, match=key):
-            get_scheme("pergrad", **{key: bad})
-    grads = {
-        "1": Message("step_gradient", RUN, "1", 1, flat=np.array([1.0, 4.0], np.float32), weight=0.25),
-        "2": Message("step_gradient", RUN, "2", 1, flat=np.array([3.0, -2.0], np.float32), units=2),
-        "3": Message(
-            "step_gradient", RUN, "3", 1, flat=np.array([2.0, 2.0], np.float32), units=2, weight=1.5
-        ),
-    }
-    step = focused.combine(grads, RoundContext(get_aggregator("mean"), ("1", "2", "3"), {}, 0, False))
-    # (0.25·[1, 4] + 2·[3, -2] + 1.5·[2, 2]) / 3.75 = [9.25, 0] / 3.75
-    np.testing.assert_allclose(step.flat, [9.25 / 3.75, 0.0], rtol=1e-6)
-
-
-def test_a_chief_refuses_focus_with_a_rule_that_counts_members() -> None:
-    focused = get_scheme("pergrad", focus=0.5)
-    for rule in ("median", "trimmed_mean:0.2"):
-        with pytest.raises(ValueError, match="counts members and would ignore the weights"):
-            check_round_rules(focused, 10, 0.6, None, 20, aggregation=rule)
-    for rule in ("mean", "clipped_mean:1.0"):
-        check_round_rules(focused, 10, 0.6, None, 20, aggregation=rule)
-    check_round_rules(get_scheme("pergrad"), 10, 0.6, None, 20, aggregation="median")  # focus 0: no weights

@@ -22,7 +22,7 @@ weights give exactly the unweighted numbers.
 order (:func:`weighted_sum`). So it decomposes: an edge aggregator sends its members' weighted sum in float64
 with their total weight, and the chief adds it as one more term (:func:`mean_of_parts`) — the same numbers as
 if the members had answered the chief themselves whenever the float64 additions are exact (float32 inputs,
-small integer weights, or ``pergrad``'s weights by need on their grid of 2⁻¹²). The robust rules do not
+small integer weights). The robust rules do not
 decompose (:func:`decomposes`).
 """
 
@@ -156,12 +156,6 @@ def decomposes(spec: str) -> bool:
     """Whether the rule ``spec`` names can be applied in two levels (members' sums at edge aggregators,
     then the chief) with the numbers of one level: only ``mean``."""
     return spec.partition(":")[0] == "mean"
-
-
-def weighs(spec: str) -> bool:
-    """Whether the rule ``spec`` names weighs its vectors (``mean``, ``clipped_mean``); the robust rules
-    count members."""
-    return spec.partition(":")[0] in ("mean", "clipped_mean")
 
 
 @register_aggregator("median")

@@ -7,10 +7,9 @@ from __future__ import annotations
 from collections.abc import Collection, Iterable, Mapping
 from dataclasses import dataclass
 
-from fleetrl.federation.aggregation import weighs
 from fleetrl.federation.events import ChiefEvent, ChiefStep
 from fleetrl.federation.messages import Message, Reason, RoundConfig
-from fleetrl.federation.schemes import COMPLETED, Granularity, RoundAnswer, Scheme, StepScheme
+from fleetrl.federation.schemes import COMPLETED, Granularity, RoundAnswer, Scheme
 from fleetrl.federation.topics import CHIEF_ID, sorted_workers
 
 
@@ -42,16 +41,6 @@ def check_round_rules(
         raise ValueError(
             f"scheme {scheme.name!r} mixes one model at a time into the fleet's: aggregation {aggregation!r} "
             "does not apply (leave it unset)"
-        )
-    if (
-        isinstance(scheme, StepScheme)
-        and scheme.unit_weights([0.0], [True]) is not None
-        and not weighs(aggregation)
-    ):
-        raise ValueError(
-            f"scheme {scheme.name!r} weighs its units by their need or maturity (its focus, mature_weight): "
-            f"aggregation {aggregation!r} counts members and would ignore the weights (choose mean or "
-            "clipped_mean, or leave the weights at their defaults)"
         )
     per_step = scheme.granularity is Granularity.STEP
     if quorum < 1.0 and round_timeout is None and not per_step:

@@ -51,15 +51,6 @@ class RoundPlayer(Protocol):
         """Play one episode and, unless learning is complete, optimise (Algorithm 2, lines 2–24)."""
         ...
 
-    def unit_progress(self) -> list[float]:
-        """Each unit's progress towards its criterion, WMA / target clipped to [0, 1] (one unit: a list of
-        one)."""
-        ...
-
-    def units_completed(self) -> list[bool]:
-        """Whether each unit has completed (its criterion held at some round)."""
-        ...
-
     def begin_round(self) -> Any:
         """The round's episodes alone; the result's ``updates`` says whether an update follows (a per-step
         scheme's worker then drives it, exchanging every step with the chief)."""

@@ -84,7 +84,7 @@ class SiteChief(Chief):
         answers = self._waits.averaged(self.state.pace, answers, exchange)
         vectors = [m.flat for m in answers.values() if m.flat is not None]
         total, weight = weighted_sum(
-            vectors, [m.mean_weight for m in answers.values()], summed=[m.summed for m in answers.values()]
+            vectors, [float(m.units) for m in answers.values()], summed=[m.summed for m in answers.values()]
         )
         done = set(self.state.completed) | set(closed.completed)
         complete = bool(self.state.members) and self.state.members <= done
@@ -92,7 +92,7 @@ class SiteChief(Chief):
         up = Message(
             COMPLETED if complete else self.scheme.round_message, self.root_run, self.site_id, rnd,
             flat=total, step=exchange, samples=sum(m.samples for m in answers.values()),
-            units=sum(m.units for m in answers.values()), weight=weight,
+            units=round(weight),
             staleness=min(m.staleness for m in answers.values()), summed=True,
             metrics={"score": float(np.mean(scores))} if scores else {},
         )  # fmt: skip

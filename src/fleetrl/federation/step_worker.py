@@ -73,7 +73,6 @@ class StepWorkerMachine(WorkerMachine):
         self._completed = False
         self._steps = 0
         self._step = 0
-        self._weight: float | None = None
         self._last_answer: Message | None = None
         self._wait_until: float | None = None
         self._rejoining = False
@@ -92,14 +91,12 @@ class StepWorkerMachine(WorkerMachine):
         self._completed, self.phase = completed, Phase.DRAIN
         return NOTHING
 
-    def update_begun(self, steps: int, *, now: float, weight: float | None = None) -> WorkerStep:
-        """The update has ``steps`` steps (0: none this round): exchange step 0. ``weight``: what this
-        round's contributions weigh in the fleet's mean (the scheme's weights of the worker's units, summed;
-        None: its units)."""
+    def update_begun(self, steps: int, *, now: float) -> WorkerStep:
+        """The update has ``steps`` steps (0: none this round): exchange step 0."""
         del now
         if self.phase is not Phase.JOINING:
             raise RuntimeError(f"worker {self.worker_id}: an update began out of turn")
-        self._steps, self._step, self._last_answer, self._weight = steps, 0, None, weight
+        self._steps, self._step, self._last_answer = steps, 0, None
         if steps == 0:
             self.phase = Phase.STEPS_DONE
             return WorkerStep((act.EndUpdate(),))
@@ -114,7 +111,7 @@ class StepWorkerMachine(WorkerMachine):
         kind = COMPLETED if self._completed else self.round_message
         message = Message(
             kind, self.run_id, self.worker_id, self.round, step=step, flat=flat,
-            staleness=self.round - self.played_round, units=self.units, weight=self._weight,
+            staleness=self.round - self.played_round, units=self.units,
         )  # fmt: skip
         what = f"the chief's answer for round {self.round} step {step}"
         return self._send(message, answer_for(self.round, step), what, now)

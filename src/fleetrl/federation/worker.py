@@ -252,11 +252,8 @@ class FederatedWorker:
                 self._play_round(config)
             case BeginUpdate():  # a per-step round joins the fleet's exchange: line 11
                 assert isinstance(self.scheme, StepScheme), "a per-step round comes to a per-step scheme"
-                units = self.learner
-                weights = self.scheme.unit_weights(units.unit_progress(), units.units_completed())
-                steps = agent.begin_update(weights) if self._played.updates else 0
-                weight = None if weights is None else float(sum(weights))
-                begun = self._step_machine.update_begun(steps, now=self.clock(), weight=weight)
+                steps = agent.begin_update() if self._played.updates else 0
+                begun = self._step_machine.update_begun(steps, now=self.clock())
                 self._queue.extend(begun.outputs)
             case ApplyFleetStep(k, flat):  # behind the fleet: its step, taken outside an update
                 assert isinstance(self.scheme, StepScheme), "step answers come to a per-step scheme"

@@ -29,7 +29,7 @@ answer's ``finished`` leave W.
 from __future__ import annotations
 
 from abc import ABC, abstractmethod
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from enum import StrEnum
 from typing import TYPE_CHECKING, Any, ClassVar, Literal, Protocol, TypeAlias, runtime_checkable
@@ -113,9 +113,8 @@ class FederatedAgent(Protocol):
         """How many optimisation steps each update takes."""
         ...
 
-    def begin_update(self, unit_weights: Sequence[float] | None = None) -> int:
-        """Start the round's update, its units' minibatch gradients weighted by ``unit_weights`` (one per
-        unit; None: equally); the number of optimisation steps it takes."""
+    def begin_update(self) -> int:
+        """Start the round's update; the number of optimisation steps it takes."""
         ...
 
     def step_gradients(self, k: int) -> np.ndarray:
@@ -332,14 +331,6 @@ class StepScheme(Scheme):
     def apply_step_answer(self, agent: FederatedAgent, flat: np.ndarray) -> None:
         """Apply the chief's combination of the workers' gradients of the step."""
 
-    def unit_weights(self, progress: Sequence[float], completed: Sequence[bool]) -> list[float] | None:
-        """What each of a worker's units weighs in the fleet's mean this round, from each unit's
-        ``progress`` towards its criterion (WMA / target, clipped to [0, 1]) and whether it has
-        ``completed``: a weight in (0, 1] per unit, or None for the default, every unit counting once (a
-        worker's weight is then its units)."""
-        del progress, completed
-        return None
-
     def catch_up_step(self, agent: FederatedAgent, step: int, flat: np.ndarray) -> None:
         """Apply the chief's answer of the fleet's step ``step`` that this worker took no part in (it was
         behind, docs/protocol.md "Stragglers"): the same change :meth:`apply_step_answer` makes, outside an
@@ -393,7 +384,7 @@ def aggregate(
     or the transitions; a rule that cannot weigh counts members). Equal weights give exactly the unweighted
     rule. An edge aggregator's answer is its members' weighted sum (``summed``, weighted by their total
     weight): added as one term of the mean (:func:`.aggregation.mean_of_parts`)."""
-    weights = [m.mean_weight if by == "units" else float(m.samples) for m in answers.values()]
+    weights = [float(m.units) if by == "units" else float(m.samples) for m in answers.values()]
     summed = [m.summed for m in answers.values()]
     if any(summed):  # an edge aggregator's sum: the chief takes one only if its rule is the mean
         return mean_of_parts(flats(answers), weights, summed)
