@@ -1,6 +1,6 @@
 """The chief's work and bytes per exchange as its members grow (issue 24, "the path to 100k"): the real
-:class:`~fleetrl.federation.chief.Chief` state machine of the default scheme (``pergrad``) fed the encoded
-step gradients of N emulated members, no transport and no learner.
+:class:`~fleetrl.federation.chief.machine.Chief` state machine of the default scheme (``pergrad``) fed the
+encoded step gradients of N emulated members, no transport and no learner.
 
     python benchmarks/chief_scale.py [--members 10 100 1000] [--env qube] [--exchanges 20]
 
@@ -25,8 +25,8 @@ import time
 
 import numpy as np
 
-from fleetrl.federation.chief import Chief
-from fleetrl.federation.messages import Message, encode
+from fleetrl.federation.chief.machine import Chief
+from fleetrl.federation.wire.messages import Message, encode
 from fleetrl.portable import host_cpu
 from fleetrl.runs.launch import fleet_model
 from fleetrl.runs.settings import LearningSettings, fleet_shape, resolve_learning

@@ -25,9 +25,9 @@ from typing import Any
 import numpy as np
 from chief_scale import exchange_payloads
 
-from fleetrl.federation.chief import Chief
-from fleetrl.federation.edge import EdgeAggregator
-from fleetrl.federation.messages import Message, encode
+from fleetrl.federation.chief.machine import Chief
+from fleetrl.federation.edge.aggregator import EdgeAggregator
+from fleetrl.federation.wire.messages import Message, encode
 from fleetrl.portable import host_cpu
 from fleetrl.runs.launch import fleet_model
 from fleetrl.runs.settings import LearningSettings, fleet_shape, resolve_learning

@@ -11,10 +11,10 @@ from typing import Any
 import numpy as np
 import pytest
 
-from fleetrl.federation.chief import Chief, ChiefEvent
+from fleetrl.federation.chief.machine import Chief, ChiefEvent
 from fleetrl.federation.runner import ChiefSummary, run_chief
 from fleetrl.federation.schemes import resolve_scheme
-from fleetrl.federation.worker import FederatedRound, FederatedWorker, WorkerSummary
+from fleetrl.federation.worker.runner import FederatedRound, FederatedWorker, WorkerSummary
 from fleetrl.transport.base import Transport
 
 FAKE_LAYOUT: list[tuple[str, tuple[int, ...]]] = [("trunk.weight", (4, 3)), ("head.bias", (3,))]

@@ -16,8 +16,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from conftest import FAKE_LAYOUT
 
-from fleetrl.federation.chief import Chief, ChiefEvent
-from fleetrl.federation.chief_state import replay_last_answer
+from fleetrl.federation.chief.checkpoint import replay_last_answer
+from fleetrl.federation.chief.machine import Chief, ChiefEvent
 from fleetrl.federation.runner import run_chief
 from fleetrl.runs.checkpoints import ChiefCheckpoint
 from fleetrl.transport.mqtt import MqttTransport

@@ -9,10 +9,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from fleetrl.federation.chief import Chief, ChiefStep
-from fleetrl.federation.chief_state import chief_from_state, chief_to_state, replay_last_answer
-from fleetrl.federation.messages import Message, Reason, encode
-from fleetrl.federation.signing import FleetKey, status_payload
+from fleetrl.federation.chief.checkpoint import chief_from_state, chief_to_state, replay_last_answer
+from fleetrl.federation.chief.machine import Chief, ChiefStep
+from fleetrl.federation.wire.messages import Message, Reason, encode
+from fleetrl.federation.wire.signing import FleetKey, status_payload
 from fleetrl.runs.checkpoints import ChiefCheckpoint
 
 LAYOUT = [("w", (2,))]

@@ -5,9 +5,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from fleetrl.federation.chief import Chief, ChiefStep
-from fleetrl.federation.messages import Message, Reason, encode
-from fleetrl.federation.signing import FleetKey, status_payload
+from fleetrl.federation.chief.machine import Chief, ChiefStep
+from fleetrl.federation.wire.messages import Message, Reason, encode
+from fleetrl.federation.wire.signing import FleetKey, status_payload
 
 LAYOUT = [("w", (2,))]
 RUN = "r1"

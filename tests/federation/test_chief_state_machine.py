@@ -11,8 +11,8 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from fleetrl.federation.chief import Chief, ChiefStep
-from fleetrl.federation.messages import VERSION, Message, Reason, decode, encode, envelope
+from fleetrl.federation.chief.machine import Chief, ChiefStep
+from fleetrl.federation.wire.messages import VERSION, Message, Reason, decode, encode, envelope
 
 LAYOUT = [("w", (2,))]
 RUN = "r1"

@@ -10,15 +10,15 @@ import pytest
 from conftest import StepAgent
 
 from fleetrl.federation.aggregation import mean, mean_of_parts, weighted_sum
-from fleetrl.federation.chief import Chief
-from fleetrl.federation.edge import EdgeAggregator, EdgeStep, check_tree
-from fleetrl.federation.edge_runner import run_edge
-from fleetrl.federation.fleet_model import FleetModel
-from fleetrl.federation.messages import Message, MessageRejected, Reason, decode, encode
+from fleetrl.federation.chief.fleet_model import FleetModel
+from fleetrl.federation.chief.machine import Chief
+from fleetrl.federation.edge.aggregator import EdgeAggregator, EdgeStep, check_tree
+from fleetrl.federation.edge.runner import run_edge
 from fleetrl.federation.runner import IdleTimeout, run_chief
 from fleetrl.federation.schemes.pergrad import PerStepGradientScheme
 from fleetrl.federation.shared_settings import SettingsRefused
-from fleetrl.federation.signing import status_payload
+from fleetrl.federation.wire.messages import Message, MessageRejected, Reason, decode, encode
+from fleetrl.federation.wire.signing import status_payload
 from fleetrl.transport.local import LocalBus
 
 LAYOUT = [("w", (3,))]

@@ -8,10 +8,10 @@ import threading
 
 from conftest import FakeLearner, FakeResult
 
-from fleetrl.federation.chief import Chief
+from fleetrl.federation.chief.machine import Chief
 from fleetrl.federation.runner import ChiefSummary, run_chief
 from fleetrl.federation.schemes import resolve_scheme
-from fleetrl.federation.worker import FederatedWorker
+from fleetrl.federation.worker.runner import FederatedWorker
 from fleetrl.transport.local import LocalBus
 
 ROUNDS = 5

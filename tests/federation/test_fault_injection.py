@@ -13,7 +13,7 @@ from typing import Any
 
 import pytest
 
-from fleetrl.federation.chief import Chief, ChiefEvent
+from fleetrl.federation.chief.machine import Chief, ChiefEvent
 from fleetrl.federation.runner import ChiefSummary, run_chief
 from fleetrl.transport.broker import EmbeddedBroker
 from fleetrl.transport.local import LocalBus

@@ -8,15 +8,16 @@ import json
 import numpy as np
 import pytest
 
-from fleetrl.federation.chief import Chief, ChiefStep
-from fleetrl.federation.chief_answer import check_round_rules
-from fleetrl.federation.chief_async import AsyncChief, new_chief
-from fleetrl.federation.chief_state import chief_from_state, chief_to_state
-from fleetrl.federation.messages import Message, Reason, decode, encode
+from fleetrl.federation.chief.answer import check_round_rules
+from fleetrl.federation.chief.asynchronous import AsyncChief
+from fleetrl.federation.chief.checkpoint import chief_from_state, chief_to_state
+from fleetrl.federation.chief.machine import Chief, ChiefStep
+from fleetrl.federation.plan import new_chief
 from fleetrl.federation.schemes import get_scheme
 from fleetrl.federation.schemes.base import FleetStart
 from fleetrl.federation.schemes.fedasync import FedAsyncScheme
-from fleetrl.federation.signing import status_payload
+from fleetrl.federation.wire.messages import Message, Reason, decode, encode
+from fleetrl.federation.wire.signing import status_payload
 
 RUN = "async-run"
 LAYOUT: list[tuple[str, tuple[int, ...]]] = [("w", (2,))]

@@ -8,11 +8,11 @@ import json
 import numpy as np
 import pytest
 
-from fleetrl.federation.chief import Chief, ChiefStep
-from fleetrl.federation.chief_state import chief_from_state, chief_to_state
-from fleetrl.federation.messages import Message, Reason, encode
+from fleetrl.federation.chief.checkpoint import chief_from_state, chief_to_state
+from fleetrl.federation.chief.machine import Chief, ChiefStep
 from fleetrl.federation.schemes import SCHEMES, get_scheme
-from fleetrl.federation.signing import status_payload
+from fleetrl.federation.wire.messages import Message, Reason, encode
+from fleetrl.federation.wire.signing import status_payload
 
 LAYOUT = [("w", (2,))]
 RUN = "r1"

@@ -9,11 +9,11 @@ import numpy as np
 import pytest
 
 from fleetrl.federation.aggregation import get_aggregator
-from fleetrl.federation.chief import Chief
-from fleetrl.federation.chief_state import chief_to_state
-from fleetrl.federation.messages import Message, encode
+from fleetrl.federation.chief.checkpoint import chief_to_state
+from fleetrl.federation.chief.machine import Chief
 from fleetrl.federation.schemes import RoundAnswer, RoundContext, Scheme, get_scheme
 from fleetrl.federation.schemes.fedavg import FedAvgScheme
+from fleetrl.federation.wire.messages import Message, encode
 from fleetrl.runs.checkpoints import ChiefCheckpoint
 
 RUN = "opt"

@@ -7,10 +7,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from fleetrl.federation.chief import Chief
-from fleetrl.federation.lease import chief_epoch, place_refusal, supersedes
-from fleetrl.federation.messages import Message, MessageRejected, decode, encode
-from fleetrl.federation.signing import FleetKey, Status, parse_status, status_payload
+from fleetrl.federation.chief.lease import chief_epoch, place_refusal, supersedes
+from fleetrl.federation.chief.machine import Chief
+from fleetrl.federation.wire.messages import Message, MessageRejected, decode, encode
+from fleetrl.federation.wire.signing import FleetKey, Status, parse_status, status_payload
 
 LAYOUT = [("w", (2,))]
 KEY = FleetKey(b"k" * 32)

@@ -10,7 +10,7 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from fleetrl.federation.messages import (
+from fleetrl.federation.wire.messages import (
     VERSION,
     Message,
     MessageRejected,

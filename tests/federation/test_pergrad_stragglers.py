@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 
 from fleetrl.agent.learner import Learner
-from fleetrl.federation.chief import Chief
+from fleetrl.federation.chief.machine import Chief
 from fleetrl.runs.factory import make_learner
 from fleetrl.runs.launch import fleet_model
 from fleetrl.runs.settings import LearningSettings, fleet_shape, resolve_learning

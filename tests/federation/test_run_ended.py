@@ -11,13 +11,13 @@ import numpy as np
 import pytest
 from conftest import StepAgent
 
-from fleetrl.federation.chief import Chief
-from fleetrl.federation.fleet_model import FleetModel
-from fleetrl.federation.messages import Message, decode, encode
-from fleetrl.federation.rounds import RunEndedError
+from fleetrl.federation.chief.fleet_model import FleetModel
+from fleetrl.federation.chief.machine import Chief
 from fleetrl.federation.schemes.pergrad import PerStepGradientScheme
-from fleetrl.federation.topics import status_topic
-from fleetrl.federation.worker import FederatedWorker
+from fleetrl.federation.wire.messages import Message, decode, encode
+from fleetrl.federation.wire.topics import status_topic
+from fleetrl.federation.worker.actions import RunEndedError
+from fleetrl.federation.worker.runner import FederatedWorker
 from fleetrl.transport.local import LocalBus
 
 RUN = "ended-run"

@@ -6,8 +6,7 @@ import numpy as np
 import pytest
 
 from fleetrl.federation.aggregation import get_aggregator
-from fleetrl.federation.chief import Chief
-from fleetrl.federation.messages import Message, Reason, encode
+from fleetrl.federation.chief.machine import Chief
 from fleetrl.federation.schemes import (
     COMPLETED,
     SCHEMES,
@@ -21,7 +20,8 @@ from fleetrl.federation.schemes import (
     get_scheme,
 )
 from fleetrl.federation.schemes.base import aggregate
-from fleetrl.federation.signing import status_payload
+from fleetrl.federation.wire.messages import Message, Reason, encode
+from fleetrl.federation.wire.signing import status_payload
 
 RUN = "r1"
 

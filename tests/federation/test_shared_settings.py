@@ -9,8 +9,7 @@ from typing import Any
 import numpy as np
 import pytest
 
-from fleetrl.federation.chief import Chief
-from fleetrl.federation.messages import Message, Reason, encode
+from fleetrl.federation.chief.machine import Chief
 from fleetrl.federation.runner import IdleTimeout, run_chief
 from fleetrl.federation.shared_settings import (
     LearningSettings,
@@ -18,8 +17,9 @@ from fleetrl.federation.shared_settings import (
     settings_difference,
     shared_text,
 )
-from fleetrl.federation.signing import status_payload
-from fleetrl.federation.worker import FederatedWorker
+from fleetrl.federation.wire.messages import Message, Reason, encode
+from fleetrl.federation.wire.signing import status_payload
+from fleetrl.federation.worker.runner import FederatedWorker
 from fleetrl.runs.settings import resolve_learning
 from fleetrl.transport.local import LocalBus
 

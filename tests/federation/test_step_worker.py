@@ -9,10 +9,12 @@ from typing import Any
 
 import numpy as np
 
-from fleetrl.federation.chief import Chief
+from fleetrl.federation.chief.machine import Chief
 from fleetrl.federation.events import Sent, WorkerEvent
-from fleetrl.federation.messages import Message
-from fleetrl.federation.rounds import (
+from fleetrl.federation.plan import new_worker_machine
+from fleetrl.federation.schemes import resolve_scheme
+from fleetrl.federation.wire.messages import Message
+from fleetrl.federation.worker.actions import (
     AbandonUpdate,
     ApplyFleetStep,
     ApplyStep,
@@ -26,8 +28,7 @@ from fleetrl.federation.rounds import (
     TimedOut,
     WorkerStep,
 )
-from fleetrl.federation.schemes import resolve_scheme
-from fleetrl.federation.step_worker import StepWorkerMachine, worker_machine
+from fleetrl.federation.worker.per_step import StepWorkerMachine
 
 RUN = "machine-run"
 LAYOUT: list[tuple[str, tuple[int, ...]]] = [("trunk.weight", (4, 3)), ("head.bias", (3,))]
@@ -47,7 +48,7 @@ class Outcome:
 def machine(steps: int = K, **kwargs: Any) -> StepWorkerMachine:
     options: dict[str, Any] = {"reply_timeout": 60.0, "resend_interval": 5.0, "max_rounds": 10}
     options.update(kwargs)
-    m = worker_machine(
+    m = new_worker_machine(
         run_id=RUN, worker_id="1", layout=LAYOUT, scheme=resolve_scheme("pergrad"), steps_per_round=steps,
         **options,
     )  # fmt: skip

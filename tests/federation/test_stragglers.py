@@ -7,11 +7,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from fleetrl.federation.chief import Chief, ChiefStep
-from fleetrl.federation.chief_state import chief_from_state, chief_to_state
-from fleetrl.federation.messages import Message
-from fleetrl.federation.signing import status_payload
-from fleetrl.federation.stragglers import GRACE_FLOOR, quorum_count
+from fleetrl.federation.chief.checkpoint import chief_from_state, chief_to_state
+from fleetrl.federation.chief.machine import Chief, ChiefStep
+from fleetrl.federation.chief.stragglers import GRACE_FLOOR, quorum_count
+from fleetrl.federation.wire.messages import Message
+from fleetrl.federation.wire.signing import status_payload
 
 RUN = "straggle"
 LAYOUT = [("g", (2,))]

@@ -13,12 +13,12 @@ from typing import Any
 
 import pytest
 
-from fleetrl.federation.chief import Chief
-from fleetrl.federation.edge import EdgeAggregator
-from fleetrl.federation.edge_runner import EdgeSummary, run_edge
+from fleetrl.federation.chief.machine import Chief
+from fleetrl.federation.edge.aggregator import EdgeAggregator
+from fleetrl.federation.edge.runner import EdgeSummary, run_edge
 from fleetrl.federation.runner import ChiefSummary, run_chief
 from fleetrl.federation.schemes.base import FleetStart
-from fleetrl.federation.worker import FederatedRound, FederatedWorker
+from fleetrl.federation.worker.runner import FederatedRound, FederatedWorker
 from fleetrl.runs.factory import make_learner
 from fleetrl.runs.launch import fleet_model
 from fleetrl.runs.settings import LearningSettings, fleet_shape, resolve_learning

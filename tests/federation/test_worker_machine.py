@@ -11,10 +11,13 @@ from typing import Any
 import numpy as np
 import pytest
 
-from fleetrl.federation.chief import Chief
+from fleetrl.federation.chief.machine import Chief
 from fleetrl.federation.events import Sent, WorkerEvent
-from fleetrl.federation.messages import Message, encode
-from fleetrl.federation.rounds import (
+from fleetrl.federation.schemes import resolve_scheme
+from fleetrl.federation.wire.messages import Message, encode
+from fleetrl.federation.wire.signing import FleetKey, status_payload
+from fleetrl.federation.wire.topics import chief_topic, worker_of_topic
+from fleetrl.federation.worker.actions import (
     Announce,
     ApplyAverage,
     Checkpoint,
@@ -31,11 +34,8 @@ from fleetrl.federation.rounds import (
     WorkerSummary,
     resume_round,
 )
-from fleetrl.federation.schemes import resolve_scheme
-from fleetrl.federation.signing import FleetKey, status_payload
-from fleetrl.federation.topics import chief_topic, worker_of_topic
-from fleetrl.federation.worker import FederatedWorker
-from fleetrl.federation.worker_machine import WorkerMachine
+from fleetrl.federation.worker.machine import WorkerMachine
+from fleetrl.federation.worker.runner import FederatedWorker
 from fleetrl.transport.base import Received, Will
 from fleetrl.transport.local import LocalBus
 

@@ -27,8 +27,8 @@ from typing import Any
 import numpy as np
 
 from fleetrl.envs.catalog import ENV_SPECS, describe_env, get_env_spec
-from fleetrl.federation.chief_async import new_chief
-from fleetrl.federation.fleet_model import FleetModel
+from fleetrl.federation.chief.fleet_model import FleetModel
+from fleetrl.federation.plan import new_chief
 from fleetrl.federation.runner import ChiefSummary, run_chief
 from fleetrl.federation.schemes.base import AsyncScheme, FleetStart, StepScheme
 from fleetrl.federation.shared_settings import shared_text

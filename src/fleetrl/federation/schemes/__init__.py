@@ -24,7 +24,6 @@ from typing import Any, get_type_hints
 
 from fleetrl.coercion import CoercionError, coerce
 from fleetrl.envs.unit_factory import load_callable
-from fleetrl.federation.messages import check_scheme_type
 from fleetrl.federation.schemes.base import (
     COMPLETED,
     AsyncScheme,
@@ -36,6 +35,7 @@ from fleetrl.federation.schemes.base import (
     Scheme,
     StepScheme,
 )
+from fleetrl.federation.wire.messages import check_scheme_type
 
 DEFAULT_SCHEME = "pergrad"
 """the scheme of ``fleetrl demo``, ``fleetrl train --mode federated``, ``chief`` and ``worker`` when none is

@@ -37,7 +37,7 @@ from typing import TYPE_CHECKING, Any, ClassVar, Literal, Protocol, TypeAlias, r
 import numpy as np
 
 from fleetrl.federation.aggregation import Aggregator, mean_of_parts
-from fleetrl.federation.messages import Layout, Message, RoundConfig
+from fleetrl.federation.wire.messages import Layout, Message, RoundConfig
 
 if TYPE_CHECKING:  # torch is the agent's: not imported to read a scheme
     import torch

@@ -14,7 +14,6 @@ from collections.abc import Mapping
 
 import numpy as np
 
-from fleetrl.federation.messages import Layout, Message
 from fleetrl.federation.schemes.base import (
     COMPLETED,
     FederatedAgent,
@@ -23,6 +22,7 @@ from fleetrl.federation.schemes.base import (
     RoundScheme,
     average_until_all_completed,
 )
+from fleetrl.federation.wire.messages import Layout, Message
 
 
 class FedAvgScheme(RoundScheme):

@@ -15,7 +15,6 @@ from collections.abc import Mapping
 
 import numpy as np
 
-from fleetrl.federation.messages import Layout, Message
 from fleetrl.federation.schemes.base import (
     COMPLETED,
     FederatedAgent,
@@ -24,6 +23,7 @@ from fleetrl.federation.schemes.base import (
     RoundScheme,
     aggregate,
 )
+from fleetrl.federation.wire.messages import Layout, Message
 
 
 class PaperScheme(RoundScheme):

@@ -11,7 +11,6 @@ from collections.abc import Mapping
 
 import numpy as np
 
-from fleetrl.federation.messages import Layout, Message
 from fleetrl.federation.schemes.base import (
     FederatedAgent,
     RoundAnswer,
@@ -19,6 +18,7 @@ from fleetrl.federation.schemes.base import (
     StepScheme,
     average_until_all_completed,
 )
+from fleetrl.federation.wire.messages import Layout, Message
 
 
 class PerStepGradientScheme(StepScheme):

@@ -14,7 +14,7 @@ from __future__ import annotations
 
 from collections.abc import Iterable
 
-from fleetrl.federation.topics import sorted_workers, validate_worker_id
+from fleetrl.federation.wire.topics import sorted_workers, validate_worker_id
 
 __all__ = ["Roster"]
 

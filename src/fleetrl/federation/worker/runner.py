@@ -28,7 +28,7 @@ answer, so a message lost to a broker restart is repaired; the chief answers a r
 with its answer again. A worker that falls behind (a straggler under a quorum) applies every later answer it
 finds queued and continues at the chief's round.
 
-The rules live in the pure state machine :class:`~fleetrl.federation.worker_machine.WorkerMachine`; this
+The rules live in the pure state machine :class:`~fleetrl.federation.worker.machine.WorkerMachine`; this
 module is its runner: the loop, the clock, the transport, and the learner (the machine's actions are executed
 here, on the agent through the scheme).
 """
@@ -42,8 +42,14 @@ from collections import deque
 from collections.abc import Callable, Mapping
 from typing import Any
 
-from fleetrl.federation.messages import Layout, RoundConfig
-from fleetrl.federation.rounds import (
+from fleetrl.federation.plan import new_worker_machine
+from fleetrl.federation.schemes import RoundScheme, Scheme, StepScheme, resolve_scheme
+from fleetrl.federation.schemes.base import LocalTraining
+from fleetrl.federation.shared_settings import SettingsRefused, SharedSettings
+from fleetrl.federation.wire.messages import Layout, RoundConfig
+from fleetrl.federation.wire.signing import FleetKey
+from fleetrl.federation.wire.topics import OFFLINE, validate_id, validate_worker_id
+from fleetrl.federation.worker.actions import (
     AbandonUpdate,
     Announce,
     ApplyAverage,
@@ -67,13 +73,8 @@ from fleetrl.federation.rounds import (
     WorkerOutput,
     WorkerSummary,
 )
-from fleetrl.federation.schemes import RoundScheme, Scheme, StepScheme, resolve_scheme
-from fleetrl.federation.schemes.base import LocalTraining
-from fleetrl.federation.shared_settings import SettingsRefused, SharedSettings
-from fleetrl.federation.signing import FleetKey
-from fleetrl.federation.step_worker import StepWorkerMachine, worker_machine
-from fleetrl.federation.topics import OFFLINE, validate_id, validate_worker_id
-from fleetrl.federation.worker_machine import ENDED_GRACE
+from fleetrl.federation.worker.machine import ENDED_GRACE
+from fleetrl.federation.worker.per_step import StepWorkerMachine
 from fleetrl.transport.base import Transport, Will
 
 __all__ = ["FederatedRound", "FederatedWorker", "RoundPlayer", "WorkerSummary"]
@@ -117,9 +118,9 @@ class FederatedWorker:
         chief weighs its answers by them.
     :param ended_grace: seconds to wait, unwelcomed, for a new chief once the chief's retained status says
         the run has ended; then :meth:`run` raises
-        :class:`~fleetrl.federation.rounds.RunEndedError`.
-    :param status_fields: who this process is (pid, host, keep-alive: :func:`~.lease.holder_fields`), said
-        in its status so a second process with its id is refused naming it.
+        :class:`~fleetrl.federation.worker.actions.RunEndedError`.
+    :param status_fields: who this process is (pid, host, keep-alive: :func:`~.chief.lease.holder_fields`),
+        said in its status so a second process with its id is refused naming it.
     """
 
     def __init__(
@@ -156,7 +157,7 @@ class FederatedWorker:
         self.clock = clock
         self.scheme = resolve_scheme(scheme)
         self.layout: Layout = list(self.scheme.layout(learner.agent))
-        self.machine = worker_machine(
+        self.machine = new_worker_machine(
             scheme=self.scheme,
             steps_per_round=self.scheme.exchanges_per_round(learner.agent),
             run_id=self.run_id,

@@ -8,18 +8,18 @@ Round semantics (docs/protocol.md has the full rules):
   of a type its scheme accepts, keyed by (sender, round); duplicates, future rounds and workers out of W are
   rejected and change nothing.
 * Round i closes when every worker in W has answered (a per-step scheme: every one it waits for,
-  :mod:`.stragglers`); answers are read in sorted worker-id order, never arrival order. The scheme
+  :mod:`.chief.stragglers`); answers are read in sorted worker-id order, never arrival order. The scheme
   (:mod:`fleetrl.federation.schemes`) combines them into one answer and says who leaves W and whether the
   run is complete; the chief broadcasts it with the next round's configuration.
 * The run ends after the round the scheme calls complete, when W is empty, or after round M (``done``).
-* A worker new to the run joins it while it goes on (an open fleet, :mod:`.roster`): its matching ``join``
-  puts it in W and the welcome hands it the fleet's model.
+* A worker new to the run joins it while it goes on (an open fleet, :mod:`.chief.roster`): its matching
+  ``join`` puts it in W and the welcome hands it the fleet's model.
 
 Reliability (dropout and rejoin, deadlines and quorum, the join's settings check, idempotent resends):
 docs/protocol.md, "Reliability", whose rules the methods below implement.
 
 Every decision is returned as a :class:`ChiefEvent`, whose ``str()`` is a log line for people. What the
-chief remembers is one value it owns, :attr:`Chief.state` (:class:`~.chief_state.ChiefState`), which its
+chief remembers is one value it owns, :attr:`Chief.state` (:class:`~.chief.state.ChiefState`), which its
 checkpoint serialises.
 """
 
@@ -29,7 +29,7 @@ from collections.abc import Iterable
 from dataclasses import replace
 
 from fleetrl.federation.aggregation import Aggregator, decomposes, get_aggregator
-from fleetrl.federation.chief_answer import (
+from fleetrl.federation.chief.answer import (
     ClosedExchange,
     admission,
     answer_event,
@@ -39,17 +39,17 @@ from fleetrl.federation.chief_answer import (
     welcome_step,
     where,
 )
-from fleetrl.federation.chief_state import AnswerBook, ChiefState
+from fleetrl.federation.chief.fleet_model import FleetModel
+from fleetrl.federation.chief.roster import Roster
+from fleetrl.federation.chief.state import AnswerBook, ChiefState
+from fleetrl.federation.chief.stragglers import waiting_rule
 from fleetrl.federation.events import ChiefEvent, ChiefStep
-from fleetrl.federation.fleet_model import FleetModel
-from fleetrl.federation.messages import Layout, Message, MessageRejected, Reason, decode
-from fleetrl.federation.roster import Roster
 from fleetrl.federation.schemes import Granularity, RoundContext, Scheme, resolve_scheme
 from fleetrl.federation.schemes.base import FleetStart
 from fleetrl.federation.shared_settings import JoinGate, SharedSettings
-from fleetrl.federation.signing import FleetKey, parse_status
-from fleetrl.federation.stragglers import waiting_rule
-from fleetrl.federation.topics import CHIEF_ID, sorted_workers, validate_id
+from fleetrl.federation.wire.messages import Layout, Message, MessageRejected, Reason, decode
+from fleetrl.federation.wire.signing import FleetKey, parse_status
+from fleetrl.federation.wire.topics import CHIEF_ID, sorted_workers, validate_id
 
 __all__ = ["Chief", "ChiefEvent", "ChiefStep"]
 
@@ -67,7 +67,7 @@ class Chief:
     :param max_rounds: M, the last round.
     :param aggregator: an aggregation rule, ``name`` or ``name:value`` (:mod:`.aggregation`).
     :param max_bytes: message size cap; default from the layout.
-    :param quorum, round_timeout, max_staleness: the waiting rules (:mod:`.stragglers`): once per round,
+    :param quorum, round_timeout, max_staleness: the waiting rules (:mod:`.chief.stragglers`): once per round,
         the share of W whose answers close a round at its deadline, ``round_timeout`` seconds after it
         opened (None: no deadline); per step, the share after which the others get a grace, and the rounds a
         straggler's contribution may lag and still be averaged (None: no bound).
@@ -81,12 +81,12 @@ class Chief:
         like a round, keyed (round, step); completions and the run's end decided at a round's last step).
     :param start: the fleet's start (a ``shared_start`` scheme), in every ``welcome`` until the scheme's
         answers give the fleet a model.
-    :param fleet_model: a per-step scheme's fleet model, kept by the chief (:mod:`.fleet_model`): it gives
-        the start, and every ``welcome`` carries it as it is.
+    :param fleet_model: a per-step scheme's fleet model, kept by the chief (:mod:`.chief.fleet_model`): it
+        gives the start, and every ``welcome`` carries it as it is.
     :param welcome_layout: a ``welcome``'s layout (``start``'s, else ``layout``).
-    :param open_fleet: a worker with an id not in ``workers`` may join the run (:mod:`.roster`); False: only
-        ``workers`` take part.
-    :param state: a restored chief's (:func:`.chief_state.chief_from_state`); None: round 1.
+    :param open_fleet: a worker with an id not in ``workers`` may join the run (:mod:`.chief.roster`); False:
+        only ``workers`` take part.
+    :param state: a restored chief's (:func:`fleetrl.federation.chief.state.chief_from_state`); None: round 1.
     :param now: when the open round opened (a restored chief: now); None: at the first input.
     """
 
@@ -160,7 +160,7 @@ class Chief:
 
     @property
     def epoch(self) -> int:
-        """The chief's epoch (:mod:`.lease`), stamped on every message it sends."""
+        """The chief's epoch (:mod:`fleetrl.federation.chief.lease`), stamped on every message it sends."""
         return self.state.epoch
 
     def take_epoch(self, epoch: int) -> None:

@@ -15,8 +15,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from fleetrl.federation.messages import Layout, Message
 from fleetrl.federation.schemes.base import FederatedAgent, StepScheme
+from fleetrl.federation.wire.messages import Layout, Message
 
 
 class FleetModel:

@@ -16,11 +16,11 @@ number or short str: what the chief asks of every worker for the round the messa
 contributes; 0: it played the round it answers), ``model_version`` (int ≥ 0: an asynchronous scheme's
 fleet model version — in a worker's contribution the version it started its round from, in the chief's
 answer or welcome the version of the model it carries; 0 otherwise), ``epoch`` (int ≥ 0: the chief's epoch —
-in a chief message its own, in a worker message the highest the worker has seen; :mod:`.lease`),
+in a chief message its own, in a worker message the highest the worker has seen; :mod:`.chief.lease`),
 ``tensors`` (list of ``[name, shape]``) and ``data`` (bin: the tensors concatenated in that order as
 little-endian float32).
 
-A round message of an edge aggregator (a site's gateway, :mod:`fleetrl.federation.edge`) carries its
+A round message of an edge aggregator (a site's gateway, :mod:`.edge.aggregator`) carries its
 members' weighted sum Σ wᵢ·xᵢ exactly: its ``data`` is little-endian float64 (8 bytes a value; ``units`` is
 Σ wᵢ, the units behind it), which only a receiver that takes sums accepts (``decode(sums=True)``:
 a chief whose rule decomposes).
@@ -45,7 +45,7 @@ from typing import Any
 import msgpack
 import numpy as np
 
-from fleetrl.federation.rejections import (
+from fleetrl.federation.wire.rejections import (
     MAX_TEXT,
     MessageRejected,
     Reason,
@@ -56,8 +56,8 @@ from fleetrl.federation.rejections import (
     check_settings,
     short,
 )
-from fleetrl.federation.signing import OVERHEAD as SIGNATURE_OVERHEAD
-from fleetrl.federation.signing import FleetKey
+from fleetrl.federation.wire.signing import OVERHEAD as SIGNATURE_OVERHEAD
+from fleetrl.federation.wire.signing import FleetKey
 
 __all__ = [
     "MESSAGE_TYPES",
@@ -163,8 +163,8 @@ class Message:
     :param staleness: rounds the fleet moved on while the worker played what it contributes (0: none).
     :param model_version: an asynchronous scheme's fleet model version (a contribution: the one its round
         started from; the chief's answer or welcome: the one it carries); 0 otherwise.
-    :param epoch: the chief's epoch (:mod:`.lease`): a chief message's own, a worker message's the highest
-        its worker has seen; 0 before any takeover.
+    :param epoch: the chief's epoch (:mod:`.chief.lease`): a chief message's own, a worker message's the
+        highest its worker has seen; 0 before any takeover.
     :param version: envelope version.
     :param summed: ``flat`` is an edge aggregator's weighted sum of its members' vectors, float64 (sent as
         8 bytes a value), standing for ``units``.
@@ -257,7 +257,7 @@ def envelope(message: Message, *, layout: Layout) -> dict[str, Any]:
 def encode(message: Message, *, layout: Layout, key: FleetKey | None = None) -> bytes:
     """Serialise ``message`` (msgpack envelope, tensors as little-endian float32 following ``layout``).
 
-    With ``key`` the envelope is signed (see :mod:`fleetrl.federation.signing`).
+    With ``key`` the envelope is signed (see :mod:`fleetrl.federation.wire.signing`).
 
     :raises ValueError: unknown type, tensors missing or not fitting ``layout``, or non-finite values — a
         sender must not put on the wire what every receiver would reject.

@@ -1,9 +1,10 @@
-"""The members' side of an edge aggregator (:mod:`.edge`): the chief of its site's run, whose exchanges the
-root chief answers.
+"""The members' side of an edge aggregator (:mod:`.edge.aggregator`): the chief of its site's run, whose
+exchanges the root chief answers.
 
 Toward its members a site is their chief — their join and welcome, the settings check, statuses, dropouts and
-rejoins, the waiting rules of :mod:`.stragglers`, re-sends of answers — so :class:`SiteChief` *is* a
-:class:`~.chief.Chief` and changes only what closing an exchange means: instead of combining its members'
+rejoins, the waiting rules of :mod:`.chief.stragglers`, re-sends of answers — so :class:`SiteChief` *is* a
+:class:`~.chief.machine.Chief` and changes only what closing an exchange means: instead of combining its
+members'
 answers with the scheme, it adds them up (:func:`.aggregation.weighted_sum`, in sorted member order, float64,
 weighted by their units) into one message for the root, and waits. The root's answer for that exchange
 (:meth:`SiteChief.root_answer`) is what goes down to the members, its contributors and ``finished`` rewritten
@@ -19,22 +20,22 @@ from typing import Any
 import numpy as np
 
 from fleetrl.federation.aggregation import weighted_sum
-from fleetrl.federation.chief import Chief
-from fleetrl.federation.chief_answer import ClosedExchange, welcome_step
+from fleetrl.federation.chief.answer import ClosedExchange, welcome_step
+from fleetrl.federation.chief.machine import Chief
 from fleetrl.federation.events import ChiefEvent, ChiefStep
-from fleetrl.federation.messages import Message
 from fleetrl.federation.schemes import COMPLETED, Granularity
 from fleetrl.federation.shared_settings import settings_difference
-from fleetrl.federation.topics import CHIEF_ID, validate_id, validate_worker_id
+from fleetrl.federation.wire.messages import Message
+from fleetrl.federation.wire.topics import CHIEF_ID, validate_id, validate_worker_id
 
 __all__ = ["SiteChief"]
 
 
 class SiteChief(Chief):
-    """A :class:`~.chief.Chief` of a site's members whose exchanges are answered by the root.
+    """A :class:`~.chief.machine.Chief` of a site's members whose exchanges are answered by the root.
 
     :param site_id: the site's worker id at the root.  :param root_run: the root's run id.
-    :param chief_options: :class:`~.chief.Chief`'s parameters (``run_id``: the site's run).
+    :param chief_options: :class:`~.chief.machine.Chief`'s parameters (``run_id``: the site's run).
     """
 
     def __init__(self, *, site_id: str, root_run: str, **chief_options: Any) -> None:
@@ -45,7 +46,7 @@ class SiteChief(Chief):
         self.welcomed = False
         """the root has welcomed the site: members are welcomed too"""
         self.upward: list[Message] = []
-        """messages for the root, taken by :class:`~.edge.EdgeAggregator` after every input"""
+        """messages for the root, taken by :class:`~.edge.aggregator.EdgeAggregator` after every input"""
         self.awaiting: tuple[ClosedExchange, dict[str, Message]] | None = None
         """the exchange sent up (who answered, what was summed), until the root answers it"""
         self._held = False  # a member asked for a welcome before the root's

@@ -3,7 +3,8 @@ the units behind it, so a site needs one connection to the centre (docs/protocol
 
 Two sides, one clock (every input takes ``now``):
 
-* toward its members it is their chief (:class:`~.site_chief.SiteChief`, a :class:`~.chief.Chief`): joins,
+* toward its members it is their chief (:class:`~.edge.site_chief.SiteChief`, a
+  :class:`~.chief.machine.Chief`): joins,
   welcomes, statuses, dropouts, the waiting rules; an exchange closes at the site when its members answered,
   and their weighted sum (float64, with Σ units) goes up as one message;
 * toward the root it is one worker: it announces itself with a ``join`` (re-sent until the root's welcome),
@@ -23,11 +24,11 @@ from dataclasses import dataclass
 from typing import Any
 
 from fleetrl.federation.aggregation import decomposes
+from fleetrl.federation.edge.site_chief import SiteChief
 from fleetrl.federation.events import ChiefEvent, ChiefStep
-from fleetrl.federation.messages import Layout, Message, MessageRejected, decode
 from fleetrl.federation.schemes import Scheme, resolve_scheme
-from fleetrl.federation.site_chief import SiteChief
-from fleetrl.federation.topics import CHIEF_ID
+from fleetrl.federation.wire.messages import Layout, Message, MessageRejected, decode
+from fleetrl.federation.wire.topics import CHIEF_ID
 
 __all__ = ["TREE_SCHEMES", "EdgeAggregator", "EdgeStep", "check_tree"]
 
@@ -74,7 +75,7 @@ class EdgeAggregator:
     :param layout: what a member's round message carries (the scheme's layout).
     :param welcome_layout: what a welcome carries (the scheme's welcome layout).
     :param resend_interval: seconds without the root's answer (or welcome) before the site re-sends.
-    :param options: the members' chief's other parameters (:class:`~.chief.Chief`: ``scheme``,
+    :param options: the members' chief's other parameters (:class:`~.chief.machine.Chief`: ``scheme``,
         ``max_rounds``, ``steps_per_round``, ``settings``, ``quorum``, ``fleet_model`` …). Under a per-step
         scheme give it a ``fleet_model`` (``fleetrl aggregator`` does): a member that joins after the first
         exchange is welcomed with the fleet's model as it is then; without one, with the root's welcome's.

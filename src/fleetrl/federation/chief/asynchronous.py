@@ -7,12 +7,12 @@ twice): its staleness is s = v − b; the scheme mixes it into x (v + 1) — unl
 set and s exceeds it, then it is left out — and the chief broadcasts an ``average`` carrying x and v, naming w
 in ``origin`` (whose contribution it answers; ``contributors``: (w,) if applied) and w's round r. Nobody
 waits for anybody. Joining, dropping out, coming back, refusals and checkpoints are the synchronous chief's
-(:class:`~.chief.Chief`); a worker's ``welcome`` names it in ``contributors`` (welcomes are broadcast) and
-carries x and v and the round after its last one taken.
+(:class:`~.chief.machine.Chief`); a worker's ``welcome`` names it in ``contributors`` (welcomes are broadcast)
+and carries x and v and the round after its last one taken.
 
 The run ends at the contribution after which every member of W has completed (its answer lists them all in
 ``finished``), once every member of W has played M rounds, or when W is empty. Per worker the chief counts
-the contributions taken and their staleness (:mod:`.contributions`, in its state and chief.json).
+the contributions taken and their staleness (:mod:`.chief.contributions`, in its state and chief.json).
 docs/protocol.md, "Asynchronous schemes".
 """
 
@@ -21,35 +21,27 @@ from __future__ import annotations
 from dataclasses import replace
 from typing import Any
 
-from fleetrl.federation.chief import Chief
-from fleetrl.federation.chief_answer import check_round_rules
-from fleetrl.federation.contributions import Contributions
+from fleetrl.federation.chief.answer import check_round_rules
+from fleetrl.federation.chief.contributions import Contributions
+from fleetrl.federation.chief.machine import Chief
 from fleetrl.federation.events import ChiefEvent, ChiefStep
-from fleetrl.federation.messages import Message, Reason
-from fleetrl.federation.schemes import COMPLETED, AsyncScheme, Granularity, RoundContext, resolve_scheme
+from fleetrl.federation.schemes import COMPLETED, AsyncScheme, RoundContext
 from fleetrl.federation.schemes.base import FleetStart
-from fleetrl.federation.topics import CHIEF_ID
+from fleetrl.federation.wire.messages import Message, Reason
+from fleetrl.federation.wire.topics import CHIEF_ID
 
-__all__ = ["AsyncChief", "new_chief"]
-
-
-def new_chief(**options: Any) -> Chief:
-    """The chief ``options['scheme']`` needs: an :class:`AsyncChief` for an asynchronous scheme, else a
-    :class:`~.chief.Chief` (``options``: the chief's parameters)."""
-    options["scheme"] = resolve_scheme(options["scheme"])
-    if options["scheme"].granularity is Granularity.ASYNC:
-        options.pop("fleet_model", None)  # the scheme keeps the fleet model
-        return AsyncChief(**options)
-    return Chief(**options)
+__all__ = ["AsyncChief"]
 
 
 class AsyncChief(Chief):
     """The chief of an asynchronous scheme (see the module's docstring); the parameters are
-    :class:`~.chief.Chief`'s, ``start`` (the fleet's start) required unless the scheme holds a restored model.
-    """
+    :class:`~fleetrl.federation.chief.machine.Chief`'s, ``start`` (the fleet's start) required unless the
+    scheme holds a restored model."""
 
-    def __init__(self, *, start: FleetStart | None = None, **options: Any) -> None:
-        """Create the chief; the scheme's fleet model starts at ``start`` (a fresh run)."""
+    def __init__(self, *, start: FleetStart | None = None, fleet_model: Any = None, **options: Any) -> None:
+        """Create the chief; the scheme's fleet model starts at ``start`` (a fresh run). The scheme keeps the
+        fleet model: ``fleet_model`` is not used."""
+        del fleet_model
         super().__init__(start=start, **options)
         if not isinstance(self.scheme, AsyncScheme):
             raise ValueError(f"scheme {self.scheme.name!r} is not asynchronous: use Chief")

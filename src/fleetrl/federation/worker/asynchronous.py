@@ -1,5 +1,5 @@
 """The worker of an asynchronous scheme (``fedasync``) as a pure state machine: the rounds of
-:class:`~fleetrl.federation.worker_machine.WorkerMachine`, without a round barrier.
+:class:`~fleetrl.federation.worker.machine.WorkerMachine`, without a round barrier.
 
 Each worker counts its own rounds. Before every round it takes the newest fleet model it has seen — the
 welcome's, its last answer's, or any newer one broadcast meanwhile (every answer of the chief carries the
@@ -18,13 +18,13 @@ import logging
 from collections.abc import Callable
 from typing import Any
 
-from fleetrl.federation import rounds as act
 from fleetrl.federation.events import RoundEvent, Sent, WorkerEvent
-from fleetrl.federation.messages import Message
-from fleetrl.federation.rounds import WorkerStep, WorkerSummary, resume_round
 from fleetrl.federation.shared_settings import settings_difference
-from fleetrl.federation.worker_machine import WorkerMachine
-from fleetrl.federation.worker_phase import NOTHING, Phase
+from fleetrl.federation.wire.messages import Message
+from fleetrl.federation.worker import actions
+from fleetrl.federation.worker.actions import WorkerStep, WorkerSummary, resume_round
+from fleetrl.federation.worker.machine import WorkerMachine
+from fleetrl.federation.worker.phase import NOTHING, Phase
 
 __all__ = ["AsyncWorkerMachine"]
 
@@ -36,7 +36,7 @@ MODELS = ("welcome", "average")
 
 class AsyncWorkerMachine(WorkerMachine):
     """Algorithm 2 for one worker of an asynchronous scheme (see the module's docstring); the parameters are
-    :class:`~fleetrl.federation.worker_machine.WorkerMachine`'s."""
+    :class:`~fleetrl.federation.worker.machine.WorkerMachine`'s."""
 
     current_model = True
 
@@ -83,7 +83,7 @@ class AsyncWorkerMachine(WorkerMachine):
         """Take the newest fleet model seen, then play round ``rnd``."""
         taken = NOTHING
         if self.newest is not None and self.newest.flat is not None and rnd <= self.max_rounds:
-            taken = WorkerStep((act.TakeParameters(self.newest.flat),))
+            taken = WorkerStep((actions.TakeParameters(self.newest.flat),))
             self.model_version, self.newest = self.newest.model_version, None
         return taken + super()._begin_round(rnd)
 
@@ -122,4 +122,4 @@ class AsyncWorkerMachine(WorkerMachine):
         """Nothing more is queued: this worker's next round, from the newest model seen."""
         del now
         nxt = self.round + 1
-        return WorkerStep((act.Checkpoint(nxt),)) + self._begin_round(nxt)
+        return WorkerStep((actions.Checkpoint(nxt),)) + self._begin_round(nxt)

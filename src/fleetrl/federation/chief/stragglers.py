@@ -39,7 +39,7 @@ from collections import Counter
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 
-from fleetrl.federation.messages import Message
+from fleetrl.federation.wire.messages import Message
 
 GRACE_SHARE = 0.25
 """after the quorum, the others' grace as a share of the time the quorum took (a round waits at most 1.25×

@@ -25,7 +25,7 @@ import re
 import socket
 from datetime import UTC, datetime
 
-from fleetrl.federation.signing import Status
+from fleetrl.federation.wire.signing import Status
 
 LEASE_FACTOR = 1.5
 """the broker fires a silent client's will after this many keep-alive periods (MQTT 3.1.1, 3.1.2.10)"""

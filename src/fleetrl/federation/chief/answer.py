@@ -1,6 +1,6 @@
 """What the chief says: which configurations can run, how a scheme's answer to a closed exchange becomes the
 broadcast message (with what it stands for and the next round's configuration) and the event people read,
-and the welcome or refusal of a joining worker. What it keeps of them is :mod:`.chief_state`'s."""
+and the welcome or refusal of a joining worker. What it keeps of them is :mod:`.chief.state`'s."""
 
 from __future__ import annotations
 
@@ -8,9 +8,9 @@ from collections.abc import Collection, Iterable, Mapping
 from dataclasses import dataclass
 
 from fleetrl.federation.events import ChiefEvent, ChiefStep
-from fleetrl.federation.messages import Message, Reason, RoundConfig
 from fleetrl.federation.schemes import COMPLETED, Granularity, RoundAnswer, Scheme
-from fleetrl.federation.topics import CHIEF_ID, sorted_workers
+from fleetrl.federation.wire.messages import Message, Reason, RoundConfig
+from fleetrl.federation.wire.topics import CHIEF_ID, sorted_workers
 
 
 def check_round_rules(
