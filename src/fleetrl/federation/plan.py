@@ -1,8 +1,9 @@
 """A run's roles built from its scheme: each scheme kind (per round, per step, asynchronous) brings its own
-chief and worker machine."""
+chief, worker machine and worker play."""
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from typing import Any
 
 from fleetrl.federation.chief.asynchronous import AsyncChief
@@ -11,26 +12,39 @@ from fleetrl.federation.schemes import AsyncScheme, RoundScheme, Scheme, StepSch
 from fleetrl.federation.worker.asynchronous import AsyncWorkerMachine
 from fleetrl.federation.worker.machine import WorkerMachine
 from fleetrl.federation.worker.per_step import StepWorkerMachine
+from fleetrl.federation.worker.play import Play, RoundPlay, StepPlay
 
-ROLES: dict[type, tuple[type[Chief], type[WorkerMachine]]] = {
-    AsyncScheme: (AsyncChief, AsyncWorkerMachine),
-    StepScheme: (Chief, StepWorkerMachine),
-    RoundScheme: (Chief, WorkerMachine),
+
+@dataclass(frozen=True)
+class Kind:
+    """A scheme kind's roles."""
+
+    chief: type[Chief]
+    machine: type[WorkerMachine]
+    """the worker's pure state machine"""
+    play: type[Play]
+    """what the worker does with its learner"""
+
+
+KINDS: dict[type, Kind] = {
+    AsyncScheme: Kind(AsyncChief, AsyncWorkerMachine, RoundPlay),
+    StepScheme: Kind(Chief, StepWorkerMachine, StepPlay),
+    RoundScheme: Kind(Chief, WorkerMachine, RoundPlay),
 }
-"""a scheme kind → its chief and its worker's machine (a scheme takes its nearest kind's)"""
+"""a scheme kind → its roles (a scheme takes its nearest kind's)"""
 
 
-def roles_of(scheme: Scheme) -> tuple[type[Chief], type[WorkerMachine]]:
-    """The chief and the worker machine of ``scheme``'s kind."""
-    return next(ROLES[kind] for kind in type(scheme).__mro__ if kind in ROLES)
+def kind_of(scheme: Scheme) -> Kind:
+    """The roles of ``scheme``'s kind."""
+    return next(KINDS[kind] for kind in type(scheme).__mro__ if kind in KINDS)
 
 
 def new_chief(**options: Any) -> Chief:
     """The chief ``options['scheme']`` needs (``options``: the chief's parameters)."""
     options["scheme"] = resolve_scheme(options["scheme"])
-    return roles_of(options["scheme"])[0](**options)
+    return kind_of(options["scheme"]).chief(**options)
 
 
 def new_worker_machine(*, scheme: Scheme, **options: Any) -> WorkerMachine:
     """The worker machine ``scheme`` needs (``options``: the machine's parameters)."""
-    return roles_of(scheme)[1](scheme=scheme, **options)
+    return kind_of(scheme).machine(scheme=scheme, **options)
