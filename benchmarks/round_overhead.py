@@ -46,6 +46,7 @@ import numpy as np
 from fleetrl.agent.config import get_preset
 from fleetrl.agent.ppo import PPOAgent
 from fleetrl.federation.chief.machine import Chief, ChiefEvent
+from fleetrl.federation.plan import ChiefPlan
 from fleetrl.federation.runner import run_chief
 from fleetrl.federation.wire.messages import Layout, layout_size
 from fleetrl.federation.wire.topics import worker_of_topic
@@ -218,8 +219,15 @@ def run_configuration(
     total = WARMUP + rounds
     clock = RoundClock()
     counter = AcceptedCounter(n_workers - 1, clock)
-    chief = Chief(run_id=run_id, workers=[str(i) for i in range(1, n_workers + 1)], layout=layout,
-                  max_rounds=total, scheme="paper")  # fmt: skip
+    chief = Chief(
+        ChiefPlan(
+            run_id=run_id,
+            workers=[str(i) for i in range(1, n_workers + 1)],
+            layout=layout,
+            max_rounds=total,
+            scheme="paper",
+        )
+    )
     barrier = threading.Barrier(n_workers, timeout=TIMEOUT)
     errors: list[BaseException] = []
 

@@ -24,6 +24,7 @@ import numpy as np
 
 from fleetrl.agent.config import get_preset
 from fleetrl.federation.chief.machine import Chief
+from fleetrl.federation.plan import ChiefPlan
 from fleetrl.federation.runner import run_chief
 from fleetrl.federation.worker.runner import FederatedWorker
 from fleetrl.portable import describe_host
@@ -102,9 +103,15 @@ def round_seconds(url: str, scheme: str, workers: int, rounds: int) -> tuple[flo
     steps = agent0.update_step_count() if scheme == "pergrad" else 1
     run_id = f"wire-{scheme}-{workers}"
     chief = Chief(
-        run_id=run_id, workers=[str(k) for k in range(workers)], layout=layout, max_rounds=rounds,
-        scheme=scheme, steps_per_round=steps,
-    )  # fmt: skip
+        ChiefPlan(
+            run_id=run_id,
+            workers=[str(k) for k in range(workers)],
+            layout=layout,
+            max_rounds=rounds,
+            scheme=scheme,
+            steps_per_round=steps,
+        )
+    )
     threading.Thread(target=run_chief, args=(chief, MqttTransport(url)), daemon=True).start()
     stamps: list[float] = []
 

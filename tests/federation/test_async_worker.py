@@ -10,7 +10,7 @@ from typing import Any
 import numpy as np
 
 from fleetrl.federation.events import Sent, WorkerEvent
-from fleetrl.federation.plan import new_worker_machine
+from fleetrl.federation.kinds import new_worker_machine
 from fleetrl.federation.schemes import get_scheme
 from fleetrl.federation.wire.messages import Message
 from fleetrl.federation.worker.actions import (

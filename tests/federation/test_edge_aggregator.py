@@ -7,13 +7,14 @@ import threading
 
 import numpy as np
 import pytest
-from conftest import StepAgent
+from conftest import StepAgent, chief_of
 
 from fleetrl.federation.aggregation import mean, mean_of_parts, weighted_sum
 from fleetrl.federation.chief.fleet_model import FleetModel
 from fleetrl.federation.chief.machine import Chief
 from fleetrl.federation.edge.aggregator import EdgeAggregator, EdgeStep, check_tree
 from fleetrl.federation.edge.runner import run_edge
+from fleetrl.federation.plan import ChiefPlan
 from fleetrl.federation.runner import IdleTimeout, run_chief
 from fleetrl.federation.schemes.pergrad import PerStepGradientScheme
 from fleetrl.federation.shared_settings import SettingsRefused
@@ -89,8 +90,8 @@ def test_a_tree_refuses_robust_rules_and_schemes_that_do_not_sum() -> None:
 
 
 def edge(**options: object) -> EdgeAggregator:
-    return EdgeAggregator(
-        site_id=SITE, root_run=ROOT, run_id="site-a-run", members=("1", "2"), layout=LAYOUT,
+    return chief_of(  # type: ignore[no-any-return]
+        EdgeAggregator, site_id=SITE, root_run=ROOT, run_id="site-a-run", members=("1", "2"), layout=LAYOUT,
         welcome_layout=WELCOME_LAYOUT, scheme="pergrad", max_rounds=3, steps_per_round=K, quorum=1.0,
         **options,  # type: ignore[arg-type]
     )  # fmt: skip
@@ -194,13 +195,15 @@ def test_a_member_dropping_out_leaves_the_site_and_the_next_exchange_closes_with
 
 def test_the_root_takes_a_site_s_sum_as_its_members_and_answers_with_the_flat_mean() -> None:
     root = Chief(
-        run_id=ROOT,
-        workers=(SITE, "9"),
-        layout=LAYOUT,
-        max_rounds=3,
-        scheme="pergrad",
-        steps_per_round=K,
-        quorum=1.0,
+        ChiefPlan(
+            run_id=ROOT,
+            workers=(SITE, "9"),
+            layout=LAYOUT,
+            max_rounds=3,
+            scheme="pergrad",
+            steps_per_round=K,
+            quorum=1.0,
+        )
     )
     e = edge()
     started(e)
@@ -213,13 +216,15 @@ def test_the_root_takes_a_site_s_sum_as_its_members_and_answers_with_the_flat_me
     assert answer.flat is not None and answer.flat.tobytes() == flat.tobytes()
     assert (answer.units, answer.contributors) == (3, ("9", SITE))  # numeric ids sort first
     robust = Chief(
-        run_id=ROOT,
-        workers=(SITE,),
-        layout=LAYOUT,
-        max_rounds=3,
-        scheme="pergrad",
-        steps_per_round=K,
-        aggregator="median",
+        ChiefPlan(
+            run_id=ROOT,
+            workers=(SITE,),
+            layout=LAYOUT,
+            max_rounds=3,
+            scheme="pergrad",
+            steps_per_round=K,
+            aggregator="median",
+        )
     )
     step = robust.receive_bytes(encode(up, layout=LAYOUT), topic_worker=SITE, now=1.0)
     assert [ev.reason for ev in step.events] == [Reason.LAYOUT_MISMATCH]
@@ -242,9 +247,16 @@ def test_a_site_refused_by_the_root_ends_its_members_run() -> None:
 def test_the_aggregator_s_loop_joins_the_root_and_raises_when_refused() -> None:
     bus = LocalBus()
     root = Chief(
-        run_id=ROOT, workers=(SITE,), layout=LAYOUT, max_rounds=3, scheme="pergrad", steps_per_round=K,
-        settings={"preset": "standard"},
-    )  # fmt: skip
+        ChiefPlan(
+            run_id=ROOT,
+            workers=(SITE,),
+            layout=LAYOUT,
+            max_rounds=3,
+            scheme="pergrad",
+            steps_per_round=K,
+            settings={"preset": "standard"},
+        )
+    )
     chief_end: list[BaseException] = []
 
     def serve() -> None:
@@ -271,10 +283,20 @@ def test_the_aggregator_s_loop_joins_the_root_and_raises_when_refused() -> None:
 def test_a_member_joining_late_is_welcomed_with_the_fleet_s_model_as_the_site_holds_it() -> None:
     model = FleetModel(PerStepGradientScheme(), StepAgent())  # type: ignore[arg-type]
     e = EdgeAggregator(
-        site_id=SITE, root_run=ROOT, run_id="site-a-run", members=("1",), layout=LAYOUT,
-        welcome_layout=model.layout, scheme="pergrad", max_rounds=3, steps_per_round=K, quorum=1.0,
+        ChiefPlan(
+            run_id="site-a-run",
+            workers=("1",),
+            layout=LAYOUT,
+            welcome_layout=model.layout,
+            scheme="pergrad",
+            max_rounds=3,
+            steps_per_round=K,
+            quorum=1.0,
+        ),
+        site_id=SITE,
+        root_run=ROOT,
         fleet_model=model,
-    )  # fmt: skip
+    )
     e.start(now=0.0)
     e.from_root(Message("welcome", ROOT, "chief", 1, flat=f32(5.0, 6.0, 2.0), origin="chief"), now=0.0)
     assert len(e.receive_bytes(step_grad("1", 1, 0, 1, 1, 1), topic_worker="1", now=1.0).up) == 1

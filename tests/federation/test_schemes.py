@@ -7,6 +7,7 @@ import pytest
 
 from fleetrl.federation.aggregation import get_aggregator
 from fleetrl.federation.chief.machine import Chief
+from fleetrl.federation.plan import ChiefPlan
 from fleetrl.federation.schemes import (
     COMPLETED,
     SCHEMES,
@@ -245,7 +246,9 @@ def step_message(worker: str, rnd: int, step: int, values: list[float], kind: st
 
 def test_the_chief_closes_each_step_and_the_round_at_its_last_step() -> None:
     chief = Chief(
-        run_id=RUN, workers=("1", "2"), layout=LAYOUT2, max_rounds=3, scheme="pergrad", steps_per_round=2
+        ChiefPlan(
+            run_id=RUN, workers=("1", "2"), layout=LAYOUT2, max_rounds=3, scheme="pergrad", steps_per_round=2
+        )
     )
     chief.receive_bytes(step_message("1", 1, 0, [1, 2]), topic_worker="1", now=0.0)
     (answer,) = chief.receive_bytes(step_message("2", 1, 0, [3, 4]), topic_worker="2", now=0.0).outgoing
@@ -273,24 +276,41 @@ def test_the_chief_closes_each_step_and_the_round_at_its_last_step() -> None:
 
 
 def test_a_per_round_chief_rejects_a_step_and_needs_a_deadline_for_a_quorum() -> None:
-    chief = Chief(run_id=RUN, workers=("1", "2"), layout=[("pi", (2,))], max_rounds=3, scheme="paper")
+    chief = Chief(
+        ChiefPlan(run_id=RUN, workers=("1", "2"), layout=[("pi", (2,))], max_rounds=3, scheme="paper")
+    )
     message = Message("gradient", RUN, "1", 1, flat=np.ones(2, np.float32), step=2)
     step = chief.receive_bytes(encode(message, layout=[("pi", (2,))]), topic_worker="1", now=0.0)
     assert [(e.reason, e.detail) for e in step.events] == [(Reason.BAD_ROUND, "step 2 of 1 per round")]
     assert chief.answered == ()
     with pytest.raises(ValueError, match="scheme 'paper' sends once per round"):
-        Chief(run_id=RUN, workers=("1",), layout=LAYOUT2, max_rounds=3, steps_per_round=2, scheme="paper")
+        Chief(
+            ChiefPlan(
+                run_id=RUN, workers=("1",), layout=LAYOUT2, max_rounds=3, steps_per_round=2, scheme="paper"
+            )
+        )
     with pytest.raises(ValueError, match=r"scheme 'paper': a quorum below 1 needs a round timeout"):
-        Chief(run_id=RUN, workers=("1", "2"), layout=[("pi", (2,))], max_rounds=3, scheme="paper", quorum=0.5)
+        Chief(
+            ChiefPlan(
+                run_id=RUN,
+                workers=("1", "2"),
+                layout=[("pi", (2,))],
+                max_rounds=3,
+                scheme="paper",
+                quorum=0.5,
+            )
+        )
     # a per-step scheme's quorum needs no deadline: the grace after it is one (docs/protocol.md "Stragglers")
     Chief(
-        run_id=RUN,
-        workers=("1", "2"),
-        layout=LAYOUT2,
-        max_rounds=3,
-        scheme="pergrad",
-        steps_per_round=2,
-        quorum=0.5,
+        ChiefPlan(
+            run_id=RUN,
+            workers=("1", "2"),
+            layout=LAYOUT2,
+            max_rounds=3,
+            scheme="pergrad",
+            steps_per_round=2,
+            quorum=0.5,
+        )
     )
 
 
@@ -347,7 +367,7 @@ class Configured(RoundScheme):
 
 def test_the_chief_weighs_answers_by_their_units_and_configures_each_round() -> None:
     layout = [("pi", (2,))]
-    chief = Chief(run_id=RUN, workers=("1", "2"), layout=layout, max_rounds=3, scheme=Configured())
+    chief = Chief(ChiefPlan(run_id=RUN, workers=("1", "2"), layout=layout, max_rounds=3, scheme=Configured()))
     (welcome,) = chief.status(
         "1", status_payload(b"online", run_id=RUN, node="1", incarnation=1), now=0.0
     ).outgoing

@@ -11,7 +11,8 @@ import numpy as np
 
 from fleetrl.federation.chief.machine import Chief
 from fleetrl.federation.events import Sent, WorkerEvent
-from fleetrl.federation.plan import new_worker_machine
+from fleetrl.federation.kinds import new_worker_machine
+from fleetrl.federation.plan import ChiefPlan
 from fleetrl.federation.schemes import resolve_scheme
 from fleetrl.federation.wire.messages import Message
 from fleetrl.federation.worker.actions import (
@@ -204,8 +205,15 @@ def test_a_worker_resumed_mid_round_replays_the_closed_steps_and_goes_on_at_the_
     same gradients); the chief answers each re-sent step with its own answer; step 2 is played as usual."""
     steps = 4
     c = Chief(
-        run_id=RUN, workers=("1", "2"), layout=LAYOUT, max_rounds=10, scheme="pergrad", steps_per_round=steps,
-    )  # fmt: skip
+        ChiefPlan(
+            run_id=RUN,
+            workers=("1", "2"),
+            layout=LAYOUT,
+            max_rounds=10,
+            scheme="pergrad",
+            steps_per_round=steps,
+        )
+    )
     grads = {w: [np.full(15, 10 * int(w) + k, np.float32) for k in range(steps)] for w in ("1", "2")}
 
     def step_of(worker: str, k: int) -> Message:

@@ -12,15 +12,16 @@ from collections.abc import Callable
 from typing import Any
 
 import pytest
+from conftest import chief_of, fleet_model
 
 from fleetrl.federation.chief.machine import Chief
 from fleetrl.federation.edge.aggregator import EdgeAggregator
 from fleetrl.federation.edge.runner import EdgeSummary, run_edge
+from fleetrl.federation.plan import ChiefPlan
 from fleetrl.federation.runner import ChiefSummary, run_chief
 from fleetrl.federation.schemes.base import FleetStart
 from fleetrl.federation.worker.runner import FederatedRound, FederatedWorker
 from fleetrl.runs.factory import make_learner
-from fleetrl.runs.launch import fleet_model
 from fleetrl.runs.settings import LearningSettings, fleet_shape, resolve_learning
 from fleetrl.runs.spec import WorkerSpec
 from fleetrl.transport.local import LocalBus
@@ -98,7 +99,7 @@ def tree_run(
     step_layout = list(units["0"].agent.step_layout(0)) if scheme != "fedavg" else list(agent.model_layout())
     bus = LocalBus()
     top = ("region",) if regional else tuple(sites)
-    root = Chief(run_id="tree", workers=top, layout=step_layout, max_rounds=rounds, **options)
+    root = chief_of(Chief, run_id="tree", workers=top, layout=step_layout, max_rounds=rounds, **options)
     records: dict[str, list[FederatedRound]] = {w: [] for w in UNITS}
     results: dict[str, Any] = {}
     errors: list[BaseException] = []
@@ -116,10 +117,19 @@ def tree_run(
 
     def aggregator(site: str, upstream_run: str, members: tuple[str, ...]) -> threading.Thread:
         edge = EdgeAggregator(
-            site_id=site, root_run=upstream_run, run_id=f"tree-{site}", members=members, layout=step_layout,
-            welcome_layout=layout, scheme=scheme, max_rounds=rounds,
-            steps_per_round=options["steps_per_round"], quorum=1.0,
-        )  # fmt: skip
+            ChiefPlan(
+                run_id=f"tree-{site}",
+                workers=members,
+                layout=step_layout,
+                welcome_layout=layout,
+                scheme=scheme,
+                max_rounds=rounds,
+                steps_per_round=options["steps_per_round"],
+                quorum=1.0,
+            ),
+            site_id=site,
+            root_run=upstream_run,
+        )
         return guarded(
             site, lambda: run_edge(edge, upstream=bus.client(), downstream=bus.client(), idle_timeout=TIMEOUT)
         )

@@ -13,6 +13,7 @@ import pytest
 
 from fleetrl.federation.chief.machine import Chief
 from fleetrl.federation.events import Sent, WorkerEvent
+from fleetrl.federation.plan import ChiefPlan
 from fleetrl.federation.schemes import resolve_scheme
 from fleetrl.federation.wire.messages import Message, encode
 from fleetrl.federation.wire.signing import FleetKey, status_payload
@@ -359,7 +360,7 @@ def test_the_runner_plays_a_run_over_an_in_process_chief_and_repairs_a_lost_mess
     fake_learner: Any,
 ) -> None:
     learner = fake_learner(11, complete_at=3)
-    c = Chief(run_id=RUN, workers=["1"], layout=FAKE_LAYOUT, max_rounds=5, scheme="paper")
+    c = Chief(ChiefPlan(run_id=RUN, workers=["1"], layout=FAKE_LAYOUT, max_rounds=5, scheme="paper"))
     transport = LoopbackTransport(c, drop_first=2)  # the join and round 1's gradient are lost
     got: list[FederatedRound] = []
     checkpoints: list[int] = []

@@ -125,36 +125,20 @@ def cmd_chief(args: argparse.Namespace) -> int:
     with collector_paused():
         from fleetrl.federation.chief.lease import chief_epoch
         from fleetrl.federation.chief.machine import EVERY_WORKER_DROPPED
-        from fleetrl.federation.plan import new_chief
+        from fleetrl.federation.kinds import new_chief
         from fleetrl.federation.runner import run_chief
-        from fleetrl.federation.shared_settings import shared_text
         from fleetrl.federation.wire.topics import CHIEF_ID
         from fleetrl.runs.dirlock import DirectoryLock
-        from fleetrl.runs.launch import fleet_model, fleet_start
+        from fleetrl.runs.launch import chief_plan
         from fleetrl.runs.role_settings import ChiefSettings
         from fleetrl.runs.rundir import write_json_atomic
-        from fleetrl.runs.settings import fleet_shape
 
         settings = settings_from_args(ChiefSettings, args)
-    shape = fleet_shape(settings.learning)
-    chief = new_chief(
-        run_id=settings.run_id,
-        workers=settings.member_ids(),
-        layout=shape.layout,
-        steps_per_round=shape.exchanges_per_round,
-        scheme=settings.learning.federation_scheme(),
-        max_rounds=settings.learning.max_rounds,
-        aggregator=settings.aggregation,
-        quorum=settings.chief_quorum,
-        round_timeout=settings.round_timeout,
-        max_staleness=settings.max_staleness,
-        dropout_grace=settings.dropout_grace,
-        open_fleet=not settings.closed_fleet,
-        key=settings.fleet_key(),
-        settings=shared_text(settings.learning),
-        fleet_model=fleet_model(settings.learning),
-        start=fleet_start(settings.learning),
-    )
+    plan, fleet = chief_plan(
+        settings.learning, settings, run_id=settings.run_id, workers=settings.member_ids(),
+        dropout_grace=settings.dropout_grace, open_fleet=not settings.closed_fleet,
+    )  # fmt: skip
+    chief = new_chief(plan, key=settings.fleet_key(), **fleet)
     if settings.out is None:
         retained = claim_place(settings, CHIEF_ID)  # one chief per run on the broker
         chief.take_epoch(chief_epoch(checkpoint=None, retained=retained))
@@ -368,23 +352,17 @@ def cmd_aggregator(args: argparse.Namespace) -> int:
 
         from fleetrl.federation.edge.aggregator import EdgeAggregator
         from fleetrl.federation.edge.runner import run_edge
-        from fleetrl.federation.shared_settings import shared_text
         from fleetrl.runs.aggregator_settings import AggregatorSettings
-        from fleetrl.runs.launch import fleet_model
-        from fleetrl.runs.settings import fleet_shape
+        from fleetrl.runs.launch import chief_plan
 
         settings = settings_from_args(AggregatorSettings, args)
-    shape = fleet_shape(settings.learning)
-    model = fleet_model(settings.learning)
+    plan, fleet = chief_plan(
+        settings.learning, settings, run_id=settings.site_run, workers=settings.member_ids,
+        dropout_grace=settings.dropout_grace, open_fleet=not settings.closed_fleet,
+    )  # fmt: skip
     edge = EdgeAggregator(
-        site_id=settings.site_id, root_run=settings.run_id, run_id=settings.site_run,
-        members=settings.member_ids, layout=shape.layout, scheme=settings.learning.federation_scheme(),
-        welcome_layout=None if model is None else model.layout, steps_per_round=shape.exchanges_per_round,
-        max_rounds=settings.learning.max_rounds, aggregator=settings.aggregation,
-        quorum=settings.chief_quorum, round_timeout=settings.round_timeout,
-        max_staleness=settings.max_staleness,
-        dropout_grace=settings.dropout_grace, open_fleet=not settings.closed_fleet, key=settings.fleet_key(),
-        settings=shared_text(settings.learning), fleet_model=model, resend_interval=settings.resend_interval,
+        plan, site_id=settings.site_id, root_run=settings.run_id, resend_interval=settings.resend_interval,
+        key=settings.fleet_key(), **fleet,
     )  # fmt: skip
     summary = run_edge(
         edge, upstream=settings.transport(), downstream=settings.site_transport(),

@@ -231,7 +231,7 @@ def run_chief(
             chief.max_rounds,
             chief.scheme.name,
             f" ({params})" if params else "",
-            chief.aggregator_name,
+            chief.plan.aggregator,
             chief.epoch,
         )
         if first_step is not None:

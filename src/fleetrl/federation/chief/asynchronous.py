@@ -19,15 +19,17 @@ docs/protocol.md, "Asynchronous schemes".
 from __future__ import annotations
 
 from dataclasses import replace
-from typing import Any
 
 from fleetrl.federation.chief.answer import check_round_rules
 from fleetrl.federation.chief.contributions import Contributions
 from fleetrl.federation.chief.machine import Chief
+from fleetrl.federation.chief.state import ChiefState
 from fleetrl.federation.events import ChiefEvent, ChiefStep
+from fleetrl.federation.plan import ChiefPlan
 from fleetrl.federation.schemes import COMPLETED, AsyncScheme, RoundContext
 from fleetrl.federation.schemes.base import FleetStart
 from fleetrl.federation.wire.messages import Message, Reason
+from fleetrl.federation.wire.signing import FleetKey
 from fleetrl.federation.wire.topics import CHIEF_ID
 
 __all__ = ["AsyncChief"]
@@ -38,17 +40,26 @@ class AsyncChief(Chief):
     :class:`~fleetrl.federation.chief.machine.Chief`'s, ``start`` (the fleet's start) required unless the
     scheme holds a restored model."""
 
-    def __init__(self, *, start: FleetStart | None = None, fleet_model: Any = None, **options: Any) -> None:
+    def __init__(
+        self,
+        plan: ChiefPlan,
+        *,
+        key: FleetKey | None = None,
+        start: FleetStart | None = None,
+        fleet_model: object = None,
+        state: ChiefState | None = None,
+        now: float | None = None,
+    ) -> None:
         """Create the chief; the scheme's fleet model starts at ``start`` (a fresh run). The scheme keeps the
         fleet model: ``fleet_model`` is not used."""
         del fleet_model
-        super().__init__(start=start, **options)
+        super().__init__(plan, key=key, start=start, state=state, now=now)
         if not isinstance(self.scheme, AsyncScheme):
             raise ValueError(f"scheme {self.scheme.name!r} is not asynchronous: use Chief")
         self.fleet: AsyncScheme = self.scheme
         check_round_rules(
-            self.scheme, self.max_rounds, self.quorum, self.round_timeout, 1, self.max_staleness,
-            self.aggregator_name,
+            self.scheme, self.max_rounds, self.plan.quorum, self.plan.round_timeout, 1,
+            self.plan.max_staleness, self.plan.aggregator,
         )  # fmt: skip
         if self.fleet.model is None:
             if start is None:
@@ -97,7 +108,8 @@ class AsyncChief(Chief):
         staleness = max(0, self.fleet.version - message.model_version)  # a base ahead: a resumed chief's
         if message.type == COMPLETED:
             self.state.completed.setdefault(sender, rnd)
-        applied = self.max_staleness is None or staleness <= self.max_staleness
+        bound = self.plan.max_staleness
+        applied = bound is None or staleness <= bound
         record.take(rnd, staleness, applied=applied)
         self.state.round = max(self.state.round, rnd)
         members = self.members
@@ -136,7 +148,7 @@ class AsyncChief(Chief):
     def _answer_again(self, worker: str, rnd: int, now: float) -> ChiefStep:
         """A re-sent contribution: its answer again (x as it now is; after the end, the last answer and
         ``done``), at most once per hold-off."""
-        if now < self._resent.get(worker, -float("inf")) + self.resend_holdoff:
+        if now < self._resent.get(worker, -float("inf")) + self.plan.resend_holdoff:
             return ChiefStep()
         self._resent[worker] = now
         answer = self.state.answers.last if self.finished else (self._answer(worker, rnd, applied=True),)

@@ -11,33 +11,14 @@ from fleetrl.federation.chief.fleet_model import FleetModel
 from fleetrl.federation.chief.machine import Chief
 from fleetrl.federation.chief.state import SCHEME_TENSOR, STATE_VERSION, ChiefState
 from fleetrl.federation.events import ChiefEvent, ChiefStep
-from fleetrl.federation.plan import new_chief
-from fleetrl.federation.schemes import get_scheme, scheme_reference
+from fleetrl.federation.kinds import new_chief
+from fleetrl.federation.plan import ChiefPlan
 from fleetrl.federation.wire.signing import FleetKey
 
 
 def chief_config(chief: Chief) -> dict[str, Any]:
     """The settings that define the run (all JSON); a resumed chief must be given the same."""
-    return {
-        "run_id": chief.run_id,
-        "workers": list(chief.all_workers),
-        "open_fleet": chief.roster.open_fleet,
-        "layout": [[name, list(shape)] for name, shape in chief.layout],
-        "welcome_layout": [[name, list(shape)] for name, shape in chief.welcome_layout],
-        "max_rounds": chief.max_rounds,
-        "aggregator": chief.aggregator_name,
-        "max_bytes": chief.max_bytes,
-        "quorum": chief.quorum,
-        "round_timeout": chief.round_timeout,
-        "max_staleness": chief.max_staleness,
-        "resend_holdoff": chief.resend_holdoff,
-        "dropout_grace": chief.dropout_grace,
-        "signed": chief.key is not None,
-        "scheme": scheme_reference(chief.scheme),
-        "scheme_params": chief.scheme.params(),
-        "settings": chief.settings,
-        "steps_per_round": chief.steps_per_round,
-    }
+    return chief.plan.fields() | {"workers": list(chief.all_workers), "signed": chief.key is not None}
 
 
 def chief_fields(chief: Chief) -> dict[str, Any]:
@@ -80,24 +61,20 @@ def chief_from_state(
     if fields.get("version") != STATE_VERSION:
         raise ValueError(f"chief state version {fields.get('version')!r}, expected {STATE_VERSION}")
     config = dict(fields["config"])
-    config.setdefault("open_fleet", True)  # a state written before new units could join
     if bool(config.pop("signed")) != (key is not None):
         had = "with" if key is None else "without"
         raise ValueError(f"the checkpoint was written by a chief {had} a fleet key; resume it the same way")
-    for name in ("layout", "welcome_layout"):
-        config[name] = [(str(n), tuple(int(d) for d in shape)) for n, shape in config[name]]
-    scheme = get_scheme(config.pop("scheme"), **config.pop("scheme_params", {}))
+    plan = ChiefPlan.from_fields(config)
     scheme_tensors = {
         n.removeprefix(SCHEME_TENSOR): t for n, t in tensors.items() if n.startswith(SCHEME_TENSOR)
     }
-    scheme.restore(fields.get("scheme_state", {}), scheme_tensors)
+    plan.scheme.restore(fields.get("scheme_state", {}), scheme_tensors)
     state = ChiefState.from_data(
-        fields, tensors, run_id=config["run_id"], holdoff=config["resend_holdoff"],
-        grace=config["dropout_grace"], now=now,
-    )  # fmt: skip
+        fields, tensors, run_id=plan.run_id, holdoff=plan.resend_holdoff, grace=plan.dropout_grace, now=now
+    )
     if fleet_model is not None and state.model is not None and state.model.flat is not None:
         fleet_model.load(state.model.flat)
-    return new_chief(**config, scheme=scheme, key=key, state=state, now=now, fleet_model=fleet_model)
+    return new_chief(plan, key=key, state=state, now=now, fleet_model=fleet_model)
 
 
 def replay_last_answer(chief: Chief) -> ChiefStep:

@@ -44,12 +44,13 @@ from fleetrl.federation.chief.roster import Roster
 from fleetrl.federation.chief.state import AnswerBook, ChiefState
 from fleetrl.federation.chief.stragglers import waiting_rule
 from fleetrl.federation.events import ChiefEvent, ChiefStep
-from fleetrl.federation.schemes import Granularity, RoundContext, Scheme, resolve_scheme
+from fleetrl.federation.plan import ChiefPlan
+from fleetrl.federation.schemes import Granularity, RoundContext
 from fleetrl.federation.schemes.base import FleetStart
-from fleetrl.federation.shared_settings import JoinGate, SharedSettings
+from fleetrl.federation.shared_settings import JoinGate
 from fleetrl.federation.wire.messages import Layout, Message, MessageRejected, Reason, decode
 from fleetrl.federation.wire.signing import FleetKey, parse_status
-from fleetrl.federation.wire.topics import CHIEF_ID, sorted_workers, validate_id
+from fleetrl.federation.wire.topics import CHIEF_ID, sorted_workers
 
 __all__ = ["Chief", "ChiefEvent", "ChiefStep"]
 
@@ -62,91 +63,57 @@ EVERY_WORKER_DROPPED = "every worker dropped out"
 class Chief:
     """Algorithm 1 (the chief) for one run.
 
-    :param run_id: the run.  :param workers: the initial W (worker ids).
-    :param layout: the tensor layout every round message must match (what ``scheme`` shares).
-    :param max_rounds: M, the last round.
-    :param aggregator: an aggregation rule, ``name`` or ``name:value`` (:mod:`.aggregation`).
-    :param max_bytes: message size cap; default from the layout.
-    :param quorum, round_timeout, max_staleness: the waiting rules (:mod:`.chief.stragglers`): once per round,
-        the share of W whose answers close a round at its deadline, ``round_timeout`` seconds after it
-        opened (None: no deadline); per step, the share after which the others get a grace, and the rounds a
-        straggler's contribution may lag and still be averaged (None: no bound).
-    :param resend_holdoff: least seconds between two re-sends of one answer to one worker.
-    :param dropout_grace: seconds an ``offline`` worker has to come back before it leaves W (0: at once).
+    :param plan: the run as the chief sees it (:class:`~fleetrl.federation.plan.ChiefPlan`).
     :param key: the fleet key; if given, only messages and statuses signed with it are accepted.
-    :param scheme: the federation scheme, or its name with default parameters (:mod:`.schemes`).
-    :param settings: the settings every worker must share (:mod:`.shared_settings`), sent in the ``welcome``;
-        a worker whose ``join`` carries others is refused. None: no check.
-    :param steps_per_round: exchanges per round: 1, or a per-step scheme's K (each step closed and answered
-        like a round, keyed (round, step); completions and the run's end decided at a round's last step).
     :param start: the fleet's start (a ``shared_start`` scheme), in every ``welcome`` until the scheme's
         answers give the fleet a model.
-    :param fleet_model: a per-step scheme's fleet model, kept by the chief (:mod:`.chief.fleet_model`): it
-        gives the start, and every ``welcome`` carries it as it is.
-    :param welcome_layout: a ``welcome``'s layout (``start``'s, else ``layout``).
-    :param open_fleet: a worker with an id not in ``workers`` may join the run (:mod:`.chief.roster`); False:
-        only ``workers`` take part.
-    :param state: a restored chief's (:func:`fleetrl.federation.chief.state.chief_from_state`); None: round 1.
+    :param fleet_model: a per-step scheme's fleet model, kept by the chief (:mod:`.fleet_model`): it gives
+        the start, and every ``welcome`` carries it as it is.
+    :param state: a restored chief's (:func:`.checkpoint.chief_from_state`); None: round 1.
     :param now: when the open round opened (a restored chief: now); None: at the first input.
     """
 
     def __init__(
         self,
+        plan: ChiefPlan,
         *,
-        run_id: str,
-        workers: Iterable[str],
-        layout: Layout,
-        max_rounds: int,
-        aggregator: str = "mean",
-        max_bytes: int | None = None,
-        quorum: float = 1.0,
-        round_timeout: float | None = None,
-        max_staleness: int | None = None,
-        resend_holdoff: float = 1.0,
-        dropout_grace: float = 3.0,
         key: FleetKey | None = None,
-        scheme: str | Scheme,
-        settings: SharedSettings | None = None,
-        steps_per_round: int = 1,
         start: FleetStart | None = None,
         fleet_model: FleetModel | None = None,
-        welcome_layout: Layout | None = None,
-        open_fleet: bool = True,
         state: ChiefState | None = None,
         now: float | None = None,
     ) -> None:
-        """Create the chief with W = ``workers`` and round 1 open (or as ``state`` says)."""
-        self.run_id = validate_id(run_id, "run id")
-        self.roster = Roster(workers, open_fleet=open_fleet)
-        self.layout = list(layout)
-        self.fleet_model = fleet_model
+        """Create the chief with W = the plan's workers and round 1 open (or as ``state`` says)."""
         if fleet_model is not None and start is None:
             start = FleetStart(fleet_model.layout, fleet_model.snapshot())
-        self.welcome_layout = list(start.layout if start else welcome_layout or layout)
-        self.scheme: Scheme = resolve_scheme(scheme)
-        check_round_rules(self.scheme, max_rounds, quorum, round_timeout, steps_per_round, max_staleness)
-        self.steps_per_round = steps_per_round
-        self._gate = JoinGate(settings)
-        self.max_rounds = max_rounds
-        self.aggregator_name = aggregator
-        self._aggregate: Aggregator = get_aggregator(aggregator)
-        self.max_bytes = max_bytes
-        self.quorum = quorum
-        self.round_timeout = round_timeout
-        self.max_staleness = max_staleness
+        if start is not None:
+            plan = plan.with_welcome(start.layout)
+        self.plan = plan
+        self.run_id, self.scheme, self.max_rounds = plan.run_id, plan.scheme, plan.max_rounds
+        self.roster = Roster(plan.workers, open_fleet=plan.open_fleet)
+        self.layout = list(plan.layout)
+        self.welcome_layout = list(plan.welcome_layout or plan.layout)
+        self.fleet_model = fleet_model
+        self.steps_per_round = plan.steps_per_round
+        check_round_rules(
+            self.scheme, plan.max_rounds, plan.quorum, plan.round_timeout, plan.steps_per_round,
+            plan.max_staleness,
+        )  # fmt: skip
+        self._gate = JoinGate(plan.settings)
+        self._aggregate: Aggregator = get_aggregator(plan.aggregator)
         self._per_step = self.scheme.granularity is Granularity.STEP
-        self._waits = waiting_rule(self._per_step, quorum, round_timeout, max_staleness)
-        self.resend_holdoff = resend_holdoff
-        self.dropout_grace = dropout_grace
+        self._waits = waiting_rule(self._per_step, plan.quorum, plan.round_timeout, plan.max_staleness)
         self.key = key
         if state is None:
             model = (
                 None
                 if start is None
-                else Message("welcome", run_id, CHIEF_ID, 1, flat=start.flat, origin=CHIEF_ID)
+                else Message("welcome", plan.run_id, CHIEF_ID, 1, flat=start.flat, origin=CHIEF_ID)
             )
             config = dict(self.scheme.configure(1, self.all_workers))
-            state = ChiefState(set(self.all_workers), AnswerBook(resend_holdoff), model=model, config=config)
+            state = ChiefState(
+                set(self.all_workers), AnswerBook(plan.resend_holdoff), model=model, config=config
+            )
         self.state = state
         """what the chief remembers (its checkpoint serialises it)"""
         self._opened_at: float | None = now
@@ -231,8 +198,8 @@ class Chief:
         try:
             message = decode(
                 payload, run_id=self.run_id, known_senders=self.roster, layout=self.layout,
-                max_bytes=self.max_bytes, key=self.key, scheme_types=(self.scheme.round_message,),
-                sums=decomposes(self.aggregator_name),
+                max_bytes=self.plan.max_bytes, key=self.key, scheme_types=(self.scheme.round_message,),
+                sums=decomposes(self.plan.aggregator),
             )  # fmt: skip
         except MessageRejected as exc:
             return self._reject(topic_worker, exc.reason, exc.detail)
@@ -323,7 +290,7 @@ class Chief:
             # a worker refused at join leaves: the chief goes on waiting for one with its settings
             if retained or worker not in self.state.members or self._gate.refusal(worker) is not None:
                 return ChiefStep()
-            self.state.suspects[worker] = now + self.dropout_grace
+            self.state.suspects[worker] = now + self.plan.dropout_grace
             return self.tick(now)
         if self._gate.refusal(worker) is not None:  # no welcome until a join that matches
             return self._refusal(worker)
@@ -447,7 +414,7 @@ class Chief:
             self.state.model = reply
         if answer.kind == "transfer":
             self.state.transfers.append((rnd, str(answer.origin), remaining))
-        event = answer_event(answer, replace(closed, remaining=remaining), self.aggregator_name)
+        event = answer_event(answer, replace(closed, remaining=remaining), self.plan.aggregator)
         if self.fleet_model is not None:  # the chief's copy steps as every worker does
             self.fleet_model.apply(reply)
         self._pending = {}

@@ -23,6 +23,7 @@ from fleetrl.federation.aggregation import weighted_sum
 from fleetrl.federation.chief.answer import ClosedExchange, welcome_step
 from fleetrl.federation.chief.machine import Chief
 from fleetrl.federation.events import ChiefEvent, ChiefStep
+from fleetrl.federation.plan import ChiefPlan
 from fleetrl.federation.schemes import COMPLETED, Granularity
 from fleetrl.federation.shared_settings import settings_difference
 from fleetrl.federation.wire.messages import Message
@@ -35,12 +36,13 @@ class SiteChief(Chief):
     """A :class:`~.chief.machine.Chief` of a site's members whose exchanges are answered by the root.
 
     :param site_id: the site's worker id at the root.  :param root_run: the root's run id.
-    :param chief_options: :class:`~.chief.machine.Chief`'s parameters (``run_id``: the site's run).
+    :param plan: the site's run (``run_id``: the site's; ``workers``: its members).
+    :param chief_options: :class:`~.chief.machine.Chief`'s others.
     """
 
-    def __init__(self, *, site_id: str, root_run: str, **chief_options: Any) -> None:
+    def __init__(self, plan: ChiefPlan, *, site_id: str, root_run: str, **chief_options: Any) -> None:
         """A site that the root has not welcomed yet."""
-        super().__init__(**chief_options)
+        super().__init__(plan, **chief_options)
         self.site_id = validate_worker_id(site_id)
         self.root_run = validate_id(root_run, "root run id")
         self.welcomed = False

@@ -41,7 +41,7 @@ import time
 from collections import deque
 from collections.abc import Callable, Mapping
 
-from fleetrl.federation.plan import kind_of
+from fleetrl.federation.kinds import kind_of
 from fleetrl.federation.schemes import Scheme, resolve_scheme
 from fleetrl.federation.shared_settings import SettingsRefused, SharedSettings
 from fleetrl.federation.wire.messages import Layout
