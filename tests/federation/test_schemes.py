@@ -12,7 +12,6 @@ from fleetrl.federation.schemes import (
     COMPLETED,
     SCHEMES,
     AsyncScheme,
-    Granularity,
     RoundAnswer,
     RoundContext,
     RoundScheme,
@@ -163,7 +162,10 @@ def test_fedavg_ends_the_run_once_every_member_has_completed() -> None:
     assert not not_yet.ends_run and not_yet.finished == ()
 
 
-@pytest.mark.parametrize("name", sorted(n for n, s in SCHEMES.items() if s.granularity is Granularity.ROUND))
+@pytest.mark.parametrize(
+    "name",
+    sorted(n for n, s in SCHEMES.items() if issubclass(s, RoundScheme) and not issubclass(s, AsyncScheme)),
+)
 def test_every_per_round_scheme_sends_what_its_layout_describes(name: str) -> None:
     scheme: Scheme = get_scheme(name)
     agent = FakeAgent()
@@ -206,7 +208,7 @@ class StepAgent(FakeAgent):
 
 def test_pergrad_averages_each_steps_gradients_and_ends_at_the_last_step_once_all_completed() -> None:
     scheme, agent = get_scheme("pergrad"), StepAgent()
-    assert scheme.granularity is Granularity.STEP and scheme.shared_start and scheme.stays_after_completion
+    assert isinstance(scheme, StepScheme) and scheme.shared_start and scheme.stays_after_completion
     assert scheme.layout(agent) == LAYOUT2 and scheme.exchanges_per_round(agent) == 2
     grads = answers(("1", "step_gradient", [1.0, 4.0]), ("2", COMPLETED, [3.0, -2.0]))
     middle = scheme.combine(
@@ -317,10 +319,6 @@ def test_a_per_round_chief_rejects_a_step_and_needs_a_deadline_for_a_quorum() ->
 def test_each_scheme_is_one_protocol_and_has_no_method_of_the_other() -> None:
     for name, cls in SCHEMES.items():
         assert issubclass(cls, RoundScheme) != issubclass(cls, StepScheme), name
-        expected = Granularity.STEP if issubclass(cls, StepScheme) else Granularity.ROUND
-        if issubclass(cls, AsyncScheme):  # a worker's side of one message a round, without a barrier
-            expected = Granularity.ASYNC
-        assert cls.granularity is expected, name
     pergrad, paper = get_scheme("pergrad"), get_scheme("paper")
     assert not any(hasattr(pergrad, m) for m in ("outgoing", "apply_average", "local_loss"))
     assert not any(hasattr(paper, m) for m in ("apply_step_answer",))

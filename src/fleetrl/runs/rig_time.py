@@ -245,17 +245,17 @@ def waits_of(mode: str | None, scheme: str | None = None, quorum: float | None =
     :class:`~fleetrl.federation.chief.stragglers.StepWaits` does; any other federated fleet waits for each
     round's
     last contributor."""
-    from fleetrl.federation.schemes import Granularity, scheme_class
+    from fleetrl.federation.schemes import AsyncScheme, RoundScheme, StepScheme, scheme_class
 
     if mode == "individual":
         return NO_BARRIER
-    granularity = Granularity.ROUND
+    kind: type = RoundScheme
     if scheme is not None:
         with contextlib.suppress(ValueError):  # a user's scheme that no longer imports: a round barrier
-            granularity = scheme_class(scheme).granularity
-    if granularity is Granularity.ASYNC:
+            kind = scheme_class(scheme)
+    if issubclass(kind, AsyncScheme):
         return NO_BARRIER
-    step = granularity is Granularity.STEP
+    step = issubclass(kind, StepScheme)
     return Waits(barrier=True, quorum=1.0 if quorum is None else float(quorum), grace=step)
 
 

@@ -42,10 +42,9 @@ from fleetrl.federation.chief.answer import (
 from fleetrl.federation.chief.fleet_model import FleetModel
 from fleetrl.federation.chief.roster import Roster
 from fleetrl.federation.chief.state import AnswerBook, ChiefState
-from fleetrl.federation.chief.stragglers import waiting_rule
 from fleetrl.federation.events import ChiefEvent, ChiefStep
 from fleetrl.federation.plan import ChiefPlan
-from fleetrl.federation.schemes import Granularity, RoundContext
+from fleetrl.federation.schemes import RoundContext
 from fleetrl.federation.schemes.base import FleetStart
 from fleetrl.federation.shared_settings import JoinGate
 from fleetrl.federation.wire.messages import Layout, Message, MessageRejected, Reason, decode
@@ -101,8 +100,7 @@ class Chief:
         )  # fmt: skip
         self._gate = JoinGate(plan.settings)
         self._aggregate: Aggregator = get_aggregator(plan.aggregator)
-        self._per_step = self.scheme.granularity is Granularity.STEP
-        self._waits = waiting_rule(self._per_step, plan.quorum, plan.round_timeout, plan.max_staleness)
+        self._waits = self.scheme.waits(plan.quorum, plan.round_timeout, plan.max_staleness)
         self.key = key
         if state is None:
             model = (
@@ -340,15 +338,16 @@ class Chief:
             joined = ChiefStep(events=(ChiefEvent("joined", self.state.round, sender=worker),))
             restarted = worker in self._restarted
             self._restarted.discard(worker)
-            if restarted and self._per_step and self.state.step > 0 and message.round != self.state.round:
-                self.state.pace.participants.discard(worker)
+            resumes = message.round == self.state.round
+            if restarted and not resumes and self._waits.excused(self.state.pace, worker, self.state.step):
                 self._waits.note(self.state.pace, self.state.members, self.state.step, self._pending, now)
                 return joined + self._maybe_close(now)
             return joined
         if self.finished:
             return ChiefStep()
         self.roster.admit(worker)
-        return ChiefStep(events=self.state.admit(worker, per_step=self._per_step)) + self._welcome(worker)
+        self._waits.admit(self.state.pace, worker)
+        return ChiefStep(events=self.state.admit(worker)) + self._welcome(worker)
 
     def _refusal(self, worker: str) -> ChiefStep:
         return refusal_step(self.run_id, worker, self.state.round, self._gate.refusal(worker) or "")

@@ -144,12 +144,9 @@ class ChiefState:
         remaining = tuple(sorted_workers(self.members))
         return (ChiefEvent("rejoined", self.round, sender=worker, detail=why, remaining=remaining),)
 
-    def admit(self, worker: str, *, per_step: bool) -> tuple[ChiefEvent, ...]:
-        """``worker``, new to the run, is in W from now on; under a per-step scheme it is behind (it plays
-        its first round from the fleet's model and joins the next round-opening exchange after it)."""
+    def admit(self, worker: str) -> tuple[ChiefEvent, ...]:
+        """``worker``, new to the run, is in W from now on."""
         self.members.add(worker)
-        if per_step:
-            self.pace.behind.add(worker)
         remaining = tuple(sorted_workers(self.members))
         event = ChiefEvent(
             "admitted", self.round, sender=worker, detail="new to the fleet", remaining=remaining

@@ -132,6 +132,16 @@ class RoundWaits:
         answered = members.intersection(pending)
         return set() if len(answered) >= quorum_count(self.quorum, len(members)) else members - answered
 
+    def admit(self, pace: FleetPace, worker: str) -> None:
+        """``worker`` is new to the run: a round's fleet waits for it from its next round (nothing to do)."""
+        del pace, worker
+
+    def excused(self, pace: FleetPace, worker: str, step: int) -> bool:
+        """Whether a restarted ``worker`` that will not replay the open round is not waited for in its later
+        exchanges (once per round: there are none)."""
+        del pace, worker, step
+        return False
+
     def averaged(self, pace: FleetPace, answers: Mapping[str, Message], step: int) -> dict[str, Message]:
         """The answers the scheme combines."""
         del pace, step
@@ -196,6 +206,19 @@ class StepWaits(RoundWaits):
         del members, pending
         return set()
 
+    def admit(self, pace: FleetPace, worker: str) -> None:
+        """``worker`` is new to the run: it is behind (it plays its first round from the fleet's model and
+        joins the next round-opening exchange after it)."""
+        pace.behind.add(worker)
+
+    def excused(self, pace: FleetPace, worker: str, step: int) -> bool:
+        """A restarted ``worker`` that will not replay the open round is not waited for in its exchanges
+        after the first: it joins the fleet's next round."""
+        if step == 0:
+            return False
+        pace.participants.discard(worker)
+        return True
+
     def averaged(self, pace: FleetPace, answers: Mapping[str, Message], step: int) -> dict[str, Message]:
         """The answers the scheme combines: those within ``max_staleness`` (all, if none is); at a round's
         first exchange, each one left out is counted."""
@@ -219,12 +242,3 @@ class StepWaits(RoundWaits):
             pace.behind = members - pace.participants
             pace.late.update(pace.behind)
             pace.participants = set()
-
-
-def waiting_rule(
-    per_step: bool, quorum: float, round_timeout: float | None, max_staleness: int | None
-) -> RoundWaits:
-    """The chief's waiting rule for a per-step scheme (:class:`StepWaits`) or a once-per-round one."""
-    if per_step:
-        return StepWaits(quorum, round_timeout, max_staleness)
-    return RoundWaits(quorum, round_timeout)

@@ -24,7 +24,7 @@ from fleetrl.federation.chief.answer import ClosedExchange, welcome_step
 from fleetrl.federation.chief.machine import Chief
 from fleetrl.federation.events import ChiefEvent, ChiefStep
 from fleetrl.federation.plan import ChiefPlan
-from fleetrl.federation.schemes import COMPLETED, Granularity
+from fleetrl.federation.schemes import COMPLETED
 from fleetrl.federation.shared_settings import settings_difference
 from fleetrl.federation.wire.messages import Message
 from fleetrl.federation.wire.topics import CHIEF_ID, validate_id, validate_worker_id
@@ -159,8 +159,8 @@ class SiteChief(Chief):
             self.state.config = dict(answer.config)
         if self.fleet_model is not None:
             self.fleet_model.apply(reply)
-        elif self.scheme.granularity is Granularity.ROUND and self.welcome_layout == self.layout:
-            self.state.model = reply  # a once-per-round scheme's average is the fleet's model
+        elif not self.scheme.shared_start and self.welcome_layout == self.layout:
+            self.state.model = reply  # fedavg's average is the fleet's model (pergrad's: the chief's copy's)
         self.awaiting, self._pending = None, {}
         self.state.answers.broadcast(reply, self.all_workers, now)
         if last_step:

@@ -31,12 +31,12 @@ from __future__ import annotations
 from abc import ABC, abstractmethod
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
-from enum import StrEnum
 from typing import TYPE_CHECKING, Any, ClassVar, Literal, Protocol, TypeAlias, runtime_checkable
 
 import numpy as np
 
 from fleetrl.federation.aggregation import Aggregator, mean_of_parts
+from fleetrl.federation.chief.stragglers import RoundWaits, StepWaits
 from fleetrl.federation.wire.messages import Layout, Message, RoundConfig
 
 if TYPE_CHECKING:  # torch is the agent's: not imported to read a scheme
@@ -44,18 +44,6 @@ if TYPE_CHECKING:  # torch is the agent's: not imported to read a scheme
 
 COMPLETED = "parameters"
 """The message type a worker sends in a round in which its completion criterion holds (every scheme)."""
-
-
-class Granularity(StrEnum):
-    """How often a worker sends: once per round (:class:`RoundScheme`), or once per optimisation step of the
-    round (:class:`StepScheme`)."""
-
-    ROUND = "round"
-    """one message per round, after the round's K optimisations (``paper``, ``fedavg``)"""
-    STEP = "step"
-    """one message per optimisation step, keyed (sender, round, step) — for schemes that average every step"""
-    ASYNC = "async"
-    """one message per round of the worker's own, applied by the chief on arrival: no round barrier"""
 
 
 class FederatedAgent(Protocol):
@@ -218,8 +206,6 @@ class Scheme(ABC):
     stays_after_completion: ClassVar[bool]
     """a worker whose criterion holds keeps learning in W (True) or transfers and leaves (False); the learner
     factory sets ``Learner.keep_learning`` from it"""
-    granularity: ClassVar[Granularity]
-    """how often a worker sends (set by :class:`RoundScheme` and :class:`StepScheme`)"""
     default_quorum: ClassVar[float] = 1.0
     """the chief's quorum when the run names none (:class:`StepScheme`: 0.6, docs/protocol.md "Stragglers")"""
     shared_start: ClassVar[bool] = False
@@ -229,6 +215,16 @@ class Scheme(ABC):
     def params(self) -> dict[str, Any]:
         """The scheme's parameters (JSON values), for the welcome's shared settings and checkpoints."""
         return {}
+
+    @abstractmethod
+    def check_rules(
+        self, quorum: float, round_timeout: float | None, steps_per_round: int, aggregation: str
+    ) -> None:
+        """ValueError naming the first of a chief's rules this scheme's kind cannot run with."""
+
+    @abstractmethod
+    def waits(self, quorum: float, round_timeout: float | None, max_staleness: int | None) -> RoundWaits:
+        """The chief's waiting rule for this scheme's kind (:mod:`fleetrl.federation.chief.stragglers`)."""
 
     def accepts(self, message_type: str) -> bool:
         """Whether the chief takes a worker message of this type in a round."""
@@ -290,7 +286,25 @@ class Scheme(ABC):
 class RoundScheme(Scheme):
     """A scheme whose worker sends once per round, after its local training (the round's K optimisations)."""
 
-    granularity: ClassVar[Granularity] = Granularity.ROUND
+    def check_rules(
+        self, quorum: float, round_timeout: float | None, steps_per_round: int, aggregation: str
+    ) -> None:
+        """ValueError if a chief of this scheme cannot run with these rules: one exchange a round, and a
+        quorum below 1 closes a round only at its deadline."""
+        del aggregation
+        if quorum < 1.0 and round_timeout is None:
+            raise ValueError(
+                f"scheme {self.name!r}: a quorum below 1 needs a round timeout (--round-timeout)"
+            )
+        if steps_per_round != 1:
+            raise ValueError(
+                f"steps_per_round = {steps_per_round}: scheme {self.name!r} sends once per round (1)"
+            )
+
+    def waits(self, quorum: float, round_timeout: float | None, max_staleness: int | None) -> RoundWaits:
+        """Who the chief waits for in a round (:mod:`fleetrl.federation.chief.stragglers`)."""
+        del max_staleness
+        return RoundWaits(quorum, round_timeout)
 
     @abstractmethod
     def outgoing(self, agent: FederatedAgent, *, completed: bool) -> tuple[str, np.ndarray]:
@@ -318,9 +332,22 @@ class StepScheme(Scheme):
     """A scheme whose worker exchanges every optimisation step of its update with the chief, keyed (sender,
     round, step): it sends the step's gradient and applies the chief's combination before the next step."""
 
-    granularity: ClassVar[Granularity] = Granularity.STEP
     default_quorum: ClassVar[float] = 0.6
     """DD-PPO's share of workers after which the rest are not waited for (habitat-lab's ``sync_frac``)"""
+
+    def check_rules(
+        self, quorum: float, round_timeout: float | None, steps_per_round: int, aggregation: str
+    ) -> None:
+        """ValueError if a chief of this scheme cannot run with these rules: at least one exchange a round."""
+        del quorum, round_timeout, aggregation
+        if steps_per_round < 1:
+            raise ValueError(
+                f"steps_per_round = {steps_per_round}: scheme {self.name!r} sends per step (at least 1)"
+            )
+
+    def waits(self, quorum: float, round_timeout: float | None, max_staleness: int | None) -> RoundWaits:
+        """Who the chief waits for at each exchange, and for how long (a grace after a quorum)."""
+        return StepWaits(quorum, round_timeout, max_staleness)
 
     @abstractmethod
     def exchanges_per_round(self, agent: FederatedAgent) -> int:
@@ -347,7 +374,23 @@ class AsyncScheme(RoundScheme):
     versions applied since the one the worker started from; the answer is the fleet model after it.
     """
 
-    granularity: ClassVar[Granularity] = Granularity.ASYNC
+    def check_rules(
+        self, quorum: float, round_timeout: float | None, steps_per_round: int, aggregation: str
+    ) -> None:
+        """ValueError if a chief of this scheme cannot run with these rules: no round barrier to wait at, one
+        model mixed in at a time."""
+        if quorum < 1.0 or round_timeout is not None:
+            raise ValueError(
+                f"scheme {self.name!r} has no round barrier: quorum and round_timeout do not apply (leave "
+                "them unset; max_staleness bounds the staleness of a contribution applied)"
+            )
+        if aggregation != "mean":
+            raise ValueError(
+                f"scheme {self.name!r} mixes one model at a time into the fleet's: aggregation "
+                f"{aggregation!r} does not apply (leave it unset)"
+            )
+        super().check_rules(quorum, round_timeout, steps_per_round, aggregation)
+
     shared_start: ClassVar[bool] = True
     stays_after_completion: ClassVar[bool] = True
 
