@@ -12,7 +12,8 @@ from fleetrl.federation.chief.fleet_model import FleetModel
 from fleetrl.federation.chief.machine import Chief
 from fleetrl.federation.plan import ChiefPlan
 from fleetrl.federation.schemes import AsyncScheme, RoundScheme, Scheme, StepScheme
-from fleetrl.federation.schemes.base import FederatedAgent, FleetStart
+from fleetrl.federation.schemes.agent import FederatedAgent
+from fleetrl.federation.schemes.base import FleetStart
 from fleetrl.federation.worker.asynchronous import AsyncWorkerMachine
 from fleetrl.federation.worker.machine import WorkerMachine
 from fleetrl.federation.worker.per_step import StepWorkerMachine

@@ -8,7 +8,8 @@ from collections.abc import Mapping
 import numpy as np
 
 from fleetrl.federation.schemes import COMPLETED, RoundAnswer, RoundContext, RoundScheme
-from fleetrl.federation.schemes.base import FederatedAgent, aggregate
+from fleetrl.federation.schemes.agent import FederatedAgent
+from fleetrl.federation.schemes.base import aggregate
 from fleetrl.federation.wire.messages import Layout, Message
 
 

@@ -15,7 +15,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from fleetrl.federation.schemes.base import FederatedAgent, StepScheme
+from fleetrl.federation.schemes.agent import FederatedAgent
+from fleetrl.federation.schemes.base import StepScheme
 from fleetrl.federation.wire.messages import Layout, Message
 
 

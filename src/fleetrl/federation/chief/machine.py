@@ -1,26 +1,7 @@
-"""The chief of Algorithm 1 as a pure state machine: messages, statuses and time in → messages and events out.
-
-No sockets and no clocks: every input takes ``now`` (seconds, any monotonic origin; keyword-only and
-required, so a caller that forgets the clock gets a TypeError), and deadlines are tested without a broker.
-Round semantics (docs/protocol.md has the full rules):
-
-* The chief keeps W and the open round i (from 1); it takes from each worker exactly one message for round i
-  of a type its scheme accepts, keyed by (sender, round); duplicates, future rounds and workers out of W are
-  rejected and change nothing.
-* Round i closes when every worker in W has answered (a per-step scheme: every one it waits for,
-  :mod:`.chief.stragglers`); answers are read in sorted worker-id order, never arrival order. The scheme
-  (:mod:`fleetrl.federation.schemes`) combines them into one answer and says who leaves W and whether the
-  run is complete; the chief broadcasts it with the next round's configuration.
-* The run ends after the round the scheme calls complete, when W is empty, or after round M (``done``).
-* A worker new to the run joins it while it goes on (an open fleet, :mod:`.chief.roster`): its matching
-  ``join`` puts it in W and the welcome hands it the fleet's model.
-
-Reliability (dropout and rejoin, deadlines and quorum, the join's settings check, idempotent resends):
-docs/protocol.md, "Reliability", whose rules the methods below implement.
-
-Every decision is returned as a :class:`ChiefEvent`, whose ``str()`` is a log line for people. What the
-chief remembers is one value it owns, :attr:`Chief.state` (:class:`~.chief.state.ChiefState`), which its
-checkpoint serialises.
+"""The chief of Algorithm 1 as a pure state machine: messages, statuses and time in → messages and events
+out (every input takes ``now``). It keeps W and the open round (and step), takes one message per worker and
+exchange, closes the exchange with its scheme's combination in sorted worker order, and ends the run; its
+reliability rules are docs/protocol.md's "Rounds" and "Reliability". What it remembers is :attr:`Chief.state`.
 """
 
 from __future__ import annotations

@@ -24,10 +24,10 @@ from typing import Any, get_type_hints
 
 from fleetrl.coercion import CoercionError, coerce
 from fleetrl.envs.unit_factory import load_callable
+from fleetrl.federation.schemes.agent import FederatedAgent
 from fleetrl.federation.schemes.base import (
     COMPLETED,
     AsyncScheme,
-    FederatedAgent,
     RoundAnswer,
     RoundContext,
     RoundScheme,

@@ -1,143 +1,25 @@
-"""The scheme seam: what every federation scheme says (:class:`Scheme`, read by the chief), and the three
-ways a worker takes part, each its own protocol — :class:`RoundScheme` (one message per round: ``paper``,
-``fedavg``, ``fedprox`` …), :class:`StepScheme` (one message per optimisation step: ``pergrad``) and
-:class:`AsyncScheme` (one message per round of the worker's own, applied on arrival: ``fedasync``). The
-chief's and the worker's state machines use the one they need; no method of either raises because it
-belongs to the other.
-
-Like a Flower ``Strategy``, a scheme says everything that differs between ways of federating:
-
-* what a worker shares (:meth:`Scheme.layout`) and under which message type (:attr:`Scheme.round_message`, its
-  own: no list elsewhere names it);
-* what the chief asks of every worker for a round (:meth:`Scheme.configure`, Flower's ``configure_fit``: a
-  small map carried by the message that opens the round) and how it combines the answers of a round
-  (:meth:`Scheme.combine`, with the run's aggregation rule, weighted by what each answer stands for:
-  :func:`aggregate`);
-* what a worker does with the chief's answer (:meth:`RoundScheme.apply_average`,
-  :meth:`StepScheme.apply_step_answer`, :meth:`Scheme.take_parameters`), what it adds to its local
-  training (:meth:`RoundScheme.local_loss`, e.g. FedProx's proximal term), what it sends
-  (:meth:`RoundScheme.outgoing`);
-* where the fleet starts (:attr:`Scheme.shared_start`: the chief's welcome hands every joining worker the
-  fleet's start), what a worker whose criterion holds does (:attr:`Scheme.stays_after_completion`) and when
-  the run is finished (:attr:`RoundAnswer.ends_run`).
-
-The protocol around it is the same for every scheme (docs/protocol.md): a ``parameters`` message says "my
-criterion holds"; the chief answers a round with one ``average`` or one ``transfer``; workers named in the
-answer's ``finished`` leave W.
+"""The scheme seam, as a Flower ``Strategy``: what every scheme says (:class:`Scheme`: what a worker shares,
+how the chief configures a round and combines its answers, where the fleet starts), and its kind — once per
+round (:class:`RoundScheme`), per optimisation step (:class:`StepScheme`) or without a barrier
+(:class:`AsyncScheme`) — which brings the worker's side, the chief's rules and who the chief waits for.
 """
 
 from __future__ import annotations
 
 from abc import ABC, abstractmethod
-from collections.abc import Callable, Mapping
+from collections.abc import Mapping
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any, ClassVar, Literal, Protocol, TypeAlias, runtime_checkable
+from typing import Any, ClassVar, Literal
 
 import numpy as np
 
 from fleetrl.federation.aggregation import Aggregator, mean_of_parts
 from fleetrl.federation.chief.stragglers import RoundWaits, StepWaits
+from fleetrl.federation.schemes.agent import ExtraLoss, FederatedAgent
 from fleetrl.federation.wire.messages import Layout, Message, RoundConfig
-
-if TYPE_CHECKING:  # torch is the agent's: not imported to read a scheme
-    import torch
 
 COMPLETED = "parameters"
 """The message type a worker sends in a round in which its completion criterion holds (every scheme)."""
-
-
-class FederatedAgent(Protocol):
-    """What schemes need from the agent (``fleetrl.agent.ppo.PPOAgent`` provides it)."""
-
-    def actor_layout(self) -> list[tuple[str, tuple[int, ...]]]:
-        """Names and shapes of the actor's parameters, in flat order."""
-        ...
-
-    def actor_gradient(self) -> np.ndarray:
-        """The actor's last gradient of the round, flat float32."""
-        ...
-
-    def apply_actor_gradient(self, flat: np.ndarray) -> None:
-        """Update the actor with ``flat`` through its optimiser."""
-        ...
-
-    def actor_parameters(self) -> np.ndarray:
-        """The actor's parameters, flat float32."""
-        ...
-
-    def set_actor_parameters(self, flat: np.ndarray) -> None:
-        """Replace the actor's parameters."""
-        ...
-
-    def model_layout(self) -> list[tuple[str, tuple[int, ...]]]:
-        """Names and shapes of the whole actor-critic's parameters, in flat order."""
-        ...
-
-    def model_parameters(self) -> np.ndarray:
-        """The whole actor-critic's parameters, flat float32."""
-        ...
-
-    def set_model_parameters(self, flat: np.ndarray) -> None:
-        """Replace the whole actor-critic's parameters."""
-        ...
-
-    def optimiser_layout(self) -> list[tuple[str, tuple[int, ...]]]:
-        """Names and shapes of the optimisers' state as one flat vector."""
-        ...
-
-    def optimiser_parameters(self) -> np.ndarray:
-        """The optimisers' state, flat float32."""
-        ...
-
-    def set_optimiser_parameters(self, flat: np.ndarray) -> None:
-        """Replace the optimisers' state."""
-        ...
-
-    def step_layout(self, k: int) -> list[tuple[str, tuple[int, ...]]]:
-        """Names and shapes of optimisation step ``k``'s flat gradient."""
-        ...
-
-    def update_step_count(self) -> int:
-        """How many optimisation steps each update takes."""
-        ...
-
-    def begin_update(self) -> int:
-        """Start the round's update; the number of optimisation steps it takes."""
-        ...
-
-    def step_gradients(self, k: int) -> np.ndarray:
-        """Step ``k``'s gradient, flat float32 in :meth:`step_layout` order, nothing stepped."""
-        ...
-
-    def apply_step(self, flat_grad: np.ndarray) -> None:
-        """Step the optimiser(s) with a gradient for the step last computed."""
-        ...
-
-    def apply_fleet_step(self, k: int, flat_grad: np.ndarray) -> None:
-        """Step the optimiser(s) with the fleet's gradient of step ``k``, no update under way."""
-        ...
-
-    def end_update(self) -> Any:
-        """Finish the update (every step applied); its statistics."""
-        ...
-
-    def abandon_update(self) -> None:
-        """Drop the round's update, under way or not begun (the fleet went on past it)."""
-        ...
-
-
-ExtraLoss: TypeAlias = "Callable[[torch.nn.Module], torch.Tensor]"
-"""A term added to the loss of every optimisation step of local training: ``fn(model) -> scalar tensor``
-(FedProx's μ/2‖θ − θ_global‖²); ``model`` is the agent's actor-critic network."""
-
-
-@runtime_checkable
-class LocalTraining(Protocol):
-    """The worker-side hook into the agent's local training (``fleetrl.agent.ppo.PPOAgent`` provides it)."""
-
-    def set_extra_loss(self, fn: ExtraLoss | None) -> None:
-        """Add ``fn(model)`` to the loss of every optimisation step from now on (None: nothing added)."""
-        ...
 
 
 @dataclass(frozen=True)

@@ -14,9 +14,9 @@ from collections.abc import Mapping
 
 import numpy as np
 
+from fleetrl.federation.schemes.agent import FederatedAgent
 from fleetrl.federation.schemes.base import (
     COMPLETED,
-    FederatedAgent,
     RoundAnswer,
     RoundContext,
     RoundScheme,

@@ -11,13 +11,8 @@ from collections.abc import Mapping
 
 import numpy as np
 
-from fleetrl.federation.schemes.base import (
-    FederatedAgent,
-    RoundAnswer,
-    RoundContext,
-    StepScheme,
-    average_until_all_completed,
-)
+from fleetrl.federation.schemes.agent import FederatedAgent
+from fleetrl.federation.schemes.base import RoundAnswer, RoundContext, StepScheme, average_until_all_completed
 from fleetrl.federation.wire.messages import Layout, Message
 
 

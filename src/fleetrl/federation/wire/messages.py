@@ -1,35 +1,5 @@
-"""Wire format of federation messages: a versioned msgpack envelope with raw float32 tensors; never pickle.
-
-An envelope is one msgpack map with exactly these keys (see docs/protocol.md):
-
-``version`` (int, :data:`VERSION`), ``type`` (str, one of :data:`MESSAGE_TYPES`, or the round message a scheme
-declares: then it carries tensors and only a receiver that expects it takes it), ``run_id`` (str), ``sender``
-(str), ``round`` (int ≥ 1), ``metrics`` (map str → finite number, small), ``origin`` (str or nil: whose
-parameters a ``transfer`` carries), ``finished`` (list of str: workers that leave W with this message),
-``contributors`` (list of str: whose gradients an ``average`` combines), ``step`` (int ≥ 0: the optimisation
-step within the round, for schemes that send per step; 0 otherwise), ``settings`` (map str → str: the settings
-all roles must share, in ``join`` and ``welcome``), ``detail`` (str: why, in ``refused``), ``samples`` (int
-≥ 0: the transitions a worker's contribution stands for; a chief's answer: those of its contributors),
-``units`` (int ≥ 0: the units it stands for, 1 for a worker of one unit), ``config`` (map str → finite
-number or short str: what the chief asks of every worker for the round the message opens, the scheme's
-``configure``), ``staleness`` (int ≥ 0: how many rounds the fleet moved on while the worker played what it
-contributes; 0: it played the round it answers), ``model_version`` (int ≥ 0: an asynchronous scheme's
-fleet model version — in a worker's contribution the version it started its round from, in the chief's
-answer or welcome the version of the model it carries; 0 otherwise), ``epoch`` (int ≥ 0: the chief's epoch —
-in a chief message its own, in a worker message the highest the worker has seen; :mod:`.chief.lease`),
-``tensors`` (list of ``[name, shape]``) and ``data`` (bin: the tensors concatenated in that order as
-little-endian float32).
-
-A round message of an edge aggregator (a site's gateway, :mod:`.edge.aggregator`) carries its
-members' weighted sum Σ wᵢ·xᵢ exactly: its ``data`` is little-endian float64 (8 bytes a value; ``units`` is
-Σ wᵢ, the units behind it), which only a receiver that takes sums accepts (``decode(sums=True)``:
-a chief whose rule decomposes).
-
-Version 2 added ``step``, ``settings``, ``detail`` and the ``join`` / ``refused`` types; version 3 added
-``samples``, ``units`` and ``config``, and a scheme's own round-message type; version 4 added ``staleness``;
-version 5 added ``model_version``; version 6 added ``weight``; version 7 added ``epoch``; version 8
-dropped ``weight``.
-
+"""Wire format of federation messages: a versioned msgpack envelope with raw little-endian float32 tensors
+(an edge aggregator's sums: float64); never pickle. docs/protocol.md, "Envelope", lists its keys.
 :func:`decode` validates all of it and raises :class:`MessageRejected` with a :class:`Reason` for anything
 wrong; it never raises anything else, whatever the bytes.
 """

@@ -1,24 +1,7 @@
-"""The worker of Algorithm 2 as a pure state machine: chief messages, time and the learner's reports in →
-messages to publish and actions for the runner out (:mod:`fleetrl.federation.worker.actions`).
-
-No transport, no threads, no clock: every input takes ``now`` (seconds, any monotonic origin), and
-:meth:`WorkerMachine.next_deadline` says when :meth:`WorkerMachine.tick` is due. The runner
-(:class:`.worker.runner.FederatedWorker`) owns the learner: the machine never touches the agent.
-It asks for what the agent must do (:class:`~fleetrl.federation.worker.actions.PlayRound`,
-:class:`~fleetrl.federation.worker.actions.ComputeStep`, ``ApplyAverage`` …); the runner does it, on the
-agent through the scheme, and reports back (:meth:`round_played`, :meth:`update_begun`,
-:meth:`step_computed`).
-Of the scheme the machine reads only its granularity and its round message's name; the chief's configuration
-for a round (from the welcome, or the answer that opens it) goes to the runner with :class:`PlayRound`.
-
-The rules (docs/protocol.md): join (``online`` and a retained ``join``, re-sent until the ``welcome``; a
-welcome whose settings differ, or a ``refused`` naming this worker, ends in ``Refused``); resume
-(``start_round``: a welcome for that round or the next keeps the learner's state, a later one rejoins taking
-the welcome's parameters, an earlier one is an error); a round (play, send, wait for the answer of that round
-or a later one, apply it, record, then catch up with later answers already queued; re-send every
-``resend_interval``, ``TimedOut`` after ``reply_timeout``). A per-step scheme's worker is
-:class:`~fleetrl.federation.worker.per_step.StepWorkerMachine`
-(:func:`~fleetrl.federation.worker.per_step.worker_machine` picks the machine a scheme needs).
+"""The worker of Algorithm 2 as a pure state machine: chief messages, time and the runner's reports in →
+messages to publish and actions for the runner out (:mod:`.actions`); it never touches the agent. Its
+rules (join, resume, a round, re-sends, time-outs, catching up): docs/protocol.md, "The worker as a state
+machine". A per-step and an asynchronous scheme's machines extend it (:mod:`.per_step`, :mod:`.asynchronous`).
 """
 
 from __future__ import annotations

@@ -8,7 +8,7 @@ from collections.abc import Callable
 from typing import Any
 
 from fleetrl.federation.schemes import RoundScheme, Scheme, StepScheme
-from fleetrl.federation.schemes.base import LocalTraining
+from fleetrl.federation.schemes.agent import LocalTraining
 from fleetrl.federation.wire.messages import RoundConfig
 from fleetrl.federation.worker.actions import (
     AbandonUpdate,
