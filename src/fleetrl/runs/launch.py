@@ -37,8 +37,7 @@ from fleetrl.runs.fleet_summary import summarised
 from fleetrl.runs.host_settings import host_groups, member_ids
 from fleetrl.runs.live import LiveView
 from fleetrl.runs.processes import ProcessFleet, fork_available
-from fleetrl.runs.roles import Emit
-from fleetrl.runs.roles import train_federated as train_federated_worker
+from fleetrl.runs.roles import Emit, train_federated
 from fleetrl.runs.rundir import RunDirectoryError, RunRecorder, write_json_atomic
 from fleetrl.runs.settings import LearningSettings, RoundRules, RunSettings
 from fleetrl.runs.spec import WorkerSpec
@@ -149,7 +148,7 @@ def _train(settings: RunSettings) -> dict[str, Any]:
                 follow(process_fleet(settings, commands), recorder, view)
             else:
                 fed_url = url if settings.transport == "mqtt" else None
-                train_federated(settings, specs, run_id, fed_url, recorder, view)
+                train_fleet(settings, specs, run_id, fed_url, recorder, view)
     except RunDirectoryError:
         with suppress(OSError):  # the summary and plot too, if there is room; the error says what happened
             recorder.finish()
@@ -248,7 +247,7 @@ def worker_args(spec: WorkerSpec, *extra: str) -> list[str]:
     return [spec.to_json(), *extra]
 
 
-def train_federated(
+def train_fleet(
     settings: RunSettings,
     specs: dict[int, WorkerSpec],
     run_id: str,
@@ -342,7 +341,7 @@ def federated_thread(
     def body(emit: Emit) -> None:
         learner = make_learner(spec)
         log.info("worker %d: learner ready", spec.worker)
-        train_federated_worker(
+        train_federated(
             spec, make_transport(), run_id, emit, reply_timeout=CHIEF_IDLE_TIMEOUT, learner=learner
         )
 
