@@ -1,18 +1,6 @@
-"""The chief of an asynchronous scheme (``fedasync``) as a pure state machine: no round barrier.
-
-The chief holds the fleet model x and its version v (the scheme's, :class:`~.schemes.base.AsyncScheme`). Each
-worker counts its own rounds. A contribution of worker w's round r that started from version b is taken at
-once if r is past w's last round taken (a re-send of round r or earlier is answered again, never applied
-twice): its staleness is s = v − b; the scheme mixes it into x (v + 1) — unless a ``max_staleness`` bound is
-set and s exceeds it, then it is left out — and the chief broadcasts an ``average`` carrying x and v, naming w
-in ``origin`` (whose contribution it answers; ``contributors``: (w,) if applied) and w's round r. Nobody
-waits for anybody. Joining, dropping out, coming back, refusals and checkpoints are the synchronous chief's
-(:class:`~.chief.machine.Chief`); a worker's ``welcome`` names it in ``contributors`` (welcomes are broadcast)
-and carries x and v and the round after its last one taken.
-
-The run ends at the contribution after which every member of W has completed (its answer lists them all in
-``finished``), once every member of W has played M rounds, or when W is empty. Per worker the chief counts
-the contributions taken and their staleness (:mod:`.chief.contributions`, in its state and chief.json).
+"""The chief of an asynchronous scheme (``fedasync``) as a pure state machine: no round barrier. Each
+contribution is mixed into the fleet model on arrival (unless staler than ``max_staleness``) and answered
+with the model and its version; joining, dropping out, refusals and checkpoints are the synchronous chief's.
 docs/protocol.md, "Asynchronous schemes".
 """
 

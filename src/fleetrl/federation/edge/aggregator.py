@@ -1,19 +1,7 @@
-"""An edge aggregator (a site's gateway) as a pure state machine: one member of the root chief that stands for
-the units behind it, so a site needs one connection to the centre (docs/protocol.md, "Edge aggregators").
-
-Two sides, one clock (every input takes ``now``):
-
-* toward its members it is their chief (:class:`~.edge.site_chief.SiteChief`, a
-  :class:`~.chief.machine.Chief`): joins,
-  welcomes, statuses, dropouts, the waiting rules; an exchange closes at the site when its members answered,
-  and their weighted sum (float64, with Σ units) goes up as one message;
-* toward the root it is one worker: it announces itself with a ``join`` (re-sent until the root's welcome),
-  re-sends an exchange's sum until the root answers it, and passes every answer of the root down, its
-  contributors and ``finished`` rewritten to member ids; the root's ``done`` ends the site's run too.
-
-The root adds a site's sum as one term of its mean (:func:`.aggregation.mean_of_parts`), so a tree of sites
-gives the flat fleet's numbers; only a rule that decomposes (``mean``) and a scheme whose answer is that mean
-(:data:`TREE_SCHEMES`) can run in a tree.
+"""An edge aggregator (a site's gateway) as a pure state machine: a chief to its members
+(:class:`~.edge.site_chief.SiteChief`), whose exchanges go up as one float64 sum, and one worker to the root,
+whose answers it passes down. Only a rule and a scheme whose answer is that mean can run in a tree.
+docs/protocol.md, "Edge aggregators".
 """
 
 from __future__ import annotations

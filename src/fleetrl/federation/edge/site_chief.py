@@ -1,15 +1,7 @@
-"""The members' side of an edge aggregator (:mod:`.edge.aggregator`): the chief of its site's run, whose
-exchanges the root chief answers.
-
-Toward its members a site is their chief — their join and welcome, the settings check, statuses, dropouts and
-rejoins, the waiting rules of :mod:`.chief.stragglers`, re-sends of answers — so :class:`SiteChief` *is* a
-:class:`~.chief.machine.Chief` and changes only what closing an exchange means: instead of combining its
-members'
-answers with the scheme, it adds them up (:func:`.aggregation.weighted_sum`, in sorted member order, float64,
-weighted by their units) into one message for the root, and waits. The root's answer for that exchange
-(:meth:`SiteChief.root_answer`) is what goes down to the members, its contributors and ``finished`` rewritten
-to member ids. Until the root has welcomed the site, members' welcomes are held (the site has neither the
-fleet's model nor its configuration yet).
+"""The members' side of an edge aggregator: :class:`SiteChief` is a :class:`~.chief.machine.Chief` of the
+site's run whose closing an exchange means adding its members' answers up (float64, in sorted member order,
+weighted by their units) into one message for the root, and whose answers are the root's, passed down with
+member ids; members' welcomes wait for the root's.
 """
 
 from __future__ import annotations

@@ -1,15 +1,6 @@
-"""The worker of an asynchronous scheme (``fedasync``) as a pure state machine: the rounds of
-:class:`~fleetrl.federation.worker.machine.WorkerMachine`, without a round barrier.
-
-Each worker counts its own rounds. Before every round it takes the newest fleet model it has seen — the
-welcome's, its last answer's, or any newer one broadcast meanwhile (every answer of the chief carries the
-fleet model and its version, and goes to every worker) — and remembers that version. It plays the round,
-sends its contribution with that version, and waits for the answer to *it*: the chief's ``average`` naming
-this worker in ``origin`` for this round (another worker's answer is only a newer model), or an answer
-listing it in ``finished`` (the run completed), or ``done``. It re-sends its contribution while none comes;
-the chief answers a re-send again without applying it twice. A worker resumed from its checkpoint takes the
-welcome's model too (the newest there is) and plays the round the welcome's and its checkpoint's agree on.
-docs/protocol.md, "Asynchronous schemes".
+"""The worker of an asynchronous scheme (``fedasync``) as a pure state machine: it counts its own rounds,
+takes the newest fleet model it has seen before each, and waits for the chief's answer to its own
+contribution (another worker's answer is only a newer model). docs/protocol.md, "Asynchronous schemes".
 """
 
 from __future__ import annotations

@@ -1,18 +1,7 @@
 """The worker of a per-step scheme (``pergrad``) as a pure state machine: the rounds of
-:class:`~fleetrl.federation.worker.machine.WorkerMachine`, each round's update exchanged step by step.
-
-A round: the runner plays the round's episodes and reports them (:meth:`StepWorkerMachine.round_collected`);
-the machine applies every answer of the fleet already queued (it may have moved on while this worker played:
-a straggler, docs/protocol.md "Stragglers"), then joins the fleet's next round-opening exchange — at once if
-the fleet is still at step 0 of a round, else after that round's last answer — with what it played, saying
-how many rounds the fleet moved on meanwhile (``staleness``). It asks the runner to begin the update
-(:class:`~.worker.actions.BeginUpdate`), and each of the update's K steps is exchanged like a round,
-keyed (round, step): send the step's gradient, apply the chief's combination (which may have closed without
-it: the fleet's step all the same). So every worker applies every answer of the fleet, in order, and the fleet
-stays one policy. ``done`` inside the round ends the worker's run without a record. A worker that finds it
-never got some answer (a resumed worker whose fleet went on, a lost message) announces itself again and
-takes the fleet's model from the chief's welcome; inside its own exchange, such a gap ends its run as out
-of step with the fleet.
+:class:`~.worker.machine.WorkerMachine`, each round's update exchanged with the fleet step by step, every
+answer of the fleet applied in order (a straggler catches up first), so the fleet stays one policy.
+docs/protocol.md, "Stragglers under a per-step scheme".
 """
 
 from __future__ import annotations

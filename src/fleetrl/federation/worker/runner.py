@@ -1,36 +1,6 @@
-"""The worker of Algorithm 2 (lines 7–31) on top of a learner: play a round, send, wait for the chief, apply.
-
-Each round the worker calls ``learner.play_round()`` (the episode and, unless learning is complete, the K PPO
-optimisations). It then sends what its scheme (:mod:`fleetrl.federation.schemes`) says — ``paper``: the
-actor's last gradient, ``fedavg``: its whole model; once the completion criterion holds, a ``parameters``
-message — to the chief, and waits for the chief's answer for that round:
-
-* ``average``: the scheme applies it (``paper``: through the actor's optimiser, line 31; ``fedavg``: the
-  average model replaces the worker's);
-* ``transfer`` listing this worker in ``finished``: the chief acknowledged its parameters; the worker is
-  finished and stops (it has left W; what the chief forwarded — its own parameters or a lower id's — is in the
-  record);
-* ``transfer`` not listing it: the scheme replaces its shared parameters with the received ones (line 29) and
-  it keeps learning;
-* an ``average`` listing it in ``finished``: the run is complete for it (``fedavg``'s last round);
-* ``done``: the run is over.
-
-The worker also stops after round M. Every round produces a :class:`FederatedRound` through ``on_record``.
-
-Join: before its first round the worker publishes a retained ``join`` carrying its shared settings; a chief
-``refused`` naming it, or a ``welcome`` whose settings differ, raises
-:class:`~fleetrl.federation.shared_settings.SettingsRefused` (``fleetrl worker`` exits 2).
-
-Reliability (issue 7): the worker starts (or, restarted with the same id, rejoins) at the round named by the
-chief's ``welcome``, taking the last transferred parameters if it carries them. It re-sends its round's
-message (and, before the welcome, its ``online`` status) every ``resend_interval`` seconds without an
-answer, so a message lost to a broker restart is repaired; the chief answers a resend for a closed round
-with its answer again. A worker that falls behind (a straggler under a quorum) applies every later answer it
-finds queued and continues at the chief's round.
-
-The rules live in the pure state machine :class:`~fleetrl.federation.worker.machine.WorkerMachine`; this
-module is its runner: the loop, the clock, the transport, and the learner (the machine's actions are executed
-here, on the agent through the scheme).
+"""The worker of Algorithm 2 (lines 7–31) over a learner and a transport: the loop, the clock and the
+transport around the pure :class:`~.worker.machine.WorkerMachine`, whose actions it executes (the learner's
+side through its scheme kind's :mod:`.worker.play`). Joining, resuming and re-sends: docs/protocol.md.
 """
 
 from __future__ import annotations
