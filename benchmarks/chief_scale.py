@@ -1,6 +1,6 @@
 """The chief's work and bytes per exchange as its members grow (issue 24, "the path to 100k"): the real
-:class:`~fleetrl.federation.chief.Chief` state machine of the default scheme (``pergrad``) fed the encoded
-step gradients of N emulated members, no transport and no learner.
+:class:`~fleetrl.federation.chief.machine.Chief` state machine of the default scheme (``pergrad``) fed the
+encoded step gradients of N emulated members, no transport and no learner.
 
     python benchmarks/chief_scale.py [--members 10 100 1000] [--env qube] [--exchanges 20]
 
@@ -22,14 +22,16 @@ import argparse
 import os
 import statistics
 import time
+from typing import Any
 
 import numpy as np
 
-from fleetrl.federation.chief import Chief
-from fleetrl.federation.messages import Message, encode
+from fleetrl.federation.chief.machine import Chief
+from fleetrl.federation.plan import ChiefPlan
+from fleetrl.federation.wire.messages import Message, encode
 from fleetrl.portable import host_cpu
-from fleetrl.runs.launch import fleet_model
-from fleetrl.runs.settings import LearningSettings, fleet_shape, resolve_learning
+from fleetrl.runs.launch import chief_plan
+from fleetrl.runs.settings import LearningSettings, RoundRules, fleet_shape, resolve_learning
 
 RUN = "scale"
 
@@ -54,10 +56,17 @@ def measure(env: str, members: int, exchanges: int) -> dict[str, float]:
     )
     shape = fleet_shape(learning)
     chief = Chief(
-        run_id=RUN, workers=[str(m) for m in range(members)], layout=shape.layout, max_rounds=1000,
-        scheme="pergrad", steps_per_round=shape.exchanges_per_round, quorum=1.0,
-        fleet_model=fleet_model(learning),
-    )  # fmt: skip
+        ChiefPlan(
+            run_id=RUN,
+            workers=[str(m) for m in range(members)],
+            layout=shape.layout,
+            max_rounds=1000,
+            scheme="pergrad",
+            steps_per_round=shape.exchanges_per_round,
+            quorum=1.0,
+        ),
+        fleet_model=kept_model(learning),
+    )
     times, bytes_in, bytes_out = [], 0, 0
     now = 0.0
     for _ in range(exchanges + 1):  # the first exchange is a warm-up
@@ -112,3 +121,8 @@ def main() -> int:
 
 if __name__ == "__main__":
     raise SystemExit(main())
+
+
+def kept_model(learning: LearningSettings) -> Any:
+    """The fleet's model the chief of ``learning`` keeps."""
+    return chief_plan(learning, RoundRules(quorum=1.0), run_id=RUN, workers=("0",))[1]["fleet_model"]

@@ -25,12 +25,13 @@ from typing import Any
 import numpy as np
 from chief_scale import exchange_payloads
 
-from fleetrl.federation.chief import Chief
-from fleetrl.federation.edge import EdgeAggregator
-from fleetrl.federation.messages import Message, encode
+from fleetrl.federation.chief.machine import Chief
+from fleetrl.federation.edge.aggregator import EdgeAggregator
+from fleetrl.federation.plan import ChiefPlan
+from fleetrl.federation.wire.messages import Message, encode
 from fleetrl.portable import host_cpu
-from fleetrl.runs.launch import fleet_model
-from fleetrl.runs.settings import LearningSettings, fleet_shape, resolve_learning
+from fleetrl.runs.launch import chief_plan
+from fleetrl.runs.settings import LearningSettings, RoundRules, fleet_shape, resolve_learning
 
 RUN, ROOT = "scale", "root"
 
@@ -42,13 +43,26 @@ def learning_of(env: str) -> Any:
 def aggregator_exchange(env: str, members: int, exchanges: int) -> dict[str, float]:
     """The aggregator's CPU seconds per exchange (median) and its bytes in and out of one exchange."""
     learning = learning_of(env)
-    shape, model = fleet_shape(learning), fleet_model(learning)
+    shape, model = (
+        fleet_shape(learning),
+        kept_model(learning),
+    )
     assert model is not None
     edge = EdgeAggregator(
-        site_id="0", root_run=ROOT, run_id=RUN, members=[str(m) for m in range(members)], layout=shape.layout,
-        welcome_layout=model.layout, scheme="pergrad", steps_per_round=shape.exchanges_per_round,
-        max_rounds=1000, quorum=1.0, fleet_model=model,
-    )  # fmt: skip
+        ChiefPlan(
+            run_id=RUN,
+            workers=[str(m) for m in range(members)],
+            layout=shape.layout,
+            welcome_layout=model.layout,
+            scheme="pergrad",
+            steps_per_round=shape.exchanges_per_round,
+            max_rounds=1000,
+            quorum=1.0,
+        ),
+        site_id="0",
+        root_run=ROOT,
+        fleet_model=model,
+    )
     edge.start(now=0.0)
     edge.from_root(Message("welcome", ROOT, "chief", 1, flat=model.snapshot(), origin="chief"), now=0.0)
     times, now = [], 0.0
@@ -80,10 +94,19 @@ def root_exchange(env: str, sites: int, units: int, exchanges: int) -> dict[str,
     learning = learning_of(env)
     shape = fleet_shape(learning)
     root = Chief(
-        run_id=RUN, workers=[str(m) for m in range(sites)], layout=shape.layout, max_rounds=1000,
-        scheme="pergrad", steps_per_round=shape.exchanges_per_round, quorum=1.0,
-        fleet_model=fleet_model(learning),
-    )  # fmt: skip
+        ChiefPlan(
+            run_id=RUN,
+            workers=[str(m) for m in range(sites)],
+            layout=shape.layout,
+            max_rounds=1000,
+            scheme="pergrad",
+            steps_per_round=shape.exchanges_per_round,
+            quorum=1.0,
+        ),
+        fleet_model=chief_plan(learning, RoundRules(quorum=1.0), run_id=ROOT, workers=("0",))[1][
+            "fleet_model"
+        ],
+    )
     times, now, bytes_in, bytes_out = [], 0.0, 0, 0
     rng = np.random.default_rng(0)
     for _ in range(exchanges + 1):
@@ -163,3 +186,8 @@ def main() -> int:
 
 if __name__ == "__main__":
     raise SystemExit(main())
+
+
+def kept_model(learning: LearningSettings) -> Any:
+    """The fleet's model the chief of ``learning`` keeps."""
+    return chief_plan(learning, RoundRules(quorum=1.0), run_id=ROOT, workers=("0",))[1]["fleet_model"]

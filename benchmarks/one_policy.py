@@ -113,21 +113,21 @@ def load(paths: Iterable[Path]) -> list[Held]:
 def recording(recorder: Recorder, broken: Mapping[str, BrokenCatchUp] | None = None) -> Iterator[None]:
     """While open, every ``FederatedWorker`` of this process records what it holds after each answer it
     applies; a worker named in ``broken`` catches up through its :class:`BrokenCatchUp`."""
-    from fleetrl.federation import rounds as act
-    from fleetrl.federation.worker import FederatedWorker
+    from fleetrl.federation.worker import actions
+    from fleetrl.federation.worker.runner import FederatedWorker
 
     original = FederatedWorker._execute
     mutated: Mapping[str, BrokenCatchUp] = broken if broken is not None else {}
 
     def execute(self: Any, output: Any) -> None:
-        catch_up = isinstance(output, act.ApplyFleetStep)
+        catch_up = isinstance(output, actions.ApplyFleetStep)
         if catch_up and self.worker_id in mutated:
             agent = self.learner.agent
             apply: ApplyFleetStep = lambda k, flat: self.scheme.catch_up_step(agent, k, flat)  # noqa: E731
             mutated[self.worker_id](apply, output.step, output.flat)
         else:
             original(self, output)
-        if catch_up or isinstance(output, act.ApplyStep):
+        if catch_up or isinstance(output, actions.ApplyStep):
             shared = self.scheme.start_parameters(self.learner.agent)
             how = CAUGHT_UP if catch_up else LIVE
             recorder.record(Held(self.worker_id, tuple(self.machine.fleet_at), digest(shared), how))

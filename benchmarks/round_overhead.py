@@ -4,8 +4,8 @@ worker, for N workers with the QUBE agent's real actor size, over mosquitto, amq
 Run: ``.venv/bin/python benchmarks/round_overhead.py`` (``--quick`` for a smoke run; ``--workers 3,8,64``,
 ``--rounds N``, ``--transports local,mosquitto,amqtt``).
 
-What is real: the chief (the :class:`~fleetrl.federation.chief.Chief` state machine served by
-:func:`~fleetrl.federation.runner.run_chief`), the worker loop (:class:`~fleetrl.federation.worker.
+What is real: the chief (the :class:`~fleetrl.federation.chief.machine.Chief` state machine served by
+:func:`~fleetrl.federation.runner.run_chief`), the worker loop (:class:`~fleetrl.federation.worker.runner.
 FederatedWorker`), the message encoding and validation, :class:`~fleetrl.transport.mqtt.MqttTransport` (paho,
 QoS 1, TCP_NODELAY) and the embedded brokers. What is not: the learner. Each worker's "round" returns at once
 with a fixed random gradient of the actor layout of ``PPOAgent(4, 3, get_preset("paper"))`` (no episode, no
@@ -45,11 +45,12 @@ import numpy as np
 
 from fleetrl.agent.config import get_preset
 from fleetrl.agent.ppo import PPOAgent
-from fleetrl.federation.chief import Chief, ChiefEvent
-from fleetrl.federation.messages import Layout, layout_size
+from fleetrl.federation.chief.machine import Chief, ChiefEvent
+from fleetrl.federation.plan import ChiefPlan
 from fleetrl.federation.runner import run_chief
-from fleetrl.federation.topics import worker_of_topic
-from fleetrl.federation.worker import FederatedWorker
+from fleetrl.federation.wire.messages import Layout, layout_size
+from fleetrl.federation.wire.topics import worker_of_topic
+from fleetrl.federation.worker.runner import FederatedWorker
 from fleetrl.transport.base import Received, Transport, Will
 from fleetrl.transport.broker import EmbeddedBroker, find_mosquitto
 from fleetrl.transport.local import LocalBus
@@ -218,8 +219,15 @@ def run_configuration(
     total = WARMUP + rounds
     clock = RoundClock()
     counter = AcceptedCounter(n_workers - 1, clock)
-    chief = Chief(run_id=run_id, workers=[str(i) for i in range(1, n_workers + 1)], layout=layout,
-                  max_rounds=total, scheme="paper")  # fmt: skip
+    chief = Chief(
+        ChiefPlan(
+            run_id=run_id,
+            workers=[str(i) for i in range(1, n_workers + 1)],
+            layout=layout,
+            max_rounds=total,
+            scheme="paper",
+        )
+    )
     barrier = threading.Barrier(n_workers, timeout=TIMEOUT)
     errors: list[BaseException] = []
 

@@ -101,9 +101,9 @@ def figures(out: Path, slow_unit: int | None) -> Figures:
 
 def asynchronous(scheme: str) -> bool:
     """Whether ``scheme`` (a name) has no round barrier: its units count their own rounds."""
-    from fleetrl.federation.schemes import Granularity, scheme_class
+    from fleetrl.federation.schemes import AsyncScheme, scheme_class
 
-    return scheme_class(scheme).granularity is Granularity.ASYNC
+    return issubclass(scheme_class(scheme), AsyncScheme)
 
 
 def show(value: float, complete: bool, unit: str = "s") -> str:

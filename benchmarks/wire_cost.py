@@ -2,7 +2,7 @@
 
     python benchmarks/wire_cost.py [--rounds 20] [--workers 3 8]
 
-The real chief (``fleetrl.federation.chief`` driven by ``run_chief``) and the real workers
+The real chief (``fleetrl.federation.chief.machine`` driven by ``run_chief``) and the real workers
 (``FederatedWorker``) talk through a real mosquitto, each over its own MQTT connection; the chief and the
 workers are threads of this process. Only the learning is left out: each worker's learner plays no episode
 and its agent hands over a fixed gradient of the standard preset's QUBE step layout (the whole actor-critic)
@@ -23,9 +23,10 @@ from typing import Any
 import numpy as np
 
 from fleetrl.agent.config import get_preset
-from fleetrl.federation.chief import Chief
+from fleetrl.federation.chief.machine import Chief
+from fleetrl.federation.plan import ChiefPlan
 from fleetrl.federation.runner import run_chief
-from fleetrl.federation.worker import FederatedWorker
+from fleetrl.federation.worker.runner import FederatedWorker
 from fleetrl.portable import describe_host
 from fleetrl.runs.factory import probe_agent
 from fleetrl.transport.broker import EmbeddedBroker
@@ -102,9 +103,15 @@ def round_seconds(url: str, scheme: str, workers: int, rounds: int) -> tuple[flo
     steps = agent0.update_step_count() if scheme == "pergrad" else 1
     run_id = f"wire-{scheme}-{workers}"
     chief = Chief(
-        run_id=run_id, workers=[str(k) for k in range(workers)], layout=layout, max_rounds=rounds,
-        scheme=scheme, steps_per_round=steps,
-    )  # fmt: skip
+        ChiefPlan(
+            run_id=run_id,
+            workers=[str(k) for k in range(workers)],
+            layout=layout,
+            max_rounds=rounds,
+            scheme=scheme,
+            steps_per_round=steps,
+        )
+    )
     threading.Thread(target=run_chief, args=(chief, MqttTransport(url)), daemon=True).start()
     stamps: list[float] = []
 

@@ -25,7 +25,7 @@ from pathlib import Path
 
 import pytest
 
-from fleetrl.federation.signing import parse_status
+from fleetrl.federation.wire.signing import parse_status
 from fleetrl.transport.broker import EmbeddedBroker
 from fleetrl.transport.mqtt import read_retained
 

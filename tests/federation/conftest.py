@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import threading
 import time
 from collections.abc import Callable
@@ -11,13 +12,28 @@ from typing import Any
 import numpy as np
 import pytest
 
-from fleetrl.federation.chief import Chief, ChiefEvent
+from fleetrl.federation.chief.machine import Chief, ChiefEvent
+from fleetrl.federation.plan import ChiefPlan
 from fleetrl.federation.runner import ChiefSummary, run_chief
 from fleetrl.federation.schemes import resolve_scheme
-from fleetrl.federation.worker import FederatedRound, FederatedWorker, WorkerSummary
+from fleetrl.federation.worker.runner import FederatedRound, FederatedWorker, WorkerSummary
+from fleetrl.runs.launch import chief_plan
+from fleetrl.runs.settings import RoundRules
 from fleetrl.transport.base import Transport
 
 FAKE_LAYOUT: list[tuple[str, tuple[int, ...]]] = [("trunk.weight", (4, 3)), ("head.bias", (3,))]
+
+
+PLAN_FIELDS = frozenset(f.name for f in dataclasses.fields(ChiefPlan))
+
+
+def chief_of(make: Callable[..., Any] = Chief, **options: Any) -> Any:
+    """``make(plan, **others)`` (a chief class, ``new_chief`` or ``EdgeAggregator``) from keyword options:
+    the :class:`ChiefPlan`'s fields (``members``: its ``workers``) and the others."""
+    if "members" in options:
+        options["workers"] = options.pop("members")
+    plan = ChiefPlan(**{k: v for k, v in options.items() if k in PLAN_FIELDS})
+    return make(plan, **{k: v for k, v in options.items() if k not in PLAN_FIELDS})
 
 
 @dataclass(frozen=True)
@@ -124,7 +140,7 @@ def run_fleet(
     worker_kwargs = {"scheme": "paper", **(worker_kwargs or {})}
     layout = resolve_scheme(chief_kwargs["scheme"]).layout(agent)
     chief_kwargs = {"workers": list(learners), **chief_kwargs}  # a chief may know fewer: new units join
-    chief = Chief(run_id=run_id, layout=layout, max_rounds=max_rounds, **chief_kwargs)
+    chief = chief_of(Chief, run_id=run_id, layout=layout, max_rounds=max_rounds, **chief_kwargs)
     if on_chief is not None:
         on_chief(chief)
 
@@ -226,3 +242,8 @@ class StepAgent:
 
     def apply_fleet_step(self, k: int, flat: np.ndarray) -> None:
         self.model, self.optimiser = self.model - flat[:2], self.optimiser + 1
+
+
+def fleet_model(learning: Any) -> Any:
+    """The fleet's model a chief of resolved ``learning`` keeps (its plan's)."""
+    return chief_plan(learning, RoundRules(quorum=1.0), run_id="r", workers=("0",))[1].get("fleet_model")

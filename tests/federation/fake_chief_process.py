@@ -16,8 +16,9 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from conftest import FAKE_LAYOUT
 
-from fleetrl.federation.chief import Chief, ChiefEvent
-from fleetrl.federation.chief_state import replay_last_answer
+from fleetrl.federation.chief.checkpoint import replay_last_answer
+from fleetrl.federation.chief.machine import Chief, ChiefEvent
+from fleetrl.federation.plan import ChiefPlan
 from fleetrl.federation.runner import run_chief
 from fleetrl.runs.checkpoints import ChiefCheckpoint
 from fleetrl.transport.mqtt import MqttTransport
@@ -28,11 +29,13 @@ def main(argv: list[str]) -> int:
     logging.basicConfig(level=logging.INFO, format="%(name)s %(levelname)s %(message)s")
     store = ChiefCheckpoint(Path(directory))
     chief = Chief(
-        run_id=run_id,
-        workers=workers.split(","),
-        layout=FAKE_LAYOUT,
-        max_rounds=int(max_rounds),
-        scheme="paper",
+        ChiefPlan(
+            run_id=run_id,
+            workers=workers.split(","),
+            layout=FAKE_LAYOUT,
+            max_rounds=int(max_rounds),
+            scheme="paper",
+        )
     )
     first = None
     if "--resume" in argv:

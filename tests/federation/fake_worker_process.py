@@ -14,7 +14,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from conftest import FakeLearner
 
-from fleetrl.federation.worker import FederatedRound, FederatedWorker
+from fleetrl.federation.worker.runner import FederatedRound, FederatedWorker
 from fleetrl.transport.mqtt import MqttTransport
 
 

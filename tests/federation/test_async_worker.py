@@ -9,12 +9,19 @@ from typing import Any
 
 import numpy as np
 
-from fleetrl.federation.async_worker import AsyncWorkerMachine
 from fleetrl.federation.events import Sent, WorkerEvent
-from fleetrl.federation.messages import Message
-from fleetrl.federation.rounds import Checkpoint, Finish, PlayRound, Record, TakeParameters, WorkerStep
+from fleetrl.federation.kinds import new_worker_machine
 from fleetrl.federation.schemes import get_scheme
-from fleetrl.federation.step_worker import worker_machine
+from fleetrl.federation.wire.messages import Message
+from fleetrl.federation.worker.actions import (
+    Checkpoint,
+    Finish,
+    PlayRound,
+    Record,
+    TakeParameters,
+    WorkerStep,
+)
+from fleetrl.federation.worker.asynchronous import AsyncWorkerMachine
 
 RUN = "async-machine"
 ME = "1"
@@ -39,7 +46,7 @@ RESULT = Outcome(score=10.0, steps=3, wma=9.0, completed=False)
 
 def machine(**kwargs: Any) -> AsyncWorkerMachine:
     options: dict[str, Any] = {"reply_timeout": 60.0, "resend_interval": 5.0, "max_rounds": 10}
-    made = worker_machine(
+    made = new_worker_machine(
         scheme=get_scheme("fedasync"), run_id=RUN, worker_id=ME, layout=FAKE_LAYOUT, **options | kwargs
     )
     assert isinstance(made, AsyncWorkerMachine)

@@ -8,11 +8,12 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import chief_of
 
-from fleetrl.federation.chief import Chief, ChiefStep
-from fleetrl.federation.chief_state import chief_from_state, chief_to_state, replay_last_answer
-from fleetrl.federation.messages import Message, Reason, encode
-from fleetrl.federation.signing import FleetKey, status_payload
+from fleetrl.federation.chief.checkpoint import chief_from_state, chief_to_state, replay_last_answer
+from fleetrl.federation.chief.machine import Chief, ChiefStep
+from fleetrl.federation.wire.messages import Message, Reason, encode
+from fleetrl.federation.wire.signing import FleetKey, status_payload
 from fleetrl.runs.checkpoints import ChiefCheckpoint
 
 LAYOUT = [("w", (2,))]
@@ -25,7 +26,7 @@ def make(**kwargs: object) -> Chief:
         run_id=RUN, workers=("1", "2", "3"), layout=LAYOUT, max_rounds=6, scheme="paper"
     )
     args.update(kwargs)
-    return Chief(**args)  # type: ignore[arg-type]
+    return chief_of(Chief, **args)  # type: ignore[no-any-return]
 
 
 def msg(sender: str, rnd: int, value: float, kind: str = "gradient") -> Message:

@@ -4,10 +4,11 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from conftest import chief_of
 
-from fleetrl.federation.chief import Chief, ChiefStep
-from fleetrl.federation.messages import Message, Reason, encode
-from fleetrl.federation.signing import FleetKey, status_payload
+from fleetrl.federation.chief.machine import Chief, ChiefStep
+from fleetrl.federation.wire.messages import Message, Reason, encode
+from fleetrl.federation.wire.signing import FleetKey, status_payload
 
 LAYOUT = [("w", (2,))]
 RUN = "r1"
@@ -19,7 +20,7 @@ def make(**kwargs: object) -> Chief:
         run_id=RUN, workers=("1", "2", "3"), layout=LAYOUT, max_rounds=10, scheme="paper"
     )
     args.update(kwargs)
-    return Chief(**args)  # type: ignore[arg-type]
+    return chief_of(Chief, **args)  # type: ignore[no-any-return]
 
 
 def grad(sender: str, rnd: int, values: list[float], kind: str = "gradient") -> Message:

@@ -8,18 +8,20 @@ from typing import Any
 import msgpack
 import numpy as np
 import pytest
+from conftest import chief_of
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from fleetrl.federation.chief import Chief, ChiefStep
-from fleetrl.federation.messages import VERSION, Message, Reason, decode, encode, envelope
+from fleetrl.federation.chief.machine import Chief, ChiefStep
+from fleetrl.federation.plan import ChiefPlan
+from fleetrl.federation.wire.messages import VERSION, Message, Reason, decode, encode, envelope
 
 LAYOUT = [("w", (2,))]
 RUN = "r1"
 
 
 def chief(workers: tuple[str, ...] = ("1", "2", "3"), max_rounds: int = 10) -> Chief:
-    return Chief(run_id=RUN, workers=workers, layout=LAYOUT, max_rounds=max_rounds, scheme="paper")
+    return Chief(ChiefPlan(run_id=RUN, workers=workers, layout=LAYOUT, max_rounds=max_rounds, scheme="paper"))
 
 
 def grad(sender: str, rnd: int, values: list[float]) -> Message:
@@ -222,7 +224,7 @@ def test_bad_configuration_is_refused(kwargs: dict[str, Any], match: str) -> Non
     args: dict[str, Any] = dict(run_id=RUN, workers=["1"], layout=LAYOUT, max_rounds=3, scheme="paper")
     args.update(kwargs)
     with pytest.raises(ValueError, match=match):
-        Chief(**args)
+        chief_of(Chief, **args)
 
 
 # ---- a per-step scheme: a resumed worker replays its round, the chief answers each step again ----
@@ -235,7 +237,8 @@ def step_grad(sender: str, rnd: int, step: int, value: float) -> Message:
 
 
 def pergrad_chief(**kwargs: Any) -> Chief:
-    return Chief(
+    return chief_of(  # type: ignore[no-any-return]
+        Chief,
         run_id=RUN,
         workers=("1", "2"),
         layout=LAYOUT,

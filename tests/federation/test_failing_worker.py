@@ -8,10 +8,11 @@ import threading
 
 from conftest import FakeLearner, FakeResult
 
-from fleetrl.federation.chief import Chief
+from fleetrl.federation.chief.machine import Chief
+from fleetrl.federation.plan import ChiefPlan
 from fleetrl.federation.runner import ChiefSummary, run_chief
 from fleetrl.federation.schemes import resolve_scheme
-from fleetrl.federation.worker import FederatedWorker
+from fleetrl.federation.worker.runner import FederatedWorker
 from fleetrl.transport.local import LocalBus
 
 ROUNDS = 5
@@ -31,12 +32,14 @@ def test_a_worker_that_fails_leaves_the_fleet_instead_of_stalling_it() -> None:
     bus = LocalBus()
     layout = resolve_scheme("paper").layout(learners["1"].agent)
     chief = Chief(
-        run_id="r",
-        workers=list(learners),
-        layout=layout,
-        max_rounds=ROUNDS,
-        scheme="paper",
-        dropout_grace=0.2,
+        ChiefPlan(
+            run_id="r",
+            workers=list(learners),
+            layout=layout,
+            max_rounds=ROUNDS,
+            scheme="paper",
+            dropout_grace=0.2,
+        )
     )  # quorum 1 and no round deadline: every worker is waited for
     outcome: dict[str, ChiefSummary] = {}
     errors: dict[str, BaseException] = {}

@@ -13,7 +13,8 @@ from typing import Any
 
 import pytest
 
-from fleetrl.federation.chief import Chief, ChiefEvent
+from fleetrl.federation.chief.machine import Chief, ChiefEvent
+from fleetrl.federation.plan import ChiefPlan
 from fleetrl.federation.runner import ChiefSummary, run_chief
 from fleetrl.transport.broker import EmbeddedBroker
 from fleetrl.transport.local import LocalBus
@@ -35,7 +36,9 @@ def test_kill_9_of_a_worker_then_rejoin_with_the_same_id(
         120,
     )  # after the drop, ~115 rounds × 0.05 s: time for a new process to start and rejoin
     layout = fake_learner(0).agent.actor_layout()
-    chief = Chief(run_id=run_id, workers=["1", "2", "3"], layout=layout, max_rounds=rounds, scheme="paper")
+    chief = Chief(
+        ChiefPlan(run_id=run_id, workers=["1", "2", "3"], layout=layout, max_rounds=rounds, scheme="paper")
+    )
     events: list[ChiefEvent] = []
     outcome: dict[str, ChiefSummary] = {}
     with EmbeddedBroker("mosquitto") as broker:

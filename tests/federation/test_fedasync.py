@@ -7,16 +7,19 @@ import json
 
 import numpy as np
 import pytest
+from conftest import chief_of
 
-from fleetrl.federation.chief import Chief, ChiefStep
-from fleetrl.federation.chief_answer import check_round_rules
-from fleetrl.federation.chief_async import AsyncChief, new_chief
-from fleetrl.federation.chief_state import chief_from_state, chief_to_state
-from fleetrl.federation.messages import Message, Reason, decode, encode
+from fleetrl.federation.chief.answer import check_round_rules
+from fleetrl.federation.chief.asynchronous import AsyncChief
+from fleetrl.federation.chief.checkpoint import chief_from_state, chief_to_state
+from fleetrl.federation.chief.machine import Chief, ChiefStep
+from fleetrl.federation.kinds import new_chief
+from fleetrl.federation.plan import ChiefPlan
 from fleetrl.federation.schemes import get_scheme
 from fleetrl.federation.schemes.base import FleetStart
 from fleetrl.federation.schemes.fedasync import FedAsyncScheme
-from fleetrl.federation.signing import status_payload
+from fleetrl.federation.wire.messages import Message, Reason, decode, encode
+from fleetrl.federation.wire.signing import status_payload
 
 RUN = "async-run"
 LAYOUT: list[tuple[str, tuple[int, ...]]] = [("w", (2,))]
@@ -30,8 +33,8 @@ def scheme(alpha: float = 0.5, decay: float = 1.0) -> FedAsyncScheme:
 
 
 def make(workers: tuple[str, ...] = ("0", "1"), max_rounds: int = 5, **kwargs: object) -> Chief:
-    return new_chief(
-        run_id=RUN, workers=workers, layout=LAYOUT, max_rounds=max_rounds, scheme=scheme(),
+    return chief_of(  # type: ignore[no-any-return]
+        new_chief, run_id=RUN, workers=workers, layout=LAYOUT, max_rounds=max_rounds, scheme=scheme(),
         start=FleetStart(LAYOUT, X0), **kwargs,
     )  # fmt: skip
 
@@ -197,4 +200,4 @@ def test_a_chief_resumed_from_its_checkpoint_answers_exactly_like_the_original()
 
 def test_an_asynchronous_chief_needs_the_fleets_start() -> None:
     with pytest.raises(ValueError, match="needs the fleet's start"):
-        new_chief(run_id=RUN, workers=("0",), layout=LAYOUT, max_rounds=3, scheme="fedasync")
+        new_chief(ChiefPlan(run_id=RUN, workers=("0",), layout=LAYOUT, max_rounds=3, scheme="fedasync"))

@@ -8,18 +8,21 @@ import json
 import numpy as np
 import pytest
 
-from fleetrl.federation.chief import Chief, ChiefStep
-from fleetrl.federation.chief_state import chief_from_state, chief_to_state
-from fleetrl.federation.messages import Message, Reason, encode
+from fleetrl.federation.chief.checkpoint import chief_from_state, chief_to_state
+from fleetrl.federation.chief.machine import Chief, ChiefStep
+from fleetrl.federation.plan import ChiefPlan
 from fleetrl.federation.schemes import SCHEMES, get_scheme
-from fleetrl.federation.signing import status_payload
+from fleetrl.federation.wire.messages import Message, Reason, encode
+from fleetrl.federation.wire.signing import status_payload
 
 LAYOUT = [("w", (2,))]
 RUN = "r1"
 
 
 def fedavg_chief(workers: tuple[str, ...] = ("1", "2", "3"), max_rounds: int = 10) -> Chief:
-    return Chief(run_id=RUN, workers=workers, layout=LAYOUT, max_rounds=max_rounds, scheme="fedavg")
+    return Chief(
+        ChiefPlan(run_id=RUN, workers=workers, layout=LAYOUT, max_rounds=max_rounds, scheme="fedavg")
+    )
 
 
 def model(sender: str, rnd: int, values: list[float], kind: str = "model") -> Message:
@@ -89,7 +92,7 @@ def test_gradients_are_refused_in_a_fedavg_run_and_models_in_a_paper_run() -> No
     # each chief's decoder takes its own scheme's round message only: another scheme's is an unknown type
     (step,) = feed(c, Message("gradient", RUN, "1", 1, flat=np.zeros(2, np.float32)))
     assert [e.reason for e in step.events] == [Reason.UNKNOWN_TYPE]
-    paper = Chief(run_id=RUN, workers=("1",), layout=LAYOUT, max_rounds=3, scheme="paper")
+    paper = Chief(ChiefPlan(run_id=RUN, workers=("1",), layout=LAYOUT, max_rounds=3, scheme="paper"))
     (step,) = feed(paper, model("1", 1, [1, 1]))
     assert [e.reason for e in step.events] == [Reason.UNKNOWN_TYPE]
     assert [e.reason for e in paper.receive(model("1", 1, [1, 1]), now=0.0).events] == [
@@ -127,5 +130,5 @@ def test_unknown_scheme_names_the_choices() -> None:
         f"unknown federation scheme 'fedvag' (choose {choices}, or your own as package.module:Class)"
     )
     with pytest.raises(ValueError, match="unknown federation scheme"):
-        fedavg_chief().__class__(run_id=RUN, workers=("1",), layout=LAYOUT, max_rounds=1, scheme="x")
+        ChiefPlan(run_id=RUN, workers=("1",), layout=LAYOUT, max_rounds=1, scheme="x")
     assert set(SCHEMES) >= {"paper", "fedavg", "fedavgm", "fedadam", "pergrad"}

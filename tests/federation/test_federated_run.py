@@ -7,7 +7,7 @@ from typing import Any
 
 import pytest
 
-from fleetrl.federation.messages import Reason
+from fleetrl.federation.wire.messages import Reason
 from fleetrl.transport.base import Transport
 from fleetrl.transport.broker import EmbeddedBroker
 from fleetrl.transport.local import LocalBus
@@ -79,7 +79,7 @@ def test_a_hostile_client_does_not_disturb_a_live_run(fleet_runner: Runner, fake
     """Junk published on worker topics during a run is rejected and the run gives the local results."""
     import threading
 
-    from fleetrl.federation.topics import worker_topic
+    from fleetrl.federation.wire.topics import worker_topic
 
     local = run_local(fleet_runner, fake_fleet)
     with EmbeddedBroker("auto") as broker:

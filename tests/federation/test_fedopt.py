@@ -9,11 +9,12 @@ import numpy as np
 import pytest
 
 from fleetrl.federation.aggregation import get_aggregator
-from fleetrl.federation.chief import Chief
-from fleetrl.federation.chief_state import chief_to_state
-from fleetrl.federation.messages import Message, encode
+from fleetrl.federation.chief.checkpoint import chief_to_state
+from fleetrl.federation.chief.machine import Chief
+from fleetrl.federation.plan import ChiefPlan
 from fleetrl.federation.schemes import RoundAnswer, RoundContext, Scheme, get_scheme
 from fleetrl.federation.schemes.fedavg import FedAvgScheme
+from fleetrl.federation.wire.messages import Message, encode
 from fleetrl.runs.checkpoints import ChiefCheckpoint
 
 RUN = "opt"
@@ -95,7 +96,7 @@ def test_a_chief_restored_from_its_checkpoint_continues_identically(name: str, t
 
     def chief(**changes: float) -> Chief:
         scheme = get_scheme(name, **(params | changes))
-        return Chief(run_id=RUN, workers=MEMBERS, layout=layout, max_rounds=9, scheme=scheme)
+        return Chief(ChiefPlan(run_id=RUN, workers=MEMBERS, layout=layout, max_rounds=9, scheme=scheme))
 
     def play(boss: Chief, rnd: int) -> np.ndarray:
         out = None

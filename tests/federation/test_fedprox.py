@@ -9,9 +9,9 @@ import torch
 from torch import nn
 
 from fleetrl.federation.aggregation import get_aggregator
-from fleetrl.federation.messages import Message
 from fleetrl.federation.schemes import SCHEMES, RoundContext, get_scheme
 from fleetrl.federation.schemes.fedprox import FedProxScheme
+from fleetrl.federation.wire.messages import Message
 
 
 class LinearAgent:

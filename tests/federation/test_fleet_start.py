@@ -11,11 +11,11 @@ from typing import Any
 
 import numpy as np
 import pytest
+from conftest import fleet_model
 from safetensors.numpy import load_file
 
 from fleetrl.federation.schemes.base import FleetStart
 from fleetrl.runs.factory import make_learner
-from fleetrl.runs.launch import fleet_model
 from fleetrl.runs.settings import LearningSettings, fleet_shape, resolve_learning
 from fleetrl.runs.spec import WorkerSpec
 from fleetrl.transport.broker import EmbeddedBroker

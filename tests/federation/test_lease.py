@@ -7,10 +7,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from fleetrl.federation.chief import Chief
-from fleetrl.federation.lease import chief_epoch, place_refusal, supersedes
-from fleetrl.federation.messages import Message, MessageRejected, decode, encode
-from fleetrl.federation.signing import FleetKey, Status, parse_status, status_payload
+from fleetrl.federation.chief.lease import chief_epoch, place_refusal, supersedes
+from fleetrl.federation.chief.machine import Chief
+from fleetrl.federation.plan import ChiefPlan
+from fleetrl.federation.wire.messages import Message, MessageRejected, decode, encode
+from fleetrl.federation.wire.signing import FleetKey, Status, parse_status, status_payload
 
 LAYOUT = [("w", (2,))]
 KEY = FleetKey(b"k" * 32)
@@ -56,7 +57,7 @@ def test_only_an_online_status_holds_a_place() -> None:
 
 
 def _chief() -> Chief:
-    return Chief(run_id="r", workers=["0"], layout=LAYOUT, max_rounds=3, scheme="paper")
+    return Chief(ChiefPlan(run_id="r", workers=["0"], layout=LAYOUT, max_rounds=3, scheme="paper"))
 
 
 def test_a_worker_message_of_a_newer_epoch_deposes_the_chief_and_changes_nothing() -> None:

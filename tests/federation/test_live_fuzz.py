@@ -17,10 +17,10 @@ from hypothesis import HealthCheck, Phase, given, settings
 from hypothesis import strategies as st
 from paho.mqtt.enums import CallbackAPIVersion
 
-from fleetrl.federation.chief import Chief
-from fleetrl.federation.messages import Message, MessageRejected, Reason, decode, encode
-from fleetrl.federation.signing import FleetKey
-from fleetrl.federation.topics import status_topic, worker_filter, worker_topic
+from fleetrl.federation.chief.machine import Chief
+from fleetrl.federation.wire.messages import Message, MessageRejected, Reason, decode, encode
+from fleetrl.federation.wire.signing import FleetKey
+from fleetrl.federation.wire.topics import status_topic, worker_filter, worker_topic
 from fleetrl.transport.broker import EmbeddedBroker
 from fleetrl.transport.local import LocalBus
 from fleetrl.transport.mqtt import MqttTransport

@@ -10,7 +10,7 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from fleetrl.federation.messages import (
+from fleetrl.federation.wire.messages import (
     VERSION,
     Message,
     MessageRejected,
@@ -239,14 +239,3 @@ def test_only_a_join_may_name_round_0_the_round_its_worker_resumes_at_when_none(
     join = encode(Message("join", "r1", "1", 0, settings={}), layout=LAYOUT)
     assert dec(join).round == 0
     assert reason_of(packed(round=0)) is Reason.BAD_ROUND
-
-
-def test_a_contribution_s_own_weight_travels_and_only_a_weight_in_0_to_its_units_is_taken() -> None:
-    back = dec(encode(gradient(units=3, weight=1.75), layout=LAYOUT))
-    assert (back.units, back.weight, back.mean_weight) == (3, 1.75, 1.75)
-    plain = dec(encode(gradient(units=3), layout=LAYOUT))
-    assert (plain.weight, plain.mean_weight) == (None, 3.0)  # no weight of its own: its units
-    for bad in (0.0, -1.0, 3.5, float("nan"), float("inf"), True, "1"):
-        assert reason_of(packed(units=3, weight=bad)) == Reason.MALFORMED, bad
-    with pytest.raises(ValueError, match="weight"):
-        encode(gradient(units=1, weight=2.0), layout=LAYOUT)

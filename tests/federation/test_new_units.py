@@ -1,4 +1,5 @@
-"""A unit new to the fleet joins a running run (:mod:`fleetrl.federation.roster`, docs/protocol.md "A new
+"""A unit new to the fleet joins a running run (:mod:`fleetrl.federation.chief.roster`, docs/protocol.md "A
+new
 unit joins"): the chief's state machine, fed bytes as the broker would deliver them."""
 
 from __future__ import annotations
@@ -6,12 +7,13 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from fleetrl.federation.chief import Chief
-from fleetrl.federation.chief_state import chief_from_state, chief_to_state
-from fleetrl.federation.messages import Message, Reason, encode
-from fleetrl.federation.roster import Roster
+from fleetrl.federation.chief.checkpoint import chief_from_state, chief_to_state
+from fleetrl.federation.chief.machine import Chief
+from fleetrl.federation.chief.roster import Roster
+from fleetrl.federation.plan import ChiefPlan
 from fleetrl.federation.shared_settings import shared_text
-from fleetrl.federation.signing import status_payload
+from fleetrl.federation.wire.messages import Message, Reason, encode
+from fleetrl.federation.wire.signing import status_payload
 from fleetrl.runs.settings import LearningSettings
 
 RUN = "fleet"
@@ -21,9 +23,17 @@ SETTINGS = dict(env="qube", fleet_seed=0, preset="standard", scheme="paper", tar
 
 def chief(*, open_fleet: bool = True, scheme: str = "paper", steps: int = 1) -> Chief:
     return Chief(
-        run_id=RUN, workers=("0", "1"), layout=LAYOUT, max_rounds=5, scheme=scheme, open_fleet=open_fleet,
-        settings=shared_text(LearningSettings(**{**SETTINGS, "scheme": scheme})), steps_per_round=steps,
-    )  # fmt: skip
+        ChiefPlan(
+            run_id=RUN,
+            workers=("0", "1"),
+            layout=LAYOUT,
+            max_rounds=5,
+            scheme=scheme,
+            open_fleet=open_fleet,
+            settings=shared_text(LearningSettings(**{**SETTINGS, "scheme": scheme})),
+            steps_per_round=steps,
+        )
+    )
 
 
 def join(worker: str, **changes: object) -> bytes:

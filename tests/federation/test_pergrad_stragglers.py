@@ -13,11 +13,11 @@ from typing import Any
 
 import numpy as np
 import pytest
+from conftest import fleet_model
 
 from fleetrl.agent.learner import Learner
-from fleetrl.federation.chief import Chief
+from fleetrl.federation.chief.machine import Chief
 from fleetrl.runs.factory import make_learner
-from fleetrl.runs.launch import fleet_model
 from fleetrl.runs.settings import LearningSettings, fleet_shape, resolve_learning
 from fleetrl.runs.spec import WorkerSpec
 from fleetrl.transport.base import Transport

@@ -13,7 +13,7 @@ from typing import Any
 
 import pytest
 
-from fleetrl.federation.worker import FederatedRound, FederatedWorker, WorkerSummary
+from fleetrl.federation.worker.runner import FederatedRound, FederatedWorker, WorkerSummary
 from fleetrl.transport.broker import EmbeddedBroker
 from fleetrl.transport.local import LocalBus
 from fleetrl.transport.mqtt import MqttTransport

@@ -11,13 +11,14 @@ import numpy as np
 import pytest
 from conftest import StepAgent
 
-from fleetrl.federation.chief import Chief
-from fleetrl.federation.fleet_model import FleetModel
-from fleetrl.federation.messages import Message, decode, encode
-from fleetrl.federation.rounds import RunEndedError
+from fleetrl.federation.chief.fleet_model import FleetModel
+from fleetrl.federation.chief.machine import Chief
+from fleetrl.federation.plan import ChiefPlan
 from fleetrl.federation.schemes.pergrad import PerStepGradientScheme
-from fleetrl.federation.topics import status_topic
-from fleetrl.federation.worker import FederatedWorker
+from fleetrl.federation.wire.messages import Message, decode, encode
+from fleetrl.federation.wire.topics import status_topic
+from fleetrl.federation.worker.actions import RunEndedError
+from fleetrl.federation.worker.runner import FederatedWorker
 from fleetrl.transport.local import LocalBus
 
 RUN = "ended-run"
@@ -54,9 +55,17 @@ def test_a_worker_started_after_the_run_ended_gives_up_after_the_grace(
 def test_a_chief_that_keeps_the_fleet_model_ends_the_run_with_it_and_one_that_does_not_without() -> None:
     model = FleetModel(PerStepGradientScheme(), StepAgent())  # type: ignore[arg-type]
     keeper = Chief(
-        run_id=RUN, workers=("1",), layout=[("g", (3,))], welcome_layout=model.layout, max_rounds=1,
-        scheme="pergrad", steps_per_round=1, fleet_model=model,
-    )  # fmt: skip
+        ChiefPlan(
+            run_id=RUN,
+            workers=("1",),
+            layout=[("g", (3,))],
+            welcome_layout=model.layout,
+            max_rounds=1,
+            scheme="pergrad",
+            steps_per_round=1,
+        ),
+        fleet_model=model,
+    )
     model.load(np.array([1.0, 2.0, 0.0], np.float32))
     step = keeper.receive(
         Message("step_gradient", RUN, "1", 1, flat=np.array([0.5, 0.5, 9], np.float32)), now=0
@@ -66,6 +75,6 @@ def test_a_chief_that_keeps_the_fleet_model_ends_the_run_with_it_and_one_that_do
     decoded = decode(encode(done, layout=keeper.layout_of("done")), run_id=RUN, known_senders=("chief",),
                      layout=[("g", (3,))], layouts={"done": model.layout})  # fmt: skip
     assert decoded.flat is not None and decoded.flat.tolist() == done.flat.tolist()
-    plain = Chief(run_id=RUN, workers=("1",), layout=[("g", (3,))], max_rounds=1, scheme="paper")
+    plain = Chief(ChiefPlan(run_id=RUN, workers=("1",), layout=[("g", (3,))], max_rounds=1, scheme="paper"))
     step = plain.receive(Message("gradient", RUN, "1", 1, flat=np.ones(3, np.float32)), now=0)
     assert [m.flat for m in step.outgoing if m.type == "done"] == [None]

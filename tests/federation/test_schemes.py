@@ -6,14 +6,12 @@ import numpy as np
 import pytest
 
 from fleetrl.federation.aggregation import get_aggregator
-from fleetrl.federation.chief import Chief
-from fleetrl.federation.chief_answer import check_round_rules
-from fleetrl.federation.messages import Message, Reason, encode
+from fleetrl.federation.chief.machine import Chief
+from fleetrl.federation.plan import ChiefPlan
 from fleetrl.federation.schemes import (
     COMPLETED,
     SCHEMES,
     AsyncScheme,
-    Granularity,
     RoundAnswer,
     RoundContext,
     RoundScheme,
@@ -22,8 +20,8 @@ from fleetrl.federation.schemes import (
     get_scheme,
 )
 from fleetrl.federation.schemes.base import aggregate
-from fleetrl.federation.schemes.pergrad import WEIGHT_GRID
-from fleetrl.federation.signing import status_payload
+from fleetrl.federation.wire.messages import Message, Reason, encode
+from fleetrl.federation.wire.signing import status_payload
 
 RUN = "r1"
 
@@ -164,7 +162,10 @@ def test_fedavg_ends_the_run_once_every_member_has_completed() -> None:
     assert not not_yet.ends_run and not_yet.finished == ()
 
 
-@pytest.mark.parametrize("name", sorted(n for n, s in SCHEMES.items() if s.granularity is Granularity.ROUND))
+@pytest.mark.parametrize(
+    "name",
+    sorted(n for n, s in SCHEMES.items() if issubclass(s, RoundScheme) and not issubclass(s, AsyncScheme)),
+)
 def test_every_per_round_scheme_sends_what_its_layout_describes(name: str) -> None:
     scheme: Scheme = get_scheme(name)
     agent = FakeAgent()
@@ -207,7 +208,7 @@ class StepAgent(FakeAgent):
 
 def test_pergrad_averages_each_steps_gradients_and_ends_at_the_last_step_once_all_completed() -> None:
     scheme, agent = get_scheme("pergrad"), StepAgent()
-    assert scheme.granularity is Granularity.STEP and scheme.shared_start and scheme.stays_after_completion
+    assert isinstance(scheme, StepScheme) and scheme.shared_start and scheme.stays_after_completion
     assert scheme.layout(agent) == LAYOUT2 and scheme.exchanges_per_round(agent) == 2
     grads = answers(("1", "step_gradient", [1.0, 4.0]), ("2", COMPLETED, [3.0, -2.0]))
     middle = scheme.combine(
@@ -247,7 +248,9 @@ def step_message(worker: str, rnd: int, step: int, values: list[float], kind: st
 
 def test_the_chief_closes_each_step_and_the_round_at_its_last_step() -> None:
     chief = Chief(
-        run_id=RUN, workers=("1", "2"), layout=LAYOUT2, max_rounds=3, scheme="pergrad", steps_per_round=2
+        ChiefPlan(
+            run_id=RUN, workers=("1", "2"), layout=LAYOUT2, max_rounds=3, scheme="pergrad", steps_per_round=2
+        )
     )
     chief.receive_bytes(step_message("1", 1, 0, [1, 2]), topic_worker="1", now=0.0)
     (answer,) = chief.receive_bytes(step_message("2", 1, 0, [3, 4]), topic_worker="2", now=0.0).outgoing
@@ -275,34 +278,47 @@ def test_the_chief_closes_each_step_and_the_round_at_its_last_step() -> None:
 
 
 def test_a_per_round_chief_rejects_a_step_and_needs_a_deadline_for_a_quorum() -> None:
-    chief = Chief(run_id=RUN, workers=("1", "2"), layout=[("pi", (2,))], max_rounds=3, scheme="paper")
+    chief = Chief(
+        ChiefPlan(run_id=RUN, workers=("1", "2"), layout=[("pi", (2,))], max_rounds=3, scheme="paper")
+    )
     message = Message("gradient", RUN, "1", 1, flat=np.ones(2, np.float32), step=2)
     step = chief.receive_bytes(encode(message, layout=[("pi", (2,))]), topic_worker="1", now=0.0)
     assert [(e.reason, e.detail) for e in step.events] == [(Reason.BAD_ROUND, "step 2 of 1 per round")]
     assert chief.answered == ()
     with pytest.raises(ValueError, match="scheme 'paper' sends once per round"):
-        Chief(run_id=RUN, workers=("1",), layout=LAYOUT2, max_rounds=3, steps_per_round=2, scheme="paper")
+        Chief(
+            ChiefPlan(
+                run_id=RUN, workers=("1",), layout=LAYOUT2, max_rounds=3, steps_per_round=2, scheme="paper"
+            )
+        )
     with pytest.raises(ValueError, match=r"scheme 'paper': a quorum below 1 needs a round timeout"):
-        Chief(run_id=RUN, workers=("1", "2"), layout=[("pi", (2,))], max_rounds=3, scheme="paper", quorum=0.5)
+        Chief(
+            ChiefPlan(
+                run_id=RUN,
+                workers=("1", "2"),
+                layout=[("pi", (2,))],
+                max_rounds=3,
+                scheme="paper",
+                quorum=0.5,
+            )
+        )
     # a per-step scheme's quorum needs no deadline: the grace after it is one (docs/protocol.md "Stragglers")
     Chief(
-        run_id=RUN,
-        workers=("1", "2"),
-        layout=LAYOUT2,
-        max_rounds=3,
-        scheme="pergrad",
-        steps_per_round=2,
-        quorum=0.5,
+        ChiefPlan(
+            run_id=RUN,
+            workers=("1", "2"),
+            layout=LAYOUT2,
+            max_rounds=3,
+            scheme="pergrad",
+            steps_per_round=2,
+            quorum=0.5,
+        )
     )
 
 
 def test_each_scheme_is_one_protocol_and_has_no_method_of_the_other() -> None:
     for name, cls in SCHEMES.items():
         assert issubclass(cls, RoundScheme) != issubclass(cls, StepScheme), name
-        expected = Granularity.STEP if issubclass(cls, StepScheme) else Granularity.ROUND
-        if issubclass(cls, AsyncScheme):  # a worker's side of one message a round, without a barrier
-            expected = Granularity.ASYNC
-        assert cls.granularity is expected, name
     pergrad, paper = get_scheme("pergrad"), get_scheme("paper")
     assert not any(hasattr(pergrad, m) for m in ("outgoing", "apply_average", "local_loss"))
     assert not any(hasattr(paper, m) for m in ("apply_step_answer",))
@@ -349,7 +365,7 @@ class Configured(RoundScheme):
 
 def test_the_chief_weighs_answers_by_their_units_and_configures_each_round() -> None:
     layout = [("pi", (2,))]
-    chief = Chief(run_id=RUN, workers=("1", "2"), layout=layout, max_rounds=3, scheme=Configured())
+    chief = Chief(ChiefPlan(run_id=RUN, workers=("1", "2"), layout=layout, max_rounds=3, scheme=Configured()))
     (welcome,) = chief.status(
         "1", status_payload(b"online", run_id=RUN, node="1", incarnation=1), now=0.0
     ).outgoing
@@ -366,59 +382,3 @@ def test_the_chief_weighs_answers_by_their_units_and_configures_each_round() -> 
     assert answer.flat is not None and answer.flat.tolist() == [3.0, 6.0]  # (1·[1,2] + 2·[4,8]) / 3
     assert (answer.units, answer.samples) == (3, 500)
     assert answer.config == {"round": 2.0, "members": "1,2"}  # it opens round 2
-
-
-def test_pergrad_with_focus_weighs_each_unit_by_its_need_and_the_mean_by_each_answer_s_weight() -> None:
-    plain, focused = get_scheme("pergrad"), get_scheme("pergrad", focus=0.7)
-    mature = get_scheme("pergrad", mature_weight=0.05)
-    assert plain.params() == {}  # the plain mean: the records and checkpoints made before either existed
-    assert focused.params() == {"focus": 0.7}
-    assert mature.params() == {"mature_weight": 0.05}
-    assert (
-        isinstance(plain, StepScheme) and isinstance(focused, StepScheme) and isinstance(mature, StepScheme)
-    )
-    # defaults: every unit counts once, the weight is its units
-    assert plain.unit_weights([0.2, 1.0], [False, True]) is None
-    # 1 - 0.7·p, p clipped to [0, 1]: at zero 1, half way 0.65, at or past the target 0.3
-    progress, learning = [0.0, 0.5, 1.0, 1.4, -0.2], [False] * 5
-    # (each on the grid of 2^-12, the nearest multiple: within half a step)
-    near = {"atol": WEIGHT_GRID / 2, "rtol": 0.0}
-    np.testing.assert_allclose(focused.unit_weights(progress, learning), [1.0, 0.65, 0.3, 0.3, 1.0], **near)
-    # a unit that has completed counts 0.05 as much as one still learning, whatever its progress now
-    np.testing.assert_allclose(
-        mature.unit_weights([0.9, 1.0, 0.4], [False, True, True]), [1.0, 0.05, 0.05], **near
-    )
-    both = get_scheme("pergrad", focus=0.5, mature_weight=0.1)
-    assert isinstance(both, StepScheme)
-    np.testing.assert_allclose(both.unit_weights([0.5, 1.0], [False, True]), [0.75, 0.05], **near)
-    tiny = get_scheme("pergrad", focus=0.5, mature_weight=1e-6)
-    assert isinstance(tiny, StepScheme)
-    assert tiny.unit_weights([1.0], [True]) == [WEIGHT_GRID]  # never 0: a mature unit still counts
-    for scheme in (focused, mature, both):
-        assert isinstance(scheme, StepScheme)
-        weights = scheme.unit_weights([0.1234, 0.77, 1.0], [False, True, True])
-        assert weights is not None and all((w / WEIGHT_GRID).is_integer() for w in weights)
-    for key, bad in (("focus", 1.0), ("focus", -0.1), ("focus", float("nan")), ("mature_weight", 0.0),
-                     ("mature_weight", 1.5)):  # fmt: skip
-        with pytest.raises(ValueError, match=key):
-            get_scheme("pergrad", **{key: bad})
-    grads = {
-        "1": Message("step_gradient", RUN, "1", 1, flat=np.array([1.0, 4.0], np.float32), weight=0.25),
-        "2": Message("step_gradient", RUN, "2", 1, flat=np.array([3.0, -2.0], np.float32), units=2),
-        "3": Message(
-            "step_gradient", RUN, "3", 1, flat=np.array([2.0, 2.0], np.float32), units=2, weight=1.5
-        ),
-    }
-    step = focused.combine(grads, RoundContext(get_aggregator("mean"), ("1", "2", "3"), {}, 0, False))
-    # (0.25·[1, 4] + 2·[3, -2] + 1.5·[2, 2]) / 3.75 = [9.25, 0] / 3.75
-    np.testing.assert_allclose(step.flat, [9.25 / 3.75, 0.0], rtol=1e-6)
-
-
-def test_a_chief_refuses_focus_with_a_rule_that_counts_members() -> None:
-    focused = get_scheme("pergrad", focus=0.5)
-    for rule in ("median", "trimmed_mean:0.2"):
-        with pytest.raises(ValueError, match="counts members and would ignore the weights"):
-            check_round_rules(focused, 10, 0.6, None, 20, aggregation=rule)
-    for rule in ("mean", "clipped_mean:1.0"):
-        check_round_rules(focused, 10, 0.6, None, 20, aggregation=rule)
-    check_round_rules(get_scheme("pergrad"), 10, 0.6, None, 20, aggregation="median")  # focus 0: no weights

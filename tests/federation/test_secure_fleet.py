@@ -11,8 +11,8 @@ from typing import Any
 
 import pytest
 
-from fleetrl.federation.signing import FleetKey
-from fleetrl.federation.topics import chief_topic, worker_topic
+from fleetrl.federation.wire.signing import FleetKey
+from fleetrl.federation.wire.topics import chief_topic, worker_topic
 from fleetrl.runs.secure import SecureFleet, write_secure_config
 from fleetrl.transport.base import Transport
 from fleetrl.transport.broker import EmbeddedBroker, free_port

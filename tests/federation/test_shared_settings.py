@@ -9,8 +9,8 @@ from typing import Any
 import numpy as np
 import pytest
 
-from fleetrl.federation.chief import Chief
-from fleetrl.federation.messages import Message, Reason, encode
+from fleetrl.federation.chief.machine import Chief
+from fleetrl.federation.plan import ChiefPlan
 from fleetrl.federation.runner import IdleTimeout, run_chief
 from fleetrl.federation.shared_settings import (
     LearningSettings,
@@ -18,8 +18,9 @@ from fleetrl.federation.shared_settings import (
     settings_difference,
     shared_text,
 )
-from fleetrl.federation.signing import status_payload
-from fleetrl.federation.worker import FederatedWorker
+from fleetrl.federation.wire.messages import Message, Reason, encode
+from fleetrl.federation.wire.signing import status_payload
+from fleetrl.federation.worker.runner import FederatedWorker
 from fleetrl.runs.settings import resolve_learning
 from fleetrl.transport.local import LocalBus
 
@@ -45,7 +46,14 @@ def shared_settings(**values: Any) -> dict[str, str]:
 
 def chief() -> Chief:
     return Chief(
-        run_id=RUN, workers=("1", "2"), layout=LAYOUT, max_rounds=5, scheme="paper", settings=CHIEF_SETTINGS
+        ChiefPlan(
+            run_id=RUN,
+            workers=("1", "2"),
+            layout=LAYOUT,
+            max_rounds=5,
+            scheme="paper",
+            settings=CHIEF_SETTINGS,
+        )
     )
 
 
@@ -167,7 +175,11 @@ def test_a_worker_whose_settings_differ_is_refused_at_join_and_its_messages_reje
 
 def test_a_worker_whose_scheme_params_differ_is_refused_naming_them() -> None:
     ours = shared_settings(**CHIEF_SETTINGS_ARGS, scheme="fedavgm", scheme_params={"momentum": 0.9})
-    c = Chief(run_id=RUN, workers=("1", "2"), layout=LAYOUT, max_rounds=5, scheme="fedavgm", settings=ours)
+    c = Chief(
+        ChiefPlan(
+            run_id=RUN, workers=("1", "2"), layout=LAYOUT, max_rounds=5, scheme="fedavgm", settings=ours
+        )
+    )
     theirs = shared_settings(**CHIEF_SETTINGS_ARGS, scheme="fedavgm", scheme_params={"momentum": 0.5})
     step = c.receive_bytes(
         encode(Message("join", RUN, "2", 1, settings=theirs), layout=LAYOUT), topic_worker="2", now=0.0
@@ -190,7 +202,7 @@ def test_a_matching_join_is_accepted_once_and_lifts_a_refusal() -> None:
 
 
 def test_a_chief_without_settings_checks_nothing() -> None:
-    c = Chief(run_id=RUN, workers=("1",), layout=LAYOUT, max_rounds=5, scheme="paper")
+    c = Chief(ChiefPlan(run_id=RUN, workers=("1",), layout=LAYOUT, max_rounds=5, scheme="paper"))
     step = c.receive_bytes(join("1", preset="paper"), topic_worker="1", now=0.0)
     assert [e.kind for e in step.events] == ["joined"]
 
@@ -203,7 +215,9 @@ def test_a_worker_with_another_scheme_or_preset_stops_with_the_chiefs_reason(
     learner = fake_learner(1)
     layout = learner.agent.actor_layout()
     boss = Chief(
-        run_id=RUN, workers=("1",), layout=layout, max_rounds=5, scheme="paper", settings=CHIEF_SETTINGS
+        ChiefPlan(
+            run_id=RUN, workers=("1",), layout=layout, max_rounds=5, scheme="paper", settings=CHIEF_SETTINGS
+        )
     )
     failures: list[BaseException] = []
 

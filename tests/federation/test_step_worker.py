@@ -9,10 +9,13 @@ from typing import Any
 
 import numpy as np
 
-from fleetrl.federation.chief import Chief
+from fleetrl.federation.chief.machine import Chief
 from fleetrl.federation.events import Sent, WorkerEvent
-from fleetrl.federation.messages import Message
-from fleetrl.federation.rounds import (
+from fleetrl.federation.kinds import new_worker_machine
+from fleetrl.federation.plan import ChiefPlan
+from fleetrl.federation.schemes import resolve_scheme
+from fleetrl.federation.wire.messages import Message
+from fleetrl.federation.worker.actions import (
     AbandonUpdate,
     ApplyFleetStep,
     ApplyStep,
@@ -26,8 +29,7 @@ from fleetrl.federation.rounds import (
     TimedOut,
     WorkerStep,
 )
-from fleetrl.federation.schemes import resolve_scheme
-from fleetrl.federation.step_worker import StepWorkerMachine, worker_machine
+from fleetrl.federation.worker.per_step import StepWorkerMachine
 
 RUN = "machine-run"
 LAYOUT: list[tuple[str, tuple[int, ...]]] = [("trunk.weight", (4, 3)), ("head.bias", (3,))]
@@ -47,7 +49,7 @@ class Outcome:
 def machine(steps: int = K, **kwargs: Any) -> StepWorkerMachine:
     options: dict[str, Any] = {"reply_timeout": 60.0, "resend_interval": 5.0, "max_rounds": 10}
     options.update(kwargs)
-    m = worker_machine(
+    m = new_worker_machine(
         run_id=RUN, worker_id="1", layout=LAYOUT, scheme=resolve_scheme("pergrad"), steps_per_round=steps,
         **options,
     )  # fmt: skip
@@ -203,8 +205,15 @@ def test_a_worker_resumed_mid_round_replays_the_closed_steps_and_goes_on_at_the_
     same gradients); the chief answers each re-sent step with its own answer; step 2 is played as usual."""
     steps = 4
     c = Chief(
-        run_id=RUN, workers=("1", "2"), layout=LAYOUT, max_rounds=10, scheme="pergrad", steps_per_round=steps,
-    )  # fmt: skip
+        ChiefPlan(
+            run_id=RUN,
+            workers=("1", "2"),
+            layout=LAYOUT,
+            max_rounds=10,
+            scheme="pergrad",
+            steps_per_round=steps,
+        )
+    )
     grads = {w: [np.full(15, 10 * int(w) + k, np.float32) for k in range(steps)] for w in ("1", "2")}
 
     def step_of(worker: str, k: int) -> Message:

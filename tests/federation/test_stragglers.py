@@ -6,12 +6,14 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from conftest import chief_of
 
-from fleetrl.federation.chief import Chief, ChiefStep
-from fleetrl.federation.chief_state import chief_from_state, chief_to_state
-from fleetrl.federation.messages import Message
-from fleetrl.federation.signing import status_payload
-from fleetrl.federation.stragglers import GRACE_FLOOR, quorum_count
+from fleetrl.federation.chief.checkpoint import chief_from_state, chief_to_state
+from fleetrl.federation.chief.machine import Chief, ChiefStep
+from fleetrl.federation.chief.stragglers import GRACE_FLOOR, quorum_count
+from fleetrl.federation.plan import ChiefPlan
+from fleetrl.federation.wire.messages import Message
+from fleetrl.federation.wire.signing import status_payload
 
 RUN = "straggle"
 LAYOUT = [("g", (2,))]
@@ -21,8 +23,9 @@ K = 2
 def make(**kwargs: object) -> Chief:
     options: dict[str, object] = {"quorum": 0.6, "max_rounds": 20}
     options.update(kwargs)
-    return Chief(
-        run_id=RUN, workers=("0", "1", "2"), layout=LAYOUT, scheme="pergrad", steps_per_round=K, **options,  # type: ignore[arg-type]
+    return chief_of(  # type: ignore[no-any-return]
+        Chief, run_id=RUN, workers=("0", "1", "2"), layout=LAYOUT, scheme="pergrad", steps_per_round=K,
+        **options,
     )  # fmt: skip
 
 
@@ -121,7 +124,7 @@ def test_what_the_pace_rules_keep_survives_a_checkpoint() -> None:
     step(c, "1", 1, 1, [1.0, 1.0], now=2.0)
     fields, tensors = chief_to_state(c)
     back = chief_from_state(fields, tensors, now=0.0)
-    assert back.state.pace == c.state.pace and back.max_staleness == c.max_staleness
+    assert back.state.pace == c.state.pace and back.plan.max_staleness == c.plan.max_staleness
     assert back.state.pace.behind == {"2"} and back.state.pace.missed == {"2"}
 
 
@@ -144,13 +147,15 @@ def test_a_silent_member_that_missed_an_exchange_gets_no_grace_until_it_answers_
     """A participant paused whole: its first missed exchange costs one grace, the next ones none while it is
     silent; the exchange it gets into again makes it waited for (with its grace) once more. K = 4 here."""
     c = Chief(
-        run_id=RUN,
-        workers=("0", "1", "2"),
-        layout=LAYOUT,
-        scheme="pergrad",
-        steps_per_round=4,
-        quorum=0.6,
-        max_rounds=20,
+        ChiefPlan(
+            run_id=RUN,
+            workers=("0", "1", "2"),
+            layout=LAYOUT,
+            scheme="pergrad",
+            steps_per_round=4,
+            quorum=0.6,
+            max_rounds=20,
+        )
     )
     c.tick(0.0)
     for sender in ("0", "1", "2"):
@@ -180,9 +185,16 @@ def test_a_member_that_answers_late_is_not_silent_and_is_waited_for_again() -> N
     """A unit that is only slow: its answer to the exchange it missed comes late, so the next one waits for it
     (with its grace) as before; a late answer of an older round says nothing of the open one."""
     c = Chief(
-        run_id=RUN, workers=("0", "1", "2"), layout=LAYOUT, scheme="pergrad", steps_per_round=4, quorum=0.6,
-        max_rounds=20,
-    )  # fmt: skip
+        ChiefPlan(
+            run_id=RUN,
+            workers=("0", "1", "2"),
+            layout=LAYOUT,
+            scheme="pergrad",
+            steps_per_round=4,
+            quorum=0.6,
+            max_rounds=20,
+        )
+    )
     c.tick(0.0)
     for sender in ("0", "1", "2"):
         step(c, sender, 1, 0, [3.0, 3.0], now=0.1)

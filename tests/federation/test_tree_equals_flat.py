@@ -12,16 +12,16 @@ from collections.abc import Callable
 from typing import Any
 
 import pytest
+from conftest import chief_of, fleet_model
 
-from fleetrl.federation.chief import Chief
-from fleetrl.federation.edge import EdgeAggregator
-from fleetrl.federation.edge_runner import EdgeSummary, run_edge
+from fleetrl.federation.chief.machine import Chief
+from fleetrl.federation.edge.aggregator import EdgeAggregator
+from fleetrl.federation.edge.runner import EdgeSummary, run_edge
+from fleetrl.federation.plan import ChiefPlan
 from fleetrl.federation.runner import ChiefSummary, run_chief
 from fleetrl.federation.schemes.base import FleetStart
-from fleetrl.federation.schemes.pergrad import PerStepGradientScheme
-from fleetrl.federation.worker import FederatedRound, FederatedWorker
+from fleetrl.federation.worker.runner import FederatedRound, FederatedWorker
 from fleetrl.runs.factory import make_learner
-from fleetrl.runs.launch import fleet_model
 from fleetrl.runs.settings import LearningSettings, fleet_shape, resolve_learning
 from fleetrl.runs.spec import WorkerSpec
 from fleetrl.transport.local import LocalBus
@@ -33,14 +33,8 @@ TIMEOUT = 300.0
 FleetRunner = Callable[..., Any]
 
 
-ARMS = {"pergrad": (ROUNDS, None), "fedavg": (12, 25.0), "pergrad-focus": (ROUNDS, None)}
-"""arm → (M, target score: None for CartPole's own); ``pergrad-focus``: pergrad with its units weighed by
-need (``focus`` 0.7), so every message carries a weight that is not its units"""
-
-
-def scheme_of(arm: str) -> Any:
-    """The arm's scheme for one role: its name, or a scheme object of its own with the arm's parameters."""
-    return PerStepGradientScheme(focus=0.7) if arm == "pergrad-focus" else arm
+ARMS = {"pergrad": (ROUNDS, None), "fedavg": (12, 25.0)}
+"""arm → (M, target score: None for CartPole's own)"""
 
 
 Outcome = dict[str, list[tuple[float, str]]]
@@ -52,7 +46,7 @@ def learning(scheme: str, seed: int = 0) -> LearningSettings:
         LearningSettings(
             env="cartpole",
             preset="standard",
-            scheme=scheme.removesuffix("-focus"),
+            scheme=scheme,
             seed=seed,
             max_rounds=rounds,
             target_score=target,
@@ -78,7 +72,7 @@ def chief_options(scheme: str) -> dict[str, Any]:
     start = None if model is None else FleetStart(model.layout, model.snapshot())
     shape = fleet_shape(settings)
     steps = shape.exchanges_per_round
-    return {"scheme": scheme_of(scheme), "steps_per_round": steps, "start": start, "quorum": 1.0}
+    return {"scheme": scheme, "steps_per_round": steps, "start": start, "quorum": 1.0}
 
 
 def outcome(records: dict[str, list[FederatedRound]]) -> Outcome:
@@ -88,7 +82,7 @@ def outcome(records: dict[str, list[FederatedRound]]) -> Outcome:
 def flat_run(fleet_runner: FleetRunner, scheme: str, units: dict[str, Any]) -> tuple[Outcome, ChiefSummary]:
     result = fleet_runner(
         LocalBus().client, units, run_id="flat", max_rounds=ARMS[scheme][0],
-        chief_kwargs=chief_options(scheme), worker_kwargs={"scheme": scheme_of(scheme)}, timeout=TIMEOUT,
+        chief_kwargs=chief_options(scheme), worker_kwargs={"scheme": scheme}, timeout=TIMEOUT,
     )  # fmt: skip
     return outcome(result.records), result.chief
 
@@ -105,7 +99,7 @@ def tree_run(
     step_layout = list(units["0"].agent.step_layout(0)) if scheme != "fedavg" else list(agent.model_layout())
     bus = LocalBus()
     top = ("region",) if regional else tuple(sites)
-    root = Chief(run_id="tree", workers=top, layout=step_layout, max_rounds=rounds, **options)
+    root = chief_of(Chief, run_id="tree", workers=top, layout=step_layout, max_rounds=rounds, **options)
     records: dict[str, list[FederatedRound]] = {w: [] for w in UNITS}
     results: dict[str, Any] = {}
     errors: list[BaseException] = []
@@ -123,10 +117,19 @@ def tree_run(
 
     def aggregator(site: str, upstream_run: str, members: tuple[str, ...]) -> threading.Thread:
         edge = EdgeAggregator(
-            site_id=site, root_run=upstream_run, run_id=f"tree-{site}", members=members, layout=step_layout,
-            welcome_layout=layout, scheme=scheme_of(scheme), max_rounds=rounds,
-            steps_per_round=options["steps_per_round"], quorum=1.0,
-        )  # fmt: skip
+            ChiefPlan(
+                run_id=f"tree-{site}",
+                workers=members,
+                layout=step_layout,
+                welcome_layout=layout,
+                scheme=scheme,
+                max_rounds=rounds,
+                steps_per_round=options["steps_per_round"],
+                quorum=1.0,
+            ),
+            site_id=site,
+            root_run=upstream_run,
+        )
         return guarded(
             site, lambda: run_edge(edge, upstream=bus.client(), downstream=bus.client(), idle_timeout=TIMEOUT)
         )
@@ -138,7 +141,7 @@ def tree_run(
         for w in members:
             worker = FederatedWorker(
                 units[w], bus.client(), run_id=f"tree-{site}", worker_id=w, max_rounds=rounds,
-                on_record=records[w].append, reply_timeout=TIMEOUT, scheme=scheme_of(scheme),
+                on_record=records[w].append, reply_timeout=TIMEOUT, scheme=scheme,
             )  # fmt: skip
             threads.append(guarded(f"worker-{w}", worker.run))
     for thread in threads:
@@ -176,13 +179,6 @@ def test_a_tree_of_two_sites_gives_the_flat_fleet_s_scores_and_models(
     assert {s.end_reason for s in sites} == {"the root ended the run"}
     models = {u.agent.model_parameters().tobytes() for u in tree_units.values()}
     assert len(models) == 1  # one policy across both sites
-    if scheme == "pergrad-focus":  # the weights by need moved the fleet: not the plain mean's models
-        plain = learners("pergrad")
-        flat_run(fleet_runner, "pergrad", plain)
-        assert (
-            plain["0"].agent.model_parameters().tobytes()
-            != tree_units["0"].agent.model_parameters().tobytes()
-        )
     if scheme == "fedavg":  # ended by completion: the root's finished reached every member through its site
         assert root.end_reason == "every unit completed" and root.rounds < ARMS[scheme][0]
         assert all(rows[-1][1] == "completed" for rows in tree.values()), tree

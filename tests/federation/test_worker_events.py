@@ -5,7 +5,7 @@ from __future__ import annotations
 
 from fleetrl.agent.learner import RoundResult
 from fleetrl.federation.events import RoundEvent, Sent, WorkerEvent
-from fleetrl.federation.rounds import FederatedRound
+from fleetrl.federation.worker.actions import FederatedRound
 from fleetrl.runs.roles import metrics_row
 
 RESULT = RoundResult(2, 10.0, 10, 1, 9.0, False, 0.1, 0.2, 1.0, 0.5)

@@ -11,10 +11,14 @@ from typing import Any
 import numpy as np
 import pytest
 
-from fleetrl.federation.chief import Chief
+from fleetrl.federation.chief.machine import Chief
 from fleetrl.federation.events import Sent, WorkerEvent
-from fleetrl.federation.messages import Message, encode
-from fleetrl.federation.rounds import (
+from fleetrl.federation.plan import ChiefPlan
+from fleetrl.federation.schemes import resolve_scheme
+from fleetrl.federation.wire.messages import Message, encode
+from fleetrl.federation.wire.signing import FleetKey, status_payload
+from fleetrl.federation.wire.topics import chief_topic, worker_of_topic
+from fleetrl.federation.worker.actions import (
     Announce,
     ApplyAverage,
     Checkpoint,
@@ -31,11 +35,8 @@ from fleetrl.federation.rounds import (
     WorkerSummary,
     resume_round,
 )
-from fleetrl.federation.schemes import resolve_scheme
-from fleetrl.federation.signing import FleetKey, status_payload
-from fleetrl.federation.topics import chief_topic, worker_of_topic
-from fleetrl.federation.worker import FederatedWorker
-from fleetrl.federation.worker_machine import WorkerMachine
+from fleetrl.federation.worker.machine import WorkerMachine
+from fleetrl.federation.worker.runner import FederatedWorker
 from fleetrl.transport.base import Received, Will
 from fleetrl.transport.local import LocalBus
 
@@ -359,7 +360,7 @@ def test_the_runner_plays_a_run_over_an_in_process_chief_and_repairs_a_lost_mess
     fake_learner: Any,
 ) -> None:
     learner = fake_learner(11, complete_at=3)
-    c = Chief(run_id=RUN, workers=["1"], layout=FAKE_LAYOUT, max_rounds=5, scheme="paper")
+    c = Chief(ChiefPlan(run_id=RUN, workers=["1"], layout=FAKE_LAYOUT, max_rounds=5, scheme="paper"))
     transport = LoopbackTransport(c, drop_first=2)  # the join and round 1's gradient are lost
     got: list[FederatedRound] = []
     checkpoints: list[int] = []

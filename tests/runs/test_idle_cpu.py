@@ -18,7 +18,7 @@ from pathlib import Path
 
 import pytest
 
-from fleetrl.federation.topics import status_topic
+from fleetrl.federation.wire.topics import status_topic
 from fleetrl.link.wire import device_topic
 from fleetrl.transport.broker import EmbeddedBroker
 from fleetrl.transport.mqtt import MqttTransport

@@ -274,7 +274,7 @@ def bridge_link(args: argparse.Namespace) -> Callable[[], Any]:
     bridge of ``--unit`` under ``--run-id`` (no bridge online within 10 s: a TimeoutError naming the unit)."""
     from fleetrl.envs.catalog import get_env_spec
     from fleetrl.envs.device_side import check_takes_link
-    from fleetrl.federation.topics import validate_id
+    from fleetrl.federation.wire.topics import validate_id
     from fleetrl.runs.factory import bridge_link as open_bridge_link
     from fleetrl.runs.setting_values import SettingError
     from fleetrl.runs.settings import BrokerLogin, as_setting_error

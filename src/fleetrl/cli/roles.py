@@ -123,38 +123,22 @@ def cmd_secure_config(args: argparse.Namespace) -> int:
 def cmd_chief(args: argparse.Namespace) -> int:
     """Serve one run as its chief; print how it ended as JSON."""
     with collector_paused():
-        from fleetrl.federation.chief import EVERY_WORKER_DROPPED
-        from fleetrl.federation.chief_async import new_chief
-        from fleetrl.federation.lease import chief_epoch
+        from fleetrl.federation.chief.lease import chief_epoch
+        from fleetrl.federation.chief.machine import EVERY_WORKER_DROPPED
+        from fleetrl.federation.kinds import new_chief
         from fleetrl.federation.runner import run_chief
-        from fleetrl.federation.shared_settings import shared_text
-        from fleetrl.federation.topics import CHIEF_ID
+        from fleetrl.federation.wire.topics import CHIEF_ID
         from fleetrl.runs.dirlock import DirectoryLock
-        from fleetrl.runs.launch import fleet_model, fleet_start
+        from fleetrl.runs.launch import chief_plan
         from fleetrl.runs.role_settings import ChiefSettings
         from fleetrl.runs.rundir import write_json_atomic
-        from fleetrl.runs.settings import fleet_shape
 
         settings = settings_from_args(ChiefSettings, args)
-    shape = fleet_shape(settings.learning)
-    chief = new_chief(
-        run_id=settings.run_id,
-        workers=settings.member_ids(),
-        layout=shape.layout,
-        steps_per_round=shape.exchanges_per_round,
-        scheme=settings.learning.federation_scheme(),
-        max_rounds=settings.learning.max_rounds,
-        aggregator=settings.aggregation,
-        quorum=settings.chief_quorum,
-        round_timeout=settings.round_timeout,
-        max_staleness=settings.max_staleness,
-        dropout_grace=settings.dropout_grace,
-        open_fleet=not settings.closed_fleet,
-        key=settings.fleet_key(),
-        settings=shared_text(settings.learning),
-        fleet_model=fleet_model(settings.learning),
-        start=fleet_start(settings.learning),
-    )
+    plan, fleet = chief_plan(
+        settings.learning, settings, run_id=settings.run_id, workers=settings.member_ids(),
+        dropout_grace=settings.dropout_grace, open_fleet=not settings.closed_fleet,
+    )  # fmt: skip
+    chief = new_chief(plan, key=settings.fleet_key(), **fleet)
     if settings.out is None:
         retained = claim_place(settings, CHIEF_ID)  # one chief per run on the broker
         chief.take_epoch(chief_epoch(checkpoint=None, retained=retained))
@@ -187,8 +171,8 @@ def claim_place(settings: Any, node: str, lock: Any = None) -> Any:
     """The retained status of ``node``'s place in the run (``chief``, a worker's or a host's id), read
     before this process connects under its client id; RoleConflict (exit 1, one line naming the holder) if
     a live process holds it — after releasing ``lock`` and removing what it created."""
-    from fleetrl.federation.lease import place_refusal
-    from fleetrl.federation.topics import status_topic
+    from fleetrl.federation.chief.lease import place_refusal
+    from fleetrl.federation.wire.topics import status_topic
     from fleetrl.runs.dirlock import RoleConflict
 
     try:
@@ -206,8 +190,8 @@ def claim_place(settings: Any, node: str, lock: Any = None) -> Any:
 def _lease_options(settings: Any) -> dict[str, Any]:
     """What ``run_chief`` needs to hold the run's lease: who this process is, and how to read the chief
     status after the connection was lost or the process stalled."""
-    from fleetrl.federation.lease import holder_fields
-    from fleetrl.federation.topics import CHIEF_ID
+    from fleetrl.federation.chief.lease import holder_fields
+    from fleetrl.federation.wire.topics import CHIEF_ID
 
     return {
         "read_lease": lambda: settings.read_status(CHIEF_ID),
@@ -234,8 +218,8 @@ def _serve_with_checkpoints(chief: Any, settings: Any, retained: Any) -> Any:
     """Run the chief with a checkpoint every round in ``settings.out`` (resuming from it with ``--resume``)
     and its events appended to chief.log as they happen. ``retained``: the chief status the broker kept
     (the epoch taken is one more than the newest of it and the checkpoint's)."""
-    from fleetrl.federation.chief_state import replay_last_answer
-    from fleetrl.federation.lease import chief_epoch
+    from fleetrl.federation.chief.checkpoint import replay_last_answer
+    from fleetrl.federation.chief.lease import chief_epoch
     from fleetrl.federation.runner import run_chief
     from fleetrl.runs.checkpoints import ChiefCheckpoint, chief_checkpoint_dir
 
@@ -287,7 +271,7 @@ def cmd_worker(args: argparse.Namespace) -> int:
 
 def _serve_worker(settings: Any, spec: Any, config: dict[str, Any], learner: Any) -> int:
     """Serve as one worker in the run directory this process has locked."""
-    from fleetrl.federation.lease import holder_fields
+    from fleetrl.federation.chief.lease import holder_fields
     from fleetrl.runs.checkpoints import WorkerCheckpoint, worker_checkpoint_dir
     from fleetrl.runs.roles import train_federated
     from fleetrl.runs.rundir import RunRecorder
@@ -319,7 +303,7 @@ def _serve_host(settings: Any, config: dict[str, Any]) -> int:
     """Serve as the unit host of ``settings.unit_ids()``: its run directory gets each unit's rows, model."""
     from dataclasses import replace
 
-    from fleetrl.federation.lease import holder_fields
+    from fleetrl.federation.chief.lease import holder_fields
     from fleetrl.runs.fleet_summary import summarised
     from fleetrl.runs.host import train_host
     from fleetrl.runs.rundir import RunRecorder
@@ -366,25 +350,19 @@ def cmd_aggregator(args: argparse.Namespace) -> int:
     with collector_paused():
         from dataclasses import asdict
 
-        from fleetrl.federation.edge import EdgeAggregator
-        from fleetrl.federation.edge_runner import run_edge
-        from fleetrl.federation.shared_settings import shared_text
+        from fleetrl.federation.edge.aggregator import EdgeAggregator
+        from fleetrl.federation.edge.runner import run_edge
         from fleetrl.runs.aggregator_settings import AggregatorSettings
-        from fleetrl.runs.launch import fleet_model
-        from fleetrl.runs.settings import fleet_shape
+        from fleetrl.runs.launch import chief_plan
 
         settings = settings_from_args(AggregatorSettings, args)
-    shape = fleet_shape(settings.learning)
-    model = fleet_model(settings.learning)
+    plan, fleet = chief_plan(
+        settings.learning, settings, run_id=settings.site_run, workers=settings.member_ids,
+        dropout_grace=settings.dropout_grace, open_fleet=not settings.closed_fleet,
+    )  # fmt: skip
     edge = EdgeAggregator(
-        site_id=settings.site_id, root_run=settings.run_id, run_id=settings.site_run,
-        members=settings.member_ids, layout=shape.layout, scheme=settings.learning.federation_scheme(),
-        welcome_layout=None if model is None else model.layout, steps_per_round=shape.exchanges_per_round,
-        max_rounds=settings.learning.max_rounds, aggregator=settings.aggregation,
-        quorum=settings.chief_quorum, round_timeout=settings.round_timeout,
-        max_staleness=settings.max_staleness,
-        dropout_grace=settings.dropout_grace, open_fleet=not settings.closed_fleet, key=settings.fleet_key(),
-        settings=shared_text(settings.learning), fleet_model=model, resend_interval=settings.resend_interval,
+        plan, site_id=settings.site_id, root_run=settings.run_id, resend_interval=settings.resend_interval,
+        key=settings.fleet_key(), **fleet,
     )  # fmt: skip
     summary = run_edge(
         edge, upstream=settings.transport(), downstream=settings.site_transport(),

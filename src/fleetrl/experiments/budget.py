@@ -5,7 +5,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from fleetrl.experiments.arms import Arm
-from fleetrl.federation.schemes import Granularity, resolve_scheme
+from fleetrl.federation.schemes import StepScheme, resolve_scheme
 
 
 @dataclass(frozen=True)
@@ -67,7 +67,7 @@ def arm(
             raise ValueError(f"arm {label!r}: a federated arm names its scheme")
         settings["transport"] = "local"
         settings["scheme"] = scheme
-        if resolve_scheme(scheme).granularity is Granularity.STEP:  # the rule its records were made with
+        if isinstance(resolve_scheme(scheme), StepScheme):  # the rule its records were made with
             settings["quorum"] = 1.0
     if fleet_seed:
         settings["fleet_seed"] = fleet_seed

@@ -1,29 +1,7 @@
-"""Aggregation rules for the chief, looked up by name; ``mean`` is the paper's (Algorithm 1, line 12).
-
-A rule takes the workers' flat float32 gradients in the fixed order of their sorted worker ids and returns one
-flat float32 vector. It must be deterministic for a given input order, so a run gives the same numbers
-whatever order the messages arrived in. Robust rules against faulty or poisoned workers (issue 7):
-
-* ``median`` — coordinate-wise median;
-* ``trimmed_mean[:β]`` — per coordinate, drop the ⌊β·n⌋ largest and smallest values, average the rest
-  (β default 0.2);
-* ``clipped_mean[:C]`` — scale every gradient whose L2 norm exceeds C down to norm C, then average (C default:
-  the median of the received norms, so one huge gradient cannot dominate and nothing needs tuning).
-
-A rule name may carry one numeric parameter after a colon (``trimmed_mean:0.1``), for rules registered with a
-``parameter``.
-
-Every rule takes ``weights`` too, one per vector: what each answer stands for (its units or transitions, as
-Flower weighs by ``num_examples``). ``mean`` and ``clipped_mean`` weigh by them; ``median`` and
-``trimmed_mean`` count members (a robust rule must not let one member's claim outweigh the others). Equal
-weights give exactly the unweighted numbers.
-
-``mean`` is one sum: fl32(Σ wᵢ·xᵢ / Σ wᵢ), accumulated in float64 one vector after the other in the given
-order (:func:`weighted_sum`). So it decomposes: an edge aggregator sends its members' weighted sum in float64
-with their total weight, and the chief adds it as one more term (:func:`mean_of_parts`) — the same numbers as
-if the members had answered the chief themselves whenever the float64 additions are exact (float32 inputs,
-small integer weights, or ``pergrad``'s weights by need on their grid of 2⁻¹²). The robust rules do not
-decompose (:func:`decomposes`).
+"""Aggregation rules for the chief, looked up by name (``name`` or ``name:value``): ``mean`` (the paper's,
+Algorithm 1, line 12), and the robust ``median``, ``trimmed_mean[:β]`` and ``clipped_mean[:C]``. A rule takes
+flat float32 vectors in sorted worker order and one weight each (``mean`` and ``clipped_mean`` weigh, the
+others count members); ``mean`` is one float64 sum, so it decomposes into edge aggregators' sums.
 """
 
 from __future__ import annotations
@@ -156,12 +134,6 @@ def decomposes(spec: str) -> bool:
     """Whether the rule ``spec`` names can be applied in two levels (members' sums at edge aggregators,
     then the chief) with the numbers of one level: only ``mean``."""
     return spec.partition(":")[0] == "mean"
-
-
-def weighs(spec: str) -> bool:
-    """Whether the rule ``spec`` names weighs its vectors (``mean``, ``clipped_mean``); the robust rules
-    count members."""
-    return spec.partition(":")[0] in ("mean", "clipped_mean")
 
 
 @register_aggregator("median")

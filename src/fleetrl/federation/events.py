@@ -7,7 +7,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from enum import StrEnum
 
-from fleetrl.federation.messages import Message, Reason
+from fleetrl.federation.wire.messages import Message, Reason
 
 
 @dataclass(frozen=True)
@@ -18,7 +18,8 @@ class ChiefEvent:
         (a worker left W: offline or silent past the deadline), ``rejoined`` (a dropped worker is back in W),
         ``welcome`` (the open round was announced to a worker coming online), ``resent`` (the last answer
         was sent again for a worker that re-sent a closed round), ``admitted`` (a worker new to the run
-        joined W: :mod:`.roster`), ``joined`` (a worker's shared settings match the chief's), ``refused``
+        joined W: :mod:`.chief.roster`), ``joined`` (a worker's shared settings match the chief's),
+        ``refused``
         (they differ: ``detail`` names the setting), ``deposed`` (an input showed a chief of a newer epoch:
         this one stops) or, at an edge aggregator, ``forwarded`` (an exchange closed at the site: its
         members' sum went to the root).
@@ -99,7 +100,7 @@ class ChiefStep:
 
 
 class WorkerEvent(StrEnum):
-    """What one round did for a worker (:attr:`fleetrl.federation.rounds.FederatedRound.event`), beside the
+    """What one round did for a worker (:attr:`.worker.actions.FederatedRound.event`), beside the
     round in which it sent its scheme's message and applied the answer (:class:`Sent`)."""
 
     COMPLETED = "completed"

@@ -1,4 +1,4 @@
-"""The chief's loop: drive the :class:`~fleetrl.federation.chief.Chief` state machine over a Transport."""
+"""The chief's loop: drive the :class:`~.chief.machine.Chief` state machine over a Transport."""
 
 from __future__ import annotations
 
@@ -10,12 +10,12 @@ from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field, replace
 from typing import Any
 
-from fleetrl.federation.chief import Chief, ChiefEvent, ChiefStep
-from fleetrl.federation.chief_state import chief_fields
-from fleetrl.federation.lease import Deposed, deposed_line, describe, supersedes
-from fleetrl.federation.messages import MessageRejected, Reason, encode
-from fleetrl.federation.signing import Status, parse_status, status_payload
-from fleetrl.federation.topics import (
+from fleetrl.federation.chief.checkpoint import chief_fields
+from fleetrl.federation.chief.lease import Deposed, deposed_line, describe, supersedes
+from fleetrl.federation.chief.machine import Chief, ChiefEvent, ChiefStep
+from fleetrl.federation.wire.messages import MessageRejected, Reason, encode
+from fleetrl.federation.wire.signing import Status, parse_status, status_payload
+from fleetrl.federation.wire.topics import (
     CHIEF_ID,
     ENDED,
     OFFLINE,
@@ -116,18 +116,18 @@ def run_chief(
         every ``idle_log_interval`` seconds.
     :param clock: the time source handed to the state machine (seconds).
     :param checkpoint: called with the chief at the start and whenever its durable state
-        (:func:`~fleetrl.federation.chief_state.chief_fields`) changed — a round closed, a worker left,
+        (:func:`~fleetrl.federation.chief.state.chief_fields`) changed — a round closed, a worker left,
         rejoined or restarted, the run ended — *before* the step's messages are published, so no worker ever
         acts on an answer the checkpoint does not hold (write-ahead).
     :param first_step: published right after the chief announces itself online (a resumed chief passes
-        :func:`~fleetrl.federation.chief_state.replay_last_answer`).
+        :func:`~fleetrl.federation.chief.state.replay_last_answer`).
     :param read_lease: reads the retained chief status of the run over a connection of its own (None: there
         is none). After the connection was lost, or the loop stalled for half the transport's keep-alive (a
         stopped process), the chief reads it before it acts again, and stops with
-        :class:`~fleetrl.federation.lease.Deposed` if a newer chief took the run (docs/protocol.md, "One chief
+        :class:`~.chief.lease.Deposed` if a newer chief took the run (docs/protocol.md, "One chief
         per run"). None: only the chief statuses it receives are checked.
-    :param status_fields: who this chief is (pid, host, keep-alive: :func:`~.lease.holder_fields`), said in
-        its status beside its epoch.
+    :param status_fields: who this chief is (pid, host, keep-alive: :func:`~.chief.lease.holder_fields`), said
+        in its status beside its epoch.
     :raises Deposed: a chief status or a worker message showed a newer epoch; nothing was published or
         checkpointed after it.
     """
@@ -231,7 +231,7 @@ def run_chief(
             chief.max_rounds,
             chief.scheme.name,
             f" ({params})" if params else "",
-            chief.aggregator_name,
+            chief.plan.aggregator,
             chief.epoch,
         )
         if first_step is not None:

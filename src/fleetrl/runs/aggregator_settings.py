@@ -7,8 +7,8 @@ from __future__ import annotations
 from dataclasses import dataclass, replace
 from typing import Any
 
-from fleetrl.federation.edge import check_tree
-from fleetrl.federation.topics import validate_id, validate_worker_id
+from fleetrl.federation.edge.aggregator import check_tree
+from fleetrl.federation.wire.topics import validate_id, validate_worker_id
 from fleetrl.runs.learning_resolution import as_setting_error, positive
 from fleetrl.runs.role_settings import RoleSettings
 from fleetrl.runs.setting_values import SettingError, label

@@ -7,7 +7,7 @@ Layout under a run directory ``OUT``::
 
 Each is a :class:`~fleetrl.agent.statestore.StateStore`: the JSON record is the commit point, written through
 a temporary file and ``os.replace`` after the tensors it names, so a role killed at any instant leaves its
-previous or its new state. The chief's state comes from :mod:`fleetrl.federation.chief_state`, the worker's
+previous or its new state. The chief's state comes from :mod:`fleetrl.federation.chief.state`, the worker's
 from :mod:`fleetrl.agent.state` plus the worker's place in the run (its next round, or how it ended).
 """
 
@@ -22,9 +22,9 @@ from typing import Any
 from fleetrl.agent.learner import Learner
 from fleetrl.agent.state import learner_state, load_learner_state
 from fleetrl.agent.statestore import StateStore
-from fleetrl.federation.chief import Chief
-from fleetrl.federation.chief_state import chief_config, chief_from_state, chief_to_state
-from fleetrl.federation.signing import FleetKey
+from fleetrl.federation.chief.checkpoint import chief_config, chief_from_state, chief_to_state
+from fleetrl.federation.chief.machine import Chief
+from fleetrl.federation.wire.signing import FleetKey
 from fleetrl.runs.spec import WorkerSpec
 
 log = logging.getLogger(__name__)

@@ -2,8 +2,8 @@
 
 Each unit keeps its identity: its env (its own dynamics, simulated or behind its device bridge), its seed,
 its completion criterion, its metrics rows under its own worker id, its model file. The host is one
-:class:`~fleetrl.federation.worker.FederatedWorker` of id :func:`~fleetrl.runs.host_settings.host_id` whose
-learner is a :class:`~fleetrl.agent.host_learner.HostLearner` and whose messages say ``units`` = U.
+:class:`~fleetrl.federation.worker.runner.FederatedWorker` of id :func:`~fleetrl.runs.host_settings.host_id`
+whose learner is a :class:`~fleetrl.agent.host_learner.HostLearner` and whose messages say ``units`` = U.
 """
 
 import logging
@@ -16,10 +16,10 @@ import torch
 from fleetrl.agent.host_agent import HostAgent
 from fleetrl.agent.host_learner import HostLearner
 from fleetrl.federation.events import WorkerEvent
-from fleetrl.federation.rounds import FederatedRound
 from fleetrl.federation.shared_settings import shared_text
-from fleetrl.federation.signing import FleetKey
-from fleetrl.federation.worker import FederatedWorker, WorkerSummary
+from fleetrl.federation.wire.signing import FleetKey
+from fleetrl.federation.worker.actions import FederatedRound
+from fleetrl.federation.worker.runner import FederatedWorker, WorkerSummary
 from fleetrl.runs.factory import action_space_of, agent_for, unit_criterion, unit_env
 from fleetrl.runs.host_settings import host_id
 from fleetrl.runs.records import MetricsRow

@@ -19,7 +19,7 @@ owns the run directory and the live view. Worker processes are forked from this 
 import logging
 import threading
 import uuid
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager, suppress
 from pathlib import Path
 from typing import Any
@@ -27,10 +27,9 @@ from typing import Any
 import numpy as np
 
 from fleetrl.envs.catalog import ENV_SPECS, describe_env, get_env_spec
-from fleetrl.federation.chief_async import new_chief
-from fleetrl.federation.fleet_model import FleetModel
+from fleetrl.federation.kinds import kind_of, new_chief
+from fleetrl.federation.plan import ChiefPlan
 from fleetrl.federation.runner import ChiefSummary, run_chief
-from fleetrl.federation.schemes.base import AsyncScheme, FleetStart, StepScheme
 from fleetrl.federation.shared_settings import shared_text
 from fleetrl.runs.factory import agent_for, make_learner, probe_agent
 from fleetrl.runs.fleet import Fleet, ThreadFleet, follow
@@ -38,10 +37,9 @@ from fleetrl.runs.fleet_summary import summarised
 from fleetrl.runs.host_settings import host_groups, member_ids
 from fleetrl.runs.live import LiveView
 from fleetrl.runs.processes import ProcessFleet, fork_available
-from fleetrl.runs.roles import Emit
-from fleetrl.runs.roles import train_federated as train_federated_worker
+from fleetrl.runs.roles import Emit, train_federated
 from fleetrl.runs.rundir import RunDirectoryError, RunRecorder, write_json_atomic
-from fleetrl.runs.settings import LearningSettings, RunSettings, fleet_shape
+from fleetrl.runs.settings import LearningSettings, RoundRules, RunSettings
 from fleetrl.runs.spec import WorkerSpec
 from fleetrl.transport.base import Transport
 from fleetrl.transport.login import password_in_environment
@@ -77,31 +75,31 @@ def worker_specs(settings: RunSettings, device_url: str | None, run_id: str) -> 
     }
 
 
-def fleet_model(learning: LearningSettings) -> FleetModel | None:
-    """The fleet's model the chief keeps under a per-step scheme whose fleet is one policy (``shared_start``):
-    an agent built as :func:`~fleetrl.runs.factory.make_learner` builds a worker's, at the network the
-    settings' learning seed draws (the fleet's start); None for another scheme. Torch is set to one thread
-    in this process, as in every worker (the initialisation's QR differs with the threads)."""
+def chief_plan(
+    learning: LearningSettings, rules: RoundRules, *, run_id: str, workers: Sequence[str], **role: Any
+) -> tuple[ChiefPlan, dict[str, Any]]:
+    """The plan of a run of resolved ``learning`` and ``rules`` as its chief (or a site's) sees it, and what
+    that chief keeps of the fleet (:meth:`~fleetrl.federation.kinds.Kind.chief_fleet`): the scheme object and
+    one agent built once. ``role``: the chief's own settings (``dropout_grace``, ``open_fleet``)."""
     scheme = learning.federation_scheme()
-    if not scheme.shared_start or not isinstance(scheme, StepScheme):
-        return None
+    agent = fleet_agent(learning) if scheme.shared_start else probe_agent(learning.env, learning.ppo())
+    plan = ChiefPlan(
+        run_id=run_id, workers=workers, scheme=scheme, layout=scheme.layout(agent),
+        steps_per_round=scheme.exchanges_per_round(agent), max_rounds=learning.max_rounds,
+        settings=shared_text(learning), aggregator=rules.aggregation, quorum=rules.chief_quorum,
+        round_timeout=rules.round_timeout, max_staleness=rules.max_staleness, **role,
+    )  # fmt: skip
+    return plan, kind_of(scheme).chief_fleet(scheme, agent)
+
+
+def fleet_agent(learning: LearningSettings) -> Any:
+    """An agent at the fleet's start, built as :func:`~fleetrl.runs.factory.make_learner` builds a worker's
+    from the settings' learning seed. Torch is set to one thread in this process, as in every worker (the
+    initialisation's QR differs with the threads)."""
     import torch
 
     torch.set_num_threads(1)
-    return FleetModel(scheme, agent_for(describe_env(learning.env), learning.ppo(), seed=learning.seed))
-
-
-def fleet_start(learning: LearningSettings) -> FleetStart | None:
-    """The fleet's start the chief of an asynchronous scheme begins its fleet model with: the network the
-    settings' learning seed draws, built as :func:`fleet_model` builds its agent; None for another scheme."""
-    scheme = learning.federation_scheme()
-    if not isinstance(scheme, AsyncScheme):
-        return None
-    import torch
-
-    torch.set_num_threads(1)
-    agent = agent_for(describe_env(learning.env), learning.ppo(), seed=learning.seed)
-    return FleetStart(list(scheme.welcome_layout(agent)), scheme.start_parameters(agent))
+    return agent_for(describe_env(learning.env), learning.ppo(), seed=learning.seed)
 
 
 def train(settings: RunSettings) -> dict[str, Any]:
@@ -150,7 +148,7 @@ def _train(settings: RunSettings) -> dict[str, Any]:
                 follow(process_fleet(settings, commands), recorder, view)
             else:
                 fed_url = url if settings.transport == "mqtt" else None
-                train_federated(settings, specs, run_id, fed_url, recorder, view)
+                train_fleet(settings, specs, run_id, fed_url, recorder, view)
     except RunDirectoryError:
         with suppress(OSError):  # the summary and plot too, if there is room; the error says what happened
             recorder.finish()
@@ -249,7 +247,7 @@ def worker_args(spec: WorkerSpec, *extra: str) -> list[str]:
     return [spec.to_json(), *extra]
 
 
-def train_federated(
+def train_fleet(
     settings: RunSettings,
     specs: dict[int, WorkerSpec],
     run_id: str,
@@ -258,22 +256,9 @@ def train_federated(
     view: LiveView,
 ) -> None:
     """Chief in a thread of this process; workers as processes (MQTT at ``url``) or threads (local bus)."""
-    shape = fleet_shape(settings.learning)
-    chief = new_chief(
-        run_id=run_id,
-        workers=member_ids(settings.units, settings.per_host),
-        layout=shape.layout,
-        steps_per_round=shape.exchanges_per_round,
-        max_rounds=settings.learning.max_rounds,
-        aggregator=settings.aggregation,
-        scheme=settings.learning.federation_scheme(),
-        quorum=settings.chief_quorum,
-        round_timeout=settings.round_timeout,
-        max_staleness=settings.max_staleness,
-        settings=shared_text(settings.learning),
-        fleet_model=fleet_model(settings.learning),
-        start=fleet_start(settings.learning),
-    )
+    workers = member_ids(settings.units, settings.per_host)
+    plan, kept = chief_plan(settings.learning, settings, run_id=run_id, workers=workers)
+    chief = new_chief(plan, **kept)
     make_transport, fleet_for = transports(settings, url, specs, run_id)
     outcome: dict[str, ChiefSummary | BaseException] = {}
     with open(recorder.out / "logs" / "chief.log", "w") as log_file:
@@ -356,7 +341,7 @@ def federated_thread(
     def body(emit: Emit) -> None:
         learner = make_learner(spec)
         log.info("worker %d: learner ready", spec.worker)
-        train_federated_worker(
+        train_federated(
             spec, make_transport(), run_id, emit, reply_timeout=CHIEF_IDLE_TIMEOUT, learner=learner
         )
 

@@ -1,7 +1,7 @@
 """A run's metrics row: one worker's round flattened, the shape of metrics.csv and of what reads it back.
 
 The learner's figures of a round are one value (:class:`fleetrl.agent.learner.RoundResult`); the federation
-adds the worker, its round number and the event (:class:`fleetrl.federation.rounds.FederatedRound`).
+adds the worker, its round number and the event (:class:`fleetrl.federation.worker.actions.FederatedRound`).
 :meth:`MetricsRow.of` flattens that into one row; metrics.csv's columns are the row's fields in order, and
 :func:`read_metrics` gives the same rows back (plots, resume, the experiments' records).
 """

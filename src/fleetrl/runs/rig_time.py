@@ -15,9 +15,9 @@ A simulated run costs rounds; a fleet of real units costs time. A unit's clock r
   is ready. Under a per-step scheme (``pergrad``) with a quorum < 1 a round's first exchange waits for the
   units that took part in the round before (not for one that missed it); if one of those is not among the
   round's contributors, the round closed at its deadline: when ⌈quorum·n⌉ of them were ready, plus a grace
-  of a quarter of the time that took (at least :data:`~fleetrl.federation.stragglers.GRACE_FLOOR` s), as
-  :class:`~fleetrl.federation.stragglers.StepWaits` does. Who contributed to which round is the run's own
-  (a record's ``rounds``); a straggler's episode overlaps the rounds it missed.
+  of a quarter of the time that took (at least :data:`~fleetrl.federation.chief.stragglers.GRACE_FLOOR` s), as
+  :class:`~fleetrl.federation.chief.stragglers.StepWaits` does. Who contributed to which round is the run's
+  own (a record's ``rounds``); a straggler's episode overlaps the rounds it missed.
 
 Computing is left out (acting, updates, messages): on a rig the agent acts within the device's period and
 an update is the same work on any schedule. A slow unit (``--slow``) computes slower, its device's period is
@@ -39,7 +39,7 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
-from fleetrl.federation.stragglers import GRACE_FLOOR, GRACE_SHARE, quorum_count
+from fleetrl.federation.chief.stragglers import GRACE_FLOOR, GRACE_SHARE, quorum_count
 
 HAND_RESET_SECONDS = 30.0
 """a reset whose swing-up does not settle is ended by a person (the pendulum put upright by hand), charged
@@ -242,19 +242,20 @@ def _barrier(built: dict[str, _Unit], waits: Waits) -> dict[str, float]:
 def waits_of(mode: str | None, scheme: str | None = None, quorum: float | None = None) -> Waits:
     """Who waits for whom in a run of ``mode`` under ``scheme`` (its name) with ``quorum``: ``individual``
     units and an asynchronous scheme's wait for nobody; a per-step scheme waits as
-    :class:`~fleetrl.federation.stragglers.StepWaits` does; any other federated fleet waits for each round's
+    :class:`~fleetrl.federation.chief.stragglers.StepWaits` does; any other federated fleet waits for each
+    round's
     last contributor."""
-    from fleetrl.federation.schemes import Granularity, scheme_class
+    from fleetrl.federation.schemes import AsyncScheme, RoundScheme, StepScheme, scheme_class
 
     if mode == "individual":
         return NO_BARRIER
-    granularity = Granularity.ROUND
+    kind: type = RoundScheme
     if scheme is not None:
         with contextlib.suppress(ValueError):  # a user's scheme that no longer imports: a round barrier
-            granularity = scheme_class(scheme).granularity
-    if granularity is Granularity.ASYNC:
+            kind = scheme_class(scheme)
+    if issubclass(kind, AsyncScheme):
         return NO_BARRIER
-    step = granularity is Granularity.STEP
+    step = issubclass(kind, StepScheme)
     return Waits(barrier=True, quorum=1.0 if quorum is None else float(quorum), grace=step)
 
 

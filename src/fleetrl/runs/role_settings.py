@@ -11,10 +11,10 @@ from pathlib import Path
 from typing import Any
 
 from fleetrl.envs.catalog import get_env_spec
-from fleetrl.federation.lease import DEFAULT_KEEPALIVE
-from fleetrl.federation.messages import MessageRejected
-from fleetrl.federation.signing import FleetKey, Status, parse_status
-from fleetrl.federation.topics import status_topic, validate_id
+from fleetrl.federation.chief.lease import DEFAULT_KEEPALIVE
+from fleetrl.federation.wire.messages import MessageRejected
+from fleetrl.federation.wire.signing import FleetKey, Status, parse_status
+from fleetrl.federation.wire.topics import status_topic, validate_id
 from fleetrl.runs.host_settings import host_setting_problem, member_ids
 from fleetrl.runs.learning_resolution import positive
 from fleetrl.runs.setting_values import SettingError, check_readable_file, check_writable_dir, label

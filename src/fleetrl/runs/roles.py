@@ -13,8 +13,8 @@ from pathlib import Path
 
 from fleetrl.agent.learner import Learner, RoundResult
 from fleetrl.federation.shared_settings import shared_text
-from fleetrl.federation.signing import FleetKey
-from fleetrl.federation.worker import FederatedWorker, WorkerSummary
+from fleetrl.federation.wire.signing import FleetKey
+from fleetrl.federation.worker.runner import FederatedWorker, WorkerSummary
 from fleetrl.runs.checkpoints import WorkerCheckpoint
 from fleetrl.runs.factory import make_learner
 from fleetrl.runs.records import MetricsRow
@@ -75,7 +75,7 @@ def train_federated(
     :param resume: first restore the state committed in ``checkpoint_dir`` (if there is one) and continue
         from its round; a worker whose run was already over returns at once.
     :param status_fields: who this process is, said in its status
-        (:func:`~fleetrl.federation.lease.holder_fields`).
+        (:func:`~fleetrl.federation.chief.lease.holder_fields`).
     """
     learner = learner or make_learner(spec)
     started = time.monotonic()

@@ -103,9 +103,9 @@ class RoundRules:
 
     def resolved_quorum(self, learning: LearningSettings, shape: FleetShape) -> float:
         """The aggregation rule, and the round rules a chief of ``learning`` checks (the quorum, the round
-        timeout and how they fit the scheme: :func:`fleetrl.federation.chief_answer.check_round_rules`);
+        timeout and how they fit the scheme: :func:`fleetrl.federation.chief.answer.check_round_rules`);
         the quorum: the scheme's own unless one was given."""
-        from fleetrl.federation.chief_answer import check_round_rules
+        from fleetrl.federation.chief.answer import check_round_rules
 
         as_setting_error("aggregation", get_aggregator, self.aggregation)
         scheme = learning.federation_scheme()

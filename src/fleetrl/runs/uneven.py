@@ -290,7 +290,8 @@ def unit_stall(conditions: UnitConditions | None, *, seed: int, worker: int) -> 
 
 
 class UnevenUnit:
-    """A learner (:class:`~fleetrl.federation.rounds.RoundPlayer`) that plays as an uneven unit: each piece
+    """A learner (:class:`~fleetrl.federation.worker.actions.RoundPlayer`) that plays as an uneven unit: each
+    piece
     of its own work is followed by ``(slowdown − 1)×`` its computing time asleep, and before a round it may
     be absent.
 

@@ -7,9 +7,10 @@ from collections.abc import Mapping
 
 import numpy as np
 
-from fleetrl.federation.messages import Layout, Message
 from fleetrl.federation.schemes import COMPLETED, RoundAnswer, RoundContext, RoundScheme
-from fleetrl.federation.schemes.base import FederatedAgent, aggregate
+from fleetrl.federation.schemes.agent import FederatedAgent
+from fleetrl.federation.schemes.base import aggregate
+from fleetrl.federation.wire.messages import Layout, Message
 
 
 class SampleWeightedAverage(RoundScheme):

@@ -1,18 +1,7 @@
-"""Federation schemes as strategy objects, found by name: every built-in is one module of this package, a
-user's is named as ``package.module:Class`` (``--scheme mylab.schemes:FedNova``).
-
-* ``paper`` (:mod:`.paper`) — the paper's gradient sharing with model transfer;
-* ``fedavg`` (:mod:`.fedavg`) — whole-model averaging, mature workers stay;
-* ``fedavgm``, ``fedadam`` (:mod:`.fedopt`) — fedavg with a server optimiser (momentum, Adam) on the average;
-* ``fedprox`` (:mod:`.fedprox`) — fedavg with a proximal term in local training;
-* ``pergrad`` (:mod:`.pergrad`) — gradients averaged at every optimisation step (DD-PPO style);
-* ``fedasync`` (:mod:`.fedasync`) — no round barrier: each model mixed into the fleet's on arrival, weighted
-  by its staleness (FedAsync).
-
-Adding a scheme: write one module here with a :class:`~.base.RoundScheme` or :class:`~.base.StepScheme`
-subclass that sets ``name`` (it is found by that name: no list to edit), and test it on hand-computed arrays
-(no broker). Nothing else changes: the chief, the worker, the learner factory and the launcher only call the
-scheme object, and the message type it declares (``round_message``) is its own.
+"""Federation schemes as strategy objects, found by name: every built-in is one module of this package
+(``paper``, ``fedavg``, ``fedavgm``/``fedadam``, ``fedprox``, ``pergrad``, ``fedasync``), a user's is named
+``package.module:Class``. A new scheme is one module with a subclass of a scheme kind that sets ``name``,
+and its test on hand-computed arrays; nothing else changes.
 """
 
 from __future__ import annotations
@@ -24,18 +13,17 @@ from typing import Any, get_type_hints
 
 from fleetrl.coercion import CoercionError, coerce
 from fleetrl.envs.unit_factory import load_callable
-from fleetrl.federation.messages import check_scheme_type
+from fleetrl.federation.schemes.agent import FederatedAgent
 from fleetrl.federation.schemes.base import (
     COMPLETED,
     AsyncScheme,
-    FederatedAgent,
-    Granularity,
     RoundAnswer,
     RoundContext,
     RoundScheme,
     Scheme,
     StepScheme,
 )
+from fleetrl.federation.wire.messages import check_scheme_type
 
 DEFAULT_SCHEME = "pergrad"
 """the scheme of ``fleetrl demo``, ``fleetrl train --mode federated``, ``chief`` and ``worker`` when none is
@@ -50,7 +38,6 @@ __all__ = [
     "SCHEMES",
     "AsyncScheme",
     "FederatedAgent",
-    "Granularity",
     "RoundAnswer",
     "RoundContext",
     "RoundScheme",

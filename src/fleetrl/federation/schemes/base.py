@@ -1,156 +1,25 @@
-"""The scheme seam: what every federation scheme says (:class:`Scheme`, read by the chief), and the three
-ways a worker takes part, each its own protocol — :class:`RoundScheme` (one message per round: ``paper``,
-``fedavg``, ``fedprox`` …), :class:`StepScheme` (one message per optimisation step: ``pergrad``) and
-:class:`AsyncScheme` (one message per round of the worker's own, applied on arrival: ``fedasync``). The
-chief's and the worker's state machines use the one they need; no method of either raises because it
-belongs to the other.
-
-Like a Flower ``Strategy``, a scheme says everything that differs between ways of federating:
-
-* what a worker shares (:meth:`Scheme.layout`) and under which message type (:attr:`Scheme.round_message`, its
-  own: no list elsewhere names it);
-* what the chief asks of every worker for a round (:meth:`Scheme.configure`, Flower's ``configure_fit``: a
-  small map carried by the message that opens the round) and how it combines the answers of a round
-  (:meth:`Scheme.combine`, with the run's aggregation rule, weighted by what each answer stands for:
-  :func:`aggregate`);
-* what a worker does with the chief's answer (:meth:`RoundScheme.apply_average`,
-  :meth:`StepScheme.apply_step_answer`, :meth:`Scheme.take_parameters`), what it adds to its local
-  training (:meth:`RoundScheme.local_loss`, e.g. FedProx's proximal term), what it sends
-  (:meth:`RoundScheme.outgoing`);
-* where the fleet starts (:attr:`Scheme.shared_start`: the chief's welcome hands every joining worker the
-  fleet's start), what a worker whose criterion holds does (:attr:`Scheme.stays_after_completion`) and when
-  the run is finished (:attr:`RoundAnswer.ends_run`).
-
-The protocol around it is the same for every scheme (docs/protocol.md): a ``parameters`` message says "my
-criterion holds"; the chief answers a round with one ``average`` or one ``transfer``; workers named in the
-answer's ``finished`` leave W.
+"""The scheme seam, as a Flower ``Strategy``: what every scheme says (:class:`Scheme`: what a worker shares,
+how the chief configures a round and combines its answers, where the fleet starts), and its kind — once per
+round (:class:`RoundScheme`), per optimisation step (:class:`StepScheme`) or without a barrier
+(:class:`AsyncScheme`) — which brings the worker's side, the chief's rules and who the chief waits for.
 """
 
 from __future__ import annotations
 
 from abc import ABC, abstractmethod
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Mapping
 from dataclasses import dataclass
-from enum import StrEnum
-from typing import TYPE_CHECKING, Any, ClassVar, Literal, Protocol, TypeAlias, runtime_checkable
+from typing import Any, ClassVar, Literal
 
 import numpy as np
 
 from fleetrl.federation.aggregation import Aggregator, mean_of_parts
-from fleetrl.federation.messages import Layout, Message, RoundConfig
-
-if TYPE_CHECKING:  # torch is the agent's: not imported to read a scheme
-    import torch
+from fleetrl.federation.chief.stragglers import RoundWaits, StepWaits
+from fleetrl.federation.schemes.agent import ExtraLoss, FederatedAgent
+from fleetrl.federation.wire.messages import Layout, Message, RoundConfig
 
 COMPLETED = "parameters"
 """The message type a worker sends in a round in which its completion criterion holds (every scheme)."""
-
-
-class Granularity(StrEnum):
-    """How often a worker sends: once per round (:class:`RoundScheme`), or once per optimisation step of the
-    round (:class:`StepScheme`)."""
-
-    ROUND = "round"
-    """one message per round, after the round's K optimisations (``paper``, ``fedavg``)"""
-    STEP = "step"
-    """one message per optimisation step, keyed (sender, round, step) — for schemes that average every step"""
-    ASYNC = "async"
-    """one message per round of the worker's own, applied by the chief on arrival: no round barrier"""
-
-
-class FederatedAgent(Protocol):
-    """What schemes need from the agent (``fleetrl.agent.ppo.PPOAgent`` provides it)."""
-
-    def actor_layout(self) -> list[tuple[str, tuple[int, ...]]]:
-        """Names and shapes of the actor's parameters, in flat order."""
-        ...
-
-    def actor_gradient(self) -> np.ndarray:
-        """The actor's last gradient of the round, flat float32."""
-        ...
-
-    def apply_actor_gradient(self, flat: np.ndarray) -> None:
-        """Update the actor with ``flat`` through its optimiser."""
-        ...
-
-    def actor_parameters(self) -> np.ndarray:
-        """The actor's parameters, flat float32."""
-        ...
-
-    def set_actor_parameters(self, flat: np.ndarray) -> None:
-        """Replace the actor's parameters."""
-        ...
-
-    def model_layout(self) -> list[tuple[str, tuple[int, ...]]]:
-        """Names and shapes of the whole actor-critic's parameters, in flat order."""
-        ...
-
-    def model_parameters(self) -> np.ndarray:
-        """The whole actor-critic's parameters, flat float32."""
-        ...
-
-    def set_model_parameters(self, flat: np.ndarray) -> None:
-        """Replace the whole actor-critic's parameters."""
-        ...
-
-    def optimiser_layout(self) -> list[tuple[str, tuple[int, ...]]]:
-        """Names and shapes of the optimisers' state as one flat vector."""
-        ...
-
-    def optimiser_parameters(self) -> np.ndarray:
-        """The optimisers' state, flat float32."""
-        ...
-
-    def set_optimiser_parameters(self, flat: np.ndarray) -> None:
-        """Replace the optimisers' state."""
-        ...
-
-    def step_layout(self, k: int) -> list[tuple[str, tuple[int, ...]]]:
-        """Names and shapes of optimisation step ``k``'s flat gradient."""
-        ...
-
-    def update_step_count(self) -> int:
-        """How many optimisation steps each update takes."""
-        ...
-
-    def begin_update(self, unit_weights: Sequence[float] | None = None) -> int:
-        """Start the round's update, its units' minibatch gradients weighted by ``unit_weights`` (one per
-        unit; None: equally); the number of optimisation steps it takes."""
-        ...
-
-    def step_gradients(self, k: int) -> np.ndarray:
-        """Step ``k``'s gradient, flat float32 in :meth:`step_layout` order, nothing stepped."""
-        ...
-
-    def apply_step(self, flat_grad: np.ndarray) -> None:
-        """Step the optimiser(s) with a gradient for the step last computed."""
-        ...
-
-    def apply_fleet_step(self, k: int, flat_grad: np.ndarray) -> None:
-        """Step the optimiser(s) with the fleet's gradient of step ``k``, no update under way."""
-        ...
-
-    def end_update(self) -> Any:
-        """Finish the update (every step applied); its statistics."""
-        ...
-
-    def abandon_update(self) -> None:
-        """Drop the round's update, under way or not begun (the fleet went on past it)."""
-        ...
-
-
-ExtraLoss: TypeAlias = "Callable[[torch.nn.Module], torch.Tensor]"
-"""A term added to the loss of every optimisation step of local training: ``fn(model) -> scalar tensor``
-(FedProx's μ/2‖θ − θ_global‖²); ``model`` is the agent's actor-critic network."""
-
-
-@runtime_checkable
-class LocalTraining(Protocol):
-    """The worker-side hook into the agent's local training (``fleetrl.agent.ppo.PPOAgent`` provides it)."""
-
-    def set_extra_loss(self, fn: ExtraLoss | None) -> None:
-        """Add ``fn(model)`` to the loss of every optimisation step from now on (None: nothing added)."""
-        ...
 
 
 @dataclass(frozen=True)
@@ -219,8 +88,6 @@ class Scheme(ABC):
     stays_after_completion: ClassVar[bool]
     """a worker whose criterion holds keeps learning in W (True) or transfers and leaves (False); the learner
     factory sets ``Learner.keep_learning`` from it"""
-    granularity: ClassVar[Granularity]
-    """how often a worker sends (set by :class:`RoundScheme` and :class:`StepScheme`)"""
     default_quorum: ClassVar[float] = 1.0
     """the chief's quorum when the run names none (:class:`StepScheme`: 0.6, docs/protocol.md "Stragglers")"""
     shared_start: ClassVar[bool] = False
@@ -230,6 +97,16 @@ class Scheme(ABC):
     def params(self) -> dict[str, Any]:
         """The scheme's parameters (JSON values), for the welcome's shared settings and checkpoints."""
         return {}
+
+    @abstractmethod
+    def check_rules(
+        self, quorum: float, round_timeout: float | None, steps_per_round: int, aggregation: str
+    ) -> None:
+        """ValueError naming the first of a chief's rules this scheme's kind cannot run with."""
+
+    @abstractmethod
+    def waits(self, quorum: float, round_timeout: float | None, max_staleness: int | None) -> RoundWaits:
+        """The chief's waiting rule for this scheme's kind (:mod:`fleetrl.federation.chief.stragglers`)."""
 
     def accepts(self, message_type: str) -> bool:
         """Whether the chief takes a worker message of this type in a round."""
@@ -291,7 +168,25 @@ class Scheme(ABC):
 class RoundScheme(Scheme):
     """A scheme whose worker sends once per round, after its local training (the round's K optimisations)."""
 
-    granularity: ClassVar[Granularity] = Granularity.ROUND
+    def check_rules(
+        self, quorum: float, round_timeout: float | None, steps_per_round: int, aggregation: str
+    ) -> None:
+        """ValueError if a chief of this scheme cannot run with these rules: one exchange a round, and a
+        quorum below 1 closes a round only at its deadline."""
+        del aggregation
+        if quorum < 1.0 and round_timeout is None:
+            raise ValueError(
+                f"scheme {self.name!r}: a quorum below 1 needs a round timeout (--round-timeout)"
+            )
+        if steps_per_round != 1:
+            raise ValueError(
+                f"steps_per_round = {steps_per_round}: scheme {self.name!r} sends once per round (1)"
+            )
+
+    def waits(self, quorum: float, round_timeout: float | None, max_staleness: int | None) -> RoundWaits:
+        """Who the chief waits for in a round (:mod:`fleetrl.federation.chief.stragglers`)."""
+        del max_staleness
+        return RoundWaits(quorum, round_timeout)
 
     @abstractmethod
     def outgoing(self, agent: FederatedAgent, *, completed: bool) -> tuple[str, np.ndarray]:
@@ -319,9 +214,22 @@ class StepScheme(Scheme):
     """A scheme whose worker exchanges every optimisation step of its update with the chief, keyed (sender,
     round, step): it sends the step's gradient and applies the chief's combination before the next step."""
 
-    granularity: ClassVar[Granularity] = Granularity.STEP
     default_quorum: ClassVar[float] = 0.6
     """DD-PPO's share of workers after which the rest are not waited for (habitat-lab's ``sync_frac``)"""
+
+    def check_rules(
+        self, quorum: float, round_timeout: float | None, steps_per_round: int, aggregation: str
+    ) -> None:
+        """ValueError if a chief of this scheme cannot run with these rules: at least one exchange a round."""
+        del quorum, round_timeout, aggregation
+        if steps_per_round < 1:
+            raise ValueError(
+                f"steps_per_round = {steps_per_round}: scheme {self.name!r} sends per step (at least 1)"
+            )
+
+    def waits(self, quorum: float, round_timeout: float | None, max_staleness: int | None) -> RoundWaits:
+        """Who the chief waits for at each exchange, and for how long (a grace after a quorum)."""
+        return StepWaits(quorum, round_timeout, max_staleness)
 
     @abstractmethod
     def exchanges_per_round(self, agent: FederatedAgent) -> int:
@@ -331,14 +239,6 @@ class StepScheme(Scheme):
     @abstractmethod
     def apply_step_answer(self, agent: FederatedAgent, flat: np.ndarray) -> None:
         """Apply the chief's combination of the workers' gradients of the step."""
-
-    def unit_weights(self, progress: Sequence[float], completed: Sequence[bool]) -> list[float] | None:
-        """What each of a worker's units weighs in the fleet's mean this round, from each unit's
-        ``progress`` towards its criterion (WMA / target, clipped to [0, 1]) and whether it has
-        ``completed``: a weight in (0, 1] per unit, or None for the default, every unit counting once (a
-        worker's weight is then its units)."""
-        del progress, completed
-        return None
 
     def catch_up_step(self, agent: FederatedAgent, step: int, flat: np.ndarray) -> None:
         """Apply the chief's answer of the fleet's step ``step`` that this worker took no part in (it was
@@ -356,7 +256,23 @@ class AsyncScheme(RoundScheme):
     versions applied since the one the worker started from; the answer is the fleet model after it.
     """
 
-    granularity: ClassVar[Granularity] = Granularity.ASYNC
+    def check_rules(
+        self, quorum: float, round_timeout: float | None, steps_per_round: int, aggregation: str
+    ) -> None:
+        """ValueError if a chief of this scheme cannot run with these rules: no round barrier to wait at, one
+        model mixed in at a time."""
+        if quorum < 1.0 or round_timeout is not None:
+            raise ValueError(
+                f"scheme {self.name!r} has no round barrier: quorum and round_timeout do not apply (leave "
+                "them unset; max_staleness bounds the staleness of a contribution applied)"
+            )
+        if aggregation != "mean":
+            raise ValueError(
+                f"scheme {self.name!r} mixes one model at a time into the fleet's: aggregation "
+                f"{aggregation!r} does not apply (leave it unset)"
+            )
+        super().check_rules(quorum, round_timeout, steps_per_round, aggregation)
+
     shared_start: ClassVar[bool] = True
     stays_after_completion: ClassVar[bool] = True
 
@@ -393,7 +309,7 @@ def aggregate(
     or the transitions; a rule that cannot weigh counts members). Equal weights give exactly the unweighted
     rule. An edge aggregator's answer is its members' weighted sum (``summed``, weighted by their total
     weight): added as one term of the mean (:func:`.aggregation.mean_of_parts`)."""
-    weights = [m.mean_weight if by == "units" else float(m.samples) for m in answers.values()]
+    weights = [float(m.units) if by == "units" else float(m.samples) for m in answers.values()]
     summed = [m.summed for m in answers.values()]
     if any(summed):  # an edge aggregator's sum: the chief takes one only if its rule is the mean
         return mean_of_parts(flats(answers), weights, summed)

@@ -22,9 +22,9 @@ from typing import Any
 
 import numpy as np
 
-from fleetrl.federation.messages import Message
 from fleetrl.federation.schemes.base import AsyncScheme, RoundAnswer, RoundContext, flats
 from fleetrl.federation.schemes.fedavg import FedAvgScheme
+from fleetrl.federation.wire.messages import Message
 
 DEFAULT_ALPHA = 0.6
 """α, the weight of a fresh contribution (FedAsync's mixing hyper-parameter)"""

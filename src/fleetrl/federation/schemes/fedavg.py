@@ -14,15 +14,15 @@ from collections.abc import Mapping
 
 import numpy as np
 
-from fleetrl.federation.messages import Layout, Message
+from fleetrl.federation.schemes.agent import FederatedAgent
 from fleetrl.federation.schemes.base import (
     COMPLETED,
-    FederatedAgent,
     RoundAnswer,
     RoundContext,
     RoundScheme,
     average_until_all_completed,
 )
+from fleetrl.federation.wire.messages import Layout, Message
 
 
 class FedAvgScheme(RoundScheme):

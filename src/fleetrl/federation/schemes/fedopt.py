@@ -22,9 +22,9 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from fleetrl.federation.messages import Message
 from fleetrl.federation.schemes.base import RoundAnswer, RoundContext
 from fleetrl.federation.schemes.fedavg import FedAvgScheme
+from fleetrl.federation.wire.messages import Message
 
 OPTIMIZERS = ("momentum", "adam")
 """the server optimisers"""

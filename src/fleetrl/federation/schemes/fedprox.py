@@ -16,9 +16,9 @@ from typing import Any
 
 import numpy as np
 
-from fleetrl.federation.messages import RoundConfig
-from fleetrl.federation.schemes.base import ExtraLoss, FederatedAgent
+from fleetrl.federation.schemes.agent import ExtraLoss, FederatedAgent
 from fleetrl.federation.schemes.fedavg import FedAvgScheme
+from fleetrl.federation.wire.messages import RoundConfig
 
 
 class FedProxScheme(FedAvgScheme):

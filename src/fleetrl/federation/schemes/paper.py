@@ -15,15 +15,9 @@ from collections.abc import Mapping
 
 import numpy as np
 
-from fleetrl.federation.messages import Layout, Message
-from fleetrl.federation.schemes.base import (
-    COMPLETED,
-    FederatedAgent,
-    RoundAnswer,
-    RoundContext,
-    RoundScheme,
-    aggregate,
-)
+from fleetrl.federation.schemes.agent import FederatedAgent
+from fleetrl.federation.schemes.base import COMPLETED, RoundAnswer, RoundContext, RoundScheme, aggregate
+from fleetrl.federation.wire.messages import Layout, Message
 
 
 class PaperScheme(RoundScheme):

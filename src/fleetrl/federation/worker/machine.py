@@ -1,24 +1,7 @@
-"""The worker of Algorithm 2 as a pure state machine: chief messages, time and the learner's reports in →
-messages to publish and actions for the runner out (:mod:`fleetrl.federation.rounds`).
-
-No transport, no threads, no clock: every input takes ``now`` (seconds, any monotonic origin), and
-:meth:`WorkerMachine.next_deadline` says when :meth:`WorkerMachine.tick` is due. The runner
-(:class:`fleetrl.federation.worker.FederatedWorker`) owns the learner: the machine never touches the agent.
-It asks for what the agent must do (:class:`~fleetrl.federation.rounds.PlayRound`,
-:class:`~fleetrl.federation.rounds.ComputeStep`, ``ApplyAverage`` …); the runner does it, on the
-agent through the scheme, and reports back (:meth:`round_played`, :meth:`update_begun`,
-:meth:`step_computed`).
-Of the scheme the machine reads only its granularity and its round message's name; the chief's configuration
-for a round (from the welcome, or the answer that opens it) goes to the runner with :class:`PlayRound`.
-
-The rules (docs/protocol.md): join (``online`` and a retained ``join``, re-sent until the ``welcome``; a
-welcome whose settings differ, or a ``refused`` naming this worker, ends in ``Refused``); resume
-(``start_round``: a welcome for that round or the next keeps the learner's state, a later one rejoins taking
-the welcome's parameters, an earlier one is an error); a round (play, send, wait for the answer of that round
-or a later one, apply it, record, then catch up with later answers already queued; re-send every
-``resend_interval``, ``TimedOut`` after ``reply_timeout``). A per-step scheme's worker is
-:class:`~fleetrl.federation.step_worker.StepWorkerMachine`
-(:func:`~fleetrl.federation.step_worker.worker_machine` picks the machine a scheme needs).
+"""The worker of Algorithm 2 as a pure state machine: chief messages, time and the runner's reports in →
+messages to publish and actions for the runner out (:mod:`.actions`); it never touches the agent. Its
+rules (join, resume, a round, re-sends, time-outs, catching up): docs/protocol.md, "The worker as a state
+machine". A per-step and an asynchronous scheme's machines extend it (:mod:`.per_step`, :mod:`.asynchronous`).
 """
 
 from __future__ import annotations
@@ -32,10 +15,14 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from fleetrl.agent.round_result import interrupted_round
-from fleetrl.federation import rounds as act
 from fleetrl.federation.events import RoundEvent, Sent, WorkerEvent
-from fleetrl.federation.messages import Layout, Message, MessageRejected, RoundConfig, decode, encode
-from fleetrl.federation.rounds import (
+from fleetrl.federation.schemes import Scheme
+from fleetrl.federation.shared_settings import SharedSettings, settings_difference
+from fleetrl.federation.wire.messages import Layout, Message, MessageRejected, RoundConfig, decode, encode
+from fleetrl.federation.wire.signing import FleetKey, parse_status, status_payload
+from fleetrl.federation.wire.topics import CHIEF_ID, ONLINE, chief_topic, status_topic, worker_topic
+from fleetrl.federation.worker import actions
+from fleetrl.federation.worker.actions import (
     ANSWERS,
     FederatedRound,
     WorkerOutput,
@@ -44,11 +31,7 @@ from fleetrl.federation.rounds import (
     answer_for,
     resume_round,
 )
-from fleetrl.federation.schemes import Scheme
-from fleetrl.federation.shared_settings import SharedSettings, settings_difference
-from fleetrl.federation.signing import FleetKey, parse_status, status_payload
-from fleetrl.federation.topics import CHIEF_ID, ONLINE, chief_topic, status_topic, worker_topic
-from fleetrl.federation.worker_phase import NOTHING, QUEUED, Phase, Wait
+from fleetrl.federation.worker.phase import NOTHING, QUEUED, Phase, Wait
 
 if TYPE_CHECKING:  # the learner (and torch) is not imported by the pure machine
     from fleetrl.agent.round_result import RoundResult
@@ -81,8 +64,9 @@ class WorkerMachine:
         exchange when it is welcomed: what it plays then goes to a later exchange).
     :param incarnation: this process's incarnation (newer than any earlier one with the same id).
     :param units: the units this worker carries (a unit host: U), said in every message it contributes.
+    :param steps_per_round: the exchanges of one round (a per-step scheme's K; else 1).
     :param ended_grace: seconds to wait for a new chief once the chief's status says the run ended, before
-        giving up (:class:`~fleetrl.federation.rounds.RunEnded`), if no welcome came yet.
+        giving up (:class:`~fleetrl.federation.worker.actions.RunEnded`), if no welcome came yet.
     """
 
     current_model = False
@@ -108,11 +92,13 @@ class WorkerMachine:
         units: int = 1,
         ended_grace: float = ENDED_GRACE,
         status_fields: Mapping[str, str | int] | None = None,
+        steps_per_round: int = 1,
     ) -> None:
         """Prepare the machine; nothing happens before :meth:`start`."""
         if units < 1:
             raise ValueError(f"a worker carries at least one unit, got units={units}")
         self.units = units
+        self.steps_per_round = steps_per_round
         self.run_id = run_id
         self.worker_id = worker_id
         self.max_rounds = max_rounds
@@ -129,7 +115,7 @@ class WorkerMachine:
         self.ended_grace = ended_grace
         self.status_fields = dict(status_fields or {})
         self.epoch = 0
-        """the highest chief epoch seen (:mod:`.lease`): chief messages of an older one are ignored, and
+        """the highest chief epoch seen (:mod:`.chief.lease`): chief messages of an older one are ignored, and
         every message this worker sends carries it"""
         self._run_ended_at: float | None = None
         """when the chief's status said ``ended`` (None: it did not, or a chief came online since)"""
@@ -164,7 +150,7 @@ class WorkerMachine:
         # replays it
         rnd = 0 if self.start_round is None else self.start_round
         join = Message("join", self.run_id, self.worker_id, rnd, settings=self.settings)
-        online = WorkerStep((act.Announce(self.own_status, self.status(ONLINE)),))
+        online = WorkerStep((actions.Announce(self.own_status, self.status(ONLINE)),))
         welcome = "the chief's welcome"
         return online + self._send(join, self._welcome_wanted(), welcome, now, retain=True)
 
@@ -258,7 +244,7 @@ class WorkerMachine:
         wait.next_send = now + (self.resend_interval or 0.0)
         out: tuple[WorkerOutput, ...] = (wait.resend,)
         if wait.resend.retain:
-            out = (act.Publish(self.own_status, self.status(ONLINE), True), *out)
+            out = (actions.Publish(self.own_status, self.status(ONLINE), True), *out)
         return WorkerStep(out)
 
     def next_deadline(self) -> float | None:
@@ -324,7 +310,7 @@ class WorkerMachine:
         # (a chief that keeps the fleet's model hands it as it is: taken whenever rounds were missed)
         fleet_start = welcome.origin == CHIEF_ID and self.start_round is not None and not self.current_model
         if welcome.flat is not None and resume is None and not fleet_start:
-            out = (act.TakeParameters(welcome.flat),)
+            out = (actions.TakeParameters(welcome.flat),)
         self._config = dict(welcome.config)
         log.info("worker %s: welcomed at round %d (θ* of %s)", self.worker_id, welcome.round, welcome.origin)
         rejoined = self._round_lost(resume, (welcome.round, welcome.step)) + WorkerStep(out)
@@ -351,14 +337,14 @@ class WorkerMachine:
             return NOTHING
         result = interrupted_round(down)
         lost = FederatedRound(self.worker_id, down, result, WorkerEvent.INTERRUPTED)
-        return WorkerStep((act.Record(lost),))
+        return WorkerStep((actions.Record(lost),))
 
     def _begin_round(self, rnd: int) -> WorkerStep:
         if rnd > self.max_rounds:
             reason = f"reached M={self.max_rounds}"
             return self._finish(WorkerSummary(self.worker_id, self.max_rounds, finished=False, reason=reason))
         self.round, self.phase = rnd, Phase.PLAYING
-        return WorkerStep((act.PlayRound(rnd, self._config),))
+        return WorkerStep((actions.PlayRound(rnd, self._config),))
 
     def _answered(self, reply: Message) -> WorkerStep:
         """A per-round scheme: act on the chief's answer (Algorithm 2, lines 28-31)."""
@@ -374,13 +360,15 @@ class WorkerMachine:
         if reply.flat is None:
             raise AssertionError("decode guarantees tensors for average and transfer")
         if reply.type == "transfer":  # line 29
-            taken = WorkerStep((act.TakeParameters(reply.flat),))
+            taken = WorkerStep((actions.TakeParameters(reply.flat),))
             return taken + self._round_over(
                 self._outcome, reply, WorkerEvent.TRANSFER_IN, reply.origin, False
             )
         # the round may have closed without us (a straggler, or a resend): the fleet's update all the same
         contributed = self.worker_id in reply.contributors
-        applied = WorkerStep((act.ApplyAverage(reply.flat, completed=completed, contributed=contributed),))
+        applied = WorkerStep(
+            (actions.ApplyAverage(reply.flat, completed=completed, contributed=contributed),)
+        )
         event: RoundEvent = WorkerEvent.LATE
         if contributed:
             event = WorkerEvent.COMPLETED if completed else Sent(self.round_message)
@@ -397,7 +385,7 @@ class WorkerMachine:
             self.worker_id, self.round, outcome.score, outcome.wma, outcome.steps,
             outcome.actor_loss, outcome.critic_loss, outcome.entropy, event.describe(peer),
         )  # fmt: skip
-        recorded = WorkerStep((act.Record(record),))
+        recorded = WorkerStep((actions.Record(record),))
         if leave:
             rnd = self.round
             if reply.type == "average":  # the round in which the scheme's run completed
@@ -421,7 +409,7 @@ class WorkerMachine:
         """Nothing more is queued: the round after the last answer applied is played."""
         del now
         nxt = self._caught_up_to + 1
-        return WorkerStep((act.Checkpoint(nxt),)) + self._begin_round(nxt)
+        return WorkerStep((actions.Checkpoint(nxt),)) + self._begin_round(nxt)
 
     def _catch_up(self, message: Message) -> WorkerStep:
         """Apply an answer of a later round already queued (the chief moved on without us)."""
@@ -434,8 +422,8 @@ class WorkerMachine:
         if message.flat is None:
             return NOTHING
         if message.type == "transfer":
-            return WorkerStep((act.TakeParameters(message.flat),))
-        return WorkerStep((act.ApplyAverage(message.flat, completed=False, contributed=False),))
+            return WorkerStep((actions.TakeParameters(message.flat),))
+        return WorkerStep((actions.ApplyAverage(message.flat, completed=False, contributed=False),))
 
     # ---- helpers ----
 
@@ -445,7 +433,9 @@ class WorkerMachine:
         """Publish ``message`` on the worker topic, then wait for what ``wanted`` accepts, re-sending it."""
         log.debug("worker %s: sending %s of round %d", self.worker_id, message.type, message.round)
         message = replace(message, epoch=self.epoch)  # so an older chief that hears it knows it was replaced
-        publish = act.Publish(self.topic, encode(message, layout=self.layout, key=self.key), retain, message)
+        publish = actions.Publish(
+            self.topic, encode(message, layout=self.layout, key=self.key), retain, message
+        )
         deadline = None if self.reply_timeout is None else now + self.reply_timeout
         next_send = None if self.resend_interval is None else now + self.resend_interval
         self._wait = Wait(wanted, what, publish, deadline, next_send)
@@ -453,14 +443,14 @@ class WorkerMachine:
 
     def _timed_out(self, what: str) -> WorkerStep:
         self.phase, self._wait = Phase.DONE, None
-        return WorkerStep((act.TimedOut(
+        return WorkerStep((actions.TimedOut(
             f"worker {self.worker_id}: nothing from the chief of run {self.run_id!r} for "
             f"{self.reply_timeout:g} s (--reply-timeout) while waiting for {what}"
         ),))  # fmt: skip
 
     def _run_ended(self) -> WorkerStep:
         self.phase, self._wait = Phase.DONE, None
-        return WorkerStep((act.RunEnded(
+        return WorkerStep((actions.RunEnded(
             f"worker {self.worker_id}: run {self.run_id!r} had ended before this worker was welcomed (its "
             f"chief's status says so, and no new chief of it came within {self.ended_grace:g} s); nothing to "
             "train: start a new run under another --run-id"
@@ -468,11 +458,11 @@ class WorkerMachine:
 
     def _finish(self, summary: WorkerSummary) -> WorkerStep:
         self.phase, self._wait, self.summary = Phase.DONE, None, summary
-        return WorkerStep((act.Finish(summary),))
+        return WorkerStep((actions.Finish(summary),))
 
     def _refused(self, why: str) -> WorkerStep:
         self.phase, self._wait = Phase.DONE, None
-        return WorkerStep((act.Refused(
+        return WorkerStep((actions.Refused(
             f"worker {self.worker_id}: refused by the chief of run {self.run_id!r}: {why}; start it with the"
             " chief's settings"
         ),))  # fmt: skip
@@ -480,10 +470,14 @@ class WorkerMachine:
 
 def _final_model_first(step: WorkerStep, message: Message) -> WorkerStep:
     """A ``done`` that ends this worker's run and carries the fleet's final model (a chief that keeps it):
-    the model is taken before the run's :class:`~fleetrl.federation.rounds.Finish`, so every worker ends
+    the model is taken before the run's :class:`~.worker.actions.Finish`, so every worker ends
     with the chief's model, also one that was down when the run ended."""
     outputs = step.outputs
-    if message.type != "done" or message.flat is None or not any(isinstance(o, act.Finish) for o in outputs):
+    if (
+        message.type != "done"
+        or message.flat is None
+        or not any(isinstance(o, actions.Finish) for o in outputs)
+    ):
         return step
-    at = next(i for i, o in enumerate(outputs) if isinstance(o, act.Finish))
-    return WorkerStep((*outputs[:at], act.TakeParameters(message.flat), *outputs[at:]))
+    at = next(i for i, o in enumerate(outputs) if isinstance(o, actions.Finish))
+    return WorkerStep((*outputs[:at], actions.TakeParameters(message.flat), *outputs[at:]))

@@ -1,4 +1,5 @@
-"""The edge aggregator's loop: drive :class:`~.edge.EdgeAggregator` over two transports — downstream, its
+"""The edge aggregator's loop: drive :class:`~.edge.aggregator.EdgeAggregator` over two transports —
+downstream, its
 members' (the site's run: a site broker, or the central one under the site's own run id), and upstream, the
 root's (where the site is one worker).
 
@@ -15,13 +16,13 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass
 
-from fleetrl.federation.edge import EdgeAggregator, EdgeStep
+from fleetrl.federation.edge.aggregator import EdgeAggregator, EdgeStep
 from fleetrl.federation.events import ChiefEvent
-from fleetrl.federation.messages import encode
 from fleetrl.federation.runner import MIN_WAIT, IdleTimeout
 from fleetrl.federation.shared_settings import SettingsRefused
-from fleetrl.federation.signing import status_payload
-from fleetrl.federation.topics import (
+from fleetrl.federation.wire.messages import encode
+from fleetrl.federation.wire.signing import status_payload
+from fleetrl.federation.wire.topics import (
     CHIEF_ID,
     ENDED,
     OFFLINE,

@@ -1,20 +1,6 @@
-"""What the chief remembers, as a value it owns (:class:`ChiefState`, with its :class:`AnswerBook`), and that
-value as data (JSON fields + named float32 tensors) for its checkpoint.
-
-No files here: :mod:`fleetrl.runs.checkpoints` stores what :func:`chief_to_state` returns. The state is what a
-restarted chief needs to continue a run with no round lost or counted twice (docs/protocol.md, "Checkpoints
-and resume"): its configuration, the open round and its configuration for the workers, W, the workers that
-left, the fleet's model (the last transfer's θ*, fedavg's last average, or the fleet's start), the last answer
-(re-sent to workers that ask again), the first completion of each worker, dropouts, rejoins, rejections,
-suspects and the newest incarnation seen of each worker. Answers received for the open round are not kept:
-the workers re-send them; nor are the earlier answers of the round that a running chief keeps for a worker
-replaying it (docs/protocol.md says what a double failure in one round does).
-
-Times are not kept either (they are seconds of a monotonic clock of a dead process): a restored chief opens
-its round, re-arms the grace of suspected workers at the ``now`` it is given, and answers the first re-send of
-every worker at once. The chief reads and writes its :class:`ChiefState`; this module only turns it into data
-and back.
-"""
+"""What the chief remembers, as one value it owns (:class:`ChiefState`, with its :class:`AnswerBook`), and
+that value as data. Times are not kept (a restored chief re-arms its deadlines at the ``now`` it is given),
+nor the open exchange's answers (the workers re-send them): docs/protocol.md, "Checkpoints and resume"."""
 
 from __future__ import annotations
 
@@ -22,21 +8,15 @@ import math
 from collections import Counter
 from collections.abc import Iterable
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 
-from fleetrl.federation.contributions import Contributions
-from fleetrl.federation.events import ChiefEvent, ChiefStep
-from fleetrl.federation.messages import Message, Reason
-from fleetrl.federation.schemes import get_scheme, scheme_reference
-from fleetrl.federation.signing import FleetKey
-from fleetrl.federation.stragglers import FleetPace
-from fleetrl.federation.topics import CHIEF_ID, sorted_workers
-
-if TYPE_CHECKING:
-    from fleetrl.federation.chief import Chief
-    from fleetrl.federation.fleet_model import FleetModel
+from fleetrl.federation.chief.contributions import Contributions
+from fleetrl.federation.chief.stragglers import FleetPace
+from fleetrl.federation.events import ChiefEvent
+from fleetrl.federation.wire.messages import Message, Reason
+from fleetrl.federation.wire.topics import CHIEF_ID, sorted_workers
 
 STATE_VERSION = 2
 """Version of the state's fields; :func:`chief_from_state` refuses any other (2: the round's ``config`` and
@@ -99,7 +79,8 @@ class AnswerBook:
 
 @dataclass
 class ChiefState:
-    """Everything the chief remembers across inputs that a checkpoint keeps; the :class:`~.chief.Chief` owns
+    """Everything the chief remembers across inputs that a checkpoint keeps; the
+    :class:`~.chief.machine.Chief` owns
     one and changes it as its rules say."""
 
     members: set[str]
@@ -137,9 +118,9 @@ class ChiefState:
     """a per-step scheme's stragglers: who is behind, who took part in the open round, per member the
     rounds closed without it and the contributions left out for their staleness"""
     contributions: dict[str, Contributions] = field(default_factory=dict)
-    """an asynchronous scheme's: worker → its contributions taken (:mod:`.contributions`)"""
+    """an asynchronous scheme's: worker → its contributions taken (:mod:`.chief.contributions`)"""
     epoch: int = 0
-    """the chief's epoch (:mod:`.lease`): 0, or one more than the newest it knew of when it took over"""
+    """the chief's epoch (:mod:`.chief.lease`): 0, or one more than the newest it knew of when it took over"""
 
     def drop(self, workers: Iterable[str], reason: str) -> tuple[ChiefEvent, ...]:
         """``workers`` leave W (they may come back) for ``reason``; their events."""
@@ -163,12 +144,9 @@ class ChiefState:
         remaining = tuple(sorted_workers(self.members))
         return (ChiefEvent("rejoined", self.round, sender=worker, detail=why, remaining=remaining),)
 
-    def admit(self, worker: str, *, per_step: bool) -> tuple[ChiefEvent, ...]:
-        """``worker``, new to the run, is in W from now on; under a per-step scheme it is behind (it plays
-        its first round from the fleet's model and joins the next round-opening exchange after it)."""
+    def admit(self, worker: str) -> tuple[ChiefEvent, ...]:
+        """``worker``, new to the run, is in W from now on."""
         self.members.add(worker)
-        if per_step:
-            self.pace.behind.add(worker)
         remaining = tuple(sorted_workers(self.members))
         event = ChiefEvent(
             "admitted", self.round, sender=worker, detail="new to the fleet", remaining=remaining
@@ -241,105 +219,6 @@ class ChiefState:
             },
             epoch=int(fields.get("epoch", 0)),  # a state written before epochs: the run's first chief
         )
-
-
-def chief_config(chief: Chief) -> dict[str, Any]:
-    """The settings that define the run (all JSON); a resumed chief must be given the same."""
-    return {
-        "run_id": chief.run_id,
-        "workers": list(chief.all_workers),
-        "open_fleet": chief.roster.open_fleet,
-        "layout": [[name, list(shape)] for name, shape in chief.layout],
-        "welcome_layout": [[name, list(shape)] for name, shape in chief.welcome_layout],
-        "max_rounds": chief.max_rounds,
-        "aggregator": chief.aggregator_name,
-        "max_bytes": chief.max_bytes,
-        "quorum": chief.quorum,
-        "round_timeout": chief.round_timeout,
-        "max_staleness": chief.max_staleness,
-        "resend_holdoff": chief.resend_holdoff,
-        "dropout_grace": chief.dropout_grace,
-        "signed": chief.key is not None,
-        "scheme": scheme_reference(chief.scheme),
-        "scheme_params": chief.scheme.params(),
-        "settings": chief.settings,
-        "steps_per_round": chief.steps_per_round,
-    }
-
-
-def chief_fields(chief: Chief) -> dict[str, Any]:
-    """The JSON part of the chief's state (cheap: the runner compares it after every input)."""
-    return {
-        "version": STATE_VERSION,
-        "config": chief_config(chief),
-        **chief.state.fields(),
-        "scheme_state": chief.scheme.state()[0],
-    }
-
-
-def chief_tensors(chief: Chief) -> dict[str, np.ndarray]:
-    """The tensors of the chief's state: the last answer's and the fleet model's, and the scheme's own."""
-    scheme = {SCHEME_TENSOR + name: flat for name, flat in chief.scheme.state()[1].items()}
-    return chief.state.tensors() | {name: np.asarray(flat, np.float32) for name, flat in scheme.items()}
-
-
-def chief_to_state(chief: Chief) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
-    """(fields, tensors): everything :func:`chief_from_state` needs."""
-    return chief_fields(chief), chief_tensors(chief)
-
-
-def chief_from_state(
-    fields: dict[str, Any],
-    tensors: dict[str, np.ndarray],
-    *,
-    key: FleetKey | None = None,
-    now: float,
-    fleet_model: FleetModel | None = None,
-) -> Chief:
-    """The chief as it was when ``fields``/``tensors`` were taken, its open round starting at ``now``.
-
-    :param key: the fleet key; required if and only if the saved chief had one.
-    :param now: the current time of the clock the restored chief will be driven with.
-    :param fleet_model: a per-step scheme's fleet model (built as for the chief that wrote the state); it
-        is set to the saved one.
-    :raises ValueError: another state version, or a key where there was none (or the reverse).
-    """
-    from fleetrl.federation.chief_async import new_chief  # the chief's module imports this one
-
-    if fields.get("version") != STATE_VERSION:
-        raise ValueError(f"chief state version {fields.get('version')!r}, expected {STATE_VERSION}")
-    config = dict(fields["config"])
-    config.setdefault("open_fleet", True)  # a state written before new units could join
-    if bool(config.pop("signed")) != (key is not None):
-        had = "with" if key is None else "without"
-        raise ValueError(f"the checkpoint was written by a chief {had} a fleet key; resume it the same way")
-    for name in ("layout", "welcome_layout"):
-        config[name] = [(str(n), tuple(int(d) for d in shape)) for n, shape in config[name]]
-    scheme = get_scheme(config.pop("scheme"), **config.pop("scheme_params", {}))
-    scheme_tensors = {
-        n.removeprefix(SCHEME_TENSOR): t for n, t in tensors.items() if n.startswith(SCHEME_TENSOR)
-    }
-    scheme.restore(fields.get("scheme_state", {}), scheme_tensors)
-    state = ChiefState.from_data(
-        fields, tensors, run_id=config["run_id"], holdoff=config["resend_holdoff"],
-        grace=config["dropout_grace"], now=now,
-    )  # fmt: skip
-    if fleet_model is not None and state.model is not None and state.model.flat is not None:
-        fleet_model.load(state.model.flat)
-    return new_chief(**config, scheme=scheme, key=key, state=state, now=now, fleet_model=fleet_model)
-
-
-def replay_last_answer(chief: Chief) -> ChiefStep:
-    """The chief's last answer again, to publish once when a restored chief comes online.
-
-    A chief may die after committing a round but before its answer left; workers that got the answer ignore
-    the copy (they are past that round), those that did not take it.
-    """
-    last = chief.state.answers.last
-    if not last:
-        return ChiefStep()
-    detail = f"answer of round {last[0].round} after resume"
-    return ChiefStep(last, (ChiefEvent("resent", chief.round, sender="*", detail=detail),))
 
 
 def _message_fields(message: Message, tensor: str) -> dict[str, Any]:

@@ -1,15 +1,6 @@
-"""The worker of an asynchronous scheme (``fedasync``) as a pure state machine: the rounds of
-:class:`~fleetrl.federation.worker_machine.WorkerMachine`, without a round barrier.
-
-Each worker counts its own rounds. Before every round it takes the newest fleet model it has seen — the
-welcome's, its last answer's, or any newer one broadcast meanwhile (every answer of the chief carries the
-fleet model and its version, and goes to every worker) — and remembers that version. It plays the round,
-sends its contribution with that version, and waits for the answer to *it*: the chief's ``average`` naming
-this worker in ``origin`` for this round (another worker's answer is only a newer model), or an answer
-listing it in ``finished`` (the run completed), or ``done``. It re-sends its contribution while none comes;
-the chief answers a re-send again without applying it twice. A worker resumed from its checkpoint takes the
-welcome's model too (the newest there is) and plays the round the welcome's and its checkpoint's agree on.
-docs/protocol.md, "Asynchronous schemes".
+"""The worker of an asynchronous scheme (``fedasync``) as a pure state machine: it counts its own rounds,
+takes the newest fleet model it has seen before each, and waits for the chief's answer to its own
+contribution (another worker's answer is only a newer model). docs/protocol.md, "Asynchronous schemes".
 """
 
 from __future__ import annotations
@@ -18,13 +9,13 @@ import logging
 from collections.abc import Callable
 from typing import Any
 
-from fleetrl.federation import rounds as act
 from fleetrl.federation.events import RoundEvent, Sent, WorkerEvent
-from fleetrl.federation.messages import Message
-from fleetrl.federation.rounds import WorkerStep, WorkerSummary, resume_round
 from fleetrl.federation.shared_settings import settings_difference
-from fleetrl.federation.worker_machine import WorkerMachine
-from fleetrl.federation.worker_phase import NOTHING, Phase
+from fleetrl.federation.wire.messages import Message
+from fleetrl.federation.worker import actions
+from fleetrl.federation.worker.actions import WorkerStep, WorkerSummary, resume_round
+from fleetrl.federation.worker.machine import WorkerMachine
+from fleetrl.federation.worker.phase import NOTHING, Phase
 
 __all__ = ["AsyncWorkerMachine"]
 
@@ -36,7 +27,7 @@ MODELS = ("welcome", "average")
 
 class AsyncWorkerMachine(WorkerMachine):
     """Algorithm 2 for one worker of an asynchronous scheme (see the module's docstring); the parameters are
-    :class:`~fleetrl.federation.worker_machine.WorkerMachine`'s."""
+    :class:`~fleetrl.federation.worker.machine.WorkerMachine`'s."""
 
     current_model = True
 
@@ -83,7 +74,7 @@ class AsyncWorkerMachine(WorkerMachine):
         """Take the newest fleet model seen, then play round ``rnd``."""
         taken = NOTHING
         if self.newest is not None and self.newest.flat is not None and rnd <= self.max_rounds:
-            taken = WorkerStep((act.TakeParameters(self.newest.flat),))
+            taken = WorkerStep((actions.TakeParameters(self.newest.flat),))
             self.model_version, self.newest = self.newest.model_version, None
         return taken + super()._begin_round(rnd)
 
@@ -122,4 +113,4 @@ class AsyncWorkerMachine(WorkerMachine):
         """Nothing more is queued: this worker's next round, from the newest model seen."""
         del now
         nxt = self.round + 1
-        return WorkerStep((act.Checkpoint(nxt),)) + self._begin_round(nxt)
+        return WorkerStep((actions.Checkpoint(nxt),)) + self._begin_round(nxt)

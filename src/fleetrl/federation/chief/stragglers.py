@@ -1,35 +1,7 @@
-"""Who the chief waits for at an exchange, and for how long: a once-per-round scheme's deadline rule
-(:class:`RoundWaits`), and a per-step scheme's stragglers (:class:`StepWaits`; docs/protocol.md,
-"Stragglers").
-
-A per-step scheme (``pergrad``) exchanges every optimisation step with the whole fleet; waiting for every
-worker at every exchange would let the slowest unit set everyone's pace. The rules, after DD-PPO (whose
-collection closes when 60 % of the workers are done):
-
-* A round's first exchange waits for the members that took part in the round before (the others are
-  *behind*: still playing a round the fleet has moved past). A later exchange of the round waits for the
-  round's participants.
-* With a quorum below 1, a member that did not answer the last exchange that closed (it *missed* it) is not
-  waited for until the chief hears from it again about the open round — an answer to one of the round's
-  exchanges, in time or late: the grace is granted once, not again and again to a unit that went silent (a
-  unit paused whole — its process stopped, its link down — would otherwise cost the fleet a grace at every
-  exchange of its pause: the whole pause). A unit that is only slow keeps answering, late, and so is waited
-  for again at once, as before. A silent member's answers are still taken whenever they come before an
-  exchange closes.
-* Once ⌈quorum·n⌉ of the n waited for have answered, the others get a grace of a quarter of the time the
-  quorum took (at least :data:`GRACE_FLOOR`); then the exchange closes with whoever answered. With the
-  ``round_timeout`` set, it also closes that long after it opened, with whoever answered (at least one).
-* Nobody is dropped for being late (only an ``offline`` status drops a worker). A straggler applies every
-  answer it missed, in order, and joins the first round-opening exchange after its play with what it played;
-  its message says how many rounds the fleet moved on meanwhile (``staleness``). A contribution older than
-  ``max_staleness`` rounds is left out of the average (its completion still counts), unless nothing fresher
-  answered. The chief counts, per member, the rounds that closed without it (``late``) and the contributions
-  it left out (``stale``).
-
-With quorum 1 every member that took part in the last round is waited for: the fully synchronous rule, and
-for an even fleet the same runs as before stragglers were allowed for. A member misses an exchange only when
-a grace (or the ``round_timeout``) ran out without it, so the rule of missed exchanges changes no run in
-which that never happens (an even fleet's runs, the fingerprinted ones among them).
+"""Who the chief waits for at an exchange, and for how long: a once-per-round scheme's deadline and quorum
+(:class:`RoundWaits`), and a per-step scheme's stragglers after DD-PPO (:class:`StepWaits`: a quorum, then a
+grace; a member that missed an exchange is not waited for until heard from again; stale contributions left
+out). The rules: docs/protocol.md, "Deadline and quorum" and "Stragglers under a per-step scheme".
 """
 
 from __future__ import annotations
@@ -39,7 +11,7 @@ from collections import Counter
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 
-from fleetrl.federation.messages import Message
+from fleetrl.federation.wire.messages import Message
 
 GRACE_SHARE = 0.25
 """after the quorum, the others' grace as a share of the time the quorum took (a round waits at most 1.25×
@@ -132,6 +104,16 @@ class RoundWaits:
         answered = members.intersection(pending)
         return set() if len(answered) >= quorum_count(self.quorum, len(members)) else members - answered
 
+    def admit(self, pace: FleetPace, worker: str) -> None:
+        """``worker`` is new to the run: a round's fleet waits for it from its next round (nothing to do)."""
+        del pace, worker
+
+    def excused(self, pace: FleetPace, worker: str, step: int) -> bool:
+        """Whether a restarted ``worker`` that will not replay the open round is not waited for in its later
+        exchanges (once per round: there are none)."""
+        del pace, worker, step
+        return False
+
     def averaged(self, pace: FleetPace, answers: Mapping[str, Message], step: int) -> dict[str, Message]:
         """The answers the scheme combines."""
         del pace, step
@@ -196,6 +178,19 @@ class StepWaits(RoundWaits):
         del members, pending
         return set()
 
+    def admit(self, pace: FleetPace, worker: str) -> None:
+        """``worker`` is new to the run: it is behind (it plays its first round from the fleet's model and
+        joins the next round-opening exchange after it)."""
+        pace.behind.add(worker)
+
+    def excused(self, pace: FleetPace, worker: str, step: int) -> bool:
+        """A restarted ``worker`` that will not replay the open round is not waited for in its exchanges
+        after the first: it joins the fleet's next round."""
+        if step == 0:
+            return False
+        pace.participants.discard(worker)
+        return True
+
     def averaged(self, pace: FleetPace, answers: Mapping[str, Message], step: int) -> dict[str, Message]:
         """The answers the scheme combines: those within ``max_staleness`` (all, if none is); at a round's
         first exchange, each one left out is counted."""
@@ -219,12 +214,3 @@ class StepWaits(RoundWaits):
             pace.behind = members - pace.participants
             pace.late.update(pace.behind)
             pace.participants = set()
-
-
-def waiting_rule(
-    per_step: bool, quorum: float, round_timeout: float | None, max_staleness: int | None
-) -> RoundWaits:
-    """The chief's waiting rule for a per-step scheme (:class:`StepWaits`) or a once-per-round one."""
-    if per_step:
-        return StepWaits(quorum, round_timeout, max_staleness)
-    return RoundWaits(quorum, round_timeout)

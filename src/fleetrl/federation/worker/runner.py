@@ -1,36 +1,6 @@
-"""The worker of Algorithm 2 (lines 7–31) on top of a learner: play a round, send, wait for the chief, apply.
-
-Each round the worker calls ``learner.play_round()`` (the episode and, unless learning is complete, the K PPO
-optimisations). It then sends what its scheme (:mod:`fleetrl.federation.schemes`) says — ``paper``: the
-actor's last gradient, ``fedavg``: its whole model; once the completion criterion holds, a ``parameters``
-message — to the chief, and waits for the chief's answer for that round:
-
-* ``average``: the scheme applies it (``paper``: through the actor's optimiser, line 31; ``fedavg``: the
-  average model replaces the worker's);
-* ``transfer`` listing this worker in ``finished``: the chief acknowledged its parameters; the worker is
-  finished and stops (it has left W; what the chief forwarded — its own parameters or a lower id's — is in the
-  record);
-* ``transfer`` not listing it: the scheme replaces its shared parameters with the received ones (line 29) and
-  it keeps learning;
-* an ``average`` listing it in ``finished``: the run is complete for it (``fedavg``'s last round);
-* ``done``: the run is over.
-
-The worker also stops after round M. Every round produces a :class:`FederatedRound` through ``on_record``.
-
-Join: before its first round the worker publishes a retained ``join`` carrying its shared settings; a chief
-``refused`` naming it, or a ``welcome`` whose settings differ, raises
-:class:`~fleetrl.federation.shared_settings.SettingsRefused` (``fleetrl worker`` exits 2).
-
-Reliability (issue 7): the worker starts (or, restarted with the same id, rejoins) at the round named by the
-chief's ``welcome``, taking the last transferred parameters if it carries them. It re-sends its round's
-message (and, before the welcome, its ``online`` status) every ``resend_interval`` seconds without an
-answer, so a message lost to a broker restart is repaired; the chief answers a resend for a closed round
-with its answer again. A worker that falls behind (a straggler under a quorum) applies every later answer it
-finds queued and continues at the chief's round.
-
-The rules live in the pure state machine :class:`~fleetrl.federation.worker_machine.WorkerMachine`; this
-module is its runner: the loop, the clock, the transport, and the learner (the machine's actions are executed
-here, on the agent through the scheme).
+"""The worker of Algorithm 2 (lines 7–31) over a learner and a transport: the loop, the clock and the
+transport around the pure :class:`~.worker.machine.WorkerMachine`, whose actions it executes (the learner's
+side through its scheme kind's :mod:`.worker.play`). Joining, resuming and re-sends: docs/protocol.md.
 """
 
 from __future__ import annotations
@@ -40,19 +10,16 @@ import logging
 import time
 from collections import deque
 from collections.abc import Callable, Mapping
-from typing import Any
 
-from fleetrl.federation.messages import Layout, RoundConfig
-from fleetrl.federation.rounds import (
-    AbandonUpdate,
+from fleetrl.federation.kinds import kind_of
+from fleetrl.federation.schemes import Scheme, resolve_scheme
+from fleetrl.federation.shared_settings import SettingsRefused, SharedSettings
+from fleetrl.federation.wire.messages import Layout
+from fleetrl.federation.wire.signing import FleetKey
+from fleetrl.federation.wire.topics import OFFLINE, validate_id, validate_worker_id
+from fleetrl.federation.worker.actions import (
     Announce,
-    ApplyAverage,
-    ApplyFleetStep,
-    ApplyStep,
-    BeginUpdate,
     Checkpoint,
-    ComputeStep,
-    EndUpdate,
     FederatedRound,
     Finish,
     PlayRound,
@@ -67,13 +34,7 @@ from fleetrl.federation.rounds import (
     WorkerOutput,
     WorkerSummary,
 )
-from fleetrl.federation.schemes import RoundScheme, Scheme, StepScheme, resolve_scheme
-from fleetrl.federation.schemes.base import LocalTraining
-from fleetrl.federation.shared_settings import SettingsRefused, SharedSettings
-from fleetrl.federation.signing import FleetKey
-from fleetrl.federation.step_worker import StepWorkerMachine, worker_machine
-from fleetrl.federation.topics import OFFLINE, validate_id, validate_worker_id
-from fleetrl.federation.worker_machine import ENDED_GRACE
+from fleetrl.federation.worker.machine import ENDED_GRACE
 from fleetrl.transport.base import Transport, Will
 
 __all__ = ["FederatedRound", "FederatedWorker", "RoundPlayer", "WorkerSummary"]
@@ -117,9 +78,9 @@ class FederatedWorker:
         chief weighs its answers by them.
     :param ended_grace: seconds to wait, unwelcomed, for a new chief once the chief's retained status says
         the run has ended; then :meth:`run` raises
-        :class:`~fleetrl.federation.rounds.RunEndedError`.
-    :param status_fields: who this process is (pid, host, keep-alive: :func:`~.lease.holder_fields`), said
-        in its status so a second process with its id is refused naming it.
+        :class:`~fleetrl.federation.worker.actions.RunEndedError`.
+    :param status_fields: who this process is (pid, host, keep-alive: :func:`~.chief.lease.holder_fields`),
+        said in its status so a second process with its id is refused naming it.
     """
 
     def __init__(
@@ -156,7 +117,8 @@ class FederatedWorker:
         self.clock = clock
         self.scheme = resolve_scheme(scheme)
         self.layout: Layout = list(self.scheme.layout(learner.agent))
-        self.machine = worker_machine(
+        kind = kind_of(self.scheme)
+        self.machine = kind.machine(
             scheme=self.scheme,
             steps_per_round=self.scheme.exchanges_per_round(learner.agent),
             run_id=self.run_id,
@@ -175,9 +137,8 @@ class FederatedWorker:
             ended_grace=ended_grace,
             status_fields=status_fields,
         )
+        self.play = kind.play(self.scheme, learner, self.machine, clock)
         self._queue: deque[WorkerOutput] = deque()
-        self._played: Any = None
-        """a per-step round under way: what ``learner.begin_round`` returned"""
 
     def run(self) -> WorkerSummary:
         """Connect, wait for the chief's welcome, play rounds until finished, M rounds, or ``done``; close."""
@@ -237,40 +198,15 @@ class FederatedWorker:
         self._queue.extend(step.outputs)
 
     def _execute(self, output: WorkerOutput) -> None:
-        agent = self.learner.agent
         match output:
             case Publish(topic, payload, retain, _):
                 self.transport.publish(topic, payload, retain=retain)
             case Announce(topic, payload):
                 self.transport.announce(topic, payload)
             case TakeParameters(flat):
-                self.scheme.take_parameters(agent, flat)
-            case ApplyAverage(flat, completed, contributed):
-                assert isinstance(self.scheme, RoundScheme), "averages come per step to a per-step scheme"
-                self.scheme.apply_average(agent, flat, completed=completed, contributed=contributed)
+                self.scheme.take_parameters(self.learner.agent, flat)
             case PlayRound(_, config):
-                self._play_round(config)
-            case BeginUpdate():  # a per-step round joins the fleet's exchange: line 11
-                assert isinstance(self.scheme, StepScheme), "a per-step round comes to a per-step scheme"
-                units = self.learner
-                weights = self.scheme.unit_weights(units.unit_progress(), units.units_completed())
-                steps = agent.begin_update(weights) if self._played.updates else 0
-                weight = None if weights is None else float(sum(weights))
-                begun = self._step_machine.update_begun(steps, now=self.clock(), weight=weight)
-                self._queue.extend(begun.outputs)
-            case ApplyFleetStep(k, flat):  # behind the fleet: its step, taken outside an update
-                assert isinstance(self.scheme, StepScheme), "step answers come to a per-step scheme"
-                self.scheme.catch_up_step(agent, k, flat)
-            case ComputeStep(k):  # a per-step round: step k's gradient to the chief
-                flat = agent.step_gradients(k)
-                self._queue.extend(self._step_machine.step_computed(k, flat, now=self.clock()).outputs)
-            case ApplyStep(flat):  # the chief's combination: the agent steps and takes the next gradient
-                assert isinstance(self.scheme, StepScheme), "step answers come to a per-step scheme"
-                self.scheme.apply_step_answer(agent, flat)
-            case EndUpdate():
-                self._end_round()
-            case AbandonUpdate():
-                self._end_round(abandoned=True)
+                self._queue.extend(self.play.play(config).outputs)
             case Record(record):
                 if self.on_record is not None:
                     self.on_record(record)
@@ -284,51 +220,7 @@ class FederatedWorker:
             case RunEnded(detail):
                 raise RunEndedError(detail)
             case _:
-                raise AssertionError(f"worker {self.worker_id}: {output} out of turn")
-
-    def _play_round(self, config: RoundConfig) -> None:
-        """Play the round the machine asked for and report it. A per-round scheme's local loss for the round
-        (with the chief's ``config``) is installed first; a per-step scheme's round plays its episodes here
-        and reports its update's steps as the machine asks for them (:meth:`_execute`)."""
-        agent = self.learner.agent
-        if isinstance(self.scheme, RoundScheme):
-            self._install_local_loss(self.scheme, config)
-            result = self.learner.play_round()
-            share = self.scheme.outgoing(agent, completed=bool(result.completed))  # lines 8, 25
-            self._queue.extend(self.machine.round_played(result, now=self.clock(), share=share).outputs)
-            return
-        self._played = self.learner.begin_round()
-        completed = bool(self.learner.completed)
-        collected = self._step_machine.round_collected(completed=completed, now=self.clock())
-        self._queue.extend(collected.outputs)
-
-    @property
-    def _step_machine(self) -> StepWorkerMachine:
-        """The machine of a per-step scheme's worker (its actions come to no other)."""
-        assert isinstance(self.machine, StepWorkerMachine), "per-step actions come to a per-step scheme"
-        return self.machine
-
-    def _end_round(self, *, abandoned: bool = False) -> None:
-        """Every step of a per-step round was applied (or the fleet went on past this worker's step:
-        ``abandoned``): finish the update and report the round."""
-        played, self._played = self._played, None
-        agent = self.learner.agent
-        stats = None
-        if abandoned:
-            agent.abandon_update()
-        elif played.updates:
-            stats = agent.end_update()
-        result = self.learner.end_round(played, stats)
-        self._queue.extend(self.machine.round_played(result, now=self.clock()).outputs)
-
-    def _install_local_loss(self, scheme: RoundScheme, config: RoundConfig) -> None:
-        """Hand the agent what ``scheme`` adds to its local training's loss this round (or nothing)."""
-        agent = self.learner.agent
-        extra = scheme.local_loss(agent, config)
-        if isinstance(agent, LocalTraining):
-            agent.set_extra_loss(extra)
-        elif extra is not None:
-            raise TypeError(
-                f"scheme {scheme.name!r} adds a term to local training, which this agent "
-                f"({type(agent).__name__}) cannot take: it has no set_extra_loss(fn)"
-            )
+                step = self.play.execute(output)
+                if step is None:
+                    raise AssertionError(f"worker {self.worker_id}: {output} out of turn")
+                self._queue.extend(step.outputs)

@@ -1,22 +1,15 @@
-"""The fleet's one policy, kept by the chief of a per-step scheme (a parameter server).
-
-Every worker of a one-policy fleet applies every answer of the chief, in order, to the same start; the chief
-does the same to its own copy of the agent (the scheme's :meth:`~.schemes.base.StepScheme.catch_up_step`,
-the very optimiser steps a worker takes), so its copy is, after every exchange, the model each worker holds —
-network and optimiser state. It hands that model (:meth:`FleetModel.snapshot`, in the scheme's
-``welcome_layout``) to every worker that joins: at the start, late, after a crash, or after being dropped; and
-its checkpoint keeps it (:meth:`FleetModel.load` puts it back into a restarted chief's copy).
-
-The agent is any :class:`~.schemes.base.FederatedAgent` (the role that builds the chief builds it, as a worker
-builds its own: federation never imports torch).
+"""The fleet's one policy, kept by the chief of a per-step scheme (a parameter server): its copy of the agent
+steps with every answer as each worker's does, so it is, after every exchange, the model (network and
+optimiser state) every worker holds; a joining worker's welcome and the chief's checkpoint carry it.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from fleetrl.federation.messages import Layout, Message
-from fleetrl.federation.schemes.base import FederatedAgent, StepScheme
+from fleetrl.federation.schemes.agent import FederatedAgent
+from fleetrl.federation.schemes.base import StepScheme
+from fleetrl.federation.wire.messages import Layout, Message
 
 
 class FleetModel:

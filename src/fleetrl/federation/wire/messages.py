@@ -1,36 +1,5 @@
-"""Wire format of federation messages: a versioned msgpack envelope with raw float32 tensors; never pickle.
-
-An envelope is one msgpack map with exactly these keys (see docs/protocol.md):
-
-``version`` (int, :data:`VERSION`), ``type`` (str, one of :data:`MESSAGE_TYPES`, or the round message a scheme
-declares: then it carries tensors and only a receiver that expects it takes it), ``run_id`` (str), ``sender``
-(str), ``round`` (int ≥ 1), ``metrics`` (map str → finite number, small), ``origin`` (str or nil: whose
-parameters a ``transfer`` carries), ``finished`` (list of str: workers that leave W with this message),
-``contributors`` (list of str: whose gradients an ``average`` combines), ``step`` (int ≥ 0: the optimisation
-step within the round, for schemes that send per step; 0 otherwise), ``settings`` (map str → str: the settings
-all roles must share, in ``join`` and ``welcome``), ``detail`` (str: why, in ``refused``), ``samples`` (int
-≥ 0: the transitions a worker's contribution stands for; a chief's answer: those of its contributors),
-``units`` (int ≥ 0: the units it stands for, 1 for a worker of one unit), ``config`` (map str → finite
-number or short str: what the chief asks of every worker for the round the message opens, the scheme's
-``configure``), ``staleness`` (int ≥ 0: how many rounds the fleet moved on while the worker played what it
-contributes; 0: it played the round it answers), ``model_version`` (int ≥ 0: an asynchronous scheme's
-fleet model version — in a worker's contribution the version it started its round from, in the chief's
-answer or welcome the version of the model it carries; 0 otherwise), ``weight`` (a number in (0, ``units``]
-or nil: what a contribution weighs in a mean when that is not its units — a per-step scheme that weighs its
-units by their need, ``pergrad``'s ``focus``; nil: its units), ``epoch`` (int ≥ 0: the chief's epoch —
-in a chief message its own, in a worker message the highest the worker has seen; :mod:`.lease`),
-``tensors`` (list of ``[name, shape]``) and ``data`` (bin: the tensors concatenated in that order as
-little-endian float32).
-
-A round message of an edge aggregator (a site's gateway, :mod:`fleetrl.federation.edge`) carries its
-members' weighted sum Σ wᵢ·xᵢ exactly: its ``data`` is little-endian float64 (8 bytes a value; ``weight`` is
-Σ wᵢ, ``units`` the units behind it), which only a receiver that takes sums accepts (``decode(sums=True)``:
-a chief whose rule decomposes).
-
-Version 2 added ``step``, ``settings``, ``detail`` and the ``join`` / ``refused`` types; version 3 added
-``samples``, ``units`` and ``config``, and a scheme's own round-message type; version 4 added ``staleness``;
-version 5 added ``model_version``; version 6 added ``weight``; version 7 added ``epoch``.
-
+"""Wire format of federation messages: a versioned msgpack envelope with raw little-endian float32 tensors
+(an edge aggregator's sums: float64); never pickle. docs/protocol.md, "Envelope", lists its keys.
 :func:`decode` validates all of it and raises :class:`MessageRejected` with a :class:`Reason` for anything
 wrong; it never raises anything else, whatever the bytes.
 """
@@ -46,7 +15,7 @@ from typing import Any
 import msgpack
 import numpy as np
 
-from fleetrl.federation.rejections import (
+from fleetrl.federation.wire.rejections import (
     MAX_TEXT,
     MessageRejected,
     Reason,
@@ -57,8 +26,8 @@ from fleetrl.federation.rejections import (
     check_settings,
     short,
 )
-from fleetrl.federation.signing import OVERHEAD as SIGNATURE_OVERHEAD
-from fleetrl.federation.signing import FleetKey
+from fleetrl.federation.wire.signing import OVERHEAD as SIGNATURE_OVERHEAD
+from fleetrl.federation.wire.signing import FleetKey
 
 __all__ = [
     "MESSAGE_TYPES",
@@ -77,7 +46,7 @@ __all__ = [
     "layout_size",
 ]
 
-VERSION = 7
+VERSION = 8
 """Envelope version; a receiver rejects any other."""
 
 Layout = Sequence[tuple[str, tuple[int, ...]]]
@@ -124,7 +93,6 @@ _KEYS = frozenset(
         "config",
         "staleness",
         "model_version",
-        "weight",
         "epoch",
         "tensors",
         "data",
@@ -165,13 +133,11 @@ class Message:
     :param staleness: rounds the fleet moved on while the worker played what it contributes (0: none).
     :param model_version: an asynchronous scheme's fleet model version (a contribution: the one its round
         started from; the chief's answer or welcome: the one it carries); 0 otherwise.
-    :param weight: what the contribution weighs in a mean when that is not ``units`` (in (0, ``units``]; an
-        edge aggregator's sum: its members' total weight); None: ``units``.
-    :param epoch: the chief's epoch (:mod:`.lease`): a chief message's own, a worker message's the highest
-        its worker has seen; 0 before any takeover.
+    :param epoch: the chief's epoch (:mod:`.chief.lease`): a chief message's own, a worker message's the
+        highest its worker has seen; 0 before any takeover.
     :param version: envelope version.
     :param summed: ``flat`` is an edge aggregator's weighted sum of its members' vectors, float64 (sent as
-        8 bytes a value), standing for ``weight``.
+        8 bytes a value), standing for ``units``.
     """
 
     type: str
@@ -191,15 +157,9 @@ class Message:
     config: RoundConfig = field(default_factory=dict)
     staleness: int = 0
     model_version: int = 0
-    weight: float | None = None
     epoch: int = 0
     version: int = VERSION
     summed: bool = False
-
-    @property
-    def mean_weight(self) -> float:
-        """What the contribution weighs in a mean: :attr:`weight`, or its units when it has none."""
-        return float(self.units) if self.weight is None else self.weight
 
     def tensors(self, layout: Layout) -> dict[str, np.ndarray]:
         """The flat vector split into named, shaped views following ``layout``."""
@@ -258,7 +218,6 @@ def envelope(message: Message, *, layout: Layout) -> dict[str, Any]:
         "config": {str(k): v if isinstance(v, str) else float(v) for k, v in message.config.items()},
         "staleness": message.staleness,
         "model_version": message.model_version,
-        "weight": None if message.weight is None else float(message.weight),
         "epoch": message.epoch,
         "tensors": tensors,
         "data": data,
@@ -268,7 +227,7 @@ def envelope(message: Message, *, layout: Layout) -> dict[str, Any]:
 def encode(message: Message, *, layout: Layout, key: FleetKey | None = None) -> bytes:
     """Serialise ``message`` (msgpack envelope, tensors as little-endian float32 following ``layout``).
 
-    With ``key`` the envelope is signed (see :mod:`fleetrl.federation.signing`).
+    With ``key`` the envelope is signed (see :mod:`fleetrl.federation.wire.signing`).
 
     :raises ValueError: unknown type, tensors missing or not fitting ``layout``, or non-finite values — a
         sender must not put on the wire what every receiver would reject.
@@ -282,8 +241,6 @@ def encode(message: Message, *, layout: Layout, key: FleetKey | None = None) -> 
     if not all(math.isfinite(v) for v in env["metrics"].values()):
         raise ValueError("refusing to send non-finite metrics")
     check_config(env["config"], error=ValueError)
-    if message.weight is not None and not _weight_fits(message.weight, message.units):
-        raise ValueError(f"weight {message.weight!r} must be a finite number in (0, units = {message.units}]")
     packed = bytes(msgpack.packb(env, use_bin_type=True))
     return packed if key is None else key.sign(packed)
 
@@ -364,9 +321,6 @@ def decode(
         raise MessageRejected(Reason.MALFORMED, "detail is not a short string")
     samples, units = check_count(env["samples"], "samples"), check_count(env["units"], "units")
     config = check_config(env["config"], error=None)
-    weight = env["weight"]
-    if weight is not None and not (isinstance(weight, float | int) and _weight_fits(weight, units)):
-        raise MessageRejected(Reason.MALFORMED, f"weight {short(weight)} (a number in (0, units = {units}])")
     carries = MESSAGE_TYPES.get(mtype, True) or (mtype in OPTIONAL_TENSORS and env["tensors"] != [])
     wide = sums and (mtype in scheme_types or mtype == "parameters") and isinstance(env["data"], bytes)
     wide = wide and len(env["data"]) == 8 * layout_size(layout) > 0
@@ -390,14 +344,8 @@ def decode(
         staleness=check_count(env["staleness"], "staleness"),
         summed=wide,
         model_version=check_count(env["model_version"], "model_version"),
-        weight=None if weight is None else float(weight),
         epoch=check_count(env["epoch"], "epoch"),
     )
-
-
-def _weight_fits(weight: float, units: int) -> bool:
-    """A contribution's weight is a finite number in (0, units] (a unit weighs at most 1)."""
-    return not isinstance(weight, bool) and math.isfinite(weight) and 0.0 < weight <= units
 
 
 def _tensors(tensors: object, data: object, layout: Layout, wide: bool = False) -> np.ndarray:

@@ -10,7 +10,7 @@ A status payload is ``<state> <incarnation>[ <name>=<value> …]`` or, signed, t
 incarnation (nanoseconds since the epoch when the node started) grows with every restart, so a replayed
 ``online`` or the late will of an earlier incarnation is recognised. The ``name=value`` fields say who holds
 the node's place (``pid``, ``host``, ``keepalive``) and, for the chief, its ``epoch``
-(:mod:`fleetrl.federation.lease`).
+(:mod:`fleetrl.federation.chief.lease`).
 """
 
 from __future__ import annotations
@@ -23,7 +23,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from fleetrl.federation.rejections import MessageRejected, Reason
+from fleetrl.federation.wire.rejections import MessageRejected, Reason
 
 MAGIC = b"FRS1"
 """First bytes of a signed message."""

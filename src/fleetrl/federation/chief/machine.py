@@ -1,26 +1,7 @@
-"""The chief of Algorithm 1 as a pure state machine: messages, statuses and time in → messages and events out.
-
-No sockets and no clocks: every input takes ``now`` (seconds, any monotonic origin; keyword-only and
-required, so a caller that forgets the clock gets a TypeError), and deadlines are tested without a broker.
-Round semantics (docs/protocol.md has the full rules):
-
-* The chief keeps W and the open round i (from 1); it takes from each worker exactly one message for round i
-  of a type its scheme accepts, keyed by (sender, round); duplicates, future rounds and workers out of W are
-  rejected and change nothing.
-* Round i closes when every worker in W has answered (a per-step scheme: every one it waits for,
-  :mod:`.stragglers`); answers are read in sorted worker-id order, never arrival order. The scheme
-  (:mod:`fleetrl.federation.schemes`) combines them into one answer and says who leaves W and whether the
-  run is complete; the chief broadcasts it with the next round's configuration.
-* The run ends after the round the scheme calls complete, when W is empty, or after round M (``done``).
-* A worker new to the run joins it while it goes on (an open fleet, :mod:`.roster`): its matching ``join``
-  puts it in W and the welcome hands it the fleet's model.
-
-Reliability (dropout and rejoin, deadlines and quorum, the join's settings check, idempotent resends):
-docs/protocol.md, "Reliability", whose rules the methods below implement.
-
-Every decision is returned as a :class:`ChiefEvent`, whose ``str()`` is a log line for people. What the
-chief remembers is one value it owns, :attr:`Chief.state` (:class:`~.chief_state.ChiefState`), which its
-checkpoint serialises.
+"""The chief of Algorithm 1 as a pure state machine: messages, statuses and time in → messages and events
+out (every input takes ``now``). It keeps W and the open round (and step), takes one message per worker and
+exchange, closes the exchange with its scheme's combination in sorted worker order, and ends the run; its
+reliability rules are docs/protocol.md's "Rounds" and "Reliability". What it remembers is :attr:`Chief.state`.
 """
 
 from __future__ import annotations
@@ -29,7 +10,7 @@ from collections.abc import Iterable
 from dataclasses import replace
 
 from fleetrl.federation.aggregation import Aggregator, decomposes, get_aggregator
-from fleetrl.federation.chief_answer import (
+from fleetrl.federation.chief.answer import (
     ClosedExchange,
     admission,
     answer_event,
@@ -39,17 +20,17 @@ from fleetrl.federation.chief_answer import (
     welcome_step,
     where,
 )
-from fleetrl.federation.chief_state import AnswerBook, ChiefState
+from fleetrl.federation.chief.fleet_model import FleetModel
+from fleetrl.federation.chief.roster import Roster
+from fleetrl.federation.chief.state import AnswerBook, ChiefState
 from fleetrl.federation.events import ChiefEvent, ChiefStep
-from fleetrl.federation.fleet_model import FleetModel
-from fleetrl.federation.messages import Layout, Message, MessageRejected, Reason, decode
-from fleetrl.federation.roster import Roster
-from fleetrl.federation.schemes import Granularity, RoundContext, Scheme, resolve_scheme
+from fleetrl.federation.plan import ChiefPlan
+from fleetrl.federation.schemes import RoundContext
 from fleetrl.federation.schemes.base import FleetStart
-from fleetrl.federation.shared_settings import JoinGate, SharedSettings
-from fleetrl.federation.signing import FleetKey, parse_status
-from fleetrl.federation.stragglers import waiting_rule
-from fleetrl.federation.topics import CHIEF_ID, sorted_workers, validate_id
+from fleetrl.federation.shared_settings import JoinGate
+from fleetrl.federation.wire.messages import Layout, Message, MessageRejected, Reason, decode
+from fleetrl.federation.wire.signing import FleetKey, parse_status
+from fleetrl.federation.wire.topics import CHIEF_ID, sorted_workers
 
 __all__ = ["Chief", "ChiefEvent", "ChiefStep"]
 
@@ -62,91 +43,56 @@ EVERY_WORKER_DROPPED = "every worker dropped out"
 class Chief:
     """Algorithm 1 (the chief) for one run.
 
-    :param run_id: the run.  :param workers: the initial W (worker ids).
-    :param layout: the tensor layout every round message must match (what ``scheme`` shares).
-    :param max_rounds: M, the last round.
-    :param aggregator: an aggregation rule, ``name`` or ``name:value`` (:mod:`.aggregation`).
-    :param max_bytes: message size cap; default from the layout.
-    :param quorum, round_timeout, max_staleness: the waiting rules (:mod:`.stragglers`): once per round,
-        the share of W whose answers close a round at its deadline, ``round_timeout`` seconds after it
-        opened (None: no deadline); per step, the share after which the others get a grace, and the rounds a
-        straggler's contribution may lag and still be averaged (None: no bound).
-    :param resend_holdoff: least seconds between two re-sends of one answer to one worker.
-    :param dropout_grace: seconds an ``offline`` worker has to come back before it leaves W (0: at once).
+    :param plan: the run as the chief sees it (:class:`~fleetrl.federation.plan.ChiefPlan`).
     :param key: the fleet key; if given, only messages and statuses signed with it are accepted.
-    :param scheme: the federation scheme, or its name with default parameters (:mod:`.schemes`).
-    :param settings: the settings every worker must share (:mod:`.shared_settings`), sent in the ``welcome``;
-        a worker whose ``join`` carries others is refused. None: no check.
-    :param steps_per_round: exchanges per round: 1, or a per-step scheme's K (each step closed and answered
-        like a round, keyed (round, step); completions and the run's end decided at a round's last step).
     :param start: the fleet's start (a ``shared_start`` scheme), in every ``welcome`` until the scheme's
         answers give the fleet a model.
     :param fleet_model: a per-step scheme's fleet model, kept by the chief (:mod:`.fleet_model`): it gives
         the start, and every ``welcome`` carries it as it is.
-    :param welcome_layout: a ``welcome``'s layout (``start``'s, else ``layout``).
-    :param open_fleet: a worker with an id not in ``workers`` may join the run (:mod:`.roster`); False: only
-        ``workers`` take part.
-    :param state: a restored chief's (:func:`.chief_state.chief_from_state`); None: round 1.
+    :param state: a restored chief's (:func:`.checkpoint.chief_from_state`); None: round 1.
     :param now: when the open round opened (a restored chief: now); None: at the first input.
     """
 
     def __init__(
         self,
+        plan: ChiefPlan,
         *,
-        run_id: str,
-        workers: Iterable[str],
-        layout: Layout,
-        max_rounds: int,
-        aggregator: str = "mean",
-        max_bytes: int | None = None,
-        quorum: float = 1.0,
-        round_timeout: float | None = None,
-        max_staleness: int | None = None,
-        resend_holdoff: float = 1.0,
-        dropout_grace: float = 3.0,
         key: FleetKey | None = None,
-        scheme: str | Scheme,
-        settings: SharedSettings | None = None,
-        steps_per_round: int = 1,
         start: FleetStart | None = None,
         fleet_model: FleetModel | None = None,
-        welcome_layout: Layout | None = None,
-        open_fleet: bool = True,
         state: ChiefState | None = None,
         now: float | None = None,
     ) -> None:
-        """Create the chief with W = ``workers`` and round 1 open (or as ``state`` says)."""
-        self.run_id = validate_id(run_id, "run id")
-        self.roster = Roster(workers, open_fleet=open_fleet)
-        self.layout = list(layout)
-        self.fleet_model = fleet_model
+        """Create the chief with W = the plan's workers and round 1 open (or as ``state`` says)."""
         if fleet_model is not None and start is None:
             start = FleetStart(fleet_model.layout, fleet_model.snapshot())
-        self.welcome_layout = list(start.layout if start else welcome_layout or layout)
-        self.scheme: Scheme = resolve_scheme(scheme)
-        check_round_rules(self.scheme, max_rounds, quorum, round_timeout, steps_per_round, max_staleness)
-        self.steps_per_round = steps_per_round
-        self._gate = JoinGate(settings)
-        self.max_rounds = max_rounds
-        self.aggregator_name = aggregator
-        self._aggregate: Aggregator = get_aggregator(aggregator)
-        self.max_bytes = max_bytes
-        self.quorum = quorum
-        self.round_timeout = round_timeout
-        self.max_staleness = max_staleness
-        self._per_step = self.scheme.granularity is Granularity.STEP
-        self._waits = waiting_rule(self._per_step, quorum, round_timeout, max_staleness)
-        self.resend_holdoff = resend_holdoff
-        self.dropout_grace = dropout_grace
+        if start is not None:
+            plan = plan.with_welcome(start.layout)
+        self.plan = plan
+        self.run_id, self.scheme, self.max_rounds = plan.run_id, plan.scheme, plan.max_rounds
+        self.roster = Roster(plan.workers, open_fleet=plan.open_fleet)
+        self.layout = list(plan.layout)
+        self.welcome_layout = list(plan.welcome_layout or plan.layout)
+        self.fleet_model = fleet_model
+        self.steps_per_round = plan.steps_per_round
+        check_round_rules(
+            self.scheme, plan.max_rounds, plan.quorum, plan.round_timeout, plan.steps_per_round,
+            plan.max_staleness,
+        )  # fmt: skip
+        self._gate = JoinGate(plan.settings)
+        self._aggregate: Aggregator = get_aggregator(plan.aggregator)
+        self._waits = self.scheme.waits(plan.quorum, plan.round_timeout, plan.max_staleness)
         self.key = key
         if state is None:
             model = (
                 None
                 if start is None
-                else Message("welcome", run_id, CHIEF_ID, 1, flat=start.flat, origin=CHIEF_ID)
+                else Message("welcome", plan.run_id, CHIEF_ID, 1, flat=start.flat, origin=CHIEF_ID)
             )
             config = dict(self.scheme.configure(1, self.all_workers))
-            state = ChiefState(set(self.all_workers), AnswerBook(resend_holdoff), model=model, config=config)
+            state = ChiefState(
+                set(self.all_workers), AnswerBook(plan.resend_holdoff), model=model, config=config
+            )
         self.state = state
         """what the chief remembers (its checkpoint serialises it)"""
         self._opened_at: float | None = now
@@ -160,7 +106,7 @@ class Chief:
 
     @property
     def epoch(self) -> int:
-        """The chief's epoch (:mod:`.lease`), stamped on every message it sends."""
+        """The chief's epoch (:mod:`fleetrl.federation.chief.lease`), stamped on every message it sends."""
         return self.state.epoch
 
     def take_epoch(self, epoch: int) -> None:
@@ -231,8 +177,8 @@ class Chief:
         try:
             message = decode(
                 payload, run_id=self.run_id, known_senders=self.roster, layout=self.layout,
-                max_bytes=self.max_bytes, key=self.key, scheme_types=(self.scheme.round_message,),
-                sums=decomposes(self.aggregator_name),
+                max_bytes=self.plan.max_bytes, key=self.key, scheme_types=(self.scheme.round_message,),
+                sums=decomposes(self.plan.aggregator),
             )  # fmt: skip
         except MessageRejected as exc:
             return self._reject(topic_worker, exc.reason, exc.detail)
@@ -323,7 +269,7 @@ class Chief:
             # a worker refused at join leaves: the chief goes on waiting for one with its settings
             if retained or worker not in self.state.members or self._gate.refusal(worker) is not None:
                 return ChiefStep()
-            self.state.suspects[worker] = now + self.dropout_grace
+            self.state.suspects[worker] = now + self.plan.dropout_grace
             return self.tick(now)
         if self._gate.refusal(worker) is not None:  # no welcome until a join that matches
             return self._refusal(worker)
@@ -373,15 +319,16 @@ class Chief:
             joined = ChiefStep(events=(ChiefEvent("joined", self.state.round, sender=worker),))
             restarted = worker in self._restarted
             self._restarted.discard(worker)
-            if restarted and self._per_step and self.state.step > 0 and message.round != self.state.round:
-                self.state.pace.participants.discard(worker)
+            resumes = message.round == self.state.round
+            if restarted and not resumes and self._waits.excused(self.state.pace, worker, self.state.step):
                 self._waits.note(self.state.pace, self.state.members, self.state.step, self._pending, now)
                 return joined + self._maybe_close(now)
             return joined
         if self.finished:
             return ChiefStep()
         self.roster.admit(worker)
-        return ChiefStep(events=self.state.admit(worker, per_step=self._per_step)) + self._welcome(worker)
+        self._waits.admit(self.state.pace, worker)
+        return ChiefStep(events=self.state.admit(worker)) + self._welcome(worker)
 
     def _refusal(self, worker: str) -> ChiefStep:
         return refusal_step(self.run_id, worker, self.state.round, self._gate.refusal(worker) or "")
@@ -447,7 +394,7 @@ class Chief:
             self.state.model = reply
         if answer.kind == "transfer":
             self.state.transfers.append((rnd, str(answer.origin), remaining))
-        event = answer_event(answer, replace(closed, remaining=remaining), self.aggregator_name)
+        event = answer_event(answer, replace(closed, remaining=remaining), self.plan.aggregator)
         if self.fleet_model is not None:  # the chief's copy steps as every worker does
             self.fleet_model.apply(reply)
         self._pending = {}

@@ -1,6 +1,6 @@
 """Where a worker's state machine is (:class:`Phase`) and what it waits for (:class:`Wait`): the vocabulary
-shared by the machines of every scheme (:mod:`fleetrl.federation.worker_machine`,
-:mod:`~fleetrl.federation.step_worker`, :mod:`~fleetrl.federation.async_worker`)."""
+shared by the machines of every scheme (:mod:`fleetrl.federation.worker.machine`,
+:mod:`~fleetrl.federation.worker.per_step`, :mod:`~fleetrl.federation.worker.asynchronous`)."""
 
 from __future__ import annotations
 
@@ -8,9 +8,9 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from enum import Enum, auto
 
-from fleetrl.federation import rounds as act
-from fleetrl.federation.messages import Message
-from fleetrl.federation.rounds import WorkerStep
+from fleetrl.federation.wire.messages import Message
+from fleetrl.federation.worker import actions
+from fleetrl.federation.worker.actions import WorkerStep
 
 __all__ = ["NOTHING", "QUEUED", "Phase", "Wait"]
 
@@ -47,7 +47,7 @@ class Wait:
 
     wanted: Callable[[Message], bool]
     what: str
-    resend: act.Publish
+    resend: actions.Publish
     """what was sent (retained: the join, re-sent with the ``online`` status)"""
     deadline: float | None
     next_send: float | None

@@ -1,17 +1,16 @@
 """What the chief says: which configurations can run, how a scheme's answer to a closed exchange becomes the
 broadcast message (with what it stands for and the next round's configuration) and the event people read,
-and the welcome or refusal of a joining worker. What it keeps of them is :mod:`.chief_state`'s."""
+and the welcome or refusal of a joining worker. What it keeps of them is :mod:`.chief.state`'s."""
 
 from __future__ import annotations
 
 from collections.abc import Collection, Iterable, Mapping
 from dataclasses import dataclass
 
-from fleetrl.federation.aggregation import weighs
 from fleetrl.federation.events import ChiefEvent, ChiefStep
-from fleetrl.federation.messages import Message, Reason, RoundConfig
-from fleetrl.federation.schemes import COMPLETED, Granularity, RoundAnswer, Scheme, StepScheme
-from fleetrl.federation.topics import CHIEF_ID, sorted_workers
+from fleetrl.federation.schemes import COMPLETED, RoundAnswer, Scheme
+from fleetrl.federation.wire.messages import Message, Reason, RoundConfig
+from fleetrl.federation.wire.topics import CHIEF_ID, sorted_workers
 
 
 def check_round_rules(
@@ -33,34 +32,7 @@ def check_round_rules(
         raise ValueError(f"round_timeout must be > 0 seconds, got {round_timeout}")
     if max_staleness is not None and max_staleness < 0:
         raise ValueError(f"max_staleness must be >= 0 rounds, got {max_staleness}")
-    if scheme.granularity is Granularity.ASYNC and (quorum < 1.0 or round_timeout is not None):
-        raise ValueError(
-            f"scheme {scheme.name!r} has no round barrier: quorum and round_timeout do not apply (leave them "
-            "unset; max_staleness bounds the staleness of a contribution applied)"
-        )
-    if scheme.granularity is Granularity.ASYNC and aggregation != "mean":
-        raise ValueError(
-            f"scheme {scheme.name!r} mixes one model at a time into the fleet's: aggregation {aggregation!r} "
-            "does not apply (leave it unset)"
-        )
-    if (
-        isinstance(scheme, StepScheme)
-        and scheme.unit_weights([0.0], [True]) is not None
-        and not weighs(aggregation)
-    ):
-        raise ValueError(
-            f"scheme {scheme.name!r} weighs its units by their need or maturity (its focus, mature_weight): "
-            f"aggregation {aggregation!r} counts members and would ignore the weights (choose mean or "
-            "clipped_mean, or leave the weights at their defaults)"
-        )
-    per_step = scheme.granularity is Granularity.STEP
-    if quorum < 1.0 and round_timeout is None and not per_step:
-        raise ValueError(f"scheme {scheme.name!r}: a quorum below 1 needs a round timeout (--round-timeout)")
-    if steps_per_round < 1 or (steps_per_round != 1 and not per_step):
-        raise ValueError(
-            f"steps_per_round = {steps_per_round}: scheme {scheme.name!r} sends "
-            + ("per step (at least 1)" if per_step else "once per round (1)")
-        )
+    scheme.check_rules(quorum, round_timeout, steps_per_round, aggregation)
 
 
 def admission(

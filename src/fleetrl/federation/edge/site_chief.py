@@ -1,14 +1,7 @@
-"""The members' side of an edge aggregator (:mod:`.edge`): the chief of its site's run, whose exchanges the
-root chief answers.
-
-Toward its members a site is their chief — their join and welcome, the settings check, statuses, dropouts and
-rejoins, the waiting rules of :mod:`.stragglers`, re-sends of answers — so :class:`SiteChief` *is* a
-:class:`~.chief.Chief` and changes only what closing an exchange means: instead of combining its members'
-answers with the scheme, it adds them up (:func:`.aggregation.weighted_sum`, in sorted member order, float64,
-weighted by their units) into one message for the root, and waits. The root's answer for that exchange
-(:meth:`SiteChief.root_answer`) is what goes down to the members, its contributors and ``finished`` rewritten
-to member ids. Until the root has welcomed the site, members' welcomes are held (the site has neither the
-fleet's model nor its configuration yet).
+"""The members' side of an edge aggregator: :class:`SiteChief` is a :class:`~.chief.machine.Chief` of the
+site's run whose closing an exchange means adding its members' answers up (float64, in sorted member order,
+weighted by their units) into one message for the root, and whose answers are the root's, passed down with
+member ids; members' welcomes wait for the root's.
 """
 
 from __future__ import annotations
@@ -19,33 +12,35 @@ from typing import Any
 import numpy as np
 
 from fleetrl.federation.aggregation import weighted_sum
-from fleetrl.federation.chief import Chief
-from fleetrl.federation.chief_answer import ClosedExchange, welcome_step
+from fleetrl.federation.chief.answer import ClosedExchange, welcome_step
+from fleetrl.federation.chief.machine import Chief
 from fleetrl.federation.events import ChiefEvent, ChiefStep
-from fleetrl.federation.messages import Message
-from fleetrl.federation.schemes import COMPLETED, Granularity
+from fleetrl.federation.plan import ChiefPlan
+from fleetrl.federation.schemes import COMPLETED
 from fleetrl.federation.shared_settings import settings_difference
-from fleetrl.federation.topics import CHIEF_ID, validate_id, validate_worker_id
+from fleetrl.federation.wire.messages import Message
+from fleetrl.federation.wire.topics import CHIEF_ID, validate_id, validate_worker_id
 
 __all__ = ["SiteChief"]
 
 
 class SiteChief(Chief):
-    """A :class:`~.chief.Chief` of a site's members whose exchanges are answered by the root.
+    """A :class:`~.chief.machine.Chief` of a site's members whose exchanges are answered by the root.
 
     :param site_id: the site's worker id at the root.  :param root_run: the root's run id.
-    :param chief_options: :class:`~.chief.Chief`'s parameters (``run_id``: the site's run).
+    :param plan: the site's run (``run_id``: the site's; ``workers``: its members).
+    :param chief_options: :class:`~.chief.machine.Chief`'s others.
     """
 
-    def __init__(self, *, site_id: str, root_run: str, **chief_options: Any) -> None:
+    def __init__(self, plan: ChiefPlan, *, site_id: str, root_run: str, **chief_options: Any) -> None:
         """A site that the root has not welcomed yet."""
-        super().__init__(**chief_options)
+        super().__init__(plan, **chief_options)
         self.site_id = validate_worker_id(site_id)
         self.root_run = validate_id(root_run, "root run id")
         self.welcomed = False
         """the root has welcomed the site: members are welcomed too"""
         self.upward: list[Message] = []
-        """messages for the root, taken by :class:`~.edge.EdgeAggregator` after every input"""
+        """messages for the root, taken by :class:`~.edge.aggregator.EdgeAggregator` after every input"""
         self.awaiting: tuple[ClosedExchange, dict[str, Message]] | None = None
         """the exchange sent up (who answered, what was summed), until the root answers it"""
         self._held = False  # a member asked for a welcome before the root's
@@ -84,7 +79,7 @@ class SiteChief(Chief):
         answers = self._waits.averaged(self.state.pace, answers, exchange)
         vectors = [m.flat for m in answers.values() if m.flat is not None]
         total, weight = weighted_sum(
-            vectors, [m.mean_weight for m in answers.values()], summed=[m.summed for m in answers.values()]
+            vectors, [float(m.units) for m in answers.values()], summed=[m.summed for m in answers.values()]
         )
         done = set(self.state.completed) | set(closed.completed)
         complete = bool(self.state.members) and self.state.members <= done
@@ -92,7 +87,7 @@ class SiteChief(Chief):
         up = Message(
             COMPLETED if complete else self.scheme.round_message, self.root_run, self.site_id, rnd,
             flat=total, step=exchange, samples=sum(m.samples for m in answers.values()),
-            units=sum(m.units for m in answers.values()), weight=weight,
+            units=round(weight),
             staleness=min(m.staleness for m in answers.values()), summed=True,
             metrics={"score": float(np.mean(scores))} if scores else {},
         )  # fmt: skip
@@ -156,8 +151,8 @@ class SiteChief(Chief):
             self.state.config = dict(answer.config)
         if self.fleet_model is not None:
             self.fleet_model.apply(reply)
-        elif self.scheme.granularity is Granularity.ROUND and self.welcome_layout == self.layout:
-            self.state.model = reply  # a once-per-round scheme's average is the fleet's model
+        elif not self.scheme.shared_start and self.welcome_layout == self.layout:
+            self.state.model = reply  # fedavg's average is the fleet's model (pergrad's: the chief's copy's)
         self.awaiting, self._pending = None, {}
         self.state.answers.broadcast(reply, self.all_workers, now)
         if last_step:

@@ -1,8 +1,8 @@
 """Why a received message or status is rejected: :class:`Reason` and :class:`MessageRejected`, and the checks
 of an envelope's small fields (metrics, names, settings, counts, a round's configuration) that raise them.
 
-The lowest module of the wire format: :mod:`fleetrl.federation.signing` raises these, and
-:mod:`fleetrl.federation.messages` (which sits above signing) raises and re-exports them.
+The lowest module of the wire format: :mod:`fleetrl.federation.wire.signing` raises these, and
+:mod:`fleetrl.federation.wire.messages` (which sits above signing) raises and re-exports them.
 """
 
 from __future__ import annotations

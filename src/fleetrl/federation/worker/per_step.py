@@ -1,18 +1,7 @@
 """The worker of a per-step scheme (``pergrad``) as a pure state machine: the rounds of
-:class:`~fleetrl.federation.worker_machine.WorkerMachine`, each round's update exchanged step by step.
-
-A round: the runner plays the round's episodes and reports them (:meth:`StepWorkerMachine.round_collected`);
-the machine applies every answer of the fleet already queued (it may have moved on while this worker played:
-a straggler, docs/protocol.md "Stragglers"), then joins the fleet's next round-opening exchange — at once if
-the fleet is still at step 0 of a round, else after that round's last answer — with what it played, saying
-how many rounds the fleet moved on meanwhile (``staleness``). It asks the runner to begin the update
-(:class:`~fleetrl.federation.rounds.BeginUpdate`), and each of the update's K steps is exchanged like a round,
-keyed (round, step): send the step's gradient, apply the chief's combination (which may have closed without
-it: the fleet's step all the same). So every worker applies every answer of the fleet, in order, and the fleet
-stays one policy. ``done`` inside the round ends the worker's run without a record. A worker that finds it
-never got some answer (a resumed worker whose fleet went on, a lost message) announces itself again and
-takes the fleet's model from the chief's welcome; inside its own exchange, such a gap ends its run as out
-of step with the fleet.
+:class:`~.worker.machine.WorkerMachine`, each round's update exchanged with the fleet step by step, every
+answer of the fleet applied in order (a straggler catches up first), so the fleet stays one policy.
+docs/protocol.md, "Stragglers under a per-step scheme".
 """
 
 from __future__ import annotations
@@ -22,50 +11,36 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from fleetrl.federation import rounds as act
-from fleetrl.federation.async_worker import AsyncWorkerMachine
 from fleetrl.federation.events import Sent, WorkerEvent
-from fleetrl.federation.messages import Message
-from fleetrl.federation.rounds import WorkerStep, WorkerSummary, answer_for
-from fleetrl.federation.schemes import COMPLETED, Granularity, Scheme
-from fleetrl.federation.worker_machine import WorkerMachine
-from fleetrl.federation.worker_phase import NOTHING, Phase
+from fleetrl.federation.schemes import COMPLETED
+from fleetrl.federation.wire.messages import Message
+from fleetrl.federation.worker import actions
+from fleetrl.federation.worker.actions import WorkerStep, WorkerSummary, answer_for
+from fleetrl.federation.worker.machine import WorkerMachine
+from fleetrl.federation.worker.phase import NOTHING, Phase
 
 if TYPE_CHECKING:  # the learner (and torch) is not imported by the pure machine
     from fleetrl.agent.round_result import RoundResult
 
-__all__ = ["StepWorkerMachine", "worker_machine"]
+__all__ = ["StepWorkerMachine"]
 
 log = logging.getLogger(__name__)
-
-
-def worker_machine(*, scheme: Scheme, steps_per_round: int = 1, **options: Any) -> WorkerMachine:
-    """The worker's state machine ``scheme`` needs: a :class:`StepWorkerMachine` for a per-step scheme
-    (``steps_per_round``: the exchanges of one round), an
-    :class:`~fleetrl.federation.async_worker.AsyncWorkerMachine` for an asynchronous one, else a
-    :class:`WorkerMachine`; ``options`` are the machine's other parameters."""
-    if scheme.granularity is Granularity.STEP:
-        return StepWorkerMachine(scheme=scheme, steps_per_round=steps_per_round, **options)
-    if scheme.granularity is Granularity.ASYNC:
-        return AsyncWorkerMachine(scheme=scheme, **options)
-    return WorkerMachine(scheme=scheme, **options)
 
 
 class StepWorkerMachine(WorkerMachine):
     """Algorithm 2 for one worker of a per-step scheme (see the module's docstring).
 
-    :param steps_per_round: K, the exchanges of one round (``scheme.exchanges_per_round(agent)``).
-    :param options: :class:`~fleetrl.federation.worker_machine.WorkerMachine`'s parameters.
+    :param options: :class:`~fleetrl.federation.worker.machine.WorkerMachine`'s parameters (its
+        ``steps_per_round``: K, the exchanges of one round, ``scheme.exchanges_per_round(agent)``).
     """
 
     current_model = True
 
-    def __init__(self, *, steps_per_round: int, **options: Any) -> None:
+    def __init__(self, **options: Any) -> None:
         """Prepare the machine; nothing happens before :meth:`start`."""
         super().__init__(**options)
-        if steps_per_round < 1:
-            raise ValueError(f"steps_per_round must be >= 1, got {steps_per_round}")
-        self.steps_per_round = steps_per_round
+        if self.steps_per_round < 1:
+            raise ValueError(f"steps_per_round must be >= 1, got {self.steps_per_round}")
         self.fleet_at = (0, 0)
         """the fleet's open exchange (round, step) as this worker knows it: every answer before it applied"""
         self.played_round = 0
@@ -73,7 +48,6 @@ class StepWorkerMachine(WorkerMachine):
         self._completed = False
         self._steps = 0
         self._step = 0
-        self._weight: float | None = None
         self._last_answer: Message | None = None
         self._wait_until: float | None = None
         self._rejoining = False
@@ -92,19 +66,17 @@ class StepWorkerMachine(WorkerMachine):
         self._completed, self.phase = completed, Phase.DRAIN
         return NOTHING
 
-    def update_begun(self, steps: int, *, now: float, weight: float | None = None) -> WorkerStep:
-        """The update has ``steps`` steps (0: none this round): exchange step 0. ``weight``: what this
-        round's contributions weigh in the fleet's mean (the scheme's weights of the worker's units, summed;
-        None: its units)."""
+    def update_begun(self, steps: int, *, now: float) -> WorkerStep:
+        """The update has ``steps`` steps (0: none this round): exchange step 0."""
         del now
         if self.phase is not Phase.JOINING:
             raise RuntimeError(f"worker {self.worker_id}: an update began out of turn")
-        self._steps, self._step, self._last_answer, self._weight = steps, 0, None, weight
+        self._steps, self._step, self._last_answer = steps, 0, None
         if steps == 0:
             self.phase = Phase.STEPS_DONE
-            return WorkerStep((act.EndUpdate(),))
+            return WorkerStep((actions.EndUpdate(),))
         self.phase = Phase.COMPUTING
-        return WorkerStep((act.ComputeStep(0),))
+        return WorkerStep((actions.ComputeStep(0),))
 
     def step_computed(self, step: int, flat: np.ndarray, *, now: float) -> WorkerStep:
         """The gradients of step ``step``: send them and wait for the chief's answer."""
@@ -114,7 +86,7 @@ class StepWorkerMachine(WorkerMachine):
         kind = COMPLETED if self._completed else self.round_message
         message = Message(
             kind, self.run_id, self.worker_id, self.round, step=step, flat=flat,
-            staleness=self.round - self.played_round, units=self.units, weight=self._weight,
+            staleness=self.round - self.played_round, units=self.units,
         )  # fmt: skip
         what = f"the chief's answer for round {self.round} step {step}"
         return self._send(message, answer_for(self.round, step), what, now)
@@ -148,9 +120,9 @@ class StepWorkerMachine(WorkerMachine):
         if self._rejoining and welcome.type == "welcome" and welcome.flat is not None:
             self._rejoining, self._config = False, dict(welcome.config)
             self.fleet_at = (welcome.round, welcome.step)
-            return WorkerStep((act.TakeParameters(welcome.flat),)) + self._begin_round(welcome.round)
+            return WorkerStep((actions.TakeParameters(welcome.flat),)) + self._begin_round(welcome.round)
         step = super()._welcomed(welcome)
-        if any(isinstance(o, act.TakeParameters) for o in step.outputs):
+        if any(isinstance(o, actions.TakeParameters) for o in step.outputs):
             self.fleet_at = max(self.fleet_at, (welcome.round, welcome.step))
         return step
 
@@ -174,16 +146,16 @@ class StepWorkerMachine(WorkerMachine):
                 "the fleet's model again", self.worker_id, reply.round, reply.step, self._step, self.round,
             )  # fmt: skip
             self._overtaken, self.phase = reply, Phase.STEPS_DONE
-            return WorkerStep((act.AbandonUpdate(),))
+            return WorkerStep((actions.AbandonUpdate(),))
         if reply.flat is None:
             raise AssertionError("decode guarantees tensors for an average")
         self._last_answer, self.fleet_at = reply, self._after(reply)
         self._step += 1
         if self._step < self._steps:
             self.phase = Phase.COMPUTING
-            return WorkerStep((act.ApplyStep(reply.flat), act.ComputeStep(self._step)))
+            return WorkerStep((actions.ApplyStep(reply.flat), actions.ComputeStep(self._step)))
         self.phase = Phase.STEPS_DONE
-        return WorkerStep((act.ApplyStep(reply.flat), act.EndUpdate()))
+        return WorkerStep((actions.ApplyStep(reply.flat), actions.EndUpdate()))
 
     def _between(self, message: Message, now: float) -> WorkerStep:
         """Outside this worker's own exchanges (after its round, before or while joining the fleet's next
@@ -201,13 +173,13 @@ class StepWorkerMachine(WorkerMachine):
             )  # fmt: skip
             if self.phase in (Phase.DRAIN, Phase.WAIT_ROUND):  # a round played, not yet contributed
                 self._overtaken, self.phase = message, Phase.STEPS_DONE
-                return WorkerStep((act.AbandonUpdate(),))  # recorded as late, then the fleet's model
+                return WorkerStep((actions.AbandonUpdate(),))  # recorded as late, then the fleet's model
             return self._rejoin_fleet(now)
         if message.flat is None:
             raise AssertionError("decode guarantees tensors for an average")
         self.fleet_at = self._after(message)
         self._config = dict(message.config) if message.config else self._config
-        applied = WorkerStep((act.ApplyFleetStep(message.step, message.flat),))
+        applied = WorkerStep((actions.ApplyFleetStep(message.step, message.flat),))
         if self.phase is Phase.WAIT_ROUND and self.fleet_at[1] == 0:
             return applied + self._join()
         return applied
@@ -222,7 +194,7 @@ class StepWorkerMachine(WorkerMachine):
         fleet's round-opening exchange, or wait for the end of the round it is in."""
         if self.phase is Phase.CATCH_UP:
             nxt = self.fleet_at[0]
-            return WorkerStep((act.Checkpoint(nxt),)) + self._begin_round(nxt)
+            return WorkerStep((actions.Checkpoint(nxt),)) + self._begin_round(nxt)
         if self.fleet_at[1] == 0:
             return self._join()
         log.info(
@@ -245,7 +217,7 @@ class StepWorkerMachine(WorkerMachine):
                 self.played_round, rnd, rnd - self.played_round,
             )  # fmt: skip
         self.round, self.phase = rnd, Phase.JOINING
-        return WorkerStep((act.BeginUpdate(),))
+        return WorkerStep((actions.BeginUpdate(),))
 
     def _after(self, answer: Message) -> tuple[int, int]:
         """The exchange that follows ``answer``'s."""

@@ -1,6 +1,6 @@
 """What the chief of an asynchronous scheme counts per worker: the contributions it applied or left out, their
 staleness, and the worker's last round taken (so a re-sent contribution is answered again, never applied
-twice). Kept in the chief's state (:class:`~.chief_state.ChiefState`) and written to chief.json."""
+twice). Kept in the chief's state (:class:`~.chief.state.ChiefState`) and written to chief.json."""
 
 from __future__ import annotations
 

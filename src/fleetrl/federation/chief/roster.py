@@ -1,20 +1,13 @@
-"""Who belongs to a run: the chief's roster of workers, and how a unit new to the fleet joins it while the
-run goes on (docs/protocol.md, "A new unit joins").
-
-A fleet is not fixed: a unit bought next month joins a fleet that is already learning. The chief starts
-with the workers it was given (``fleetrl chief --workers N``: ids 0 … N-1). In an *open* fleet (the
-default) a worker with any other valid id joins by the same handshake as every worker — its ``join``'s
-shared settings must match the chief's — and is then a worker of the run like the others: in W, answered,
-checkpointed with the chief, welcomed with the fleet's model. A *closed* fleet (``--closed-fleet``) takes
-only its own ids and rejects every other sender as unknown. Who may reach the broker at all is the
-broker's login and ACL (docs/security.md), and with a fleet key only signed messages count.
+"""Who belongs to a run: the workers the chief started with and, in an open fleet (the default), any unit
+new to it that joins by the same handshake (docs/protocol.md, "A new unit joins"); a closed fleet takes only
+its own ids.
 """
 
 from __future__ import annotations
 
 from collections.abc import Iterable
 
-from fleetrl.federation.topics import sorted_workers, validate_worker_id
+from fleetrl.federation.wire.topics import sorted_workers, validate_worker_id
 
 __all__ = ["Roster"]
 

@@ -6,8 +6,8 @@ state machine asks of its runner (the actions of a :class:`WorkerStep`), and the
 :class:`FederatedRound` (that result with the worker, the federation's round and its event), and a worker's
 run ends with a :class:`WorkerSummary`.
 
-The machine (:mod:`fleetrl.federation.worker_machine`) decides; the runner
-(:class:`fleetrl.federation.worker.FederatedWorker`) does: it publishes, plays the learner's rounds and steps,
+The machine (:mod:`fleetrl.federation.worker.machine`) decides; the runner
+(:class:`.worker.runner.FederatedWorker`) does: it publishes, plays the learner's rounds and steps,
 applies answers to the agent through the scheme, and reports back. Every input of the machine returns one
 :class:`WorkerStep`, whose outputs are executed in order.
 """
@@ -22,8 +22,8 @@ from typing import TYPE_CHECKING, Any, Protocol
 import numpy as np
 
 from fleetrl.federation.events import RoundEvent
-from fleetrl.federation.messages import Message, RoundConfig
 from fleetrl.federation.schemes import FederatedAgent
+from fleetrl.federation.wire.messages import Message, RoundConfig
 
 if TYPE_CHECKING:  # the learner (and torch) is not imported by the federation's pure parts
     from fleetrl.agent.round_result import RoundResult
@@ -49,15 +49,6 @@ class RoundPlayer(Protocol):
 
     def play_round(self) -> RoundResult:
         """Play one episode and, unless learning is complete, optimise (Algorithm 2, lines 2–24)."""
-        ...
-
-    def unit_progress(self) -> list[float]:
-        """Each unit's progress towards its criterion, WMA / target clipped to [0, 1] (one unit: a list of
-        one)."""
-        ...
-
-    def units_completed(self) -> list[bool]:
-        """Whether each unit has completed (its criterion held at some round)."""
         ...
 
     def begin_round(self) -> Any:
@@ -176,7 +167,7 @@ class ApplyAverage:
 @dataclass(frozen=True)
 class PlayRound:
     """Play round ``round`` (``learner.play_round``) and report it with
-    :meth:`~fleetrl.federation.worker_machine.WorkerMachine.round_played` — for a per-round scheme with what
+    :meth:`~fleetrl.federation.worker.machine.WorkerMachine.round_played` — for a per-round scheme with what
     ``scheme.outgoing`` shares; a per-step scheme's round reports its episodes with ``round_collected``
     and its update through ``update_begun`` and ``step_computed`` first. A per-round scheme's
     ``local_loss(agent, config)`` is installed before it."""
@@ -189,7 +180,7 @@ class PlayRound:
 @dataclass(frozen=True)
 class ComputeStep:
     """Compute the gradients of optimisation step ``step`` (``agent.step_gradients``) and report them with
-    :meth:`~fleetrl.federation.worker_machine.WorkerMachine.step_computed`."""
+    :meth:`~fleetrl.federation.worker.machine.WorkerMachine.step_computed`."""
 
     step: int
 
@@ -198,7 +189,7 @@ class ComputeStep:
 class BeginUpdate:
     """A per-step round's episodes are played and the worker joins an exchange: ``agent.begin_update()``
     (no steps if the learner does not update this round) and report it with
-    :meth:`~fleetrl.federation.step_worker.StepWorkerMachine.update_begun`."""
+    :meth:`~fleetrl.federation.worker.per_step.StepWorkerMachine.update_begun`."""
 
 
 @dataclass(frozen=True)

@@ -1,62 +1,53 @@
-"""The chief of an asynchronous scheme (``fedasync``) as a pure state machine: no round barrier.
-
-The chief holds the fleet model x and its version v (the scheme's, :class:`~.schemes.base.AsyncScheme`). Each
-worker counts its own rounds. A contribution of worker w's round r that started from version b is taken at
-once if r is past w's last round taken (a re-send of round r or earlier is answered again, never applied
-twice): its staleness is s = v − b; the scheme mixes it into x (v + 1) — unless a ``max_staleness`` bound is
-set and s exceeds it, then it is left out — and the chief broadcasts an ``average`` carrying x and v, naming w
-in ``origin`` (whose contribution it answers; ``contributors``: (w,) if applied) and w's round r. Nobody
-waits for anybody. Joining, dropping out, coming back, refusals and checkpoints are the synchronous chief's
-(:class:`~.chief.Chief`); a worker's ``welcome`` names it in ``contributors`` (welcomes are broadcast) and
-carries x and v and the round after its last one taken.
-
-The run ends at the contribution after which every member of W has completed (its answer lists them all in
-``finished``), once every member of W has played M rounds, or when W is empty. Per worker the chief counts
-the contributions taken and their staleness (:mod:`.contributions`, in its state and chief.json).
+"""The chief of an asynchronous scheme (``fedasync``) as a pure state machine: no round barrier. Each
+contribution is mixed into the fleet model on arrival (unless staler than ``max_staleness``) and answered
+with the model and its version; joining, dropping out, refusals and checkpoints are the synchronous chief's.
 docs/protocol.md, "Asynchronous schemes".
 """
 
 from __future__ import annotations
 
 from dataclasses import replace
-from typing import Any
 
-from fleetrl.federation.chief import Chief
-from fleetrl.federation.chief_answer import check_round_rules
-from fleetrl.federation.contributions import Contributions
+from fleetrl.federation.chief.answer import check_round_rules
+from fleetrl.federation.chief.contributions import Contributions
+from fleetrl.federation.chief.machine import Chief
+from fleetrl.federation.chief.state import ChiefState
 from fleetrl.federation.events import ChiefEvent, ChiefStep
-from fleetrl.federation.messages import Message, Reason
-from fleetrl.federation.schemes import COMPLETED, AsyncScheme, Granularity, RoundContext, resolve_scheme
+from fleetrl.federation.plan import ChiefPlan
+from fleetrl.federation.schemes import COMPLETED, AsyncScheme, RoundContext
 from fleetrl.federation.schemes.base import FleetStart
-from fleetrl.federation.topics import CHIEF_ID
+from fleetrl.federation.wire.messages import Message, Reason
+from fleetrl.federation.wire.signing import FleetKey
+from fleetrl.federation.wire.topics import CHIEF_ID
 
-__all__ = ["AsyncChief", "new_chief"]
-
-
-def new_chief(**options: Any) -> Chief:
-    """The chief ``options['scheme']`` needs: an :class:`AsyncChief` for an asynchronous scheme, else a
-    :class:`~.chief.Chief` (``options``: the chief's parameters)."""
-    options["scheme"] = resolve_scheme(options["scheme"])
-    if options["scheme"].granularity is Granularity.ASYNC:
-        options.pop("fleet_model", None)  # the scheme keeps the fleet model
-        return AsyncChief(**options)
-    return Chief(**options)
+__all__ = ["AsyncChief"]
 
 
 class AsyncChief(Chief):
     """The chief of an asynchronous scheme (see the module's docstring); the parameters are
-    :class:`~.chief.Chief`'s, ``start`` (the fleet's start) required unless the scheme holds a restored model.
-    """
+    :class:`~fleetrl.federation.chief.machine.Chief`'s, ``start`` (the fleet's start) required unless the
+    scheme holds a restored model."""
 
-    def __init__(self, *, start: FleetStart | None = None, **options: Any) -> None:
-        """Create the chief; the scheme's fleet model starts at ``start`` (a fresh run)."""
-        super().__init__(start=start, **options)
+    def __init__(
+        self,
+        plan: ChiefPlan,
+        *,
+        key: FleetKey | None = None,
+        start: FleetStart | None = None,
+        fleet_model: object = None,
+        state: ChiefState | None = None,
+        now: float | None = None,
+    ) -> None:
+        """Create the chief; the scheme's fleet model starts at ``start`` (a fresh run). The scheme keeps the
+        fleet model: ``fleet_model`` is not used."""
+        del fleet_model
+        super().__init__(plan, key=key, start=start, state=state, now=now)
         if not isinstance(self.scheme, AsyncScheme):
             raise ValueError(f"scheme {self.scheme.name!r} is not asynchronous: use Chief")
         self.fleet: AsyncScheme = self.scheme
         check_round_rules(
-            self.scheme, self.max_rounds, self.quorum, self.round_timeout, 1, self.max_staleness,
-            self.aggregator_name,
+            self.scheme, self.max_rounds, self.plan.quorum, self.plan.round_timeout, 1,
+            self.plan.max_staleness, self.plan.aggregator,
         )  # fmt: skip
         if self.fleet.model is None:
             if start is None:
@@ -105,7 +96,8 @@ class AsyncChief(Chief):
         staleness = max(0, self.fleet.version - message.model_version)  # a base ahead: a resumed chief's
         if message.type == COMPLETED:
             self.state.completed.setdefault(sender, rnd)
-        applied = self.max_staleness is None or staleness <= self.max_staleness
+        bound = self.plan.max_staleness
+        applied = bound is None or staleness <= bound
         record.take(rnd, staleness, applied=applied)
         self.state.round = max(self.state.round, rnd)
         members = self.members
@@ -144,7 +136,7 @@ class AsyncChief(Chief):
     def _answer_again(self, worker: str, rnd: int, now: float) -> ChiefStep:
         """A re-sent contribution: its answer again (x as it now is; after the end, the last answer and
         ``done``), at most once per hold-off."""
-        if now < self._resent.get(worker, -float("inf")) + self.resend_holdoff:
+        if now < self._resent.get(worker, -float("inf")) + self.plan.resend_holdoff:
             return ChiefStep()
         self._resent[worker] = now
         answer = self.state.answers.last if self.finished else (self._answer(worker, rnd, applied=True),)

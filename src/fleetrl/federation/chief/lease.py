@@ -1,21 +1,6 @@
-"""One chief per run and one process per worker id on a broker: the lease MQTT gives, and the chief's epoch.
-
-**The lease.** Every role connects with a last will ``offline`` (retained) on its status topic and announces
-``online`` (retained) with who it is: ``pid``, ``host``, its ``keepalive`` K and, for the chief, its
-``epoch``. The broker fires the will when the connection closes, or after 1.5 × K s without a packet (a
-stopped process, a host or a network gone): that is how long a place stays held by a role nobody hears from.
-A role that starts reads the retained status of its place first, over a connection of its own (so it never
-takes over the session of a live one): ``online`` means the place is held, and the start is refused in one
-line naming the holder.
-
-**The epoch.** A chief starts epoch 0, or — taking over a run that had a chief (``--resume``, or a run id
-whose chief's status is still retained) — one more than the highest it knows of (its checkpoint's, the
-retained status's). The epoch is in its checkpoint, its status and every message it sends; workers follow
-the highest epoch they have seen and ignore chief messages of an older one, and stamp their own messages with
-it. A chief that sees a newer epoch (a chief status, or a worker message) has been deposed: it stops acting —
-nothing published, nothing checkpointed — and exits non-zero with one line.
-
-Pure functions of statuses; no sockets (the roles read the retained status through their transport).
+"""One chief per run and one process per worker id on a broker: the lease MQTT's retained statuses and last
+wills give, and the chief's epoch (a chief taking over a run is one newer; a chief that sees a newer one is
+deposed). Pure functions of statuses; docs/protocol.md, "One chief per run, one process per worker id".
 """
 
 from __future__ import annotations
@@ -25,7 +10,7 @@ import re
 import socket
 from datetime import UTC, datetime
 
-from fleetrl.federation.signing import Status
+from fleetrl.federation.wire.signing import Status
 
 LEASE_FACTOR = 1.5
 """the broker fires a silent client's will after this many keep-alive periods (MQTT 3.1.1, 3.1.2.10)"""

@@ -1,33 +1,22 @@
-"""An edge aggregator (a site's gateway) as a pure state machine: one member of the root chief that stands for
-the units behind it, so a site needs one connection to the centre (docs/protocol.md, "Edge aggregators").
-
-Two sides, one clock (every input takes ``now``):
-
-* toward its members it is their chief (:class:`~.site_chief.SiteChief`, a :class:`~.chief.Chief`): joins,
-  welcomes, statuses, dropouts, the waiting rules; an exchange closes at the site when its members answered,
-  and their weighted sum (float64, with Σ units) goes up as one message;
-* toward the root it is one worker: it announces itself with a ``join`` (re-sent until the root's welcome),
-  re-sends an exchange's sum until the root answers it, and passes every answer of the root down, its
-  contributors and ``finished`` rewritten to member ids; the root's ``done`` ends the site's run too.
-
-The root adds a site's sum as one term of its mean (:func:`.aggregation.mean_of_parts`), so a tree of sites
-gives the flat fleet's numbers; only a rule that decomposes (``mean``) and a scheme whose answer is that mean
-(:data:`TREE_SCHEMES`) can run in a tree.
+"""An edge aggregator (a site's gateway) as a pure state machine: a chief to its members
+(:class:`~.edge.site_chief.SiteChief`), whose exchanges go up as one float64 sum, and one worker to the root,
+whose answers it passes down. Only a rule and a scheme whose answer is that mean can run in a tree.
+docs/protocol.md, "Edge aggregators".
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Iterable
 from dataclasses import dataclass
 from typing import Any
 
 from fleetrl.federation.aggregation import decomposes
+from fleetrl.federation.edge.site_chief import SiteChief
 from fleetrl.federation.events import ChiefEvent, ChiefStep
-from fleetrl.federation.messages import Layout, Message, MessageRejected, decode
+from fleetrl.federation.plan import ChiefPlan
 from fleetrl.federation.schemes import Scheme, resolve_scheme
-from fleetrl.federation.site_chief import SiteChief
-from fleetrl.federation.topics import CHIEF_ID
+from fleetrl.federation.wire.messages import Message, MessageRejected, decode
+from fleetrl.federation.wire.topics import CHIEF_ID
 
 __all__ = ["TREE_SCHEMES", "EdgeAggregator", "EdgeStep", "check_tree"]
 
@@ -69,36 +58,28 @@ class EdgeStep:
 class EdgeAggregator:
     """A site's edge aggregator (see the module's docstring).
 
+    :param plan: the site's run (its ``run_id``; its ``workers``: the site's members), as its members' chief
+        sees it.
     :param site_id: its worker id at the root.  :param root_run: the root's run id.
-    :param run_id: the site's run id (its members' topics).  :param members: the site's members' ids.
-    :param layout: what a member's round message carries (the scheme's layout).
-    :param welcome_layout: what a welcome carries (the scheme's welcome layout).
     :param resend_interval: seconds without the root's answer (or welcome) before the site re-sends.
-    :param options: the members' chief's other parameters (:class:`~.chief.Chief`: ``scheme``,
-        ``max_rounds``, ``steps_per_round``, ``settings``, ``quorum``, ``fleet_model`` …). Under a per-step
-        scheme give it a ``fleet_model`` (``fleetrl aggregator`` does): a member that joins after the first
-        exchange is welcomed with the fleet's model as it is then; without one, with the root's welcome's.
+    :param chief_options: the members' chief's others (:class:`~.chief.machine.Chief`'s ``key``,
+        ``fleet_model`` …). Under a per-step scheme give it a ``fleet_model`` (``fleetrl aggregator`` does): a
+        member that joins after the first exchange is welcomed with the fleet's model as it is then; without
+        one, with the root's welcome's.
     """
 
     def __init__(
         self,
+        plan: ChiefPlan,
         *,
         site_id: str,
         root_run: str,
-        run_id: str,
-        members: Iterable[str],
-        layout: Layout,
-        welcome_layout: Layout | None = None,
         resend_interval: float = 5.0,
-        aggregator: str = "mean",
-        **options: Any,
+        **chief_options: Any,
     ) -> None:
         """The aggregator, not yet started (:meth:`start`)."""
-        check_tree(options["scheme"], aggregator)
-        self.site = SiteChief(
-            site_id=site_id, root_run=root_run, run_id=run_id, workers=members, layout=layout,
-            welcome_layout=welcome_layout, aggregator=aggregator, **options,
-        )  # fmt: skip
+        check_tree(plan.scheme, plan.aggregator)
+        self.site = SiteChief(plan, site_id=site_id, root_run=root_run, **chief_options)
         self.resend_interval = resend_interval
         self._last_up: Message | None = None
         self._next_send = math.inf

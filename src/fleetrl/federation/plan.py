@@ -1,0 +1,81 @@
+"""A run's plan, resolved once: what its chief (a site's too) is built from, and what its checkpoint keeps of
+the run's configuration. :mod:`.kinds` builds each role of the plan's scheme kind."""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import asdict, dataclass, replace
+from typing import Any
+
+from fleetrl.federation.schemes import Scheme, get_scheme, resolve_scheme, scheme_reference
+from fleetrl.federation.wire.messages import Layout
+from fleetrl.federation.wire.topics import validate_id
+
+
+@dataclass(frozen=True, kw_only=True)
+class ChiefPlan:
+    """The run as its chief sees it. ``scheme`` may be given by name (it is resolved once, here)."""
+
+    run_id: str
+    workers: Sequence[str]
+    """W at the start (worker ids)"""
+    scheme: Scheme
+    layout: Layout
+    """what a round message carries (what the scheme shares)"""
+    max_rounds: int
+    """M, the last round"""
+    steps_per_round: int = 1
+    """exchanges per round: 1, or a per-step scheme's K"""
+    welcome_layout: Layout | None = None
+    """what a ``welcome`` carries (None: the fleet's start's or model's, else ``layout``)"""
+    settings: Mapping[str, str] | None = None
+    """the settings every worker must share (:mod:`.shared_settings`), sent in the welcome; None: no check"""
+    aggregator: str = "mean"
+    """the aggregation rule, ``name`` or ``name:value`` (:mod:`.aggregation`)"""
+    quorum: float = 1.0
+    round_timeout: float | None = None
+    max_staleness: int | None = None
+    """the waiting rules (:mod:`.chief.stragglers`): once per round, the share of W whose answers close a
+    round at its deadline, ``round_timeout`` seconds after it opened (None: none); per step, the share after
+    which the others get a grace, and the rounds a straggler's contribution may lag (None: no bound)"""
+    dropout_grace: float = 3.0
+    """seconds an ``offline`` worker has to come back before it leaves W (0: at once)"""
+    resend_holdoff: float = 1.0
+    """least seconds between two re-sends of one answer to one worker"""
+    open_fleet: bool = True
+    """a worker with an id not in ``workers`` may join the run (:mod:`.chief.roster`)"""
+    max_bytes: int | None = None
+    """message size cap; None: from the layout"""
+
+    def __post_init__(self) -> None:
+        """Resolve the scheme once and keep the ids and layouts as tuples."""
+        validate_id(self.run_id, "run id")
+        object.__setattr__(self, "scheme", resolve_scheme(self.scheme))
+        object.__setattr__(self, "workers", tuple(self.workers))
+        object.__setattr__(self, "layout", _layout(self.layout))
+        if self.welcome_layout is not None:
+            object.__setattr__(self, "welcome_layout", _layout(self.welcome_layout))
+
+    def with_welcome(self, layout: Layout) -> ChiefPlan:
+        """The plan whose welcomes carry ``layout`` (the fleet's start's or model's)."""
+        return replace(self, welcome_layout=_layout(layout))
+
+    def fields(self) -> dict[str, Any]:
+        """The plan as JSON values (the checkpoint's ``config``)."""
+        values = {k: v for k, v in asdict(self).items() if k != "scheme"}
+        values["workers"] = list(self.workers)
+        for name in ("layout", "welcome_layout"):
+            values[name] = [[n, list(shape)] for n, shape in (getattr(self, name) or self.layout)]
+        values["settings"] = None if self.settings is None else dict(self.settings)
+        return values | {"scheme": scheme_reference(self.scheme), "scheme_params": self.scheme.params()}
+
+    @classmethod
+    def from_fields(cls, values: Mapping[str, Any]) -> ChiefPlan:
+        """The plan :meth:`fields` wrote (its scheme made anew from its reference and parameters)."""
+        values = dict(values)
+        scheme = get_scheme(values.pop("scheme"), **values.pop("scheme_params", {}))
+        return cls(scheme=scheme, **values)
+
+
+def _layout(layout: Layout) -> tuple[tuple[str, tuple[int, ...]], ...]:
+    return tuple((str(name), tuple(int(d) for d in shape)) for name, shape in layout)
