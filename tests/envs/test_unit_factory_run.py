@@ -94,7 +94,7 @@ def test_the_target_defaults_to_the_reward_threshold_and_a_builtins_to_its_own(t
 
 
 def test_a_builtin_run_keeps_its_result_settings_key_set(tmp_path: Path) -> None:
-    """The records committed under docs/results/records are keyed by these: nothing new at the defaults."""
+    """The records committed under lab/records are keyed by these: nothing new at the defaults."""
     learning = LearningSettings(env="cartpole", preset="standard", scheme="fedavg")
     settings = RunSettings(learning=learning, out=tmp_path / "a").resolved()
     assert set(settings.result_settings()) == {

@@ -157,12 +157,3 @@ def test_a_standalone_worker_takes_its_own_entry(tmp_path: Path) -> None:
     from fleetrl.cli.roles import worker_config
 
     assert worker_config(worker)["slow"] == {"w0": 9.0, "w2": 4.0}
-
-
-def test_an_experiment_arm_gives_the_result_settings_its_run_records(tmp_path: Path) -> None:
-    from fleetrl.experiments.sweep import result_settings, train_args
-
-    arm = {"env": "cartpole", "scheme": "fedavg", "slow": {"2": 4}, "absent": 0.2}
-    assert train_args(arm)[-4:] == ["--slow", "2=4", "--absent", "0.2"]
-    run = settings(tmp_path, *train_args(arm))
-    assert result_settings(arm) == run.result_settings()

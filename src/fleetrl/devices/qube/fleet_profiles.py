@@ -2,8 +2,8 @@
 
 A profile fixes which parameters vary between units and by how much (``QubeVariation``); the fleet seed
 then fixes the draws. ``table2``, the default, is calibrated to the paper's Table 2 (docs/devices.md, "Fleet
-profiles"; measured with ``benchmarks/fleet_homogeneity.py``); ``v1`` is the first fleet, the one the results
-before the calibration were measured on, kept so that they can be rerun (``--fleet-profile v1``).
+profiles"; measured with ``lab/benchmarks/fleet_homogeneity.py``); ``v1`` is the first fleet, the one the
+results before the calibration were measured on, kept so that they can be rerun (``--fleet-profile v1``).
 """
 
 from dataclasses import dataclass
