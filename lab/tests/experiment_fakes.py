@@ -6,6 +6,7 @@ from pathlib import Path
 from typing import Any
 
 from fleetrl.runs.records import CSV_COLUMNS
+from fleetrl_lab.records import FORMAT
 from fleetrl_lab.sweep import Run
 
 
@@ -13,17 +14,15 @@ def write_run_dir(
     run: Run, scores: dict[int, list[float]], completed: dict[int, int | None], episodes: bool = False
 ) -> None:
     """A finished run directory of ``run`` (metrics.csv, summary.json, config.json), as ``fleetrl train``
-    leaves one; ``episodes`` adds the column another scheme's rounds carry."""
+    leaves one; ``episodes``: two episodes a round, as the paper-code preset's rounds."""
     run.out.mkdir(parents=True)
-    single = list(CSV_COLUMNS[: CSV_COLUMNS.index("episodes")])  # the columns of files before that column
-    columns = [*single, "episodes"] if episodes else single
     with (run.out / "metrics.csv").open("w", newline="") as f:
         writer = csv.writer(f)
-        writer.writerow(columns)
+        writer.writerow(CSV_COLUMNS)
         for worker, worker_scores in scores.items():
             for i, score in enumerate(worker_scores, start=1):
                 event = "completed" if completed.get(worker) == i else "gradient"
-                row = [i, worker, score, score, 0.1, 0.2, 0.3, 50, 1.0, event] + ([2] if episodes else [])
+                row = [i, worker, score, score, 0.1, 0.2, 0.3, 50, 1.0, event, 2 if episodes else 1, 0.0, 0.0]
                 writer.writerow(row)
     workers = {str(w): {"completed_at_round": c, "state": "finished"} for w, c in completed.items()}
     summary = {"interrupted": False, "wall_seconds": 12.345, "workers": workers}
@@ -40,6 +39,7 @@ def record(
         k: {
             "score": [float(r) for r in range(1, c + 1)],
             "wma": [float(r) for r in range(1, c + 1)],
+            "steps": list(range(1, c + 1)),
             "events": {},
         }
         | {"completed_at_round": c}
@@ -47,7 +47,7 @@ def record(
     }
     generalisation = {"units": [10, 11], "cap": 500, "scores": {"0": unseen or [500, 120]}}
     return {
-        "format": 1,
+        "format": FORMAT,
         "command": run.command(),
         "result_settings": run.expected,
         "host": "test host",

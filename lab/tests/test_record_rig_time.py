@@ -1,4 +1,4 @@
-"""A run record's time on the rigs: from its steps where it kept them, else from its scores."""
+"""A run record's time on the rigs, from the steps it kept."""
 
 from __future__ import annotations
 
@@ -16,14 +16,12 @@ STEPS = {"0": [10, 40, 5], "1": [30, 20, 50], "2": [20, 20, 20]}
 COMPLETED = {"0": 2, "1": 3, "2": None}
 
 
-def test_a_record_gives_its_time_on_the_rigs_from_its_steps_or_else_its_scores() -> None:
+def test_a_record_gives_its_time_on_the_rigs_from_its_steps() -> None:
     with_steps = {
         k: {"score": [0] * 3, "steps": s, "completed_at_round": COMPLETED[k]} for k, s in STEPS.items()
     }
-    from_scores = {k: {"score": s, "completed_at_round": COMPLETED[k]} for k, s in STEPS.items()}
-    for workers in (with_steps, from_scores):
-        t = _record("federated", workers).rig_time()
-        assert t is not None and t.per_unit == pytest.approx({"0": 1.4, "1": 2.4, "2": 2.4})  # 20 ms steps
+    t = _record("federated", with_steps).rig_time()
+    assert t is not None and t.per_unit == pytest.approx({"0": 1.4, "1": 2.4, "2": 2.4})  # 20 ms steps
     alone = _record("individual", with_steps).rig_time()
     assert alone is not None and alone.fleet == pytest.approx(2.0)  # unit 1: 100 steps
     fedasync = _record("federated", with_steps, "fedasync").rig_time()

@@ -30,7 +30,7 @@ def test_a_record_built_from_a_run_directory_reads_back_the_same(tmp_path: Path,
     assert worker["events"] == {"3": "completed"}  # plain sharing rounds are not kept
     assert ("episodes" in worker) is episodes and worker.get("episodes", [2, 2, 2]) == [2, 2, 2]
     text = run.record.read_text()
-    assert '"score":[9,20.46,500]' in text and len(text.splitlines()) < 40  # one line per worker
+    assert '"score":[9,20.46,500]' in text and len(text.splitlines()) < 50  # one line per worker
 
 
 def test_round_records_carry_scores_and_events_for_the_plots(tmp_path: Path) -> None:

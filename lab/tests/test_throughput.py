@@ -19,9 +19,9 @@ def test_a_run_s_seconds_per_round_and_unit_steps_per_second() -> None:
     run = run_throughput(record(8.0, {"0": [10, 20, 30, 40], "1": [20, 20, 20]}))
     assert run is not None
     assert (run.units, run.rounds, run.seconds_per_round, run.unit_steps_per_second) == (2, 4, 2.0, 20.0)
-    # a record made before the steps were kept reads them from the scores
-    old = RunRecord({"workers": {"0": {"score": [5.0, 15.0]}}, "wall_seconds": 4.0})
-    assert run_throughput(old) == run_throughput(record(4.0, {"0": [5, 15]}))
+    # rounds of several episodes whose steps were not kept
+    several = RunRecord({"workers": {"0": {"score": [5.0, 15.0], "episodes": [2, 2]}}, "wall_seconds": 4.0})
+    assert run_throughput(several) is None
     assert run_throughput(record(0.0, {"0": [5]})) is None
 
 

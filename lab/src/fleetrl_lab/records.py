@@ -7,7 +7,7 @@ carries the run's result settings: a sweep reuses it only while they equal what 
 ``<records>/<arm key>/seed-<n>.json``::
 
     {
-     "format": 1,
+     "format": 2,
      "command": "fleetrl train --env qube ... --seed 100 --out runs/experiments/runs/.../seed-100",
      "result_settings": {"env": "qube", "fleet_profile": "table2", "fleet_seed": 0, ...},
      "host": "AMD EPYC ...; torch 2.5.1 (AVX2 kernels); mode default",
@@ -32,7 +32,8 @@ from fleetrl.runs.rig_time import RigTime, rig_time, run_units, waits_of
 from fleetrl.runs.rundir import PLAIN_EVENTS, model_path
 from fleetrl_lab.stats import Completion
 
-FORMAT = 1
+FORMAT = 2
+"""the records' schema (:mod:`fleetrl_lab.migrate` brought format 1 to it)"""
 FIRST_UNSEEN_UNIT = 10
 """the generalisation row's units start here (or after the fleet's last trained unit, if that is later)"""
 
@@ -81,9 +82,7 @@ class RunRecord:
     def rig_time(self) -> RigTime | None:
         """The time the run would take on real-time rigs (:mod:`fleetrl.runs.rig_time`: play, resets,
         absences replayed from the seed, waits for the fleet as its scheme waits); None for a unit type
-        without a known control period, or a record whose rounds held several episodes and kept no steps.
-        Records made before the steps were kept read each round's steps from its score (reward 1 per step:
-        at most one step short per episode)."""
+        without a known control period, or a record whose rounds held several episodes and kept no steps."""
         from fleetrl.envs.catalog import get_env_spec
 
         settings = self.result_settings
@@ -92,9 +91,9 @@ class RunRecord:
         except ValueError:
             return None
         workers = self.data["workers"]
-        if period is None or any("steps" not in w and "episodes" in w for w in workers.values()):
+        if period is None or any("steps" not in w for w in workers.values()):
             return None
-        steps: dict[str, Any] = {k: played_steps(w) for k, w in workers.items()}
+        steps: dict[str, Any] = {k: w["steps"] for k, w in workers.items()}
         episodes: dict[str, Any] = {k: w.get("episodes") or [1] * len(steps[k]) for k, w in workers.items()}
         for k, w in workers.items():  # a unit that missed rounds (a straggler, an absence) keeps numbers
             if "rounds" in w:
@@ -131,12 +130,6 @@ class RunRecord:
         return int((self.data.get("generalisation") or {}).get("cap", 0))
 
 
-def played_steps(worker: dict[str, Any]) -> list[int]:
-    """Each round's steps of one worker's record; a record made before runs kept their steps reads them from
-    its scores (reward 1 per step: at most one step short per episode)."""
-    return list(worker.get("steps") or [round(s or 0) for s in worker["score"]])
-
-
 def _number(value: float | None) -> float:
     return math.nan if value is None else float(value)
 
@@ -167,11 +160,8 @@ def _compact(value: float) -> float | int | None:
 
 def read_worker_rows(run_dir: Path) -> dict[str, dict[str, Any]]:
     """Per worker, from metrics.csv: score, WMA, steps, events other than plain sharing, the episodes of each
-    round where a round held more than one (older files have no such column), and the rounds it played where
-    they are not 1 … n (a straggler's, an absent unit's).
-
-    Read by column name, so columns added later do not break it.
-    """
+    round where a round held more than one, and the rounds it played where they are not 1 … n (a
+    straggler's, an absent unit's)."""
     workers: dict[str, dict[str, Any]] = {}
     with (run_dir / "metrics.csv").open(newline="") as f:
         rows = sorted(csv.DictReader(f), key=lambda r: (int(r["worker"]), int(r["round"])))
@@ -181,9 +171,9 @@ def read_worker_rows(run_dir: Path) -> dict[str, dict[str, Any]]:
         worker["score"].append(_compact(float(row["score"] or "nan")))
         worker["steps"].append(int(row["steps"]))
         worker["wma"].append(_compact(float(row["wma"] or "nan")))
-        if row.get("event", "") not in PLAIN_EVENTS:  # rounds that only shared are not kept
+        if row["event"] not in PLAIN_EVENTS:  # rounds that only shared are not kept
             worker["events"][row["round"]] = row["event"]
-        worker.setdefault("episodes", []).append(int(row.get("episodes") or 1))
+        worker.setdefault("episodes", []).append(int(row["episodes"]))
     for worker in workers.values():
         if all(n == 1 for n in worker["episodes"]):  # one episode per round: nothing worth keeping
             del worker["episodes"]

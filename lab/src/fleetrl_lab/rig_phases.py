@@ -14,7 +14,7 @@ import statistics
 from collections.abc import Sequence
 from dataclasses import dataclass
 
-from fleetrl_lab.records import RunRecord, played_steps
+from fleetrl_lab.records import RunRecord
 
 LONG_SHARE = 0.4
 """an episode at least this share of the episode cap is a long one (QUBE: 1,000 of 2,500 steps)"""
@@ -64,7 +64,9 @@ def run_phases(record: RunRecord) -> list[UnitPhases]:
     phases = []
     fleet_seed, profile = int(settings.get("fleet_seed") or 0), settings.get("fleet_profile")
     for key, worker in record.data["workers"].items():
-        steps = played_steps(worker)
+        if "steps" not in worker:  # rounds of several episodes, no steps kept
+            continue
+        steps = worker["steps"]
         reset = reset_seconds(env, int(key), fleet_seed, profile)
         split = unit_phases(steps, worker.get("completed_at_round"), cap, period, reset)
         if split is not None:

@@ -12,7 +12,7 @@ import statistics
 from collections.abc import Sequence
 from dataclasses import dataclass
 
-from fleetrl_lab.records import RunRecord, played_steps
+from fleetrl_lab.records import RunRecord
 
 
 @dataclass(frozen=True)
@@ -26,13 +26,13 @@ class RunThroughput:
 
 
 def run_throughput(record: RunRecord) -> RunThroughput | None:
-    """One run's figures (None for a run without rounds or wall time)."""
+    """One run's figures (None for a run without rounds, wall time or the steps it played)."""
     workers = record.data["workers"].values()
     rounds = max((len(w["score"]) for w in workers), default=0)
-    steps = sum(sum(played_steps(w)) for w in workers)
     wall = record.wall_seconds
-    if rounds == 0 or wall <= 0:
+    if rounds == 0 or wall <= 0 or any("steps" not in w for w in workers):
         return None
+    steps = sum(sum(w["steps"]) for w in workers)
     return RunThroughput(len(record.data["workers"]), rounds, wall / rounds, steps / wall)
 
 

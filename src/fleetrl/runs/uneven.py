@@ -165,21 +165,6 @@ class UnevenFleet:
         )
         return None if conditions == UnitConditions() else conditions
 
-    def result_values(self) -> dict[str, Any]:
-        """The settings that differ from their defaults (the result settings of an even run keep the keys
-        of the records made before these settings existed)."""
-        default = UnevenFleet()
-        return {
-            f.name: getattr(self, f.name)
-            for f in dataclasses.fields(self)
-            if getattr(self, f.name) != getattr(default, f.name)
-        }
-
-    def default_names(self) -> tuple[str, ...]:
-        """The names of the settings at their defaults."""
-        changed = self.result_values()
-        return tuple(f.name for f in dataclasses.fields(self) if f.name not in changed)
-
 
 def unit_name(worker: int) -> str:
     """How the settings name worker ``worker`` (as the live view does): ``w2``."""
