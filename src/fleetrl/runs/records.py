@@ -1,15 +1,11 @@
-"""A run's metrics row: one worker's round flattened, the shape of metrics.csv and of what reads it back.
-
-The learner's figures of a round are one value (:class:`fleetrl.agent.learner.RoundResult`); the federation
-adds the worker, its round number and the event (:class:`fleetrl.federation.rounds.FederatedRound`).
-:meth:`MetricsRow.of` flattens that into one row; metrics.csv's columns are the row's fields in order, and
-:func:`read_metrics` gives the same rows back (plots, resume, the experiments' records).
-"""
+"""A run's metrics row — one worker's round flattened (:meth:`MetricsRow.of`), metrics.csv's columns, read
+back by :func:`read_metrics` for plots, resume and the lab's records — and :class:`WorkerProgress`, what a
+run knows of each worker so far."""
 
 import csv
 import json
 import math
-from dataclasses import asdict, dataclass, fields
+from dataclasses import asdict, dataclass, field, fields
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -110,3 +106,18 @@ def read_metrics(path: Path) -> list[MetricsRow]:
     """Every row of a run's metrics.csv."""
     with path.open(newline="") as f:
         return [MetricsRow.from_csv_row(row) for row in csv.DictReader(f)]
+
+
+@dataclass
+class WorkerProgress:
+    """What the run knows of one worker so far (feeds the live view and summary.json)."""
+
+    round: int = 0
+    score: float = math.nan
+    wma: float = math.nan
+    completed_at_round: int | None = None
+    episodes: int = 0
+    """episodes played so far (a round of the paper-code preset plays several)"""
+    completed_at_episode: int | None = None
+    state: str = "starting"
+    events: list[str] = field(default_factory=list)
