@@ -6,14 +6,10 @@ import logging
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
-import matplotlib
 import numpy as np
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt
-
-from fleetrl.runs.plots import X_LABELS, by_worker, draw_worker
-from fleetrl_lab.arms import Arm, Places, completions, mean_score_curve, same_scores, wall_seconds
+from fleetrl_lab.arms import Arm, Places, completions, same_scores, wall_seconds
+from fleetrl_lab.figures import plot_curves, plot_side_by_side
 from fleetrl_lab.records import RunRecord
 from fleetrl_lab.rig_phases import phases_lines
 from fleetrl_lab.stats import bootstrap_median, bootstrap_ratio, markdown_table
@@ -151,11 +147,11 @@ def run_plan(
     hosts = sorted({r.host for rs in records.values() for r in rs})
     lines += ["", "Runs made on: " + "; ".join(f"`{h}`" for h in hosts) + "."]
     curves = root / "mean_score.png"
-    _plot_curves(plan, records, curves)
+    plot_curves([(arm.label, records[arm.key]) for arm in plan.arms], plan.max_rounds, plan.title, curves)
     lines += ["", f"![mean score per round]({curves.relative_to(out)})"]
     if plan.side_by_side and all(records[arm.key] for arm in plan.side_by_side):
         fig = root / "workers.png"
-        _plot_side_by_side(plan, records, fig)
+        plot_side_by_side([(arm.label, records[arm.key][0]) for arm in plan.side_by_side], fig)
         first = records[plan.side_by_side[0].key][0].result_settings["seed"]
         lines += ["", f"![per-worker curves, seed {first}]({fig.relative_to(out)})"]
     listed = " ".join(map(str, seeds))
@@ -390,33 +386,3 @@ def _speed_up_table(plan: Plan, records: Records) -> str:
         "speed-up, time on the rigs: fleet / per unit (95 % CI)",
     ]
     return markdown_table(header, rows)
-
-
-def _plot_curves(plan: Plan, records: Records, path: Path) -> None:
-    fig, ax = plt.subplots(figsize=(8, 4))
-    for arm in (a for a in plan.arms if records[a.key]):
-        ax.plot(mean_score_curve(records[arm.key], plan.max_rounds), label=arm.label, lw=1.2)
-    ax.set_xlabel(X_LABELS["rounds"])
-    ax.set_ylabel("mean score (all workers, all seeds)")
-    ax.set_title(plan.title, fontsize=10)
-    ax.grid(alpha=0.3)
-    ax.legend(fontsize=8)
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-
-
-def _plot_side_by_side(plan: Plan, records: Records, path: Path) -> None:
-    assert plan.side_by_side is not None
-    columns = [by_worker(records[arm.key][0].round_records()) for arm in plan.side_by_side]
-    n_rows = max(len(c) for c in columns)
-    fig, axes = plt.subplots(n_rows, 2, figsize=(12, 2.4 * n_rows), sharex=True, sharey=True, squeeze=False)
-    for col, (arm, groups) in enumerate(zip(plan.side_by_side, columns, strict=True)):
-        axes[0, col].set_title(arm.label, fontsize=10)
-        for row, (worker, rows) in enumerate(groups.items()):
-            draw_worker(axes[row, col], rows, f"worker {worker}")
-        axes[-1, col].set_xlabel(X_LABELS["rounds"], fontsize=8)
-    axes[0, 0].legend(loc="upper left", fontsize=7)
-    fig.tight_layout()
-    fig.savefig(path, dpi=100)
-    plt.close(fig)

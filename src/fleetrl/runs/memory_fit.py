@@ -1,14 +1,6 @@
-"""Whether a run fits this machine's memory, checked with the settings before anything starts.
-
-The estimate adds up measured costs (``python lab/benchmarks/run_memory.py`` on the development machine: 2
-cores, 24 GiB, CartPole, the peak of the process tree's summed proportional set sizes over a short run): the
-``fleetrl train`` process itself (imports, chief, recorder), each worker process, each unit run as a worker
-thread, each unit host (a thread, or a worker process of its own) and each unit it carries. It is compared
-with the memory the kernel says is available (``MemAvailable`` in /proc/meminfo; where there is no such
-file the check is skipped), keeping :data:`HEADROOM` of it free for what the short runs did not hold (a
-long run's rows, longer episodes). A run that does not fit is refused with one line that says what fits
-and what to type instead. Device bridges (``--device-link mqtt``: threads of the command) are not counted.
-"""
+"""Whether a run fits this machine's memory, checked with the settings before anything starts: measured
+costs per process, worker, unit host and unit (``python lab/benchmarks/run_memory.py``) against
+``MemAvailable``, keeping :data:`HEADROOM` free (docs/usage.md, "Large fleets")."""
 
 from __future__ import annotations
 
