@@ -1,30 +1,11 @@
-"""Fault soak: many small federated CartPole runs (real PPO learners; chief and workers are separate
-``fleetrl`` processes over one mosquitto), each with one random fault at a random moment; the books are
-checked after.
+"""Fault soak: many small federated CartPole runs (``fleetrl`` chief and worker processes over one mosquitto),
+each with one random fault at a random moment — a worker or the chief killed (-9) and resumed, a worker killed
+for good, the broker killed and restarted, a worker added mid-run — and the books checked after: exit codes,
+rounds lost or duplicated, the chief's drops, and with ``--one-policy`` one policy at every exchange
+(``--mutate`` breaks every catch-up on purpose, to see that check fail). Recovery: seconds until the chief has
+closed two more rounds. The rules in full, and the results: docs/benchmarks.md, "Fault soak".
 
-Faults, one per run, chosen at random: kill -9 of a random worker that is restarted with ``--resume``; kill -9
-of a random worker that stays dead; kill -9 of the chief, restarted with ``--resume``; kill -9 of the broker,
-restarted; a worker added mid-run (a new unit: an id the chief was not started with, N for a fleet of N).
-The moment is after a random round (1 … M-2; 1 … M-5 for an added worker) of the killed role (of the
-chief, for the added worker or an uneven fleet), plus a random 0-0.3 s.
-``--uneven`` gives every worker more flags (``--slow w1=4 --absent 0.2``, say: each applies its own entry).
-
-Checked per run: every role that ran to the end exited 0; no worker's metrics.csv holds a round twice (rounds
-duplicated); every round in which the chief's log lists a worker as answering is in that worker's metrics.csv
-(rounds lost); when every worker is waited for (quorum 1, an even fleet), every surviving or restarted worker
-holds rounds 1 … n, n being the chief's last round (chief.json), and a worker killed for good was dropped by
-the chief in the round after it died (or the one after that); under a one-policy scheme (``pergrad``, with
-``--one-policy``), every worker that ran to the end holds the chief's final model (the network in the chief's
-checkpoint), bit for bit — which a worker ended by the chief's ``done`` takes from it, so that check cannot
-show a broken catch-up — and, during the run, at every exchange every worker that reached it held the same
-network and Adam state: a worker after a catch-up checked against one never behind
-(lab/benchmarks/one_policy.py records each worker's; a run with no catch-up shows nothing about catch-up and
-is counted apart). ``--mutate skip|swap|perturb`` breaks every worker's catch-up on purpose (in the harness,
-not in fleetrl) to show that check fail.
-Recovery: seconds from the fault until the chief has closed two more rounds (the one the fault hit and the
-next), or the run ended.
-
-    python lab/benchmarks/fault_soak.py --runs 50 --out /tmp/fault-soak      # see docs/benchmarks.md
+    python lab/benchmarks/fault_soak.py --runs 50 --out /tmp/fault-soak
     python lab/benchmarks/fault_soak.py --runs 50 --workers 3 --uneven "--slow w1=4 --absent 0.2"
     python lab/benchmarks/fault_soak.py --runs 2 --one-policy --uneven "--slow w1=4" --mutate skip # fails
 """
@@ -145,19 +126,10 @@ class Run:
     def start(self, role: str, *extra: str) -> None:
         if role == "chief":
             argv = ["chief", "--workers", str(self.workers), "--dropout-grace", str(self.grace)]
-            argv += ["--idle-timeout", "120"]
-            argv += ["--out", str(self.out / "chief")]
+            argv += ["--idle-timeout", "120", "--out", str(self.out / "chief")]
         else:
-            argv = [
-                "worker",
-                "--worker-id",
-                role,
-                "--seed",
-                str(self.index),
-                "--out",
-                str(self.out / f"w{role}"),
-                *self.uneven,
-            ]
+            argv = ["worker", "--worker-id", role, "--seed", str(self.index)]
+            argv += ["--out", str(self.out / f"w{role}"), *self.uneven]
         log = (self.out / f"{role}.log").open("ab")
         command = [sys.executable, "-m", "fleetrl.cli.main"]
         if role != "chief" and self.recorder is not None:
@@ -176,15 +148,7 @@ class Run:
 
     def closed_rounds(self) -> int:
         """The last round the chief closed, from its log."""
-        path = self.out / "chief" / "chief.log"
-        if not path.exists():
-            return 0
-        closed = [
-            int(line.split()[1].rstrip(":"))
-            for line in path.read_text().splitlines()
-            if ": answered " in line
-        ]
-        return max(closed, default=0)
+        return max((r for rounds in self.answered().values() for r in rounds), default=0)
 
     def answered(self) -> dict[str, set[int]]:
         """Per worker, the rounds in which the chief's log lists it as answering an exchange."""
@@ -393,14 +357,10 @@ def main() -> int:
     parser.add_argument("--rounds", type=int, default=8, help="M of every run (default 8)")
     parser.add_argument("--seed", type=int, default=0, help="seed of the faults and their moments")
     parser.add_argument(
-        "--grace", type=float, default=GRACE, help=f"the chief's --dropout-grace ({GRACE:g} s)"
+        "--grace", type=float, default=GRACE, help=f"the chief's --dropout-grace ({GRACE:g}s)"
     )
     parser.add_argument("--out", type=Path, default=None, help="directory for the runs and soak.json")
-    parser.add_argument(
-        "--faults",
-        default=None,
-        help=f"the kinds to draw from ({','.join(FAULTS)})",
-    )
+    parser.add_argument("--faults", default=None, help=f"the kinds to draw from ({','.join(FAULTS)})")
     args = parser.parse_args()
     args.one_policy = args.one_policy or args.mutate is not None
     kinds = args.faults.split(",") if args.faults else list(FAULTS)
