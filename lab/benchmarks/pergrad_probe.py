@@ -7,11 +7,9 @@ unit by itself. Prints one JSON line: rounds until the last unit completes and p
 
 Use tuning seeds (0-9) only; lab/tuning.md keeps what was tried. ``--lr-scale``, ``--k-scale`` and
 ``--b-scale`` multiply the preset's learning rates, K and the minibatch U (the memory grows to fit);
-``--set KEY=VALUE`` (repeatable) replaces a field of the preset first, as ``fleetrl train --set`` does.
-``--focus F`` weighs each unit's step gradient by 1 − F·min(1, WMA/target) (normalised to sum 1) instead of
-the plain mean (F = 0): the units furthest from their criterion steer the one policy most. Each run also
-reports the fleet's time on real-time rigs (``fleetrl.runs.rig_time`` under a round barrier, resets included;
-null for a unit type whose control period is not known).
+``--set KEY=VALUE`` (repeatable) replaces a field of the preset first, as ``fleetrl train --set`` does. Each
+run also reports the fleet's time on real-time rigs (``fleetrl.runs.rig_time`` under a round barrier, resets
+included; null for a unit type whose control period is not known).
 """
 
 from __future__ import annotations
@@ -53,7 +51,6 @@ def run(
     preset: str,
     fleet_seed: int,
     overrides: dict[str, object],
-    focus: float = 0.0,
 ) -> dict:
     torch.set_num_threads(1)
     spec = get_env_spec(env_name)
@@ -102,15 +99,10 @@ def run(
                     learners[i].agent.update()
             continue
         agents = [learners[i].agent for i in active]
-        progress = np.array(
-            [min(1.0, learners[i].criterion.wma / learners[i].criterion.threshold) for i in active]
-        )
-        weights = 1.0 - focus * np.clip(progress, 0.0, 1.0)
-        weights = weights / weights.sum()
         (n_steps,) = {a.begin_update() for a in agents}  # every agent begins; all take the same K
         for step in range(n_steps):
             grads = np.stack([a.step_gradients(step) for a in agents])
-            mean = (grads.mean(axis=0) if focus == 0 else weights @ grads).astype(np.float32)
+            mean = grads.mean(axis=0).astype(np.float32)
             for a in agents:
                 a.apply_step(mean)
         for a in agents:
@@ -155,7 +147,6 @@ def main() -> None:
     p.add_argument("--preset", default="standard")
     p.add_argument("--fleet-seed", type=int, default=0)
     p.add_argument("--set", type=override_arg, action="append", default=[], metavar="KEY=VALUE")
-    p.add_argument("--focus", type=float, default=0.0)
     a = p.parse_args()
     overrides = dict(a.set)
     results = [
@@ -171,7 +162,6 @@ def main() -> None:
             a.preset,
             a.fleet_seed,
             overrides,
-            a.focus,
         )
         for s in a.seeds
     ]

@@ -118,7 +118,7 @@ def test_unseen_units_score_each_distinct_model_once_and_every_worker_its_own(
         calls.append((model.name, unit))
         return real(model, env, unit, *args)  # type: ignore[arg-type]
 
-    monkeypatch.setattr(evaluate, "evaluate_model", counted)
+    monkeypatch.setattr(records, "evaluate_model", counted)
     settings = {"units": 3, "env": "cartpole", "fleet_seed": 0, "fleet_profile": None}
     unseen = records.evaluate_unseen(tmp_path, settings, 2)
     assert sorted(calls) == [(f"worker-{w}.safetensors", u) for w in (0, 2) for u in (10, 11)]

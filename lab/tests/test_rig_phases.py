@@ -35,7 +35,7 @@ def qube_record(steps: dict[str, list[int]], completed: dict[str, int]) -> RunRe
 
 def test_the_table_gives_each_arm_s_medians_over_its_units(monkeypatch: pytest.MonkeyPatch) -> None:
     # QUBE: 6 ms a step, cap 2500, long from 1000 steps; resets of 0 s first
-    monkeypatch.setattr("fleetrl.runs.rig_time.reset_seconds", lambda *_: 0.0)
+    monkeypatch.setattr("fleetrl_lab.rig_phases.reset_seconds", lambda *_: 0.0)
     a = qube_record({"0": [100, 1000, 2500], "1": [100, 100, 2500, 2500]}, {"0": 3, "1": 4})
     b = qube_record({"0": [50] * 10}, {"0": 10})  # never long: left out
     table = phases_table([("fleet", [a, b]), ("empty", [b])])
@@ -48,7 +48,7 @@ def test_the_table_gives_each_arm_s_medians_over_its_units(monkeypatch: pytest.M
     assert cells[4:] == ["0.0", "0.4", "97%"]
     # resets of 6 s: before 6.6 and 13.2 s, after 33 and 42 s → medians 0.165 and 0.625 min; shares 0.833
     # and 0.761 → 0.797
-    monkeypatch.setattr("fleetrl.runs.rig_time.reset_seconds", lambda *_: 6.0)
+    monkeypatch.setattr("fleetrl_lab.rig_phases.reset_seconds", lambda *_: 6.0)
     cells = [c.strip() for c in phases_table([("fleet", [a, b])]).splitlines()[2].strip("|").split("|")]
     assert cells[4:] == ["0.2", "0.6", "80%"]
     assert phases_lines([("empty", [b])]) == []

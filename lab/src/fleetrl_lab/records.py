@@ -19,7 +19,6 @@ carries the run's result settings: a sweep reuses it only while they equal what 
     }
 """
 
-import csv
 import hashlib
 import json
 import math
@@ -27,7 +26,10 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from fleetrl.runs.records import MetricsRow
+from fleetrl.agent.checkpoint import read_checkpoint
+from fleetrl.envs.catalog import describe_env, get_env_spec
+from fleetrl.runs.evaluate import evaluate_model
+from fleetrl.runs.records import MetricsRow, read_metrics
 from fleetrl.runs.rig_time import RigTime, rig_time, run_units, waits_of
 from fleetrl.runs.rundir import PLAIN_EVENTS, model_path
 from fleetrl_lab.stats import Completion
@@ -83,8 +85,6 @@ class RunRecord:
         """The time the run would take on real-time rigs (:mod:`fleetrl.runs.rig_time`: play, resets,
         absences replayed from the seed, waits for the fleet as its scheme waits); None for a unit type
         without a known control period, or a record whose rounds held several episodes and kept no steps."""
-        from fleetrl.envs.catalog import get_env_spec
-
         settings = self.result_settings
         try:
             period = get_env_spec(str(settings["env"])).control_period
@@ -163,17 +163,15 @@ def read_worker_rows(run_dir: Path) -> dict[str, dict[str, Any]]:
     round where a round held more than one, and the rounds it played where they are not 1 … n (a
     straggler's, an absent unit's)."""
     workers: dict[str, dict[str, Any]] = {}
-    with (run_dir / "metrics.csv").open(newline="") as f:
-        rows = sorted(csv.DictReader(f), key=lambda r: (int(r["worker"]), int(r["round"])))
-    for row in rows:
-        worker = workers.setdefault(row["worker"], {"score": [], "wma": [], "events": {}, "steps": []})
-        worker.setdefault("rounds", []).append(int(row["round"]))
-        worker["score"].append(_compact(float(row["score"] or "nan")))
-        worker["steps"].append(int(row["steps"]))
-        worker["wma"].append(_compact(float(row["wma"] or "nan")))
-        if row["event"] not in PLAIN_EVENTS:  # rounds that only shared are not kept
-            worker["events"][row["round"]] = row["event"]
-        worker.setdefault("episodes", []).append(int(row["episodes"]))
+    for row in sorted(read_metrics(run_dir / "metrics.csv"), key=lambda r: (r.worker, r.round)):
+        worker = workers.setdefault(str(row.worker), {"score": [], "wma": [], "events": {}, "steps": []})
+        worker.setdefault("rounds", []).append(row.round)
+        worker["score"].append(_compact(row.score))
+        worker["steps"].append(row.steps)
+        worker["wma"].append(_compact(row.wma))
+        if row.event not in PLAIN_EVENTS:  # rounds that only shared are not kept
+            worker["events"][str(row.round)] = row.event
+        worker.setdefault("episodes", []).append(row.episodes)
     for worker in workers.values():
         if all(n == 1 for n in worker["episodes"]):  # one episode per round: nothing worth keeping
             del worker["episodes"]
@@ -191,8 +189,6 @@ def unseen_units(trained: int, count: int) -> list[int]:
 def weights_digest(model: Path) -> str:
     """A digest of what a model file's greedy policy depends on: its weights, architecture and config, not
     the seed its agent drew with (nor the file's bytes: safetensors writes its header in any order)."""
-    from fleetrl.agent.checkpoint import read_checkpoint
-
     tensors, metadata = read_checkpoint(model)
     policy = {k: v for k, v in metadata.items() if k != "seed"}
     digest = hashlib.sha256(json.dumps(policy, sort_keys=True).encode())
@@ -204,9 +200,6 @@ def weights_digest(model: Path) -> str:
 
 def evaluate_unseen(run_dir: Path, settings: dict[str, Any], count: int) -> dict[str, Any]:
     """Each worker's final policy, greedily, one episode on each of ``count`` unseen units of its fleet."""
-    from fleetrl.envs.catalog import describe_env
-    from fleetrl.runs.evaluate import evaluate_model
-
     units = unseen_units(int(settings["units"]), count)
     scores = {}
     # a fleet of one policy: each distinct policy evaluated once

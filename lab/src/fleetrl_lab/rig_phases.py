@@ -14,6 +14,8 @@ import statistics
 from collections.abc import Sequence
 from dataclasses import dataclass
 
+from fleetrl.envs.catalog import describe_env, get_env_spec
+from fleetrl.runs.rig_time import reset_seconds
 from fleetrl_lab.records import RunRecord
 
 LONG_SHARE = 0.4
@@ -52,9 +54,6 @@ def unit_phases(
 def run_phases(record: RunRecord) -> list[UnitPhases]:
     """Every unit's phases in one run (units without a long episode left out; none for a unit type without
     a control period or an episode cap)."""
-    from fleetrl.envs.catalog import describe_env, get_env_spec
-    from fleetrl.runs.rig_time import reset_seconds
-
     settings = record.result_settings
     env = str(settings["env"])
     period = get_env_spec(env).control_period

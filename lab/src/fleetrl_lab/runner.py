@@ -6,6 +6,7 @@ import shutil
 from dataclasses import dataclass, replace
 from pathlib import Path
 
+from fleetrl.runs.settings import LearningSettings, resolve_and_probe
 from fleetrl_lab.arms import Places
 from fleetrl_lab.budget import FULL, QUICK, TUNING_FLEET_SEED, TUNING_SEEDS
 from fleetrl_lab.catalog import ALL_EXPERIMENTS, EXPERIMENTS, PLANS, UNIT_TYPE_EXPERIMENTS
@@ -117,8 +118,6 @@ def check_unit_type(
 ) -> list[str]:
     """The experiments to run on a user's unit type (``all``: those not about the paper's rig); a ValueError
     for one that is, for a target without a unit type, or for a unit type that cannot be trained."""
-    from fleetrl.runs.settings import LearningSettings, resolve_and_probe
-
     if unit_type is None:
         raise ValueError("--target-score needs --env: the built-ins' experiments use their own targets")
     if name == "all":

@@ -18,6 +18,9 @@ from functools import cached_property
 from pathlib import Path
 from typing import Any, Protocol, TextIO
 
+from fleetrl.portable import describe_host
+from fleetrl.runs.setting_values import TABLE_FLAGS, build, flag
+from fleetrl.runs.settings import RunSettings
 from fleetrl_lab.progress import Progress
 from fleetrl_lab.records import RunRecord, build_record, read_record, write_record
 
@@ -27,8 +30,6 @@ log = logging.getLogger(__name__)
 def train_args(settings: Mapping[str, Any]) -> list[str]:
     """``fleetrl train`` arguments giving ``settings`` (RunSettings field → value; a table such as
     ``overrides`` → one ``--set KEY=VALUE`` per key)."""
-    from fleetrl.runs.setting_values import TABLE_FLAGS, flag
-
     args: list[str] = []
     for name, value in settings.items():
         if name in TABLE_FLAGS:
@@ -44,9 +45,6 @@ def train_args(settings: Mapping[str, Any]) -> list[str]:
 
 def result_settings(settings: Mapping[str, Any]) -> dict[str, Any]:
     """What :meth:`fleetrl.runs.settings.RunSettings.result_settings` gives for a run with ``settings``."""
-    from fleetrl.runs.setting_values import build
-    from fleetrl.runs.settings import RunSettings
-
     run = build(RunSettings, {}, {"out": ".", **settings}, resolve=False)
     return run.learning_resolved().result_settings()
 
@@ -126,8 +124,6 @@ class Run:
 
     def finish(self) -> None:
         """Write its record from the finished run directory (and evaluate it on unseen units)."""
-        from fleetrl.portable import describe_host
-
         record = build_record(self.out, self.command(), self.expected, describe_host(), self.unseen_units)
         write_record(self.record, record)
 

@@ -9,6 +9,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from fleetrl.runs.host_settings import units_per_core, usable_cores
+from fleetrl.runs.processes import fork_available
 
 MB = 2**20
 
@@ -155,8 +156,6 @@ def run_memory_problem(
 ) -> str | None:
     """:func:`memory_problem` of a run of these settings on this machine: its worker processes forked or
     spawned as :mod:`fleetrl.runs.processes` will start them, its available memory from /proc/meminfo."""
-    from fleetrl.runs.processes import fork_available
-
     try:
         forked = fork_available()
     except ValueError:  # a bad FLEETRL_WORKER_START: the run refuses it when it starts its workers

@@ -10,7 +10,12 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
+from fleetrl.devices.factory import make_device
+from fleetrl.devices.qube.device import QubeDevice
+from fleetrl.envs.catalog import get_env_spec
+from fleetrl.federation.schemes import Granularity, scheme_class
 from fleetrl.federation.stragglers import GRACE_FLOOR, GRACE_SHARE, quorum_count
+from fleetrl.runs.uneven import absences
 
 HAND_RESET_SECONDS = 30.0
 """a reset whose swing-up does not settle is ended by a person (the pendulum put upright by hand), charged
@@ -215,8 +220,6 @@ def waits_of(mode: str | None, scheme: str | None = None, quorum: float | None =
     units and an asynchronous scheme's wait for nobody; a per-step scheme waits as
     :class:`~fleetrl.federation.stragglers.StepWaits` does; any other federated fleet waits for each round's
     last contributor."""
-    from fleetrl.federation.schemes import Granularity, scheme_class
-
     if mode == "individual":
         return NO_BARRIER
     granularity = Granularity.ROUND
@@ -235,17 +238,12 @@ def reset_seconds(env: str, unit: int, fleet_seed: int, fleet_profile: str | Non
     simulated device's :data:`RESET_SAMPLES` seeded resets (a reset it could not settle: its device time,
     which holds the failed 20 s swing-up, plus :data:`HAND_RESET_SECONDS`); any other unit type: 0 (a
     CartPole's reset is the simulator's, no time on a rig is known)."""
-    from fleetrl.envs.catalog import get_env_spec
-
     try:
         spec = get_env_spec(env)
     except ValueError:
         return 0.0
     if spec.device != "qube":
         return 0.0
-    from fleetrl.devices.factory import make_device
-    from fleetrl.devices.qube.device import QubeDevice
-
     device = make_device("qube", unit, fleet_seed, fleet_profile=spec.resolve_fleet_profile(fleet_profile))
     assert isinstance(device, QubeDevice)
     total = 0.0
@@ -267,8 +265,6 @@ def run_units(
     config: ``env``, ``fleet_seed``, ``fleet_profile``, ``seed``, ``absent``, ``absent_rounds``): its absences
     replayed from the learning seed and its id (worker K trains unit K), its resets measured
     (``resets=False``: none, as a paced simulation, whose resets are not paced)."""
-    from fleetrl.runs.uneven import absences
-
     if set(steps) != set(completed_at):
         raise ValueError(f"units with steps {sorted(steps)} != units with completions {sorted(completed_at)}")
     absent = float(settings.get("absent") or 0.0)

@@ -16,6 +16,7 @@ import time
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from fleetrl.envs.catalog import get_env_spec
 from fleetrl.runs.fleet_summary import QUANTILES, snapshot
 from fleetrl.runs.records import CSV_COLUMNS, MetricsRow, WorkerProgress, read_metrics
 from fleetrl.runs.rig_time import rig_time, run_units, waits_of
@@ -203,8 +204,6 @@ class RunRecorder:
         """The time the rounds played so far would take on real-time rigs (:mod:`fleetrl.runs.rig_time`:
         play, resets, absences, waits for the fleet); None before any round, or for a unit type whose control
         period is not known."""
-        from fleetrl.envs.catalog import get_env_spec
-
         if not self.records:
             return None
         try:
