@@ -1,13 +1,7 @@
-"""A fleet of any size (issue 24's learning at scale): CartPole fleets (``fleet-scale``) and QUBE fleets
-(``qube-scale``) of 1, 8, 64, 256 and 1,000 units under the default scheme (``pergrad``, every member
-waited for), preset ``standard``; above 16 units the units run in unit hosts of about one per core
-(``--units-per-host auto``, the default). The 1,000-unit CartPole fleet updates with the large-fleet settings
-of lab/tuning.md (CartPole tuning seeds 0-2): windows of 16 transitions per unit instead of the preset's 128
-(an eighth of the update's arithmetic), and the fleet's 16,000-transition minibatch bought with K = 40 steps
-at learning rates of 2e-3 (the preset: 20 at 1e-3). The 1,000-unit QUBE fleet keeps the preset's update, as
-its smaller fleets do: with the large-fleet settings a few QUBE units never held their target (lab/tuning.md,
-"1,000 QUBE units: the last units"). The figures that matter: rounds per unit against each unit alone, and
-whether a larger fleet keeps paying."""
+"""A fleet of any size: CartPole (``fleet-scale``) and QUBE (``qube-scale``) fleets of 1 to 1,000 units under
+``pergrad``, preset ``standard``, in unit hosts above 16 units; the notes below say which update each fleet
+uses and why (lab/tuning.md). What matters: rounds per unit against each unit alone, and whether a larger
+fleet keeps paying."""
 
 from dataclasses import replace
 
