@@ -13,11 +13,12 @@ PIP_VERSION := 26.3
 
 install: $(STAMP)
 
-$(STAMP): pyproject.toml $(LOCK)
+$(STAMP): pyproject.toml lab/pyproject.toml $(LOCK)
 	test -x $(PY) || $(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install --quiet pip==$(PIP_VERSION)
 	$(PY) -m pip install --quiet -r $(LOCK)
 	$(PY) -m pip install --quiet --no-deps --no-build-isolation -e .
+	$(PY) -m pip install --quiet --no-deps --no-build-isolation -e lab
 	$(PY) -m pip check
 	touch $(STAMP)
 
@@ -60,38 +61,38 @@ lint: install
 	$(VENV)/bin/mypy
 
 bench: install
-	$(PY) benchmarks/physics_speed.py
-	$(PY) benchmarks/device_link.py
-	$(PY) benchmarks/round_overhead.py
-	$(PY) benchmarks/learning.py
+	$(PY) lab/benchmarks/physics_speed.py
+	$(PY) lab/benchmarks/device_link.py
+	$(PY) lab/benchmarks/round_overhead.py
+	$(PY) lab/benchmarks/learning.py
 
 results: install
-	$(VENV)/bin/fleetrl experiment all --other-seeds 5 --out runs/experiments --records docs/results/records
+	$(VENV)/bin/fleetrl experiment all --other-seeds 5 --out runs/experiments --records lab/records
 	$(VENV)/bin/fleetrl experiment uneven --fleet-seed 1 --out runs/experiments \
-		--records docs/results/records
+		--records lab/records
 	$(VENV)/bin/fleetrl experiment argmax --first-seed 200 --fleet-seed 1 --out runs/experiments \
-		--records docs/results/records
-	$(VENV)/bin/fleetrl experiment fleet-scale --seeds 5 --out runs/experiments --records docs/results/records
-	$(VENV)/bin/fleetrl experiment qube-scale --seeds 5 --out runs/experiments --records docs/results/records
+		--records lab/records
+	$(VENV)/bin/fleetrl experiment fleet-scale --seeds 5 --out runs/experiments --records lab/records
+	$(VENV)/bin/fleetrl experiment qube-scale --seeds 5 --out runs/experiments --records lab/records
 	$(VENV)/bin/fleetrl experiment fig5 --fleet-seed 1 --headline-only --out runs/experiments \
-		--records docs/results/records --publish docs/results.md
-	$(PY) -m fleetrl.experiments.headline --records docs/results/records --readme README.md
+		--records lab/records --publish docs/results.md
+	$(PY) -m fleetrl_lab.headline --records lab/records --readme README.md
 
 # docs/results.md and README's results table again from the committed records alone (runs nothing; arms not
 # run yet are named as such)
 report: install
-	$(VENV)/bin/fleetrl experiment all --from-records --other-seeds 5 --out runs/report --records docs/results/records
+	$(VENV)/bin/fleetrl experiment all --from-records --other-seeds 5 --out runs/report --records lab/records
 	$(VENV)/bin/fleetrl experiment uneven --from-records --fleet-seed 1 --out runs/report \
-		--records docs/results/records
+		--records lab/records
 	$(VENV)/bin/fleetrl experiment argmax --from-records --first-seed 200 --fleet-seed 1 --out runs/report \
-		--records docs/results/records
+		--records lab/records
 	$(VENV)/bin/fleetrl experiment fleet-scale --from-records --seeds 5 --out runs/report \
-		--records docs/results/records
+		--records lab/records
 	$(VENV)/bin/fleetrl experiment qube-scale --from-records --seeds 5 --out runs/report \
-		--records docs/results/records
+		--records lab/records
 	$(VENV)/bin/fleetrl experiment fig5 --from-records --fleet-seed 1 --headline-only --out runs/report \
-		--records docs/results/records --publish docs/results.md
-	$(PY) -m fleetrl.experiments.headline --records docs/results/records --readme README.md
+		--records lab/records --publish docs/results.md
+	$(PY) -m fleetrl_lab.headline --records lab/records --readme README.md
 
 clean:
 	rm -rf $(VENV) .lock-venv build *.egg-info src/*.egg-info

@@ -24,7 +24,6 @@ LAYERS: tuple[tuple[str, ...], ...] = (
     ("fleetrl.federation", "fleetrl.control"),
     ("fleetrl.runs",),
     ("fleetrl.cli",),
-    ("fleetrl.experiments",),
 )
 """The layers, lowest first. A module imports its own package and the packages of lower rows, nothing beside
 it on its row nor above it. The package's own ``__init__`` (it registers the envs) stands above them all."""
@@ -36,7 +35,6 @@ LAZY_IMPORTS: dict[tuple[str, str], str] = {
     ("fleetrl", "onnxruntime"): "an optional extra (fleetrl[onnx]); only an exported policy runs on it",
     ("fleetrl", "spidev"): "an optional extra (fleetrl[pi]); only the QUBE's SPI driver on a Raspberry Pi",
     ("fleetrl", "amqtt"): "about 0.1 s to import; only the embedded broker, where mosquitto is missing",
-    ("fleetrl", "stable_baselines3"): "the lab's peer comparison alone, a test extra of about 1.2 s",
     ("fleetrl.portable", "numpy"): "portable mode sets numpy's variables before numpy loads",
     (
         "fleetrl.cli",

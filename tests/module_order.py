@@ -4,7 +4,7 @@
 # hands whole modules to its two test processes (`--dist loadfile`: a module's shared fixtures run once) in
 # collection order, so these start first and the run ends on short modules, not on two long ones in a row.
 START_FIRST = (
-    "experiments/test_experiment_quick.py",  # fig5, table2 and peers --quick: 9 training runs, one fixture
+    "lab/tests/test_experiment_quick.py",  # fig5, table2 and peers --quick: 9 training runs, one fixture
     "runs/test_resume_roles.py",  # two chief + two worker runs side by side, kill -9 and resume
     "cli/test_continuous_run.py",
     "agent/test_agent_learner.py",  # the statistical learning test: 5 seeds up to 300 rounds

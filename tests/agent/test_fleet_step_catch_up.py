@@ -1,6 +1,6 @@
 """A straggler's catch-up on the real PPOAgent: an agent that missed a round's answers and applies them with
 ``apply_fleet_step`` holds, bit for bit, the network and Adam state of one that applied them live with
-``apply_step`` — and the comparison fails on a catch-up broken on purpose (benchmarks/one_policy.py)."""
+``apply_step`` — and the comparison fails on a catch-up broken on purpose (lab/benchmarks/one_policy.py)."""
 
 from __future__ import annotations
 
@@ -14,7 +14,7 @@ import pytest
 from fleetrl.agent.config import get_preset
 from fleetrl.agent.ppo import PPOAgent
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "benchmarks"))  # one_policy
+sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "lab" / "benchmarks"))  # one_policy
 
 from one_policy import MUTATIONS, BrokenCatchUp
 

@@ -74,10 +74,10 @@ def test_a_device_driver_needs_device_bridges(tmp_path: Path, capsys: pytest.Cap
     assert "--device-driver names what device bridges serve: it needs --device-link mqtt" in line
 
 
-def test_a_fitting_driver_is_accepted_and_is_a_result_setting_only_when_named(tmp_path: Path) -> None:
+def test_a_fitting_driver_is_accepted_and_is_a_result_setting(tmp_path: Path) -> None:
     learning = LearningSettings(env=f"{SLIDER}:factory", target_score=50.0)
     settings = RunSettings(out=tmp_path / "a", learning=learning, device_link="mqtt",
                            device_driver=f"{SLIDER}:driver").resolved()  # fmt: skip
     assert settings.result_settings()["device_driver"] == f"{SLIDER}:driver"
     cartpole = RunSettings(out=tmp_path / "b", learning=LearningSettings(env="cartpole"))
-    assert "device_driver" not in cartpole.learning_resolved().result_settings()
+    assert cartpole.learning_resolved().result_settings()["device_driver"] is None

@@ -36,10 +36,10 @@ def test_the_flag_is_typed_by_the_scheme_and_filled_with_its_defaults(tmp_path: 
     assert json.loads(spec.to_json())["learning"]["scheme_params"]["momentum"] == 0.9
 
 
-def test_a_scheme_without_parameters_leaves_the_result_settings_as_they_were(tmp_path: Path) -> None:
+def test_a_scheme_without_parameters_has_empty_ones_in_the_result_settings(tmp_path: Path) -> None:
     settings = parse("train", "--mode", "federated", "--scheme", "fedavg", "--out", str(tmp_path / "r"))
     assert isinstance(settings, RunSettings)
-    assert settings.learning.scheme_params == {} and "scheme_params" not in settings.result_settings()
+    assert settings.learning.scheme_params == {} == settings.result_settings()["scheme_params"]
 
 
 def test_the_config_file_table_and_the_flags_merge_key_by_key(tmp_path: Path) -> None:

@@ -13,7 +13,8 @@ from fake_units import FACTORY, factory, pole_length
 
 from fleetrl.cli.main import main
 from fleetrl.envs.catalog import describe_env, get_env_spec
-from fleetrl.runs.settings import LearningSettings, RunSettings
+from fleetrl.runs.setting_values import flat_values
+from fleetrl.runs.settings import NOT_RESULT_SETTINGS, LearningSettings, RunSettings
 
 REPO = Path(__file__).resolve().parents[2]
 
@@ -85,22 +86,18 @@ def test_the_factory_builds_each_unit_of_the_fleet() -> None:
 def test_the_target_defaults_to_the_reward_threshold_and_a_builtins_to_its_own(tmp_path: Path) -> None:
     mine = RunSettings(learning=LearningSettings(env=FACTORY), out=tmp_path / "a").resolved()
     assert mine.learning.target_score == 475.0 == describe_env(FACTORY).reward_threshold
-    assert mine.result_settings()["target_score"] == 475.0  # a factory's target is always in its key
+    assert mine.result_settings()["target_score"] == 475.0
     qube = RunSettings(learning=LearningSettings(env="qube"), out=tmp_path / "b").resolved()
-    assert qube.learning.target_score == 2450.0 and "target_score" not in qube.result_settings()
+    assert qube.learning.target_score == 2450.0 == qube.result_settings()["target_score"]
     learning = LearningSettings(env="cartpole", target_score=400.0)
     cartpole = RunSettings(learning=learning, out=tmp_path / "c").resolved()
     assert cartpole.result_settings()["target_score"] == 400.0
 
 
-def test_a_builtin_run_keeps_its_result_settings_key_set(tmp_path: Path) -> None:
-    """The records committed under docs/results/records are keyed by these: nothing new at the defaults."""
+def test_the_result_settings_are_every_setting_but_where_a_run_writes_and_shows(tmp_path: Path) -> None:
     learning = LearningSettings(env="cartpole", preset="standard", scheme="fedavg")
     settings = RunSettings(learning=learning, out=tmp_path / "a").resolved()
-    assert set(settings.result_settings()) == {
-        "aggregation", "device_link", "env", "fleet_profile", "fleet_seed", "max_rounds", "mode",
-        "overrides", "preset", "quorum", "round_timeout", "scheme", "seed", "transport", "units",
-    }  # fmt: skip
+    assert set(settings.result_settings()) == set(flat_values(settings)) - set(NOT_RESULT_SETTINGS)
     assert settings.to_config()["completion_threshold"] == 475.0
 
 

@@ -1,6 +1,6 @@
 """``pergrad`` with a straggler and a late unit (docs/protocol.md, "Stragglers"): real CartPole learners over
 the in-process bus, and the chief keeping the fleet's model. One policy is checked during the run, at every
-exchange, between the unit that caught up and the units never behind (benchmarks/one_policy.py), and that
+exchange, between the unit that caught up and the units never behind (lab/benchmarks/one_policy.py), and that
 check is shown to fail on a catch-up broken on purpose in the test."""
 
 from __future__ import annotations
@@ -23,7 +23,7 @@ from fleetrl.runs.spec import WorkerSpec
 from fleetrl.transport.base import Transport
 from fleetrl.transport.local import LocalBus
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "benchmarks"))  # one_policy
+sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "lab" / "benchmarks"))  # one_policy
 
 from one_policy import MUTATIONS, BrokenCatchUp, OnePolicy, Recorder, compare, recording
 

@@ -13,8 +13,7 @@ from fleetrl.runs.fleet_summary import (
     summarised,
     wma_quantiles,
 )
-from fleetrl.runs.records import MetricsRow
-from fleetrl.runs.rundir import WorkerProgress
+from fleetrl.runs.records import MetricsRow, WorkerProgress
 
 
 def row(worker: int, round_: int, wma: float, event: str = "gradient") -> MetricsRow:

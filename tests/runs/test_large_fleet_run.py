@@ -36,7 +36,7 @@ def test_a_large_fleet_run_summarises_its_plot_board_and_closing_lines(
     assert (out / "scores.png").stat().st_size > 10_000
     printed = capsys.readouterr().out
     assert f"of {UNITS} completed" in printed and "worker 19:" not in printed
-    assert "per_unit_detail" not in (out / "config.toml").read_text()
+    assert "per_unit_detail = false" in (out / "config.toml").read_text()
 
 
 def test_per_unit_detail_is_a_checked_setting_that_changes_no_result(tmp_path: Path) -> None:

@@ -8,7 +8,7 @@ import sys
 import pytest
 
 from fleetrl.runs.live import LiveView
-from fleetrl.runs.rundir import WorkerProgress
+from fleetrl.runs.records import WorkerProgress
 
 
 def test_an_enabled_view_off_a_terminal_prints_one_plain_progress_line(
@@ -26,7 +26,7 @@ def test_a_disabled_view_prints_nothing_and_does_not_import_rich() -> None:
     code = (
         "import sys\n"
         "from fleetrl.runs.live import LiveView\n"
-        "from fleetrl.runs.rundir import WorkerProgress\n"
+        "from fleetrl.runs.records import WorkerProgress\n"
         "with LiveView('run', 100.0, enabled=False) as view:\n"
         "    view.update({0: WorkerProgress(round=1)}, 1.0, force=True)\n"
         "print('rich' in sys.modules)\n"

@@ -86,24 +86,17 @@ def test_recorder_refuses_to_overwrite_a_run(tmp_path) -> None:
         RunRecorder(tmp_path, {"mode": "individual"}, [0])
 
 
-def test_records_carry_the_episodes_of_a_round_and_older_rows_read_as_one() -> None:
+def test_records_carry_the_episodes_of_a_round_and_read_back_the_same() -> None:
     record = MetricsRow(2, 0, 25.5, 20.0, 0.1, 0.2, 0.6, 204, 1.5, "", episodes=8, approx_kl=0.01,
                          clip_fraction=0.25)  # fmt: skip
     assert MetricsRow.from_json(record.to_json()) == record
     row = dict(zip(CSV_COLUMNS, (str(v) for v in record.csv_row()), strict=True))
     assert MetricsRow.from_csv_row(row) == record
-    # a metrics.csv written before the columns: the old columns keep their places, the new ones read as NaN
-    old = {k: v for k, v in row.items() if k not in ("episodes", "approx_kl", "clip_fraction")}
-    assert MetricsRow.from_csv_row(old).episodes == 1
-    assert math.isnan(MetricsRow.from_csv_row(old).approx_kl)
-    assert math.isnan(MetricsRow.from_csv_row(old).clip_fraction)
-    assert CSV_COLUMNS[-3:] == ("episodes", "approx_kl", "clip_fraction")
-    assert CSV_COLUMNS.index("episodes") == 10
-    old_json = json.loads(record.to_json())
-    for name in ("episodes", "approx_kl", "clip_fraction"):
-        del old_json[name]
-    from_old = MetricsRow.from_json(json.dumps(old_json))
-    assert from_old.episodes == 1 and math.isnan(from_old.approx_kl) and math.isnan(from_old.clip_fraction)
+    no_update = dataclasses.replace(record, approx_kl=math.nan, clip_fraction=math.nan)
+    back = MetricsRow.from_json(no_update.to_json())
+    assert math.isnan(back.approx_kl) and math.isnan(back.clip_fraction)
+    with pytest.raises(KeyError):
+        MetricsRow.from_csv_row({k: v for k, v in row.items() if k != "episodes"})
 
 
 def test_the_x_axis_counts_rounds_or_episodes_and_says_which() -> None:
@@ -126,22 +119,6 @@ def test_summary_counts_episodes_to_completion(tmp_path) -> None:
     assert worker["completed_at_round"] == 3 and worker["completed_at_episode"] == 18
     assert worker["episodes"] == 18
     assert (tmp_path / "run" / "scores-by-episode.png").is_file()
-
-
-def test_resuming_a_run_whose_metrics_predate_the_update_diagnostics(tmp_path) -> None:
-    out = tmp_path / "run"
-    out.mkdir()
-    old_columns = CSV_COLUMNS[: CSV_COLUMNS.index("episodes")]  # a file written before the later columns
-    with (out / "metrics.csv").open("w", newline="") as f:
-        rows = [r.csv_row()[: len(old_columns)] for r in (make_record(0, 1, 10.0), make_record(0, 2, 12.0))]
-        csv.writer(f).writerows([old_columns, *rows])
-    recorder = RunRecorder(out, {"mode": "individual"}, [0], resume_from={0: 2})
-    recorder.add(dataclasses.replace(make_record(0, 2, 14.0), approx_kl=0.02, clip_fraction=0.1))
-    recorder.finish()
-    on_disk = list(csv.DictReader((out / "metrics.csv").open()))
-    assert [row["score"] for row in on_disk] == ["10.0", "14.0"]
-    assert on_disk[0]["approx_kl"] == "nan" and on_disk[1]["approx_kl"] == "0.02"
-    assert tuple(on_disk[0]) == CSV_COLUMNS
 
 
 def test_an_interrupted_round_is_a_row_without_figures_and_the_progress_keeps_the_last_ones(tmp_path) -> None:

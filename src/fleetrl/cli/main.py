@@ -19,10 +19,14 @@ from fleetrl.cli.settings_args import (
     add_fleet_profile_argument,
     add_learning_argument,
     add_settings_arguments,
-    add_target_score_argument,
     settings_from_args,
 )
 from fleetrl.cli.startup import collector_paused
+
+LAB_MISSING = (
+    "fleetrl experiment: the lab is not installed; it lives beside the package in fleetrl's repository "
+    "(lab/): `make install` there, or `pip install -e lab` in its development venv"
+)
 
 
 def add_train_arguments(p: argparse.ArgumentParser) -> None:
@@ -77,63 +81,12 @@ def build_parser() -> argparse.ArgumentParser:
     homogeneity.add_argument("--out", type=Path, default=None, help="directory for the CSV matrices")
     homogeneity.set_defaults(handler=cmd_homogeneity)
     experiment = sub.add_parser(
-        "experiment", help="reproduce the paper's figures and tables; writes report.md"
+        "experiment",
+        help="reproduce the paper's figures and tables (the lab beside the package; its own --help)",
+        add_help=False,
+        prefix_chars="\x00",  # every argument, --help included, goes to the lab's own parser
     )
-    experiment.add_argument(
-        "name",
-        help="fig5, fig6, cartpole-scaling, learning, continuous, uneven, argmax, fleet-scale, qube-scale, "
-        "table2, peers, or all (but uneven, argmax, fleet-scale and qube-scale)",
-    )
-    experiment.add_argument(
-        "--seeds", type=int, default=10, help="how many learning seeds the headline arms run on (default 10)"
-    )
-    experiment.add_argument(
-        "--other-seeds",
-        type=int,
-        default=None,
-        help="how many of those seeds the other arms run on (default: all; make results uses 5)",
-    )
-    experiment.add_argument(
-        "--headline-only",
-        action="store_true",
-        help="run only the headline arms (each unit alone, fedavg, pergrad), e.g. on another --fleet-seed",
-    )
-    experiment.add_argument(
-        "--first-seed",
-        type=int,
-        default=100,
-        help="the first learning seed (default 100: seeds 0-9 are for tuning, never reported)",
-    )
-    experiment.add_argument(
-        "--fleet-seed", type=int, default=0, help="fleet of every arm (default 0: the tuning fleet)"
-    )
-    experiment.add_argument(
-        "--out", type=Path, default=Path("runs/experiments"), help="run directories and the report"
-    )
-    experiment.add_argument(
-        "--records",
-        type=Path,
-        default=None,
-        help="the runs' small JSON records, from which the report is computed (default OUT/records)",
-    )
-    experiment.add_argument(
-        "--env",
-        default=None,
-        metavar="ENV",
-        help="learning and cartpole-scaling on your own unit type (package.module:factory) instead of the "
-        "built-ins, for the CartPole budget of rounds",
-    )
-    add_target_score_argument(experiment)
-    experiment.add_argument("--quick", action="store_true", help="tiny budgets: checks the pipeline only")
-    experiment.add_argument(
-        "--from-records",
-        action="store_true",
-        help="run nothing: build the report from the records there are (missing seeds are left out, an arm "
-        "without any is shown as not run yet)",
-    )
-    experiment.add_argument(
-        "--publish", type=Path, default=None, help="also copy report.md (and its images) to this file"
-    )
+    experiment.add_argument("lab_args", nargs=argparse.REMAINDER)
     experiment.set_defaults(handler=cmd_experiment)
     roles.register(sub)
     device_command.register(sub)
@@ -304,29 +257,15 @@ def cmd_homogeneity(args: argparse.Namespace) -> int:
 
 
 def cmd_experiment(args: argparse.Namespace) -> int:
-    """``fleetrl experiment``."""
-    from fleetrl.experiments.runner import run_experiment
+    """``fleetrl experiment``: the lab's command, found through the ``fleetrl.commands`` entry point."""
+    from importlib.metadata import entry_points  # lazy: 45 ms of start-up every other command would pay
 
-    seeds = list(range(args.first_seed, args.first_seed + args.seeds))
-    report = run_experiment(
-        args.name,
-        args.out,
-        seeds,
-        args.quick,
-        args.records,
-        args.fleet_seed,
-        args.other_seeds,
-        args.headline_only,
-        args.env,
-        args.target_score,
-        run=not args.from_records,
-    )
-    print(f"report: {report}")
-    if args.publish is not None:
-        from fleetrl.experiments.runner import publish_report
-
-        print(f"published: {publish_report(args.out, args.publish)}")
-    return 0
+    found = entry_points(group="fleetrl.commands", name="experiment")
+    if not found:
+        print(LAB_MISSING, file=sys.stderr)
+        return 2
+    lab_main: Callable[[Sequence[str]], int] = next(iter(found)).load()
+    return lab_main(args.lab_args)
 
 
 def _thread_failed(hook: threading.ExceptHookArgs) -> None:

@@ -140,14 +140,9 @@ class WorkerCheckpoint:
 
 
 def _identity(spec: WorkerSpec, run_id: str) -> dict[str, Any]:
-    """What a worker's checkpoint must have been written with. The scheme and its parameters are named only
-    off the scheme checkpoints had before they recorded one (``paper``, no parameters), so a checkpoint
-    written then still loads."""
+    """What a worker's checkpoint must have been written with."""
     learning = spec.learning
-    scheme: dict[str, Any] = {} if learning.scheme == "paper" else {"scheme": learning.scheme}
-    if learning.scheme_params:
-        scheme["scheme_params"] = json.loads(json.dumps(learning.scheme_params, sort_keys=True))
-    return scheme | {
+    return {
         "run_id": run_id,
         "worker": spec.worker,
         "unit": spec.unit,
@@ -159,6 +154,8 @@ def _identity(spec: WorkerSpec, run_id: str) -> dict[str, Any]:
         "max_rounds": learning.max_rounds,
         "target_score": learning.target_score,
         "overrides": json.loads(json.dumps(learning.overrides, sort_keys=True)),  # as the JSON record has it
+        "scheme": learning.scheme,
+        "scheme_params": json.loads(json.dumps(learning.scheme_params, sort_keys=True)),
     }
 
 

@@ -1,17 +1,6 @@
-"""One process per run directory: an exclusive lock a role holds on its ``--out`` for its whole life.
-
-``fleetrl chief --out DIR`` and ``fleetrl worker --out DIR`` take ``fcntl.flock(LOCK_EX | LOCK_NB)`` on
-``DIR/.lock-chief`` (the chief) or ``DIR/.lock-worker`` (a worker or unit host: one per directory, whatever
-its id, as with its metrics.csv) before they read or write anything else there, then write who holds it
-(JSON: role, pid, host, since) into that file; a chief and a worker may still share a directory. The
-operating system releases the lock when the process ends, however it ends, so a role killed with ``kill -9``
-can be resumed at once. A second process on the same directory — resuming or not — is refused in one line
-naming the holder, and writes nothing. A stopped (SIGSTOP) or hung process still holds its lock: that is the
-point (it may wake up and write again).
-
-flock is per open file and works on local filesystems; on a network filesystem (NFS) it may not exclude
-another machine: keep a role's run directory on a local disk.
-"""
+"""One process per run directory: the exclusive ``fcntl.flock`` a role holds on ``DIR/.lock-chief`` or
+``DIR/.lock-worker`` for its whole life, naming its holder; a second process is refused in one line
+(docs/protocol.md, "The run directory is locked"). Local disks only: flock may not exclude across NFS."""
 
 from __future__ import annotations
 

@@ -12,14 +12,10 @@ from __future__ import annotations
 import math
 from collections.abc import Collection, Sequence
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
 
 import numpy as np
 
-from fleetrl.runs.records import MetricsRow
-
-if TYPE_CHECKING:  # the run directory's recorder imports this module
-    from fleetrl.runs.rundir import WorkerProgress
+from fleetrl.runs.records import MetricsRow, WorkerProgress
 
 SUMMARY_ABOVE_UNITS = 16
 """fleets of more units than this are summarised in the plot, the live view and TensorBoard (per-unit detail

@@ -127,13 +127,3 @@ def fleet_shape(learning: LearningSettings, agent: Any = None) -> FleetShape:
     scheme = learning.federation_scheme()
     steps = as_setting_error("scheme", scheme.exchanges_per_round, agent)
     return FleetShape(list(scheme.layout(agent)), steps)
-
-
-def result_target_score(learning: LearningSettings) -> dict[str, float]:
-    """``target_score`` as a result setting: none for a built-in at its own target, so that the records of
-    built-in runs made before the setting existed keep their keys (like an empty ``scheme_params``)."""
-    spec = get_env_spec(learning.env)
-    if spec.builtin and learning.target_score == spec.declared_target:
-        return {}
-    assert learning.target_score is not None, "resolve_learning fills in the target score"
-    return {"target_score": learning.target_score}

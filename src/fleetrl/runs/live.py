@@ -15,7 +15,7 @@ from types import TracebackType
 from typing import TYPE_CHECKING
 
 from fleetrl.runs.fleet_summary import FleetSnapshot, snapshot
-from fleetrl.runs.rundir import WorkerProgress
+from fleetrl.runs.records import WorkerProgress
 
 if TYPE_CHECKING:
     from rich.console import Console, Group

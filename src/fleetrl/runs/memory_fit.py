@@ -1,14 +1,6 @@
-"""Whether a run fits this machine's memory, checked with the settings before anything starts.
-
-The estimate adds up measured costs (``python benchmarks/run_memory.py`` on the development machine: 2 cores,
-24 GiB, CartPole, the peak of the process tree's summed proportional set sizes over a short run): the
-``fleetrl train`` process itself (imports, chief, recorder), each worker process, each unit run as a worker
-thread, each unit host (a thread, or a worker process of its own) and each unit it carries. It is compared
-with the memory the kernel says is available (``MemAvailable`` in /proc/meminfo; where there is no such
-file the check is skipped), keeping :data:`HEADROOM` of it free for what the short runs did not hold (a
-long run's rows, longer episodes). A run that does not fit is refused with one line that says what fits
-and what to type instead. Device bridges (``--device-link mqtt``: threads of the command) are not counted.
-"""
+"""Whether a run fits this machine's memory, checked with the settings before anything starts: measured
+costs per process, worker, unit host and unit (``python lab/benchmarks/run_memory.py``) against
+``MemAvailable``, keeping :data:`HEADROOM` free (docs/usage.md, "Large fleets")."""
 
 from __future__ import annotations
 
@@ -17,28 +9,29 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from fleetrl.runs.host_settings import units_per_core, usable_cores
+from fleetrl.runs.processes import fork_available
 
 MB = 2**20
 
 COMMAND_MB = 320.0
 """the ``fleetrl train`` process itself: torch and fleetrl imported, the chief, the run's recorder (measured
-310 MB: benchmarks/run_memory.py, part ``thread``, the intercept)"""
+310 MB: lab/benchmarks/run_memory.py, part ``thread``, the intercept)"""
 FORKED_WORKER_MB = 145.0
 """a worker process forked from the command (the default where the OS has ``fork``: it shares the command's
-imported pages) carrying one unit (measured 127 and 142 MB: benchmarks/run_memory.py, part ``process``)"""
+imported pages) carrying one unit (measured 127 and 142 MB: lab/benchmarks/run_memory.py, part ``process``)"""
 SPAWNED_WORKER_MB = 275.0
 """a worker process started afresh (``FLEETRL_WORKER_START=spawn``, or no ``fork``): it imports torch and
-fleetrl itself (measured 272 MB: benchmarks/run_memory.py, part ``spawned``; its resident set is ~400 MB,
+fleetrl itself (measured 272 MB: lab/benchmarks/run_memory.py, part ``spawned``; its resident set is ~400 MB,
 of which the shared libraries' pages count once across the processes)"""
 THREAD_UNIT_MB = 6.5
 """a unit run as its own worker thread of the command (``--transport local``): its env, learner and agent
-(measured 6.5 MB: benchmarks/run_memory.py, part ``thread``)"""
+(measured 6.5 MB: lab/benchmarks/run_memory.py, part ``thread``)"""
 HOST_MB = 5.0
-"""a unit host's own cost: its agent, optimiser and worker (measured 4.3 MB: benchmarks/run_memory.py, part
-``host``)"""
+"""a unit host's own cost: its agent, optimiser and worker (measured 4.3 MB: lab/benchmarks/run_memory.py,
+part ``host``)"""
 HOSTED_UNIT_MB = 2.0
 """each unit a host carries: its env, trajectory memory and criterion (measured 1.8 MB:
-benchmarks/run_memory.py, part ``host``)"""
+lab/benchmarks/run_memory.py, part ``host``)"""
 HEADROOM = 0.2
 """the share of the available memory a run leaves free"""
 MEMINFO = Path("/proc/meminfo")
@@ -163,8 +156,6 @@ def run_memory_problem(
 ) -> str | None:
     """:func:`memory_problem` of a run of these settings on this machine: its worker processes forked or
     spawned as :mod:`fleetrl.runs.processes` will start them, its available memory from /proc/meminfo."""
-    from fleetrl.runs.processes import fork_available
-
     try:
         forked = fork_available()
     except ValueError:  # a bad FLEETRL_WORKER_START: the run refuses it when it starts its workers

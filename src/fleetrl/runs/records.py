@@ -1,15 +1,11 @@
-"""A run's metrics row: one worker's round flattened, the shape of metrics.csv and of what reads it back.
-
-The learner's figures of a round are one value (:class:`fleetrl.agent.learner.RoundResult`); the federation
-adds the worker, its round number and the event (:class:`fleetrl.federation.worker.actions.FederatedRound`).
-:meth:`MetricsRow.of` flattens that into one row; metrics.csv's columns are the row's fields in order, and
-:func:`read_metrics` gives the same rows back (plots, resume, the experiments' records).
-"""
+"""A run's metrics row — one worker's round flattened (:meth:`MetricsRow.of`), metrics.csv's columns, read
+back by :func:`read_metrics` for plots, resume and the lab's records — and :class:`WorkerProgress`, what a
+run knows of each worker so far."""
 
 import csv
 import json
 import math
-from dataclasses import asdict, dataclass, fields
+from dataclasses import asdict, dataclass, field, fields
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -27,8 +23,8 @@ class MetricsRow:
     worker's criterion holds, ``transfer_out`` / ``transfer_in:<from>`` for model transfers. A round is one
     episode, or with the ``paper-code`` preset the episodes that fill the memory: ``score`` is then their
     mean return, ``steps`` their total and ``episodes`` their number. The fields are metrics.csv's columns,
-    in order (later ones were added at the end, so older files keep their columns' positions); a field
-    named like one of :class:`~fleetrl.agent.learner.RoundResult`'s is that figure of the round.
+    in order; a field named like one of :class:`~fleetrl.agent.learner.RoundResult`'s is that figure of the
+    round.
     """
 
     round: int
@@ -44,9 +40,9 @@ class MetricsRow:
     event: str = ""
     episodes: int = 1
     approx_kl: float = nan
-    """the update's estimate of KL(π_θold ‖ π_θ) (NaN: no update, or a row written before the column)"""
+    """the update's estimate of KL(π_θold ‖ π_θ) (NaN: no update)"""
     clip_fraction: float = nan
-    """the update's share of clipped probability ratios (NaN: no update, or an older row)"""
+    """the update's share of clipped probability ratios (NaN: no update)"""
 
     @classmethod
     def of(
@@ -67,7 +63,6 @@ class MetricsRow:
         data = json.loads(line)
         if not isinstance(data, dict):
             raise ValueError("a round record must be a JSON object")
-        data = {**OLDER_DEFAULTS, **data}  # a line written before a later column
         if set(data) != set(CSV_COLUMNS):
             raise ValueError(f"round record fields {sorted(data)} != {sorted(CSV_COLUMNS)}")
         values: dict[str, Any] = {k: (nan if v is None else v) for k, v in data.items()}
@@ -75,13 +70,10 @@ class MetricsRow:
 
     @classmethod
     def from_csv_row(cls, row: dict[str, str]) -> "MetricsRow":
-        """Parse one row of metrics.csv (as ``csv.DictReader`` gives it); empty numbers become NaN, a column
-        older files lack its default."""
+        """Parse one row of metrics.csv (as ``csv.DictReader`` gives it); empty numbers become NaN."""
         values: dict[str, Any] = {}
         for f in fields(cls):
-            if f.name in OLDER_DEFAULTS and not row.get(f.name):  # a column older files lack
-                values[f.name] = f.default
-            elif f.type is str:
+            if f.type is str:
                 values[f.name] = row[f.name]
             elif f.name in COUNTS:
                 values[f.name] = int(row[f.name])
@@ -102,8 +94,6 @@ FIGURES = frozenset(CSV_COLUMNS) - IDENTITY
 """the columns that are the learner's figures of the round (fields of the same name of its RoundResult)"""
 COUNTS = frozenset(f.name for f in fields(MetricsRow) if f.type is int)
 """the columns that hold whole numbers"""
-OLDER_DEFAULTS: dict[str, Any] = {"episodes": 1, "approx_kl": None, "clip_fraction": None}
-"""what a row written before a later column holds in it"""
 
 
 def _finite_or_none(value: object) -> object:
@@ -116,3 +106,18 @@ def read_metrics(path: Path) -> list[MetricsRow]:
     """Every row of a run's metrics.csv."""
     with path.open(newline="") as f:
         return [MetricsRow.from_csv_row(row) for row in csv.DictReader(f)]
+
+
+@dataclass
+class WorkerProgress:
+    """What the run knows of one worker so far (feeds the live view and summary.json)."""
+
+    round: int = 0
+    score: float = math.nan
+    wma: float = math.nan
+    completed_at_round: int | None = None
+    episodes: int = 0
+    """episodes played so far (a round of the paper-code preset plays several)"""
+    completed_at_episode: int | None = None
+    state: str = "starting"
+    events: list[str] = field(default_factory=list)

@@ -1,35 +1,6 @@
-"""Time on the rigs: what a fleet would spend on real-time hardware until its units complete, one accounting
-for every scheme and every uneven condition (issue 41, item 3).
-
-A simulated run costs rounds; a fleet of real units costs time. A unit's clock runs while it
-
-* **plays**: each step one control period of its unit type (QUBE-Servo 2: 6 ms; CartPole: 20 ms);
-* **is reset**: before each episode, its reset time (:func:`reset_seconds`): the QUBE's device-side swing-up,
-  a CartPole's nothing;
-* **is absent** (``--absent``): the simulation pauses the unit ``k`` times its own last round's time before a
-  round; on a rig that is ``k`` times its last round's play and resets (the draws are replayed from the
-  learning seed and worker id, :func:`fleetrl.runs.uneven.absences`);
-* **waits for the fleet**, under a scheme with a round barrier (every federated scheme but an asynchronous
-  one): a unit contributes to a round what it played since the last round it contributed to closed, and
-  starts its next episode when that round closes. A round closes when the last unit that contributed to it
-  is ready. Under a per-step scheme (``pergrad``) with a quorum < 1 a round's first exchange waits for the
-  units that took part in the round before (not for one that missed it); if one of those is not among the
-  round's contributors, the round closed at its deadline: when ⌈quorum·n⌉ of them were ready, plus a grace
-  of a quarter of the time that took (at least :data:`~fleetrl.federation.chief.stragglers.GRACE_FLOOR` s), as
-  :class:`~fleetrl.federation.chief.stragglers.StepWaits` does. Who contributed to which round is the run's
-  own (a record's ``rounds``); a straggler's episode overlaps the rounds it missed.
-
-Computing is left out (acting, updates, messages): on a rig the agent acts within the device's period and
-an update is the same work on any schedule. A slow unit (``--slow``) computes slower, its device's period is
-unchanged, so by itself it costs a rig nothing; what its slowness cost the fleet is in the run: the rounds it
-missed (then it waits for the round it joins) and the grace the fleet gave it. (Under a barrier that waits
-for everyone, quorum 1, a slow unit's updates would hold the fleet for their computing time: not counted, no
-arm of an uneven fleet runs so.) Without a barrier (``fedasync``; each unit alone) a unit never waits.
-
-A unit's clock stops when its criterion held (under a barrier: when the round it held in closed), the fleet's
-when its last unit completed. A unit that never completed counts all it played (a lower bound, flagged by
-:attr:`RigTime.complete`).
-"""
+"""Time on the rigs: what a fleet would spend on real-time hardware until its units complete, one
+accounting for every scheme and uneven condition — a unit's clock runs while it plays, is reset, is absent
+and waits for the fleet; computing is left out (docs/benchmarks.md, "Time on the rigs: one accounting")."""
 
 from __future__ import annotations
 
@@ -39,7 +10,12 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
+from fleetrl.devices.factory import make_device
+from fleetrl.devices.qube.device import QubeDevice
+from fleetrl.envs.catalog import get_env_spec
 from fleetrl.federation.chief.stragglers import GRACE_FLOOR, GRACE_SHARE, quorum_count
+from fleetrl.federation.schemes import AsyncScheme, RoundScheme, StepScheme, scheme_class
+from fleetrl.runs.uneven import absences
 
 HAND_RESET_SECONDS = 30.0
 """a reset whose swing-up does not settle is ended by a person (the pendulum put upright by hand), charged
@@ -245,8 +221,6 @@ def waits_of(mode: str | None, scheme: str | None = None, quorum: float | None =
     :class:`~fleetrl.federation.chief.stragglers.StepWaits` does; any other federated fleet waits for each
     round's
     last contributor."""
-    from fleetrl.federation.schemes import AsyncScheme, RoundScheme, StepScheme, scheme_class
-
     if mode == "individual":
         return NO_BARRIER
     kind: type = RoundScheme
@@ -265,17 +239,12 @@ def reset_seconds(env: str, unit: int, fleet_seed: int, fleet_profile: str | Non
     simulated device's :data:`RESET_SAMPLES` seeded resets (a reset it could not settle: its device time,
     which holds the failed 20 s swing-up, plus :data:`HAND_RESET_SECONDS`); any other unit type: 0 (a
     CartPole's reset is the simulator's, no time on a rig is known)."""
-    from fleetrl.envs.catalog import get_env_spec
-
     try:
         spec = get_env_spec(env)
     except ValueError:
         return 0.0
     if spec.device != "qube":
         return 0.0
-    from fleetrl.devices.factory import make_device
-    from fleetrl.devices.qube.device import QubeDevice
-
     device = make_device("qube", unit, fleet_seed, fleet_profile=spec.resolve_fleet_profile(fleet_profile))
     assert isinstance(device, QubeDevice)
     total = 0.0
@@ -297,8 +266,6 @@ def run_units(
     config: ``env``, ``fleet_seed``, ``fleet_profile``, ``seed``, ``absent``, ``absent_rounds``): its absences
     replayed from the learning seed and its id (worker K trains unit K), its resets measured
     (``resets=False``: none, as a paced simulation, whose resets are not paced)."""
-    from fleetrl.runs.uneven import absences
-
     if set(steps) != set(completed_at):
         raise ValueError(f"units with steps {sorted(steps)} != units with completions {sorted(completed_at)}")
     absent = float(settings.get("absent") or 0.0)

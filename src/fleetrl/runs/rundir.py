@@ -13,31 +13,16 @@ import json
 import math
 import os
 import time
-from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from fleetrl.envs.catalog import get_env_spec
 from fleetrl.runs.fleet_summary import QUANTILES, snapshot
-from fleetrl.runs.records import CSV_COLUMNS, MetricsRow, read_metrics
+from fleetrl.runs.records import CSV_COLUMNS, MetricsRow, WorkerProgress, read_metrics
 from fleetrl.runs.rig_time import rig_time, run_units, waits_of
 
 if TYPE_CHECKING:
     from torch.utils.tensorboard import SummaryWriter
-
-
-@dataclass
-class WorkerProgress:
-    """What the run knows of one worker so far (feeds the live view and summary.json)."""
-
-    round: int = 0
-    score: float = math.nan
-    wma: float = math.nan
-    completed_at_round: int | None = None
-    episodes: int = 0
-    """episodes played so far (a round of the paper-code preset plays several)"""
-    completed_at_episode: int | None = None
-    state: str = "starting"
-    events: list[str] = field(default_factory=list)
 
 
 PLAIN_EVENTS = frozenset({"", "gradient", "model", "step_gradient"})
@@ -219,8 +204,6 @@ class RunRecorder:
         """The time the rounds played so far would take on real-time rigs (:mod:`fleetrl.runs.rig_time`:
         play, resets, absences, waits for the fleet); None before any round, or for a unit type whose control
         period is not known."""
-        from fleetrl.envs.catalog import get_env_spec
-
         if not self.records:
             return None
         try:

@@ -1,20 +1,6 @@
-"""A secure mosquitto configuration for one fleet: logins, per-role topic ACLs, optional TLS, a fleet key.
-
-:func:`write_secure_config` writes into one directory:
-
-* ``mosquitto.conf`` — a listener (TLS if certificates are given), ``allow_anonymous false``, the password and
-  ACL files, ``set_tcp_nodelay true``, persistence (sessions and queued QoS 1 messages survive a restart) in
-  ``data/``, and an expiry for abandoned persistent sessions;
-* ``passwd`` — made with ``mosquitto_passwd`` (Debian package ``mosquitto``): user ``chief`` and one user per
-  worker, named like its worker id, each with a random password;
-* ``acl`` — a worker may write only its own worker and status topics; only ``chief`` writes the chief topic;
-* ``fleet.key`` — 32 random bytes (hex) for HMAC-signed federation messages (``--fleet-key-file``);
-* ``passwords/<user>`` — each role's password (mode 0600, for ``--broker-password-file``): one per role;
-* ``credentials.json`` — every role's broker URL (user, no password) and password file.
-
-mosquitto started as root drops to the user ``mosquitto``, so the files it reads are made readable by that
-user's group and ``data/`` is given to it. See docs/security.md.
-"""
+"""A secure mosquitto configuration for one fleet (docs/security.md): :func:`write_secure_config` writes
+``mosquitto.conf`` (TLS optional, no anonymous access, persistence), ``passwd``, per-role topic ``acl``,
+``fleet.key`` for signed messages, ``passwords/<user>`` and ``credentials.json`` into one directory."""
 
 from __future__ import annotations
 

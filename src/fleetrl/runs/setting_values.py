@@ -246,12 +246,12 @@ def load_toml(path: Path) -> dict[str, Any]:
         raise SettingError(f"--config {path}: not valid TOML ({err})") from None
 
 
-def toml_values(settings: Any, *, leave_out: tuple[str, ...] = ()) -> dict[str, Any]:
-    """The settings as a TOML-ready flat table (Paths as strings, unset values left out) that :func:`build`
-    reads back to the same settings."""
+def toml_values(settings: Any) -> dict[str, Any]:
+    """The settings as a TOML-ready flat table (Paths as strings, unset values and empty tables left out)
+    that :func:`build` reads back to the same settings."""
     table: dict[str, Any] = {}
     for name, value in flat_values(settings).items():
-        if value is None or name in leave_out:
+        if value is None or value == {}:
             continue
         if isinstance(value, Path):
             value = str(value)

@@ -40,7 +40,6 @@ from fleetrl.runs.learning_resolution import (
     fleet_shape,
     resolve_and_probe,
     resolve_learning,
-    result_target_score,
 )
 from fleetrl.runs.memory_fit import run_memory_problem
 from fleetrl.runs.setting_values import (
@@ -290,12 +289,8 @@ class RunSettings(RoundRules, BrokerLogin):
 
     def to_toml(self) -> str:
         """config.toml of the run directory: every setting (no password), so that
-        ``fleetrl train --config runs/x/config.toml --out runs/y`` reruns the run. An uneven-fleet setting at
-        its default is left out (an even run's file is the one written before those settings existed), and
-        so are ``units_per_host`` at 1 and ``per_unit_detail`` off."""
-        hosts = ("units_per_host",) if self.units_per_host == 1 else ()
-        detail = () if self.per_unit_detail else ("per_unit_detail",)
-        table = toml_values(self, leave_out=(*self.uneven.default_names(), *hosts, *detail))
+        ``fleetrl train --config runs/x/config.toml --out runs/y`` reruns the run."""
+        table = toml_values(self)
         if self.broker is not None:
             table["broker"] = self.public_broker
         header = (
@@ -306,21 +301,8 @@ class RunSettings(RoundRules, BrokerLogin):
 
     def result_settings(self) -> dict[str, Any]:
         """Every setting of these resolved settings that can change the run's result, as JSON-plain values:
-        two runs with equal result settings learn the same. A scheme without parameters (``paper``,
-        ``fedavg``) has no ``scheme_params`` key, and a built-in at its own target no ``target_score`` key,
-        as in the records made before either existed."""
-        left_out = {*NOT_RESULT_SETTINGS, *(f.name for f in dataclasses.fields(UnevenFleet))}
-        values = {k: v for k, v in flat_values(self).items() if k not in left_out}
-        values |= self.uneven.result_values()  # none for an even fleet, as in the records made before
-        if not values["scheme_params"]:
-            del values["scheme_params"]
-        for name in ("device_driver", "max_staleness"):  # as in the records made before they existed
-            if values[name] is None:
-                del values[name]
-        if values["units_per_host"] == 1:  # one worker per unit, as in the records made before hosts
-            del values["units_per_host"]
-        del values["target_score"]
-        values |= result_target_score(self.learning)
+        two runs with equal result settings learn the same."""
+        values = {k: v for k, v in flat_values(self).items() if k not in NOT_RESULT_SETTINGS}
         plain: dict[str, Any] = json.loads(json.dumps(values, sort_keys=True, default=str))
         return plain
 

@@ -1,38 +1,10 @@
-"""An uneven simulated fleet, before any hardware is bought: real-time pacing, units that compute slower,
-units on a slow link, units that drop out for some rounds and come back (issue 23, item 4).
+"""An uneven simulated fleet: real-time pacing, slow units, slow links, absent and stalling units
+(docs/usage.md, "Uneven fleets, simulated").
 
-:class:`UnevenFleet` is the run setting (``--pace``, ``--slow``, ``--link-delay``, ``--absent``,
-``--absent-rounds``; all off by default, and then nothing of a run changes). It is not a learning setting:
-it is never part of what a worker shares at join. :meth:`UnevenFleet.for_worker` gives one worker its
-:class:`UnitConditions` (carried in its spec), and :func:`uneven_unit` wraps that worker's learner from the
-outside with them; the env's pacing is :class:`~fleetrl.envs.paced.PacedEnv`, the slow uplink
-:class:`~fleetrl.transport.delayed.DelayedTransport`.
-
-A slow unit is slowed by waiting, not by a slower pace: after each piece of its own work (a round's
-episodes, each step of an update) it sleeps ``(FACTOR − 1)×`` the computing time that piece took (the
-thread's CPU time). That stretches everything the unit computes (acting, physics, updates; its first round's
-warm-up too) as a machine FACTOR× slower would, leaves the device's own time alone (a paced step still lasts
-one control period when the computation fits in it, as on a rig), is not inflated by other processes
-competing for the cores, and changes nothing the unit computes (the same numbers, later). An absent unit
-pauses before a round: its worker stays connected and sends nothing for ``k`` times its own last round's
-time (its work in wall time, slowed, without the waits for the chief), then plays on.
-
-A stalling unit (``--stall wK=F``) is paused whole a share F of each second — the OS stops its process, its
-Wi-Fi drops — and its link with it: during a pause it neither computes nor sends nor receives, and whatever
-it would do waits until the pause ends (:class:`StallSchedule`). The pause is cooperative: the unit looks at
-its schedule before each env step and reset (:class:`~fleetrl.envs.stalled.StalledEnv`), each call of its
-agent by the worker and each piece of its own work (:class:`UnevenUnit`), and each send and receive of its
-transport (:class:`~fleetrl.transport.stalled.StalledTransport`, innermost: a message in a slow uplink waits
-too); a message that arrived during a pause is delivered when it resumes, one it sends leaves when it
-resumes. Why cooperative rather than SIGSTOP/SIGCONT from the parent: the same mechanism holds for worker
-processes and in-process worker threads (which no signal can stop alone), for a standalone ``fleetrl
-worker`` without a parent, and on a fake clock in tests; it changes no number the unit computes; and a
-paused unit sleeps, leaving the CPU to the others as a stopped process does. What it cannot stop is a piece
-of work already under way when the pause begins: that piece ends in the pause (an env step, one action, one
-gradient step of an update: milliseconds against a pause of a share of a second), and what follows waits.
-The pauses are the first F of each period of :data:`STALL_PERIOD` seconds on the system's monotonic clock
-(one clock for every process of the machine), shifted by a phase drawn from the learning seed and the worker
-id: every unit stalling at F has its own phase, the same on every rerun.
+:class:`UnevenFleet` is the run setting; :meth:`UnevenFleet.for_worker` gives a worker its
+:class:`UnitConditions` (carried in its spec) and :func:`uneven_unit` wraps its learner with them. A slow unit
+sleeps (F − 1)× the CPU time of each piece of its own work; a stalling unit keeps its own pause schedule
+(:class:`StallSchedule`) at each env step, agent call, send and receive, so no number it computes changes.
 """
 
 from __future__ import annotations
@@ -164,21 +136,6 @@ class UnevenFleet:
             stall=self.stall.get(name, 0.0),
         )
         return None if conditions == UnitConditions() else conditions
-
-    def result_values(self) -> dict[str, Any]:
-        """The settings that differ from their defaults (the result settings of an even run keep the keys
-        of the records made before these settings existed)."""
-        default = UnevenFleet()
-        return {
-            f.name: getattr(self, f.name)
-            for f in dataclasses.fields(self)
-            if getattr(self, f.name) != getattr(default, f.name)
-        }
-
-    def default_names(self) -> tuple[str, ...]:
-        """The names of the settings at their defaults."""
-        changed = self.result_values()
-        return tuple(f.name for f in dataclasses.fields(self) if f.name not in changed)
 
 
 def unit_name(worker: int) -> str:

@@ -1,0 +1,127 @@
+"""What a run's parts cost in memory: a worker process, a unit in-process, a unit host; the figures behind
+:mod:`fleetrl.runs.memory_fit` (Linux: it reads /proc).
+
+    python lab/benchmarks/run_memory.py [--rounds 4] [--parts process,spawned,thread,host]
+
+Each measurement runs the real command in a new process::
+
+    fleetrl train --env cartpole --mode federated --preset standard --scheme pergrad --max-rounds R --no-live
+                  --units N [--transport mqtt | --transport local [--units-per-host U]]
+
+and samples its process tree (the command, its forked workers, the embedded broker) every 0.2 s: the peak of
+the sum of the processes' proportional set sizes (PSS, /proc/PID/smaps_rollup: a page shared by k processes
+counts 1/k in each, so the sum is the memory the tree holds; a forked worker shares torch's pages with the
+command). The per-part figures are differences of two configurations:
+
+- process: worker processes on the embedded broker, N = 2 and 6: (peak(6) - peak(2)) / 4 per worker process
+  (forked from the command, the default where the OS has fork); spawned: the same with
+  ``FLEETRL_WORKER_START=spawn`` (each worker imports torch and fleetrl itself);
+- thread: workers as threads (``--transport local``), N = 20 and 60: (peak(60) - peak(20)) / 40 per unit;
+  the command's own share (chief, recorder, imports) is peak(20) - 20 x that (both above 16 units, so both
+  draw the same summarised plot at the end);
+- host: unit hosts (``--units-per-host``): 32 units in 2 and in 4 hosts give a host's fixed cost
+  ((peak(4 hosts) - peak(2 hosts)) / 2), 64 units in 4 hosts a hosted unit's ((peak(64) - peak(32)) / 32).
+
+Wall-clock and memory figures of a shared machine: the load average is printed.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+SAMPLE_EVERY = 0.2
+
+
+def children(pid: int) -> list[int]:
+    """``pid`` and every process under it (read from /proc/*/stat's parent ids)."""
+    parents: dict[int, int] = {}
+    for entry in Path("/proc").iterdir():
+        if not entry.name.isdigit():
+            continue
+        try:
+            stat = (entry / "stat").read_text()
+        except OSError:
+            continue
+        parents[int(entry.name)] = int(stat.rsplit(")", 1)[1].split()[1])
+    tree, frontier = [pid], [pid]
+    while frontier:
+        frontier = [p for p, parent in parents.items() if parent in frontier]
+        tree += frontier
+    return tree
+
+
+def pss_bytes(pid: int) -> int:
+    """The proportional set size of ``pid`` (0 once it has ended)."""
+    try:
+        for line in (Path("/proc") / str(pid) / "smaps_rollup").read_text().splitlines():
+            if line.startswith("Pss:"):
+                return int(line.split()[1]) * 1024
+    except OSError:
+        pass
+    return 0
+
+
+def peak_tree_pss(argv: list[str], environment: dict[str, str]) -> float:
+    """Run ``argv`` (with ``environment`` added) and return the peak of its process tree's summed PSS, in
+    MB."""
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join(sys.path), **environment}
+    with tempfile.TemporaryFile("w+") as errors:  # a file, not a pipe: a full pipe would stop the run
+        command = subprocess.Popen(argv, stdout=subprocess.DEVNULL, stderr=errors, text=True, env=env)
+        peak = 0
+        while command.poll() is None:
+            peak = max(peak, sum(pss_bytes(p) for p in children(command.pid)))
+            time.sleep(SAMPLE_EVERY)
+        if command.returncode != 0:
+            errors.seek(0)
+            raise SystemExit(f"{' '.join(argv)} exited {command.returncode}: {errors.read()[-2000:]}")
+    return peak / 2**20
+
+
+def train_peak(units: int, rounds: int, *extra: str, spawn: bool = False) -> float:
+    """Peak PSS (MB) of one ``fleetrl train`` of ``units`` CartPole units (``spawn``: worker processes
+    spawned, not forked)."""
+    with tempfile.TemporaryDirectory() as tmp:
+        argv = [sys.executable, "-m", "fleetrl.cli.main", "train", "--env", "cartpole", "--mode", "federated",
+                "--preset", "standard", "--scheme", "pergrad", "--max-rounds", str(rounds), "--no-live",
+                "--units", str(units), "--out", str(Path(tmp) / "run"), *extra]  # fmt: skip
+        peak = peak_tree_pss(argv, {"FLEETRL_WORKER_START": "spawn"} if spawn else {})
+    shown = " ".join(extra) + (" (spawned)" if spawn else "")
+    print(f"  N={units:3d} {shown:40s} peak tree PSS {peak:7.0f} MB  [load "
+          f"{os.getloadavg()[0]:.1f}]", flush=True)  # fmt: skip
+    return peak
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
+    parser.add_argument("--rounds", type=int, default=4)
+    parser.add_argument("--parts", default="process,thread,host")
+    args = parser.parse_args()
+    parts = args.parts.split(",")
+    print(f"{os.cpu_count()} cores, load {os.getloadavg()[0]:.1f}")
+    if "process" in parts:
+        few, many = (train_peak(n, args.rounds, "--transport", "mqtt") for n in (2, 6))
+        print(f"worker process (forked): {(many - few) / 4:.0f} MB each")
+    if "spawned" in parts:
+        few, many = (train_peak(n, args.rounds, "--transport", "mqtt", spawn=True) for n in (2, 6))
+        print(f"worker process (spawned): {(many - few) / 4:.0f} MB each")
+    if "thread" in parts:
+        few, many = (train_peak(n, args.rounds, "--transport", "local") for n in (20, 60))
+        unit = (many - few) / 40
+        print(f"unit as a worker thread: {unit:.1f} MB each; the command itself: {few - 20 * unit:.0f} MB")
+    if "host" in parts:
+        two = train_peak(32, args.rounds, "--transport", "local", "--units-per-host", "16")
+        four = train_peak(32, args.rounds, "--transport", "local", "--units-per-host", "8")
+        more = train_peak(64, args.rounds, "--transport", "local", "--units-per-host", "16")
+        print(f"unit host: {(four - two) / 2:.1f} MB each; hosted unit: {(more - four) / 32:.2f} MB each")
+
+
+if __name__ == "__main__":
+    main()
