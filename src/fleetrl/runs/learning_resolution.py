@@ -12,7 +12,7 @@ import math
 from dataclasses import dataclass, replace
 from typing import Any, get_type_hints
 
-from fleetrl.agent.config import PPOConfig, get_preset
+from fleetrl.agent.config import DEFAULT_PRESET, PPOConfig, get_preset
 from fleetrl.envs.catalog import describe_env, get_env_spec
 from fleetrl.federation.schemes import DEFAULT_SCHEME, get_scheme
 from fleetrl.federation.shared_settings import LearningSettings
@@ -96,6 +96,16 @@ def _probe_agent(learning: LearningSettings) -> Any:
     from fleetrl.runs.factory import probe_agent  # torch: only once the cheap checks passed
 
     return as_setting_error("env", probe_agent, learning.env, learning.ppo())
+
+
+def with_large_fleet_update(learning: LearningSettings, units: int) -> LearningSettings:
+    """``learning`` for a federated fleet of ``units``: where the unit type has a large-fleet update
+    (:class:`~fleetrl.envs.catalog.LargeFleetUpdate`), the fleet reaches its size and the preset is the
+    default one, its settings are filled in under the ``--set`` overrides (an explicit one wins)."""
+    rule = as_setting_error("env", get_env_spec, learning.env).large_fleet
+    if rule is None or units < rule.from_units or learning.preset != DEFAULT_PRESET:
+        return learning
+    return replace(learning, overrides=dict(rule.settings) | dict(learning.overrides))
 
 
 def typed_overrides(overrides: dict[str, Any]) -> dict[str, Any]:

@@ -40,6 +40,7 @@ from fleetrl.runs.learning_resolution import (
     fleet_shape,
     resolve_and_probe,
     resolve_learning,
+    with_large_fleet_update,
 )
 from fleetrl.runs.memory_fit import run_memory_problem
 from fleetrl.runs.setting_values import (
@@ -195,7 +196,10 @@ class RunSettings(RoundRules, BrokerLogin):
         created: a new value, or SettingError naming the first setting that cannot work. The probe agent
         is built once."""
         scheme = ALONE_SCHEME if self.mode == "individual" else DEFAULT_SCHEME
-        learning, shape = resolve_and_probe(self.learning, default_scheme=scheme)
+        learning = self.learning
+        if self.mode == "federated":
+            learning = with_large_fleet_update(learning, self.units)
+        learning, shape = resolve_and_probe(learning, default_scheme=scheme)
         choose("mode", self.mode, MODES)
         choose("transport", self.transport, TRANSPORTS)
         choose("device_link", self.device_link, DEVICE_LINKS)
