@@ -44,7 +44,7 @@ def test_validation_names_the_default_profile_and_the_file_records_it(tmp_path: 
     [
         (
             ["--fleet-profile", "tabel2"],
-            r"--fleet-profile: unknown fleet profile 'tabel2' \(choose v1 or table2\)",
+            r"--fleet-profile: unknown fleet profile 'tabel2' \(choose v1, table2 or wide\)",
         ),
         (["--env", "cartpole", "--fleet-profile", "v1"], "--fleet-profile: cartpole units have one fleet"),
     ],

@@ -9,6 +9,7 @@ import pytest
 from fleetrl.devices.homogeneity import homogeneity_test, pooled_homogeneity
 from fleetrl.devices.qube.device import QubeDevice
 from fleetrl.devices.qube.fleet_profiles import DEFAULT_FLEET_PROFILE, FLEET_PROFILES, fleet_profile
+from fleetrl.devices.qube.params import NOMINAL
 from fleetrl.devices.qube.units import QubeVariation, qube_unit_params
 
 # the paper's Table 2 (three real units): off-diagonal motor 0.75-0.86, pendulum 0.96-0.98
@@ -17,13 +18,13 @@ TABLE2_PENDULUM = (0.96, 0.98)
 
 
 def test_profiles_by_name_and_a_clear_error() -> None:
-    assert set(FLEET_PROFILES) == {"v1", "table2"}
+    assert set(FLEET_PROFILES) == {"v1", "table2", "wide"}
     assert DEFAULT_FLEET_PROFILE == "table2"
     assert fleet_profile() is fleet_profile("table2")
     for name, profile in FLEET_PROFILES.items():
         assert profile.name == name and profile.summary
     for bad in ("tabel2", "", "V1"):
-        with pytest.raises(ValueError, match=rf"unknown fleet profile '{bad}' \(choose v1 or table2\)"):
+        with pytest.raises(ValueError, match=rf"unknown fleet profile '{bad}' \(choose v1, table2 or wide\)"):
             fleet_profile(bad)
         with pytest.raises(ValueError, match="unknown fleet profile"):
             QubeDevice.from_fleet(0, 0, profile=bad)
@@ -73,6 +74,21 @@ def test_table2_units_differ_from_v1_where_the_profiles_differ() -> None:
     a, b = qube_unit_params(0, 1, v1), qube_unit_params(0, 1, table2)
     assert a.cable_stiffness == 0.0 < b.cable_stiffness
     assert (a.Rm, a.km, a.mp, a.Lp) == (b.Rm, b.km, b.mp, b.Lp)  # same draws where the spreads agree
+
+
+def test_wide_units_spread_as_a_fleet_of_mixed_revisions_does() -> None:
+    table2, wide = (fleet_profile(name).variation for name in ("table2", "wide"))
+    drawn = [(qube_unit_params(7, u, table2), qube_unit_params(7, u, wide)) for u in range(200)]
+    for name, spread in (("Rm", 0.25), ("km", 0.25), ("mr", 0.20), ("Lr", 0.20), ("mp", 0.20), ("Lp", 0.20)):
+        nominal = getattr(NOMINAL, name)
+        deviations = np.array([getattr(w, name) / nominal - 1.0 for _, w in drawn])
+        assert np.all(np.abs(deviations) <= spread + 1e-12), name
+        assert np.abs(deviations).max() > 0.9 * spread, name  # the spread is used, not just allowed
+    dead_zones = np.array([w.deadband_volts for _, w in drawn])
+    assert np.all((dead_zones >= 0.0) & (dead_zones <= 0.2)) and dead_zones.max() > 0.18
+    assert all(t.deadband_volts == 0.0 for t, _ in drawn)
+    # the cable and the damping are table2's, drawn in the same order: the same value for the same unit
+    assert all((t.Dr, t.Dp, t.cable_stiffness) == (w.Dr, w.Dp, w.cable_stiffness) for t, w in drawn)
 
 
 @pytest.mark.slow

@@ -38,7 +38,7 @@ def test_the_catalogue_resolves_each_unit_types_profiles() -> None:
 
 
 def test_bad_fleet_profile_is_a_clear_error() -> None:
-    with pytest.raises(ValueError, match=r"unknown fleet profile 'x' \(choose v1 or table2\)"):
+    with pytest.raises(ValueError, match=r"unknown fleet profile 'x' \(choose v1, table2 or wide\)"):
         QubeBalanceEnv(fleet_profile="x")
     with pytest.raises(ValueError, match=r"\['fleet_profile'\] configure the in-process simulation"):
         QubeBalanceEnv(link=InProcessLink(QubeDevice.from_fleet(0, 0)), fleet_profile="table2")

@@ -1,6 +1,7 @@
 """Named fleet profiles: which parameters vary between simulated QUBE units and by how much
 (``QubeVariation``); the fleet seed fixes the draws. ``table2``, the default, matches the paper's Table 2;
-``v1`` is the first fleet, for the results measured on it (docs/devices.md, "Per-unit deviations").
+``v1`` is the first fleet, for the results measured on it; ``wide`` spreads units as a real fleet of mixed
+revisions and wear does (docs/devices.md, "Per-unit deviations and fleet profiles").
 """
 
 from dataclasses import dataclass
@@ -35,7 +36,22 @@ TABLE2 = FleetProfile(
     "calibrated to the paper's Table 2: v1 plus a cable torque on the arm, damping raised at the bottom",
 )
 
-FLEET_PROFILES: dict[str, FleetProfile] = {p.name: p for p in (V1, TABLE2)}
+WIDE = FleetProfile(
+    "wide",
+    QubeVariation(
+        arm_mass_length=0.20,
+        pendulum_mass_length=0.20,
+        resistance=0.25,
+        torque_constant=0.25,
+        Dr_range=TABLE2.variation.Dr_range,
+        Dp_range=TABLE2.variation.Dp_range,
+        cable_stiffness_range=TABLE2.variation.cable_stiffness_range,
+        deadband_range=(0.0, 0.2),
+    ),
+    "mixed revisions and wear: table2 with masses, lengths ±20 %, motor ±25 %, an amplifier dead zone to 0.2 V",
+)
+
+FLEET_PROFILES: dict[str, FleetProfile] = {p.name: p for p in (V1, TABLE2, WIDE)}
 """every profile by name"""
 DEFAULT_FLEET_PROFILE = TABLE2.name
 """the profile a fleet is drawn with unless another is named"""
@@ -47,5 +63,6 @@ def fleet_profile(name: str | None = None) -> FleetProfile:
     try:
         return FLEET_PROFILES[key]
     except (KeyError, TypeError):
-        choices = " or ".join(FLEET_PROFILES)
+        *others, last = FLEET_PROFILES
+        choices = f"{', '.join(others)} or {last}"
         raise ValueError(f"unknown fleet profile {name!r} (choose {choices})") from None
