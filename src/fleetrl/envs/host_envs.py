@@ -1,20 +1,7 @@
-"""The envs of a unit host's units, stepped together where they can be.
-
-A unit simulated in-process as a built-in CartPole or QUBE (``fleetrl/CartPoleUnit-v0`` or
-``fleetrl/QubeBalance-v0`` as ``gymnasium.make`` builds it: its env over an
-:class:`~fleetrl.link.inprocess.InProcessLink` to a :class:`~fleetrl.devices.cartpole.CartPoleDevice` or a
-:class:`~fleetrl.devices.qube.device.QubeDevice`, under gymnasium's ``TimeLimit``, ``OrderEnforcing`` and
-``PassiveEnvChecker`` only, no rendering) is stepped with every other such unit of its type in the host in
-one batch (:class:`~fleetrl.devices.cartpole_batch.CartPoleBatch`,
-:class:`~fleetrl.devices.qube.batch.QubeBatch`): one compiled call per time step, judged by its env class's
-``judge_rows`` and truncated at its ``TimeLimit``, each unit's numbers those its own env would give. Every
-other unit (behind a device bridge, paced, the continuous QUBE, a user's unit type) is stepped through its
-own env, one call each.
-
-Resets always go through the unit's own env (its seeding is the env's); the batch then takes the device's
-state. While the batch steps a unit, its env's own wrappers do not see the steps (its ``TimeLimit`` count
-stays at 0); the device's state is handed back at every episode's end.
-"""
+"""The envs of many units, stepped together where they can be: in-process CartPoles and QUBEs (as
+``gymnasium.make`` builds them, under ``TimeLimit``, ``OrderEnforcing`` and ``PassiveEnvChecker`` only) in
+one compiled batch call per type and time step, each unit's numbers those its own env gives; every other
+unit (behind a device bridge, paced, a user's type) through its own env. Resets go through each unit's env."""
 
 from __future__ import annotations
 

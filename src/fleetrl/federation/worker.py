@@ -254,7 +254,7 @@ class FederatedWorker:
                 assert isinstance(self.scheme, StepScheme), "a per-step round comes to a per-step scheme"
                 units = self.learner
                 weights = self.scheme.unit_weights(units.unit_progress(), units.units_completed())
-                steps = agent.begin_update(weights) if self._played.updates else 0
+                steps = agent.begin_update() if self._played.updates else 0
                 weight = None if weights is None else float(sum(weights))
                 begun = self._step_machine.update_begun(steps, now=self.clock(), weight=weight)
                 self._queue.extend(begun.outputs)

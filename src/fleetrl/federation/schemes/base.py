@@ -113,9 +113,8 @@ class FederatedAgent(Protocol):
         """How many optimisation steps each update takes."""
         ...
 
-    def begin_update(self, unit_weights: Sequence[float] | None = None) -> int:
-        """Start the round's update, its units' minibatch gradients weighted by ``unit_weights`` (one per
-        unit; None: equally); the number of optimisation steps it takes."""
+    def begin_update(self) -> int:
+        """Start the round's update; the number of optimisation steps it takes."""
         ...
 
     def step_gradients(self, k: int) -> np.ndarray:
