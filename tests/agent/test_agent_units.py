@@ -164,3 +164,16 @@ def test_batched_acting_takes_each_rows_own_action() -> None:
 def test_an_agent_needs_a_unit() -> None:
     with pytest.raises(ValueError, match="at least one unit"):
         PPOAgent(OBS_DIM, N_ACTIONS, small_config(), [])
+
+
+def test_each_unit_of_several_plays_the_argmax_criterion_on_its_own_scores() -> None:
+    config = dataclasses.replace(get_preset("standard"), hidden=(16,), criterion="argmax")
+    envs = [gymnasium.make(CARTPOLE_UNIT_ID, unit=u, fleet_seed=0) for u in range(2)]
+    criteria = [CompletionCriterion(t) for t in (0.0, 1e9)]  # unit 0's every score reaches its target
+    learner = Learner(envs, PPOAgent(4, 2, config, [7, 8]), criteria, [7, 8])
+    learner.play_round()
+    stored = [len(memory) for memory in learner.agent.memories]
+    assert [learner.plays_greedy(u) for u in range(2)] == [True, False]
+    learner.play_round()
+    after = [len(memory) for memory in learner.agent.memories]
+    assert after[0] == stored[0] and after[1] > stored[1]  # unit 0's arg-max episode is stored nowhere

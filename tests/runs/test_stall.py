@@ -266,8 +266,8 @@ def test_a_stalling_unit_computes_the_same_numbers_later(tmp_path: Any) -> None:
         )
     # the per-step path: the agent's calls go through the wrapper (each waits out a pause first)
     played_even, played_stalled = even.begin_round(), stalled.begin_round()
-    steps = even.agent.begin_update(None)
-    assert stalled.agent.begin_update(None) == steps
+    steps = even.agent.begin_update()
+    assert stalled.agent.begin_update() == steps
     for k in range(steps):
         g = even.agent.step_gradients(k)
         np.testing.assert_array_equal(g, stalled.agent.step_gradients(k))
