@@ -120,18 +120,24 @@ class Learner:
         score, steps = np.zeros(n), np.zeros(n, dtype=np.int64)
         played: list[list[tuple[float, int]]] = [[] for _ in range(n)]
         playing, units = np.ones(n, dtype=bool), np.arange(n)
+        at: slice | np.ndarray = slice(None)  # the units playing: every unit, or those still playing
         stores = ~greedy if learn else np.zeros(n, dtype=bool)
+        any_greedy = bool(greedy.any())
         while units.size:
-            before = obs[units]
-            actions = self._act(before, units, greedy[units])  # line 3, for every unit still playing
+            before = obs[at]
+            actions = self._act(before, units, greedy[at])  # line 3, for every unit still playing
             sent = actions if to_env is None else [to_env(a) for a in actions]
             step = envs.step(units, sent)  # line 4
-            kept = stores[units]  # line 5
             stored = (before, actions, step.rewards, step.obs, step.terminated, step.truncated)
-            agent.remember_units(units[kept], *(a[kept] for a in stored))
-            score[units] += step.rewards
-            steps[units] += 1
+            if learn:  # line 5, for the units that learn from their episode
+                rows = stores[at] if any_greedy else slice(None)
+                agent.remember_units(units[rows], *(a[rows] for a in stored))
+            score[at] += step.rewards
+            steps[at] += 1
             ended = step.terminated | step.truncated
+            if not ended.any():
+                obs[at] = step.obs
+                continue
             obs[units[~ended]] = step.obs[~ended]
             for u in units[ended].tolist():
                 played[u].append((float(score[u]), int(steps[u])))
@@ -141,8 +147,8 @@ class Learner:
                     obs[u] = self._reset(u)
                 else:
                     playing[u] = False
-            if ended.any():
-                units = np.flatnonzero(playing)
+            units = np.flatnonzero(playing)
+            at = slice(None) if units.size == n else units
         agent.store_pending()
         return played
 

@@ -20,7 +20,7 @@ from fleetrl.agent.network import ActorCritic
 from fleetrl.agent.optimiser_flat import load_optimiser_flat, optimiser_flat, optimiser_layout
 from fleetrl.agent.pending import PendingTransitions
 from fleetrl.agent.policy_numpy import NumpyPolicy
-from fleetrl.agent.row_acting import RowActing
+from fleetrl.agent.row_acting import FEW_ROWS, RowActing
 from fleetrl.agent.step_exchange import StepExchange
 from fleetrl.agent.unit_draws import UniformDraws
 from fleetrl.agent.update import (
@@ -81,7 +81,8 @@ class PPOAgent:
         grows, dim = config.trajectory_memory == "per_round", self.action_space.dim
         self._memories = [TrajectoryMemory(config.memory_size, obs_dim, grows, dim) for _ in self.seeds]
         self.memory = self._memories[0]  # unit 0's
-        self._pending = PendingTransitions(self.units, obs_dim, dim)
+        few = self.units < FEW_ROWS  # a few units' transitions go straight into their memories
+        self._pending = None if few else PendingTransitions(self.units, obs_dim, dim)
         self._policy = NumpyPolicy(self.net)
         self._discrete = self.action_space.is_discrete
         self._draws = UniformDraws(self._act_rngs)
@@ -142,7 +143,12 @@ class PPOAgent:
     def remember_units(self, units: np.ndarray, *transitions: np.ndarray) -> None:
         """:meth:`remember` for the distinct units ``units``: ``transitions`` are the arrays of obs, actions,
         rewards, next obs, terminated and truncated, row j of each ``units[j]``'s."""
-        self._pending.add(self._memories, units, *transitions)
+        if self._pending is not None:
+            self._pending.add(self._memories, units, *transitions)
+            return
+        for u, *row in zip(units.tolist(), *transitions, strict=True):
+            obs, action, reward, next_obs, terminated, truncated = row
+            self._memories[u].add(obs, action, float(reward), next_obs, terminated, truncated)
 
     @property
     def memories(self) -> list[TrajectoryMemory]:
@@ -152,13 +158,15 @@ class PPOAgent:
 
     def store_pending(self) -> None:
         """Move the transitions :meth:`remember_units` holds into each unit's memory."""
-        self._pending.drain(self._memories)
+        if self._pending is not None:
+            self._pending.drain(self._memories)
 
     # ---- learning (Algorithm 2, lines 11-25) ----------------------------------------------------------
 
     def needs_more_episodes(self, unit: int = 0) -> bool:
         """Whether the unit's round goes on with another episode: until a ``per_round`` memory is filled."""
-        stored = len(self._memories[unit]) + int(self._pending.counts[unit])
+        pending = 0 if self._pending is None else int(self._pending.counts[unit])
+        stored = len(self._memories[unit]) + pending
         return self.config.trajectory_memory == "per_round" and stored < self.config.memory_size
 
     def set_extra_loss(self, fn: ExtraLoss | None) -> None:

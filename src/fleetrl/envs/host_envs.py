@@ -1,7 +1,8 @@
 """The envs of many units, stepped together where they can be: in-process CartPoles and QUBEs (as
 ``gymnasium.make`` builds them, under ``TimeLimit``, ``OrderEnforcing`` and ``PassiveEnvChecker`` only) in
-one compiled batch call per type and time step, each unit's numbers those its own env gives; every other
-unit (behind a device bridge, paced, a user's type) through its own env. Resets go through each unit's env."""
+one compiled batch call per type and time step (two or more of a type), each unit's numbers those its own
+env gives; every other unit (behind a device bridge, paced, a user's type) through its own env. Resets go
+through each unit's env."""
 
 from __future__ import annotations
 
@@ -113,7 +114,7 @@ class HostEnvs:
         self._batches: dict[int, _Batch] = {}
         for index, kind in enumerate(_KINDS):
             units = [u for u, f in enumerate(found) if f is not None and f[0] == index]
-            if not units:
+            if len(units) < 2:  # a unit alone is stepped as fast through its own env
                 continue
             self._kind[units] = index
             self._row[units] = np.arange(len(units))
@@ -123,6 +124,8 @@ class HostEnvs:
                 kind, stepper, np.array(caps, dtype=np.int64), np.zeros(len(units), dtype=np.int64)
             )
         self._obs_dtype: np.dtype[Any] | None = None
+        space = self.envs[0].observation_space if self.envs else None
+        self._obs_shape = tuple(space.shape) if space is not None and space.shape is not None else (4,)
 
     @property
     def batched(self) -> np.ndarray:
@@ -147,10 +150,9 @@ class HostEnvs:
         n = len(units)
         kinds = self._kind[units]
         dtype = self._obs_dtype if self._obs_dtype is not None else np.float32
-        obs = np.empty((n, *self._obs_shape(units)), dtype=dtype)
+        obs = np.empty((n, *self._obs_shape), dtype=dtype)
         rewards = np.empty(n, dtype=np.float64)
-        terminated = np.empty(n, dtype=bool)
-        truncated = np.empty(n, dtype=bool)
+        terminated, truncated = np.empty(n, dtype=bool), np.empty(n, dtype=bool)
         chosen = np.asarray(actions) if self._batches else np.empty(0)  # once a step, not once a batch
         for index, batch in self._batches.items():
             mine = kinds == index
@@ -164,7 +166,8 @@ class HostEnvs:
             truncated[mine] = batch.elapsed[rows] >= batch.cap[rows]
             for row in rows[terminated[mine] | truncated[mine]].tolist():
                 batch.stepper.store(row)  # the episode ends: the device holds its last state again
-        for j in np.flatnonzero(kinds < 0).tolist():
+        alone = range(n) if not self._batches else np.flatnonzero(kinds < 0).tolist()
+        for j in alone:
             action = actions[j]
             if isinstance(action, np.integer):  # an env stepped alone is sent a plain index, as before
                 action = int(action)
@@ -172,7 +175,3 @@ class HostEnvs:
             obs[j] = next_obs
             rewards[j], terminated[j], truncated[j] = float(reward), term, trunc
         return StepRows(obs, rewards, terminated, truncated)
-
-    def _obs_shape(self, units: np.ndarray) -> tuple[int, ...]:
-        space = self.envs[int(units[0])].observation_space if len(units) else None
-        return tuple(space.shape) if space is not None and space.shape is not None else (4,)
