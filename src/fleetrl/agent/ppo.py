@@ -141,14 +141,13 @@ class PPOAgent:
         self.memories[0].add(obs, action, reward, next_obs, terminated, truncated)
 
     def remember_units(self, units: np.ndarray, *transitions: np.ndarray) -> None:
-        """:meth:`remember` for the distinct units ``units``: ``transitions`` are the arrays of obs, actions,
-        rewards, next obs, terminated and truncated, row j of each ``units[j]``'s."""
+        """:meth:`remember` for the distinct ``units``: ``transitions`` are the arrays of obs, actions,
+        rewards, next obs, terminated and truncated (row j: ``units[j]``'s)."""
         if self._pending is not None:
             self._pending.add(self._memories, units, *transitions)
             return
         for u, *row in zip(units.tolist(), *transitions, strict=True):
-            obs, action, reward, next_obs, terminated, truncated = row
-            self._memories[u].add(obs, action, float(reward), next_obs, terminated, truncated)
+            self._memories[u].add(*row)
 
     @property
     def memories(self) -> list[TrajectoryMemory]:
@@ -165,8 +164,7 @@ class PPOAgent:
 
     def needs_more_episodes(self, unit: int = 0) -> bool:
         """Whether the unit's round goes on with another episode: until a ``per_round`` memory is filled."""
-        pending = 0 if self._pending is None else int(self._pending.counts[unit])
-        stored = len(self._memories[unit]) + pending
+        stored = len(self._memories[unit]) + (0 if self._pending is None else int(self._pending.counts[unit]))
         return self.config.trajectory_memory == "per_round" and stored < self.config.memory_size
 
     def set_extra_loss(self, fn: ExtraLoss | None) -> None:
@@ -178,9 +176,8 @@ class PPOAgent:
         return hand_back(self.update_steps())
 
     def update_steps(self) -> Generator[Gradient, Gradient, UpdateStats]:
-        """The update as a generator (:func:`~fleetrl.agent.update.ppo_update`); then the acting copy
-        follows θ, a ``per_round`` memory is emptied; returns the units' mean statistics (each unit's:
-        :attr:`unit_stats`). RuntimeError (at the first step) if a unit's memory is empty."""
+        """The update as a generator (:func:`~fleetrl.agent.update.ppo_update`); returns the units' mean
+        statistics (each unit's: :attr:`unit_stats`); RuntimeError at its first step if a memory is empty."""
         empty = [u for u, memory in enumerate(self.memories) if len(memory) == 0]
         if empty:
             raise RuntimeError(f"update() needs a transition in every unit's memory; units {empty} have none")
@@ -191,7 +188,8 @@ class PPOAgent:
         self.unit_stats = finished.unit_stats
         self._policy.refresh(self.net)
         if self.config.trajectory_memory == "per_round":
-            self._clear_memories()
+            for memory in self.memories:
+                memory.clear()
         return finished.stats
 
     # ---- the update as flat vectors, step by step (a scheme that combines the fleet's step gradients) ----
@@ -255,11 +253,8 @@ class PPOAgent:
         self._exchange = None
         self._policy.refresh(self.net)
         if self.config.trajectory_memory == "per_round":
-            self._clear_memories()
-
-    def _clear_memories(self) -> None:
-        for memory in self.memories:
-            memory.clear()
+            for memory in self.memories:
+                memory.clear()
 
     def _exchange_under_way(self) -> StepExchange:
         if self._exchange is None:
@@ -341,7 +336,7 @@ class PPOAgent:
                 p.copy_(value)
         self._policy.refresh(self.net)
 
-    # ---- resumable state (fleetrl.agent.state) --------------------------------------------------------
+    # ---- resumable state (fleetrl.agent.state) and model files (fleetrl.agent.model_file) ---------------
 
     def optimisers(self) -> dict[str, torch.optim.Optimizer]:
         """The Adam optimisers by name: ``actor`` and ``critic``, or the one ``shared`` optimiser."""
@@ -377,8 +372,6 @@ class PPOAgent:
         """Copy the network into the acting policy after its weights were changed in place."""
         self._policy.refresh(self.net)
 
-    # ---- model files (fleetrl.agent.model_file) ---------------------------------------------------------
-
     def architecture(self) -> dict[str, Any]:
         """What a model file must match to be loaded into this agent (:func:`.model_file.architecture`)."""
         return architecture(self)
@@ -402,7 +395,6 @@ class PPOAgent:
         """Replace the network's weights with a model file's ``tensors`` (``source``: for errors)."""
         check_tensors_fit(tensors, {k: tuple(t.shape) for k, t in self.net.state_dict().items()}, source)
         self._score_new_transitions()
-        self.net.load_state_dict(
-            {k: torch.from_numpy(np.asarray(v, dtype=np.float32)) for k, v in tensors.items()}
-        )
+        state = {k: torch.from_numpy(np.asarray(v, dtype=np.float32)) for k, v in tensors.items()}
+        self.net.load_state_dict(state)
         self._policy.refresh(self.net)
