@@ -66,8 +66,6 @@ def acting(
     from fleetrl.agent.checkpoint import read_checkpoint
     from fleetrl.agent.config import get_preset
     from fleetrl.agent.criterion import CompletionCriterion
-    from fleetrl.agent.host_agent import HostAgent
-    from fleetrl.agent.host_learner import HostLearner
     from fleetrl.agent.learner import Learner
     from fleetrl.agent.ppo import PPOAgent
     from fleetrl.envs.registration import CARTPOLE_UNIT_ID
@@ -80,10 +78,10 @@ def acting(
     weights = None if policy is None else read_checkpoint(policy)[0]  # read once, whatever the units
     steps = 0
     if hosted:
-        agent = HostAgent(4, 2, config, seeds)
+        agent = PPOAgent(4, 2, config, seeds)
         if weights is not None:
             agent.load_weights(weights, str(policy))
-        host = HostLearner(envs, agent, [CompletionCriterion(1e9) for _ in envs])
+        host = Learner(envs, agent, [CompletionCriterion(1e9) for _ in envs], seeds)
         host.play_episodes()  # compile and warm up
         if start_at is not None:
             time.sleep(max(0.0, start_at - time.time()))
@@ -98,11 +96,11 @@ def acting(
         ]
         for learner in learners if weights is not None else ():
             learner.agent.load_weights(weights, str(policy))
-        learners[0].play_episode(learn=False)
+        learners[0].play_episodes()
         began = time.time()
         started, cpu = time.perf_counter(), time.process_time()
         for _ in range(rounds):
-            steps += sum(learner.play_episode()[1] for learner in learners)
+            steps += sum(sum(learner.play_episodes()[0].steps) for learner in learners)
     seconds, cpu_seconds = time.perf_counter() - started, time.process_time() - cpu
     return {"unit_steps": steps, "seconds": seconds, "unit_steps_per_s": steps / seconds,
             "unit_steps_per_cpu_s": steps / cpu_seconds, "began": began, "ended": time.time()}  # fmt: skip

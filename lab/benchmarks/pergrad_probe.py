@@ -87,7 +87,7 @@ def run(
     for rnd in range(1, m + 1):
         active = [i for i in range(units) if arm != "alone" or done_at[i] is None]
         for i in active:
-            played = learners[i].play_episodes()
+            (played,) = learners[i].play_episodes()
             steps[i].append(int(sum(played.steps)))
             if done_at[i] is None and learners[i].criterion.done:
                 done_at[i] = rnd

@@ -37,7 +37,7 @@ def test_hand_computed_log_prob_and_entropy_of_a_zero_head() -> None:
     model = net()
     head = torch.zeros(1, 2)
     action = torch.tensor([[1.0, 10.0]])
-    log_prob, entropy = model.log_probs_and_entropy(head, action)
+    log_prob, entropy = model.log_probs_and_entropies(head, action)
     half_log_2pi = 0.5 * math.log(2 * math.pi)
     by_hand = (-0.5 * 0.5**2 - math.log(2) - half_log_2pi) + (-0.5 * 1.0**2 - math.log(5) - half_log_2pi)
     assert log_prob.item() == pytest.approx(by_hand, abs=1e-5)
@@ -52,7 +52,7 @@ def test_log_prob_and_entropy_match_torch_distributions() -> None:
     obs = torch.randn(5, OBS_DIM, generator=torch.Generator().manual_seed(1))
     actions = torch.randn(5, 2, generator=torch.Generator().manual_seed(2)) * 3.0
     head, _ = model(obs)
-    log_probs, entropy = model.log_probs_and_entropy(head, actions)
+    log_probs, entropy = model.log_probs_and_entropies(head, actions)
     mean, log_std = model.gaussian(head)
     normal = torch.distributions.Normal(mean, log_std.exp().expand_as(mean))
     assert torch.allclose(log_probs, normal.log_prob(actions).sum(-1), atol=1e-5)

@@ -25,7 +25,7 @@ def make_learner(preset: str, seed: int = 0, threshold: float = 475.0) -> Learne
 def test_a_paper_code_round_plays_whole_episodes_until_200_transitions() -> None:
     torch.set_num_threads(1)
     learner = make_learner("paper-code")
-    episodes = learner.play_episodes()
+    (episodes,) = learner.play_episodes()
     memory = learner.agent.memory
     assert len(episodes.scores) > 1  # a new CartPole policy falls within ~20 steps
     assert sum(episodes.steps) >= 200 and sum(episodes.steps[:-1]) < 200  # stopped once filled

@@ -8,7 +8,7 @@ import gymnasium
 import pytest
 
 import fleetrl  # noqa: F401  (registers the fleetrl envs)
-from fleetrl.agent.config import Criterion, PPOConfig, get_preset, host_config_problem
+from fleetrl.agent.config import Criterion, PPOConfig, get_preset
 from fleetrl.agent.criterion import CompletionCriterion
 from fleetrl.agent.learner import Learner
 from fleetrl.agent.ppo import PPOAgent
@@ -27,17 +27,17 @@ class ActionCounts:
 
     def __init__(self, agent: PPOAgent) -> None:
         self.sampled = self.greedy = 0
-        act, act_greedy = agent.act, agent.act_greedy
+        act, act_greedy = agent.act_units, agent.act_greedy
 
-        def counted_act(obs: Any) -> Any:
-            self.sampled += 1
-            return act(obs)
+        def counted_act(obs: Any, units: Any) -> Any:
+            self.sampled += len(units)
+            return act(obs, units)
 
         def counted_greedy(obs: Any) -> Any:
             self.greedy += 1
             return act_greedy(obs)
 
-        agent.act, agent.act_greedy = counted_act, counted_greedy  # type: ignore[method-assign]
+        agent.act_units, agent.act_greedy = counted_act, counted_greedy  # type: ignore[method-assign]
 
 
 def test_a_round_after_a_held_one_is_played_by_the_arg_max_and_stored_nowhere() -> None:
@@ -88,10 +88,6 @@ def test_settings_it_cannot_run_with_are_refused_before_anything_starts() -> Non
     per_round = dataclasses.replace(get_preset("paper-code"), criterion="argmax")
     with pytest.raises(ValueError, match=r"criterion 'argmax' .* needs trajectory_memory 'ring'"):
         per_round.validate()
-    host = dataclasses.replace(get_preset("standard"), criterion="argmax")
-    problem = host_config_problem(host)
-    assert problem is not None and "--units-per-host 1" in problem
-    assert host_config_problem(get_preset("standard")) is None
 
 
 def test_a_completed_unit_that_stays_with_its_fleet_samples_again() -> None:

@@ -69,7 +69,6 @@ def test_two_standalone_hosts_play_the_rows_of_the_train_command_s_hosts(tmp_pat
         ("worker", ("--units", "2", "--scheme", "fedavg"), "--units = 2: a unit host is one policy"),
         ("worker", ("--units", "2", "--resume"), "--units = 2: a unit host keeps no checkpoints"),
         ("worker", ("--units", "2", "--unit", "5"), "--units = 2: a unit host's units are its ids"),
-        ("worker", ("--units", "2", "--slow", "w0=2"), "--units = 2: a unit host steps its units together"),
         ("worker", ("--units", "2", "--device-link", "mqtt"), "--units = 2: a standalone unit host runs"),
         ("chief", ("--units-per-host", "2", "--scheme", "fedavg"), "--units-per-host = 2: a unit host is"),
         ("chief", ("--units-per-host", "0"), "--units-per-host = 0: must be at least 1"),

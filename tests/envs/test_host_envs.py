@@ -12,8 +12,6 @@ import pytest
 
 from fleetrl.agent.config import get_preset
 from fleetrl.agent.criterion import CompletionCriterion
-from fleetrl.agent.host_agent import HostAgent
-from fleetrl.agent.host_learner import HostLearner
 from fleetrl.agent.learner import Learner
 from fleetrl.agent.ppo import PPOAgent
 from fleetrl.agent.row_acting import FEW_ROWS
@@ -122,13 +120,13 @@ def test_a_host_of_mixed_units_plays_its_first_round_as_each_unit_alone() -> Non
         get_preset("standard"), hidden=(16, 16), memory_size=60, batch_size=32, trajectory_memory="per_round"
     )
     seeds = [30 + u for u in range(FEW_ROWS + 4)]  # enough units to act by matrix products
-    agent = HostAgent(4, 2, config, seeds)
-    host = HostLearner(unit_envs(None, len(seeds)), agent, [CompletionCriterion(1e9) for _ in seeds])
+    agent = PPOAgent(4, 2, config, seeds)
+    host = Learner(unit_envs(None, len(seeds)), agent, [CompletionCriterion(1e9) for _ in seeds], seeds)
     played = host.play_episodes()
     for u, (env, seed) in enumerate(zip(unit_envs(None, len(seeds)), seeds, strict=True)):
         own = PPOAgent(4, 2, config, seed=seed)
         own.set_model_parameters(agent.model_parameters())  # the host's one network, before any update
-        episodes = Learner(env, own, CompletionCriterion(1e9), seed=seed).play_episodes()
+        episodes = Learner(env, own, CompletionCriterion(1e9), seed=seed).play_episodes()[0]
         assert (played[u].scores, played[u].steps) == (episodes.scores, episodes.steps)
         mine, theirs = agent.memories[u].transitions(), own.memory.transitions()
         for field in dataclasses.fields(mine):

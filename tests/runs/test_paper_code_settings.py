@@ -14,12 +14,12 @@ def test_paper_code_and_its_overrides_reach_the_run_config(tmp_path: Path) -> No
         "preset": "paper-code",
         "scheme": "paper",  # the default scheme, pergrad, refuses a preset whose steps alternate
         "out": str(tmp_path / "run"),
-        "overrides": {"critic_coef": 1, "trajectory_memory": "ring", "critic_loss": "mse"},
+        "overrides": {"critic_coef": 1, "trajectory_memory": "ring", "critic_loss": "abs"},
     }
     settings = build(RunSettings, {}, flags)
     ppo = settings.to_config()["ppo"]
     assert ppo["critic_coef"] == 1.0 and isinstance(ppo["critic_coef"], float)  # an int becomes a number
-    assert ppo["trajectory_memory"] == "ring" and ppo["critic_loss"] == "mse"
+    assert ppo["trajectory_memory"] == "ring" and ppo["critic_loss"] == "abs"
     assert ppo["optimisers"] == "one_sequential" and ppo["clip_eps"] == 0.1  # the preset's own values
     table = tomllib.loads(settings.to_toml())
     again = build(RunSettings, table, {})  # config.toml reruns the same settings

@@ -10,6 +10,7 @@ from typing import Any
 import numpy as np
 import pytest
 
+from fleetrl.agent.learner import Learner
 from fleetrl.envs.stalled import StalledEnv
 from fleetrl.runs.factory import make_learner
 from fleetrl.runs.launch import worker_specs
@@ -251,10 +252,11 @@ def test_a_stalling_unit_computes_the_same_numbers_later(tmp_path: Any) -> None:
     """A real CartPole learner played round by round, with and without pauses at every env step, reset,
     piece of work and agent call: the same episodes, losses and parameters; the stalled one slept."""
     even = make_learner(cartpole_spec(tmp_path))
-    stalled_learner = make_learner(cartpole_spec(tmp_path))
+    built = make_learner(cartpole_spec(tmp_path))
     clock = StallOnCall(tick=0.01)
     stall = Stall(StallSchedule(0.5, 0.1), clock=clock, sleep=clock.sleep)
-    stalled_learner.env = StalledEnv(stalled_learner.env, stall.wait)
+    stalled_env = StalledEnv(built.env, stall.wait)
+    stalled_learner = Learner(stalled_env, built.agent, built.criterion, built.seeds, built.keep_learning)
     stalled = UnevenUnit(stalled_learner, stall=stall)
     for _ in range(3):
         a, b = even.play_round(), stalled.play_round()
@@ -266,8 +268,8 @@ def test_a_stalling_unit_computes_the_same_numbers_later(tmp_path: Any) -> None:
         )
     # the per-step path: the agent's calls go through the wrapper (each waits out a pause first)
     played_even, played_stalled = even.begin_round(), stalled.begin_round()
-    steps = even.agent.begin_update(None)
-    assert stalled.agent.begin_update(None) == steps
+    steps = even.agent.begin_update()
+    assert stalled.agent.begin_update() == steps
     for k in range(steps):
         g = even.agent.step_gradients(k)
         np.testing.assert_array_equal(g, stalled.agent.step_gradients(k))

@@ -1,5 +1,6 @@
 """Unit hosts in a run (``--units-per-host``): 2 hosts x 3 units train CartPole in-process end to end, each
-unit with its own rows, completion and model; the setting is checked once before anything starts."""
+unit with its own rows, completion and model; every preset and uneven fleet runs in hosts; the setting is
+checked once before anything starts."""
 
 import csv
 import json
@@ -83,8 +84,6 @@ def test_units_of_a_host_behind_device_bridges_play_as_in_process(tmp_path: Path
         (("--units-per-host", "0"), "at least 1"),
         (("--units-per-host", "2", "--scheme", "fedavg"), "pergrad"),
         (("--units-per-host", "2", "--mode", "individual"), "--mode federated"),
-        (("--units-per-host", "2", "--preset", "paper"), "gae_scope"),
-        (("--units-per-host", "2", "--slow", "w1=2"), "uneven"),
     ],
 )
 def test_a_run_refuses_hosts_it_cannot_have_before_anything_starts(
@@ -94,6 +93,22 @@ def test_a_run_refuses_hosts_it_cannot_have_before_anything_starts(
     error = capsys.readouterr().err.strip().splitlines()
     assert any("--units-per-host" in line and words in line for line in error), error
     assert not (tmp_path / "run").exists()
+
+
+@pytest.mark.parametrize(
+    "extra",
+    [
+        ("--preset", "paper"),
+        ("--pace", "0.05", "--slow", "w1=1.5", "--link-delay", "w4=0.01"),
+        ("--absent", "0.3", "--absent-rounds", "1", "--stall", "w2=0.3"),
+    ],
+)
+def test_every_preset_and_uneven_fleet_runs_in_hosts(tmp_path: Path, extra: tuple[str, ...]) -> None:
+    out = tmp_path / "run"
+    assert train(out, "--units-per-host", "3", "--max-rounds", "3", "--target-score", "1e9", *extra) == 0
+    played = {(r["worker"], r["round"]) for r in rows(out)}
+    assert played == {(str(unit), str(r)) for unit in range(6) for r in (1, 2, 3)}
+    assert json.loads((out / "config.json").read_text())["units_per_host"] == 3
 
 
 def test_hosts_carry_the_units_in_order_the_last_what_is_left() -> None:

@@ -1,10 +1,5 @@
-"""The action space an agent acts in: ``n`` discrete actions, or a 1-D box of continuous values.
-
-The policy head follows from it (``fleetrl.agent.network``): a softmax over ``n`` logits, or a Gaussian
-whose mean comes from the shared trunk and whose log-std is one state-independent parameter per dimension.
-A model file records it (:meth:`ActionSpace.to_dict`), so :meth:`fleetrl.agent.ppo.PPOAgent.load` rebuilds
-the same head.
-"""
+"""The action space an agent acts in: ``n`` discrete actions (a softmax head), or a 1-D box of continuous
+values (a Gaussian head); a model file records it (:meth:`ActionSpace.to_dict`)."""
 
 from __future__ import annotations
 

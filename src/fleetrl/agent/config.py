@@ -9,11 +9,10 @@ from typing import Any, Literal, get_type_hints
 from fleetrl.coercion import coerce
 
 Activation = Literal["tanh", "relu"]
-TrunkSplit = Literal["shared", "actor"]
 GaeScope = Literal["window", "memory"]
 CriticTarget = Literal["td", "gae"]
 OldPolicy = Literal["round_start", "behaviour"]
-CriticLoss = Literal["abs", "mse", "huber"]
+CriticLoss = Literal["abs", "huber"]
 TrajectoryMemoryKind = Literal["ring", "per_round"]
 Optimisers = Literal["per_model", "one_sequential"]
 Criterion = Literal["sampled", "argmax"]
@@ -41,23 +40,18 @@ class PPOConfig:
     n_optimisations: int = 10
     """K: optimisations per round (Algorithm 2, line 12; Table 1: 10)"""
     hidden: tuple[int, ...] = (128, 128, 128)
-    """widths of the trunk's hidden layers, shared by actor and critic (section 5.1: 3 x 128)"""
+    """widths of the trunk's hidden layers, shared by actor and critic: θ = trunk + policy head, μ = trunk +
+    value head, each optimiser stepping the trunk with its own loss (section 5.1: 3 x 128)"""
     activation: Activation = "tanh"
     """non-linearity after each trunk layer (the paper does not give it)"""
-    trunk_split: TrunkSplit = "shared"
-    """'shared': trunk is in both θ and μ, each optimiser steps it with its own loss (Algorithm 2 lines
-    21 and 23 read literally); 'actor': trunk belongs to θ only and the critic loss reaches it through the
-    actor's gradient, scaled by critic_trunk_coef (μ is then the value head alone)"""
-    critic_trunk_coef: float = 0.5
-    """weight of the critic loss in the trunk's gradient when trunk_split == 'actor' (0: trunk ignores it)"""
     gae_scope: GaeScope = "window"
     """'window': Eq. 2 run inside each U-window with the current critic (the paper); 'memory': advantages
     computed once per round over the whole memory with the critic as it was at line 11"""
     critic_target: CriticTarget = "td"
     """'td': V_target = r + γV(s') (Eq. 3); 'gae': V_target = Â + V(s) (the λ-return)"""
     critic_loss: CriticLoss = "abs"
-    """'abs': |V_target − V| (Eq. 3); 'mse': ½(V_target − V)²; 'huber': smooth L1 (½e² for |e| < 1, else
-    |e| − ½; the authors' code)"""
+    """'abs': |V_target − V| (Eq. 3); 'huber': smooth L1 (½e² for |e| < 1, else |e| − ½; the authors'
+    code)"""
     critic_coef: float = 1.0
     """weight of L^V in the critic's step (the authors' code: 0.5); UpdateStats report L^V unweighted"""
     trajectory_memory: TrajectoryMemoryKind = "ring"
@@ -69,7 +63,7 @@ class PPOConfig:
     """'per_model': one Adam for θ and one for μ; both gradients are taken at the same parameters, then
     the critic steps and the actor steps (Algorithm 2, lines 20-23); 'one_sequential': one Adam over the
     whole network: the critic's gradient and step, then the actor's gradient at the stepped parameters and
-    its step (the authors' code; needs actor_lr == critic_lr and trunk_split 'shared')"""
+    its step (the authors' code; needs actor_lr == critic_lr)"""
     old_policy: OldPolicy = "round_start"
     """π_θold of Eq. 5-6: 'round_start' = the policy at line 11 of this round (the paper); 'behaviour' = the
     policy that generated each stored transition (standard PPO importance sampling)"""
@@ -77,8 +71,6 @@ class PPOConfig:
     """weight of the policy-entropy bonus added to L^CLIP (the paper has none)"""
     normalise_advantages: bool = False
     """standardise Â inside each window before Eq. 6 (the paper does not)"""
-    max_grad_norm: float = 0.0
-    """clip each optimiser's gradient to this global norm before its step (0: no clipping)"""
     criterion: Criterion = "sampled"
     """what a unit's completion proves. 'sampled' (the paper's): the WMA of its last 10 rounds, every
     episode sampled from π_θ, reaches the target. 'argmax', a deployment check: once a round reached the
@@ -127,11 +119,6 @@ class PPOConfig:
                 f"optimisers 'one_sequential' is one Adam with one learning rate: actor_lr ({self.actor_lr}) "
                 f"must equal critic_lr ({self.critic_lr})",
             ),
-            (
-                self.optimisers != "one_sequential" or self.trunk_split == "shared",
-                "optimisers 'one_sequential' steps the trunk with both losses: it needs trunk_split 'shared'",
-            ),
-            (self.max_grad_norm >= 0.0, f"max_grad_norm must be >= 0, got {self.max_grad_norm}"),
             (
                 self.criterion == "sampled" or self.trajectory_memory == "ring",
                 "criterion 'argmax' plays a held unit's episodes without storing them, and a 'per_round' "
@@ -191,20 +178,3 @@ def get_preset(name: str) -> PPOConfig:
         choices = f"{', '.join(others)} or {last}" if others else last
         raise ValueError(f"unknown preset {name!r} (choose {choices})") from None
     return dataclasses.replace(preset)
-
-
-def host_config_problem(cfg: PPOConfig) -> str | None:
-    """Why a unit host cannot run an update of ``cfg`` (one line), or None if it can."""
-    if cfg.gae_scope != "memory":
-        return (
-            f"a unit host computes Â over each unit's memory: it needs gae_scope = 'memory' (this preset has "
-            f"{cfg.gae_scope!r}); choose --preset standard or --set gae_scope=memory"
-        )
-    if cfg.optimisers != "per_model":
-        return "a unit host takes one step per optimisation: it needs optimisers = 'per_model'"
-    if cfg.criterion != "sampled":
-        return (
-            "a unit host samples every unit's episodes: criterion 'argmax' needs a worker per unit "
-            "(--units-per-host 1)"
-        )
-    return None

@@ -1,13 +1,6 @@
-"""Building a torch optimiser without importing ``torch._dynamo`` first.
-
-PyTorch wraps ``Optimizer.add_param_group`` (called by every optimiser's constructor), ``zero_grad``,
-``state_dict`` and ``load_state_dict`` in ``torch._disable_dynamo``, which imports ``torch._dynamo`` (and
-sympy) on the first call: 1.5-2 s of imports in a fresh process (benchmarks/startup.py), spent before a
-worker's first episode and, for nothing, in a process that builds an agent only to read its shapes (the
-settings' check, the chief's layout). The wrapper only turns TorchDynamo off while the call runs, which
-matters inside ``torch.compile`` alone; fleetrl never compiles, so the calls may go straight to the functions.
-``Optimizer.step`` still imports ``torch._dynamo`` on a worker's first update (after its first episode).
-"""
+"""Building a torch optimiser without importing ``torch._dynamo`` (1.5-2 s of imports, spent for nothing by a
+process that builds an agent only to read its shapes): fleetrl never compiles, so the wrapped calls may go
+straight to their functions."""
 
 import sys
 

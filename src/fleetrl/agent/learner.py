@@ -1,10 +1,12 @@
-"""One worker's learning loop without the federation: env + agent + completion criterion, round by round."""
+"""The learning loop of one unit or of U units of one agent, without the federation: each unit's env and
+completion criterion, the units stepped together (:class:`~fleetrl.envs.host_envs.HostEnvs`)."""
 
 from __future__ import annotations
 
 import dataclasses
 import math
 import time
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -14,117 +16,173 @@ import numpy as np
 from fleetrl.agent.criterion import CompletionCriterion
 from fleetrl.agent.ppo import PPOAgent, UpdateStats
 from fleetrl.agent.round_result import Episodes, RoundResult
+from fleetrl.envs.host_envs import HostEnvs
+
+__all__ = ["Learner", "PlayedEpisodes"]
 
 
 @dataclass(frozen=True)
 class PlayedEpisodes:
-    """The first half of a round: its episodes, and whether the round goes on with an update (line 7)."""
+    """The first half of a round: each unit's episodes, and whether the round goes on with an update."""
 
-    episodes: Episodes
+    units: tuple[Episodes, ...]
     updates: bool
     started: float
     """``time.perf_counter()`` as the round began"""
 
 
 class Learner:
-    """Plays rounds on one env; used by individual mode and inside the federated worker.
+    """Plays rounds of the agent's units, each on its own env; used alone and inside a federated worker.
 
-    :param env: a Gymnasium env with a flat Box observation and a Discrete or 1-D Box action space
-    :param agent: the PPO agent that acts and learns
-    :param criterion: decides when learning is complete
-    :param seed: seeds the env at its first reset (later resets continue its random stream)
-    :param keep_learning: update after every episode, also once the criterion holds (the ``fedavg``
-        federation scheme, where a completed worker keeps learning with the fleet)
+    :param env: each unit's Gymnasium env (one env: one unit), flat Box observations and a Discrete or 1-D
+        Box action space
+    :param agent: the PPO agent that acts and learns, with one seed per unit
+    :param criterion: each unit's completion criterion (one for one unit)
+    :param seed: seeds each unit's env at its first reset (one per unit; later resets continue its random
+        stream); None: unseeded
+    :param keep_learning: update every round, also once every unit's criterion holds (a scheme whose
+        completed units stay and learn with the fleet)
     """
 
     def __init__(
         self,
-        env: gymnasium.Env[Any, Any],
+        env: gymnasium.Env[Any, Any] | Sequence[gymnasium.Env[Any, Any]],
         agent: PPOAgent,
-        criterion: CompletionCriterion,
-        seed: int | None = None,
+        criterion: CompletionCriterion | Sequence[CompletionCriterion],
+        seed: int | Sequence[int] | None = None,
         keep_learning: bool = False,
     ) -> None:
-        self.env = env
+        self.envs = list(env) if isinstance(env, Sequence) else [env]
+        self.criteria = list(criterion) if isinstance(criterion, Sequence) else [criterion]
+        if not len(self.envs) == len(self.criteria) == agent.units:
+            raise ValueError(
+                f"a learner needs one env, criterion and agent seed per unit: got {len(self.envs)} envs, "
+                f"{len(self.criteria)} criteria, {agent.units} seeds"
+            )
+        self.seeds = [seed] * agent.units if seed is None or isinstance(seed, int) else list(seed)
+        self._envs = HostEnvs(self.envs)
         self.agent = agent
-        self.criterion = criterion
-        self.seed = seed
         self.keep_learning = keep_learning
         self.rounds = 0
-        self.episodes = 0
-        """episodes played in all rounds (not :meth:`evaluate`'s)"""
-        self.completed = False
+        self.unit_episodes = [0] * agent.units
+        """learning episodes each unit played in all rounds (not :meth:`evaluate`'s)"""
+        self.completed_once = [False] * agent.units
+        """whether each unit's criterion has held at some round (a unit completes once)"""
+        self.unit_rounds: tuple[RoundResult, ...] = ()
+        """each unit's result of the latest round"""
         self.last_round: RoundResult | None = None
-        """the result of the latest :meth:`play_round`"""
+        """the result of the latest round (its units' summary: the mean score, the summed steps)"""
+
+    @property
+    def env(self) -> gymnasium.Env[Any, Any]:
+        """Unit 0's env."""
+        return self.envs[0]
+
+    @property
+    def criterion(self) -> CompletionCriterion:
+        """Unit 0's completion criterion."""
+        return self.criteria[0]
+
+    @property
+    def episodes(self) -> int:
+        """Learning episodes played by all units in all rounds."""
+        return sum(self.unit_episodes)
+
+    @property
+    def completed(self) -> bool:
+        """Every unit has completed: its criterion held at some round, not necessarily this one."""
+        return all(self.completed_once)
 
     def unit_progress(self) -> list[float]:
-        """The unit's progress towards its criterion (:attr:`CompletionCriterion.progress`), as a list of
-        one (a unit host's has one per unit)."""
-        return [self.criterion.progress]
+        """Each unit's progress towards its criterion (:attr:`CompletionCriterion.progress`)."""
+        return [criterion.progress for criterion in self.criteria]
 
     def units_completed(self) -> list[bool]:
-        """Whether the unit has completed (its criterion held at some round), as a list of one."""
-        return [self.completed]
+        """Whether each unit has completed (its criterion held at some round), unit 0's first."""
+        return list(self.completed_once)
 
-    def play_episode(self, greedy: bool = False, learn: bool = True) -> tuple[float, int]:
-        """One episode (Algorithm 2, lines 2-6), storing transitions if ``learn``; returns (score, steps)."""
-        seed = self.seed if self.episodes == 0 else None
-        obs, _ = self.env.reset(seed=seed)
-        act = self.agent.act_greedy if greedy else self.agent.act
-        # a box's sample goes to the env clipped, to the memory as drawn (PPOAgent.env_action)
-        to_env = None if self.agent.action_space.is_discrete else self.agent.env_action
-        score, steps = 0.0, 0
-        while True:
-            action = act(obs)  # line 3
-            sent = action if to_env is None else to_env(action)
-            next_obs, reward, terminated, truncated, _ = self.env.step(sent)  # line 4
-            if learn:
-                self.agent.remember(obs, action, float(reward), next_obs, terminated, truncated)  # line 5
-            score += float(reward)
-            steps += 1
-            if terminated or truncated:
-                if learn:
-                    self.episodes += 1
-                return score, steps
-            obs = next_obs
-
-    def play_episodes(self) -> Episodes:
-        """The first half of a round: one episode, or whole episodes until the agent's trajectory memory
-        holds what its update needs (``trajectory_memory='per_round'``); the criterion sees the mean. With
-        the ``argmax`` criterion, a round after one whose score reached the target plays its episode by the
-        arg-max and stores nothing (:meth:`plays_greedy`)."""
-        if self.plays_greedy():
-            played = [self.play_episode(greedy=True, learn=False)]
-            self.episodes += 1
-        else:
-            played = [self.play_episode()]
-            while self.agent.needs_more_episodes():
-                played.append(self.play_episode())
-        scores, steps = zip(*played, strict=True)
-        episodes = Episodes(scores, steps)
-        self.rounds += 1
-        self.criterion.add(episodes.score)
-        if self.criterion.done:
-            self.completed = True
-        return episodes
-
-    def plays_greedy(self) -> bool:
-        """Whether this round's episode is played by π_θ's arg-max: the criterion is ``argmax``, the unit has
-        not completed yet, and the last round's score (the criterion's newest) reached the target. Read from
-        the criterion, so a resumed unit plays as it would have. A completed unit that stays with its fleet
-        samples again: the fleet learns from its fresh episodes, not from a memory the proof left stale."""
-        if self.agent.config.criterion != "argmax" or self.completed:
+    def plays_greedy(self, unit: int = 0) -> bool:
+        """Whether the unit's round is played by π_θ's arg-max and stored nowhere: the criterion is
+        ``argmax``, the unit has not completed yet, and its last round's score reached the target (read from
+        the criterion, so a resumed unit plays as it would have; a completed unit samples again)."""
+        if self.agent.config.criterion != "argmax" or self.completed_once[unit]:
             return False
-        history = self.criterion.history()
-        return bool(history) and history[-1] >= self.criterion.threshold
+        history = self.criteria[unit].history()
+        return bool(history) and history[-1] >= self.criteria[unit].threshold
+
+    def play_units(self, greedy: np.ndarray, learn: bool = True) -> list[list[tuple[float, int]]]:
+        """Each unit's episodes of a round (Algorithm 2, lines 2-6), the units stepped together: one, or
+        whole episodes until the unit's memory holds what its update needs (``per_round``). A unit marked
+        ``greedy`` plays one episode by the arg-max; it and every unit when not ``learn`` store nothing."""
+        agent, envs, n = self.agent, self._envs, self.agent.units
+        to_env = None if agent.action_space.is_discrete else agent.env_action
+        obs = np.stack([self._reset(u) for u in range(n)])
+        score, steps = np.zeros(n), np.zeros(n, dtype=np.int64)
+        played: list[list[tuple[float, int]]] = [[] for _ in range(n)]
+        playing, units = np.ones(n, dtype=bool), np.arange(n)
+        at: slice | np.ndarray = slice(None)  # the units playing: every unit, or those still playing
+        stores = ~greedy if learn else np.zeros(n, dtype=bool)
+        any_greedy = bool(greedy.any())
+        while units.size:
+            before = obs[at]
+            actions = self._act(before, units, greedy[at])  # line 3, for every unit still playing
+            sent = actions if to_env is None else [to_env(a) for a in actions]
+            step = envs.step(units, sent)  # line 4
+            stored = (before, actions, step.rewards, step.obs, step.terminated, step.truncated)
+            if learn:  # line 5, for the units that learn from their episode
+                rows = stores[at] if any_greedy else slice(None)
+                agent.remember_units(units[rows], *(a[rows] for a in stored))
+            score[at] += step.rewards
+            steps[at] += 1
+            ended = step.terminated | step.truncated
+            if not ended.any():
+                obs[at] = step.obs
+                continue
+            obs[units[~ended]] = step.obs[~ended]
+            for u in units[ended].tolist():
+                played[u].append((float(score[u]), int(steps[u])))
+                self.unit_episodes[u] += int(learn)
+                score[u], steps[u] = 0.0, 0
+                if stores[u] and agent.needs_more_episodes(u):
+                    obs[u] = self._reset(u)
+                else:
+                    playing[u] = False
+            units = np.flatnonzero(playing)
+            at = slice(None) if units.size == n else units
+        agent.store_pending()
+        return played
+
+    def _act(self, obs: np.ndarray, units: np.ndarray, greedy: np.ndarray) -> np.ndarray:
+        if not greedy.any():
+            return self.agent.act_units(obs, units)
+        actions = [self.agent.act_greedy(row) for row in obs]
+        return np.asarray(actions, dtype=np.int64 if self.agent.action_space.is_discrete else np.float32)
+
+    def _reset(self, unit: int) -> np.ndarray:
+        seed = self.seeds[unit] if self.unit_episodes[unit] == 0 else None
+        return self._envs.reset(unit, seed)
+
+    def play_episodes(self) -> tuple[Episodes, ...]:
+        """Every unit's episodes of the round; each criterion sees its unit's mean score."""
+        greedy = np.array([self.plays_greedy(u) for u in range(self.agent.units)])
+        played = self.play_units(greedy)
+        self.rounds += 1
+        episodes = []
+        for u, (criterion, unit_played) in enumerate(zip(self.criteria, played, strict=True)):
+            scores, lengths = zip(*unit_played, strict=True)
+            episodes.append(Episodes(scores, lengths))
+            criterion.add(episodes[-1].score)
+            self.completed_once[u] = self.completed_once[u] or criterion.done
+        return tuple(episodes)
 
     def wants_update(self) -> bool:
-        """Line 7: update unless learning is finished (the worker then sends θ); always if keep_learning."""
-        return not self.criterion.done or self.keep_learning
+        """Line 7: update unless every unit's criterion holds (the worker then sends θ); always if
+        keep_learning."""
+        return self.keep_learning or not all(c.done for c in self.criteria)
 
     def play_round(self) -> RoundResult:
         """A whole round alone (Algorithm 2, lines 2-24 without messaging): :meth:`begin_round`, the agent's
-        update unless the criterion now holds, :meth:`end_round`."""
+        update unless every criterion now holds, :meth:`end_round`."""
         played = self.begin_round()
         return self.end_round(played, self.agent.update() if played.updates else None)
 
@@ -133,31 +191,59 @@ class Learner:
         per-step scheme's worker drives the update through the fleet), and hands its statistics to
         :meth:`end_round`."""
         started = time.perf_counter()
-        episodes = self.play_episodes()
-        return PlayedEpisodes(episodes, self.wants_update(), started)
+        units = self.play_episodes()
+        return PlayedEpisodes(units, self.wants_update(), started)
 
     def end_round(self, played: PlayedEpisodes, stats: UpdateStats | None) -> RoundResult:
-        """The round's result from its episodes and its update's statistics (None: no update was made)."""
-        episodes, nan = played.episodes, math.nan
-        losses = (nan,) * 5 if stats is None else dataclasses.astuple(stats)
-        actor_loss, critic_loss, entropy, approx_kl, clip_fraction = losses
-        self.last_round = RoundResult(
-            self.rounds,
-            episodes.score,
-            sum(episodes.steps),
-            len(episodes.scores),
-            self.criterion.wma,
-            self.criterion.done,
-            actor_loss,
-            critic_loss,
-            entropy,
-            time.perf_counter() - played.started,
-            approx_kl,
-            clip_fraction,
+        """Each unit's result (:attr:`unit_rounds`: its episodes, criterion and losses on its windows) and
+        the round's (returned): their means (steps and episodes: sums)."""
+        seconds = time.perf_counter() - played.started
+        per_unit = self.agent.unit_stats if stats is not None else None
+        self.unit_rounds = tuple(
+            _result(self.rounds, episodes, criterion, None if per_unit is None else per_unit[u], seconds)
+            for u, (episodes, criterion) in enumerate(zip(played.units, self.criteria, strict=True))
+        )
+        units = self.unit_rounds
+        self.last_round = dataclasses.replace(
+            _result(self.rounds, None, None, stats, seconds),
+            score=float(np.mean([r.score for r in units])),
+            steps=sum(r.steps for r in units),
+            episodes=sum(r.episodes for r in units),
+            wma=float(np.mean([r.wma for r in units])),
+            completed=all(r.completed for r in units),
         )
         return self.last_round
 
     def evaluate(self, episodes: int) -> float:
-        """Mean score of ``episodes`` greedy episodes, storing nothing."""
-        scores = [self.play_episode(greedy=True, learn=False)[0] for _ in range(episodes)]
+        """Mean score of ``episodes`` greedy episodes of every unit, storing nothing."""
+        greedy = np.ones(self.agent.units, dtype=bool)
+        scores = [
+            s for _ in range(episodes) for unit in self.play_units(greedy, learn=False) for s, _ in unit
+        ]
         return float(np.mean(scores))
+
+
+def _result(
+    round_: int,
+    episodes: Episodes | None,
+    criterion: CompletionCriterion | None,
+    stats: UpdateStats | None,
+    seconds: float,
+) -> RoundResult:
+    nan = math.nan
+    losses = (nan,) * 5 if stats is None else dataclasses.astuple(stats)
+    actor_loss, critic_loss, entropy, approx_kl, clip_fraction = losses
+    return RoundResult(
+        round_,
+        nan if episodes is None else episodes.score,
+        0 if episodes is None else sum(episodes.steps),
+        0 if episodes is None else len(episodes.scores),
+        nan if criterion is None else criterion.wma,
+        False if criterion is None else criterion.done,
+        actor_loss,
+        critic_loss,
+        entropy,
+        seconds,
+        approx_kl,
+        clip_fraction,
+    )

@@ -2,7 +2,8 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from collections.abc import Sequence
+from dataclasses import dataclass, fields
 
 import numpy as np
 
@@ -236,3 +237,10 @@ def sample_window(n: int, size: int, rng: np.random.Generator) -> tuple[int, int
         return 0, n
     start = int(rng.integers(0, n - size + 1))
     return start, start + size
+
+
+def concatenate(runs: Sequence[Transitions]) -> Transitions:
+    """Runs of transitions one after the other (the first's first); one run is returned as it is."""
+    if len(runs) == 1:
+        return runs[0]
+    return Transitions(*(np.concatenate([getattr(r, f.name) for r in runs]) for f in fields(Transitions)))

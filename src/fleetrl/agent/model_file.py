@@ -3,18 +3,40 @@ metadata (:mod:`.checkpoint` reads and writes the file; never pickle)."""
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any, Protocol, TypeVar
+
+import numpy as np
+from torch import nn
 
 from fleetrl.agent.action_space import ActionSpace
 from fleetrl.agent.checkpoint import CheckpointError, check_architecture, read_checkpoint, write_checkpoint
 from fleetrl.agent.config import PPOConfig
 
-if TYPE_CHECKING:
-    from fleetrl.agent.ppo import PPOAgent
+
+class SavedAgent(Protocol):
+    """What a model file is written from and loaded into (``fleetrl.agent.ppo.PPOAgent``)."""
+
+    @property
+    def obs_dim(self) -> int: ...
+    @property
+    def n_actions(self) -> int: ...
+    @property
+    def action_space(self) -> ActionSpace: ...
+    @property
+    def config(self) -> PPOConfig: ...
+    @property
+    def seed(self) -> int: ...
+    @property
+    def net(self) -> nn.Module: ...
+    def load_weights(self, tensors: dict[str, np.ndarray], source: str) -> None: ...
 
 
-def architecture(agent: PPOAgent) -> dict[str, Any]:
+A = TypeVar("A", bound=SavedAgent)
+
+
+def architecture(agent: SavedAgent) -> dict[str, Any]:
     """What a model file must match to be loaded into ``agent``: for a box also ``action_space`` (its
     bounds; ``n_actions`` is 0). A discrete agent's is what it has always been, so the model files written
     before continuous actions load unchanged."""
@@ -29,7 +51,7 @@ def architecture(agent: PPOAgent) -> dict[str, Any]:
     return arch
 
 
-def save_agent(agent: PPOAgent, path: str | Path) -> None:
+def save_agent(agent: SavedAgent, path: str | Path) -> None:
     """Write ``agent``'s network weights with its config, architecture and seed."""
     tensors = {name: t.detach().numpy().copy() for name, t in agent.net.state_dict().items()}
     metadata = {"architecture": architecture(agent), "config": agent.config.to_dict(), "seed": agent.seed}
@@ -37,14 +59,15 @@ def save_agent(agent: PPOAgent, path: str | Path) -> None:
 
 
 def load_agent(
-    cls: type[PPOAgent],
+    build: Callable[[int, ActionSpace, PPOConfig, int], A],
     path: str | Path,
     obs_dim: int | None = None,
     n_actions: int | None = None,
     action_space: ActionSpace | None = None,
-) -> PPOAgent:
-    """An agent rebuilt from a model file (its action space too: discrete when the file names none);
-    ``obs_dim``/``n_actions``/``action_space``, if given, must match it.
+) -> A:
+    """The agent ``build(obs_dim, action_space, config, seed)`` makes from a model file's metadata (discrete
+    actions when the file names none), with its weights; ``obs_dim``/``n_actions``/``action_space``, if
+    given, must match it.
 
     :raises FileNotFoundError: no file at ``path``
     :raises CheckpointError: corrupt file, not a fleetrl model, or a model for another architecture
@@ -54,7 +77,7 @@ def load_agent(
         arch = metadata["architecture"]
         config = PPOConfig.from_dict(metadata["config"])
         space = ActionSpace.from_architecture(arch)
-        agent = cls(int(arch["obs_dim"]), space, config, int(metadata.get("seed", 0)))
+        agent = build(int(arch["obs_dim"]), space, config, int(metadata.get("seed", 0)))
     except (KeyError, TypeError, ValueError) as exc:
         raise CheckpointError(f"{path}: fleetrl metadata is incomplete or invalid ({exc})") from exc
     check_architecture(path, architecture(agent), {"obs_dim": obs_dim, "n_actions": n_actions})

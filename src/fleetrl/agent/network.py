@@ -106,10 +106,11 @@ class ActorCritic(nn.Module):
             raise TypeError("a discrete policy head has no Gaussian")
         return self._centre + self._half * head, torch.log(self._half) + self.policy_log_std
 
-    def log_probs_and_entropy(
+    def log_probs_and_entropies(
         self, head: torch.Tensor, actions: torch.Tensor
     ) -> tuple[torch.Tensor, torch.Tensor]:
-        """log π_θ(a_t|s_t) (batch,) of stored actions and the mean entropy of π_θ(·|s_t) (a scalar).
+        """log π_θ(a_t|s_t) (batch,) of stored actions and the entropy of π_θ(·|s_t): one per row (batch,) for
+        discrete actions, one scalar for a Gaussian (its entropy does not depend on s_t).
 
         Discrete: log-softmax of the logits at the action index; entropy −Σ p·log p. Gaussian: the diagonal
         normal's log-density summed over the action components,
@@ -118,26 +119,16 @@ class ActorCritic(nn.Module):
         if self.policy_log_std is None:
             log_probs_all = functional.log_softmax(head, dim=-1)
             log_probs = log_probs_all.gather(1, actions[:, None]).squeeze(1)
-            entropy = -(log_probs_all.exp() * log_probs_all).sum(-1).mean()
-            return log_probs, entropy
+            return log_probs, -(log_probs_all.exp() * log_probs_all).sum(-1)
         mean, log_std = self.gaussian(head)
         z = (actions - mean) / log_std.exp()
         log_probs = (-0.5 * z**2 - log_std - _HALF_LOG_2PI).sum(-1)
-        entropy = (0.5 + _HALF_LOG_2PI + log_std).sum()
-        return log_probs, entropy
-
-    def entropies(self, head: torch.Tensor) -> torch.Tensor:
-        """The entropy of π_θ(·|s_t) per row (batch,): what :meth:`log_probs_and_entropy` averages."""
-        if self.policy_log_std is None:
-            log_probs_all = functional.log_softmax(head, dim=-1)
-            return -(log_probs_all.exp() * log_probs_all).sum(-1)
-        _, log_std = self.gaussian(head)
-        return (0.5 + _HALF_LOG_2PI + log_std).sum().expand(head.shape[0])
+        return log_probs, (0.5 + _HALF_LOG_2PI + log_std).sum()
 
     def log_probs(self, obs: torch.Tensor, actions: torch.Tensor) -> torch.Tensor:
         """log π_θ(a_t|s_t) (batch,) of stored actions at observations ``obs``."""
         head, _ = self(obs)
-        return self.log_probs_and_entropy(head, actions)[0]
+        return self.log_probs_and_entropies(head, actions)[0]
 
     def trunk_parameters(self) -> list[tuple[str, nn.Parameter]]:
         """Named parameters of the shared trunk, in layout order."""

@@ -1,11 +1,6 @@
 """The Adam optimisers' state as one flat float32 vector (what the chief of a one-policy fleet hands a joining
-worker beside the network, so that it steps on exactly as the fleet does).
-
-For each optimiser (by name, in the agent's order) and each of its parameters in order: ``exp_avg`` and
-``exp_avg_sq`` (the parameter's shape) and ``step`` (one value; float32 holds every count below 2²⁴ exactly).
-An optimiser that has not stepped yet has zeros and step 0 — the state Adam creates at its first step, so
-loading it changes nothing.
-"""
+worker): per optimiser and parameter, ``exp_avg``, ``exp_avg_sq`` and ``step`` (float32 holds every count
+below 2²⁴ exactly); an optimiser that has not stepped yet has zeros and step 0."""
 
 from __future__ import annotations
 

@@ -1,11 +1,5 @@
-"""Transitions of many units written in one assignment per time step, moved into each unit's memory later.
-
-A unit host's units each keep their own :class:`~fleetrl.agent.memory.TrajectoryMemory`. Writing one
-transition into each of a thousand memories per time step costs a few microseconds each from Python;
-:class:`PendingTransitions` takes a whole time step of transitions (every unit that stepped) in one array
-assignment per field, and :meth:`PendingTransitions.drain` moves each unit's pending run into its memory
-with :meth:`~fleetrl.agent.memory.TrajectoryMemory.extend` (what one ``add`` per transition stores).
-"""
+"""Transitions of many units written in one assignment per field and time step, moved into each unit's
+:class:`~fleetrl.agent.memory.TrajectoryMemory` later (what one ``add`` per transition stores)."""
 
 from __future__ import annotations
 
@@ -45,6 +39,7 @@ class PendingTransitions:
 
     def add(
         self,
+        memories: Sequence[TrajectoryMemory],
         units: np.ndarray,
         obs: np.ndarray,
         actions: np.ndarray,
@@ -52,7 +47,6 @@ class PendingTransitions:
         next_obs: np.ndarray,
         terminated: np.ndarray,
         truncated: np.ndarray,
-        memories: Sequence[TrajectoryMemory],
     ) -> None:
         """One transition for each unit of ``units`` (distinct; row j of each array is ``units[j]``'s),
         after its pending ones; first every unit's pending ones move into ``memories`` if a unit's are full.

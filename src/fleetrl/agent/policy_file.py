@@ -1,11 +1,5 @@
-"""A saved policy read without torch: the actor of a model file (``models/worker-K.safetensors``) as arrays.
-
-A model file holds the whole network (trunk, policy head, value head) and, as JSON metadata, its
-architecture: observation size, action space, hidden widths and activation (``PPOAgent.save``). That is
-all it takes to rebuild the actor, so a unit runs its policy with numpy (and numba) alone — the same
-kernels ``PPOAgent.act_greedy`` runs, on the same float64 copy of the same float32 weights, so it picks
-the same actions. The ONNX export (``fleetrl.control.onnx_graph``) builds its graph from these arrays.
-"""
+"""A saved policy read without torch: the actor of a model file as arrays, run by the same numba kernels as
+``PPOAgent.act_greedy`` (so it picks the same actions); the ONNX export builds its graph from them."""
 
 from __future__ import annotations
 

@@ -1,11 +1,6 @@
-"""Fast acting: a numba copy of the actor (trunk + policy head), so a rollout step never touches torch.
-
-The agent refreshes the copy after every change of θ (update, received gradient, received parameters).
-One call of :func:`_act_kernel` (discrete) or :func:`_gaussian_kernel` (a box) costs a few µs for the
-3 x 128 trunk (docs/algorithm.md, "Fast acting"; ``benchmarks/agent_speed.py`` measures both).
-:meth:`NumpyPolicy.from_layers` builds one from plain arrays (a model file read without torch:
-``fleetrl.agent.policy_file``); this module imports no torch.
-"""
+"""Fast acting: a numba copy of the actor (trunk + policy head), refreshed after every change of θ, so a
+rollout step never touches torch (a few µs a call); :meth:`NumpyPolicy.from_layers` builds one from plain
+arrays (``fleetrl.agent.policy_file``). This module imports no torch."""
 
 from __future__ import annotations
 

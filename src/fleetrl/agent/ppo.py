@@ -1,4 +1,5 @@
-"""The Actor-Critic PPO agent of one worker (Eqs. 2-7; Algorithm 2, lines 3, 5, 8, 11-25, 29, 31)."""
+"""The Actor-Critic PPO agent of one unit or of U units of one policy (Eqs. 2-7; Algorithm 2, lines 3, 5, 8,
+11-25, 29, 31): one network and optimiser state; each unit its own memory and random streams."""
 
 from __future__ import annotations
 
@@ -10,131 +11,121 @@ import numpy as np
 import torch
 
 from fleetrl.agent.action_space import ActionSpace, as_action_space
-from fleetrl.agent.checkpoint import (
-    check_tensors_fit,
-)
+from fleetrl.agent.checkpoint import check_tensors_fit
 from fleetrl.agent.config import PPOConfig
 from fleetrl.agent.flat import Named, flatten, flatten_tensors, layout, split
 from fleetrl.agent.memory import TrajectoryMemory
 from fleetrl.agent.model_file import architecture, load_agent, save_agent
 from fleetrl.agent.network import ActorCritic
 from fleetrl.agent.optimiser_flat import load_optimiser_flat, optimiser_flat, optimiser_layout
+from fleetrl.agent.pending import PendingTransitions
 from fleetrl.agent.policy_numpy import NumpyPolicy
+from fleetrl.agent.row_acting import FEW_ROWS, RowActing
+from fleetrl.agent.step_exchange import StepExchange
+from fleetrl.agent.unit_draws import UniformDraws
 from fleetrl.agent.update import (
     ACTOR,
     CRITIC,
     ExtraLoss,
     Gradient,
     Model,
-    StepExchange,
     UpdateStats,
-    choose_variants,
     hand_back,
     ppo_update,
 )
+from fleetrl.agent.variants import choose_variants
 
 __all__ = ["PPOAgent", "UpdateStats"]
 
 
-def checked_weights(weights: Sequence[float] | None, units: int) -> np.ndarray | None:
-    """``weights`` as float64, one positive finite number per unit (None stays None); else a ValueError."""
-    if weights is None:
-        return None
-    w = np.asarray(weights, dtype=np.float64)
-    if w.shape != (units,) or not np.isfinite(w).all() or not (w > 0).all():
-        raise ValueError(f"unit weights must be {units} positive finite numbers, got {list(weights)}")
-    return w
-
-
 class PPOAgent:
-    """Actor-Critic PPO with a shared trunk; θ = trunk + policy head, μ = value head (+ trunk if shared).
-
-    The actor head follows the action space: a softmax over ``n`` discrete actions, or for a box a
-    Gaussian (mean from the trunk, state-independent log-std) whose samples the env receives clipped to
-    the bounds (:meth:`env_action`); the memory keeps the unclipped sample, whose density is log π.
+    """Actor-Critic PPO with a shared trunk; θ = trunk + policy head, μ = trunk + value head. The actor head
+    is a softmax over ``n`` discrete actions, or for a box a Gaussian whose samples the env receives clipped
+    (:meth:`env_action`); the memory keeps the sample as drawn, whose density is log π.
 
     :param obs_dim: length of an observation
     :param actions: the action space; an int is that many discrete actions
     :param config: hyper-parameters (a preset from :func:`fleetrl.agent.config.get_preset`, or a variant)
-    :param seed: fixes the initial weights (torch generator), action sampling and window starts (numpy)
+    :param seed: one per unit (an int: one unit): unit u's action draws and window starts; the first also
+        draws the initial weights, so unit 0 acts and learns as an agent of that unit alone
     """
 
-    def __init__(self, obs_dim: int, actions: int | ActionSpace, config: PPOConfig, seed: int) -> None:
+    def __init__(
+        self, obs_dim: int, actions: int | ActionSpace, config: PPOConfig, seed: int | Sequence[int]
+    ) -> None:
         config.validate()
+        self.seeds = tuple(int(s) for s in seed) if isinstance(seed, Sequence) else (int(seed),)
+        if not self.seeds:
+            raise ValueError("an agent needs at least one unit (one seed)")
         self.action_space = as_action_space(actions)
         self.obs_dim = obs_dim
-        self.n_actions = self.action_space.n
-        """number of discrete actions (0 for a box)"""
+        self.n_actions = self.action_space.n  # 0 for a box
         self.config = config
-        self.seed = seed
-        generator = torch.Generator().manual_seed(seed)
-        act_seed, window_seed = np.random.SeedSequence(seed).spawn(2)
-        self._act_rng = np.random.default_rng(act_seed)
-        self._window_rng = np.random.default_rng(window_seed)
+        self.seed = self.seeds[0]
+        streams = [np.random.SeedSequence(s).spawn(2) for s in self.seeds]
+        self._act_rngs = [np.random.default_rng(act) for act, _ in streams]
+        self._window_rngs = [np.random.default_rng(window) for _, window in streams]
+        generator = torch.Generator().manual_seed(self.seed)
         self.net = ActorCritic.from_config(obs_dim, self.action_space, config, generator)
         trunk = self.net.trunk_parameters()
         # θ: the actor model — the shared trunk and the actor head (softmax, or Gaussian mean and log-std);
-        # this is what the federation shares.
+        # this is what the federation shares. μ: the critic model — the trunk and the value head.
         self._actor_named = trunk + self.net.head_parameters("policy")
-        # μ: the critic model — the value head, plus the trunk when both optimisers step it ("shared").
-        value_head = self.net.head_parameters("value")
-        self._critic_named = (trunk if config.trunk_split == "shared" else []) + value_head
+        self._critic_named = trunk + self.net.head_parameters("value")
         if config.optimisers == "per_model":
             self.actor_optimizer = torch.optim.Adam([p for _, p in self._actor_named], lr=config.actor_lr)
             self.critic_optimizer = torch.optim.Adam([p for _, p in self._critic_named], lr=config.critic_lr)
         else:  # one Adam over the whole network: each step moves only the parameters given a gradient
             shared = torch.optim.Adam([p for _, p in self._model_named()], lr=config.actor_lr)
             self.actor_optimizer = self.critic_optimizer = shared
-        self.memory = TrajectoryMemory(
-            config.memory_size,
-            obs_dim,
-            grows=config.trajectory_memory == "per_round",
-            action_dim=self.action_space.dim,
-        )
+        grows, dim = config.trajectory_memory == "per_round", self.action_space.dim
+        self._memories = [TrajectoryMemory(config.memory_size, obs_dim, grows, dim) for _ in self.seeds]
+        self.memory = self._memories[0]  # unit 0's
+        few = self.units < FEW_ROWS  # a few units' transitions go straight into their memories
+        self._pending = None if few else PendingTransitions(self.units, obs_dim, dim)
         self._policy = NumpyPolicy(self.net)
         self._discrete = self.action_space.is_discrete
-        self._model = Model(
-            self.net,
-            [p for _, p in self._actor_named],
-            [p for _, p in self._critic_named],
-            [p for _, p in trunk + value_head],  # L^V is differentiated w.r.t. both in either split
-            len(trunk),
-            self.actor_optimizer,
-            self.critic_optimizer,
-            config,
-            choose_variants(config),  # the preset's variants, chosen once
-        )
+        self._draws = UniformDraws(self._act_rngs)
+        self._rows = RowActing(self._policy) if self._discrete else None
+        actor, critic = [p for _, p in self._actor_named], [p for _, p in self._critic_named]
+        optimisers = (self.actor_optimizer, self.critic_optimizer)
+        self._model = Model(self.net, actor, critic, *optimisers, config, choose_variants(config))
         self._parts = self._model.variants.parts
-        self._last_actor_gradient: Gradient | None = None
-        """line 25's gradient: the last actor gradient the update applied (as applied, i.e. clipped)"""
+        self._last_actor_gradient: Gradient | None = None  # line 25's: the last one the update applied
         self._exchange: StepExchange | None = None
-        self._unit_weights: np.ndarray | None = None
-        """the units' weights of the update :meth:`begin_update` starts (None: the same; read as it starts)"""
+        self.unit_stats: tuple[UpdateStats, ...] | None = None  # each unit's, of the last update
 
     @property
     def units(self) -> int:
-        """The units this agent acts for: one (a unit host's agent: U)."""
-        return 1
+        """U, the units this agent acts for."""
+        return len(self.seeds)
 
     # ---- acting (Algorithm 2, lines 3 and 5) ------------------------------------------------------------
 
     def act(self, obs: np.ndarray) -> Any:
-        """Sample a_t ~ π_θ(·|s_t) (line 3) on the numba copy of the actor: an action index, or for a box a
-        float32 vector as sampled (not clipped; send the env :meth:`env_action` of it, remember it as is)."""
+        """Sample unit 0's a_t ~ π_θ(·|s_t) (line 3) on the numba copy of the actor: an index, or a vector."""
         if self._discrete:
-            return self._policy.act(obs, float(self._act_rng.random()))
-        return self._policy.act_continuous(obs, self._act_rng.standard_normal(self.action_space.dim))
+            return self._policy.act(obs, float(self._act_rngs[0].random()))
+        return self._policy.act_continuous(obs, self._act_rngs[0].standard_normal(self.action_space.dim))
+
+    def act_units(self, obs: np.ndarray, units: np.ndarray) -> np.ndarray:
+        """:meth:`act` for the distinct units ``units`` at their observations ``obs`` (a row each), each
+        with its own draw: int64 indices, or float32 vectors (a row each)."""
+        if self._rows is not None:
+            return self._rows.act(obs, self._draws.draw(units))
+        dim = self.action_space.dim
+        draws = [self._policy.act_continuous(row, self._act_rngs[u].standard_normal(dim))
+                 for row, u in zip(obs, units.tolist(), strict=True)]  # fmt: skip
+        return np.array(draws, dtype=np.float32).reshape(len(units), dim)
 
     def act_greedy(self, obs: np.ndarray) -> Any:
-        """The most probable action under π_θ (evaluation): the arg-max index, or the Gaussian's mean
-        clipped to the box."""
+        """π_θ's most probable action: the arg-max index, or the Gaussian's mean clipped to the box."""
         if self._discrete:
             return self._policy.act_greedy(obs)
         return self._policy.act_continuous(obs, None)
 
     def env_action(self, action: Any) -> Any:
-        """What the env is sent for an action of :meth:`act`: the index itself, or the vector clipped to
-        the box (the clip belongs to the env's side: log π stays the Gaussian density of the sample)."""
+        """What the env is sent for an action of :meth:`act`: the index, or the vector clipped to the box."""
         return action if self._discrete else self.action_space.clip(action)
 
     def remember(
@@ -146,42 +137,59 @@ class PPOAgent:
         terminated: bool,
         truncated: bool,
     ) -> None:
-        """Store ⟨s_t, a_t, r_{t+1}, s_{t+1}⟩ in the trajectory memory (line 5)."""
-        self.memory.add(obs, action, reward, next_obs, terminated, truncated)
+        """Store unit 0's ⟨s_t, a_t, r_{t+1}, s_{t+1}⟩ in its trajectory memory (line 5)."""
+        self.memories[0].add(obs, action, reward, next_obs, terminated, truncated)
+
+    def remember_units(self, units: np.ndarray, *transitions: np.ndarray) -> None:
+        """:meth:`remember` for the distinct ``units``: ``transitions`` are the arrays of obs, actions,
+        rewards, next obs, terminated and truncated (row j: ``units[j]``'s)."""
+        if self._pending is not None:
+            self._pending.add(self._memories, units, *transitions)
+            return
+        for u, *row in zip(units.tolist(), *transitions, strict=True):
+            self._memories[u].add(*row)
+
+    @property
+    def memories(self) -> list[TrajectoryMemory]:
+        """Each unit's trajectory memory (unit u's is ``memories[u]``), its pending transitions moved in."""
+        self.store_pending()
+        return self._memories
+
+    def store_pending(self) -> None:
+        """Move the transitions :meth:`remember_units` holds into each unit's memory."""
+        if self._pending is not None:
+            self._pending.drain(self._memories)
 
     # ---- learning (Algorithm 2, lines 11-25) ----------------------------------------------------------
 
-    def needs_more_episodes(self) -> bool:
-        """Whether the round goes on with another episode before its update: never for a ``ring`` memory (a
-        round is one episode); for ``per_round`` until the memory holds ``memory_size`` transitions."""
-        return self.config.trajectory_memory == "per_round" and not self.memory.filled()
+    def needs_more_episodes(self, unit: int = 0) -> bool:
+        """Whether the unit's round goes on with another episode: until a ``per_round`` memory is filled."""
+        stored = len(self._memories[unit]) + (0 if self._pending is None else int(self._pending.counts[unit]))
+        return self.config.trajectory_memory == "per_round" and stored < self.config.memory_size
 
     def set_extra_loss(self, fn: ExtraLoss | None) -> None:
-        """Add ``fn(model)``, a scalar tensor of the network, to each minibatch's loss (FedProx's proximal
-        term μ/2·‖θ − θ_global‖², say): every step's gradient gains ∇fn over the parameters the step moves.
-        None (the default) adds nothing, and every number is as without the hook."""
+        """Add ``fn(net)``, a scalar, to each minibatch's loss (FedProx's proximal term); None: nothing."""
         self._model.extra_loss = fn
 
     def update(self) -> UpdateStats:
-        """K optimisations on contiguous windows of U transitions (lines 11-24), every step applying its own
-        gradient (:func:`~fleetrl.agent.update.hand_back`); keeps line 25's gradient."""
+        """K optimisations on windows of each unit's memory (lines 11-24), each step its own gradient."""
         return hand_back(self.update_steps())
 
     def update_steps(self) -> Generator[Gradient, Gradient, UpdateStats]:
-        """The update as a generator (:func:`~fleetrl.agent.update.ppo_update`): it yields each step's
-        gradient and applies the gradient sent back; then the acting copy follows θ, a ``per_round`` memory
-        is emptied, and it returns the statistics.
-
-        :raises RuntimeError: (at the first step) the trajectory memory is empty
-        """
-        if len(self.memory) == 0:
-            raise RuntimeError("update() needs at least one transition in the trajectory memory")
+        """The update as a generator (:func:`~fleetrl.agent.update.ppo_update`); returns the units' mean
+        statistics (each unit's: :attr:`unit_stats`); RuntimeError at its first step if a memory is empty."""
+        empty = [u for u, memory in enumerate(self.memories) if len(memory) == 0]
+        if empty:
+            raise RuntimeError(f"update() needs a transition in every unit's memory; units {empty} have none")
         self._score_new_transitions()
-        finished = yield from ppo_update(self._model, self.memory.transitions(), self._window_rng)
+        data = [memory.transitions() for memory in self.memories]
+        finished = yield from ppo_update(self._model, data, self._window_rngs)
         self._last_actor_gradient = finished.actor_gradient
+        self.unit_stats = finished.unit_stats
         self._policy.refresh(self.net)
         if self.config.trajectory_memory == "per_round":
-            self.memory.clear()
+            for memory in self.memories:
+                memory.clear()
         return finished.stats
 
     # ---- the update as flat vectors, step by step (a scheme that combines the fleet's step gradients) ----
@@ -191,67 +199,35 @@ class PPOAgent:
         return self.config.n_optimisations * len(self._parts)
 
     def step_layout(self, k: int) -> list[tuple[str, tuple[int, ...]]]:
-        """Names and shapes of step ``k``'s flat gradient: ``critic:<name>`` over the critic optimiser's
-        parameters, then ``actor:<name>`` over θ, for the parts the step moves (both with ``per_model``;
-        the critic's at even, the actor's at odd steps with ``one_sequential``); needs no update under way."""
+        """Names and shapes of step ``k``'s flat gradient: ``critic:<name>`` then ``actor:<name>`` for the
+        parts the step moves (both with ``per_model``; the critic at even, the actor at odd steps with
+        ``one_sequential``)."""
         return [
             (f"{part}:{name}", shape) for part, named in self._step_named(k) for name, shape in layout(named)
         ]
 
-    def begin_update(self, unit_weights: Sequence[float] | None = None) -> int:
+    def begin_update(self) -> int:
         """Start :meth:`update_steps` (line 11 and step 0's gradient); the number of steps it takes.
-
-        :param unit_weights: what each unit's minibatch gradient weighs in the update's gradient (one per
-            unit; None: the same). One unit's gradient is its own whatever its weight (the weight counts
-            at the chief, in the fleet's mean); a unit host weighs its units' gradients by them.
-        :raises RuntimeError: the trajectory memory is empty, or an update is already under way
-        :raises ValueError: ``unit_weights`` is not one positive finite number per unit
-        """
+        RuntimeError if a memory is empty or an update is under way."""
         if self._exchange is not None:
             raise RuntimeError("an update is already under way: finish it with end_update()")
-        self._unit_weights = checked_weights(unit_weights, self.units)
-        try:  # the update reads the weights as it starts (StepExchange computes step 0 at once)
-            self._exchange = StepExchange(self.update_steps())
-        finally:
-            self._unit_weights = None
-        return self.update_step_count()
+        named = lambda k: [item for _, part in self._step_named(k) for item in part]  # noqa: E731
+        self._exchange = StepExchange(self.update_steps(), named, self.update_step_count())
+        return self._exchange.count
 
     def step_gradients(self, k: int) -> np.ndarray:
-        """Step ``k``'s gradient as flat float32 in :meth:`step_layout` order, nothing stepped. Steps go in
-        order, each applied (:meth:`apply_step`) before the next is asked for.
-
-        :raises RuntimeError: no update under way, ``k`` is not the next step, or the last gradient was
-            not applied yet
-        """
-        exchange = self._exchange_under_way()
-        if exchange.taken:
-            raise RuntimeError(f"step {exchange.step}'s gradient is not applied yet: call apply_step()")
-        if exchange.gradient is None or k != exchange.step:
-            n = self.update_step_count()
-            raise RuntimeError(f"step {k} requested, but step {exchange.step} of {n} is next")
-        exchange.taken = True
-        return flatten_tensors(exchange.gradient)
+        """Step ``k``'s gradient, flat float32 in :meth:`step_layout` order; steps go in order, each applied
+        (:meth:`apply_step`) before the next is asked for (else RuntimeError)."""
+        return self._exchange_under_way().gradient_of(k)
 
     def apply_step(self, flat_grad: np.ndarray) -> None:
         """Lines 21 and 23: step the optimiser(s) with a gradient for the step last asked for (its own, or
-        a combination of several workers' in the same layout); then the next step's gradient is taken.
-
-        :raises RuntimeError: no step's gradient is waiting to be applied
-        :raises ValueError: the vector does not fit :meth:`step_layout` or is not finite
-        """
-        exchange = self._exchange_under_way()
-        if not exchange.taken:
-            raise RuntimeError("no step gradient to apply: call step_gradients(k) first")
-        named = [item for _, part in self._step_named(exchange.step) for item in part]
-        exchange.send(split(flat_grad, named, "step gradient"))
+        the fleet's), then take the next step's gradient. ValueError if it does not fit or is not finite."""
+        self._exchange_under_way().apply(flat_grad)
 
     def apply_fleet_step(self, k: int, flat_grad: np.ndarray) -> None:
         """Step the optimiser(s) with the fleet's gradient of step ``k`` of an update this agent took no part
-        in (a straggler catching up): the same optimiser steps :meth:`apply_step` takes, no update under way.
-
-        :raises RuntimeError: an update is under way
-        :raises ValueError: the vector does not fit :meth:`step_layout` ``(k)`` or is not finite
-        """
+        in (a straggler catching up); RuntimeError while an update is under way."""
         if self._exchange is not None:
             raise RuntimeError("an update is under way: its steps are applied with apply_step()")
         parts = self._step_named(k)
@@ -264,29 +240,21 @@ class PPOAgent:
         self._policy.refresh(self.net)
 
     def end_update(self) -> UpdateStats:
-        """The update's statistics (the acting copy follows θ, a ``per_round`` memory is emptied).
-
-        :raises RuntimeError: no update under way, or not every step was applied
-        """
-        exchange = self._exchange_under_way()
-        if exchange.stats is None:
-            raise RuntimeError(f"end_update() after {exchange.step} of {self.update_step_count()} steps")
+        """The update's statistics; RuntimeError if no update is under way or a step was not applied."""
+        stats = self._exchange_under_way().finished()
         self._exchange = None
-        return exchange.stats
+        return stats
 
     def abandon_update(self) -> None:
-        """Drop the round's update, under way or not begun (the fleet went on past this agent: it takes the
-        fleet's model next). The steps applied stay; the acting copy follows θ; the round's transitions are
-        dropped where a round's memory is its own (``per_round``)."""
+        """Drop the round's update, under way or not begun (the fleet went on past this agent); the steps
+        applied stay, a ``per_round`` memory is emptied."""
         if self._exchange is not None:
             self._exchange.abandon()
         self._exchange = None
         self._policy.refresh(self.net)
         if self.config.trajectory_memory == "per_round":
-            self._clear_round_memory()
-
-    def _clear_round_memory(self) -> None:
-        self.memory.clear()
+            for memory in self.memories:
+                memory.clear()
 
     def _exchange_under_way(self) -> StepExchange:
         if self._exchange is None:
@@ -298,14 +266,18 @@ class PPOAgent:
         return [(part, named[part]) for part in self._parts[k % len(self._parts)]]
 
     def _score_new_transitions(self) -> None:
-        """Record log π(a|s) of the acting policy for transitions stored since θ last changed."""
-        slots = self.memory.unscored()
-        if slots.size == 0:
+        """Record log π(a|s) of the acting policy for every unit's transitions stored since θ last changed."""
+        slots = [memory.unscored() for memory in self.memories]
+        if not any(s.size for s in slots):
             return
-        obs, actions = self.memory.slots(slots)
+        stored = [memory.slots(s) for memory, s in zip(self._memories, slots, strict=True)]
+        obs, actions = (np.concatenate([part[i] for part in stored]) for i in (0, 1))
         with torch.no_grad():
-            log_probs = self.net.log_probs(torch.from_numpy(obs), torch.from_numpy(actions))
-        self.memory.score(slots, log_probs.numpy())
+            log_probs = self.net.log_probs(torch.from_numpy(obs), torch.from_numpy(actions)).numpy()
+        at = 0
+        for memory, s in zip(self._memories, slots, strict=True):
+            memory.score(s, log_probs[at : at + s.size])
+            at += s.size
 
     # ---- what the federation exchanges (lines 8, 25, 29, 31) -------------------------------------------
 
@@ -339,8 +311,7 @@ class PPOAgent:
         """Line 29: replace θ with received parameters θ̄ (the critic head and Adam state are kept)."""
         self._replace(self._actor_named, flat, "actor parameter")
 
-    # The whole actor-critic (θ and μ: trunk, policy head and value head), for the ``fedavg`` scheme, which
-    # averages models rather than actor gradients (docs/algorithm.md, "Federation schemes").
+    # The whole actor-critic (θ and μ), for the schemes that average models (docs/algorithm.md).
 
     def model_layout(self) -> list[tuple[str, tuple[int, ...]]]:
         """Names and shapes of every network parameter, in the order of every flat model vector."""
@@ -365,7 +336,7 @@ class PPOAgent:
                 p.copy_(value)
         self._policy.refresh(self.net)
 
-    # ---- resumable state (fleetrl.agent.state) --------------------------------------------------------
+    # ---- resumable state (fleetrl.agent.state) and model files (fleetrl.agent.model_file) ---------------
 
     def optimisers(self) -> dict[str, torch.optim.Optimizer]:
         """The Adam optimisers by name: ``actor`` and ``critic``, or the one ``shared`` optimiser."""
@@ -386,19 +357,20 @@ class PPOAgent:
         load_optimiser_flat(self.optimisers(), flat)
 
     def rng_states(self) -> dict[str, Any]:
-        """The bit-generator states of action sampling and window starts (JSON-ready)."""
-        return {"act": self._act_rng.bit_generator.state, "window": self._window_rng.bit_generator.state}
+        """Unit 0's bit-generator states of action sampling and window starts (JSON-ready)."""
+        act, window = self._act_rngs[0], self._window_rngs[0]
+        return {"act": act.bit_generator.state, "window": window.bit_generator.state}
 
     def load_rng_states(self, states: dict[str, Any]) -> None:
-        """Continue action sampling and window starts from :meth:`rng_states`."""
-        self._act_rng.bit_generator.state = states["act"]
-        self._window_rng.bit_generator.state = states["window"]
+        """Continue unit 0's action sampling and window starts from :meth:`rng_states`."""
+        self._act_rngs[0].bit_generator.state, self._window_rngs[0].bit_generator.state = (
+            states["act"],
+            states["window"],
+        )
 
     def refresh_policy(self) -> None:
         """Copy the network into the acting policy after its weights were changed in place."""
         self._policy.refresh(self.net)
-
-    # ---- model files (fleetrl.agent.model_file) ---------------------------------------------------------
 
     def architecture(self) -> dict[str, Any]:
         """What a model file must match to be loaded into this agent (:func:`.model_file.architecture`)."""
@@ -416,18 +388,13 @@ class PPOAgent:
         n_actions: int | None = None,
         action_space: ActionSpace | None = None,
     ) -> PPOAgent:
-        """An agent rebuilt from a model file (:func:`.model_file.load_agent`).
-
-        :raises FileNotFoundError: no file at ``path``
-        :raises CheckpointError: corrupt file, not a fleetrl model, or a model for another architecture
-        """
+        """An agent rebuilt from a model file (:func:`.model_file.load_agent`)."""
         return load_agent(cls, path, obs_dim, n_actions, action_space)
 
     def load_weights(self, tensors: dict[str, np.ndarray], source: str) -> None:
         """Replace the network's weights with a model file's ``tensors`` (``source``: for errors)."""
         check_tensors_fit(tensors, {k: tuple(t.shape) for k, t in self.net.state_dict().items()}, source)
         self._score_new_transitions()
-        self.net.load_state_dict(
-            {k: torch.from_numpy(np.asarray(v, dtype=np.float32)) for k, v in tensors.items()}
-        )
+        state = {k: torch.from_numpy(np.asarray(v, dtype=np.float32)) for k, v in tensors.items()}
+        self.net.load_state_dict(state)
         self._policy.refresh(self.net)

@@ -1,18 +1,7 @@
-"""Acting for many rows at once (a unit host's units): matrix products for speed, the per-row kernel's
-actions.
-
-The per-row kernel (:meth:`NumpyPolicy.act_rows <fleetrl.agent.policy_numpy.NumpyPolicy.act_rows>`) streams
-the whole actor and calls the C library's ``tanh`` 384 times per row of a 3 x 128 trunk: about 12 µs a row.
-Here one float64 pass of matrix products over every row (torch, on the same float64 weights) gives each
-row's logits in about 2 µs, and from them the action by the kernel's own rule (inverse CDF of the softmax
-with the row's draw ``u``). The two passes sum in different orders and their ``tanh`` differ in the last
-bits, so the logits may differ by a few units in the 16th digit; the action can differ only where ``u`` lies
-that close to a boundary of the cumulative distribution. So a row whose draw lies within :data:`MARGIN` of a
-boundary (or whose logits are not finite) is decided by the per-row kernel itself: every row's action is the
-kernel's, provided the two passes' logits differ by less than 2 x :data:`MARGIN` — nine orders of magnitude
-above what float64 sums over layers of 128 give (``tests/agent/test_row_acting.py`` checks random and trained
-weights, and draws placed on the boundaries).
-"""
+"""Discrete actions for many rows at once: one float64 pass of matrix products gives each row's logits, the
+action by the per-row kernel's inverse-CDF rule; a row whose draw lies within :data:`MARGIN` of a boundary
+of the cumulative distribution (or whose logits are not finite) goes to the per-row kernel, so every action
+is the kernel's (``tests/agent/test_acting_units.py``)."""
 
 from __future__ import annotations
 

@@ -1,12 +1,5 @@
-"""A worker's learning state as data, to checkpoint between rounds and resume exactly where it stopped.
-
-:func:`learner_state` returns (fields, tensors): JSON fields (round counter, completion criterion history,
-the bit-generator states of the agent's action and window generators and of the env's ``np_random``) and
-float/int tensors (every network weight, both Adam states, the trajectory memory, torch's global RNG state).
-:func:`load_learner_state` puts them back into a learner built the same way (same env, preset, seed), after
-which it plays the next rounds exactly as the original would have (in-process devices; a device behind an
-MQTT link keeps its own state). Nothing is pickled; :class:`~fleetrl.agent.statestore.StateStore` writes it.
-"""
+"""A worker's learning state as data (JSON fields and tensors: weights, Adam states, memory, RNG states), to
+checkpoint between rounds and resume exactly where it stopped (:class:`~.statestore.StateStore` writes it)."""
 
 from __future__ import annotations
 
@@ -35,7 +28,7 @@ def agent_state(agent: PPOAgent) -> tuple[dict[str, Any], dict[str, np.ndarray]]
                     steps[which][str(index)] = float(value)
                 else:
                     tensors[f"optim.{which}.{index}.{slot}"] = value.detach().numpy().copy()
-    tensors.update({f"memory.{k}": v for k, v in agent.memory.state_arrays().items()})
+    tensors.update({f"memory.{k}": v for k, v in agent.memories[0].state_arrays().items()})
     return {"optimiser_steps": steps, "rng": agent.rng_states()}, tensors
 
 
@@ -58,7 +51,7 @@ def load_agent_state(agent: PPOAgent, fields: dict[str, Any], tensors: dict[str,
             restored[index] = slots
         optimiser.load_state_dict({"state": restored, "param_groups": current["param_groups"]})
     memory = {k.removeprefix("memory."): v for k, v in tensors.items() if k.startswith("memory.")}
-    agent.memory.load_state_arrays(memory)
+    agent.memories[0].load_state_arrays(memory)
     agent.load_rng_states(fields["rng"])
     agent.refresh_policy()
 
@@ -88,8 +81,8 @@ def load_learner_state(learner: Learner, fields: dict[str, Any], tensors: dict[s
     load_agent_state(learner.agent, fields, tensors)
     torch.set_rng_state(torch.from_numpy(np.asarray(tensors["torch.rng"], dtype=np.uint8).copy()))
     learner.rounds = int(fields["rounds"])
-    learner.episodes = int(fields.get("episodes", learner.rounds))  # states written before rounds of episodes
-    learner.completed = bool(fields["completed"])
+    learner.unit_episodes = [int(fields.get("episodes", learner.rounds))]  # states before rounds of episodes
+    learner.completed_once = [bool(fields["completed"])]
     learner.criterion.load_history([float(s) for s in fields["criterion"]])
     _env_generator(learner).bit_generator.state = fields["env_rng"]
 

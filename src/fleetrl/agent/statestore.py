@@ -1,16 +1,7 @@
-"""A crash-safe state directory: one JSON commit record that names an immutable safetensors blob.
-
-A state is ``fields`` (JSON: counters, ids, RNG states, configuration) plus ``tensors`` (name → array). Saving
-writes the tensors to a new file ``<name>-<n>.safetensors`` (temp file, fsync, ``os.replace``), then the
-record ``<name>.json`` naming that blob and its SHA-256 (same way), then removes older blobs. The record's
-rename is the commit point: a process killed at any instant leaves either the previous state or the new
-one, never a mix. Nothing is pickled; safetensors and JSON only.
-
-Every temporary file has a name of its own (the process id and a counter), so two writers never rename each
-other's half-written file; a write that fails (disk full, directory gone, permissions) raises
-:class:`StateWriteError`, one line naming the file, and leaves the last committed state loadable. One writer
-per directory is still the rule (a role locks its run directory: :mod:`fleetrl.runs.dirlock`).
-"""
+"""A crash-safe state directory: one JSON commit record that names an immutable safetensors blob (JSON fields
+plus named tensors; nothing pickled). The blob, then the record, are written to temp files and renamed: a
+process killed at any instant leaves the previous state or the new one. A failed write raises
+:class:`StateWriteError` and leaves the last committed state loadable; one writer per directory."""
 
 from __future__ import annotations
 

@@ -1,12 +1,6 @@
-"""Each unit's uniform draw, for many units in one call: ``generators[u].random()`` for every unit u asked.
-
-A unit host's units each draw their actions from their own numpy Generator (their own seed). Calling
-``random()`` on a thousand Generators from Python costs about a microsecond each; here one compiled loop
-calls numpy's own C function behind ``random()`` (the bit generator's ``next_double``, through its ctypes
-interface) on each unit's bit-generator state: the same numbers in the same order, each Generator advanced
-as by its own ``random()`` (so its state, checkpoints included, stays what it would be). Generators of
-another bit generator than PCG64 (numpy's default) are drawn from one by one in Python.
-"""
+"""Each unit's uniform draw, for many units in one call: one compiled loop calls numpy's ``next_double``
+(the C function behind ``Generator.random()``) on each unit's bit-generator state, the same numbers in
+order (other bit generators than PCG64, or a single generator, are drawn from in Python)."""
 
 from __future__ import annotations
 
@@ -44,7 +38,9 @@ class UniformDraws:
     def __init__(self, generators: Sequence[np.random.Generator]) -> None:
         self.generators = list(generators)
         self._draw: DrawKernel | None = None
-        if self.generators and all(type(g.bit_generator) is np.random.PCG64 for g in self.generators):
+        if len(self.generators) > 1 and all(
+            type(g.bit_generator) is np.random.PCG64 for g in self.generators
+        ):
             interfaces = [g.bit_generator.ctypes for g in self.generators]
             functions = {ctypes.cast(i.next_double, ctypes.c_void_p).value for i in interfaces}
             if len(functions) == 1:  # one C function for every PCG64 (numpy's)

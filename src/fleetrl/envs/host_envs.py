@@ -1,20 +1,8 @@
-"""The envs of a unit host's units, stepped together where they can be.
-
-A unit simulated in-process as a built-in CartPole or QUBE (``fleetrl/CartPoleUnit-v0`` or
-``fleetrl/QubeBalance-v0`` as ``gymnasium.make`` builds it: its env over an
-:class:`~fleetrl.link.inprocess.InProcessLink` to a :class:`~fleetrl.devices.cartpole.CartPoleDevice` or a
-:class:`~fleetrl.devices.qube.device.QubeDevice`, under gymnasium's ``TimeLimit``, ``OrderEnforcing`` and
-``PassiveEnvChecker`` only, no rendering) is stepped with every other such unit of its type in the host in
-one batch (:class:`~fleetrl.devices.cartpole_batch.CartPoleBatch`,
-:class:`~fleetrl.devices.qube.batch.QubeBatch`): one compiled call per time step, judged by its env class's
-``judge_rows`` and truncated at its ``TimeLimit``, each unit's numbers those its own env would give. Every
-other unit (behind a device bridge, paced, the continuous QUBE, a user's unit type) is stepped through its
-own env, one call each.
-
-Resets always go through the unit's own env (its seeding is the env's); the batch then takes the device's
-state. While the batch steps a unit, its env's own wrappers do not see the steps (its ``TimeLimit`` count
-stays at 0); the device's state is handed back at every episode's end.
-"""
+"""The envs of many units, stepped together where they can be: in-process CartPoles and QUBEs (as
+``gymnasium.make`` builds them, under ``TimeLimit``, ``OrderEnforcing`` and ``PassiveEnvChecker`` only) in
+one compiled batch call per type and time step (two or more of a type), each unit's numbers those its own
+env gives; every other unit (behind a device bridge, paced, a user's type) through its own env. Resets go
+through each unit's env."""
 
 from __future__ import annotations
 
@@ -126,7 +114,7 @@ class HostEnvs:
         self._batches: dict[int, _Batch] = {}
         for index, kind in enumerate(_KINDS):
             units = [u for u, f in enumerate(found) if f is not None and f[0] == index]
-            if not units:
+            if len(units) < 2:  # a unit alone is stepped as fast through its own env
                 continue
             self._kind[units] = index
             self._row[units] = np.arange(len(units))
@@ -136,6 +124,8 @@ class HostEnvs:
                 kind, stepper, np.array(caps, dtype=np.int64), np.zeros(len(units), dtype=np.int64)
             )
         self._obs_dtype: np.dtype[Any] | None = None
+        space = self.envs[0].observation_space if self.envs else None
+        self._obs_shape = tuple(space.shape) if space is not None and space.shape is not None else (4,)
 
     @property
     def batched(self) -> np.ndarray:
@@ -160,10 +150,9 @@ class HostEnvs:
         n = len(units)
         kinds = self._kind[units]
         dtype = self._obs_dtype if self._obs_dtype is not None else np.float32
-        obs = np.empty((n, *self._obs_shape(units)), dtype=dtype)
+        obs = np.empty((n, *self._obs_shape), dtype=dtype)
         rewards = np.empty(n, dtype=np.float64)
-        terminated = np.empty(n, dtype=bool)
-        truncated = np.empty(n, dtype=bool)
+        terminated, truncated = np.empty(n, dtype=bool), np.empty(n, dtype=bool)
         chosen = np.asarray(actions) if self._batches else np.empty(0)  # once a step, not once a batch
         for index, batch in self._batches.items():
             mine = kinds == index
@@ -177,7 +166,8 @@ class HostEnvs:
             truncated[mine] = batch.elapsed[rows] >= batch.cap[rows]
             for row in rows[terminated[mine] | truncated[mine]].tolist():
                 batch.stepper.store(row)  # the episode ends: the device holds its last state again
-        for j in np.flatnonzero(kinds < 0).tolist():
+        alone = range(n) if not self._batches else np.flatnonzero(kinds < 0).tolist()
+        for j in alone:
             action = actions[j]
             if isinstance(action, np.integer):  # an env stepped alone is sent a plain index, as before
                 action = int(action)
@@ -185,7 +175,3 @@ class HostEnvs:
             obs[j] = next_obs
             rewards[j], terminated[j], truncated[j] = float(reward), term, trunc
         return StepRows(obs, rewards, terminated, truncated)
-
-    def _obs_shape(self, units: np.ndarray) -> tuple[int, ...]:
-        space = self.envs[int(units[0])].observation_space if len(units) else None
-        return tuple(space.shape) if space is not None and space.shape is not None else (4,)

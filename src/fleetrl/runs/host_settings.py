@@ -6,13 +6,10 @@ import math
 import os
 from typing import Literal
 
-from fleetrl.agent.config import PPOConfig, host_config_problem
 from fleetrl.federation.schemes.base import Scheme, StepScheme
 
 
-def host_setting_problem(
-    per_host: int, *, mode: str, scheme: Scheme, ppo: PPOConfig, even: bool
-) -> str | None:
+def host_setting_problem(per_host: int, *, mode: str, scheme: Scheme) -> str | None:
     """Why a run cannot have ``per_host`` units per host (one line, naming what to change), or None. A host
     is a worker process on a broker (``--transport mqtt``) or a thread on the in-process bus (``local``)."""
     if per_host < 1:
@@ -26,9 +23,7 @@ def host_setting_problem(
             f"a unit host is one policy for its units: it needs a one-policy per-step scheme (pergrad), "
             f"not {scheme.name}"
         )
-    if not even:
-        return "a unit host steps its units together: it cannot make them uneven (--pace, --slow, --absent …)"
-    return host_config_problem(ppo)
+    return None
 
 
 AUTO: Literal["auto"] = "auto"
@@ -50,9 +45,10 @@ def units_per_core(units: int, cores: int) -> int:
     return max(1, math.ceil(units / max(cores, 1)))
 
 
-def hosts_possible(*, mode: str, scheme: Scheme, ppo: PPOConfig, even: bool) -> bool:
-    """Whether a run of these settings can group its units into unit hosts."""
-    return host_setting_problem(2, mode=mode, scheme=scheme, ppo=ppo, even=even) is None
+def hosts_possible(*, mode: str, scheme: Scheme, even: bool) -> bool:
+    """Whether ``auto`` groups a run of these settings into unit hosts: an even fleet that can have them (an
+    uneven unit's conditions are its own; in a host they are its host's)."""
+    return even and host_setting_problem(2, mode=mode, scheme=scheme) is None
 
 
 def auto_units_per_host(units: int, *, possible: bool, cores: int) -> int:

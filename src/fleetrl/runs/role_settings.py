@@ -154,9 +154,8 @@ class ChiefSettings(RoleSettings, RoundRules):
         if self.workers < 1:
             raise SettingError(f"{label('workers')} = {self.workers}: must be at least 1")
         hosts = host_setting_problem(
-            self.units_per_host, mode="federated", scheme=learning.federation_scheme(), ppo=learning.ppo(),
-            even=True,
-        )  # fmt: skip
+            self.units_per_host, mode="federated", scheme=learning.federation_scheme()
+        )
         if hosts is not None:
             raise SettingError(f"{label('units_per_host')} = {self.units_per_host}: {hosts}")
         positive("idle_timeout", self.idle_timeout)
@@ -214,17 +213,15 @@ class WorkerSettings(RoleSettings):
         positive("reply_timeout", self.reply_timeout)
         positive("resend_interval", self.resend_interval)
         uneven = self.uneven.resolved_uneven(get_env_spec(learning.env).control_period, None)
-        self._check_host(learning, uneven.even)
+        self._check_host(learning)
         check_writable_dir("out", self.out)
         return replace(self, learning=learning, uneven=uneven)
 
-    def _check_host(self, learning: LearningSettings, even: bool) -> None:
+    def _check_host(self, learning: LearningSettings) -> None:
         """SettingError if this worker cannot be the unit host ``units`` asks for."""
         if self.units == 1:
             return
-        problem = host_setting_problem(
-            self.units, mode="federated", scheme=learning.federation_scheme(), ppo=learning.ppo(), even=even
-        )
+        problem = host_setting_problem(self.units, mode="federated", scheme=learning.federation_scheme())
         if problem is None and self.resume:
             problem = "a unit host keeps no checkpoints, so it cannot --resume (restart it without)"
         if problem is None and self.unit is not None:

@@ -218,11 +218,11 @@ class RunSettings(RoundRules, BrokerLogin):
             )
         self.validate_device_link(learning)
         per_host = self.chosen_units_per_host(learning, uneven.even)
-        scheme_of, ppo = learning.federation_scheme(), learning.ppo()
-        hosts = host_setting_problem(per_host, mode=self.mode, scheme=scheme_of, ppo=ppo, even=uneven.even)
+        scheme_of = learning.federation_scheme()
+        hosts = host_setting_problem(per_host, mode=self.mode, scheme=scheme_of)
         if hosts is not None:
             raise SettingError(f"{label('units_per_host')} = {self.units_per_host}: {hosts}")
-        can_host = hosts_possible(mode="federated", scheme=scheme_of, ppo=ppo, even=uneven.even)
+        can_host = hosts_possible(mode="federated", scheme=scheme_of, even=uneven.even)
         memory = run_memory_problem(self.units, self.mode, self.transport, per_host, hosts_possible=can_host)
         if memory is not None:
             raise SettingError(memory)
@@ -236,9 +236,7 @@ class RunSettings(RoundRules, BrokerLogin):
         to 16 units or where the run cannot have hosts, else about one host per core)."""
         if self.units_per_host != AUTO:
             return self.units_per_host
-        possible = hosts_possible(
-            mode=self.mode, scheme=learning.federation_scheme(), ppo=learning.ppo(), even=even
-        )
+        possible = hosts_possible(mode=self.mode, scheme=learning.federation_scheme(), even=even)
         return auto_units_per_host(self.units, possible=possible, cores=usable_cores())
 
     @property

@@ -48,7 +48,7 @@ WIDE = FleetProfile(
         cable_stiffness_range=TABLE2.variation.cable_stiffness_range,
         deadband_range=(0.0, 0.2),
     ),
-    "mixed revisions and wear: table2 with masses, lengths ±20 %, motor ±25 %, an amplifier dead zone to 0.2 V",
+    "mixed revisions and wear: table2 with masses, lengths ±20 %, motor ±25 %, a dead zone to 0.2 V",
 )
 
 FLEET_PROFILES: dict[str, FleetProfile] = {p.name: p for p in (V1, TABLE2, WIDE)}

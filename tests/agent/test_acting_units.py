@@ -1,5 +1,5 @@
-"""A unit host's fast acting and remembering give each unit what its own agent would: its own draws, the
-per-row kernel's actions, the transitions one ``add`` each would store."""
+"""Acting and remembering for many units at once give each unit what its own agent would: its own draws,
+the per-row kernel's actions, the transitions one ``add`` each would store."""
 
 import dataclasses
 
@@ -8,8 +8,8 @@ import pytest
 import torch
 
 from fleetrl.agent.config import get_preset
-from fleetrl.agent.host_agent import HostAgent
 from fleetrl.agent.policy_numpy import NumpyPolicy
+from fleetrl.agent.ppo import PPOAgent
 from fleetrl.agent.row_acting import FEW_ROWS, MARGIN, RowActing
 from fleetrl.agent.unit_draws import UniformDraws
 
@@ -43,7 +43,7 @@ def policy(activation: str, scale: float, seed: int) -> NumpyPolicy:
     """The acting copy of a 3 x 128 actor with 3 actions, its weights scaled by ``scale`` (a trained policy's
     are far from the initial ones)."""
     config = dataclasses.replace(get_preset("standard"), activation=activation)  # type: ignore[arg-type]
-    agent = HostAgent(4, 3, config, [seed])
+    agent = PPOAgent(4, 3, config, [seed])
     with torch.no_grad():
         for p in agent.net.parameters():
             p.add_(torch.randn(p.shape, generator=torch.Generator().manual_seed(seed)) * scale * 0.1)
@@ -96,7 +96,7 @@ def test_few_rows_or_nonfinite_logits_go_to_the_kernel() -> None:
 
 def test_remembering_a_time_step_of_units_stores_what_one_call_per_unit_stores() -> None:
     config = dataclasses.replace(get_preset("standard"), hidden=(8,), memory_size=300)
-    together, one_by_one = (HostAgent(4, 2, config, [1, 2, 3, 4]) for _ in range(2))
+    together, one_by_one = (PPOAgent(4, 2, config, [1, 2, 3, 4]) for _ in range(2))
     rng = np.random.default_rng(5)
     for _ in range(700):  # past the pending rows: drained on the way
         units = np.flatnonzero(rng.random(4) < 0.8)
@@ -105,12 +105,12 @@ def test_remembering_a_time_step_of_units_stores_what_one_call_per_unit_stores()
         terminated, truncated = rng.random((2, units.size)) < 0.05
         together.remember_units(units, obs, actions, rewards, next_obs, terminated, truncated)
         for j, u in enumerate(units.tolist()):
-            one_by_one.remember_unit(
-                u, obs[j], int(actions[j]), float(rewards[j]), next_obs[j], terminated[j], truncated[j]
+            one_by_one.memories[u].add(
+                obs[j], int(actions[j]), float(rewards[j]), next_obs[j], terminated[j], truncated[j]
             )
         if rng.random() < 0.1:
-            assert together.unit_needs_more_episodes(0) == one_by_one.unit_needs_more_episodes(0)
+            assert together.needs_more_episodes(0) == one_by_one.needs_more_episodes(0)
     for mine, theirs in zip(together.memories, one_by_one.memories, strict=True):
         for name, array in mine.state_arrays().items():
             assert np.array_equal(array, theirs.state_arrays()[name]), name
-    assert not together.unit_needs_more_episodes(0)
+    assert not together.needs_more_episodes(0)

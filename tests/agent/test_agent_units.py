@@ -1,5 +1,5 @@
-"""A unit host's agent and learner: U units on one policy, each with its own memory, seed and criterion; its
-gradient is the mean of its units' gradients; a host of one unit is that unit's own agent."""
+"""An agent and learner of U units on one policy, each with its own memory, seed and criterion: its gradient
+is the mean of its units' gradients, for every preset; an agent of one unit is that unit's own agent."""
 
 import dataclasses
 
@@ -10,8 +10,6 @@ import torch
 
 from fleetrl.agent.config import PPOConfig, get_preset
 from fleetrl.agent.criterion import CompletionCriterion
-from fleetrl.agent.host_agent import HostAgent
-from fleetrl.agent.host_learner import HostLearner
 from fleetrl.agent.learner import Learner
 from fleetrl.agent.ppo import PPOAgent
 from fleetrl.envs.registration import CARTPOLE_UNIT_ID
@@ -26,7 +24,7 @@ def small_config(**overrides: object) -> PPOConfig:
     return dataclasses.replace(get_preset("standard"), **(base | overrides))  # type: ignore[arg-type]
 
 
-def fill(agents: list[PPOAgent], host: HostAgent, lengths: tuple[int, ...], seed: int) -> None:
+def fill(agents: list[PPOAgent], host: PPOAgent, lengths: tuple[int, ...], seed: int) -> None:
     """The same transitions in unit u's own agent and in the host's memory of unit u (lengths[u] of them,
     episodes ending every 5 steps)."""
     rng = np.random.default_rng(seed)
@@ -36,22 +34,38 @@ def fill(agents: list[PPOAgent], host: HostAgent, lengths: tuple[int, ...], seed
             nxt = rng.normal(size=OBS_DIM).astype(np.float32)
             action, reward, end = int(rng.integers(N_ACTIONS)), float(rng.random()), t % 5 == 4
             agent.remember(obs, action, reward, nxt, terminated=end, truncated=False)
-            host.remember_unit(u, obs, action, reward, nxt, terminated=end, truncated=False)
+            host.memories[u].add(obs, action, reward, nxt, terminated=end, truncated=False)
             obs = nxt
 
 
-@pytest.mark.parametrize("normalise", [True, False])
-def test_the_host_gradient_is_the_mean_of_its_units_gradients(normalise: bool) -> None:
+def preset_config(preset: str, **overrides: object) -> PPOConfig:
+    """A preset on a hand-sized net and memory (windows of 6 of at most 12 transitions)."""
+    base = dict(hidden=(8, 8), memory_size=12, batch_size=6, n_optimisations=3)
+    return dataclasses.replace(get_preset(preset), **(base | overrides))  # type: ignore[arg-type]
+
+
+@pytest.mark.parametrize(
+    ("preset", "overrides"),
+    [
+        ("standard", {}),
+        ("standard", {"normalise_advantages": False, "entropy_coef": 0.01}),
+        ("paper", {}),
+        ("paper-code", {}),
+    ],
+)
+def test_the_units_gradient_is_the_mean_of_their_own_gradients(preset: str, overrides: dict) -> None:
     torch.set_num_threads(1)
-    config = small_config(normalise_advantages=normalise)
-    host = HostAgent(OBS_DIM, N_ACTIONS, config, SEEDS)
+    config = preset_config(preset, **overrides)
+    host = PPOAgent(OBS_DIM, N_ACTIONS, config, SEEDS)
     units = [PPOAgent(OBS_DIM, N_ACTIONS, config, seed=s) for s in SEEDS]
     for agent in units:  # one policy: every unit's agent at the host's network
         agent.set_model_parameters(host.model_parameters())
     for round_, lengths in enumerate([(9, 4, 12), (5, 4, 3)]):  # ragged windows: 6, all 4, 6; then 6, 6, 6
         fill(units, host, lengths, seed=round_)
         steps = host.begin_update()
-        assert steps == config.n_optimisations and all(a.begin_update() == steps for a in units)
+        assert steps == config.n_optimisations * len(host._parts) and all(
+            a.begin_update() == steps for a in units
+        )
         for k in range(steps):
             own = [agent.step_gradients(k) for agent in units]
             mean = np.mean(own, axis=0)
@@ -68,50 +82,15 @@ def test_the_host_gradient_is_the_mean_of_its_units_gradients(normalise: bool) -
     assert np.allclose(host.model_parameters(), units[0].model_parameters(), rtol=1e-5, atol=1e-6)
 
 
-def test_a_host_weighs_its_units_gradients_by_their_weights_and_checks_them() -> None:
-    """Each unit's minibatch gradient weighted: Σ_u w_u g_u / Σ_u w_u (a scheme weighing units by need);
-    the weights count for the update they start only."""
-    torch.set_num_threads(1)
-    config = small_config()
-    host = HostAgent(OBS_DIM, N_ACTIONS, config, SEEDS)
-    units = [PPOAgent(OBS_DIM, N_ACTIONS, config, seed=s) for s in SEEDS]
-    for agent in units:
-        agent.set_model_parameters(host.model_parameters())
-    weights = np.array([1.0, 0.3, 0.65])
-    fill(units, host, (9, 4, 12), seed=0)
-    with pytest.raises(ValueError, match="3 positive finite numbers"):
-        host.begin_update([1.0, 0.0, 1.0])
-    with pytest.raises(ValueError, match="positive finite"):
-        units[0].begin_update([1.0, 1.0])  # one unit: one weight
-    steps = host.begin_update(weights.tolist())
-    assert all(a.begin_update([0.5]) == steps for a in units)  # one unit's own gradient, whatever its weight
-    for k in range(steps):
-        own = np.array([agent.step_gradients(k) for agent in units])
-        weighted = (weights @ own / weights.sum()).astype(np.float32)
-        assert np.allclose(host.step_gradients(k), weighted, rtol=1e-5, atol=1e-7)
-        assert not np.allclose(weighted, own.mean(0), rtol=1e-3)  # the weights change the step
-        for agent in [host, *units]:
-            agent.apply_step(weighted)
-    host.end_update()
-    for agent in units:
-        agent.end_update()
-    fill(units, host, (5, 4, 3), seed=1)  # the next update, given no weights, is the plain mean again
-    host.begin_update()
-    assert all(a.begin_update() == steps for a in units)
-    assert np.allclose(
-        host.step_gradients(0), np.mean([a.step_gradients(0) for a in units], 0), rtol=1e-5, atol=1e-7
-    )
-
-
 @pytest.mark.parametrize("memory", ["ring", "per_round"])
-def test_a_host_of_one_unit_plays_and_learns_as_that_unit_alone(memory: str) -> None:
+def test_unit_0_of_several_plays_and_learns_as_that_unit_alone(memory: str) -> None:
     torch.set_num_threads(1)
     config = dataclasses.replace(get_preset("standard"), hidden=(32, 32), trajectory_memory=memory)
     env = lambda: gymnasium.make(CARTPOLE_UNIT_ID, unit=1, fleet_seed=0)  # noqa: E731
     alone = Learner(
         env(), PPOAgent(4, 2, config, seed=5), CompletionCriterion(60.0), seed=5, keep_learning=True
     )
-    host = HostLearner([env()], HostAgent(4, 2, config, [5]), [CompletionCriterion(60.0)], keep_learning=True)
+    host = Learner([env()], PPOAgent(4, 2, config, [5]), [CompletionCriterion(60.0)], [5], keep_learning=True)
     for _ in range(6):
         mine, theirs = host.play_round(), alone.play_round()
         (unit,) = host.unit_rounds
@@ -123,20 +102,20 @@ def test_a_host_of_one_unit_plays_and_learns_as_that_unit_alone(memory: str) -> 
     assert np.array_equal(host.agent.model_parameters(), alone.agent.model_parameters())
 
 
-def test_each_unit_of_a_host_keeps_its_own_env_seed_and_criterion() -> None:
+def test_each_unit_of_a_learner_keeps_its_own_env_seed_and_criterion() -> None:
     torch.set_num_threads(1)
     config = dataclasses.replace(get_preset("standard"), hidden=(16,))
     envs = [gymnasium.make(CARTPOLE_UNIT_ID, unit=u, fleet_seed=0) for u in range(3)]
     criteria = [CompletionCriterion(t, window=1) for t in (0.0, 1e9, 0.0)]  # units 0 and 2 complete at once
-    host = HostLearner(envs, HostAgent(4, 2, config, [7, 8, 7]), criteria, keep_learning=True)
+    host = Learner(envs, PPOAgent(4, 2, config, [7, 8, 7]), criteria, [7, 8, 7], keep_learning=True)
     host.play_round()
     rounds = host.unit_rounds
     assert [r.completed for r in rounds] == [True, False, True] and not host.completed
     assert host.last_round is not None and host.last_round.steps == sum(r.steps for r in rounds)
     assert len(host.agent.memories[1]) == rounds[1].steps  # each unit's transitions in its own memory
     # units 0 and 2 share a seed but not their dynamics: unit 0 and a lone unit 0 of that seed agree
-    lone = HostLearner([gymnasium.make(CARTPOLE_UNIT_ID, unit=0, fleet_seed=0)], HostAgent(4, 2, config, [7]),
-                       [CompletionCriterion(0.0)])  # fmt: skip
+    lone = Learner([gymnasium.make(CARTPOLE_UNIT_ID, unit=0, fleet_seed=0)], PPOAgent(4, 2, config, [7]),
+                       [CompletionCriterion(0.0)], 7)  # fmt: skip
     lone.play_round()
     assert lone.unit_rounds[0].score == rounds[0].score
 
@@ -157,12 +136,12 @@ class ScriptedCriterion(CompletionCriterion):
         return self._holds
 
 
-def test_a_host_completes_once_every_unit_has_completed_not_when_all_hold_in_one_round() -> None:
+def test_a_learner_completes_once_every_unit_has_completed_not_when_all_hold_in_one_round() -> None:
     config = dataclasses.replace(get_preset("standard"), hidden=(16,))
     envs = [gymnasium.make(CARTPOLE_UNIT_ID, unit=u, fleet_seed=0) for u in range(2)]
     # unit 0 completes in round 1 and then falls below its target; unit 1 completes in round 3
     criteria = [ScriptedCriterion([True, False, False]), ScriptedCriterion([False, False, True])]
-    host = HostLearner(envs, HostAgent(4, 2, config, [7, 8]), criteria, keep_learning=True)
+    host = Learner(envs, PPOAgent(4, 2, config, [7, 8]), criteria, keep_learning=True)
     completed, units = [], []
     for _ in range(3):
         host.play_episodes()
@@ -174,7 +153,7 @@ def test_a_host_completes_once_every_unit_has_completed_not_when_all_hold_in_one
 
 
 def test_batched_acting_takes_each_rows_own_action() -> None:
-    host = HostAgent(OBS_DIM, N_ACTIONS, small_config(), SEEDS)
+    host = PPOAgent(OBS_DIM, N_ACTIONS, small_config(), SEEDS)
     rng = np.random.default_rng(0)
     obs, draws = rng.normal(size=(50, OBS_DIM)), rng.random(50)
     rows = host._policy.act_rows(obs, draws)
@@ -182,16 +161,19 @@ def test_batched_acting_takes_each_rows_own_action() -> None:
     assert len(set(rows.tolist())) > 1
 
 
-@pytest.mark.parametrize(
-    ("overrides", "words"),
-    [
-        ({"gae_scope": "window"}, "gae_scope"),
-        ({"optimisers": "one_sequential", "trunk_split": "shared"}, "per_model"),
-    ],
-)
-def test_a_host_refuses_an_update_it_cannot_make_in_one_line(overrides: dict, words: str) -> None:
-    with pytest.raises(ValueError, match=words) as err:
-        HostAgent(OBS_DIM, N_ACTIONS, small_config(**overrides), SEEDS)
-    assert "\n" not in str(err.value)
+def test_an_agent_needs_a_unit() -> None:
     with pytest.raises(ValueError, match="at least one unit"):
-        HostAgent(OBS_DIM, N_ACTIONS, small_config(), [])
+        PPOAgent(OBS_DIM, N_ACTIONS, small_config(), [])
+
+
+def test_each_unit_of_several_plays_the_argmax_criterion_on_its_own_scores() -> None:
+    config = dataclasses.replace(get_preset("standard"), hidden=(16,), criterion="argmax")
+    envs = [gymnasium.make(CARTPOLE_UNIT_ID, unit=u, fleet_seed=0) for u in range(2)]
+    criteria = [CompletionCriterion(t) for t in (0.0, 1e9)]  # unit 0's every score reaches its target
+    learner = Learner(envs, PPOAgent(4, 2, config, [7, 8]), criteria, [7, 8])
+    learner.play_round()
+    stored = [len(memory) for memory in learner.agent.memories]
+    assert [learner.plays_greedy(u) for u in range(2)] == [True, False]
+    learner.play_round()
+    after = [len(memory) for memory in learner.agent.memories]
+    assert after[0] == stored[0] and after[1] > stored[1]  # unit 0's arg-max episode is stored nowhere

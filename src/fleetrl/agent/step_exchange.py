@@ -1,0 +1,72 @@
+"""An update driven one step at a time from outside, as flat vectors (a scheme that combines the fleet's
+step gradients): ``PPOAgent.begin_update`` … ``end_update``."""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Generator
+
+import numpy as np
+
+from fleetrl.agent.flat import Named, flatten_tensors, split
+from fleetrl.agent.update import Gradient, UpdateStats
+
+
+class StepExchange:
+    """The update ``steps`` under way: :meth:`gradient_of` hands out a step's gradient, :meth:`apply` applies
+    what the fleet sends back and computes the next; its first step is computed here.
+
+    :param steps: the update (``PPOAgent.update_steps``)
+    :param named: the parameters step k moves, in its flat vector's order
+    :param count: the steps the update takes
+    """
+
+    def __init__(
+        self,
+        steps: Generator[Gradient, Gradient, UpdateStats],
+        named: Callable[[int], Named],
+        count: int,
+    ) -> None:
+        self._steps, self._named, self.count = steps, named, count
+        self.step = 0
+        """the index of the step whose gradient is :attr:`gradient`"""
+        self.taken = False
+        """the step's gradient was handed out and awaits :meth:`apply`"""
+        self.stats: UpdateStats | None = None
+        self.gradient: Gradient | None = None
+        self._advance(lambda: next(steps))
+
+    def gradient_of(self, k: int) -> np.ndarray:
+        """Step ``k``'s gradient, flat float32; RuntimeError if it is not the step next, or the last one
+        handed out was not applied."""
+        if self.taken:
+            raise RuntimeError(f"step {self.step}'s gradient is not applied yet: call apply_step()")
+        if self.gradient is None or k != self.step:
+            raise RuntimeError(f"step {k} requested, but step {self.step} of {self.count} is next")
+        self.taken = True
+        return flatten_tensors(self.gradient)
+
+    def apply(self, flat: np.ndarray) -> None:
+        """Apply ``flat`` for the step handed out and compute the next step's gradient (or finish)."""
+        if not self.taken:
+            raise RuntimeError("no step gradient to apply: call step_gradients(k) first")
+        applied = split(flat, self._named(self.step), "step gradient")
+        self._advance(lambda: self._steps.send(applied))
+        self.step += 1
+
+    def finished(self) -> UpdateStats:
+        """The update's statistics; RuntimeError if a step was not applied."""
+        if self.stats is None:
+            raise RuntimeError(f"end_update() after {self.step} of {self.count} steps")
+        return self.stats
+
+    def abandon(self) -> None:
+        """Stop the update before its last step: the steps applied stay, nothing after them runs."""
+        self._steps.close()
+        self.gradient, self.taken = None, False
+
+    def _advance(self, resume: Callable[[], Gradient]) -> None:
+        self.taken = False
+        try:
+            self.gradient = resume()
+        except StopIteration as done:
+            self.gradient, self.stats = None, done.value
