@@ -35,17 +35,3 @@ def test_threshold_is_inclusive_and_window_checked() -> None:
     assert criterion.done
     with pytest.raises(ValueError, match="window"):
         CompletionCriterion(1.0, window=0)
-
-
-def test_progress_is_the_wma_over_the_threshold_clipped_to_0_1() -> None:
-    criterion = CompletionCriterion(threshold=200.0, window=2)
-    assert criterion.progress == 0.0  # nothing played
-    criterion.add(60.0)
-    assert criterion.progress == pytest.approx(0.3)
-    criterion.add(360.0)  # WMA (60 + 2·360) / 3 = 260: past the threshold
-    assert criterion.progress == 1.0
-    negative = CompletionCriterion(threshold=-5.0, window=1)  # a task scored below zero: done or not
-    negative.add(-10.0)
-    assert negative.progress == 0.0
-    negative.add(-1.0)
-    assert negative.progress == 1.0

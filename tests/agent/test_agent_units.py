@@ -146,7 +146,7 @@ def test_a_learner_completes_once_every_unit_has_completed_not_when_all_hold_in_
     for _ in range(3):
         host.play_episodes()
         completed.append(host.completed)
-        units.append(host.units_completed())
+        units.append(list(host.completed_once))
     assert completed == [False, False, True]  # as two workers' first completions: rounds 1 and 3
     assert units == [[True, False], [True, False], [True, True]]  # each unit once it has completed
     assert host.wants_update()  # a per-step scheme's units learn on with the fleet

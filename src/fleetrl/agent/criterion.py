@@ -43,14 +43,6 @@ class CompletionCriterion:
         """True once ``window`` scores are recorded and their WMA is at least the threshold."""
         return len(self._scores) == self.window and self.wma >= self.threshold
 
-    @property
-    def progress(self) -> float:
-        """How far the WMA is towards the threshold: WMA / threshold clipped to [0, 1] (a threshold ≤ 0:
-        1 once the criterion holds, else 0)."""
-        if self.threshold <= 0.0:
-            return 1.0 if self.done else 0.0
-        return min(1.0, max(0.0, self.wma / self.threshold))
-
     def history(self) -> list[float]:
         """The recorded scores in the window, oldest first (for a checkpoint)."""
         return list(self._scores)

@@ -93,14 +93,6 @@ class Learner:
         """Every unit has completed: its criterion held at some round, not necessarily this one."""
         return all(self.completed_once)
 
-    def unit_progress(self) -> list[float]:
-        """Each unit's progress towards its criterion (:attr:`CompletionCriterion.progress`)."""
-        return [criterion.progress for criterion in self.criteria]
-
-    def units_completed(self) -> list[bool]:
-        """Whether each unit has completed (its criterion held at some round), unit 0's first."""
-        return list(self.completed_once)
-
     def plays_greedy(self, unit: int = 0) -> bool:
         """Whether the unit's round is played by π_θ's arg-max and stored nowhere: the criterion is
         ``argmax``, the unit has not completed yet, and its last round's score reached the target (read from

@@ -299,14 +299,6 @@ class UnevenUnit:
         """The learner's completion criterion has held."""
         return bool(self.learner.completed)
 
-    def unit_progress(self) -> list[float]:
-        """The learner's units' progress towards their criteria (its own figures: no time passes)."""
-        return list(self.learner.unit_progress())
-
-    def units_completed(self) -> list[bool]:
-        """Whether each of the learner's units has completed."""
-        return list(self.learner.units_completed())
-
     def play_round(self) -> Any:
         """A whole round (per-round schemes), after an absence if one is due."""
         self._begin()
