@@ -48,6 +48,13 @@ LAZY_IMPORTS: dict[tuple[str, str], str] = {
         "fleetrl.cli",
         "fleetrl.transport.broker",
     ): "asyncio and ssl, about 20 ms; only the commands that start one",
+    ("fleetrl.cli", "fleetrl.runs.fleet_summary"): "about 3 ms; only a run that ended prints its summary",
+    ("fleetrl.cli", "fleetrl.runs.dirlock"): "about 2 ms; only a chief or a worker locks its run directory",
+    ("fleetrl.cli.roles", "fleetrl.runs.secure"): "about 3 ms; only `fleetrl secure-config` writes a config",
+    (
+        "fleetrl.runs.settings",
+        "fleetrl.federation.chief.answer",
+    ): "about 5 ms; only a federated run's settings check its round rules",
     ("fleetrl.cli.main", "importlib.metadata"): "about 40 ms; only `fleetrl experiment` looks for the lab",
     ("fleetrl.runs.live", "rich"): "about 60 ms; only a run that shows its progress (not --quiet) draws",
     (

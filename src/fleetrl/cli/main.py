@@ -25,7 +25,6 @@ from fleetrl.cli.startup import collector_paused
 from fleetrl.envs.catalog import get_env_spec
 from fleetrl.federation.schemes import DEFAULT_SCHEME
 from fleetrl.federation.wire.topics import validate_id
-from fleetrl.runs.fleet_summary import SLOWEST_SHOWN, summarised, wma_quantiles
 from fleetrl.runs.setting_values import SettingError
 from fleetrl.runs.settings import ALONE_SCHEME, BrokerLogin, RunSettings, as_setting_error
 
@@ -103,6 +102,8 @@ def cmd_train(args: argparse.Namespace) -> int:
         settings = settings_from_args(RunSettings, args)
         from fleetrl.runs.launch import train
     summary = train(settings)
+    from fleetrl.runs.fleet_summary import summarised
+
     print_summary(summary, settings.out, summarise=summarised(settings.units, settings.per_unit_detail))
     return exit_code(summary)
 
@@ -173,6 +174,8 @@ def wma_text(wma: float | None) -> str:
 def print_fleet_summary(workers: dict[str, dict[str, Any]]) -> None:
     """A large fleet's outcome in a few lines: units completed, the final WMA's quantiles, the slowest
     units."""
+    from fleetrl.runs.fleet_summary import SLOWEST_SHOWN, wma_quantiles
+
     finals = [math.nan if info["final_wma"] is None else info["final_wma"] for info in workers.values()]
     done = sum(info["completed_at_round"] is not None for info in workers.values())
     p10, median, p90 = (wma_text(q) for q in wma_quantiles(finals))

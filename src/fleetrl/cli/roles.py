@@ -19,10 +19,7 @@ from fleetrl.cli.settings_args import add_settings_arguments, settings_from_args
 from fleetrl.cli.startup import collector_paused
 from fleetrl.federation.chief.lease import chief_epoch, holder_fields, place_refusal
 from fleetrl.federation.wire.topics import CHIEF_ID, status_topic
-from fleetrl.runs.dirlock import DirectoryLock, RoleConflict
-from fleetrl.runs.fleet_summary import summarised
 from fleetrl.runs.role_settings import ChiefSettings, WorkerSettings
-from fleetrl.runs.secure import write_secure_config
 from fleetrl.runs.setting_values import flat_values
 
 log = logging.getLogger(__name__)
@@ -102,6 +99,8 @@ def _listener_port(config: Path) -> int:
 
 def cmd_secure_config(args: argparse.Namespace) -> int:
     """Write the secure config and print each role's broker URL (with its password) once."""
+    from fleetrl.runs.secure import write_secure_config
+
     if args.workers < 1:
         raise ValueError(f"--workers must be at least 1, got {args.workers}")
     fleet = write_secure_config(
@@ -130,6 +129,7 @@ def cmd_chief(args: argparse.Namespace) -> int:
         from fleetrl.federation.chief.machine import EVERY_WORKER_DROPPED
         from fleetrl.federation.kinds import new_chief
         from fleetrl.federation.runner import run_chief
+        from fleetrl.runs.dirlock import DirectoryLock
         from fleetrl.runs.launch import chief_plan
         from fleetrl.runs.rundir import write_json_atomic
 
@@ -171,6 +171,8 @@ def claim_place(settings: Any, node: str, lock: Any = None) -> Any:
     """The retained status of ``node``'s place in the run (``chief``, a worker's or a host's id), read
     before this process connects under its client id; RoleConflict (exit 1, one line naming the holder) if
     a live process holds it — after releasing ``lock`` and removing what it created."""
+    from fleetrl.runs.dirlock import RoleConflict
+
     try:
         retained = settings.read_status(node)
         refusal = place_refusal(settings.run_id, node, retained, status_topic(settings.run_id, node))
@@ -243,6 +245,7 @@ def _serve_with_checkpoints(chief: Any, settings: Any, retained: Any) -> Any:
 def cmd_worker(args: argparse.Namespace) -> int:
     """Serve as one worker; its run directory gets the same files as a ``fleetrl train`` run."""
     with collector_paused():
+        from fleetrl.runs.dirlock import DirectoryLock
         from fleetrl.runs.factory import make_learner
         from fleetrl.runs.host_settings import host_id
 
@@ -290,6 +293,7 @@ def _serve_worker(settings: Any, spec: Any, config: dict[str, Any], learner: Any
 
 def _serve_host(settings: Any, config: dict[str, Any]) -> int:
     """Serve as the unit host of ``settings.unit_ids()``: its run directory gets each unit's rows, model."""
+    from fleetrl.runs.fleet_summary import summarised
     from fleetrl.runs.host import train_host
     from fleetrl.runs.rundir import RunRecorder
 

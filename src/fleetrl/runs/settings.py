@@ -23,7 +23,6 @@ from typing import Any, Literal
 
 from fleetrl.envs.catalog import describe_env, get_env_spec
 from fleetrl.federation.aggregation import get_aggregator
-from fleetrl.federation.chief.answer import check_round_rules
 from fleetrl.federation.schemes import DEFAULT_SCHEME
 from fleetrl.federation.schemes.paper import PaperScheme
 from fleetrl.federation.shared_settings import LearningSettings
@@ -105,6 +104,8 @@ class RoundRules:
         """The aggregation rule, and the round rules a chief of ``learning`` checks (the quorum, the round
         timeout and how they fit the scheme: :func:`fleetrl.federation.chief.answer.check_round_rules`);
         the quorum: the scheme's own unless one was given."""
+        from fleetrl.federation.chief.answer import check_round_rules
+
         as_setting_error("aggregation", get_aggregator, self.aggregation)
         scheme = learning.federation_scheme()
         quorum = scheme.default_quorum if self.quorum is None else self.quorum
