@@ -22,6 +22,11 @@ from fleetrl.cli.settings_args import (
     settings_from_args,
 )
 from fleetrl.cli.startup import collector_paused
+from fleetrl.envs.catalog import get_env_spec
+from fleetrl.federation.schemes import DEFAULT_SCHEME
+from fleetrl.federation.wire.topics import validate_id
+from fleetrl.runs.setting_values import SettingError
+from fleetrl.runs.settings import ALONE_SCHEME, BrokerLogin, RunSettings, as_setting_error
 
 LAB_MISSING = (
     "fleetrl experiment: the lab is not installed; it lives beside the package in fleetrl's repository "
@@ -31,9 +36,6 @@ LAB_MISSING = (
 
 def add_train_arguments(p: argparse.ArgumentParser) -> None:
     """``fleetrl train``'s options: one per setting of RunSettings (and a key of a --config file)."""
-    from fleetrl.federation.schemes import DEFAULT_SCHEME
-    from fleetrl.runs.settings import ALONE_SCHEME, RunSettings
-
     notes = {
         "broker": "unset: an embedded broker",
         "scheme": f"unset: {DEFAULT_SCHEME} ({ALONE_SCHEME} with --mode individual, where it is unused)",
@@ -97,8 +99,6 @@ def build_parser() -> argparse.ArgumentParser:
 def cmd_train(args: argparse.Namespace) -> int:
     """``fleetrl train``: every setting is checked before anything is created or started."""
     with collector_paused():
-        from fleetrl.runs.settings import RunSettings
-
         settings = settings_from_args(RunSettings, args)
         from fleetrl.runs.launch import train
     summary = train(settings)
@@ -225,12 +225,8 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
 def bridge_link(args: argparse.Namespace) -> Callable[[], Any]:
     """``evaluate --broker URL``: its settings checked now (exit 2), and what opens a device link to the
     bridge of ``--unit`` under ``--run-id`` (no bridge online within 10 s: a TimeoutError naming the unit)."""
-    from fleetrl.envs.catalog import get_env_spec
     from fleetrl.envs.device_side import check_takes_link
-    from fleetrl.federation.wire.topics import validate_id
     from fleetrl.runs.factory import bridge_link as open_bridge_link
-    from fleetrl.runs.setting_values import SettingError
-    from fleetrl.runs.settings import BrokerLogin, as_setting_error
     from fleetrl.transport.mqtt import MqttTransport
 
     login = BrokerLogin(broker=args.broker, broker_password_file=args.broker_password_file)

@@ -11,11 +11,16 @@ import logging
 import sys
 import time
 from collections.abc import Callable
+from dataclasses import asdict, replace
 from pathlib import Path
 from typing import Any
 
 from fleetrl.cli.settings_args import add_settings_arguments, settings_from_args
 from fleetrl.cli.startup import collector_paused
+from fleetrl.federation.chief.lease import chief_epoch, holder_fields, place_refusal
+from fleetrl.federation.wire.topics import CHIEF_ID, status_topic
+from fleetrl.runs.role_settings import ChiefSettings, WorkerSettings
+from fleetrl.runs.setting_values import flat_values
 
 log = logging.getLogger(__name__)
 
@@ -46,8 +51,6 @@ def register(sub: Any) -> None:
     secure.add_argument("--bind", default=None, help="address to listen on (default: --host)")
     secure.add_argument("--no-tls", action="store_true", help="plain MQTT (logins travel in clear text)")
     secure.set_defaults(handler=cmd_secure_config)
-
-    from fleetrl.runs.role_settings import ChiefSettings, WorkerSettings
 
     required = {"broker": "required"}
     chief = sub.add_parser("chief", help="serve as the chief of a federated run (Algorithm 1)")
@@ -123,14 +126,11 @@ def cmd_secure_config(args: argparse.Namespace) -> int:
 def cmd_chief(args: argparse.Namespace) -> int:
     """Serve one run as its chief; print how it ended as JSON."""
     with collector_paused():
-        from fleetrl.federation.chief.lease import chief_epoch
         from fleetrl.federation.chief.machine import EVERY_WORKER_DROPPED
         from fleetrl.federation.kinds import new_chief
         from fleetrl.federation.runner import run_chief
-        from fleetrl.federation.wire.topics import CHIEF_ID
         from fleetrl.runs.dirlock import DirectoryLock
         from fleetrl.runs.launch import chief_plan
-        from fleetrl.runs.role_settings import ChiefSettings
         from fleetrl.runs.rundir import write_json_atomic
 
         settings = settings_from_args(ChiefSettings, args)
@@ -171,8 +171,6 @@ def claim_place(settings: Any, node: str, lock: Any = None) -> Any:
     """The retained status of ``node``'s place in the run (``chief``, a worker's or a host's id), read
     before this process connects under its client id; RoleConflict (exit 1, one line naming the holder) if
     a live process holds it — after releasing ``lock`` and removing what it created."""
-    from fleetrl.federation.chief.lease import place_refusal
-    from fleetrl.federation.wire.topics import status_topic
     from fleetrl.runs.dirlock import RoleConflict
 
     try:
@@ -190,9 +188,6 @@ def claim_place(settings: Any, node: str, lock: Any = None) -> Any:
 def _lease_options(settings: Any) -> dict[str, Any]:
     """What ``run_chief`` needs to hold the run's lease: who this process is, and how to read the chief
     status after the connection was lost or the process stalled."""
-    from fleetrl.federation.chief.lease import holder_fields
-    from fleetrl.federation.wire.topics import CHIEF_ID
-
     return {
         "read_lease": lambda: settings.read_status(CHIEF_ID),
         "status_fields": holder_fields(settings.keepalive),
@@ -219,7 +214,6 @@ def _serve_with_checkpoints(chief: Any, settings: Any, retained: Any) -> Any:
     and its events appended to chief.log as they happen. ``retained``: the chief status the broker kept
     (the epoch taken is one more than the newest of it and the checkpoint's)."""
     from fleetrl.federation.chief.checkpoint import replay_last_answer
-    from fleetrl.federation.chief.lease import chief_epoch
     from fleetrl.federation.runner import run_chief
     from fleetrl.runs.checkpoints import ChiefCheckpoint, chief_checkpoint_dir
 
@@ -254,7 +248,6 @@ def cmd_worker(args: argparse.Namespace) -> int:
         from fleetrl.runs.dirlock import DirectoryLock
         from fleetrl.runs.factory import make_learner
         from fleetrl.runs.host_settings import host_id
-        from fleetrl.runs.role_settings import WorkerSettings
 
         settings = settings_from_args(WorkerSettings, args)
     config = worker_config(settings)
@@ -271,7 +264,6 @@ def cmd_worker(args: argparse.Namespace) -> int:
 
 def _serve_worker(settings: Any, spec: Any, config: dict[str, Any], learner: Any) -> int:
     """Serve as one worker in the run directory this process has locked."""
-    from fleetrl.federation.chief.lease import holder_fields
     from fleetrl.runs.checkpoints import WorkerCheckpoint, worker_checkpoint_dir
     from fleetrl.runs.roles import train_federated
     from fleetrl.runs.rundir import RunRecorder
@@ -301,9 +293,6 @@ def _serve_worker(settings: Any, spec: Any, config: dict[str, Any], learner: Any
 
 def _serve_host(settings: Any, config: dict[str, Any]) -> int:
     """Serve as the unit host of ``settings.unit_ids()``: its run directory gets each unit's rows, model."""
-    from dataclasses import replace
-
-    from fleetrl.federation.chief.lease import holder_fields
     from fleetrl.runs.fleet_summary import summarised
     from fleetrl.runs.host import train_host
     from fleetrl.runs.rundir import RunRecorder
@@ -348,8 +337,6 @@ def _recorded(recorder: Any, train: Callable[[], Any]) -> int:
 def cmd_aggregator(args: argparse.Namespace) -> int:
     """Serve a site as its edge aggregator until the root ends the run; print how it ended as JSON."""
     with collector_paused():
-        from dataclasses import asdict
-
         from fleetrl.federation.edge.aggregator import EdgeAggregator
         from fleetrl.federation.edge.runner import run_edge
         from fleetrl.runs.aggregator_settings import AggregatorSettings
@@ -374,10 +361,6 @@ def cmd_aggregator(args: argparse.Namespace) -> int:
 
 def worker_config(settings: Any) -> dict[str, Any]:
     """A standalone worker's config.json: its settings (no password) and the resolved PPO config."""
-    from dataclasses import asdict
-
-    from fleetrl.runs.setting_values import flat_values
-
     config = {k: str(v) if isinstance(v, Path) else v for k, v in flat_values(settings).items()}
     return config | {
         "role": "worker",

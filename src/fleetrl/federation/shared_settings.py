@@ -20,13 +20,10 @@ import dataclasses
 import json
 from collections.abc import Mapping
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
-from fleetrl.agent.config import DEFAULT_PRESET
-
-if TYPE_CHECKING:
-    from fleetrl.agent.config import PPOConfig
-    from fleetrl.federation.schemes import Scheme
+from fleetrl.agent.config import DEFAULT_PRESET, PPOConfig, get_preset
+from fleetrl.federation.schemes import Scheme, get_scheme
 
 SharedSettings = Mapping[str, str]
 """setting name → its value as text (the same text for the same value on every machine)"""
@@ -82,14 +79,10 @@ class LearningSettings:
 
     def federation_scheme(self) -> Scheme:
         """A new scheme object of these settings (its name and parameters); ValueError naming a bad one."""
-        from fleetrl.federation.schemes import get_scheme
-
         return get_scheme(self.scheme_name, **self.scheme_params)
 
     def ppo(self) -> PPOConfig:
         """The preset with the overrides applied (resolution has type- and range-checked them)."""
-        from fleetrl.agent.config import get_preset
-
         return dataclasses.replace(get_preset(self.preset), **self.overrides)
 
     def to_json(self) -> dict[str, Any]:

@@ -31,6 +31,7 @@ from fleetrl.federation.kinds import kind_of, new_chief
 from fleetrl.federation.plan import ChiefPlan
 from fleetrl.federation.runner import ChiefSummary, run_chief
 from fleetrl.federation.shared_settings import shared_text
+from fleetrl.link.fleet import start_bridges
 from fleetrl.runs.factory import agent_for, make_learner, probe_agent
 from fleetrl.runs.fleet import Fleet, ThreadFleet, follow
 from fleetrl.runs.fleet_summary import summarised
@@ -42,7 +43,10 @@ from fleetrl.runs.rundir import RunDirectoryError, RunRecorder, write_json_atomi
 from fleetrl.runs.settings import LearningSettings, RoundRules, RunSettings
 from fleetrl.runs.spec import WorkerSpec
 from fleetrl.transport.base import Transport
+from fleetrl.transport.broker import EmbeddedBroker
+from fleetrl.transport.local import LocalBus
 from fleetrl.transport.login import password_in_environment
+from fleetrl.transport.mqtt import MqttTransport, probe_broker
 
 log = logging.getLogger(__name__)
 
@@ -108,8 +112,6 @@ def train(settings: RunSettings) -> dict[str, Any]:
     password = settings.broker_password if settings.broker else None
     with password_in_environment(password):  # children inherit it; no argv or file holds it
         if settings.needs_broker and settings.broker:  # fatal now, before the run directory exists
-            from fleetrl.transport.mqtt import probe_broker
-
             try:
                 probe_broker(settings.broker, timeout=TRAIN_CONNECT_WINDOW, password=password)
             except ConnectionError as err:
@@ -170,8 +172,6 @@ def device_bridges(settings: RunSettings, url: str | None, run_id: str) -> Itera
     if settings.device_link != "mqtt":
         yield
         return
-    from fleetrl.link.fleet import start_bridges
-
     assert url is not None, "a device link over MQTT needs a broker"
     units = range(settings.units)
     driver = settings.bridge_driver()  # a built-in's device type, or the user's driver function
@@ -296,8 +296,6 @@ def broker_url(settings: RunSettings) -> Iterator[str | None]:
     elif settings.broker:
         yield settings.public_broker  # the password is in the environment (password_in_environment)
     else:
-        from fleetrl.transport.broker import EmbeddedBroker
-
         with EmbeddedBroker() as broker:
             log.info("embedded %s broker at %s", broker.kind, broker.url)
             yield broker.url
@@ -308,8 +306,6 @@ def transports(
 ) -> tuple[Callable[[], Transport], Callable[[], Fleet]]:
     """(a factory of the chief's transport, a starter of the workers) for the run's transport."""
     if url is None:
-        from fleetrl.transport.local import LocalBus
-
         bus = LocalBus()
         if settings.per_host > 1:
             groups = {units[0]: units for units in host_groups(settings.units, settings.per_host)}
@@ -319,8 +315,6 @@ def transports(
             return bus.client, lambda: ThreadFleet(hosts, units=groups)
         bodies = {k: federated_thread(spec, bus.client, run_id) for k, spec in specs.items()}
         return bus.client, lambda: ThreadFleet(bodies)
-
-    from fleetrl.transport.mqtt import MqttTransport
 
     def federated_fleet() -> Fleet:
         groups = {units[0]: units for units in host_groups(settings.units, settings.per_host)}

@@ -27,6 +27,8 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Any, TypeVar, get_type_hints
 
+import tomli_w
+
 from fleetrl.coercion import CoercionError
 from fleetrl.coercion import coerce as typed
 
@@ -263,8 +265,6 @@ def toml_values(settings: Any) -> dict[str, Any]:
 
 def dump_toml(table: Mapping[str, Any], header: str = "") -> str:
     """TOML text of ``table`` (scalars first, then sub-tables), with ``header`` as leading comment lines."""
-    import tomli_w
-
     comment = "".join(f"# {line}\n" for line in header.splitlines())
     return comment + tomli_w.dumps(dict(table))
 

@@ -19,6 +19,7 @@ from fleetrl.runs.factory import make_learner
 from fleetrl.runs.records import MetricsRow
 from fleetrl.runs.roles import train_alone, train_federated
 from fleetrl.runs.spec import WorkerSpec
+from fleetrl.transport.mqtt import MqttTransport
 
 
 def print_record(record: MetricsRow) -> None:
@@ -59,8 +60,6 @@ def main(argv: list[str] | None = None) -> int:
         if args.broker is None:
             train_alone(spec, print_record, learner)
         else:
-            from fleetrl.transport.mqtt import MqttTransport
-
             train_federated(
                 spec,
                 MqttTransport(args.broker, clean_session=False),
@@ -80,7 +79,6 @@ def main(argv: list[str] | None = None) -> int:
 def host_main(first: WorkerSpec, units: int, broker: str, run_id: str, reply_timeout: float) -> int:
     """A unit host of ``units`` units from ``first``'s on, over MQTT at ``broker``; the exit code."""
     from fleetrl.runs.host import train_host
-    from fleetrl.transport.mqtt import MqttTransport
 
     specs = [replace(first, worker=k, unit=k) for k in range(first.worker, first.worker + units)]
     transport = MqttTransport(broker, clean_session=False)
