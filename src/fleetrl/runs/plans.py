@@ -2,7 +2,7 @@
 workers are built from (:mod:`fleetrl.federation.plan`)."""
 
 from collections.abc import Sequence
-from typing import Any
+from typing import Any, Protocol
 
 import torch
 
@@ -12,7 +12,19 @@ from fleetrl.federation.plan import ChiefPlan, WorkerPlan
 from fleetrl.federation.schemes.agent import FederatedAgent
 from fleetrl.federation.shared_settings import LearningSettings, shared_text
 from fleetrl.runs.factory import agent_for, probe_agent
-from fleetrl.runs.settings import RoundRules
+
+
+class RoundRules(Protocol):
+    """What a chief's plan takes of the resolved round rules (:class:`fleetrl.runs.settings.RoundRules`)."""
+
+    @property
+    def aggregation(self) -> str: ...
+    @property
+    def chief_quorum(self) -> float: ...
+    @property
+    def round_timeout(self) -> float | None: ...
+    @property
+    def max_staleness(self) -> int | None: ...
 
 
 def chief_plan(
