@@ -97,12 +97,13 @@ def train_federated(
         transport = StalledTransport(transport, stall.wait)
     if spec.uneven is not None and spec.uneven.link_delay > 0:
         transport = DelayedTransport(transport, spec.uneven.link_delay)
+    player = uneven_unit(learner, spec.uneven, seed=spec.learning.seed, worker=spec.worker)
     plan = worker_plan(
-        spec.learning, learner.agent, run_id=run_id, worker_id=str(spec.worker), reply_timeout=reply_timeout,
+        spec.learning, player.agent, run_id=run_id, worker_id=str(spec.worker), reply_timeout=reply_timeout,
         resend_interval=resend_interval, start_round=start_round, restarted=resume and start_round is None,
     )  # fmt: skip
     worker = FederatedWorker(
-        uneven_unit(learner, spec.uneven, seed=spec.learning.seed, worker=spec.worker),
+        player,
         transport,
         plan,
         key=key,
