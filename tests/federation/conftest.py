@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from fleetrl.federation.chief.machine import Chief, ChiefEvent
-from fleetrl.federation.plan import ChiefPlan
+from fleetrl.federation.plan import ChiefPlan, WorkerPlan
 from fleetrl.federation.runner import ChiefSummary, run_chief
 from fleetrl.federation.schemes import resolve_scheme
 from fleetrl.federation.worker.runner import FederatedRound, FederatedWorker, WorkerSummary
@@ -25,6 +25,7 @@ FAKE_LAYOUT: list[tuple[str, tuple[int, ...]]] = [("trunk.weight", (4, 3)), ("he
 
 
 PLAN_FIELDS = frozenset(f.name for f in dataclasses.fields(ChiefPlan))
+WORKER_PLAN_FIELDS = frozenset(f.name for f in dataclasses.fields(WorkerPlan))
 
 
 def chief_of(make: Callable[..., Any] = Chief, **options: Any) -> Any:
@@ -34,6 +35,26 @@ def chief_of(make: Callable[..., Any] = Chief, **options: Any) -> Any:
         options["workers"] = options.pop("members")
     plan = ChiefPlan(**{k: v for k, v in options.items() if k in PLAN_FIELDS})
     return make(plan, **{k: v for k, v in options.items() if k not in PLAN_FIELDS})
+
+
+def worker_of(learner: Any, transport: Transport, **options: Any) -> FederatedWorker:
+    """A :class:`FederatedWorker` from keyword options: the :class:`WorkerPlan`'s fields (its layouts and
+    K from ``learner.agent``) and the worker's others."""
+    fields, others = plan_split(options)
+    return FederatedWorker(learner, transport, WorkerPlan.for_agent(learner.agent, **fields), **others)
+
+
+def machine_of(make: Callable[..., Any], **options: Any) -> Any:
+    """``make(plan, **others)`` (a worker machine class or ``new_worker_machine``) from keyword options: the
+    :class:`WorkerPlan`'s fields and the others."""
+    fields, others = plan_split(options)
+    return make(WorkerPlan(**fields), **others)
+
+
+def plan_split(options: dict[str, Any]) -> tuple[dict[str, Any], dict[str, Any]]:
+    """``options`` as (the :class:`WorkerPlan`'s fields, the others)."""
+    fields = {k: v for k, v in options.items() if k in WORKER_PLAN_FIELDS}
+    return fields, {k: v for k, v in options.items() if k not in WORKER_PLAN_FIELDS}
 
 
 @dataclass(frozen=True)
@@ -167,7 +188,7 @@ def run_fleet(
 
     def worker_main(worker_id: str) -> Callable[[], None]:
         def main() -> None:
-            worker = FederatedWorker(
+            worker = worker_of(
                 learners[worker_id],
                 transport(worker_id),
                 run_id=run_id,

@@ -12,9 +12,9 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from conftest import FakeLearner
+from conftest import FakeLearner, worker_of
 
-from fleetrl.federation.worker.runner import FederatedRound, FederatedWorker
+from fleetrl.federation.worker.runner import FederatedRound
 from fleetrl.transport.mqtt import MqttTransport
 
 
@@ -25,7 +25,7 @@ def main(argv: list[str]) -> int:
     def show(record: FederatedRound) -> None:
         print(f"round {record.round} {record.event}", flush=True)
 
-    worker = FederatedWorker(
+    worker = worker_of(
         FakeLearner(int(seed), None, float(pause)),
         MqttTransport(url, reconnect_delay=(1, 2), clean_session=False),
         run_id=run_id,

@@ -8,6 +8,7 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
+from conftest import machine_of
 
 from fleetrl.federation.events import Sent, WorkerEvent
 from fleetrl.federation.kinds import new_worker_machine
@@ -46,8 +47,13 @@ RESULT = Outcome(score=10.0, steps=3, wma=9.0, completed=False)
 
 def machine(**kwargs: Any) -> AsyncWorkerMachine:
     options: dict[str, Any] = {"reply_timeout": 60.0, "resend_interval": 5.0, "max_rounds": 10}
-    made = new_worker_machine(
-        scheme=get_scheme("fedasync"), run_id=RUN, worker_id=ME, layout=FAKE_LAYOUT, **options | kwargs
+    made = machine_of(
+        new_worker_machine,
+        scheme=get_scheme("fedasync"),
+        run_id=RUN,
+        worker_id=ME,
+        layout=FAKE_LAYOUT,
+        **options | kwargs,
     )
     assert isinstance(made, AsyncWorkerMachine)
     return made

@@ -6,13 +6,12 @@ from __future__ import annotations
 
 import threading
 
-from conftest import FakeLearner, FakeResult
+from conftest import FakeLearner, FakeResult, worker_of
 
 from fleetrl.federation.chief.machine import Chief
 from fleetrl.federation.plan import ChiefPlan
 from fleetrl.federation.runner import ChiefSummary, run_chief
 from fleetrl.federation.schemes import resolve_scheme
-from fleetrl.federation.worker.runner import FederatedWorker
 from fleetrl.transport.local import LocalBus
 
 ROUNDS = 5
@@ -50,7 +49,7 @@ def test_a_worker_that_fails_leaves_the_fleet_instead_of_stalling_it() -> None:
 
     def worker_main(worker: str) -> None:
         try:
-            summary = FederatedWorker(
+            summary = worker_of(
                 learners[worker], bus.client(), run_id="r", worker_id=worker, max_rounds=ROUNDS,
                 reply_timeout=60.0, scheme="paper",
             ).run()  # fmt: skip

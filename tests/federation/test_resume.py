@@ -12,8 +12,9 @@ from pathlib import Path
 from typing import Any
 
 import pytest
+from conftest import worker_of
 
-from fleetrl.federation.worker.runner import FederatedRound, FederatedWorker, WorkerSummary
+from fleetrl.federation.worker.runner import FederatedRound, WorkerSummary
 from fleetrl.transport.broker import EmbeddedBroker
 from fleetrl.transport.local import LocalBus
 from fleetrl.transport.mqtt import MqttTransport
@@ -44,7 +45,7 @@ def run_workers(
     summaries: dict[str, WorkerSummary] = {}
 
     def body(w: str) -> None:
-        worker = FederatedWorker(
+        worker = worker_of(
             learners[w], make_transport(), run_id=run_id, worker_id=w, max_rounds=rounds,
             on_record=records[w].append, reply_timeout=90.0, resend_interval=0.5, scheme="paper",
         )  # fmt: skip

@@ -9,7 +9,7 @@ from typing import Any
 
 import numpy as np
 import pytest
-from conftest import StepAgent
+from conftest import StepAgent, worker_of
 
 from fleetrl.federation.chief.fleet_model import FleetModel
 from fleetrl.federation.chief.machine import Chief
@@ -18,7 +18,6 @@ from fleetrl.federation.schemes.pergrad import PerStepGradientScheme
 from fleetrl.federation.wire.messages import Message, decode, encode
 from fleetrl.federation.wire.topics import status_topic
 from fleetrl.federation.worker.actions import RunEndedError
-from fleetrl.federation.worker.runner import FederatedWorker
 from fleetrl.transport.local import LocalBus
 
 RUN = "ended-run"
@@ -36,7 +35,7 @@ def test_a_worker_started_after_the_run_ended_gives_up_after_the_grace(
     watcher.subscribe(status_topic(RUN, "chief"))
     retained = watcher.receive(1.0)
     assert retained is not None and retained.retained and retained.payload.startswith(b"ended ")
-    late = FederatedWorker(
+    late = worker_of(
         fake_learner(14, None),
         bus.client(),
         run_id=RUN,

@@ -8,6 +8,7 @@ from typing import Any
 
 import numpy as np
 import pytest
+from conftest import worker_of
 
 from fleetrl.federation.chief.machine import Chief
 from fleetrl.federation.plan import ChiefPlan
@@ -20,7 +21,6 @@ from fleetrl.federation.shared_settings import (
 )
 from fleetrl.federation.wire.messages import Message, Reason, encode
 from fleetrl.federation.wire.signing import status_payload
-from fleetrl.federation.worker.runner import FederatedWorker
 from fleetrl.runs.settings import resolve_learning
 from fleetrl.transport.local import LocalBus
 
@@ -241,7 +241,7 @@ def test_a_worker_with_another_scheme_or_preset_stops_with_the_chiefs_reason(
         "scheme_params": {},
         "target_score": 2450.0,
     } | change
-    worker = FederatedWorker(
+    worker = worker_of(
         learner, bus.client(), run_id=RUN, worker_id="1", max_rounds=5, reply_timeout=10,
         scheme="paper", settings=shared_settings(**values),
     )  # fmt: skip

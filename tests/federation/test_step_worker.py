@@ -8,6 +8,7 @@ from __future__ import annotations
 from typing import Any
 
 import numpy as np
+from conftest import machine_of
 
 from fleetrl.federation.chief.machine import Chief
 from fleetrl.federation.events import Sent, WorkerEvent
@@ -49,8 +50,9 @@ class Outcome:
 def machine(steps: int = K, **kwargs: Any) -> StepWorkerMachine:
     options: dict[str, Any] = {"reply_timeout": 60.0, "resend_interval": 5.0, "max_rounds": 10}
     options.update(kwargs)
-    m = new_worker_machine(
-        run_id=RUN, worker_id="1", layout=LAYOUT, scheme=resolve_scheme("pergrad"), steps_per_round=steps,
+    m = machine_of(
+        new_worker_machine, run_id=RUN, worker_id="1", layout=LAYOUT, scheme=resolve_scheme("pergrad"),
+        steps_per_round=steps,
         **options,
     )  # fmt: skip
     assert isinstance(m, StepWorkerMachine)

@@ -12,7 +12,7 @@ from collections.abc import Callable
 from typing import Any
 
 import pytest
-from conftest import chief_of, fleet_model
+from conftest import chief_of, fleet_model, worker_of
 
 from fleetrl.federation.chief.machine import Chief
 from fleetrl.federation.edge.aggregator import EdgeAggregator
@@ -20,7 +20,7 @@ from fleetrl.federation.edge.runner import EdgeSummary, run_edge
 from fleetrl.federation.plan import ChiefPlan
 from fleetrl.federation.runner import ChiefSummary, run_chief
 from fleetrl.federation.schemes.base import FleetStart
-from fleetrl.federation.worker.runner import FederatedRound, FederatedWorker
+from fleetrl.federation.worker.runner import FederatedRound
 from fleetrl.runs.factory import make_learner
 from fleetrl.runs.settings import LearningSettings, fleet_shape, resolve_learning
 from fleetrl.runs.spec import WorkerSpec
@@ -139,7 +139,7 @@ def tree_run(
     for site, members in sites.items():
         threads.append(aggregator(site, "tree-region" if regional else "tree", members))
         for w in members:
-            worker = FederatedWorker(
+            worker = worker_of(
                 units[w], bus.client(), run_id=f"tree-{site}", worker_id=w, max_rounds=rounds,
                 on_record=records[w].append, reply_timeout=TIMEOUT, scheme=scheme,
             )  # fmt: skip

@@ -10,6 +10,7 @@ from typing import Any
 
 import numpy as np
 import pytest
+from conftest import machine_of, worker_of
 
 from fleetrl.federation.chief.machine import Chief
 from fleetrl.federation.events import Sent, WorkerEvent
@@ -66,8 +67,8 @@ DONE_RESULT = Outcome(20.0, 4, 15.0, True, float("nan"), float("nan"), float("na
 def machine(scheme: str = "paper", **kwargs: Any) -> WorkerMachine:
     options: dict[str, Any] = {"reply_timeout": 60.0, "resend_interval": 5.0, "max_rounds": 10}
     options.update(kwargs)
-    return WorkerMachine(
-        run_id=RUN, worker_id="1", layout=FAKE_LAYOUT, scheme=resolve_scheme(scheme), **options
+    return machine_of(
+        WorkerMachine, run_id=RUN, worker_id="1", layout=FAKE_LAYOUT, scheme=resolve_scheme(scheme), **options
     )
 
 
@@ -299,7 +300,7 @@ def test_a_worker_restarted_before_its_first_checkpoint_records_round_1_interrup
 
 def test_the_worker_hands_its_machine_whether_it_was_restarted(fake_learner: Any) -> None:
     def worker(**options: Any) -> FederatedWorker:
-        return FederatedWorker(
+        return worker_of(
             fake_learner(14, None), LocalBus().client(), run_id=RUN, worker_id="1", max_rounds=5,
             scheme="paper", **options,
         )  # fmt: skip
@@ -364,7 +365,7 @@ def test_the_runner_plays_a_run_over_an_in_process_chief_and_repairs_a_lost_mess
     transport = LoopbackTransport(c, drop_first=2)  # the join and round 1's gradient are lost
     got: list[FederatedRound] = []
     checkpoints: list[int] = []
-    worker = FederatedWorker(
+    worker = worker_of(
         learner,
         transport,  # type: ignore[arg-type]
         run_id=RUN,

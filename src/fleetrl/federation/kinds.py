@@ -10,7 +10,7 @@ from typing import Any
 from fleetrl.federation.chief.asynchronous import AsyncChief
 from fleetrl.federation.chief.fleet_model import FleetModel
 from fleetrl.federation.chief.machine import Chief
-from fleetrl.federation.plan import ChiefPlan
+from fleetrl.federation.plan import ChiefPlan, WorkerPlan
 from fleetrl.federation.schemes import AsyncScheme, RoundScheme, Scheme, StepScheme
 from fleetrl.federation.schemes.agent import FederatedAgent
 from fleetrl.federation.schemes.base import FleetStart
@@ -66,6 +66,6 @@ def new_chief(plan: ChiefPlan, **options: Any) -> Chief:
     return kind_of(plan.scheme).chief(plan, **options)
 
 
-def new_worker_machine(*, scheme: Scheme, **options: Any) -> WorkerMachine:
-    """The worker machine ``scheme`` needs (``options``: the machine's parameters)."""
-    return kind_of(scheme).machine(scheme=scheme, **options)
+def new_worker_machine(plan: WorkerPlan, **options: Any) -> WorkerMachine:
+    """The worker machine ``plan``'s scheme needs (``options``: the machine's others)."""
+    return kind_of(plan.scheme).machine(plan, **options)

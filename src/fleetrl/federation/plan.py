@@ -1,5 +1,6 @@
-"""A run's plan, resolved once: what its chief (a site's too) is built from, and what its checkpoint keeps of
-the run's configuration. :mod:`.kinds` builds each role of the plan's scheme kind."""
+"""A run's plan, resolved once: what its chief (a site's too) and each worker are built from, and what the
+chief's checkpoint keeps of the run's configuration. :mod:`.kinds` builds each role of the plan's scheme
+kind."""
 
 from __future__ import annotations
 
@@ -8,8 +9,13 @@ from dataclasses import asdict, dataclass, replace
 from typing import Any
 
 from fleetrl.federation.schemes import Scheme, get_scheme, resolve_scheme, scheme_reference
+from fleetrl.federation.schemes.agent import FederatedAgent
 from fleetrl.federation.wire.messages import Layout
-from fleetrl.federation.wire.topics import validate_id
+from fleetrl.federation.wire.topics import validate_id, validate_worker_id
+
+ENDED_GRACE = 30.0
+"""seconds a worker waiting for its welcome gives a new chief of a run whose chief's status says it ended
+(a run id used again: the new chief's ``online`` replaces the retained ``ended``)"""
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -75,6 +81,58 @@ class ChiefPlan:
         values = dict(values)
         scheme = get_scheme(values.pop("scheme"), **values.pop("scheme_params", {}))
         return cls(scheme=scheme, **values)
+
+
+@dataclass(frozen=True, kw_only=True)
+class WorkerPlan:
+    """The run as one worker sees it. ``scheme`` may be given by name (it is resolved once, here)."""
+
+    run_id: str
+    worker_id: str
+    """a topic level; not ``chief``"""
+    scheme: Scheme
+    layout: Layout
+    """what a round message carries (``scheme.layout(agent)``)"""
+    max_rounds: int
+    """M, the last round"""
+    steps_per_round: int = 1
+    """exchanges per round: 1, or a per-step scheme's K"""
+    welcome_layout: Layout | None = None
+    """what a ``welcome`` or ``done`` carries (None: ``layout``)"""
+    settings: Mapping[str, str] | None = None
+    """this worker's shared settings (:mod:`.shared_settings`), sent in its ``join``"""
+    units: int = 1
+    """the units the worker carries (a unit host: U), said in every message it contributes"""
+    start_round: int | None = None
+    """resuming from a checkpoint: the first round the learner's state has not played"""
+    restarted: bool = False
+    """resumed with no checkpoint: an earlier process went down before its first one, in round 1"""
+    reply_timeout: float | None = 600.0
+    """seconds to wait for the chief (at start, each round, each step); None: forever"""
+    resend_interval: float | None = 5.0
+    """seconds without an answer before re-sending; None: never"""
+    ended_grace: float = ENDED_GRACE
+    """seconds an unwelcomed worker waits for a new chief once the chief's status says the run ended"""
+
+    def __post_init__(self) -> None:
+        """Check the ids and the units; resolve the scheme once; keep the layouts as tuples."""
+        validate_id(self.run_id, "run id")
+        validate_worker_id(self.worker_id)
+        if self.units < 1:
+            raise ValueError(f"a worker carries at least one unit, got units={self.units}")
+        object.__setattr__(self, "scheme", resolve_scheme(self.scheme))
+        object.__setattr__(self, "layout", _layout(self.layout))
+        if self.welcome_layout is not None:
+            object.__setattr__(self, "welcome_layout", _layout(self.welcome_layout))
+
+    @classmethod
+    def for_agent(cls, agent: FederatedAgent, *, scheme: Scheme | str, **fields: Any) -> WorkerPlan:
+        """The plan of a worker whose learner's agent is ``agent``: its scheme's layouts and K for it."""
+        scheme = resolve_scheme(scheme)
+        return cls(
+            scheme=scheme, layout=scheme.layout(agent), welcome_layout=scheme.welcome_layout(agent),
+            steps_per_round=scheme.exchanges_per_round(agent), **fields,
+        )  # fmt: skip
 
 
 def _layout(layout: Layout) -> tuple[tuple[str, tuple[int, ...]], ...]:

@@ -13,12 +13,12 @@ import torch
 from fleetrl.agent.learner import Learner
 from fleetrl.agent.ppo import PPOAgent
 from fleetrl.federation.events import WorkerEvent
-from fleetrl.federation.shared_settings import shared_text
 from fleetrl.federation.wire.signing import FleetKey
 from fleetrl.federation.worker.actions import FederatedRound
 from fleetrl.federation.worker.runner import FederatedWorker, WorkerSummary
 from fleetrl.runs.factory import action_space_of, agent_for, unit_criterion, unit_env
 from fleetrl.runs.host_settings import host_id
+from fleetrl.runs.plans import worker_plan
 from fleetrl.runs.records import MetricsRow
 from fleetrl.runs.roles import metrics_row
 from fleetrl.runs.rundir import model_path
@@ -119,21 +119,12 @@ def train_host(
         for row in unit_rows(r, learner, specs, started):
             emit(row)
 
-    worker = FederatedWorker(
-        uneven_unit(learner, conditions, seed=seed, worker=first.worker),
-        transport,
-        run_id=run_id,
-        worker_id=host_id([spec.worker for spec in specs]),
-        max_rounds=first.learning.max_rounds,
-        on_record=record,
-        reply_timeout=reply_timeout,
-        resend_interval=resend_interval,
-        key=key,
-        scheme=first.learning.federation_scheme(),
-        settings=shared_text(first.learning),
-        units=len(specs),
-        status_fields=status_fields,
-    )
+    player = uneven_unit(learner, conditions, seed=seed, worker=first.worker)
+    plan = worker_plan(
+        first.learning, player.agent, run_id=run_id, worker_id=host_id([spec.worker for spec in specs]),
+        units=len(specs), reply_timeout=reply_timeout, resend_interval=resend_interval,
+    )  # fmt: skip
+    worker = FederatedWorker(player, transport, plan, key=key, on_record=record, status_fields=status_fields)
     try:
         return worker.run()
     finally:

@@ -19,7 +19,7 @@ owns the run directory and the live view. Worker processes are forked from this 
 import logging
 import threading
 import uuid
-from collections.abc import Callable, Iterator, Sequence
+from collections.abc import Callable, Iterator
 from contextlib import contextmanager, suppress
 from pathlib import Path
 from typing import Any
@@ -27,20 +27,19 @@ from typing import Any
 import numpy as np
 
 from fleetrl.envs.catalog import ENV_SPECS, describe_env, get_env_spec
-from fleetrl.federation.kinds import kind_of, new_chief
-from fleetrl.federation.plan import ChiefPlan
+from fleetrl.federation.kinds import new_chief
 from fleetrl.federation.runner import ChiefSummary, run_chief
-from fleetrl.federation.shared_settings import shared_text
 from fleetrl.link.fleet import start_bridges
-from fleetrl.runs.factory import agent_for, make_learner, probe_agent
+from fleetrl.runs.factory import make_learner, probe_agent
 from fleetrl.runs.fleet import Fleet, ThreadFleet, follow
 from fleetrl.runs.fleet_summary import summarised
 from fleetrl.runs.host_settings import host_groups, member_ids
 from fleetrl.runs.live import LiveView
+from fleetrl.runs.plans import chief_plan
 from fleetrl.runs.processes import ProcessFleet, fork_available
 from fleetrl.runs.roles import Emit, train_federated
 from fleetrl.runs.rundir import RunDirectoryError, RunRecorder, write_json_atomic
-from fleetrl.runs.settings import LearningSettings, RoundRules, RunSettings
+from fleetrl.runs.settings import LearningSettings, RunSettings
 from fleetrl.runs.spec import WorkerSpec
 from fleetrl.transport.base import Transport
 from fleetrl.transport.broker import EmbeddedBroker
@@ -77,33 +76,6 @@ def worker_specs(settings: RunSettings, device_url: str | None, run_id: str) -> 
         )
         for k in range(settings.units)
     }
-
-
-def chief_plan(
-    learning: LearningSettings, rules: RoundRules, *, run_id: str, workers: Sequence[str], **role: Any
-) -> tuple[ChiefPlan, dict[str, Any]]:
-    """The plan of a run of resolved ``learning`` and ``rules`` as its chief (or a site's) sees it, and what
-    that chief keeps of the fleet (:meth:`~fleetrl.federation.kinds.Kind.chief_fleet`): the scheme object and
-    one agent built once. ``role``: the chief's own settings (``dropout_grace``, ``open_fleet``)."""
-    scheme = learning.federation_scheme()
-    agent = fleet_agent(learning) if scheme.shared_start else probe_agent(learning.env, learning.ppo())
-    plan = ChiefPlan(
-        run_id=run_id, workers=workers, scheme=scheme, layout=scheme.layout(agent),
-        steps_per_round=scheme.exchanges_per_round(agent), max_rounds=learning.max_rounds,
-        settings=shared_text(learning), aggregator=rules.aggregation, quorum=rules.chief_quorum,
-        round_timeout=rules.round_timeout, max_staleness=rules.max_staleness, **role,
-    )  # fmt: skip
-    return plan, kind_of(scheme).chief_fleet(scheme, agent)
-
-
-def fleet_agent(learning: LearningSettings) -> Any:
-    """An agent at the fleet's start, built as :func:`~fleetrl.runs.factory.make_learner` builds a worker's
-    from the settings' learning seed. Torch is set to one thread in this process, as in every worker (the
-    initialisation's QR differs with the threads)."""
-    import torch
-
-    torch.set_num_threads(1)
-    return agent_for(describe_env(learning.env), learning.ppo(), seed=learning.seed)
 
 
 def train(settings: RunSettings) -> dict[str, Any]:

@@ -12,11 +12,11 @@ from collections.abc import Callable, Mapping
 from pathlib import Path
 
 from fleetrl.agent.learner import Learner, RoundResult
-from fleetrl.federation.shared_settings import shared_text
 from fleetrl.federation.wire.signing import FleetKey
 from fleetrl.federation.worker.runner import FederatedWorker, WorkerSummary
 from fleetrl.runs.checkpoints import WorkerCheckpoint
 from fleetrl.runs.factory import make_learner
+from fleetrl.runs.plans import worker_plan
 from fleetrl.runs.records import MetricsRow
 from fleetrl.runs.rundir import model_path
 from fleetrl.runs.spec import WorkerSpec
@@ -97,21 +97,18 @@ def train_federated(
         transport = StalledTransport(transport, stall.wait)
     if spec.uneven is not None and spec.uneven.link_delay > 0:
         transport = DelayedTransport(transport, spec.uneven.link_delay)
+    player = uneven_unit(learner, spec.uneven, seed=spec.learning.seed, worker=spec.worker)
+    plan = worker_plan(
+        spec.learning, player.agent, run_id=run_id, worker_id=str(spec.worker), reply_timeout=reply_timeout,
+        resend_interval=resend_interval, start_round=start_round, restarted=resume and start_round is None,
+    )  # fmt: skip
     worker = FederatedWorker(
-        uneven_unit(learner, spec.uneven, seed=spec.learning.seed, worker=spec.worker),
+        player,
         transport,
-        run_id=run_id,
-        worker_id=str(spec.worker),
-        max_rounds=spec.learning.max_rounds,
-        on_record=lambda r: emit(metrics_row(spec.worker, r.round, r.result, started, r.label)),
-        reply_timeout=reply_timeout,
-        resend_interval=resend_interval,
+        plan,
         key=key,
-        start_round=start_round,
-        restarted=resume and start_round is None,
+        on_record=lambda r: emit(metrics_row(spec.worker, r.round, r.result, started, r.label)),
         on_round_done=None if store is None else lambda next_round: store.save(learner, next_round),
-        scheme=spec.learning.federation_scheme(),
-        settings=shared_text(spec.learning),
         status_fields=status_fields,
     )
     try:

@@ -9,6 +9,7 @@ from dataclasses import dataclass
 
 from fleetrl.federation.events import ChiefEvent, ChiefStep
 from fleetrl.federation.schemes import COMPLETED, RoundAnswer, Scheme
+from fleetrl.federation.schemes.base import FleetStart
 from fleetrl.federation.wire.messages import Message, Reason, RoundConfig
 from fleetrl.federation.wire.topics import CHIEF_ID, sorted_workers
 
@@ -113,6 +114,13 @@ def answer_message(
         finished=answer.finished, contributors=answer.contributors, step=step,
         samples=sum(m.samples for m in behind), units=sum(m.units for m in behind), config=config,
     )  # fmt: skip
+
+
+def start_welcome(run_id: str, start: FleetStart | None) -> Message | None:
+    """The welcome that hands out the fleet's ``start`` in round 1 (None: the fleet has none)."""
+    return (
+        None if start is None else Message("welcome", run_id, CHIEF_ID, 1, flat=start.flat, origin=CHIEF_ID)
+    )
 
 
 def welcome_step(

@@ -8,8 +8,9 @@ from __future__ import annotations
 import numpy as np
 
 from fleetrl.federation.schemes.agent import FederatedAgent
-from fleetrl.federation.schemes.base import StepScheme
+from fleetrl.federation.schemes.base import FleetStart, StepScheme
 from fleetrl.federation.wire.messages import Layout, Message
+from fleetrl.federation.wire.topics import CHIEF_ID
 
 
 class FleetModel:
@@ -37,6 +38,14 @@ class FleetModel:
     def snapshot(self) -> np.ndarray:
         """The model a joining worker takes: network and optimiser state, flat in :attr:`layout` order."""
         return np.asarray(self.scheme.start_parameters(self.agent), dtype=np.float32)
+
+    def start(self) -> FleetStart:
+        """The fleet's start a welcome carries until the fleet's first answer: the model as it is."""
+        return FleetStart(self.layout, self.snapshot())
+
+    def welcome(self, run_id: str, rnd: int, step: int) -> Message:
+        """The welcome a worker joining at exchange (``rnd``, ``step``) takes: the model as it now is."""
+        return Message("welcome", run_id, CHIEF_ID, rnd, step=step, origin=CHIEF_ID, flat=self.snapshot())
 
     def load(self, flat: np.ndarray) -> None:
         """Make the copy ``flat`` (a checkpoint's :meth:`snapshot`)."""

@@ -17,6 +17,7 @@ from fleetrl.federation.chief.answer import (
     answer_message,
     check_round_rules,
     refusal_step,
+    start_welcome,
     welcome_step,
     where,
 )
@@ -45,10 +46,8 @@ class Chief:
 
     :param plan: the run as the chief sees it (:class:`~fleetrl.federation.plan.ChiefPlan`).
     :param key: the fleet key; if given, only messages and statuses signed with it are accepted.
-    :param start: the fleet's start (a ``shared_start`` scheme), in every ``welcome`` until the scheme's
-        answers give the fleet a model.
-    :param fleet_model: a per-step scheme's fleet model, kept by the chief (:mod:`.fleet_model`): it gives
-        the start, and every ``welcome`` carries it as it is.
+    :param start: the fleet's start (a ``shared_start`` scheme), welcomed until the fleet has a model.
+    :param fleet_model: a per-step scheme's fleet model (:mod:`.fleet_model`): every welcome carries it.
     :param state: a restored chief's (:func:`.checkpoint.chief_from_state`); None: round 1.
     :param now: when the open round opened (a restored chief: now); None: at the first input.
     """
@@ -65,7 +64,7 @@ class Chief:
     ) -> None:
         """Create the chief with W = the plan's workers and round 1 open (or as ``state`` says)."""
         if fleet_model is not None and start is None:
-            start = FleetStart(fleet_model.layout, fleet_model.snapshot())
+            start = fleet_model.start()
         if start is not None:
             plan = plan.with_welcome(start.layout)
         self.plan = plan
@@ -84,12 +83,8 @@ class Chief:
         self._waits = self.scheme.waits(plan.quorum, plan.round_timeout, plan.max_staleness)
         self.key = key
         if state is None:
-            model = (
-                None
-                if start is None
-                else Message("welcome", plan.run_id, CHIEF_ID, 1, flat=start.flat, origin=CHIEF_ID)
-            )
             config = dict(self.scheme.configure(1, self.all_workers))
+            model = start_welcome(plan.run_id, start)
             state = ChiefState(
                 set(self.all_workers), AnswerBook(plan.resend_holdoff), model=model, config=config
             )
@@ -110,8 +105,7 @@ class Chief:
         return self.state.epoch
 
     def take_epoch(self, epoch: int) -> None:
-        """Run as the chief of ``epoch`` from now on (a chief taking over a run: one more than the newest
-        it knew of)."""
+        """Run as the chief of ``epoch`` from now on (taking over a run: one past the newest it knew of)."""
         if epoch < self.state.epoch:
             raise ValueError(f"epoch {epoch} is older than this chief's {self.state.epoch}")
         self.state.epoch = epoch
@@ -160,20 +154,15 @@ class Chief:
         if self.finished:
             return None
         times = list(self.state.suspects.values())
-        # the round deadline acts only on answers (with none, tick keeps waiting): without one it is not due,
-        # else a deadline that passed would stay due and the runner would poll without waiting
+        # the round deadline acts only on answers (with none, tick keeps waiting, so the runner would poll)
         due = self._waits.deadline(self._opened_at)
         if due is not None and self._pending:
             times.append(due)
         return min(times, default=None)
 
     def receive_bytes(self, payload: bytes, *, topic_worker: str | None = None, now: float) -> ChiefStep:
-        """Decode and handle one payload; any defect becomes a ``rejected`` event, never an exception.
-
-        :param payload: bytes received on a worker topic.
-        :param topic_worker: the worker id of the topic it arrived on; the envelope's sender must match it.
-        :param now: the current time in seconds.
-        """
+        """Decode and handle one payload received on the topic of ``topic_worker`` (the envelope's sender
+        must match it); any defect becomes a ``rejected`` event, never an exception."""
         try:
             message = decode(
                 payload, run_id=self.run_id, known_senders=self.roster, layout=self.layout,
@@ -196,8 +185,7 @@ class Chief:
         return ChiefStep(events=(event,))
 
     def receive(self, message: Message, *, now: float) -> ChiefStep:
-        """Handle one decoded message from a worker (Algorithm 1, lines 2–5; closes the round when
-        complete)."""
+        """Handle one decoded worker message (Algorithm 1, lines 2–5; closes the round when complete)."""
         if (deposed := self._newer_epoch(message)) is not None:
             return deposed
         self._start_clock(now)
@@ -233,19 +221,13 @@ class Chief:
         return step
 
     def status(self, worker: str, payload: bytes, *, retained: bool = False, now: float) -> ChiefStep:
-        """Handle a status payload of ``worker`` (its ``online``, its ``offline`` goodbye or last will).
-
-        A live ``offline`` drops the worker from W; a live ``online`` of a dropped worker brings it back; any
-        ``online`` is answered with a ``welcome``. Retained statuses (replayed by the broker on subscribe)
-        never change W.
-        """
+        """Handle a status payload of ``worker``: a live ``offline`` (goodbye or last will) drops it from
+        W after its grace, a live ``online`` brings it back, any ``online`` is welcomed; a retained one
+        (replayed by the broker) never changes W."""
         self._start_clock(now)
         if worker not in self.all_workers:  # a new unit's status: its join admits and welcomes it
-            return (
-                ChiefStep()
-                if self.roster.may_join(worker)
-                else self._reject(worker, Reason.UNKNOWN_SENDER, "status")
-            )
+            may_join = self.roster.may_join(worker)
+            return ChiefStep() if may_join else self._reject(worker, Reason.UNKNOWN_SENDER, "status")
         try:
             status = parse_status(payload, run_id=self.run_id, node=worker, key=self.key)
         except MessageRejected as exc:
@@ -283,21 +265,16 @@ class Chief:
 
     def tick(self, now: float) -> ChiefStep:
         """Apply the deadlines at time ``now``: offline workers whose grace ran out leave W; then the round
-        deadline (nothing happens before it, or without ``round_timeout``).
-
-        At the deadline, if nobody answered, the chief keeps waiting (it may be cut off from everyone). If at
-        least ⌈quorum·|W|⌉ members answered, the round closes with them and the others stay in W as
-        stragglers. Otherwise the silent members leave W and the round closes with the answers it has.
-        """
+        deadline's rule (docs/protocol.md, "Reliability": nobody answered, keep waiting; a quorum answered,
+        close with them; else the silent members leave W and the round closes with what it has)."""
         self._start_clock(now)
         step = ChiefStep()
         gone = sorted_workers(w for w, t in self.state.suspects.items() if t <= now)
         for worker in gone:
             del self.state.suspects[worker]
         if gone:
-            step = self._drop([w for w in gone if w in self.state.members], OFFLINE_DROP) + self._maybe_close(
-                now
-            )
+            step = self._drop([w for w in gone if w in self.state.members], OFFLINE_DROP)
+            step += self._maybe_close(now)
         due = self._waits.deadline(self._opened_at)
         if self.finished or due is None or now < due or not self._pending:
             return step
@@ -305,10 +282,9 @@ class Chief:
         return step + self._drop(sorted_workers(leave), DEADLINE_DROP) + self._close_round(now)
 
     def _join(self, message: Message, now: float) -> ChiefStep:
-        """Check a worker's shared settings: refuse it (until a join that matches) if one differs. A worker
-        new to the run whose settings match is one of its workers from now on, welcomed at once. A restarted
-        process of a known worker that will not replay the open round (its join names the round it resumes
-        at, 0 for none) is not waited for in that round's later exchanges: it joins the fleet's next round."""
+        """Refuse a worker whose shared settings differ (until a join that matches); admit and welcome a new
+        one whose match. A restarted process of a known worker that will not replay the open round (its join
+        names the round it resumes at, 0: none) is not waited for in that round's later exchanges."""
         worker = message.sender
         outcome = self._gate.join(worker, message.settings)
         if outcome == "duplicate":  # a re-sent or replayed join: nothing to do
@@ -410,17 +386,9 @@ class Chief:
         elif self.state.step == 0:
             self.state.round = rnd + 1
         self._opened_at = now
-        self._snapshot_fleet_model()  # also after the last answer: the model the fleet ended with
+        if self.fleet_model is not None:  # a joining worker takes it as it now is (also after the end)
+            self.state.model = self.fleet_model.welcome(self.run_id, self.state.round, self.state.step)
         return step
-
-    def _snapshot_fleet_model(self) -> None:
-        """A joining worker takes a per-step scheme's fleet model as it now is, at the open exchange."""
-        if self.fleet_model is None:
-            return
-        self.state.model = Message(
-            "welcome", self.run_id, CHIEF_ID, self.state.round, step=self.state.step, origin=CHIEF_ID,
-            flat=self.fleet_model.snapshot(),
-        )  # fmt: skip
 
     def _end(self, reason: str) -> ChiefStep:
         self.state.end_reason = reason

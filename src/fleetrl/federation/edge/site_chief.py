@@ -160,7 +160,8 @@ class SiteChief(Chief):
         else:
             self.state.round, self.state.step = answer.round, answer.step + 1
         self._opened_at = now
-        self._snapshot_fleet_model()
+        if self.fleet_model is not None:  # a joining worker takes it as it now is
+            self.state.model = self.fleet_model.welcome(self.run_id, self.state.round, self.state.step)
         event = ChiefEvent(
             "averaged", answer.round, answered=closed.answered, averaged=behind, late=closed.late,
             detail="the root's answer", remaining=self.members, scores=closed.scores,

@@ -10,6 +10,7 @@ from collections.abc import Callable
 from typing import Any
 
 from fleetrl.federation.events import RoundEvent, Sent, WorkerEvent
+from fleetrl.federation.plan import WorkerPlan
 from fleetrl.federation.shared_settings import settings_difference
 from fleetrl.federation.wire.messages import Message
 from fleetrl.federation.worker import actions
@@ -31,9 +32,9 @@ class AsyncWorkerMachine(WorkerMachine):
 
     current_model = True
 
-    def __init__(self, **options: Any) -> None:
+    def __init__(self, plan: WorkerPlan, **options: Any) -> None:
         """Prepare the machine; nothing happens before :meth:`start`."""
-        super().__init__(**options)
+        super().__init__(plan, **options)
         self.model_version = -1  # no fleet model taken yet
         self.newest: Message | None = None
         """the newest fleet model seen and not yet taken (taken before the next round)"""
@@ -61,7 +62,7 @@ class AsyncWorkerMachine(WorkerMachine):
         why = settings_difference(welcome.settings, self.settings) if welcome.settings else None
         if why is not None:
             return self._refused(why)
-        resume = resume_round(self.start_round, welcome.round, self.worker_id)
+        resume = resume_round(self.plan.start_round, welcome.round, self.worker_id)
         self._config = dict(welcome.config)
         log.info(
             "worker %s: welcomed at round %d (fleet model version %d)", self.worker_id, welcome.round,
@@ -95,7 +96,7 @@ class AsyncWorkerMachine(WorkerMachine):
         contributed = reply.origin == self.worker_id and self.worker_id in reply.contributors
         event: RoundEvent = WorkerEvent.LATE
         if contributed:
-            event = WorkerEvent.COMPLETED if self._outcome.completed else Sent(self.round_message)
+            event = WorkerEvent.COMPLETED if self._outcome.completed else Sent(self.plan.scheme.round_message)
         return self._round_over(self._outcome, reply, event, None, self.worker_id in reply.finished)
 
     def _between(self, message: Message, now: float) -> WorkerStep:

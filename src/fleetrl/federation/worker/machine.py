@@ -16,10 +16,10 @@ import numpy as np
 
 from fleetrl.agent.round_result import interrupted_round
 from fleetrl.federation.events import RoundEvent, Sent, WorkerEvent
-from fleetrl.federation.schemes import Scheme
-from fleetrl.federation.shared_settings import SharedSettings, settings_difference
-from fleetrl.federation.wire.messages import Layout, Message, MessageRejected, RoundConfig, decode, encode
-from fleetrl.federation.wire.signing import FleetKey, parse_status, status_payload
+from fleetrl.federation.plan import WorkerPlan
+from fleetrl.federation.shared_settings import settings_difference
+from fleetrl.federation.wire.messages import Message, MessageRejected, RoundConfig, decode, encode
+from fleetrl.federation.wire.signing import FleetKey, status_payload
 from fleetrl.federation.wire.topics import CHIEF_ID, ONLINE, chief_topic, status_topic, worker_topic
 from fleetrl.federation.worker import actions
 from fleetrl.federation.worker.actions import (
@@ -31,42 +31,24 @@ from fleetrl.federation.worker.actions import (
     answer_for,
     resume_round,
 )
+from fleetrl.federation.worker.chief_watch import ChiefWatch
 from fleetrl.federation.worker.phase import NOTHING, QUEUED, Phase, Wait
 
 if TYPE_CHECKING:  # the learner (and torch) is not imported by the pure machine
     from fleetrl.agent.round_result import RoundResult
 
-__all__ = ["ENDED_GRACE", "WorkerMachine"]
+__all__ = ["WorkerMachine"]
 
 log = logging.getLogger(__name__)
-
-ENDED_GRACE = 30.0
-"""seconds a worker waiting for its welcome gives a new chief of a run whose chief's status says it ended
-(a run id used again: the new chief's ``online`` replaces the retained ``ended``)"""
 
 
 class WorkerMachine:
     """Algorithm 2 for one worker, without its learner or its transport.
 
-    :param run_id: the run (validated by the caller).
-    :param worker_id: this worker's id.
-    :param max_rounds: M.
-    :param layout: what the scheme shares of the agent (``scheme.layout(agent)``).
-    :param welcome_layout: what a welcome hands out (``scheme.welcome_layout(agent)``; default ``layout``).
-    :param scheme: the federation scheme (read for its granularity and round message).
-    :param settings: the shared settings sent in the ``join``.
+    :param plan: the run as this worker sees it (:class:`~fleetrl.federation.plan.WorkerPlan`).
     :param key: the fleet key: sign what is sent, accept only what is signed with it.
-    :param reply_timeout: seconds to wait for the chief (at start, each round, each step); None: forever.
-    :param resend_interval: seconds without an answer before re-sending; None: never.
-    :param start_round: resuming from a checkpoint: the first round the learner's state has not played.
-    :param restarted: resumed with no checkpoint to resume from: an earlier process of this worker went down
-        before its first checkpoint, in round 1 (recorded as interrupted if the fleet is past round 1's first
-        exchange when it is welcomed: what it plays then goes to a later exchange).
     :param incarnation: this process's incarnation (newer than any earlier one with the same id).
-    :param units: the units this worker carries (a unit host: U), said in every message it contributes.
-    :param steps_per_round: the exchanges of one round (a per-step scheme's K; else 1).
-    :param ended_grace: seconds to wait for a new chief once the chief's status says the run ended, before
-        giving up (:class:`~fleetrl.federation.worker.actions.RunEnded`), if no welcome came yet.
+    :param status_fields: who this process is, said in its status.
     """
 
     current_model = False
@@ -75,54 +57,24 @@ class WorkerMachine:
 
     def __init__(
         self,
+        plan: WorkerPlan,
         *,
-        run_id: str,
-        worker_id: str,
-        max_rounds: int,
-        layout: Layout,
-        scheme: Scheme,
-        welcome_layout: Layout | None = None,
-        settings: SharedSettings | None = None,
         key: FleetKey | None = None,
-        reply_timeout: float | None = 600.0,
-        resend_interval: float | None = 5.0,
-        start_round: int | None = None,
-        restarted: bool = False,
         incarnation: int = 0,
-        units: int = 1,
-        ended_grace: float = ENDED_GRACE,
         status_fields: Mapping[str, str | int] | None = None,
-        steps_per_round: int = 1,
     ) -> None:
         """Prepare the machine; nothing happens before :meth:`start`."""
-        if units < 1:
-            raise ValueError(f"a worker carries at least one unit, got units={units}")
-        self.units = units
-        self.steps_per_round = steps_per_round
-        self.run_id = run_id
-        self.worker_id = worker_id
-        self.max_rounds = max_rounds
-        self.layout: Layout = list(layout)
-        self.welcome_layout: Layout = list(layout if welcome_layout is None else welcome_layout)
-        self.round_message = scheme.round_message
-        self.settings: dict[str, str] = dict(settings or {})
+        self.plan = plan
+        self.run_id, self.worker_id, self.max_rounds = plan.run_id, plan.worker_id, plan.max_rounds
+        self.settings: dict[str, str] = dict(plan.settings or {})
         self.key = key
-        self.reply_timeout = reply_timeout
-        self.resend_interval = resend_interval
-        self.start_round = start_round
-        self.restarted = restarted
         self.incarnation = incarnation
-        self.ended_grace = ended_grace
         self.status_fields = dict(status_fields or {})
-        self.epoch = 0
-        """the highest chief epoch seen (:mod:`.chief.lease`): chief messages of an older one are ignored, and
-        every message this worker sends carries it"""
-        self._run_ended_at: float | None = None
-        """when the chief's status said ``ended`` (None: it did not, or a chief came online since)"""
-        self.chief_topic = chief_topic(run_id)
-        self.chief_status = status_topic(run_id, CHIEF_ID)
-        self.own_status = status_topic(run_id, worker_id)
-        self.topic = worker_topic(run_id, worker_id)
+        self.chief = ChiefWatch(plan, key)
+        self.chief_topic = chief_topic(plan.run_id)
+        self.chief_status = status_topic(plan.run_id, CHIEF_ID)
+        self.own_status = status_topic(plan.run_id, plan.worker_id)
+        self.topic = worker_topic(plan.run_id, plan.worker_id)
         self.phase = Phase.NEW
         self.round = 0
         """the round being played (or waited for)"""
@@ -148,7 +100,7 @@ class WorkerMachine:
         self.phase = Phase.WELCOME
         # the round it resumes at (0: none): a per-step chief waits in the open round only for one that
         # replays it
-        rnd = 0 if self.start_round is None else self.start_round
+        rnd = 0 if self.plan.start_round is None else self.plan.start_round
         join = Message("join", self.run_id, self.worker_id, rnd, settings=self.settings)
         online = WorkerStep((actions.Announce(self.own_status, self.status(ONLINE)),))
         welcome = "the chief's welcome"
@@ -161,52 +113,24 @@ class WorkerMachine:
     def receive_bytes(self, topic: str, payload: bytes, *, now: float) -> WorkerStep:
         """A payload from the chief's topic or its status topic."""
         if topic == self.chief_status:
-            return self._chief_status(payload, now)
+            self.chief.status(payload, now=now, welcoming=self.phase is Phase.WELCOME)
+            return NOTHING
         try:
             message = decode(
-                payload, run_id=self.run_id, known_senders=(CHIEF_ID,), layout=self.layout, key=self.key,
-                layouts={"welcome": self.welcome_layout, "done": self.welcome_layout},
+                payload, run_id=self.run_id, known_senders=(CHIEF_ID,), layout=self.plan.layout, key=self.key,
+                layouts=dict.fromkeys(("welcome", "done"), self.plan.welcome_layout or self.plan.layout),
             )  # fmt: skip
         except MessageRejected as exc:
             log.warning("worker %s: rejected a chief message: %s", self.worker_id, exc)
             return NOTHING
-        if message.epoch < self.epoch:  # a deposed chief's (or one it sent before it was replaced)
+        if message.epoch < self.chief.epoch:  # a deposed chief's (or one it sent before it was replaced)
             log.info(
                 "worker %s: ignoring %s of round %d from a chief of epoch %d (following epoch %d)",
-                self.worker_id, message.type, message.round, message.epoch, self.epoch,
+                self.worker_id, message.type, message.round, message.epoch, self.chief.epoch,
             )  # fmt: skip
             return NOTHING
-        self._follow(message.epoch, f"its {message.type} of round {message.round}")
+        self.chief.follow(message.epoch, f"its {message.type} of round {message.round}")
         return self.receive(message, now=now)
-
-    def _follow(self, epoch: int, what: str) -> None:
-        """Follow the chief of ``epoch`` from now on if it is newer than the one followed (a takeover: the
-        rounds in flight go on with the new chief, which resumed from the old one's checkpoint)."""
-        if epoch > self.epoch:
-            log.warning("worker %s: following the chief of epoch %d (%s)", self.worker_id, epoch, what)
-            self.epoch = epoch
-
-    def _chief_status(self, payload: bytes, now: float) -> WorkerStep:
-        """The chief's status: ``offline`` is logged; ``ended`` before the welcome starts the grace after
-        which this worker gives up (a run that is over); ``online`` ends that grace (the run's new chief)."""
-        try:
-            status = parse_status(payload, run_id=self.run_id, node=CHIEF_ID, key=self.key)
-        except MessageRejected as exc:
-            log.warning("worker %s: rejected the chief's status: %s", self.worker_id, exc)
-            return NOTHING
-        if (epoch := status.number("epoch")) is not None:
-            self._follow(epoch, f"its status says {status.state}")
-        if status.state == "online":
-            self._run_ended_at = None
-        elif status.state == "offline":
-            log.warning("worker %s: the chief went offline; waiting", self.worker_id)
-        elif self.phase is Phase.WELCOME and self._run_ended_at is None:
-            self._run_ended_at = now
-            log.warning(
-                "worker %s: the chief of run %r says the run has ended; waiting %g s for a new chief of it",
-                self.worker_id, self.run_id, self.ended_grace,
-            )  # fmt: skip
-        return NOTHING
 
     def receive(self, message: Message, *, now: float) -> WorkerStep:
         """A decoded chief message (a ``done`` that carries the fleet's final model: taken before the end)."""
@@ -231,7 +155,7 @@ class WorkerMachine:
         """Time passed with nothing received: re-send, time out, or (catching up) nothing more is queued."""
         if self.phase in QUEUED:
             return self._queue_read(now)
-        if (over := self._run_over_at()) is not None and now >= over:
+        if (over := self._gives_up_at()) is not None and now >= over:
             return self._run_ended()
         wait = self._wait
         if wait is None:
@@ -241,7 +165,7 @@ class WorkerMachine:
         if wait.next_send is None or now < wait.next_send:
             return NOTHING
         log.info("worker %s: nothing yet; re-sending while waiting for %s", self.worker_id, wait.what)
-        wait.next_send = now + (self.resend_interval or 0.0)
+        wait.next_send = now + (self.plan.resend_interval or 0.0)
         out: tuple[WorkerOutput, ...] = (wait.resend,)
         if wait.resend.retain:
             out = (actions.Publish(self.own_status, self.status(ONLINE), True), *out)
@@ -253,14 +177,11 @@ class WorkerMachine:
             return -math.inf  # due at once: only what is already queued is read
         if self._wait is None:
             return None
-        times = [t for t in (self._wait.deadline, self._wait.next_send, self._run_over_at()) if t is not None]
+        times = [t for t in (self._wait.deadline, self._wait.next_send, self._gives_up_at()) if t is not None]
         return min(times, default=None)
 
-    def _run_over_at(self) -> float | None:
-        """When this worker, still unwelcomed, gives up on a run its chief said has ended (None: not due)."""
-        if self._run_ended_at is None or self.phase is not Phase.WELCOME:
-            return None
-        return self._run_ended_at + self.ended_grace
+    def _gives_up_at(self) -> float | None:
+        return self.chief.gives_up_at(welcoming=self.phase is Phase.WELCOME)
 
     @property
     def finished(self) -> bool:
@@ -279,17 +200,10 @@ class WorkerMachine:
         metrics = {"score": float(outcome.score), "wma": float(outcome.wma), "steps": float(outcome.steps)}
         finite = {k: v for k, v in metrics.items() if math.isfinite(v)}
         self._outcome, self.phase = outcome, Phase.ANSWER
-        message = Message(  # it stands for the round's transitions of this worker's one unit
-            kind,
-            self.run_id,
-            self.worker_id,
-            self.round,
-            flat=flat,
-            metrics=finite,
-            samples=int(outcome.steps),
-            model_version=self.model_version,
-            units=self.units,
-        )
+        message = Message(  # it stands for the round's transitions of this worker's units
+            kind, self.run_id, self.worker_id, self.round, flat=flat, metrics=finite,
+            samples=int(outcome.steps), model_version=self.model_version, units=self.plan.units,
+        )  # fmt: skip
         return self._send(message, self._answer_wanted(), f"the chief's answer for round {self.round}", now)
 
     def _answer_wanted(self) -> Callable[[Message], bool]:
@@ -304,11 +218,12 @@ class WorkerMachine:
         why = settings_difference(welcome.settings, self.settings) if welcome.settings else None
         if why is not None:
             return self._refused(why)
-        resume = resume_round(self.start_round, welcome.round, self.worker_id)
+        resume = resume_round(self.plan.start_round, welcome.round, self.worker_id)
         out: tuple[WorkerOutput, ...] = ()
         # joining: start from the fleet's model, or its start (origin: the chief) unless resumed with its own
         # (a chief that keeps the fleet's model hands it as it is: taken whenever rounds were missed)
-        fleet_start = welcome.origin == CHIEF_ID and self.start_round is not None and not self.current_model
+        resumed = self.plan.start_round is not None
+        fleet_start = welcome.origin == CHIEF_ID and resumed and not self.current_model
         if welcome.flat is not None and resume is None and not fleet_start:
             out = (actions.TakeParameters(welcome.flat),)
         self._config = dict(welcome.config)
@@ -326,7 +241,8 @@ class WorkerMachine:
     def went_down_in(self) -> int | None:
         """The round an earlier process of this worker went down in: the round its checkpoint was to play
         next, or round 1 for a worker restarted before its first checkpoint; None for a fresh worker."""
-        return self.start_round if self.start_round is not None else 1 if self.restarted else None
+        start = self.plan.start_round
+        return start if start is not None else 1 if self.plan.restarted else None
 
     def _round_lost(self, resume: int | None, fleet_at: tuple[int, int]) -> WorkerStep:
         """Resumed or restarted, welcomed with the fleet at exchange ``fleet_at`` (round, step), past the
@@ -371,7 +287,7 @@ class WorkerMachine:
         )
         event: RoundEvent = WorkerEvent.LATE
         if contributed:
-            event = WorkerEvent.COMPLETED if completed else Sent(self.round_message)
+            event = WorkerEvent.COMPLETED if completed else Sent(self.plan.scheme.round_message)
         return applied + self._round_over(self._outcome, reply, event, None, self.worker_id in reply.finished)
 
     def _round_over(
@@ -432,12 +348,12 @@ class WorkerMachine:
     ) -> WorkerStep:
         """Publish ``message`` on the worker topic, then wait for what ``wanted`` accepts, re-sending it."""
         log.debug("worker %s: sending %s of round %d", self.worker_id, message.type, message.round)
-        message = replace(message, epoch=self.epoch)  # so an older chief that hears it knows it was replaced
-        publish = actions.Publish(
-            self.topic, encode(message, layout=self.layout, key=self.key), retain, message
-        )
-        deadline = None if self.reply_timeout is None else now + self.reply_timeout
-        next_send = None if self.resend_interval is None else now + self.resend_interval
+        # stamped with the epoch followed, so an older chief that hears it knows it was replaced
+        message = replace(message, epoch=self.chief.epoch)
+        payload = encode(message, layout=self.plan.layout, key=self.key)
+        publish = actions.Publish(self.topic, payload, retain, message)
+        deadline = None if self.plan.reply_timeout is None else now + self.plan.reply_timeout
+        next_send = None if self.plan.resend_interval is None else now + self.plan.resend_interval
         self._wait = Wait(wanted, what, publish, deadline, next_send)
         return WorkerStep((publish,))
 
@@ -445,15 +361,15 @@ class WorkerMachine:
         self.phase, self._wait = Phase.DONE, None
         return WorkerStep((actions.TimedOut(
             f"worker {self.worker_id}: nothing from the chief of run {self.run_id!r} for "
-            f"{self.reply_timeout:g} s (--reply-timeout) while waiting for {what}"
+            f"{self.plan.reply_timeout:g} s (--reply-timeout) while waiting for {what}"
         ),))  # fmt: skip
 
     def _run_ended(self) -> WorkerStep:
         self.phase, self._wait = Phase.DONE, None
         return WorkerStep((actions.RunEnded(
             f"worker {self.worker_id}: run {self.run_id!r} had ended before this worker was welcomed (its "
-            f"chief's status says so, and no new chief of it came within {self.ended_grace:g} s); nothing to "
-            "train: start a new run under another --run-id"
+            "chief's status says so, and no new chief of it came within "
+            f"{self.plan.ended_grace:g} s); nothing to train: start a new run under another --run-id"
         ),))  # fmt: skip
 
     def _finish(self, summary: WorkerSummary) -> WorkerStep:

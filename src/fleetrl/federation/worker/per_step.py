@@ -12,6 +12,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from fleetrl.federation.events import Sent, WorkerEvent
+from fleetrl.federation.plan import WorkerPlan
 from fleetrl.federation.schemes import COMPLETED
 from fleetrl.federation.wire.messages import Message
 from fleetrl.federation.worker import actions
@@ -30,17 +31,17 @@ log = logging.getLogger(__name__)
 class StepWorkerMachine(WorkerMachine):
     """Algorithm 2 for one worker of a per-step scheme (see the module's docstring).
 
-    :param options: :class:`~fleetrl.federation.worker.machine.WorkerMachine`'s parameters (its
-        ``steps_per_round``: K, the exchanges of one round, ``scheme.exchanges_per_round(agent)``).
+    :param plan: the run as this worker sees it; its ``steps_per_round`` is K, the exchanges of one round.
+    :param options: :class:`~fleetrl.federation.worker.machine.WorkerMachine`'s other parameters.
     """
 
     current_model = True
 
-    def __init__(self, **options: Any) -> None:
+    def __init__(self, plan: WorkerPlan, **options: Any) -> None:
         """Prepare the machine; nothing happens before :meth:`start`."""
-        super().__init__(**options)
-        if self.steps_per_round < 1:
-            raise ValueError(f"steps_per_round must be >= 1, got {self.steps_per_round}")
+        super().__init__(plan, **options)
+        if self.plan.steps_per_round < 1:
+            raise ValueError(f"steps_per_round must be >= 1, got {self.plan.steps_per_round}")
         self.fleet_at = (0, 0)
         """the fleet's open exchange (round, step) as this worker knows it: every answer before it applied"""
         self.played_round = 0
@@ -83,10 +84,10 @@ class StepWorkerMachine(WorkerMachine):
         if self.phase is not Phase.COMPUTING or step != self._step:
             raise RuntimeError(f"worker {self.worker_id}: step {step} reported out of turn")
         self.phase = Phase.STEP_ANSWER
-        kind = COMPLETED if self._completed else self.round_message
+        kind = COMPLETED if self._completed else self.plan.scheme.round_message
         message = Message(
             kind, self.run_id, self.worker_id, self.round, step=step, flat=flat,
-            staleness=self.round - self.played_round, units=self.units,
+            staleness=self.round - self.played_round, units=self.plan.units,
         )  # fmt: skip
         what = f"the chief's answer for round {self.round} step {step}"
         return self._send(message, answer_for(self.round, step), what, now)
@@ -108,7 +109,7 @@ class StepWorkerMachine(WorkerMachine):
             raise RuntimeError(f"worker {self.worker_id}: round {self.round} ended without an exchange")
         if reply.type == "done":
             return self._round_over(outcome, reply, WorkerEvent.RUN_ENDED, None, True)
-        event = WorkerEvent.COMPLETED if outcome.completed else Sent(self.round_message)
+        event = WorkerEvent.COMPLETED if outcome.completed else Sent(self.plan.scheme.round_message)
         return self._round_over(outcome, reply, event, None, self.worker_id in reply.finished)
 
     # ---- the rules ----
@@ -202,7 +203,7 @@ class StepWorkerMachine(WorkerMachine):
             *self.fleet_at,
         )  # fmt: skip
         self.phase = Phase.WAIT_ROUND
-        self._wait_until = None if self.reply_timeout is None else now + self.reply_timeout
+        self._wait_until = None if self.plan.reply_timeout is None else now + self.plan.reply_timeout
         return NOTHING
 
     def _join(self) -> WorkerStep:
@@ -221,7 +222,7 @@ class StepWorkerMachine(WorkerMachine):
 
     def _after(self, answer: Message) -> tuple[int, int]:
         """The exchange that follows ``answer``'s."""
-        if answer.step + 1 < self.steps_per_round:
+        if answer.step + 1 < self.plan.steps_per_round:
             return (answer.round, answer.step + 1)
         return (answer.round + 1, 0)
 

@@ -12,11 +12,10 @@ from collections import deque
 from collections.abc import Callable, Mapping
 
 from fleetrl.federation.kinds import kind_of
-from fleetrl.federation.schemes import Scheme, resolve_scheme
-from fleetrl.federation.shared_settings import SettingsRefused, SharedSettings
-from fleetrl.federation.wire.messages import Layout
+from fleetrl.federation.plan import WorkerPlan
+from fleetrl.federation.shared_settings import SettingsRefused
 from fleetrl.federation.wire.signing import FleetKey
-from fleetrl.federation.wire.topics import OFFLINE, validate_id, validate_worker_id
+from fleetrl.federation.wire.topics import OFFLINE
 from fleetrl.federation.worker.actions import (
     Announce,
     Checkpoint,
@@ -34,7 +33,6 @@ from fleetrl.federation.worker.actions import (
     WorkerOutput,
     WorkerSummary,
 )
-from fleetrl.federation.worker.machine import ENDED_GRACE
 from fleetrl.transport.base import Transport, Will
 
 __all__ = ["FederatedRound", "FederatedWorker", "RoundPlayer", "WorkerSummary"]
@@ -48,37 +46,19 @@ MIN_WAIT = 0.001
 class FederatedWorker:
     """Algorithm 2 for one worker, talking to the chief only through ``transport``.
 
-    :param learner: plays rounds; its ``agent`` exposes the actor (see :class:`RoundPlayer`).
+    :param learner: plays rounds; its ``agent`` exposes the actor (see :class:`RoundPlayer`). If the plan's
+        scheme ``stays_after_completion``, it must keep learning after its criterion holds.
     :param transport: an unconnected transport; :meth:`run` connects it (with an ``offline`` last will) and
         closes it.
-    :param run_id: the run.
-    :param worker_id: this worker's id (a topic level; not ``chief``).
-    :param max_rounds: M.
-    :param on_record: called with every :class:`FederatedRound`.
-    :param reply_timeout: seconds to wait for the chief (at start, and each round); None waits forever.
-    :param resend_interval: seconds without an answer after which the round's message (or, before the
-        welcome, the ``online`` status) is sent again; None never re-sends.
+    :param plan: the run as this worker sees it (:class:`~fleetrl.federation.plan.WorkerPlan`, built for
+        ``learner.agent``; its ``start_round`` resumes from a checkpoint: docs/protocol.md, "Checkpoints and
+        resume"). A ``welcome`` carrying other settings, or the chief's ``refused``, raises
+        :class:`~fleetrl.federation.shared_settings.SettingsRefused`.
     :param key: the fleet key: sign what is sent, accept only what is signed with it.
-    :param start_round: resuming from a checkpoint: the first round the learner's state has not played. A
-        ``welcome`` for that round or the next keeps the state as it is and plays that round (see
-        docs/protocol.md, "Checkpoints and resume"); a later one means rounds were missed while down, and the
-        worker rejoins like a fresh one; an earlier one is an error (the chief lost rounds).
-    :param restarted: resumed with no checkpoint to resume from (it went down before its first one): round
-        1 is recorded as interrupted if the fleet went on without it.
+    :param on_record: called with every :class:`FederatedRound`.
     :param on_round_done: called with the next round to play after each round's answer was applied and
         before that round starts (the moment to checkpoint the learner).
-    :param scheme: the federation scheme (or its name); the chief's must be the same. If it
-        ``stays_after_completion`` the learner must keep learning after its criterion holds
-        (``Learner.keep_learning``).
-    :param settings: this worker's shared settings (:mod:`fleetrl.federation.shared_settings`), sent in its
-        ``join``; a ``welcome`` carrying others, or the chief's ``refused``, raises
-        :class:`~fleetrl.federation.shared_settings.SettingsRefused`.
     :param clock: the time source handed to the state machine (seconds).
-    :param units: the units the learner plays (a unit host: U), said in every message it contributes; the
-        chief weighs its answers by them.
-    :param ended_grace: seconds to wait, unwelcomed, for a new chief once the chief's retained status says
-        the run has ended; then :meth:`run` raises
-        :class:`~fleetrl.federation.worker.actions.RunEndedError`.
     :param status_fields: who this process is (pid, host, keep-alive: :func:`~.chief.lease.holder_fields`),
         said in its status so a second process with its id is refused naming it.
     """
@@ -87,57 +67,25 @@ class FederatedWorker:
         self,
         learner: RoundPlayer,
         transport: Transport,
+        plan: WorkerPlan,
         *,
-        run_id: str,
-        worker_id: str,
-        max_rounds: int,
-        on_record: Callable[[FederatedRound], None] | None = None,
-        reply_timeout: float | None = 600.0,
-        resend_interval: float | None = 5.0,
         key: FleetKey | None = None,
-        start_round: int | None = None,
-        restarted: bool = False,
+        on_record: Callable[[FederatedRound], None] | None = None,
         on_round_done: Callable[[int], None] | None = None,
-        scheme: str | Scheme,
-        settings: SharedSettings | None = None,
         clock: Callable[[], float] = time.monotonic,
-        units: int = 1,
-        ended_grace: float = ENDED_GRACE,
         status_fields: Mapping[str, str | int] | None = None,
     ) -> None:
         """Prepare the worker; nothing is sent before :meth:`run`."""
         self.learner = learner
         self.transport = transport
-        self.run_id = validate_id(run_id, "run id")
-        self.worker_id = validate_worker_id(worker_id)
-        self.max_rounds = max_rounds
+        self.plan = plan
+        self.run_id, self.worker_id, self.scheme = plan.run_id, plan.worker_id, plan.scheme
         self.on_record = on_record
-        self.key = key
         self.on_round_done = on_round_done
         self.clock = clock
-        self.scheme = resolve_scheme(scheme)
-        self.layout: Layout = list(self.scheme.layout(learner.agent))
-        kind = kind_of(self.scheme)
-        self.machine = kind.machine(
-            scheme=self.scheme,
-            steps_per_round=self.scheme.exchanges_per_round(learner.agent),
-            run_id=self.run_id,
-            worker_id=self.worker_id,
-            max_rounds=max_rounds,
-            layout=self.layout,
-            welcome_layout=self.scheme.welcome_layout(learner.agent),
-            settings=settings,
-            key=key,
-            reply_timeout=reply_timeout,
-            resend_interval=resend_interval,
-            start_round=start_round,
-            restarted=restarted,
-            incarnation=time.time_ns(),
-            units=units,
-            ended_grace=ended_grace,
-            status_fields=status_fields,
-        )
-        self.play = kind.play(self.scheme, learner, self.machine, clock)
+        kind = kind_of(plan.scheme)
+        self.machine = kind.machine(plan, key=key, incarnation=time.time_ns(), status_fields=status_fields)
+        self.play = kind.play(plan.scheme, learner, self.machine, clock)
         self._queue: deque[WorkerOutput] = deque()
 
     def run(self) -> WorkerSummary:
