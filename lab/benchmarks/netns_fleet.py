@@ -45,9 +45,9 @@ SUBNET = "10.77.0"
 PORT = 1883
 STAMP = r"(\d{4}-\d\d-\d\d \d\d:\d\d:\d\d,\d{3})"
 SENT = re.compile(
-    STAMP + r" DEBUG fleetrl\.federation\.worker_machine: worker (\d+): sending (?!join )\w+ of round (\d+)"
+    STAMP + r" DEBUG fleetrl\.federation\.worker\.machine: worker (\d+): sending (?!join )\w+ of round (\d+)"
 )
-APPLIED = re.compile(STAMP + r" INFO fleetrl\.federation\.worker_machine: worker (\d+) round (\d+): ")
+APPLIED = re.compile(STAMP + r" INFO fleetrl\.federation\.worker\.machine: worker (\d+) round (\d+): ")
 FLEETRL = [sys.executable, "-m", "fleetrl.cli.main", "-v"]
 """a fleetrl role, its DEBUG log on (the measurements read it)"""
 

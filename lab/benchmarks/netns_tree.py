@@ -70,7 +70,7 @@ from netns_fleet import (
 from one_policy import MUTATIONS, compare, load
 
 ROOT_RUN, SITE_RUN, SITE_ID = "tree", "tree-site", "0"
-EDGE = r" INFO fleetrl\.federation\.edge_runner: site \S+: round (\d+): "
+EDGE = r" INFO fleetrl\.federation\.edge\.runner: site \S+: round (\d+): "
 FORWARDED = re.compile(STAMP + EDGE + r".* to the root \(step (\d+), (\d+) units")
 ANSWERED = re.compile(STAMP + EDGE + r".*\(the root's answer\)")
 
