@@ -49,6 +49,11 @@ def exchange_payloads(
     ]
 
 
+def kept_model(learning: LearningSettings, run_id: str = RUN) -> Any:
+    """The fleet's model the chief of ``learning`` (run ``run_id``) keeps."""
+    return chief_plan(learning, RoundRules(quorum=1.0), run_id=run_id, workers=("0",))[1]["fleet_model"]
+
+
 def measure(env: str, members: int, exchanges: int) -> dict[str, float]:
     """The chief's CPU seconds per exchange (median) and the bytes in and out of one exchange."""
     learning = resolve_learning(
@@ -121,8 +126,3 @@ def main() -> int:
 
 if __name__ == "__main__":
     raise SystemExit(main())
-
-
-def kept_model(learning: LearningSettings) -> Any:
-    """The fleet's model the chief of ``learning`` keeps."""
-    return chief_plan(learning, RoundRules(quorum=1.0), run_id=RUN, workers=("0",))[1]["fleet_model"]

@@ -23,15 +23,14 @@ import time
 from typing import Any
 
 import numpy as np
-from chief_scale import exchange_payloads
+from chief_scale import exchange_payloads, kept_model
 
 from fleetrl.federation.chief.machine import Chief
 from fleetrl.federation.edge.aggregator import EdgeAggregator
 from fleetrl.federation.plan import ChiefPlan
 from fleetrl.federation.wire.messages import Message, encode
 from fleetrl.portable import host_cpu
-from fleetrl.runs.launch import chief_plan
-from fleetrl.runs.settings import LearningSettings, RoundRules, fleet_shape, resolve_learning
+from fleetrl.runs.settings import LearningSettings, fleet_shape, resolve_learning
 
 RUN, ROOT = "scale", "root"
 
@@ -45,7 +44,7 @@ def aggregator_exchange(env: str, members: int, exchanges: int) -> dict[str, flo
     learning = learning_of(env)
     shape, model = (
         fleet_shape(learning),
-        kept_model(learning),
+        kept_model(learning, ROOT),
     )
     assert model is not None
     edge = EdgeAggregator(
@@ -103,9 +102,7 @@ def root_exchange(env: str, sites: int, units: int, exchanges: int) -> dict[str,
             steps_per_round=shape.exchanges_per_round,
             quorum=1.0,
         ),
-        fleet_model=chief_plan(learning, RoundRules(quorum=1.0), run_id=ROOT, workers=("0",))[1][
-            "fleet_model"
-        ],
+        fleet_model=kept_model(learning, ROOT),
     )
     times, now, bytes_in, bytes_out = [], 0.0, 0, 0
     rng = np.random.default_rng(0)
@@ -186,8 +183,3 @@ def main() -> int:
 
 if __name__ == "__main__":
     raise SystemExit(main())
-
-
-def kept_model(learning: LearningSettings) -> Any:
-    """The fleet's model the chief of ``learning`` keeps."""
-    return chief_plan(learning, RoundRules(quorum=1.0), run_id=ROOT, workers=("0",))[1]["fleet_model"]
