@@ -16,6 +16,15 @@ CriticLoss = Literal["abs", "huber"]
 TrajectoryMemoryKind = Literal["ring", "per_round"]
 Optimisers = Literal["per_model", "one_sequential"]
 Criterion = Literal["sampled", "argmax"]
+OwnPart = Literal["none", "input", "heads", "biases"]
+
+OWN_PART_NAMES: dict[str, tuple[str, ...]] = {
+    "none": (),
+    "input": ("trunk.0.bias",),
+    "heads": ("policy.weight", "policy.bias", "value.weight", "value.bias"),
+    "biases": ("trunk.*.bias", "policy.bias", "value.bias"),
+}
+"""the network parameters each ``own_part`` gives a unit its own offset of (``*``: every trunk layer)"""
 
 
 @dataclass
@@ -78,6 +87,12 @@ class PPOConfig:
     on until one falls short; the WMA counts those episodes, so completion says the deployed policy held
     the target. The two prove different things: compare runs of one criterion only (docs/algorithm.md,
     "Completion criteria"). 'argmax' needs ``trajectory_memory='ring'``"""
+
+    own_part: OwnPart = "none"
+    """a unit's own part of the policy (:mod:`fleetrl.agent.network`): an offset of its own added to these
+    shared parameters, learned from its own gradient alone and never sent: 'input' the first layer's bias
+    (an embedding of the unit's dynamics), 'heads' the actor and critic heads, 'biases' every bias; 'none':
+    one policy for every unit"""
 
     def to_dict(self) -> dict[str, Any]:
         """Plain JSON-ready dict (``hidden`` as a list)."""

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import fnmatch
 import itertools
 import math
 
@@ -10,7 +11,7 @@ from torch import nn
 from torch.nn import functional
 
 from fleetrl.agent.action_space import ActionSpace, as_action_space
-from fleetrl.agent.config import PPOConfig
+from fleetrl.agent.config import OWN_PART_NAMES, PPOConfig
 
 INITIAL_LOG_STD = 0.0
 """the Gaussian head's log-std at initialisation, in units of half the action range: σ starts at
@@ -36,6 +37,8 @@ class ActorCritic(nn.Module):
     :param hidden: widths of the trunk layers
     :param activation: ``tanh`` or ``relu`` after each trunk layer
     :param generator: torch generator used for the (orthogonal) initialisation
+    :param own: the parameters the unit holds an offset of its own of (``own.<name with _ for .>``, zeros at
+        the start, added to the shared value in every pass; ``PPOConfig.own_part``)
     """
 
     def __init__(
@@ -45,6 +48,7 @@ class ActorCritic(nn.Module):
         hidden: tuple[int, ...],
         activation: str,
         generator: torch.Generator,
+        own: tuple[str, ...] = (),
     ) -> None:
         super().__init__()
         space = as_action_space(actions)
@@ -75,30 +79,56 @@ class ActorCritic(nn.Module):
         self._centre = torch.tensor(space.centre(), dtype=torch.float32)
         self._half = torch.tensor(space.half_range(), dtype=torch.float32)
         self._act = torch.tanh if activation == "tanh" else torch.relu
+        shared = dict(self.named_parameters())
+        names = [n for pattern in own for n in shared if fnmatch.fnmatchcase(n, pattern)]
+        self.own = nn.ParameterDict({own_key(n): nn.Parameter(torch.zeros_like(shared[n])) for n in names})
+        """the unit's own offsets, by :func:`own_key` of the parameter they add to"""
 
     @classmethod
     def from_config(
         cls, obs_dim: int, actions: int | ActionSpace, config: PPOConfig, generator: torch.Generator
     ) -> ActorCritic:
         """Build the network a config describes."""
-        return cls(obs_dim, actions, config.hidden, config.activation, generator)
+        own = OWN_PART_NAMES[config.own_part]
+        return cls(obs_dim, actions, config.hidden, config.activation, generator, own)
 
     def features(self, obs: torch.Tensor) -> torch.Tensor:
         """Output of the shared trunk (the three hidden layers)."""
         x = obs
-        for layer in self.trunk_layers:
-            x = self._act(layer(x))
+        for i, layer in enumerate(self.trunk_layers):
+            x = self._act(self._pass(f"trunk.{i}", layer, x))
         return x
 
     def forward(self, obs: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
         """The actor head's output (batch, head_size): logits of π_θ(·|s), or the Gaussian mean in units
         of the box (see :meth:`gaussian`); and V_μ(s) (batch,)."""
         h = self.features(obs)
-        return self.policy(h), self.value(h).squeeze(-1)
+        return self._pass("policy", self.policy, h), self._pass("value", self.value, h).squeeze(-1)
 
     def value_of(self, obs: torch.Tensor) -> torch.Tensor:
         """V_μ(s) alone (batch,)."""
-        return self.value(self.features(obs)).squeeze(-1)
+        return self._pass("value", self.value, self.features(obs)).squeeze(-1)
+
+    def _pass(self, name: str, layer: nn.Linear, x: torch.Tensor) -> torch.Tensor:
+        if not self.own:
+            return layer(x)
+        weight, bias = self.effective(name)
+        return functional.linear(x, weight, bias)
+
+    def effective(self, layer: str) -> tuple[torch.Tensor, torch.Tensor]:
+        """The weight and bias of ``layer`` (``trunk.0``, ``policy``, ``value``) this unit acts with: the
+        shared values plus its own offsets."""
+        module = self.get_submodule(layer)
+        weight, bias = module.weight, module.bias
+        own_weight, own_bias = (self.own.get(own_key(f"{layer}.{p}")) for p in ("weight", "bias"))
+        return (
+            weight if own_weight is None else weight + own_weight,
+            bias if own_bias is None else bias + own_bias,
+        )
+
+    def own_parameters(self, names: list[str]) -> list[tuple[str, nn.Parameter]]:
+        """The unit's own offsets of the parameters ``names`` that have one, in their order."""
+        return [(f"own.{own_key(n)}", self.own[own_key(n)]) for n in names if own_key(n) in self.own]
 
     def gaussian(self, head: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
         """Mean (batch, dim) and log σ (dim,) of π_θ(·|s) in the env's units, from the head's output."""
@@ -142,6 +172,11 @@ class ActorCritic(nn.Module):
         if head == "policy" and self.policy_log_std is not None:
             named.append(("policy_log_std", self.policy_log_std))
         return named
+
+
+def own_key(name: str) -> str:
+    """The key of parameter ``name``'s own offset (``trunk.0.bias`` → ``trunk_0_bias``)."""
+    return name.replace(".", "_")
 
 
 def _init(layer: nn.Linear, gain: float, generator: torch.Generator) -> None:

@@ -17,7 +17,8 @@ SLOTS = ("exp_avg", "exp_avg_sq", "step")
 
 
 def _params(optimiser: torch.optim.Optimizer) -> list[torch.Tensor]:
-    return [p for group in optimiser.param_groups for p in group["params"]]
+    """The shared parameters (a unit's own offsets, in a group marked ``own``, stay with the unit)."""
+    return [p for group in optimiser.param_groups if not group.get("own") for p in group["params"]]
 
 
 def optimiser_layout(optimisers: Mapping[str, torch.optim.Optimizer]) -> Layout:

@@ -55,7 +55,7 @@ def read_policy_file(path: str | Path) -> PolicyFile:
         raise CheckpointError(f"{path}: fleetrl metadata is incomplete or invalid ({exc})") from exc
     if obs_dim < 1 or not hidden or min(hidden) < 1 or activation not in ACTIVATIONS:
         raise CheckpointError(f"{path}: fleetrl metadata describes no network this version builds: {arch}")
-    check_tensors_fit(tensors, network_shapes(obs_dim, hidden, space), str(path))
+    tensors = fold_own(tensors, network_shapes(obs_dim, hidden, space), str(path))
     names = [f"trunk.{i}" for i in range(len(hidden))] + ["policy"]
     layers = tuple(_layer(tensors, name) for name in names)
     log_std = None if space.is_discrete else np.asarray(tensors["policy_log_std"], dtype=np.float32)
@@ -79,6 +79,23 @@ def network_shapes(obs_dim: int, hidden: list[int], space: ActionSpace) -> dict[
     shapes["value.weight"] = (1, widths[-1])
     shapes["value.bias"] = (1,)
     return shapes
+
+
+def fold_own(
+    tensors: dict[str, Any], shapes: dict[str, tuple[int, ...]], source: str
+) -> dict[str, np.ndarray]:
+    """The network's tensors with a unit's own offsets (``own.<name with _ for .>``) added to the shared
+    values: the policy that unit acts with. CheckpointError if a tensor does not fit ``shapes``."""
+    own = {k: v for k, v in tensors.items() if k.startswith("own.")}
+    shared = {k: v for k, v in tensors.items() if k not in own}
+    check_tensors_fit(shared, shapes, source)
+    folded = {k: np.asarray(v, dtype=np.float32) for k, v in shared.items()}
+    for key, offset in own.items():
+        name = key.removeprefix("own.").replace("_", ".")
+        if name not in shapes or tuple(np.shape(offset)) != shapes[name]:
+            raise CheckpointError(f"{source}: {key} is no offset of a parameter of this network")
+        folded[name] = folded[name] + np.asarray(offset, dtype=np.float32)
+    return folded
 
 
 def _layer(tensors: dict[str, Any], name: str) -> Layer:

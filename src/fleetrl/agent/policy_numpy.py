@@ -186,9 +186,10 @@ class NumpyPolicy:
         self._biases = np.zeros((n_layers, width), dtype=np.float64)
 
     def refresh(self, net: ActorCritic) -> None:
-        """Copy the current trunk and policy-head weights out of ``net``."""
-        layers = [*net.trunk_layers, net.policy]
-        arrays = [(lin.weight.detach().cpu().numpy(), lin.bias.detach().cpu().numpy()) for lin in layers]
+        """Copy the current trunk and policy-head weights out of ``net`` (with the unit's own offsets)."""
+        names = [*(f"trunk.{i}" for i in range(len(net.trunk_layers))), "policy"]
+        effective = [net.effective(name) for name in names]
+        arrays = [(w.detach().cpu().numpy(), b.detach().cpu().numpy()) for w, b in effective]
         log_std = None if net.policy_log_std is None else net.policy_log_std.detach().cpu().numpy()
         self._load(arrays, log_std)
 

@@ -38,6 +38,15 @@ from fleetrl.agent.variants import choose_variants
 __all__ = ["PPOAgent", "UpdateStats"]
 
 
+def adam(shared: Named, own: Named, lr: float) -> torch.optim.Adam:
+    """Adam over ``shared`` parameters and, in a second group marked ``own`` (its state never leaves the
+    unit: :mod:`.optimiser_flat`), the unit's own offsets."""
+    groups: list[dict[str, Any]] = [{"params": [p for _, p in shared]}]
+    if own:
+        groups.append({"params": [p for _, p in own], "own": True})
+    return torch.optim.Adam(groups, lr=lr)
+
+
 class PPOAgent:
     """Actor-Critic PPO with a shared trunk; θ = trunk + policy head, μ = trunk + value head. The actor head
     is a softmax over ``n`` discrete actions, or for a box a Gaussian whose samples the env receives clipped
@@ -65,18 +74,26 @@ class PPOAgent:
         streams = [np.random.SeedSequence(s).spawn(2) for s in self.seeds]
         self._act_rngs = [np.random.default_rng(act) for act, _ in streams]
         self._window_rngs = [np.random.default_rng(window) for _, window in streams]
+        if config.own_part != "none" and len(self.seeds) > 1:
+            raise ValueError(f"own_part {config.own_part!r} is a unit's own: an agent of one unit only")
         generator = torch.Generator().manual_seed(self.seed)
         self.net = ActorCritic.from_config(obs_dim, self.action_space, config, generator)
         trunk = self.net.trunk_parameters()
         # θ: the actor model — the shared trunk and the actor head (softmax, or Gaussian mean and log-std);
-        # this is what the federation shares. μ: the critic model — the trunk and the value head.
+        # this is what the federation shares. μ: the critic model — the trunk and the value head. Each
+        # optimiser also steps the unit's own offsets of its parameters, which are never shared.
         self._actor_named = trunk + self.net.head_parameters("policy")
         self._critic_named = trunk + self.net.head_parameters("value")
+        self._actor_own = self.net.own_parameters([name for name, _ in self._actor_named])
+        self._critic_own = self.net.own_parameters([name for name, _ in self._critic_named])
+        actor_all = [p for _, p in self._actor_named + self._actor_own]
+        critic_all = [p for _, p in self._critic_named + self._critic_own]
         if config.optimisers == "per_model":
-            self.actor_optimizer = torch.optim.Adam([p for _, p in self._actor_named], lr=config.actor_lr)
-            self.critic_optimizer = torch.optim.Adam([p for _, p in self._critic_named], lr=config.critic_lr)
+            self.actor_optimizer = adam(self._actor_named, self._actor_own, config.actor_lr)
+            self.critic_optimizer = adam(self._critic_named, self._critic_own, config.critic_lr)
         else:  # one Adam over the whole network: each step moves only the parameters given a gradient
-            shared = torch.optim.Adam([p for _, p in self._model_named()], lr=config.actor_lr)
+            own = [(f"own.{key}", p) for key, p in self.net.own.items()]
+            shared = adam(self._model_named(), own, config.actor_lr)
             self.actor_optimizer = self.critic_optimizer = shared
         grows, dim = config.trajectory_memory == "per_round", self.action_space.dim
         self._memories = [TrajectoryMemory(config.memory_size, obs_dim, grows, dim) for _ in self.seeds]
@@ -87,9 +104,8 @@ class PPOAgent:
         self._discrete = self.action_space.is_discrete
         self._draws = UniformDraws(self._act_rngs)
         self._rows = RowActing(self._policy) if self._discrete else None
-        actor, critic = [p for _, p in self._actor_named], [p for _, p in self._critic_named]
         optimisers = (self.actor_optimizer, self.critic_optimizer)
-        self._model = Model(self.net, actor, critic, *optimisers, config, choose_variants(config))
+        self._model = Model(self.net, actor_all, critic_all, *optimisers, config, choose_variants(config))
         self._parts = self._model.variants.parts
         self._last_actor_gradient: Gradient | None = None  # line 25's: the last one the update applied
         self._exchange: StepExchange | None = None
@@ -203,7 +219,9 @@ class PPOAgent:
         parts the step moves (both with ``per_model``; the critic at even, the actor at odd steps with
         ``one_sequential``)."""
         return [
-            (f"{part}:{name}", shape) for part, named in self._step_named(k) for name, shape in layout(named)
+            (f"{part}:{name}", shape)
+            for part, named, _ in self._step_named(k)
+            for name, shape in layout(named)
         ]
 
     def begin_update(self) -> int:
@@ -211,8 +229,8 @@ class PPOAgent:
         RuntimeError if a memory is empty or an update is under way."""
         if self._exchange is not None:
             raise RuntimeError("an update is already under way: finish it with end_update()")
-        named = lambda k: [item for _, part in self._step_named(k) for item in part]  # noqa: E731
-        self._exchange = StepExchange(self.update_steps(), named, self.update_step_count())
+        parts = lambda k: [(named, own) for _, named, own in self._step_named(k)]  # noqa: E731
+        self._exchange = StepExchange(self.update_steps(), parts, self.update_step_count())
         return self._exchange.count
 
     def step_gradients(self, k: int) -> np.ndarray:
@@ -231,10 +249,10 @@ class PPOAgent:
         if self._exchange is not None:
             raise RuntimeError("an update is under way: its steps are applied with apply_step()")
         parts = self._step_named(k)
-        chunks = split(flat_grad, [item for _, named in parts for item in named], "step gradient")
+        chunks = split(flat_grad, [item for _, named, _ in parts for item in named], "step gradient")
         self._score_new_transitions()
         start = 0
-        for part, named in parts:
+        for part, named, _ in parts:  # the unit's own offsets: no gradient of theirs, not stepped
             self._model.step(part, chunks[start : start + len(named)])
             start += len(named)
         self._policy.refresh(self.net)
@@ -261,9 +279,10 @@ class PPOAgent:
             raise RuntimeError("no update under way: call begin_update() first")
         return self._exchange
 
-    def _step_named(self, k: int) -> list[tuple[str, Named]]:
-        named = {CRITIC: self._critic_named, ACTOR: self._actor_named}
-        return [(part, named[part]) for part in self._parts[k % len(self._parts)]]
+    def _step_named(self, k: int) -> list[tuple[str, Named, int]]:
+        """Each part step ``k`` moves: its name, its shared parameters and how many own offsets follow."""
+        named = {CRITIC: (self._critic_named, self._critic_own), ACTOR: (self._actor_named, self._actor_own)}
+        return [(part, named[part][0], len(named[part][1])) for part in self._parts[k % len(self._parts)]]
 
     def _score_new_transitions(self) -> None:
         """Record log π(a|s) of the acting policy for every unit's transitions stored since θ last changed."""
@@ -289,7 +308,7 @@ class PPOAgent:
         """The actor's last gradient of the round (line 25) as flat float32, in :meth:`actor_layout` order."""
         if self._last_actor_gradient is None:
             raise RuntimeError("no actor gradient yet: call update() first")
-        return flatten_tensors(self._last_actor_gradient)
+        return flatten_tensors(self._last_actor_gradient[: len(self._actor_named)])
 
     def apply_actor_gradient(self, flat: np.ndarray) -> None:
         """Line 31: update π_θ with a received (average) gradient ḡ through the actor's Adam."""

@@ -16,17 +16,18 @@ class StepExchange:
     what the fleet sends back and computes the next; its first step is computed here.
 
     :param steps: the update (``PPOAgent.update_steps``)
-    :param named: the parameters step k moves, in its flat vector's order
+    :param parts: the parts step k moves, in its gradient's order: each part's shared parameters (what the
+        flat vector holds) and how many of the unit's own offsets follow them (their gradient stays here)
     :param count: the steps the update takes
     """
 
     def __init__(
         self,
         steps: Generator[Gradient, Gradient, UpdateStats],
-        named: Callable[[int], Named],
+        parts: Callable[[int], list[tuple[Named, int]]],
         count: int,
     ) -> None:
-        self._steps, self._named, self.count = steps, named, count
+        self._steps, self._parts, self.count = steps, parts, count
         self.step = 0
         """the index of the step whose gradient is :attr:`gradient`"""
         self.taken = False
@@ -43,13 +44,18 @@ class StepExchange:
         if self.gradient is None or k != self.step:
             raise RuntimeError(f"step {k} requested, but step {self.step} of {self.count} is next")
         self.taken = True
-        return flatten_tensors(self.gradient)
+        return flatten_tensors([g for shared, _ in self._pieces(self.gradient) for g in shared])
 
     def apply(self, flat: np.ndarray) -> None:
         """Apply ``flat`` for the step handed out and compute the next step's gradient (or finish)."""
         if not self.taken:
             raise RuntimeError("no step gradient to apply: call step_gradients(k) first")
-        applied = split(flat, self._named(self.step), "step gradient")
+        named = [item for shared, _ in self._parts(self.step) for item in shared]
+        fleet = iter(split(flat, named, "step gradient"))
+        assert self.gradient is not None
+        applied = [
+            g for shared, own in self._pieces(self.gradient) for g in [next(fleet) for _ in shared] + own
+        ]
         self._advance(lambda: self._steps.send(applied))
         self.step += 1
 
@@ -63,6 +69,16 @@ class StepExchange:
         """Stop the update before its last step: the steps applied stay, nothing after them runs."""
         self._steps.close()
         self.gradient, self.taken = None, False
+
+    def _pieces(self, gradient: Gradient) -> list[tuple[Gradient, Gradient]]:
+        """``gradient`` cut into each part's shared and own tensors."""
+        pieces, at = [], 0
+        for shared, own in self._parts(self.step):
+            pieces.append(
+                (gradient[at : at + len(shared)], gradient[at + len(shared) : at + len(shared) + own])
+            )
+            at += len(shared) + own
+        return pieces
 
     def _advance(self, resume: Callable[[], Gradient]) -> None:
         self.taken = False

@@ -188,11 +188,14 @@ class Model:
     """added to each minibatch's loss (``PPOAgent.set_extra_loss``)"""
 
     def step(self, part: str, gradient: Gradient) -> None:
-        """Lines 21 / 23: one optimiser's step with ``gradient`` over its parameters."""
+        """Lines 21 / 23: one optimiser's step with ``gradient`` over its parameters (a gradient of the shared
+        ones alone leaves the unit's own offsets where they are)."""
         params, optimiser = (
             (self.actor, self.actor_optimiser) if part == ACTOR else (self.critic, self.critic_optimiser)
         )
-        for p, g in zip(params, gradient, strict=True):
+        if len(gradient) > len(params):
+            raise ValueError(f"{len(gradient)} gradient tensors for {len(params)} parameters")
+        for p, g in zip(params, gradient, strict=False):
             p.grad = g
         optimiser.step()
         for p in params:

@@ -9,13 +9,15 @@ from typing import Literal
 from fleetrl.federation.schemes.base import Scheme, StepScheme
 
 
-def host_setting_problem(per_host: int, *, mode: str, scheme: Scheme) -> str | None:
+def host_setting_problem(per_host: int, *, mode: str, scheme: Scheme, own_part: str = "none") -> str | None:
     """Why a run cannot have ``per_host`` units per host (one line, naming what to change), or None. A host
     is a worker process on a broker (``--transport mqtt``) or a thread on the in-process bus (``local``)."""
     if per_host < 1:
         return f"must be at least 1, got {per_host}"
     if per_host == 1:
         return None
+    if own_part != "none":
+        return f"own_part {own_part!r} gives each unit a part of its own: it needs a worker per unit (1)"
     if mode != "federated":
         return "a unit host is one member of a federation: it needs --mode federated"
     if not (isinstance(scheme, StepScheme) and scheme.shared_start):
@@ -45,10 +47,10 @@ def units_per_core(units: int, cores: int) -> int:
     return max(1, math.ceil(units / max(cores, 1)))
 
 
-def hosts_possible(*, mode: str, scheme: Scheme, even: bool) -> bool:
+def hosts_possible(*, mode: str, scheme: Scheme, even: bool, own_part: str = "none") -> bool:
     """Whether ``auto`` groups a run of these settings into unit hosts: an even fleet that can have them (an
     uneven unit's conditions are its own; in a host they are its host's)."""
-    return even and host_setting_problem(2, mode=mode, scheme=scheme) is None
+    return even and host_setting_problem(2, mode=mode, scheme=scheme, own_part=own_part) is None
 
 
 def auto_units_per_host(units: int, *, possible: bool, cores: int) -> int:

@@ -154,7 +154,10 @@ class ChiefSettings(RoleSettings, RoundRules):
         if self.workers < 1:
             raise SettingError(f"{label('workers')} = {self.workers}: must be at least 1")
         hosts = host_setting_problem(
-            self.units_per_host, mode="federated", scheme=learning.federation_scheme()
+            self.units_per_host,
+            mode="federated",
+            scheme=learning.federation_scheme(),
+            own_part=learning.ppo().own_part,
         )
         if hosts is not None:
             raise SettingError(f"{label('units_per_host')} = {self.units_per_host}: {hosts}")
@@ -221,7 +224,8 @@ class WorkerSettings(RoleSettings):
         """SettingError if this worker cannot be the unit host ``units`` asks for."""
         if self.units == 1:
             return
-        problem = host_setting_problem(self.units, mode="federated", scheme=learning.federation_scheme())
+        scheme, own_part = learning.federation_scheme(), learning.ppo().own_part
+        problem = host_setting_problem(self.units, mode="federated", scheme=scheme, own_part=own_part)
         if problem is None and self.resume:
             problem = "a unit host keeps no checkpoints, so it cannot --resume (restart it without)"
         if problem is None and self.unit is not None:

@@ -217,12 +217,18 @@ class RunSettings(RoundRules, BrokerLogin):
                 f"{label('link_delay')} delays the messages of a federated run: it needs --mode federated"
             )
         self.validate_device_link(learning)
+        own_part = learning.ppo().own_part
+        if own_part != "none" and self.mode != "federated":
+            raise SettingError(
+                f"own_part {own_part!r} is a unit's own part beside the fleet's shared policy: it needs "
+                "--mode federated"
+            )
         per_host = self.chosen_units_per_host(learning, uneven.even)
         scheme_of = learning.federation_scheme()
-        hosts = host_setting_problem(per_host, mode=self.mode, scheme=scheme_of)
+        hosts = host_setting_problem(per_host, mode=self.mode, scheme=scheme_of, own_part=own_part)
         if hosts is not None:
             raise SettingError(f"{label('units_per_host')} = {self.units_per_host}: {hosts}")
-        can_host = hosts_possible(mode="federated", scheme=scheme_of, even=uneven.even)
+        can_host = hosts_possible(mode="federated", scheme=scheme_of, even=uneven.even, own_part=own_part)
         memory = run_memory_problem(self.units, self.mode, self.transport, per_host, hosts_possible=can_host)
         if memory is not None:
             raise SettingError(memory)
@@ -236,7 +242,8 @@ class RunSettings(RoundRules, BrokerLogin):
         to 16 units or where the run cannot have hosts, else about one host per core)."""
         if self.units_per_host != AUTO:
             return self.units_per_host
-        possible = hosts_possible(mode=self.mode, scheme=learning.federation_scheme(), even=even)
+        scheme, own_part = learning.federation_scheme(), learning.ppo().own_part
+        possible = hosts_possible(mode=self.mode, scheme=scheme, even=even, own_part=own_part)
         return auto_units_per_host(self.units, possible=possible, cores=usable_cores())
 
     @property

@@ -1,0 +1,131 @@
+"""Each unit alone against a fleet, on (learning seed, fleet seed) pairs of one fleet profile.
+
+    python lab/benchmarks/wide_fleet.py --profile wide --pairs 100-109 [--units 3] \
+        [--arm alone --arm shared --arm NAME=FLAGS] [--records lab/records/wide-fleet] [--table-only]
+
+Pair i is learning seed i with fleet seed i. An arm is a ``fleetrl train`` run (``--transport local``, no
+live view); ``alone`` is ``--mode individual``, ``shared`` the default federated run, and ``NAME=FLAGS`` any
+other flags (e.g. ``own=--set own_head=true``). Each finished run leaves a small JSON record
+(``RECORDS/PROFILE-uU/ARM/pair-I.json``); a record present is not run again, so a sweep resumes. Prints, per
+arm: units completed, rounds per unit and the last unit's rounds (medians over pairs), the ratio alone /
+arm of each, and the time on the rigs until the last unit (median over pairs).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import shlex
+import statistics
+import subprocess
+import sys
+import tempfile
+from pathlib import Path
+
+from fleetrl.portable import describe_host
+
+BUILT_IN_ARMS = {"alone": ["--mode", "individual"], "shared": []}
+
+
+def parse_pairs(text: str) -> list[int]:
+    """``100-109`` or ``0,3,5``: the pairs' seeds."""
+    if "-" in text:
+        first, last = (int(x) for x in text.split("-"))
+        return list(range(first, last + 1))
+    return [int(x) for x in text.split(",")]
+
+
+def parse_arm(text: str) -> tuple[str, list[str]]:
+    """``alone``, ``shared`` or ``NAME=FLAGS``."""
+    if text in BUILT_IN_ARMS:
+        return text, BUILT_IN_ARMS[text]
+    name, sep, flags = text.partition("=")
+    if not sep or not name:
+        raise SystemExit(f"an arm is alone, shared or NAME=FLAGS, got {text!r}")
+    return name, shlex.split(flags)
+
+
+def run_pair(arm_flags: list[str], pair: int, profile: str, units: int, max_rounds: int) -> dict:
+    """One run; its record (per-unit rounds to complete, rig seconds, wall seconds)."""
+    with tempfile.TemporaryDirectory() as tmp:
+        out = Path(tmp) / "run"
+        command = ["fleetrl", "train", "--env", "qube", "--fleet-profile", profile, "--units", str(units),
+                   "--seed", str(pair), "--fleet-seed", str(pair), "--max-rounds", str(max_rounds),
+                   "--transport", "local", "--no-live", *arm_flags]  # fmt: skip
+        done = subprocess.run([*command, "--out", str(out)], capture_output=True, text=True, check=False)
+        if done.returncode != 0:
+            raise SystemExit(f"{shlex.join(command)} failed:\n{done.stderr[-2000:]}")
+        summary = json.loads((out / "summary.json").read_text())
+    workers = summary["workers"]
+    return {
+        "format": 1,
+        "command": shlex.join(command),
+        "host": describe_host(),
+        "rounds": [workers[str(u)]["completed_at_round"] for u in range(units)],
+        "rig_seconds": summary["rig_seconds"],
+        "wall_seconds": summary["wall_seconds"],
+    }
+
+
+def main() -> None:
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("--profile", default="wide")
+    p.add_argument("--pairs", default="100-109")
+    p.add_argument("--units", type=int, default=3)
+    p.add_argument("--max-rounds", type=int, default=1000)
+    p.add_argument("--arm", action="append", default=None)
+    p.add_argument("--records", type=Path, default=Path("lab/records/wide-fleet"))
+    p.add_argument("--table-only", action="store_true", help="print the table of the records present")
+    a = p.parse_args()
+    arms = [parse_arm(x) for x in (a.arm or ["alone", "shared"])]
+    pairs = parse_pairs(a.pairs)
+    base = a.records / f"{a.profile}-u{a.units}"
+    for name, flags in arms:
+        for pair in pairs:
+            path = base / name / f"pair-{pair}.json"
+            if path.exists() or a.table_only:
+                continue
+            record = run_pair(flags, pair, a.profile, a.units, a.max_rounds)
+            path.parent.mkdir(parents=True, exist_ok=True)
+            path.write_text(json.dumps(record, indent=1) + "\n")
+            print(f"{name} pair {pair}: rounds {record['rounds']}", file=sys.stderr, flush=True)
+    print_table(base, [name for name, _ in arms], pairs, a.profile, a.units)
+
+
+def print_table(base: Path, arms: list[str], pairs: list[int], profile: str, units: int) -> None:
+    """Medians over the pairs every arm has a record of; ratios against ``alone`` on those same pairs."""
+    records = {arm: {pair: json.loads(f.read_text()) for pair in pairs
+                     if (f := base / arm / f"pair-{pair}.json").exists()} for arm in arms}  # fmt: skip
+    common = [pair for pair in pairs if all(pair in records[arm] for arm in arms)]
+    print(f"{profile}, {units} units, pairs (learning seed = fleet seed) {common}; {describe_host()}")
+    print("| arm | units completed | rounds per unit | last unit | × per unit | × last | rigs to last (s) |")
+    print("|---|---|---|---|---|---|---|")
+    alone = _figures([records["alone"][pair] for pair in common], units) if "alone" in records else None
+    for arm in arms:
+        fig = _figures([records[arm][pair] for pair in common], units)
+        per, last = fig["per_unit"], fig["last"]
+        ratios = ("–", "–")
+        if alone is not None:
+            ratios = (f"{alone['per_unit'] / per:.2f}", f"{alone['last'] / last:.2f}")
+        print(
+            f"| {arm} | {fig['completed']}/{fig['units']} | {per:g} | {last:g} | {ratios[0]} | {ratios[1]} "
+            f"| {fig['rig_last']:.0f} |"
+        )
+
+
+def _figures(records: list[dict], units: int) -> dict:
+    """Medians: rounds per unit (every unit of every pair; an unfinished unit counts as its run's M), the
+    last unit's rounds, time on the rigs until the last unit."""
+    rounds = [[r if r is not None else 10**9 for r in rec["rounds"]] for rec in records]
+    flat = [r for run in rounds for r in run]
+    return {
+        "completed": sum(r < 10**9 for r in flat),
+        "units": len(flat),
+        "per_unit": statistics.median(flat) if flat else float("nan"),
+        "last": statistics.median(max(run) for run in rounds) if rounds else float("nan"),
+        "rig_last": statistics.median(rec["rig_seconds"]["fleet"] for rec in records) if records else 0.0,
+    }
+
+
+if __name__ == "__main__":
+    main()
