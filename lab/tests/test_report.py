@@ -113,6 +113,10 @@ def test_a_report_from_the_records_alone_runs_nothing_and_names_what_is_missing(
     section = run_plan(plan, tmp_path / "out", places, SEEDS, [seeds_line(SEEDS, 0), ""], run=False)
     assert not places.runs.exists()  # nothing was started
     assert "| each unit alone | not run yet | - |" in section
+    table = next(part for part in section.split("\n\n") if part.startswith("| arm |")).splitlines()
+    # the arms' table: a cell for each column, run or not
+    assert table[0].startswith("| arm |") and "until 50 / 90 / 100 % of the units complete" in table[0]
+    assert {line.count(" | ") for line in table[2:]} == {table[0].count(" | ")}
     assert "| fedavg | 15 (10–20) |" in section and "| 0/2 | 100–101 |" not in section
     assert "| 2/2 | 100–101 |" in section
     assert "- **each unit alone → fedavg**: not run yet; the claim" in section

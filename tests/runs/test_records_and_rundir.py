@@ -68,6 +68,7 @@ def test_recorder_writes_metrics_summary_and_plot(tmp_path) -> None:
         "rule": "nobody waits",
         "fleet": 10.2,
         "per_unit": {"0": 10.2, "1": 1.0},
+        "controlled": {"50": 10.2, "90": None, "100": None},  # 1 of 2 units completed, unit 1 never did
         "complete": False,
         "parts": {
             "0": {"played": 10.2, "reset": 0.0, "absent": 0.0, "waited": 0.0},

@@ -7,7 +7,16 @@ import pytest
 from fleetrl.devices.cartpole import CartPoleParams
 from fleetrl.devices.qube.params import QubeConfig
 from fleetrl.envs.catalog import get_env_spec
-from fleetrl.runs.rig_time import NO_BARRIER, UnitPlay, Waits, reset_seconds, rig_time, run_units, waits_of
+from fleetrl.runs.rig_time import (
+    NO_BARRIER,
+    UnitPlay,
+    Waits,
+    reset_seconds,
+    rig_time,
+    run_units,
+    units_for,
+    waits_of,
+)
 from fleetrl.runs.uneven import absences
 
 EVERYONE = Waits(barrier=True)
@@ -74,6 +83,52 @@ def test_a_unit_that_never_completed_counts_what_it_played_and_the_fleet_waits_o
         rig_time({"a": UnitPlay([1, 2, 3], 4)}, 1.0, NO_BARRIER)
     with pytest.raises(ValueError, match="must be > 0"):
         rig_time(units, 0.0, NO_BARRIER)
+
+
+def test_a_share_of_the_fleet_is_the_smallest_whole_number_of_units_at_least_that_share() -> None:
+    assert [units_for(50, n) for n in (1, 2, 3, 4, 5)] == [1, 1, 2, 2, 3]
+    assert [units_for(90, n) for n in (1, 4, 9, 10, 11, 1000)] == [1, 4, 9, 9, 10, 900]
+    assert [units_for(100, n) for n in (1, 4, 1000)] == [1, 4, 1000]
+    assert units_for(7, 100) == 7  # 0.07 × 100 is 7.000000000000001 in floats: whole numbers, no rounding up
+    assert units_for(0, 4) == units_for(50, 0) == 0
+    with pytest.raises(ValueError, match="must be 0"):
+        units_for(101, 4)
+
+
+def test_the_fleet_s_time_until_50_90_and_100_percent_of_its_units_were_controlled() -> None:
+    """Alone, 1 s a step: the 4 units completed at 40, 100, 10 and 30 s. 50 % of 4 is 2 units (c, then d:
+    30 s); 90 % is 3.6, so 4 units (100 s), the same as 100 %: the fleet's time."""
+    units = {
+        "a": UnitPlay([40], 1),
+        "b": UnitPlay([20, 30, 50], 3),
+        "c": UnitPlay([10, 10], 1),
+        "d": UnitPlay([10, 20, 5], 2),
+    }
+    t = rig_time(units, 1.0, NO_BARRIER)
+    assert t.per_unit == {"a": 40, "b": 100, "c": 10, "d": 30} and t.complete
+    assert [t.until_controlled(p) for p in (50, 90, 100)] == [30, 100, 100] and t.fleet == 100
+    assert t.to_dict()["controlled"] == {"50": 30, "90": 100, "100": 100}
+    ten = rig_time({str(i): UnitPlay([10] * (i + 1), i + 1) for i in range(10)}, 0.5, NO_BARRIER)
+    # unit i completes after i + 1 rounds of 5 s: 90 % of 10 is the 9th unit, at 45 s
+    assert ten.to_dict()["controlled"] == {"50": 25, "90": 45, "100": 50} and ten.fleet == 50
+
+
+def test_an_incomplete_fleet_has_no_time_for_the_shares_it_never_reached() -> None:
+    """A round barrier, 1 s a step: rounds close at 20, 50 and 90 s. a completed in round 1 (at 20 s, when
+    round 1 closed: not at its own 10), b and c in round 2 (50 s); d never did. 2 of 4 units: 50 s; 90 % and
+    100 % (4 units): never reached, though the fleet's clock ran until 90 s."""
+    units = {
+        "a": UnitPlay([10, 10, 10], 1),
+        "b": UnitPlay([20, 10, 10], 2),
+        "c": UnitPlay([10, 30, 10], 2),
+        "d": UnitPlay([10, 10, 40], None),
+    }
+    t = rig_time(units, 1.0, EVERYONE)
+    assert t.per_unit == {"a": 20, "b": 50, "c": 50, "d": 90} and t.fleet == 90 and not t.complete
+    assert t.to_dict()["controlled"] == {"50": 50, "90": None, "100": None}
+    nobody = rig_time({"n": UnitPlay([10], None)}, 1.0, NO_BARRIER)
+    assert nobody.to_dict()["controlled"] == {"50": None, "90": None, "100": None}
+    assert t.until_controlled(0) == 0
 
 
 def test_who_waits_follows_the_mode_the_scheme_and_the_quorum() -> None:

@@ -8,6 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
+from fleetrl.runs.rig_time import CONTROLLED_SHARES
 from fleetrl_lab.arms import Arm, Places, completions, same_scores, wall_seconds
 from fleetrl_lab.figures import plot_curves, plot_side_by_side
 from fleetrl_lab.records import RunRecord
@@ -208,8 +209,11 @@ RIG_TIME_NOTE = (
     " quorum plus its grace — when a unit it waited for missed it); a straggler's episode overlaps the rounds"
     " it missed. Each unit alone and `fedasync` wait for nobody. Computing is left out (a slow unit computes"
     " slower, its device's period unchanged: what it costs is the rounds it missed and the grace given to"
-    " it). The fleet's clock runs until its last unit completes. Records made before runs kept their steps"
-    " read each round's steps from its score (reward 1 per step, at most one step short per episode)."
+    " it). The fleet's clock runs until its last unit completes; its time until 50, 90 and 100 % of its N"
+    " units complete is when, on that one clock, the ⌈share·N⌉-th unit's criterion held (the median over an"
+    " arm's runs, marked ≥ where a run never reached the share: that run counts its whole time). Records made"
+    " before runs kept their steps read each round's steps from its score (reward 1 per step, at most one"
+    " step short per episode)."
 )
 
 
@@ -222,6 +226,22 @@ def _rig_minutes(records: list[RunRecord]) -> tuple[list[float], list[float]] | 
     fleet = [t.fleet / 60 for t in times if t is not None]
     per_unit = [s / 60 for t in times if t is not None for s in t.per_unit.values()]
     return fleet, per_unit
+
+
+def controlled_minutes(records: list[RunRecord]) -> str:
+    """Median minutes on the rigs until 50, 90 and 100 % of a run's units completed, over an arm's runs
+    (``2.0 / ≥ 4.0 / ≥ 4.0``: a run that never reached a share counts its whole time on the rigs, a lower
+    bound, and marks the median ≥); "-" if a run's unit type has no known control period."""
+    times = [r.rig_time() for r in records]
+    if not times or any(t is None for t in times):
+        return "-"
+    shown = []
+    for share in CONTROLLED_SHARES:
+        reached = [(t.until_controlled(share), t.fleet) for t in times if t is not None]
+        minutes = [(whole if s is None else s) / 60 for s, whole in reached]
+        bound = "≥ " if any(s is None for s, _ in reached) else ""
+        shown.append(f"{bound}{float(np.median(minutes)):.1f}")
+    return " / ".join(shown)
 
 
 def _rig_ratio(slower: list[RunRecord], faster: list[RunRecord]) -> str:
@@ -266,7 +286,7 @@ def _arms_table(plan: Plan, records: Records) -> str:
     for arm in plan.arms:
         done = records[arm.key]
         if not done:
-            rows.append([arm.label, NOT_RUN, *["-"] * 8])
+            rows.append([arm.label, NOT_RUN, *["-"] * 9])
             continue
         complete = sum(c.complete for c in completions(done))
         walls = sorted(wall_seconds(done))
@@ -279,6 +299,7 @@ def _arms_table(plan: Plan, records: Records) -> str:
                 bootstrap_median(_per_unit(done)).format(),
                 "-" if rig is None else bootstrap_median(rig[0]).format(1),
                 "-" if rig is None else bootstrap_median(rig[1]).format(1),
+                controlled_minutes(done),
                 f"{complete}/{len(done)}",
                 seed_list(done),
                 mean_unseen,
@@ -292,6 +313,7 @@ def _arms_table(plan: Plan, records: Records) -> str:
         "rounds per unit: median (95 % CI)",
         "time on the rigs until the last unit completes, min: median (95 % CI)",
         "time on the rigs per unit, min: median (95 % CI)",
+        "time on the rigs until 50 / 90 / 100 % of the units complete, min: median",
         "runs complete within M",
         "seeds",
         "unseen units: mean score",

@@ -163,7 +163,21 @@ def print_summary(summary: dict[str, Any], out: Path, *, summarise: bool = False
             f"{duration(rig['fleet'])} until the last unit completed, median "
             f"{duration(units[len(units) // 2])} per unit"
         )
+        controlled = controlled_text(rig.get("controlled"))
+        if controlled:
+            print(f"    {controlled}")
     print(f"  plot: {out / 'scores.png'}   metrics: {out / 'metrics.csv'}   tensorboard --logdir {out}")
+
+
+def controlled_text(controlled: dict[str, float | None] | None) -> str:
+    """The fleet's time on the rigs until 50, 90 and 100 % of its units were controlled (summary.json's
+    ``rig_seconds.controlled``), as shown: ``until 50 / 90 / 100 % of the units were controlled: 20.1 s /
+    41.9 s / not reached``; empty for a summary written before it was kept."""
+    if not controlled:
+        return ""
+    shares = " / ".join(controlled)
+    times = " / ".join("not reached" if s is None else duration(s) for s in controlled.values())
+    return f"until {shares} % of the units were controlled: {times}"
 
 
 def wma_text(wma: float | None) -> str:

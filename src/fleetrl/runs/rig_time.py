@@ -22,6 +22,18 @@ HAND_RESET_SECONDS = 30.0
 this much of the unit's clock on top of the device's own time (its 20 s of failed swing-up and the settle)"""
 RESET_SAMPLES = 10
 """seeded resets (seeds 0 … 9) whose mean is a QUBE unit's reset time"""
+CONTROLLED_SHARES = (50, 90, 100)
+"""the shares of a fleet's units, in per cent, for which a run's summary gives the time on the rigs until
+they were controlled (:meth:`RigTime.until_controlled`)"""
+
+
+def units_for(percent: int, units: int) -> int:
+    """How many of ``units`` units make ``percent`` % of them: the smallest whole number ≥ percent/100 ·
+    units, computed in integers (no float rounding: 7 % of 100 is 7). 50 % of 3 units is 2, 90 % of 4 is
+    4, 90 % of 10 is 9, 90 % of 1,000 is 900, 50 % of 1 is 1."""
+    if not 0 <= percent <= 100:
+        raise ValueError(f"share {percent!r} %: must be 0 … 100")
+    return -(-percent * units // 100)
 
 
 @dataclass(frozen=True)
@@ -91,12 +103,31 @@ class RigTime:
     """every unit completed (False: the figures are lower bounds)"""
     clocks: dict[str, UnitClock] = field(default_factory=dict)
     """unit → where its time went"""
+    completed: frozenset[str] = frozenset()
+    """the units whose criterion held (their ``per_unit`` is the time until it did)"""
+
+    def until_controlled(self, percent: int) -> float | None:
+        """Seconds on the rigs until ``percent`` % of the fleet's units were controlled (their criterion
+        held): the k-th smallest ``per_unit`` of the units that completed, k = :func:`units_for`
+        (``percent``, the fleet's units). The fleet's rigs start together at 0, so this is when, on that one
+        clock, the k-th unit's criterion held, in the accounting of ``fleet`` (under a round barrier: when
+        the round it held in closed; with nobody waiting: when its own round ended). 100 % is ``fleet``
+        when every unit completed; None where fewer than k units did (a unit that never completed is never
+        counted, however long it played). 0 % of a fleet, or any share of no units: 0."""
+        need = units_for(percent, len(self.per_unit))
+        if need == 0:
+            return 0.0
+        done = sorted(self.per_unit[unit] for unit in self.completed)
+        return done[need - 1] if need <= len(done) else None
 
     def to_dict(self) -> dict[str, object]:
-        """A JSON-ready account, rounded to milliseconds."""
+        """A JSON-ready account, rounded to milliseconds (``controlled``: share in per cent →
+        :meth:`until_controlled`, null where that share of units never completed)."""
+        controlled = {str(p): self.until_controlled(p) for p in CONTROLLED_SHARES}
         return {
             "fleet": round(self.fleet, 3),
             "per_unit": {unit: round(s, 3) for unit, s in self.per_unit.items()},
+            "controlled": {p: None if s is None else round(s, 3) for p, s in controlled.items()},
             "complete": self.complete,
             "parts": {
                 unit: {k: round(getattr(c, k), 3) for k in ("played", "reset", "absent", "waited")}
@@ -168,8 +199,8 @@ def rig_time(units: Mapping[str, UnitPlay], period: float, waits: Waits) -> RigT
     for name, unit in built.items():
         c = unit.clock
         clocks[name] = UnitClock(c.played, c.reset, c.absent, max(stopped[name] - c.total, 0.0))
-    complete = all(play.completed_at is not None for play in units.values())
-    return RigTime(max(stopped.values(), default=0.0), stopped, complete, clocks)
+    completed = frozenset(name for name, play in units.items() if play.completed_at is not None)
+    return RigTime(max(stopped.values(), default=0.0), stopped, completed == set(units), clocks, completed)
 
 
 def _back_to_back(built: dict[str, _Unit]) -> dict[str, float]:

@@ -202,8 +202,8 @@ class RunRecorder:
 
     def rig_seconds(self) -> dict[str, Any] | None:
         """The time the rounds played so far would take on real-time rigs (:mod:`fleetrl.runs.rig_time`:
-        play, resets, absences, waits for the fleet); None before any round, or for a unit type whose control
-        period is not known."""
+        play, resets, absences, waits for the fleet), until the fleet, each unit and 50, 90 and 100 % of the
+        units completed; None before any round, or for a unit type whose control period is not known."""
         if not self.records:
             return None
         try:
