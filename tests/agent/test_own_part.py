@@ -11,8 +11,8 @@ from fleetrl.agent.config import get_preset
 from fleetrl.agent.policy_file import read_policy_file
 from fleetrl.agent.ppo import PPOAgent
 from fleetrl.federation.shared_settings import LearningSettings
-from fleetrl.runs.settings import RunSettings
 from fleetrl.runs.setting_values import SettingError
+from fleetrl.runs.settings import RunSettings
 
 
 def _agent(own_part: str, seed: int = 0) -> PPOAgent:
@@ -51,7 +51,7 @@ def test_a_fleet_step_moves_the_shared_part_by_the_fleet_gradient_and_the_own_pa
     np.testing.assert_array_equal(units[0].model_parameters(), units[1].model_parameters())
     moved = [
         (agent.net.own["trunk_0_bias"] - before).abs().sum().item()
-        for agent, before in zip(units, own_before)
+        for agent, before in zip(units, own_before, strict=True)
     ]
     assert min(moved) > 0.0, "each unit's own offset took its own step"
     assert not torch.equal(units[0].net.own["trunk_0_bias"], units[1].net.own["trunk_0_bias"])
