@@ -119,6 +119,7 @@ class ActorCritic(nn.Module):
         """The weight and bias of ``layer`` (``trunk.0``, ``policy``, ``value``) this unit acts with: the
         shared values plus its own offsets."""
         module = self.get_submodule(layer)
+        assert isinstance(module, nn.Linear)
         weight, bias = module.weight, module.bias
         own_weight, own_bias = (self.own.get(own_key(f"{layer}.{p}")) for p in ("weight", "bias"))
         return (
