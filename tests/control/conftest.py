@@ -16,11 +16,13 @@ from control_models import balancing_model, fresh_model
 @pytest.fixture(scope="module")
 def models(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
     """Model files, by name: ``balancing`` (QUBE, discrete: holds the pendulum), ``balancing-continuous``
-    (QUBE, volts), ``fresh`` and ``fresh-continuous`` (untrained: short episodes of varied length),
+    (QUBE, volts), ``balancing-own`` (a unit's own policy: the law in its own head, none in the shared),
+    ``fresh`` and ``fresh-continuous`` (untrained: short episodes of varied length),
     ``cartpole`` (untrained)."""
     out = tmp_path_factory.mktemp("models")
     return {
         "balancing": balancing_model(out / "balancing.safetensors", "qube"),
+        "balancing-own": balancing_model(out / "balancing-own.safetensors", "qube", own_part="heads"),
         "balancing-continuous": balancing_model(out / "balancing-c.safetensors", "qube-continuous"),
         "fresh": fresh_model(out / "fresh.safetensors", "qube", seed=3),
         "fresh-continuous": fresh_model(out / "fresh-c.safetensors", "qube-continuous", seed=4),

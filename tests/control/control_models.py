@@ -11,6 +11,7 @@ saturating within the ±3 V box). Everything else is the standard preset's netwo
 
 from __future__ import annotations
 
+import dataclasses
 from pathlib import Path
 
 import torch
@@ -36,9 +37,12 @@ def fresh_model(path: Path, env: str, seed: int) -> Path:
     return path
 
 
-def balancing_model(path: Path, env: str) -> Path:
-    """A model file of ``env`` (``qube`` or ``qube-continuous``) whose greedy policy is the balance law."""
-    agent: PPOAgent = agent_for(describe_env(env), get_preset("standard"), seed=0)
+def balancing_model(path: Path, env: str, own_part: str = "none") -> Path:
+    """A model file of ``env`` (``qube`` or ``qube-continuous``) whose greedy policy is the balance law. With
+    an ``own_part`` of ``heads``: a unit's model whose shared policy head is zero, its own offset the law's
+    head (the fleet's shared policy alone does not balance; the unit's own does)."""
+    preset = dataclasses.replace(get_preset("standard"), own_part=own_part)
+    agent: PPOAgent = agent_for(describe_env(env), preset, seed=0)
     k = controller_constants()
     law = [-k[K_ALPHA], -k[K_ALPHA_DOT], -k[K_THETA], -k[K_THETA_DOT]]  # −K·x in observation order
     net = agent.net
@@ -54,6 +58,9 @@ def balancing_model(path: Path, env: str) -> Path:
         else:  # mean = half_range · w · h with h ≈ SCALE·V: w = 1 / (half_range · SCALE) gives mean ≈ V
             half = float(agent.action_space.half_range()[0])
             net.policy.weight[0, 0] = 1.0 / (half * SCALE)
+        if own_part == "heads":
+            net.own["policy_weight"].copy_(net.policy.weight)
+            net.policy.weight.zero_()
     agent.refresh_policy()
     agent.save(path)
     return path

@@ -42,6 +42,22 @@ def test_each_episode_s_score_is_printed(models: dict[str, Path], capsys: pytest
     assert lines[4:] == [f"mean score {sum(want) / 3:g} over 3 episodes"] and len(set(want)) > 1
 
 
+def test_a_units_own_policy_runs_exported_as_fleetrl_evaluate_plays_it(
+    models: dict[str, Path], tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A unit's model file (its own head offset holds the balance law): exported, ``fleetrl control`` plays
+    the scores ``fleetrl evaluate`` gives the model file, and they are the unit's own policy's (it holds the
+    pendulum to the cap), not the shared part's alone."""
+    onnx_file = tmp_path / "unit.onnx"
+    assert export_policy(models["balancing-own"], onnx_file, "qube").passed
+    want = evaluate_model(models["balancing-own"], "qube", 0, 0, 2, 7)
+    capsys.readouterr()
+    assert main(["control", str(onnx_file), "--episodes", "2", "--seed", "7"]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    assert lines[1:3] == [f"episode {k + 1}: score {score:g}" for k, score in enumerate(want)]
+    assert want == [2500.0, 2500.0]
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize("kind", ["model file", "onnx"])
 def test_the_controller_s_path_imports_no_torch(models: dict[str, Path], tmp_path: Path, kind: str) -> None:

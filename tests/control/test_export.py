@@ -22,6 +22,7 @@ from fleetrl.envs.catalog import get_env_spec
 CASES = [
     ("fresh", "qube"),
     ("balancing", "qube"),
+    ("balancing-own", "qube"),
     ("fresh-continuous", "qube-continuous"),
     ("balancing-continuous", "qube-continuous"),
 ]
