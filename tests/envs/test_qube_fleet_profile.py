@@ -28,8 +28,7 @@ def test_the_catalogue_resolves_each_unit_types_profiles() -> None:
     assert qube.make_kwargs(None) == {"fleet_profile": "table2"}
     with pytest.raises(ValueError, match="unknown fleet profile 'V1'"):
         qube.make_kwargs("V1")
-    assert cartpole.resolve_fleet_profile(None) is None and cartpole.make_kwargs(None) == {}
-    with pytest.raises(ValueError, match="cartpole units have one fleet, no fleet profiles"):
+    with pytest.raises(ValueError, match="unknown cartpole fleet profile 'v1'"):  # a QUBE's name
         cartpole.resolve_fleet_profile("v1")
     with pytest.raises(ValueError, match="unknown cartpole fleet profile 'v1'"):
         make_device("cartpole", 0, 0, fleet_profile="v1")
