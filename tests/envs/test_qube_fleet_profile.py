@@ -28,10 +28,9 @@ def test_the_catalogue_resolves_each_unit_types_profiles() -> None:
     assert qube.make_kwargs(None) == {"fleet_profile": "table2"}
     with pytest.raises(ValueError, match="unknown fleet profile 'V1'"):
         qube.make_kwargs("V1")
-    assert cartpole.resolve_fleet_profile(None) is None and cartpole.make_kwargs(None) == {}
-    with pytest.raises(ValueError, match="cartpole units have one fleet, no fleet profiles"):
+    with pytest.raises(ValueError, match="unknown cartpole fleet profile 'v1'"):  # a QUBE's name
         cartpole.resolve_fleet_profile("v1")
-    with pytest.raises(ValueError, match=r"a cartpole unit takes no options, got \['fleet_profile'\]"):
+    with pytest.raises(ValueError, match="unknown cartpole fleet profile 'v1'"):
         make_device("cartpole", 0, 0, fleet_profile="v1")
     v1_unit = QubeDevice.from_fleet(1, 2, profile="v1")
     assert make_device("qube", 1, 2, fleet_profile="v1").params == v1_unit.params

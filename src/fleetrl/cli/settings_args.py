@@ -131,7 +131,7 @@ def add_target_score_argument(p: argparse.ArgumentParser) -> None:
 
 
 def add_fleet_profile_argument(p: argparse.ArgumentParser) -> None:
-    """``--fleet-profile``: which per-unit variation the simulated QUBE fleet is drawn with."""
+    """``--fleet-profile``: which per-unit variation the simulated fleet (QUBE or CartPole) is drawn with."""
     add_learning_argument(p, "fleet_profile")
 
 

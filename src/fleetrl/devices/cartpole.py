@@ -2,7 +2,8 @@
 
 The equations, constants, initial-state distribution and Euler integrator are those of
 ``gymnasium.envs.classic_control.CartPoleEnv`` (CartPole-v1); each unit scales ``length``, ``masscart``,
-``masspole`` and ``force_mag`` by its own factors drawn uniformly from [0.9, 1.1].
+``masspole`` and ``force_mag`` by its own factors drawn uniformly, from [0.9, 1.1] in the default fleet
+profile (``cartpole_profiles``: ``standard``; ``wide``: [0.6, 1.4]).
 """
 
 import math
@@ -10,6 +11,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from fleetrl.devices.cartpole_profiles import CartPoleVariation, cartpole_fleet_profile
 from fleetrl.devices.variation import CARTPOLE_FAMILY, scaled, unit_generator
 
 X_LIMIT = 2.4
@@ -35,16 +37,21 @@ class CartPoleParams:
 CARTPOLE_NOMINAL = CartPoleParams()
 
 
-def cartpole_unit_params(fleet_seed: int, unit: int, relative: float = 0.10) -> CartPoleParams:
-    """The parameters of CartPole unit ``unit`` of fleet ``fleet_seed`` (each deviates by up to ±10 %)."""
+def cartpole_unit_params(
+    fleet_seed: int, unit: int, variation: CartPoleVariation | None = None
+) -> CartPoleParams:
+    """The parameters of CartPole unit ``unit`` of fleet ``fleet_seed``, deviating as ``variation`` says
+    (None: the default profile's, each by up to ±10 %). The draws come in one fixed order (cart mass, pole
+    mass, length, force), so a unit of another profile deviates the same way, only further."""
+    spread = cartpole_fleet_profile().variation if variation is None else variation
     rng = unit_generator(fleet_seed, unit, CARTPOLE_FAMILY)
     n = CARTPOLE_NOMINAL
     return CartPoleParams(
         gravity=n.gravity,
-        masscart=scaled(rng, n.masscart, relative),
-        masspole=scaled(rng, n.masspole, relative),
-        length=scaled(rng, n.length, relative),
-        force_mag=scaled(rng, n.force_mag, relative),
+        masscart=scaled(rng, n.masscart, spread.masscart),
+        masspole=scaled(rng, n.masspole, spread.masspole),
+        length=scaled(rng, n.length, spread.length),
+        force_mag=scaled(rng, n.force_mag, spread.force_mag),
         tau=n.tau,
     )
 
@@ -58,9 +65,10 @@ class CartPoleDevice:
         self._obs = np.zeros(4, dtype=np.float32)
 
     @classmethod
-    def from_fleet(cls, unit: int, fleet_seed: int) -> "CartPoleDevice":
-        """Unit ``unit`` of the fleet ``fleet_seed``."""
-        return cls(cartpole_unit_params(fleet_seed, unit))
+    def from_fleet(cls, unit: int, fleet_seed: int, *, profile: str | None = None) -> "CartPoleDevice":
+        """Unit ``unit`` of the fleet ``fleet_seed`` drawn with fleet profile ``profile``
+        (``cartpole_profiles``; None: the default, ``standard``)."""
+        return cls(cartpole_unit_params(fleet_seed, unit, cartpole_fleet_profile(profile).variation))
 
     @property
     def state(self) -> np.ndarray:

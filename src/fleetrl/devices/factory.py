@@ -19,15 +19,14 @@ def make_device(
 ) -> QubeDevice | CartPoleDevice:
     """Unit ``unit`` of fleet ``fleet_seed`` of type ``qube`` or ``cartpole``.
 
-    ``fleet_profile`` names a QUBE fleet profile (None: the default); ``config`` holds ``QubeConfig`` fields
-    for a QUBE. A CartPole takes neither.
+    ``fleet_profile`` names a fleet profile of the unit type (None: its default); ``config`` holds
+    ``QubeConfig`` fields for a QUBE (a CartPole takes none).
     """
     unit, fleet_seed = check_unit(unit, fleet_seed)
     if unit_type == "qube":
         return QubeDevice.from_fleet(unit, fleet_seed, qube_config(**config), profile=fleet_profile)
     if unit_type == "cartpole":
-        if config or fleet_profile is not None:
-            given = sorted(config) + (["fleet_profile"] if fleet_profile is not None else [])
-            raise ValueError(f"a cartpole unit takes no options, got {given}")
-        return CartPoleDevice.from_fleet(unit, fleet_seed)
+        if config:
+            raise ValueError(f"a cartpole unit takes no options, got {sorted(config)}")
+        return CartPoleDevice.from_fleet(unit, fleet_seed, profile=fleet_profile)
     raise ValueError(f"unknown unit type {unit_type!r} (choose {' or '.join(DEVICE_TYPES)})")

@@ -1,4 +1,5 @@
-"""``fleetrl/CartPoleUnit-v0``: CartPole-v1 on one unit of a fleet whose units differ by up to ±10 %.
+"""``fleetrl/CartPoleUnit-v0``: CartPole-v1 on one unit of a fleet whose units differ by up to ±10 % (the
+``standard`` fleet profile; ``wide``: ±40 %).
 
 Observation, actions, reward (+1 every step, the terminating one included) and termination
 (|x| > 2.4 or |theta| > 12°) are CartPole-v1's; the 500-step cap is gymnasium's TimeLimit from the
@@ -21,6 +22,8 @@ class CartPoleUnitEnv(LinkEnv):
 
     :param unit: index of the unit in the fleet (non-negative)
     :param fleet_seed: seed of the fleet; (fleet_seed, unit) fixes the unit's parameters
+    :param fleet_profile: the fleet profile the in-process unit is drawn with (``standard``, the default, or
+        ``wide``; see ``fleetrl.devices.cartpole_profiles``)
     :param link: reach the device through this link instead of simulating it in-process
     :param render_mode: None, or ``rgb_array`` for :meth:`render` frames
     """
@@ -30,11 +33,16 @@ class CartPoleUnitEnv(LinkEnv):
         unit: int = 0,
         fleet_seed: int = 0,
         *,
+        fleet_profile: str | None = None,
         link: DeviceLink | None = None,
         render_mode: str | None = None,
     ) -> None:
         self.unit, self.fleet_seed = check_unit(unit, fleet_seed)
-        device_link = link or InProcessLink(CartPoleDevice.from_fleet(self.unit, self.fleet_seed))
+        if link is not None and fleet_profile is not None:
+            raise ValueError("options ['fleet_profile'] configure the in-process simulation; not with link=")
+        device_link = link or InProcessLink(
+            CartPoleDevice.from_fleet(self.unit, self.fleet_seed, profile=fleet_profile)
+        )
         super().__init__(device_link, 2, render_mode=render_mode)
         big = np.finfo(np.float32).max  # CartPole-v1's bounds
         high = np.array([X_LIMIT * 2, big, THETA_LIMIT * 2, big], dtype=np.float32)

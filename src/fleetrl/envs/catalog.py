@@ -12,6 +12,7 @@ from typing import Any, NamedTuple
 
 import gymnasium
 
+from fleetrl.devices.cartpole_profiles import DEFAULT_CARTPOLE_FLEET_PROFILE, cartpole_fleet_profile
 from fleetrl.devices.qube.fleet_profiles import fleet_profile
 from fleetrl.envs.registration import CARTPOLE_UNIT_ID, QUBE_BALANCE_CONTINUOUS_ID, QUBE_BALANCE_ID
 from fleetrl.envs.spaces import UnitDescription, describe_unit
@@ -47,9 +48,10 @@ class EnvSpec:
     declared_target: float | None = None
     """the weighted moving average of the last 10 scores at which a worker's learning is complete, as the
     unit type declares it (None: the env spec's ``reward_threshold``, else ``--target-score`` is needed)"""
-    fleet_profile: Callable[[str | None], str] | None = None
+    fleet_profile: Callable[[str | None], str | None] | None = None
     """the name of the fleet profile chosen by a name (None: the default), with a ValueError for an unknown
-    one; None if the unit type has a single fleet"""
+    one (the name None for a profile a run's settings leave unset: CartPole's ``standard``); None if the unit
+    type has a single fleet"""
     builtin: bool = False
     """a built-in unit type"""
     device: str | None = None
@@ -69,7 +71,8 @@ class EnvSpec:
         return f"env {self.name!r}" if self.builtin else f"unit factory {self.name!r}"
 
     def resolve_fleet_profile(self, name: str | None) -> str | None:
-        """The fleet profile a run of this env draws its units with (``name``, or the type's default); a
+        """The fleet profile a run of this env draws its units with (``name``, or the type's default; None
+        where the settings leave it unset: a unit type of one fleet, and CartPole's ``standard``); a
         ValueError if ``name`` is unknown or this unit type has no profiles."""
         if self.fleet_profile is not None:
             return self.fleet_profile(name)
@@ -141,6 +144,14 @@ def _qube_fleet_profile(name: str | None) -> str:
     return fleet_profile(name).name
 
 
+def _cartpole_fleet_profile(name: str | None) -> str | None:
+    """CartPole's profile by name; its default, ``standard`` (the fleet CartPole had before it had profiles),
+    resolves to None, as every CartPole run's settings always held it: their shared settings, config files
+    and lab records stay equal, and naming ``standard`` is the same run as naming nothing."""
+    chosen = cartpole_fleet_profile(name).name
+    return None if chosen == DEFAULT_CARTPOLE_FLEET_PROFILE else chosen
+
+
 @dataclass(frozen=True)
 class LargeFleetUpdate:
     """PPO settings a federated fleet of at least ``from_units`` units of one type learns with by default:
@@ -185,7 +196,7 @@ ENV_SPECS: dict[str, EnvSpec] = {
             "qube",
             QUBE_CONTROL_PERIOD,
         ),
-        ("cartpole", CARTPOLE_UNIT_ID, 475.0, None, "cartpole", CARTPOLE_CONTROL_PERIOD),
+        ("cartpole", CARTPOLE_UNIT_ID, 475.0, _cartpole_fleet_profile, "cartpole", CARTPOLE_CONTROL_PERIOD),
     ]
 }
 """the built-in unit types (a unit factory seam's instances like any user's)"""

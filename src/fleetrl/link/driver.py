@@ -263,7 +263,7 @@ def simulated_driver(
 ) -> SimulatedDriver:
     """A driver over unit ``unit`` of fleet ``fleet_seed`` of type ``env`` (``qube`` or ``cartpole``).
 
-    :param fleet_profile: the QUBE fleet profile (None: the default; a CartPole fleet has none)
+    :param fleet_profile: the unit type's fleet profile (None: the default)
     :param period: control period in seconds (QUBE only; default the device's 6 ms; CartPole's is 20 ms)
     :param realtime: pace by the wall clock (see ``SimulatedDriver``)
     """

@@ -57,7 +57,7 @@ def start_bridges(
         ``driver(unit, fleet_seed, *, realtime) -> DeviceDriver`` (a user's unit type)
     :param units: unit indices
     :param fleet_seed: seed of the fleet's per-unit dynamics (must match the workers' envs)
-    :param fleet_profile: the QUBE fleet profile (None: the default; must match the workers' envs)
+    :param fleet_profile: the unit type's fleet profile (None: the default; must match the workers' envs)
     :param realtime: real-time mode instead of lockstep
     :param period: control period in seconds (QUBE only; default 6 ms; not with a driver function)
     :param watchdog: seconds without a command before a bridge switches its motor off
