@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, fields
 
 import numpy as np
@@ -244,3 +244,19 @@ def concatenate(runs: Sequence[Transitions]) -> Transitions:
     if len(runs) == 1:
         return runs[0]
     return Transitions(*(np.concatenate([getattr(r, f.name) for r in runs]) for f in fields(Transitions)))
+
+
+def score_unscored(
+    memories: list[TrajectoryMemory], log_probs: Callable[[np.ndarray, np.ndarray], np.ndarray]
+) -> None:
+    """Score every memory's unscored transitions with ``log_probs(obs, actions)``, in one call for all."""
+    slots = [memory.unscored() for memory in memories]
+    if not any(s.size for s in slots):
+        return
+    stored = [memory.slots(s) for memory, s in zip(memories, slots, strict=True)]
+    obs, actions = (np.concatenate([part[i] for part in stored]) for i in (0, 1))
+    scores = log_probs(obs, actions)
+    at = 0
+    for memory, s in zip(memories, slots, strict=True):
+        memory.score(s, scores[at : at + s.size])
+        at += s.size

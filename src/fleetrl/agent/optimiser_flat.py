@@ -5,15 +5,38 @@ below 2²⁴ exactly); an optimiser that has not stepped yet has zeros and step 
 from __future__ import annotations
 
 from collections.abc import Mapping
+from typing import Any
 
 import numpy as np
 import torch
 from torch import nn
 
-from fleetrl.agent.flat import split
+from fleetrl.agent.config import PPOConfig
+from fleetrl.agent.flat import Named, split
 
 Layout = list[tuple[str, tuple[int, ...]]]
 SLOTS = ("exp_avg", "exp_avg_sq", "step")
+
+
+def adam(shared: Named, own: Named, lr: float) -> torch.optim.Adam:
+    """Adam over ``shared`` parameters and, in a second group marked ``own`` (its state never leaves the
+    unit), the unit's own offsets."""
+    groups: list[dict[str, Any]] = [{"params": [p for _, p in shared]}]
+    if own:
+        groups.append({"params": [p for _, p in own], "own": True})
+    return torch.optim.Adam(groups, lr=lr)
+
+
+def adams(
+    config: PPOConfig, actor: tuple[Named, Named], critic: tuple[Named, Named], model: tuple[Named, Named]
+) -> tuple[torch.optim.Adam, torch.optim.Adam]:
+    """The actor's and the critic's Adam over their (shared, own) parameters; with ``optimisers
+    'one_sequential'`` one Adam over the whole ``model`` (each step moves only the parameters given a
+    gradient), the same object twice."""
+    if config.optimisers == "per_model":
+        return adam(*actor, config.actor_lr), adam(*critic, config.critic_lr)
+    one = adam(*model, config.actor_lr)
+    return one, one
 
 
 def _params(optimiser: torch.optim.Optimizer) -> list[torch.Tensor]:

@@ -14,10 +14,10 @@ from fleetrl.agent.action_space import ActionSpace, as_action_space
 from fleetrl.agent.checkpoint import check_tensors_fit
 from fleetrl.agent.config import PPOConfig
 from fleetrl.agent.flat import Named, flatten, flatten_tensors, layout, split
-from fleetrl.agent.memory import TrajectoryMemory
+from fleetrl.agent.memory import TrajectoryMemory, score_unscored
 from fleetrl.agent.model_file import architecture, load_agent, save_agent
 from fleetrl.agent.network import ActorCritic
-from fleetrl.agent.optimiser_flat import load_optimiser_flat, optimiser_flat, optimiser_layout
+from fleetrl.agent.optimiser_flat import adams, load_optimiser_flat, optimiser_flat, optimiser_layout
 from fleetrl.agent.pending import PendingTransitions
 from fleetrl.agent.policy_numpy import NumpyPolicy
 from fleetrl.agent.row_acting import FEW_ROWS, RowActing
@@ -36,15 +36,6 @@ from fleetrl.agent.update import (
 from fleetrl.agent.variants import choose_variants
 
 __all__ = ["PPOAgent", "UpdateStats"]
-
-
-def adam(shared: Named, own: Named, lr: float) -> torch.optim.Adam:
-    """Adam over ``shared`` parameters and, in a second group marked ``own`` (its state never leaves the
-    unit: :mod:`.optimiser_flat`), the unit's own offsets."""
-    groups: list[dict[str, Any]] = [{"params": [p for _, p in shared]}]
-    if own:
-        groups.append({"params": [p for _, p in own], "own": True})
-    return torch.optim.Adam(groups, lr=lr)
 
 
 class PPOAgent:
@@ -79,22 +70,19 @@ class PPOAgent:
         generator = torch.Generator().manual_seed(self.seed)
         self.net = ActorCritic.from_config(obs_dim, self.action_space, config, generator)
         trunk = self.net.trunk_parameters()
-        # θ: the actor model — the shared trunk and the actor head (softmax, or Gaussian mean and log-std);
-        # this is what the federation shares. μ: the critic model — the trunk and the value head. Each
-        # optimiser also steps the unit's own offsets of its parameters, which are never shared.
+        # θ: the trunk and the actor head (softmax, or Gaussian mean and log-std), what the federation shares;
+        # μ: the trunk and the value head. Each optimiser also steps the unit's own offsets (never shared).
         self._actor_named = trunk + self.net.head_parameters("policy")
         self._critic_named = trunk + self.net.head_parameters("value")
         self._actor_own = self.net.own_parameters([name for name, _ in self._actor_named])
         self._critic_own = self.net.own_parameters([name for name, _ in self._critic_named])
         actor_all = [p for _, p in self._actor_named + self._actor_own]
         critic_all = [p for _, p in self._critic_named + self._critic_own]
-        if config.optimisers == "per_model":
-            self.actor_optimizer = adam(self._actor_named, self._actor_own, config.actor_lr)
-            self.critic_optimizer = adam(self._critic_named, self._critic_own, config.critic_lr)
-        else:  # one Adam over the whole network: each step moves only the parameters given a gradient
-            own = [(f"own.{key}", p) for key, p in self.net.own.items()]
-            shared = adam(self._model_named(), own, config.actor_lr)
-            self.actor_optimizer = self.critic_optimizer = shared
+        own = [(f"own.{key}", p) for key, p in self.net.own.items()]
+        self.actor_optimizer, self.critic_optimizer = adams(
+            config, (self._actor_named, self._actor_own), (self._critic_named, self._critic_own),
+            (self._model_named(), own),
+        )  # fmt: skip
         grows, dim = config.trajectory_memory == "per_round", self.action_space.dim
         self._memories = [TrajectoryMemory(config.memory_size, obs_dim, grows, dim) for _ in self.seeds]
         self.memory = self._memories[0]  # unit 0's
@@ -215,9 +203,8 @@ class PPOAgent:
         return self.config.n_optimisations * len(self._parts)
 
     def step_layout(self, k: int) -> list[tuple[str, tuple[int, ...]]]:
-        """Names and shapes of step ``k``'s flat gradient: ``critic:<name>`` then ``actor:<name>`` for the
-        parts the step moves (both with ``per_model``; the critic at even, the actor at odd steps with
-        ``one_sequential``)."""
+        """Names and shapes of step ``k``'s flat gradient: ``critic:<name>`` then ``actor:<name>`` of the
+        parts it moves (both; with ``one_sequential`` the critic at even, the actor at odd steps)."""
         return [
             (f"{part}:{name}", shape)
             for part, named, _ in self._step_named(k)
@@ -286,17 +273,11 @@ class PPOAgent:
 
     def _score_new_transitions(self) -> None:
         """Record log π(a|s) of the acting policy for every unit's transitions stored since θ last changed."""
-        slots = [memory.unscored() for memory in self.memories]
-        if not any(s.size for s in slots):
-            return
-        stored = [memory.slots(s) for memory, s in zip(self._memories, slots, strict=True)]
-        obs, actions = (np.concatenate([part[i] for part in stored]) for i in (0, 1))
+        score_unscored(self.memories, self._log_probs)
+
+    def _log_probs(self, obs: np.ndarray, actions: np.ndarray) -> np.ndarray:
         with torch.no_grad():
-            log_probs = self.net.log_probs(torch.from_numpy(obs), torch.from_numpy(actions)).numpy()
-        at = 0
-        for memory, s in zip(self._memories, slots, strict=True):
-            memory.score(s, log_probs[at : at + s.size])
-            at += s.size
+            return self.net.log_probs(torch.from_numpy(obs), torch.from_numpy(actions)).numpy()
 
     # ---- what the federation exchanges (lines 8, 25, 29, 31) -------------------------------------------
 
@@ -377,15 +358,15 @@ class PPOAgent:
 
     def rng_states(self) -> dict[str, Any]:
         """Unit 0's bit-generator states of action sampling and window starts (JSON-ready)."""
-        act, window = self._act_rngs[0], self._window_rngs[0]
-        return {"act": act.bit_generator.state, "window": window.bit_generator.state}
+        return {
+            "act": self._act_rngs[0].bit_generator.state,
+            "window": self._window_rngs[0].bit_generator.state,
+        }
 
     def load_rng_states(self, states: dict[str, Any]) -> None:
         """Continue unit 0's action sampling and window starts from :meth:`rng_states`."""
-        self._act_rngs[0].bit_generator.state, self._window_rngs[0].bit_generator.state = (
-            states["act"],
-            states["window"],
-        )
+        self._act_rngs[0].bit_generator.state = states["act"]
+        self._window_rngs[0].bit_generator.state = states["window"]
 
     def refresh_policy(self) -> None:
         """Copy the network into the acting policy after its weights were changed in place."""

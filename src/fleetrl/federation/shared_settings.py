@@ -46,8 +46,9 @@ class LearningSettings:
     fleet_seed: int = 0
     """seed of the fleet's per-unit dynamics: with the unit index it draws each unit"""
     fleet_profile: str | None = None
-    """the simulated fleet's profile (QUBE: ``table2``, fitted to the paper's Table 2, or ``v1``, the fleet
-    before the calibration; other unit types have one fleet); unset: the unit type's own"""
+    """the simulated fleet's profile (QUBE: ``table2``, fitted to the paper's Table 2, ``v1``, the fleet
+    before the calibration, or ``wide``, mixed revisions and wear; CartPole: ``standard`` or ``wide``, masses,
+    pole length and force ±40 per cent; a user's unit type has one fleet); unset: the unit type's own"""
     preset: str = DEFAULT_PRESET
     """PPO preset: ``standard`` (learns on every unit type measured), ``paper`` (Table 1 as written, to
     reproduce the paper) or ``paper-code`` (what the authors' code ran)"""
