@@ -12,7 +12,7 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
-from fleetrl.cli import control_command, device_command, roles
+from fleetrl.cli import adapt_command, control_command, device_command, roles
 from fleetrl.cli.settings_args import (
     add_broker_arguments,
     add_env_argument,
@@ -93,6 +93,7 @@ def build_parser() -> argparse.ArgumentParser:
     roles.register(sub)
     device_command.register(sub)
     control_command.register(sub)
+    adapt_command.register(sub)
     return parser
 
 
