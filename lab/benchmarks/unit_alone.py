@@ -1,6 +1,7 @@
 """One unit of a simulated fleet learning by itself: does it complete, and in how many rounds?
 
-    python lab/benchmarks/unit_alone.py --env qube --unit 48 --seed 100 [--fleet-seed 0] [--max-rounds 1000]
+    python lab/benchmarks/unit_alone.py --env qube --unit 48 --seed 100 [--fleet-seed 0] [--fleet-profile P] \
+        [--max-rounds 1000]
 
 A Learner of the ``standard`` preset on unit ``--unit`` of fleet ``--fleet-seed`` (its env as ``fleetrl
 train`` builds it), one episode a round, until its criterion holds or ``--max-rounds``. Prints one JSON line:
@@ -31,12 +32,13 @@ def main() -> None:
     p.add_argument("--unit", type=int, required=True)
     p.add_argument("--seed", type=int, required=True)
     p.add_argument("--fleet-seed", type=int, default=0)
+    p.add_argument("--fleet-profile", default=None)
     p.add_argument("--max-rounds", type=int, default=1000)
     a = p.parse_args()
     logging.disable(logging.WARNING)  # a hand reset's one-line warning per unit
     torch.set_num_threads(1)
     spec = get_env_spec(a.env)
-    env, unit = spec.make(a.unit, a.fleet_seed)
+    env, unit = spec.make(a.unit, a.fleet_seed, fleet_profile=a.fleet_profile)
     learner = Learner(
         env,
         agent_for(unit, get_preset("standard"), seed=a.seed),
