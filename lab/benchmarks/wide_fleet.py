@@ -16,6 +16,7 @@ from __future__ import annotations
 import argparse
 import json
 import shlex
+import shutil
 import statistics
 import subprocess
 import sys
@@ -45,8 +46,11 @@ def parse_arm(text: str) -> tuple[str, list[str]]:
     return name, shlex.split(flags)
 
 
-def run_pair(arm_flags: list[str], pair: int, profile: str, units: int, max_rounds: int) -> dict:
-    """One run; its record (per-unit rounds to complete, rig seconds, wall seconds)."""
+def run_pair(
+    arm_flags: list[str], pair: int, profile: str, units: int, max_rounds: int, keep: Path | None = None
+) -> dict:
+    """One run; its record (per-unit rounds to complete, rig seconds, wall seconds); ``keep``: where worker
+    0's model file is copied (the fleet's shared policy, for ``adapt_unseen.py``)."""
     with tempfile.TemporaryDirectory() as tmp:
         out = Path(tmp) / "run"
         command = ["fleetrl", "train", "--env", "qube", "--fleet-profile", profile, "--units", str(units),
@@ -56,6 +60,9 @@ def run_pair(arm_flags: list[str], pair: int, profile: str, units: int, max_roun
         if done.returncode != 0:
             raise SystemExit(f"{shlex.join(command)} failed:\n{done.stderr[-2000:]}")
         summary = json.loads((out / "summary.json").read_text())
+        if keep is not None:
+            keep.parent.mkdir(parents=True, exist_ok=True)
+            shutil.copyfile(out / "models" / "worker-0.safetensors", keep)
     workers = summary["workers"]
     return {
         "format": 1,
@@ -76,6 +83,7 @@ def main() -> None:
     p.add_argument("--arm", action="append", default=None)
     p.add_argument("--records", type=Path, default=Path("lab/records/wide-fleet"))
     p.add_argument("--table-only", action="store_true", help="print the table of the records present")
+    p.add_argument("--keep-models", type=Path, default=None, help="copy worker 0's model of each run here")
     a = p.parse_args()
     arms = [parse_arm(x) for x in (a.arm or ["alone", "shared"])]
     pairs = parse_pairs(a.pairs)
@@ -85,7 +93,8 @@ def main() -> None:
             path = base / name / f"pair-{pair}.json"
             if path.exists() or a.table_only:
                 continue
-            record = run_pair(flags, pair, a.profile, a.units, a.max_rounds)
+            keep = None if a.keep_models is None else a.keep_models / name / f"pair-{pair}.safetensors"
+            record = run_pair(flags, pair, a.profile, a.units, a.max_rounds, keep)
             path.parent.mkdir(parents=True, exist_ok=True)
             path.write_text(json.dumps(record, indent=1) + "\n")
             print(f"{name} pair {pair}: rounds {record['rounds']}", file=sys.stderr, flush=True)
