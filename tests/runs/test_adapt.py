@@ -61,3 +61,5 @@ def test_the_command_writes_the_units_model_and_reports_the_check(
     )
     assert main([*argv, str(out)]) == 2  # an existing file is never overwritten
     assert "exists" in capsys.readouterr().err
+    assert main([*argv, str(tmp_path / "no" / "unit.safetensors")]) == 2  # refused before any episode
+    assert "no directory" in capsys.readouterr().err

@@ -42,6 +42,8 @@ def cmd_adapt(args: argparse.Namespace) -> int:
 
     if args.out.exists():
         raise ValueError(f"--out {args.out} exists: choose another file (nothing is overwritten)")
+    if not args.out.parent.is_dir():
+        raise ValueError(f"--out {args.out}: no directory {args.out.parent} to write it in")
     env = args.env or run_env(args.model) or DEFAULT_ENV
     done = adapt_model(
         args.model,
