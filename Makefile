@@ -56,8 +56,8 @@ test-fast: install
 	$(PY) -m pytest -q -m "not slow and not mqtt and not mosquitto"
 
 lint: install
-	$(VENV)/bin/ruff check src tests benchmarks examples
-	$(VENV)/bin/ruff format --check src tests benchmarks examples
+	$(VENV)/bin/ruff check src tests lab examples
+	$(VENV)/bin/ruff format --check src tests lab examples
 	$(VENV)/bin/mypy
 
 bench: install

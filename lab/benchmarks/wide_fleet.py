@@ -8,7 +8,7 @@ live view); ``alone`` is ``--mode individual``, ``shared`` the default federated
 other flags (e.g. ``own=--set own_head=true``). Each finished run leaves a small JSON record
 (``RECORDS/PROFILE-uU/ARM/pair-I.json``); a record present is not run again, so a sweep resumes. Prints, per
 arm: units completed, rounds per unit and the last unit's rounds (medians over pairs), the ratio alone /
-arm of each, and the time on the rigs until the last unit (median over pairs).
+arm of each, and the time on the rigs per unit and until 50, 90 and 100 % of the units completed (medians).
 """
 
 from __future__ import annotations
@@ -107,8 +107,9 @@ def print_table(base: Path, arms: list[str], pairs: list[int], profile: str, uni
                      if (f := base / arm / f"pair-{pair}.json").exists()} for arm in arms}  # fmt: skip
     common = [pair for pair in pairs if all(pair in records[arm] for arm in arms)]
     print(f"{profile}, {units} units, pairs (learning seed = fleet seed) {common}; {describe_host()}")
-    print("| arm | units completed | rounds per unit | last unit | × per unit | × last | rigs to last (s) |")
-    print("|---|---|---|---|---|---|---|")
+    print("| arm | units completed | rounds per unit | last unit | × per unit | × last | rigs per unit (s) "
+          "| rigs to 50 / 90 / 100 % of units (s) |")  # fmt: skip
+    print("|---|---|---|---|---|---|---|---|")
     alone = _figures([records["alone"][pair] for pair in common], units) if "alone" in records else None
     for arm in arms:
         fig = _figures([records[arm][pair] for pair in common], units)
@@ -118,7 +119,7 @@ def print_table(base: Path, arms: list[str], pairs: list[int], profile: str, uni
             ratios = (f"{alone['per_unit'] / per:.2f}", f"{alone['last'] / last:.2f}")
         print(
             f"| {arm} | {fig['completed']}/{fig['units']} | {per:g} | {last:g} | {ratios[0]} | {ratios[1]} "
-            f"| {fig['rig_last']:.0f} |"
+            f"| {fig['rig_unit']:.0f} | {fig['rig_shares']} |"
         )
 
 
@@ -132,8 +133,24 @@ def _figures(records: list[dict], units: int) -> dict:
         "units": len(flat),
         "per_unit": statistics.median(flat) if flat else float("nan"),
         "last": statistics.median(max(run) for run in rounds) if rounds else float("nan"),
-        "rig_last": statistics.median(rec["rig_seconds"]["fleet"] for rec in records) if records else 0.0,
+        "rig_unit": statistics.median(t for rec in records for t in rec["rig_seconds"]["per_unit"].values())
+        if records
+        else float("nan"),
+        "rig_shares": " / ".join(_share_median(records, share) for share in ("50", "90", "100")),
     }
+
+
+def _share_median(records: list[dict], share: str) -> str:
+    """The median over runs of the time on the rigs until ``share`` % of the units completed; a run that
+    never got there counts its whole time, and the median is then marked ≥."""
+    times, short = [], False
+    for rec in records:
+        t = rec["rig_seconds"]["controlled"].get(share)
+        short |= t is None
+        times.append(rec["rig_seconds"]["fleet"] if t is None else t)
+    if not times:
+        return "–"
+    return ("≥ " if short else "") + f"{statistics.median(times):.0f}"
 
 
 if __name__ == "__main__":
