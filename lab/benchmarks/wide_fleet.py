@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import shlex
 import shutil
 import statistics
@@ -142,10 +143,16 @@ def _figures(records: list[dict], units: int) -> dict:
 
 def _share_median(records: list[dict], share: str) -> str:
     """The median over runs of the time on the rigs until ``share`` % of the units completed; a run that
-    never got there counts its whole time, and the median is then marked ≥."""
+    never got there counts its whole time, and the median is then marked ≥. A record made before runs kept
+    these shares reads them from its units' times (the k-th smallest, k = ⌈share·N⌉, all its units done)."""
     times, short = [], False
     for rec in records:
-        t = rec["rig_seconds"]["controlled"].get(share)
+        rigs = rec["rig_seconds"]
+        if "controlled" in rigs:
+            t = rigs["controlled"].get(share)
+        else:
+            k = math.ceil(int(share) / 100 * len(rec["rounds"]))
+            t = sorted(rigs["per_unit"].values())[k - 1] if None not in rec["rounds"] else None
         short |= t is None
         times.append(rec["rig_seconds"]["fleet"] if t is None else t)
     if not times:
