@@ -27,7 +27,7 @@ def _fill(agent: PPOAgent, data_seed: int) -> None:
         agent.remember(obs, agent.act(obs), float(rng.random()), obs * 0.9, t % 60 == 59, False)
 
 
-@pytest.mark.parametrize("own_part", ["input", "first_layer", "heads", "biases"])
+@pytest.mark.parametrize("own_part", ["input", "heads", "biases"])
 def test_what_a_unit_shares_holds_no_own_offset(own_part: str) -> None:
     one_policy, own = _agent("none"), _agent(own_part)
     assert own.net.own, "the own part has offsets"

@@ -16,12 +16,11 @@ CriticLoss = Literal["abs", "huber"]
 TrajectoryMemoryKind = Literal["ring", "per_round"]
 Optimisers = Literal["per_model", "one_sequential"]
 Criterion = Literal["sampled", "argmax"]
-OwnPart = Literal["none", "input", "first_layer", "heads", "biases"]
+OwnPart = Literal["none", "input", "heads", "biases"]
 
 OWN_PART_NAMES: dict[str, tuple[str, ...]] = {
     "none": (),
     "input": ("trunk.0.bias",),
-    "first_layer": ("trunk.0.weight", "trunk.0.bias"),
     "heads": ("policy.weight", "policy.bias", "value.weight", "value.bias"),
     "biases": ("trunk.*.bias", "policy.bias", "value.bias"),
 }
