@@ -1,7 +1,8 @@
 """Each unit alone against a fleet, on (learning seed, fleet seed) pairs of one fleet profile.
 
     python lab/benchmarks/wide_fleet.py --profile wide --pairs 100-109 [--units 3] \
-        [--arm alone --arm shared --arm NAME=FLAGS] [--records lab/records/wide-fleet] [--table-only]
+        [--arm alone --arm shared --arm NAME=FLAGS] [--records lab/records/wide-fleet] [--table-only] \
+        [--env module:factory]
 
 Pair i is learning seed i with fleet seed i. An arm is a ``fleetrl train`` run (``--transport local``, no
 live view); ``alone`` is ``--mode individual``, ``shared`` the default federated run, and ``NAME=FLAGS`` any
@@ -48,13 +49,21 @@ def parse_arm(text: str) -> tuple[str, list[str]]:
 
 
 def run_pair(
-    arm_flags: list[str], pair: int, profile: str, units: int, max_rounds: int, keep: Path | None = None
+    arm_flags: list[str],
+    pair: int,
+    profile: str,
+    units: int,
+    max_rounds: int,
+    keep: Path | None = None,
+    env: str = "qube",
 ) -> dict:
     """One run; its record (per-unit rounds to complete, rig seconds, wall seconds); ``keep``: where worker
     0's model file is copied (the fleet's shared policy, for ``adapt_unseen.py``)."""
     with tempfile.TemporaryDirectory() as tmp:
         out = Path(tmp) / "run"
-        command = ["fleetrl", "train", "--env", "qube", "--fleet-profile", profile, "--units", str(units),
+        # a unit factory (``module:factory``) draws its units itself: the profile is its own
+        fleet = ["--fleet-profile", profile] if ":" not in env else []
+        command = ["fleetrl", "train", "--env", env, *fleet, "--units", str(units),
                    "--seed", str(pair), "--fleet-seed", str(pair), "--max-rounds", str(max_rounds),
                    "--transport", "local", "--no-live", *arm_flags]  # fmt: skip
         done = subprocess.run([*command, "--out", str(out)], capture_output=True, text=True, check=False)
@@ -78,6 +87,7 @@ def run_pair(
 def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--profile", default="wide")
+    p.add_argument("--env", default="qube", help="qube, or a unit factory module:factory of that profile")
     p.add_argument("--pairs", default="100-109")
     p.add_argument("--units", type=int, default=3)
     p.add_argument("--max-rounds", type=int, default=1000)
@@ -88,18 +98,23 @@ def main() -> None:
     a = p.parse_args()
     arms = [parse_arm(x) for x in (a.arm or ["alone", "shared"])]
     pairs = parse_pairs(a.pairs)
-    base = a.records / f"{a.profile}-u{a.units}"
+    base = a.records / f"{a.profile}-u{a.units}{env_suffix(a.env)}"
     for name, flags in arms:
         for pair in pairs:
             path = base / name / f"pair-{pair}.json"
             if path.exists() or a.table_only:
                 continue
             keep = None if a.keep_models is None else a.keep_models / name / f"pair-{pair}.safetensors"
-            record = run_pair(flags, pair, a.profile, a.units, a.max_rounds, keep)
+            record = run_pair(flags, pair, a.profile, a.units, a.max_rounds, keep, a.env)
             path.parent.mkdir(parents=True, exist_ok=True)
             path.write_text(json.dumps(record, indent=1) + "\n")
             print(f"{name} pair {pair}: rounds {record['rounds']}", file=sys.stderr, flush=True)
     print_table(base, [name for name, _ in arms], pairs, a.profile, a.units)
+
+
+def env_suffix(env: str) -> str:
+    """The records' folder suffix of ``env``: none for QUBE, ``-FACTORY`` for a unit factory."""
+    return "" if env == "qube" else "-" + env.rpartition(":")[2]
 
 
 def print_table(base: Path, arms: list[str], pairs: list[int], profile: str, units: int) -> None:
