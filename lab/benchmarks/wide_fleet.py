@@ -133,26 +133,29 @@ def print_table(base: Path, arms: list[str], pairs: list[int], profile: str, uni
         ratios = ("–", "–")
         if alone is not None:
             ratios = (f"{alone['per_unit'] / per:.2f}", f"{alone['last'] / last:.2f}")
+        rig_unit = "–" if math.isnan(fig["rig_unit"]) else f"{fig['rig_unit']:.0f}"
         print(
             f"| {arm} | {fig['completed']}/{fig['units']} | {per:g} | {last:g} | {ratios[0]} | {ratios[1]} "
-            f"| {fig['rig_unit']:.0f} | {fig['rig_shares']} |"
+            f"| {rig_unit} | {fig['rig_shares']} |"
         )
 
 
 def _figures(records: list[dict], units: int) -> dict:
     """Medians: rounds per unit (every unit of every pair; an unfinished unit counts as its run's M), the
-    last unit's rounds, time on the rigs until the last unit."""
+    last unit's rounds, time on the rigs per unit and until 50, 90 and 100 % of the units completed (runs of
+    a unit factory, which has no control period, have none)."""
     rounds = [[r if r is not None else 10**9 for r in rec["rounds"]] for rec in records]
+    timed = [rec for rec in records if rec["rig_seconds"] is not None]  # a unit factory's have no clock
     flat = [r for run in rounds for r in run]
     return {
         "completed": sum(r < 10**9 for r in flat),
         "units": len(flat),
         "per_unit": statistics.median(flat) if flat else float("nan"),
         "last": statistics.median(max(run) for run in rounds) if rounds else float("nan"),
-        "rig_unit": statistics.median(t for rec in records for t in rec["rig_seconds"]["per_unit"].values())
-        if records
+        "rig_unit": statistics.median(t for rec in timed for t in rec["rig_seconds"]["per_unit"].values())
+        if timed
         else float("nan"),
-        "rig_shares": " / ".join(_share_median(records, share) for share in ("50", "90", "100")),
+        "rig_shares": " / ".join(_share_median(timed, share) for share in ("50", "90", "100")),
     }
 
 
