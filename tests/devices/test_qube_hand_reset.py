@@ -42,3 +42,18 @@ def test_every_unit_of_a_hundred_of_the_default_fleet_resets() -> None:
         device = QubeDevice.from_fleet(unit, fleet_seed=0)
         for seed in range(5):
             assert hand_off_window_holds(device.reset(seed=1000 * unit + seed))
+
+
+def test_a_hand_reset_says_why_the_swing_up_did_not_settle() -> None:
+    """Two ways a `wide` unit's swing-up runs out of time (lab/benchmarks/fleet_resets.py --modes): the
+    balance law holds the pendulum up with the arm outside the settle window, or the swings are never
+    caught. A reset that settles has no reason."""
+    held = QubeDevice.from_fleet(0, fleet_seed=105, profile="wide")
+    held.reset(seed=0)
+    assert held.last_reset_by_hand and held.last_unsettled.startswith("held up, not settled: arm at ")
+    swinging = QubeDevice.from_fleet(1, fleet_seed=108, profile="wide")
+    swinging.reset(seed=0)
+    assert swinging.last_reset_by_hand and swinging.last_unsettled == "never caught"
+    fine = QubeDevice.from_fleet(3, fleet_seed=0)
+    fine.reset(seed=0)
+    assert not fine.last_reset_by_hand and fine.last_unsettled == ""

@@ -49,6 +49,10 @@ BALANCE_GAINS = (-2.0, 35.0, -1.5, 3.0)
 ) = range(19)
 
 
+CATCH_DEGREES = 20.0
+"""the swing-up hands over to the balance law inside this distance from upright (degrees)"""
+
+
 def controller_constants(
     params: QubeParams = NOMINAL,
     *,
@@ -58,7 +62,7 @@ def controller_constants(
     arm_p: float = 6.0,
     arm_d: float = 0.2,
     swing_max_volts: float = 8.0,
-    catch_deg: float = 20.0,
+    catch_deg: float = CATCH_DEGREES,
     drop_deg: float = 30.0,
     recentre: float = 0.5,
     settle_alpha_deg: float = 3.0,

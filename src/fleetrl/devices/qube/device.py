@@ -5,7 +5,7 @@ import math
 
 import numpy as np
 
-from fleetrl.devices.qube.controllers import controller_constants, device_reset, run_balance
+from fleetrl.devices.qube.controllers import CATCH_DEGREES, controller_constants, device_reset, run_balance
 from fleetrl.devices.qube.dynamics import (
     N_SENSOR,
     S_ALPHA,
@@ -76,6 +76,8 @@ class QubeDevice:
         """largest |arm angle| reading (rad) during the last reset"""
         self.last_reset_by_hand = False
         """whether the last reset's swing-up did not settle in time (the pendulum was put upright by hand)"""
+        self.last_unsettled = ""
+        """why the last reset needed a hand (:func:`unsettled_reason`); empty when it settled"""
         self.hand_resets = 0
         """resets so far whose pendulum was put upright by hand"""
         self.name = "a QUBE unit"
@@ -142,12 +144,14 @@ class QubeDevice:
         self.set_state(np.array([0.0, math.pi + rng.uniform(-angle, angle), 0.0, rng.uniform(-rate, rate)]))
         periods, travel = self._settle(self.config.reset_timeout)
         self.last_reset_by_hand = periods < 0
+        self.last_unsettled = unsettled_reason(self._state) if self.last_reset_by_hand else ""
         tried = 0
         if self.last_reset_by_hand:
             if not self.hand_resets:
                 log.warning(
-                    "%s: the swing-up did not settle within %s s, so the pendulum is put upright by hand "
-                    "(said once per unit; hand_resets counts them)", self.name, self.config.reset_timeout,
+                    "%s: the swing-up did not settle within %s s (%s), so the pendulum is put upright by "
+                    "hand (said once per unit; hand_resets counts them)",
+                    self.name, self.config.reset_timeout, self.last_unsettled,
                 )  # fmt: skip
             self.hand_resets += 1
             tried = math.ceil(self.config.reset_timeout / self.config.device_period)
@@ -235,3 +239,14 @@ class QubeVoltageUnit:
     def close(self) -> None:
         """Close the unit."""
         self.device.close()
+
+
+def unsettled_reason(state: np.ndarray) -> str:
+    """Why a swing-up that ran out of time stands where it does (``state``: [theta, alpha, ...], alpha from
+    upright): ``held up, not settled`` when the balance law holds the pendulum up but not inside the settle
+    windows (the arm held off centre by a strong cable torque or a dead zone against a law without integral
+    action), else ``never caught`` (the swings never came within the catch angle)."""
+    alpha = abs(math.remainder(float(state[1]), 2.0 * math.pi))
+    if alpha < math.radians(CATCH_DEGREES):
+        return f"held up, not settled: arm at {math.degrees(float(state[0])):+.0f}°"
+    return "never caught"
