@@ -11,7 +11,7 @@ import torch
 from fleetrl.agent.config import get_preset
 from fleetrl.agent.ppo import PPOAgent
 from fleetrl.cli.main import main
-from fleetrl.runs.adapt import update_own_part, with_own_part
+from fleetrl.runs.adapt import keep_fit, update_own_part, with_own_part
 
 
 def _fleet_agent(seed: int = 4) -> PPOAgent:
@@ -56,10 +56,17 @@ def test_the_command_writes_the_units_model_and_reports_the_check(
     assert line["episodes"] == 2 and len(line["check_before"]) == len(line["check_after"]) == 2
     assert line["rig_seconds"] > 0.0
     adapted = PPOAgent.load(out)
-    assert adapted.config.own_part == "biases" and any(
-        torch.count_nonzero(v) for v in adapted.net.own.values()
-    )
+    fitted = any(torch.count_nonzero(v) for v in adapted.net.own.values())
+    assert adapted.config.own_part == "biases"
+    assert fitted == (line["kept"] == "fit") == keep_fit(line["check_before"], line["check_after"])
     assert main([*argv, str(out)]) == 2  # an existing file is never overwritten
     assert "exists" in capsys.readouterr().err
     assert main([*argv, str(tmp_path / "no" / "unit.safetensors")]) == 2  # refused before any episode
     assert "no directory" in capsys.readouterr().err
+
+
+def test_a_fit_that_scores_less_on_the_checks_is_not_kept() -> None:
+    assert keep_fit([100.0, 300.0], [200.0, 200.0])  # as good on average
+    assert keep_fit([2500.0, 2500.0], [2500.0, 2500.0])
+    assert not keep_fit([2500.0, 2500.0], [2500.0, 2400.0])
+    assert keep_fit([], [])  # no checks, no evidence against the fit

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import sys
 from pathlib import Path
 from typing import Any
 
@@ -25,7 +26,10 @@ def register(subparsers: Any) -> None:
     add_fleet_profile_argument(adapt)
     adapt.add_argument("--episodes", type=int, default=5, help="episodes on the unit (default 5)")
     adapt.add_argument(
-        "--check", type=int, default=10, help="greedy episodes before and after, to compare (default 10)"
+        "--check",
+        type=int,
+        default=10,
+        help="greedy episodes before and after, to compare; a fit that scores less is not kept (default 10)",
     )
     adapt.add_argument(
         "--own-part",
@@ -57,6 +61,12 @@ def cmd_adapt(args: argparse.Namespace) -> int:
         own_part=args.own_part,
         out=args.out,
     )
+    if not done.kept_fit:
+        print(
+            f"the fit scored less on the check episodes than the fleet's policy; {args.out} holds "
+            "the fleet's policy (its own part zero)",
+            file=sys.stderr,
+        )
     held = {
         k: sum(s >= (done.cap or float("inf")) for s in v)
         for k, v in (("before", done.before), ("after", done.after))
@@ -73,6 +83,7 @@ def cmd_adapt(args: argparse.Namespace) -> int:
                 "check_after": done.after,
                 "held_before": held["before"],
                 "held_after": held["after"],
+                "kept": "fit" if done.kept_fit else "fleet policy",
             }
         )
     )

@@ -38,6 +38,15 @@ class Adapted:
     """the same check episodes (same reset seeds) of the adapted policy"""
     cap: int | None
     """the env's episode cap (an episode that reaches it is held)"""
+    kept_fit: bool
+    """whether the unit's model file holds the fit (else the fleet's policy with zero offsets: the fit did
+    worse on the check episodes, :func:`keep_fit`)"""
+
+
+def keep_fit(before: list[float], after: list[float]) -> bool:
+    """Whether to keep a fit whose greedy check episodes scored ``after`` against the fleet's policy's
+    ``before`` (the same reset seeds): unless it scored less on average. With no checks it is kept."""
+    return not before or not after or float(np.mean(after)) >= float(np.mean(before))
 
 
 def with_own_part(agent: PPOAgent, own_part: str, seed: int) -> PPOAgent:
@@ -78,7 +87,8 @@ def adapt_model(
     out: Path | None = None,
 ) -> Adapted:
     """Fit the fleet's policy in ``model`` to ``unit`` in ``episodes`` episodes (one update after each) and
-    write the unit's model file to ``out``; ``check`` greedy episodes before and after say what it gained.
+    write the unit's model file to ``out``; ``check`` greedy episodes before and after say what it gained,
+    and a fit that scored less on them than the fleet's policy is not kept (:func:`keep_fit`).
 
     :raises FileNotFoundError: no model file
     :raises ValueError: a bad setting, a file that is not a fleetrl model of this env's shapes
@@ -107,12 +117,13 @@ def adapt_model(
         after = greedy_scores(gym_env, agent.act_greedy, check, seed=10_000 + seed)
     finally:
         gym_env.close()
+    kept = keep_fit(before, after)
     if out is not None:
-        agent.save(out)
+        (agent if kept else with_own_part(loaded, part, seed)).save(out)
     period = spec.control_period
     rig = (
         None
         if period is None
         else steps * period + episodes * reset_seconds(env, unit, fleet_seed, fleet_profile)
     )
-    return Adapted(scores, steps, rig, before, after, description.episode_cap)
+    return Adapted(scores, steps, rig, before, after, description.episode_cap, kept)
