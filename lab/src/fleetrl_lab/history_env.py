@@ -47,5 +47,14 @@ class LastStep(gymnasium.ObservationWrapper):
 
 def qube_wide(unit: int, fleet_seed: int) -> gymnasium.Env:
     """QUBE unit ``unit`` of the ``wide`` fleet ``fleet_seed``, its observation with the last step."""
+    return _qube(unit, fleet_seed, "wide")
+
+
+def qube_table2(unit: int, fleet_seed: int) -> gymnasium.Env:
+    """QUBE unit ``unit`` of the ``table2`` fleet ``fleet_seed`` (the default), with the last step."""
+    return _qube(unit, fleet_seed, "table2")
+
+
+def _qube(unit: int, fleet_seed: int, profile: str) -> gymnasium.Env:
     register_envs()
-    return LastStep(gymnasium.make(QUBE_BALANCE_ID, unit=unit, fleet_seed=fleet_seed, fleet_profile="wide"))
+    return LastStep(gymnasium.make(QUBE_BALANCE_ID, unit=unit, fleet_seed=fleet_seed, fleet_profile=profile))
