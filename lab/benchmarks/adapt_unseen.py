@@ -16,16 +16,10 @@ import json
 import statistics
 from pathlib import Path
 
+from wide_fleet import parse_pairs
+
 from fleetrl.portable import describe_host
 from fleetrl.runs.adapt import adapt_model
-
-
-def parse_range(text: str) -> list[int]:
-    """``3-22`` or ``0,1,3,5``."""
-    if "-" in text:
-        first, last = (int(x) for x in text.split("-"))
-        return list(range(first, last + 1))
-    return [int(x) for x in text.split(",")]
 
 
 def main() -> None:
@@ -40,7 +34,7 @@ def main() -> None:
     p.add_argument("--own-part", default=None)
     p.add_argument("--seed", type=int, default=0)
     a = p.parse_args()
-    units, budgets = parse_range(a.units), parse_range(a.episodes)
+    units, budgets = parse_pairs(a.units), parse_pairs(a.episodes)
     rows = []
     for budget in budgets:
         held = episodes = every = 0

@@ -94,11 +94,16 @@ def main() -> None:
     p.add_argument("--arm", action="append", default=None)
     p.add_argument("--records", type=Path, default=Path("lab/records/wide-fleet"))
     p.add_argument("--table-only", action="store_true", help="print the table of the records present")
+    p.add_argument(
+        "--per-pair",
+        action="store_true",
+        help="also print, per pair and arm, the median unit's time on the rigs and the largest mean reset",
+    )
     p.add_argument("--keep-models", type=Path, default=None, help="copy worker 0's model of each run here")
     a = p.parse_args()
     arms = [parse_arm(x) for x in (a.arm or ["alone", "shared"])]
     pairs = parse_pairs(a.pairs)
-    base = a.records / f"{a.profile}-u{a.units}{env_suffix(a.env)}"
+    base = records_dir(a.records, a.profile, a.units, a.env)
     for name, flags in arms:
         for pair in pairs:
             path = base / name / f"pair-{pair}.json"
@@ -110,11 +115,14 @@ def main() -> None:
             path.write_text(json.dumps(record, indent=1) + "\n")
             print(f"{name} pair {pair}: rounds {record['rounds']}", file=sys.stderr, flush=True)
     print_table(base, [name for name, _ in arms], pairs, a.profile, a.units)
+    if a.per_pair:
+        print_pairs(base, [name for name, _ in arms], pairs)
 
 
-def env_suffix(env: str) -> str:
-    """The records' folder suffix of ``env``: none for QUBE, ``-FACTORY`` for a unit factory."""
-    return "" if env == "qube" else "-" + env.rpartition(":")[2]
+def records_dir(records: Path, profile: str, units: int, env: str = "qube") -> Path:
+    """Where the records of ``units``-unit fleets of ``profile`` lie: ``PROFILE-uU``, and ``-FACTORY`` after
+    it for a unit factory's."""
+    return records / f"{profile}-u{units}{'' if env == 'qube' else '-' + env.rpartition(':')[2]}"
 
 
 def print_table(base: Path, arms: list[str], pairs: list[int], profile: str, units: int) -> None:
@@ -138,6 +146,24 @@ def print_table(base: Path, arms: list[str], pairs: list[int], profile: str, uni
             f"| {arm} | {fig['completed']}/{fig['units']} | {per:g} | {last:g} | {ratios[0]} | {ratios[1]} "
             f"| {rig_unit} | {fig['rig_shares']} |"
         )
+
+
+def print_pairs(base: Path, arms: list[str], pairs: list[int]) -> None:
+    """Per pair and arm: the median unit's time on the rigs, and the largest of its units' mean time per
+    reset (a unit that needs a hand reset costs its fleet that much at every round under a barrier)."""
+    print("| pair | arm | median unit on the rigs (s) | largest mean reset (s) |")
+    print("|---|---|---|---|")
+    for pair in pairs:
+        for arm in arms:
+            f = base / arm / f"pair-{pair}.json"
+            record = json.loads(f.read_text()) if f.exists() else None
+            if record is None or record["rig_seconds"] is None:
+                continue
+            rigs, rounds = record["rig_seconds"], record["rounds"]
+            parts = zip(rigs["parts"].values(), rounds, strict=True)
+            reset = max(part["reset"] / max(1, r or 1) for part, r in parts)
+            median = statistics.median(rigs["per_unit"].values())
+            print(f"| {pair} | {arm} | {median:.0f} | {reset:.0f} |")
 
 
 def _figures(records: list[dict], units: int) -> dict:

@@ -4,9 +4,9 @@
 
 For every unit of every pair: its rounds alone and in ``--arm``, its motor's authority (km/Rm relative to
 nominal), its dead zone, cable stiffness, pendulum m·L relative to nominal and its mean swing-up time. Then
-Spearman's rank correlation of each column with the rounds in the arm and alone, over all units, and the same
-for the unit that came last in its pair against the others of that pair (is the last unit the one with the
-weakest motor, the widest dead zone...?).
+Spearman's rank correlation of each column with the rounds in the arm and alone, over all units, and each
+column's median over the units that came last in their pair against its median over all units (is the last
+unit the one with the weakest motor, the widest dead zone...?).
 """
 
 from __future__ import annotations
@@ -16,6 +16,7 @@ import json
 from pathlib import Path
 
 import numpy as np
+from wide_fleet import parse_pairs, records_dir
 
 from fleetrl.devices.qube.fleet_profiles import fleet_profile
 from fleetrl.devices.qube.params import NOMINAL
@@ -52,10 +53,9 @@ def main() -> None:
     p.add_argument("--arm", default="shared")
     p.add_argument("--records", type=Path, default=Path("lab/records/wide-fleet"))
     a = p.parse_args()
-    first, last = (int(x) for x in a.pairs.split("-"))
-    base = a.records / f"{a.profile}-u{a.units}"
+    base = records_dir(a.records, a.profile, a.units)
     rows = []
-    for pair in range(first, last + 1):
+    for pair in parse_pairs(a.pairs):
         alone = json.loads((base / "alone" / f"pair-{pair}.json").read_text())["rounds"]
         fleet = json.loads((base / a.arm / f"pair-{pair}.json").read_text())["rounds"]
         for unit in range(a.units):
