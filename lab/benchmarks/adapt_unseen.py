@@ -1,7 +1,9 @@
 """Unseen units fitted in a few episodes: the share of greedy episodes held to the cap before and after.
 
     python lab/benchmarks/adapt_unseen.py RUN/models/worker-0.safetensors --fleet-profile wide \
-        --fleet-seed 1 --units 3-22 [--episodes 0,1,3,5] [--check 10] [--own-part biases] [--seed 0]
+        --fleet-seed 1 --units 3-22 [--episodes 0,1,3,5] [--check 10] [--own-part biases] [--seed 0] \
+        [--record FILE]
+    python lab/benchmarks/adapt_unseen.py --pool lab/records/adapt-unseen/wide-u3/shared
 
 For each unit (none of them trained in the fleet) and each budget E of ``--episodes``: ``fleetrl adapt``'s
 fit (:func:`fleetrl.runs.adapt.adapt_model`) of E episodes from the fleet's policy, then ``--check`` greedy
@@ -13,7 +15,9 @@ from __future__ import annotations
 
 import argparse
 import json
+import shlex
 import statistics
+import sys
 from pathlib import Path
 
 from wide_fleet import parse_pairs
@@ -24,7 +28,7 @@ from fleetrl.runs.adapt import adapt_model
 
 def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    p.add_argument("model", type=Path)
+    p.add_argument("model", type=Path, nargs="?")
     p.add_argument("--env", default="qube")
     p.add_argument("--fleet-profile", default=None)
     p.add_argument("--fleet-seed", type=int, default=0)
@@ -33,7 +37,14 @@ def main() -> None:
     p.add_argument("--check", type=int, default=10)
     p.add_argument("--own-part", default=None)
     p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--record", type=Path, default=None, help="write the budgets' rows here as a JSON record")
+    p.add_argument("--pool", type=Path, default=None, help="print the table pooled over a folder of records")
     a = p.parse_args()
+    if a.pool is not None:
+        print_pooled(a.pool)
+        return
+    if a.model is None:
+        p.error("name a model file, or --pool a folder of records")
     units, budgets = parse_pairs(a.units), parse_pairs(a.episodes)
     rows = []
     for budget in budgets:
@@ -58,6 +69,27 @@ def main() -> None:
     for row in rows:
         print(f"| {row['episodes']} | {100 * row['held']:.0f} % | {row['units_all_held']}/{row['units']} "
               f"| {row['rig_seconds_median']:.0f} s |")  # fmt: skip
+    if a.record is not None:
+        command, host = shlex.join(sys.argv), describe_host()
+        record = {"format": 1, "model": str(a.model), "command": command, "host": host}
+        a.record.write_text(json.dumps(record | {"budgets": rows}, indent=1) + "\n")
+
+
+def print_pooled(folder: Path) -> None:
+    """The budgets' rows pooled over every record in ``folder`` (fleets of as many units and checks each):
+    the mean share held, the units holding every check, the median of the fleets' median rig times."""
+    records = [json.loads(f.read_text()) for f in sorted(folder.glob("*.json"))]
+    if not records:
+        raise SystemExit(f"no records in {folder}")
+    print(f"{folder}: {len(records)} fleets")
+    print("| episodes of its own | episodes held to the cap | units holding all | time on the rig, median |")
+    print("|---|---|---|---|")
+    for k, row in enumerate(records[0]["budgets"]):
+        rows = [rec["budgets"][k] for rec in records]
+        held = statistics.mean(r["held"] for r in rows)
+        every, units = sum(r["units_all_held"] for r in rows), sum(r["units"] for r in rows)
+        rig = statistics.median(r["rig_seconds_median"] for r in rows)
+        print(f"| {row['episodes']} | {100 * held:.1f} % | {every}/{units} | {rig:.0f} s |")
 
 
 if __name__ == "__main__":

@@ -97,7 +97,8 @@ def main() -> None:
     p.add_argument(
         "--per-pair",
         action="store_true",
-        help="also print, per pair and arm, the median unit's time on the rigs and the largest mean reset",
+        help="also print, per pair and arm, the median unit's time on the rigs and waiting, and the largest "
+        "mean reset",
     )
     p.add_argument("--keep-models", type=Path, default=None, help="copy worker 0's model of each run here")
     a = p.parse_args()
@@ -149,10 +150,11 @@ def print_table(base: Path, arms: list[str], pairs: list[int], profile: str, uni
 
 
 def print_pairs(base: Path, arms: list[str], pairs: list[int]) -> None:
-    """Per pair and arm: the median unit's time on the rigs, and the largest of its units' mean time per
-    reset (a unit that needs a hand reset costs its fleet that much at every round under a barrier)."""
-    print("| pair | arm | median unit on the rigs (s) | largest mean reset (s) |")
-    print("|---|---|---|---|")
+    """Per pair and arm: the median unit's time on the rigs and its time waiting for the fleet, and the
+    largest of its units' mean time per reset (a unit that needs a hand reset costs its fleet that much at
+    every round under a barrier)."""
+    print("| pair | arm | median unit on the rigs (s) | median unit waiting (s) | largest mean reset (s) |")
+    print("|---|---|---|---|---|")
     for pair in pairs:
         for arm in arms:
             f = base / arm / f"pair-{pair}.json"
@@ -163,7 +165,8 @@ def print_pairs(base: Path, arms: list[str], pairs: list[int]) -> None:
             parts = zip(rigs["parts"].values(), rounds, strict=True)
             reset = max(part["reset"] / max(1, r or 1) for part, r in parts)
             median = statistics.median(rigs["per_unit"].values())
-            print(f"| {pair} | {arm} | {median:.0f} | {reset:.0f} |")
+            waited = statistics.median(part["waited"] for part in rigs["parts"].values())
+            print(f"| {pair} | {arm} | {median:.0f} | {waited:.0f} | {reset:.0f} |")
 
 
 def _figures(records: list[dict], units: int) -> dict:
