@@ -17,7 +17,8 @@ from control_models import balancing_model, fresh_model
 def models(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
     """Model files, by name: ``balancing`` (QUBE, discrete: holds the pendulum), ``balancing-continuous``
     (QUBE, volts), ``balancing-own`` (a unit's own policy: the law in its own head, none in the shared),
-    ``fresh`` and ``fresh-continuous`` (untrained: short episodes of varied length),
+    ``fresh`` and ``fresh-continuous`` (untrained: short episodes of varied length), ``fresh-last`` and
+    ``fresh-last-continuous`` (the same, their observation with the last step),
     ``cartpole`` (untrained)."""
     out = tmp_path_factory.mktemp("models")
     return {
@@ -26,5 +27,9 @@ def models(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
         "balancing-continuous": balancing_model(out / "balancing-c.safetensors", "qube-continuous"),
         "fresh": fresh_model(out / "fresh.safetensors", "qube", seed=3),
         "fresh-continuous": fresh_model(out / "fresh-c.safetensors", "qube-continuous", seed=4),
+        "fresh-last": fresh_model(out / "fresh-last.safetensors", "qube", seed=6, last_step=True),
+        "fresh-last-continuous": fresh_model(
+            out / "fresh-last-c.safetensors", "qube-continuous", seed=7, last_step=True
+        ),
         "cartpole": fresh_model(out / "cartpole.safetensors", "cartpole", seed=5),
     }

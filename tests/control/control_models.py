@@ -26,10 +26,12 @@ SCALE = 0.1
 """the first layer computes SCALE·(−K·x): inside tanh's near-linear range for small errors"""
 
 
-def fresh_model(path: Path, env: str, seed: int) -> Path:
-    """An untrained agent of ``env``'s shapes, saved; its policy head is scaled up so its greedy actions vary
-    from state to state (an untrained head is near-uniform: its argmax would hardly change)."""
-    agent = agent_for(describe_env(env), get_preset("standard"), seed=seed)
+def fresh_model(path: Path, env: str, seed: int, last_step: bool = False) -> Path:
+    """An untrained agent of ``env``'s shapes (its observation with the last step if ``last_step``), saved;
+    its policy head is scaled up so its greedy actions vary from state to state (an untrained head is
+    near-uniform: its argmax would hardly change)."""
+    config = dataclasses.replace(get_preset("standard"), last_step=last_step)
+    agent = agent_for(describe_env(env, last_step), config, seed=seed)
     with torch.no_grad():
         agent.net.policy.weight.mul_(100.0)
     agent.refresh_policy()

@@ -59,7 +59,7 @@ class ArmRamp:
     """The balance law (through the paper's ±1.44 V actions) with the arm's set point moving at ``rate``
     rad/s: it keeps the pendulum up while it walks the arm to its ±90° limit."""
 
-    obs_dim, action_space, env = 4, ActionSpace.discrete(3), None
+    obs_dim, action_space, env, last_step = 4, ActionSpace.discrete(3), None, False
 
     def __init__(self, rate: float, qube: EmulatedQube | None = None) -> None:
         self.rate, self.qube = rate, qube

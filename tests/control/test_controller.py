@@ -29,6 +29,7 @@ class Wrapped:
     def __init__(self, policy: Any) -> None:
         self.policy = policy
         self.obs_dim, self.action_space, self.env = policy.obs_dim, policy.action_space, policy.env
+        self.last_step = policy.last_step
 
 
 class Recording(Wrapped):
@@ -51,6 +52,7 @@ class AgentPolicy:
     def __init__(self, model: Path) -> None:
         self.agent = PPOAgent.load(model)
         self.obs_dim, self.action_space = self.agent.obs_dim, self.agent.action_space
+        self.last_step = self.agent.config.last_step
 
     def act(self, obs: np.ndarray) -> Any:
         return self.agent.act_greedy(obs)
@@ -59,7 +61,7 @@ class AgentPolicy:
 def in_process(model: Path, env: str, episodes: int) -> tuple[list[float], list[np.ndarray]]:
     """``fleetrl evaluate``'s path: the in-process unit, the torch-loaded agent; scores and observations."""
     recording = Recording(AgentPolicy(model))
-    gym_env, _ = get_env_spec(env).make(UNIT, FLEET_SEED)
+    gym_env, _ = get_env_spec(env).make(UNIT, FLEET_SEED, last_step=recording.last_step)
     scores = greedy_scores(gym_env, recording.act, episodes, SEED)
     gym_env.close()
     return scores, recording.seen
@@ -80,6 +82,8 @@ def on_unit(policy: GreedyPolicy, env: str, episodes: int) -> tuple[list[float],
         ("fresh", "qube", 6),
         pytest.param("balancing-continuous", "qube-continuous", 2, marks=pytest.mark.slow),
         ("fresh-continuous", "qube-continuous", 6),
+        ("fresh-last", "qube", 6),
+        ("fresh-last-continuous", "qube-continuous", 6),
     ],
 )
 def test_the_controller_plays_evaluate_s_episodes_step_for_step(
@@ -98,7 +102,7 @@ def test_the_controller_plays_evaluate_s_episodes_step_for_step(
     assert np.array_equal(np.stack(seen), np.stack(reference_seen))  # every observation, bit for bit
 
 
-@pytest.mark.parametrize("name", [pytest.param("balancing", marks=pytest.mark.slow), "fresh"])
+@pytest.mark.parametrize("name", [pytest.param("balancing", marks=pytest.mark.slow), "fresh", "fresh-last"])
 def test_the_onnx_export_plays_the_same_episodes(models: dict[str, Path], tmp_path: Path, name: str) -> None:
     """The graph computes in float32, fleetrl in float64: where the balance law's bang-bang decision is a
     near tie (|V| ≈ 0, every few steps while it holds the pendulum) the two may choose differently, and the
@@ -109,7 +113,7 @@ def test_the_onnx_export_plays_the_same_episodes(models: dict[str, Path], tmp_pa
     onnx_scores, onnx_seen = on_unit(load_policy(out), "qube", 4)
     model_scores, model_seen = on_unit(load_policy(models[name]), "qube", 4)
     assert onnx_scores == model_scores
-    if name == "fresh":
+    if name.startswith("fresh"):
         assert np.array_equal(np.stack(onnx_seen), np.stack(model_seen))
     else:
         assert onnx_scores == [2500.0] * 4

@@ -93,6 +93,10 @@ class PPOConfig:
     shared parameters, learned from its own gradient alone and never sent: 'input' the first layer's bias
     (an embedding of the unit's dynamics), 'heads' the actor and critic heads, 'biases' every bias; 'none':
     one policy for every unit"""
+    last_step: bool = False
+    """the policy's input holds the unit's last observation and action beside the observation
+    (:mod:`fleetrl.envs.last_step`): one shared policy that can tell units apart by how they answered its
+    last action"""
 
     def to_dict(self) -> dict[str, Any]:
         """Plain JSON-ready dict (``hidden`` as a list)."""

@@ -32,6 +32,8 @@ class PolicyFile:
     """(weight (out, in), bias (out,)) of each trunk layer, then of the policy head"""
     log_std: np.ndarray | None
     """a Gaussian's state-independent log-std (None: discrete)"""
+    last_step: bool = False
+    """its observation holds the unit's last step (the ``last_step`` setting it was trained with)"""
 
     def numpy_policy(self) -> NumpyPolicy:
         """The numba acting copy of this actor (what ``PPOAgent`` acts with)."""
@@ -51,6 +53,7 @@ def read_policy_file(path: str | Path) -> PolicyFile:
         hidden = [int(width) for width in arch["hidden"]]
         activation = str(arch["activation"])
         space = ActionSpace.from_architecture(arch)
+        last_step = bool(metadata.get("config", {}).get("last_step", False))
     except (KeyError, TypeError, ValueError) as exc:
         raise CheckpointError(f"{path}: fleetrl metadata is incomplete or invalid ({exc})") from exc
     if obs_dim < 1 or not hidden or min(hidden) < 1 or activation not in ACTIVATIONS:
@@ -62,7 +65,7 @@ def read_policy_file(path: str | Path) -> PolicyFile:
     arrays = [array for layer in layers for array in layer] + ([] if log_std is None else [log_std])
     if not all(np.all(np.isfinite(array)) for array in arrays):
         raise CheckpointError(f"{path}: the policy's weights hold values that are not finite")
-    return PolicyFile(str(path), obs_dim, space, activation, layers, log_std)
+    return PolicyFile(str(path), obs_dim, space, activation, layers, log_std, last_step)
 
 
 def network_shapes(obs_dim: int, hidden: list[int], space: ActionSpace) -> dict[str, tuple[int, ...]]:

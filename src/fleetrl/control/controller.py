@@ -80,7 +80,7 @@ def run_on_unit(
         spec = get_env_spec(env)
         check_takes_link(spec)
         description = describe_env(env)
-        check_fits(policy.obs_dim, policy.action_space, description, env)
+        check_fits(policy.obs_dim, policy.action_space, describe_env(env, policy.last_step), env)
         check_driver_fits(driver.spec, description, f"driver {driver.spec.kind!r}")
         bus = LocalBus()
         bridge = DeviceBridge(bus.client(), driver, RUN_ID, unit, realtime=realtime, watchdog=watchdog)
@@ -90,7 +90,7 @@ def run_on_unit(
 
     def play() -> list[float]:
         link = MqttLink(bus.client(), RUN_ID, unit, obs_size=description.sensor_dim)
-        gym_env, _ = spec.make(unit, fleet_seed, link=link)
+        gym_env, _ = spec.make(unit, fleet_seed, link=link, last_step=policy.last_step)
         try:
             return greedy_scores(gym_env, policy.act, episodes, seed, report)
         finally:

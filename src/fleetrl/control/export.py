@@ -77,7 +77,7 @@ def export_policy(
     if not out.parent.is_dir():
         raise FileNotFoundError(f"--out {out}: no directory {out.parent}")
     policy = read_policy_file(model)
-    check_fits(policy.obs_dim, policy.action_space, describe_env(env), env, model)
+    check_fits(policy.obs_dim, policy.action_space, describe_env(env, policy.last_step), env, model)
     graph = policy_graph(policy, env)
     partial = out.with_name(out.name + ".partial")
     partial.write_bytes(graph.SerializeToString())
@@ -116,7 +116,7 @@ def draw_observations(
     """``n`` float32 observations: half visited by the simulated unit under the policy's sampled actions,
     half uniform in a box around those (module docstring); seeded by ``seed``."""
     rng = np.random.default_rng(seed)
-    built = get_env_spec(env).make(unit, fleet_seed, fleet_profile=fleet_profile)
+    built = get_env_spec(env).make(unit, fleet_seed, fleet_profile=fleet_profile, last_step=policy.last_step)
     gym_env, acting, space = built.env, policy.numpy_policy(), policy.action_space
     visited: list[np.ndarray] = []
     budget, episode = STEPS_PER_OBSERVATION * n, 0

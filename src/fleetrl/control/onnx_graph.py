@@ -26,6 +26,7 @@ def policy_metadata(policy: PolicyFile, env: str | None) -> dict[str, Any]:
     return {
         "format": FORMAT,
         "obs_dim": policy.obs_dim,
+        "last_step": policy.last_step,
         "action_space": policy.action_space.to_dict(),
         "action": "index" if policy.action_space.is_discrete else "clipped mean",
         "env": env,

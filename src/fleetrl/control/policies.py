@@ -23,6 +23,8 @@ class GreedyPolicy(Protocol):
     action_space: ActionSpace
     env: str | None
     """the env the policy names (an exported file's metadata; None: not recorded)"""
+    last_step: bool
+    """its observation holds the unit's last step (:mod:`fleetrl.envs.last_step`)"""
 
     def act(self, obs: np.ndarray) -> Any:
         """The greedy action for one observation."""
@@ -37,6 +39,7 @@ class ModelPolicy:
     def __init__(self, policy: PolicyFile) -> None:
         self.obs_dim = policy.obs_dim
         self.action_space = policy.action_space
+        self.last_step = policy.last_step
         self._numpy = policy.numpy_policy()
         self._act = self._numpy.act_greedy if self.action_space.is_discrete else self._continuous
 
@@ -79,6 +82,7 @@ class OnnxPolicy:
                 "export one with: fleetrl export MODEL --out policy.onnx"
             ) from None
         self.env: str | None = meta.get("env")
+        self.last_step = bool(meta.get("last_step", False))
         self._input = self._session.get_inputs()[0].name
         self._batch = np.zeros((1, self.obs_dim), dtype=np.float32)
 

@@ -5,6 +5,7 @@ checks what the builder returned, so both take one path.
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -14,6 +15,7 @@ import gymnasium
 
 from fleetrl.devices.cartpole_profiles import DEFAULT_CARTPOLE_FLEET_PROFILE, cartpole_fleet_profile
 from fleetrl.devices.qube.fleet_profiles import fleet_profile
+from fleetrl.envs.last_step import LastStep
 from fleetrl.envs.registration import CARTPOLE_UNIT_ID, QUBE_BALANCE_CONTINUOUS_ID, QUBE_BALANCE_ID
 from fleetrl.envs.spaces import UnitDescription, describe_unit
 from fleetrl.envs.unit_factory import (
@@ -91,10 +93,18 @@ class EnvSpec:
         return {} if resolved is None else {"fleet_profile": resolved}
 
     def make(
-        self, unit: int, fleet_seed: int, *, fleet_profile: str | None = None, link: Any = None
+        self,
+        unit: int,
+        fleet_seed: int,
+        *,
+        fleet_profile: str | None = None,
+        link: Any = None,
+        last_step: bool = False,
     ) -> BuiltUnit:
         """Unit ``unit`` of fleet ``fleet_seed`` (simulated in-process, or reached through ``link``),
-        checked: a ValueError names the unit and what is wrong with what the builder gave."""
+        checked: a ValueError names the unit and what is wrong with what the builder gave. With
+        ``last_step`` its observation holds its last step too (:class:`~fleetrl.envs.last_step.LastStep`;
+        the description's sensor size stays the unit's own)."""
         if link is not None and not self.takes_link:
             raise ValueError(
                 f"{self.title} takes no link keyword: to put its units behind a device bridge, define it as "
@@ -106,7 +116,16 @@ class EnvSpec:
             env = self.builder(unit, fleet_seed, **options)
         except Exception as err:  # the builder's own failure, named by unit (a setting error, exit 2)
             raise ValueError(f"{where} could not be built: {type(err).__name__}: {err}") from None
-        return BuiltUnit(env, describe_unit(env, where))
+        description = describe_unit(env, where)
+        if not last_step:
+            return BuiltUnit(env, description)
+        try:
+            wrapped = LastStep(env)
+        except ValueError as err:
+            env.close()
+            raise ValueError(f"{where}: {err} (set last_step=false)") from None
+        seen = describe_unit(wrapped, where)
+        return BuiltUnit(wrapped, dataclasses.replace(seen, sensor_size=description.sensor_dim))
 
     def default_target(self, description: UnitDescription) -> float:
         """The target score when none is given: the declared one, else the env spec's ``reward_threshold``;
@@ -220,9 +239,10 @@ def get_env_spec(name: str) -> EnvSpec:
 
 
 @functools.lru_cache(maxsize=16)
-def describe_env(name: str) -> UnitDescription:
+def describe_env(name: str, last_step: bool = False) -> UnitDescription:
     """The description of unit 0 of fleet 0 of env ``name`` (built once per process and closed): its spaces,
-    episode cap and reward threshold. A ValueError if the env cannot be built or is not supported."""
-    built = get_env_spec(name).make(0, 0)
+    episode cap and reward threshold, its observation with the last step in it if ``last_step``. A
+    ValueError if the env cannot be built or is not supported."""
+    built = get_env_spec(name).make(0, 0, last_step=last_step)
     built.env.close()
     return built.description

@@ -98,12 +98,15 @@ def adapt_model(
     if not Path(model).is_file():
         raise FileNotFoundError(f"no model file at {model}")
     torch.set_num_threads(1)
-    spec, description = get_env_spec(env), describe_env(env)
+    spec = get_env_spec(env)
+    describe_env(env)  # a bad factory fails before the model is read
     loaded = PPOAgent.load(model)
+    last_step = loaded.config.last_step
+    description = describe_env(env, last_step)
     check_fits(loaded.obs_dim, loaded.action_space, description, env, model)
     part = own_part or (loaded.config.own_part if loaded.config.own_part != "none" else DEFAULT_ADAPT_PART)
     agent = with_own_part(loaded, part, seed)
-    gym_env, spec_unit = spec.make(unit, fleet_seed, fleet_profile=fleet_profile)
+    gym_env, spec_unit = spec.make(unit, fleet_seed, fleet_profile=fleet_profile, last_step=last_step)
     try:
         before = greedy_scores(gym_env, agent.act_greedy, check, seed=10_000 + seed)
         learner = Learner(gym_env, agent, CompletionCriterion(spec.default_target(spec_unit)), seed=seed)

@@ -35,13 +35,14 @@ def evaluate_model(
         raise FileNotFoundError(f"no model file at {model}")
     torch.set_num_threads(1)
     spec = get_env_spec(env)
-    description = describe_env(env)  # every unit of a type has the same spaces; a bad factory fails here
+    describe_env(env)  # every unit of a type has the same spaces; a bad factory fails here
     agent = PPOAgent.load(model)
-    check_fits(agent.obs_dim, agent.action_space, description, env, model)
+    last_step = agent.config.last_step
+    check_fits(agent.obs_dim, agent.action_space, describe_env(env, last_step), env, model)
     if open_link is None:
-        gym_env, _ = spec.make(unit, fleet_seed, fleet_profile=fleet_profile)
+        gym_env, _ = spec.make(unit, fleet_seed, fleet_profile=fleet_profile, last_step=last_step)
     else:
-        gym_env, _ = spec.make(unit, fleet_seed, link=open_link())
+        gym_env, _ = spec.make(unit, fleet_seed, link=open_link(), last_step=last_step)
     try:
         return greedy_scores(gym_env, agent.act_greedy, episodes, seed)
     finally:

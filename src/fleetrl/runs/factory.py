@@ -80,12 +80,14 @@ def unit_env(
     (``spec.device_url``, over ``device_transport`` or a plain transport), paced and stalling if its spec
     says so."""
     learning = spec.learning
-    env_spec = get_env_spec(learning.env)
+    env_spec, last_step = get_env_spec(learning.env), learning.ppo().last_step
     if spec.device_url is None:
-        env, unit = env_spec.make(spec.unit, learning.fleet_seed, fleet_profile=learning.fleet_profile)
+        env, unit = env_spec.make(
+            spec.unit, learning.fleet_seed, fleet_profile=learning.fleet_profile, last_step=last_step
+        )
     else:  # the device bridge draws the unit (with the same fleet profile)
         link = bridge_link(learning.env, spec.device_url, spec.device_run_id, spec.unit, device_transport)
-        env, unit = env_spec.make(spec.unit, learning.fleet_seed, link=link)
+        env, unit = env_spec.make(spec.unit, learning.fleet_seed, link=link, last_step=last_step)
     if spec.uneven is not None and spec.uneven.step_seconds is not None:
         env = PacedEnv(env, spec.uneven.step_seconds)
     stall = unit_stall(spec.uneven, seed=learning.seed, worker=spec.worker)
@@ -110,6 +112,6 @@ def probe_agent(env: str, config: PPOConfig) -> PPOAgent:
     threads = torch.get_num_threads()
     torch.set_num_threads(1)
     try:
-        return agent_for(describe_env(env), config, seed=0)
+        return agent_for(describe_env(env, config.last_step), config, seed=0)
     finally:
         torch.set_num_threads(threads)

@@ -60,4 +60,5 @@ def fleet_agent(learning: LearningSettings) -> Any:
     from the settings' learning seed. Torch is set to one thread in this process, as in every worker (the
     initialisation's QR differs with the threads)."""
     torch.set_num_threads(1)
-    return agent_for(describe_env(learning.env), learning.ppo(), seed=learning.seed)
+    config = learning.ppo()
+    return agent_for(describe_env(learning.env, config.last_step), config, seed=learning.seed)
