@@ -6,7 +6,7 @@ import math
 import os
 from typing import Literal
 
-from fleetrl.federation.schemes.base import Scheme, StepScheme
+from fleetrl.federation.schemes.base import Scheme
 
 
 def host_setting_problem(per_host: int, *, mode: str, scheme: Scheme, own_part: str = "none") -> str | None:
@@ -20,7 +20,7 @@ def host_setting_problem(per_host: int, *, mode: str, scheme: Scheme, own_part: 
         return f"own_part {own_part!r} gives each unit a part of its own: it needs a worker per unit (1)"
     if mode != "federated":
         return "a unit host is one member of a federation: it needs --mode federated"
-    if not (isinstance(scheme, StepScheme) and scheme.shared_start):
+    if not scheme.one_policy_per_step:
         return (
             f"a unit host is one policy for its units: it needs a one-policy per-step scheme (pergrad), "
             f"not {scheme.name}"

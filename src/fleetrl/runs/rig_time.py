@@ -14,7 +14,7 @@ from fleetrl.devices.factory import make_device
 from fleetrl.devices.qube.device import QubeDevice
 from fleetrl.envs.catalog import get_env_spec
 from fleetrl.federation.chief.stragglers import GRACE_FLOOR, GRACE_SHARE, quorum_count
-from fleetrl.federation.schemes import AsyncScheme, RoundScheme, StepScheme, scheme_class
+from fleetrl.federation.schemes import RoundScheme, scheme_class
 from fleetrl.runs.uneven import absences
 
 HAND_RESET_SECONDS = 30.0
@@ -254,14 +254,14 @@ def waits_of(mode: str | None, scheme: str | None = None, quorum: float | None =
     last contributor."""
     if mode == "individual":
         return NO_BARRIER
-    kind: type = RoundScheme
+    barrier, leaves_late = RoundScheme.round_barrier, RoundScheme.leaves_late_units
     if scheme is not None:
         with contextlib.suppress(ValueError):  # a user's scheme that no longer imports: a round barrier
             kind = scheme_class(scheme)
-    if issubclass(kind, AsyncScheme):
+            barrier, leaves_late = kind.round_barrier, kind.leaves_late_units
+    if not barrier:
         return NO_BARRIER
-    step = issubclass(kind, StepScheme)
-    return Waits(barrier=True, quorum=1.0 if quorum is None else float(quorum), grace=step)
+    return Waits(barrier=True, quorum=1.0 if quorum is None else float(quorum), grace=leaves_late)
 
 
 @functools.lru_cache(maxsize=4096)

@@ -93,6 +93,14 @@ class Scheme(ABC):
     shared_start: ClassVar[bool] = False
     """the fleet is one policy: every worker starts from the same parameters, the fleet's start, which the
     chief's ``welcome`` hands to every joining worker (whatever its own seed)"""
+    round_barrier: ClassVar[bool] = True
+    """a round closes when its contributors are ready, and they start their next round then (False: each
+    worker plays at its own pace)"""
+    leaves_late_units: ClassVar[bool] = False
+    """a unit late for a round is left behind after the quorum's time and a grace (True), else waited for"""
+    one_policy_per_step: ClassVar[bool] = False
+    """every optimisation step of the fleet is one step of one shared policy (what a unit host needs: its
+    units' steps summed into one message)"""
 
     def params(self) -> dict[str, Any]:
         """The scheme's parameters (JSON values), for the welcome's shared settings and checkpoints."""
@@ -216,6 +224,7 @@ class StepScheme(Scheme):
 
     default_quorum: ClassVar[float] = 0.6
     """DD-PPO's share of workers after which the rest are not waited for (habitat-lab's ``sync_frac``)"""
+    leaves_late_units: ClassVar[bool] = True
 
     def check_rules(
         self, quorum: float, round_timeout: float | None, steps_per_round: int, aggregation: str
@@ -275,6 +284,7 @@ class AsyncScheme(RoundScheme):
 
     shared_start: ClassVar[bool] = True
     stays_after_completion: ClassVar[bool] = True
+    round_barrier: ClassVar[bool] = False
 
     @property
     @abstractmethod

@@ -24,6 +24,7 @@ class PerStepGradientScheme(StepScheme):
     round_message = "step_gradient"
     stays_after_completion = True
     shared_start = True
+    one_policy_per_step = True
 
     def layout(self, agent: FederatedAgent) -> Layout:
         """One step's gradient: the whole actor-critic (every step moves the same parameters)."""
