@@ -36,7 +36,6 @@ def main() -> None:
     p.add_argument("--episodes", default="0,1,3,5")
     p.add_argument("--check", type=int, default=10)
     p.add_argument("--own-part", default=None)
-    p.add_argument("--lr", type=float, default=None, help="the own part's rate (default: the model's)")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--record", type=Path, default=None, help="write the budgets' rows here as a JSON record")
     p.add_argument("--pool", type=Path, default=None, help="print the table pooled over a folder of records")
@@ -54,7 +53,7 @@ def main() -> None:
         for unit in units:
             done = adapt_model(
                 a.model, a.env, unit, fleet_seed=a.fleet_seed, fleet_profile=a.fleet_profile,
-                episodes=max(budget, 1), check=a.check, seed=a.seed, own_part=a.own_part, lr=a.lr,
+                episodes=max(budget, 1), check=a.check, seed=a.seed, own_part=a.own_part,
             )  # fmt: skip
             scores = done.before if budget == 0 else done.after
             count = sum(s >= (done.cap or float("inf")) for s in scores)

@@ -49,14 +49,13 @@ def keep_fit(before: list[float], after: list[float]) -> bool:
     return not before or not after or float(np.mean(after)) >= float(np.mean(before))
 
 
-def with_own_part(agent: PPOAgent, own_part: str, seed: int, lr: float | None = None) -> PPOAgent:
+def with_own_part(agent: PPOAgent, own_part: str, seed: int) -> PPOAgent:
     """A new agent of ``agent``'s shared weights and settings with the own part ``own_part``, its offsets
-    zero: the fleet's shared policy, ready to fit a unit (at learning rate ``lr``; None: the model's)."""
+    zero: the fleet's shared policy, ready to fit a unit."""
     if own_part not in OWN_PART_NAMES or own_part == "none":
         parts = ", ".join(p for p in OWN_PART_NAMES if p != "none")
         raise ValueError(f"--own-part must be one of {parts}, got {own_part!r}")
-    rates = {} if lr is None else {"actor_lr": lr, "critic_lr": lr}
-    config = PPOConfig.from_dict(agent.config.to_dict() | {"own_part": own_part} | rates)
+    config = PPOConfig.from_dict(agent.config.to_dict() | {"own_part": own_part})
     fresh = PPOAgent(agent.obs_dim, agent.action_space, config, seed)
     state = fresh.net.state_dict()
     tensors = {k: v.detach().numpy() for k, v in agent.net.state_dict().items() if not k.startswith("own.")}
@@ -85,13 +84,11 @@ def adapt_model(
     check: int = 10,
     seed: int = 0,
     own_part: str | None = None,
-    lr: float | None = None,
     out: Path | None = None,
 ) -> Adapted:
     """Fit the fleet's policy in ``model`` to ``unit`` in ``episodes`` episodes (one update after each) and
     write the unit's model file to ``out``; ``check`` greedy episodes before and after say what it gained,
-    and a fit that scored less on them than the fleet's policy is not kept (:func:`keep_fit`). ``lr``: the
-    own part's learning rate (None: the model's actor and critic rates).
+    and a fit that scored less on them than the fleet's policy is not kept (:func:`keep_fit`).
 
     :raises FileNotFoundError: no model file
     :raises ValueError: a bad setting, a file that is not a fleetrl model of this env's shapes
@@ -108,7 +105,7 @@ def adapt_model(
     description = describe_env(env, last_step)
     check_fits(loaded.obs_dim, loaded.action_space, description, env, model)
     part = own_part or (loaded.config.own_part if loaded.config.own_part != "none" else DEFAULT_ADAPT_PART)
-    agent = with_own_part(loaded, part, seed, lr)
+    agent = with_own_part(loaded, part, seed)
     gym_env, spec_unit = spec.make(unit, fleet_seed, fleet_profile=fleet_profile, last_step=last_step)
     try:
         before = greedy_scores(gym_env, agent.act_greedy, check, seed=10_000 + seed)
@@ -125,7 +122,7 @@ def adapt_model(
         gym_env.close()
     kept = keep_fit(before, after)
     if out is not None:
-        (agent if kept else with_own_part(loaded, part, seed, lr)).save(out)
+        (agent if kept else with_own_part(loaded, part, seed)).save(out)
     period = spec.control_period
     rig = (
         None
