@@ -55,3 +55,33 @@ def test_a_space_it_cannot_hold_is_refused_by_name() -> None:
     with pytest.raises(ValueError, match="1-D Box observation"):
         LastStep(env)
     env.close()
+
+
+class ReusedBuffer(gymnasium.Env[np.ndarray, int]):
+    """A unit that hands out one float32 buffer, rewritten in place at every step (as a device may)."""
+
+    observation_space = gymnasium.spaces.Box(-10.0, 10.0, (2,), np.float32)
+    action_space = gymnasium.spaces.Discrete(2)
+
+    def __init__(self) -> None:
+        self.buffer = np.zeros(2, np.float32)
+
+    def reset(self, *, seed: int | None = None, options: dict | None = None) -> tuple[np.ndarray, dict]:
+        super().reset(seed=seed)
+        self.buffer[:] = 0.0
+        return self.buffer, {}
+
+    def step(self, action: int) -> tuple[np.ndarray, float, bool, bool, dict]:
+        self.buffer += 1.0 + action
+        return self.buffer, 0.0, False, False, {}
+
+
+def test_the_last_observation_is_kept_when_the_unit_reuses_its_buffer() -> None:
+    env = LastStep(ReusedBuffer())
+    env.reset(seed=0)
+    first, *_ = env.step(0)
+    second, *_ = env.step(1)
+    np.testing.assert_array_equal(first[:2], [1.0, 1.0])
+    np.testing.assert_array_equal(second[:2], [3.0, 3.0])
+    np.testing.assert_array_equal(second[2:4], [1.0, 1.0])  # the step before, not the buffer as it is now
+    np.testing.assert_array_equal(second[4:], [0.0, 1.0])

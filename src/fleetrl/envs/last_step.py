@@ -38,7 +38,7 @@ class LastStep(gymnasium.ObservationWrapper[np.ndarray, Any, Any]):
 
     def reset(self, **kwargs: Any) -> tuple[np.ndarray, dict[str, Any]]:
         obs, info = self.env.reset(**kwargs)
-        self._last_obs = np.asarray(obs, np.float32)
+        self._last_obs = np.array(obs, np.float32)  # a copy: a unit may reuse its observation buffer
         self._last_action[:] = 0.0
         return self.observation(obs), info
 
@@ -46,7 +46,7 @@ class LastStep(gymnasium.ObservationWrapper[np.ndarray, Any, Any]):
         obs, reward, terminated, truncated, info = self.env.step(action)
         self._last_action = self._encode(action)
         out = self.observation(obs)
-        self._last_obs = np.asarray(obs, np.float32)
+        self._last_obs = np.array(obs, np.float32)  # a copy: a unit may reuse its observation buffer
         return out, reward, terminated, truncated, info
 
     def observation(self, observation: Any) -> np.ndarray:
