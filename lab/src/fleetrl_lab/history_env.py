@@ -1,13 +1,13 @@
-"""QUBE and CartPole units whose observation holds their last observation and action, as ``--env
-fleetrl_lab.history_env:qube_wide`` and so on: the runs that chose the product's ``last_step`` setting, made
-before it was one (the same observation: :class:`fleetrl.envs.last_step.LastStep`)."""
+"""QUBE units whose observation holds their last observation and action, as ``--env
+fleetrl_lab.history_env:qube_wide`` or ``qube_table2``: the runs that chose the product's ``last_step``
+setting, made before it was one (the same observation: :class:`fleetrl.envs.last_step.LastStep`)."""
 
 from __future__ import annotations
 
 import gymnasium
 
 from fleetrl.envs.last_step import LastStep
-from fleetrl.envs.registration import CARTPOLE_UNIT_ID, QUBE_BALANCE_ID, register_envs
+from fleetrl.envs.registration import QUBE_BALANCE_ID, register_envs
 
 
 def qube_wide(unit: int, fleet_seed: int) -> gymnasium.Env:
@@ -24,18 +24,3 @@ def _qube(unit: int, fleet_seed: int, profile: str) -> gymnasium.Env:
     register_envs()
     return LastStep(gymnasium.make(QUBE_BALANCE_ID, unit=unit, fleet_seed=fleet_seed, fleet_profile=profile))
 
-
-def cartpole_standard(unit: int, fleet_seed: int) -> gymnasium.Env:
-    """CartPole unit ``unit`` of the ``standard`` fleet ``fleet_seed`` (the default), with the last step."""
-    return _cartpole(unit, fleet_seed, None)
-
-
-def cartpole_wide(unit: int, fleet_seed: int) -> gymnasium.Env:
-    """CartPole unit ``unit`` of the ``wide`` fleet ``fleet_seed``, with the last step."""
-    return _cartpole(unit, fleet_seed, "wide")
-
-
-def _cartpole(unit: int, fleet_seed: int, profile: str | None) -> gymnasium.Env:
-    register_envs()
-    options = {} if profile is None else {"fleet_profile": profile}
-    return LastStep(gymnasium.make(CARTPOLE_UNIT_ID, unit=unit, fleet_seed=fleet_seed, **options))
