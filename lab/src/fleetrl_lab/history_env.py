@@ -23,4 +23,3 @@ def qube_table2(unit: int, fleet_seed: int) -> gymnasium.Env:
 def _qube(unit: int, fleet_seed: int, profile: str) -> gymnasium.Env:
     register_envs()
     return LastStep(gymnasium.make(QUBE_BALANCE_ID, unit=unit, fleet_seed=fleet_seed, fleet_profile=profile))
-
