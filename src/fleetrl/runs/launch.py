@@ -195,14 +195,14 @@ def load_kernels(settings: RunSettings) -> None:
     start with them loaded (each would otherwise spend ~0.4 s of CPU on its first step, more on a cold cache);
     a user's unit is not stepped here."""
     learning = settings.learning
-    last_step = learning.ppo().last_step
-    agent = probe_agent(learning.env, learning.ppo())
-    description = describe_env(learning.env, last_step)
+    config = learning.ppo()
+    agent = probe_agent(learning.env, config)
+    description = describe_env(learning.env, config.last_step)
     if learning.env not in ENV_SPECS or settings.device_link != "inprocess":
         agent.act(np.zeros(description.obs_dim, dtype=np.float32))
         return
     built = ENV_SPECS[learning.env].make(
-        0, learning.fleet_seed, fleet_profile=learning.fleet_profile, last_step=last_step
+        0, learning.fleet_seed, fleet_profile=learning.fleet_profile, last_step=config.last_step
     )
     try:
         obs, _ = built.env.reset(seed=0)

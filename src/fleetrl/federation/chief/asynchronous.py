@@ -7,7 +7,6 @@ docs/protocol.md, "Asynchronous schemes".
 from __future__ import annotations
 
 from dataclasses import replace
-from typing import cast
 
 from fleetrl.federation.chief.answer import check_round_rules
 from fleetrl.federation.chief.contributions import Contributions
@@ -43,9 +42,9 @@ class AsyncChief(Chief):
         fleet model: ``fleet_model`` is not used."""
         del fleet_model
         super().__init__(plan, key=key, start=start, state=state, now=now)
-        if self.scheme.round_barrier:
+        if not isinstance(self.scheme, AsyncScheme):  # a check of what was built, not a choice of behaviour
             raise ValueError(f"scheme {self.scheme.name!r} is not asynchronous: use Chief")
-        self.fleet = cast(AsyncScheme, self.scheme)
+        self.fleet: AsyncScheme = self.scheme
         check_round_rules(
             self.scheme, self.max_rounds, self.plan.quorum, self.plan.round_timeout, 1,
             self.plan.max_staleness, self.plan.aggregator,

@@ -95,7 +95,7 @@ class Scheme(ABC):
     chief's ``welcome`` hands to every joining worker (whatever its own seed)"""
     round_barrier: ClassVar[bool] = True
     """a round closes when its contributors are ready, and they start their next round then (False: each
-    worker plays at its own pace)"""
+    worker plays at its own pace; :class:`AsyncScheme` sets it, no other scheme does)"""
     leaves_late_units: ClassVar[bool] = False
     """a unit late for a round is left behind after the quorum's time and a grace (True), else waited for"""
     one_policy_per_step: ClassVar[bool] = False
