@@ -49,14 +49,16 @@ def main() -> None:
     rows = {u: unit_row(profile, fleet_seed, u) for u in units}
     late = [u for u in units if rounds[u] > a.late] or sorted(units, key=lambda u: rounds[u])[-10:]
     late.sort(key=lambda u: -rounds[u])
-    print(f"{len(units)} units of fleet seed {fleet_seed} ({profile}), seeds {seeds}: median round "
-          f"{statistics.median(rounds.values()):g}; {len(late)} units with a median round after {a.late:g}")  # fmt: skip
+    median = statistics.median(rounds.values())
+    print(f"{len(units)} units, fleet seed {fleet_seed} ({profile}), seeds {seeds}: median round {median:g}")
+    print(f"{len(late)} units with a median round after {a.late:g}")
     print()
     print("| unit | median round | " + " | ".join(f"{c} (pct)" for c in COLUMNS) + " |")
     print("|---" * (2 + len(COLUMNS)) + "|")
     columns = {c: np.array([rows[u][c] for u in units]) for c in COLUMNS}
     for u in late:
-        cells = " | ".join(f"{rows[u][c]:.3g} ({100 * np.mean(columns[c] <= rows[u][c]):.0f})" for c in COLUMNS)
+        percentiles = {c: 100 * np.mean(columns[c] <= rows[u][c]) for c in COLUMNS}
+        cells = " | ".join(f"{rows[u][c]:.3g} ({percentiles[c]:.0f})" for c in COLUMNS)
         print(f"| {u} | {rounds[u]:g} | {cells} |")
     print()
     print(f"Spearman over {len(units)} units, each column against the median round:")
