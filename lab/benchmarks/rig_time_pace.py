@@ -3,10 +3,10 @@
 Each case is trained twice with the same command and seed: paced (``--pace S``: every env step lasts the
 control period × S of wall time) and as fast as possible. The accounting is computed from the paced run's
 own metrics.csv and summary.json (its rounds, steps, who contributed to which round, completions; absences
-replayed from its seed; the control period × S; no resets, as a paced simulation does not pace its resets)
-and compared with the paced run's wall time less its computing, taken as the unpaced twin's wall time (both
-from summary.json, so both hold the same start-up). Prints a table and exits 1 if any case is off by more
-than ``--tolerance`` (10 %).
+replayed from its seed; the control period × S; each unit's mean reset × S, as a paced unit's resets last
+their time on the rig × S) and compared with the paced run's wall time less its computing, taken as the
+unpaced twin's wall time (both from summary.json, so both hold the same start-up). Prints a table and exits
+1 if any case is off by more than ``--tolerance`` (10 %).
 
     python lab/benchmarks/rig_time_pace.py --env cartpole --rounds 25 --pace 1 --out /tmp/rig-pace
 
@@ -22,6 +22,7 @@ import csv
 import json
 import subprocess
 import sys
+from dataclasses import replace
 from pathlib import Path
 
 from fleetrl.envs.catalog import get_env_spec
@@ -58,7 +59,8 @@ def accounted(run: Path, summary: dict, scale: float) -> float:
             steps.setdefault(row["worker"], {})[int(row["round"])] = int(row["steps"])
             episodes.setdefault(row["worker"], {})[int(row["round"])] = int(row.get("episodes") or 1)
     completed = {w: summary["workers"][w]["completed_at_round"] for w in steps}
-    units = run_units(steps, completed, config, episodes=episodes, resets=False)
+    measured = run_units(steps, completed, config, episodes=episodes)
+    units = {w: replace(u, reset=u.reset * scale) for w, u in measured.items()}  # paced, as its steps
     period = get_env_spec(config["env"]).control_period
     assert period is not None
     waits = waits_of(config.get("mode"), config.get("scheme"), config.get("quorum"))

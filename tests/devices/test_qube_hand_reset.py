@@ -6,7 +6,7 @@ import math
 
 import numpy as np
 
-from fleetrl.devices.qube.device import QubeDevice
+from fleetrl.devices.qube.device import HAND_RESET_SECONDS, QubeDevice
 from fleetrl.devices.qube.params import QubeConfig
 
 
@@ -23,6 +23,7 @@ def test_a_swing_up_out_of_time_ends_with_the_pendulum_put_upright_by_hand() -> 
     assert hand_off_window_holds(obs)
     assert abs(device.state[0]) < math.radians(1.0) and abs(device.state[1]) < math.radians(1.0)
     assert device.last_reset_seconds >= 0.05  # the swing-up's time counts too
+    assert device.last_reset_rig_seconds == device.last_reset_seconds + HAND_RESET_SECONDS  # and the person's
 
 
 def test_a_reset_that_settles_in_time_is_the_swing_up_s_alone() -> None:
@@ -32,6 +33,7 @@ def test_a_reset_that_settles_in_time_is_the_swing_up_s_alone() -> None:
     for seed in range(5):
         first, second = quick.reset(seed=seed).copy(), patient.reset(seed=seed).copy()
         assert not quick.last_reset_by_hand and np.array_equal(first, second)
+        assert quick.last_reset_rig_seconds == quick.last_reset_seconds > 0
     assert quick.hand_resets == 0
 
 

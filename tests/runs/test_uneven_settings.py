@@ -43,9 +43,10 @@ def test_each_unit_gets_its_own_conditions_and_the_shared_settings_stay_the_same
     run = settings(tmp_path, "--env", "cartpole", *UNEVEN)
     specs = worker_specs(run, None, "r")
     step = CARTPOLE_CONTROL_PERIOD * 0.1
-    assert specs[0].uneven == UnitConditions(step_seconds=step, absent=0.2)
-    assert specs[1].uneven == UnitConditions(step_seconds=step, link_delay=0.05, absent=0.2)
-    assert specs[2].uneven == UnitConditions(step_seconds=step, slowdown=4.0, absent=0.2)
+    paced = {"step_seconds": step, "reset_scale": 0.1, "absent": 0.2}
+    assert specs[0].uneven == UnitConditions(**paced)
+    assert specs[1].uneven == UnitConditions(**paced, link_delay=0.05)
+    assert specs[2].uneven == UnitConditions(**paced, slowdown=4.0)
     assert WorkerSpec.from_json(specs[2].to_json()) == specs[2]
     even = settings(tmp_path, "--env", "cartpole")
     assert shared_text(run.learning) == shared_text(even.learning)  # not a learning setting
@@ -80,6 +81,7 @@ def test_a_paced_unit_steps_in_a_paced_env(tmp_path: Path) -> None:
     spec = worker_specs(settings(tmp_path, "--env", "cartpole", "--pace", "0.5"), None, "r")[1]
     learner = make_learner(spec)
     assert isinstance(learner.env, PacedEnv) and learner.env.period == pytest.approx(0.01)
+    assert learner.env.reset_scale == 0.5  # its resets too
     even = worker_specs(settings(tmp_path, "--env", "cartpole"), None, "r")[1]
     assert not isinstance(make_learner(even).env, PacedEnv)
 

@@ -87,11 +87,14 @@ class LinkEnv(gymnasium.Env[np.ndarray, Any]):
     def reset(
         self, *, seed: int | None = None, options: dict[str, Any] | None = None
     ) -> tuple[np.ndarray, dict[str, Any]]:
-        """Seed (if given) and reset the device; the device's seed is drawn from the env's generator."""
+        """Seed (if given) and reset the device; the device's seed is drawn from the env's generator. The info
+        holds ``reset_seconds``, what the reset took on a rig, where the link knows it (a simulated unit in
+        this process: :class:`~fleetrl.envs.paced.PacedEnv` waits that long, scaled)."""
         super().reset(seed=seed)
         device_seed = int(self.np_random.integers(0, 2**63 - 1))
         self._last_obs = self._link.reset(device_seed).copy()
-        return self._last_obs, {}
+        seconds = getattr(self._link, "last_reset_seconds", None)
+        return self._last_obs, {} if seconds is None else {"reset_seconds": seconds}
 
     def step(self, action: object) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
         """Send the action, judge the new observation. Truncation is left to gymnasium's TimeLimit."""

@@ -18,6 +18,12 @@ class InProcessLink:
         """Reset the device with ``seed``; return its first observation."""
         return self.device.reset(seed)
 
+    @property
+    def last_reset_seconds(self) -> float:
+        """What the device's last reset took on a rig (its ``last_reset_rig_seconds``: a QUBE's swing-up, a
+        hand reset's person included); 0 for a device that reports none (a CartPole)."""
+        return float(getattr(self.device, "last_reset_rig_seconds", 0.0))
+
     def step(self, action: Action) -> tuple[np.ndarray, Mapping[str, float]]:
         """Step the device; the in-process link has no extras to report."""
         return self._step(action), NO_INFO

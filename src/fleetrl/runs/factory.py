@@ -89,7 +89,7 @@ def unit_env(
         link = bridge_link(learning.env, spec.device_url, spec.device_run_id, spec.unit, device_transport)
         env, unit = env_spec.make(spec.unit, learning.fleet_seed, link=link, last_step=last_step)
     if spec.uneven is not None and spec.uneven.step_seconds is not None:
-        env = PacedEnv(env, spec.uneven.step_seconds)
+        env = PacedEnv(env, spec.uneven.step_seconds, reset_scale=spec.uneven.reset_scale)
     stall = unit_stall(spec.uneven, seed=learning.seed, worker=spec.worker)
     if stall is not None:
         env = StalledEnv(env, stall.wait)

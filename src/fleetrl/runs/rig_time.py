@@ -17,9 +17,6 @@ from fleetrl.federation.chief.stragglers import GRACE_FLOOR, GRACE_SHARE, quorum
 from fleetrl.federation.schemes import RoundScheme, scheme_class
 from fleetrl.runs.uneven import absences
 
-HAND_RESET_SECONDS = 30.0
-"""a reset whose swing-up does not settle is ended by a person (the pendulum put upright by hand), charged
-this much of the unit's clock on top of the device's own time (its 20 s of failed swing-up and the settle)"""
 RESET_SAMPLES = 10
 """seeded resets (seeds 0 … 9) whose mean is a QUBE unit's reset time"""
 CONTROLLED_SHARES = (50, 90, 100)
@@ -266,10 +263,10 @@ def waits_of(mode: str | None, scheme: str | None = None, quorum: float | None =
 
 @functools.lru_cache(maxsize=4096)
 def reset_seconds(env: str, unit: int, fleet_seed: int, fleet_profile: str | None = None) -> float:
-    """A unit's reset time: a QUBE unit's device-side swing-up (``fleetrl.devices.qube``), the mean of its
-    simulated device's :data:`RESET_SAMPLES` seeded resets (a reset it could not settle: its device time,
-    which holds the failed 20 s swing-up, plus :data:`HAND_RESET_SECONDS`); any other unit type: 0 (a
-    CartPole's reset is the simulator's, no time on a rig is known)."""
+    """A unit's reset time: the mean ``last_reset_rig_seconds`` of a QUBE unit's simulated device over
+    :data:`RESET_SAMPLES` seeded resets (its swing-up; a reset it could not settle: the failed 20 s swing-up
+    plus a person's time); any other unit type: 0 (a CartPole's reset is the simulator's, no time on a rig
+    is known)."""
     try:
         spec = get_env_spec(env)
     except ValueError:
@@ -281,7 +278,7 @@ def reset_seconds(env: str, unit: int, fleet_seed: int, fleet_profile: str | Non
     total = 0.0
     for seed in range(RESET_SAMPLES):
         device.reset(seed=seed)
-        total += device.last_reset_seconds + (HAND_RESET_SECONDS if device.last_reset_by_hand else 0.0)
+        total += device.last_reset_rig_seconds
     return total / RESET_SAMPLES
 
 
@@ -296,7 +293,7 @@ def run_units(
     """Each worker's :class:`UnitPlay` in a run of ``settings`` (a record's result settings, or a run's
     config: ``env``, ``fleet_seed``, ``fleet_profile``, ``seed``, ``absent``, ``absent_rounds``): its absences
     replayed from the learning seed and its id (worker K trains unit K), its resets measured
-    (``resets=False``: none, as a paced simulation, whose resets are not paced)."""
+    (``resets=False``: none)."""
     if set(steps) != set(completed_at):
         raise ValueError(f"units with steps {sorted(steps)} != units with completions {sorted(completed_at)}")
     absent = float(settings.get("absent") or 0.0)

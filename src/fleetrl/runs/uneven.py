@@ -35,6 +35,8 @@ class UnitConditions:
 
     step_seconds: float | None = None
     """wall seconds per env step (its control period × the pace scale); None: as fast as possible"""
+    reset_scale: float = 0.0
+    """a reset lasts its time on the rig × this (the pace scale of a paced unit); 0: as fast as possible"""
     slowdown: float = 1.0
     """the unit takes this many times its own time for its work"""
     link_delay: float = 0.0
@@ -126,9 +128,12 @@ class UnevenFleet:
     def for_worker(self, worker: int, control_period: float | None) -> UnitConditions | None:
         """Worker ``worker``'s conditions under these resolved settings (None: it is an even unit)."""
         name = unit_name(worker)
-        scale = self.pace
+        step_seconds, reset_scale = None, 0.0
+        if self.pace is not None and control_period is not None:
+            step_seconds, reset_scale = control_period * self.pace, self.pace
         conditions = UnitConditions(
-            step_seconds=None if scale is None or control_period is None else control_period * scale,
+            step_seconds=step_seconds,
+            reset_scale=reset_scale,
             slowdown=self.slow.get(name, 1.0),
             link_delay=self.link_delay.get(name, 0.0),
             absent=self.absent,

@@ -26,6 +26,9 @@ ACTION_VOLTS = tuple(p * POWER_TO_VOLTS for p in ACTION_POWERS)
 """volts of action index 0, 1, 2 (−1.44, 0, +1.44 V)"""
 RESET_PERTURBATION = (math.radians(3.0), 0.2)
 """a reset starts hanging, off by up to ±3° and ±0.2 rad/s (uniform, from the reset seed)"""
+HAND_RESET_SECONDS = 30.0
+"""a reset whose swing-up does not settle is ended by a person (the pendulum put upright by hand): this much
+of a person's time on the rig, on top of the device's own (its failed swing-up and the settle)"""
 SETTLE_SECONDS = 0.2
 """the readings must stay inside the hand-off windows this long before the agent gets the pendulum"""
 HAND_SETTLE_SECONDS = 5.0
@@ -166,6 +169,12 @@ class QubeDevice:
         self.last_reset_arm_travel = travel
         write_observation(self._sensor, self._obs)
         return self._obs
+
+    @property
+    def last_reset_rig_seconds(self) -> float:
+        """What the last reset took on a rig: its device time, plus :data:`HAND_RESET_SECONDS` if a person
+        ended it."""
+        return self.last_reset_seconds + (HAND_RESET_SECONDS if self.last_reset_by_hand else 0.0)
 
     def _settle(self, seconds: float) -> tuple[int, float]:
         """The device-side reset's controllers from the present state (swing-up where the pendulum is far
