@@ -148,7 +148,6 @@ def test_the_absences_are_replayed_and_the_resets_measured_per_unit() -> None:
     assert any(plays["0"].absent) and plays["0"].absent != plays["2"].absent
     assert 1.0 < plays["0"].reset < 10.0 and plays["0"].reset == reset_seconds("qube", 0, 1, "table2")
     assert run_units({"0": [5]}, {"0": 1}, {"env": "cartpole"})["0"] == UnitPlay([5], 1)
-    assert run_units({"0": [5]}, {"0": 1}, settings, resets=False)["0"].reset == 0
 
 
 def test_the_built_in_control_periods_are_the_devices_own() -> None:

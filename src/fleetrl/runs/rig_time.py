@@ -288,12 +288,10 @@ def run_units(
     settings: Mapping[str, Any],
     *,
     episodes: Mapping[str, Mapping[int, int] | Sequence[int]] | None = None,
-    resets: bool = True,
 ) -> dict[str, UnitPlay]:
     """Each worker's :class:`UnitPlay` in a run of ``settings`` (a record's result settings, or a run's
     config: ``env``, ``fleet_seed``, ``fleet_profile``, ``seed``, ``absent``, ``absent_rounds``): its absences
-    replayed from the learning seed and its id (worker K trains unit K), its resets measured
-    (``resets=False``: none)."""
+    replayed from the learning seed and its id (worker K trains unit K), its resets measured."""
     if set(steps) != set(completed_at):
         raise ValueError(f"units with steps {sorted(steps)} != units with completions {sorted(completed_at)}")
     absent = float(settings.get("absent") or 0.0)
@@ -306,7 +304,7 @@ def run_units(
         if absent:
             draws = absences(absent, absent_rounds, int(settings.get("seed") or 0), int(worker))
             drawn = [next(draws) for _ in range(max(len(played) - 1, 0))]
-        reset = reset_seconds(env, int(worker), fleet_seed, profile) if resets else 0.0
+        reset = reset_seconds(env, int(worker), fleet_seed, profile)
         per_round = None if episodes is None else episodes.get(worker)
         plays[worker] = UnitPlay(played, completed_at[worker], reset, per_round, tuple(drawn))
     return plays
