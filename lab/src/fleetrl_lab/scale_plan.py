@@ -40,10 +40,17 @@ CARTPOLE_NOTES = HOSTS + (
 QUBE_NOTES = HOSTS + (
     " Every fleet updates with the preset's windows of 128 transitions per unit, K = 20 steps and learning "
     "rates of 1e-3: with CartPole's large-fleet settings (window 16, K 40, 2e-3) a few of 1,000 QUBE units — "
-    'those whose swing-up needs a hand reset — never held their target (lab/tuning.md, "1,000 QUBE units: '
+    "those with the fleet's stiffest cables (94th-99th percentile) — never held their target "
+    '(lab/tuning.md, "1,000 QUBE units: '
     "the last units\"; that arm's record of seed 101 is kept in lab/records)."
 )
 
+QUBE_LAST_STEP = (
+    " The last two arms observe the last step (`--set last_step=true`: each unit's previous observation and "
+    "action in the policy's input), chosen on 3-unit `wide` fleets (lab/tuning.md) and never tuned at this "
+    "size: the 1,000-unit fleet's last units are those with the stiffest cables (docs/benchmarks.md, \"Which "
+    'of the 1,000 units trail, and why"), which one shared policy can tell apart by how they answer it.'
+)
 
 CARTPOLE_SEEDS = (
     "the large-fleet settings were tried because the window-16 arm's held-out median (24 rounds per unit "
@@ -75,11 +82,22 @@ def fleet_scale(budget: Budget) -> Plan:
 
 def qube_scale(budget: Budget) -> Plan:
     """QUBE fleets of :data:`FLEET_SIZES` units under ``pergrad``, preset ``standard``, M =
-    :data:`QUBE_SCALE_ROUNDS` (or the budget's QUBE rounds if fewer: ``--quick``)."""
+    :data:`QUBE_SCALE_ROUNDS` (or the budget's QUBE rounds if fewer: ``--quick``); one unit alone and the
+    1,000-unit fleet also with the last step observed (``--set last_step=true``), like against like."""
     m = min(QUBE_SCALE_ROUNDS, budget.qube_rounds)
     claim = "target at 1,000 units: ≥ 5× fewer rounds per unit than alone"
     plan = _scale_plan("qube-scale", "qube", "QUBE", m, claim, budget.fleet_seed, QUBE_NOTES)
-    return replace(plan, seed_history=QUBE_SEEDS)
+    last_alone, last_fleet = (
+        arm("qube", n, "federated", "standard", m, f"{label} · pergrad · last step", "pergrad",
+            budget.fleet_seed, overrides={"last_step": True})
+        for n, label in ((1, "1 unit alone"), (1000, "1000 units"))
+    )  # fmt: skip
+    like = Ratio(last_alone, last_fleet, f"{claim}, both with the last step observed")
+    arms = [*plan.arms, last_alone, last_fleet]
+    return replace(
+        plan, arms=arms, ratios=[*plan.ratios, like], headline=arms, notes=QUBE_NOTES + QUBE_LAST_STEP,
+        seed_history=QUBE_SEEDS,
+    )  # fmt: skip
 
 
 def _fleet_arm(env: str, n: int, m: int, fleet_seed: int, *, large: bool) -> Arm:
