@@ -14,7 +14,8 @@ def test_a_scale_plan_runs_every_fleet_size_under_pergrad_against_one_unit_alone
     name: str, env: str, rounds: int
 ) -> None:
     plan = PLANS[name](FULL)
-    sizes = list(FLEET_SIZES) + ([1] if env == "cartpole" else [])  # CartPole: one unit with the large update
+    # CartPole: one unit with the large update too; QUBE: one unit and 1,000 with the last step observed
+    sizes = list(FLEET_SIZES) + ([1] if env == "cartpole" else [1, 1000])
     assert [arm.settings["units"] for arm in plan.arms] == sizes
     for arm in plan.arms:
         assert (arm.settings["env"], arm.settings["scheme"], arm.settings["max_rounds"]) == (
@@ -26,7 +27,9 @@ def test_a_scale_plan_runs_every_fleet_size_under_pergrad_against_one_unit_alone
     for arm in fleets:
         large = arm.settings["units"] >= 1000 and env == "cartpole"  # QUBE keeps the preset's update
         assert arm.settings.get("overrides", {}) == (LARGE_FLEET if large else {})
-    assert [r.faster for r in plan.ratios] == fleets[1:]
+    last_step = [arm for arm in plan.arms if arm.settings.get("overrides") == {"last_step": True}]
+    assert [arm.settings["units"] for arm in last_step] == ([] if env == "cartpole" else [1, 1000])
+    assert [r.faster for r in plan.ratios] == fleets[1:] + last_step[1:]
     for ratio in plan.ratios:  # like for like: one unit alone with the fleet's own update
         assert ratio.slower.units == 1
         assert ratio.slower.settings.get("overrides") == ratio.faster.settings.get("overrides")
