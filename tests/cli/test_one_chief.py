@@ -121,9 +121,15 @@ def quiet(out: Path, seconds: float = 0.3) -> bool:
 
 
 def snapshot(directory: Path) -> dict[str, tuple[int, int]]:
-    return {
-        str(p.relative_to(directory)): (p.stat().st_mtime_ns, p.stat().st_size) for p in directory.rglob("*")
-    }
+    """Each file's change time and size (a file removed while listed, a rotated checkpoint: changed)."""
+    files: dict[str, tuple[int, int]] = {}
+    for p in directory.rglob("*"):
+        try:
+            stat = p.stat()
+        except FileNotFoundError:
+            stat = None
+        files[str(p.relative_to(directory))] = (-1, -1) if stat is None else (stat.st_mtime_ns, stat.st_size)
+    return files
 
 
 def one_line(done: subprocess.CompletedProcess[str]) -> str:
