@@ -13,6 +13,7 @@ from torch import nn
 
 from fleetrl.agent.config import PPOConfig
 from fleetrl.agent.flat import Named, split
+from fleetrl.agent.lazy_dynamo import defer_dynamo_import
 
 Layout = list[tuple[str, tuple[int, ...]]]
 SLOTS = ("exp_avg", "exp_avg_sq", "step")
@@ -20,7 +21,9 @@ SLOTS = ("exp_avg", "exp_avg_sq", "step")
 
 def adam(shared: Named, own: Named, lr: float) -> torch.optim.Adam:
     """Adam over ``shared`` parameters and, in a second group marked ``own`` (its state never leaves the
-    unit), the unit's own offsets."""
+    unit), the unit's own offsets. Building it imports no ``torch._dynamo`` (a model loaded to be evaluated
+    never steps)."""
+    defer_dynamo_import()
     groups: list[dict[str, Any]] = [{"params": [p for _, p in shared]}]
     if own:
         groups.append({"params": [p for _, p in own], "own": True})

@@ -8,7 +8,6 @@ import torch
 from fleetrl.agent.action_space import ActionSpace
 from fleetrl.agent.config import PPOConfig
 from fleetrl.agent.criterion import CompletionCriterion
-from fleetrl.agent.lazy_dynamo import defer_dynamo_import
 from fleetrl.agent.learner import Learner
 from fleetrl.agent.ppo import PPOAgent
 from fleetrl.envs.catalog import describe_env, get_env_spec
@@ -31,7 +30,6 @@ def agent_for(unit: UnitDescription, config: PPOConfig, seed: int) -> PPOAgent:
 
     :raises ValueError: the unit's actions are not a space the agent handles (named, with what is)
     """
-    defer_dynamo_import()  # its optimisers: no torch._dynamo import before the first update
     return PPOAgent(unit.obs_dim, action_space_of(unit), config, seed=seed)
 
 
