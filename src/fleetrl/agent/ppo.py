@@ -17,7 +17,13 @@ from fleetrl.agent.flat import Named, flatten, flatten_tensors, layout, split
 from fleetrl.agent.memory import TrajectoryMemory, score_unscored
 from fleetrl.agent.model_file import architecture, load_agent, save_agent
 from fleetrl.agent.network import ActorCritic
-from fleetrl.agent.optimiser_flat import adams, load_optimiser_flat, optimiser_flat, optimiser_layout
+from fleetrl.agent.optimisers import (
+    adams,
+    load_optimiser_flat,
+    optimiser_flat,
+    optimiser_layout,
+    step_optimiser,
+)
 from fleetrl.agent.pending import PendingTransitions
 from fleetrl.agent.policy_numpy import NumpyPolicy
 from fleetrl.agent.row_acting import FEW_ROWS, RowActing
@@ -298,7 +304,7 @@ class PPOAgent:
         params = [p for _, p in self._actor_named]
         for p, g in zip(params, chunks, strict=True):
             p.grad = g
-        self.actor_optimizer.step()
+        step_optimiser(self.actor_optimizer)
         for p in params:
             p.grad = None
         self._policy.refresh(self.net)
@@ -345,7 +351,7 @@ class PPOAgent:
         return {"actor": self.actor_optimizer, "critic": self.critic_optimizer}
 
     def optimiser_layout(self) -> list[tuple[str, tuple[int, ...]]]:
-        """Names and shapes of the optimisers' state as one flat vector (:mod:`.optimiser_flat`)."""
+        """Names and shapes of the optimisers' state as one flat vector (:mod:`.optimisers`)."""
         return optimiser_layout(self.optimisers())
 
     def optimiser_parameters(self) -> np.ndarray:

@@ -20,6 +20,7 @@ from fleetrl.agent.config import PPOConfig
 from fleetrl.agent.losses import clipped_surrogate, critic_loss
 from fleetrl.agent.memory import Transitions, concatenate, sample_window
 from fleetrl.agent.network import ActorCritic
+from fleetrl.agent.optimisers import step_optimiser
 
 CRITIC = "critic"
 """the part of a step that moves μ (lines 20-21)"""
@@ -197,7 +198,7 @@ class Model:
             raise ValueError(f"{len(gradient)} gradient tensors for {len(params)} parameters")
         for p, g in zip(params, gradient, strict=False):
             p.grad = g
-        optimiser.step()
+        step_optimiser(optimiser)
         for p in params:
             p.grad = None
 

@@ -1,9 +1,12 @@
-"""The Adam optimisers' state as one flat float32 vector (what the chief of a one-policy fleet hands a joining
-worker): per optimiser and parameter, ``exp_avg``, ``exp_avg_sq`` and ``step`` (float32 holds every count
-below 2²⁴ exactly); an optimiser that has not stepped yet has zeros and step 0."""
+"""The actor's and the critic's Adam: built and stepped without importing ``torch._dynamo`` (1.5-2 s of
+imports in every process that builds an agent; fleetrl never compiles, so torch's wrapped calls may go
+straight to their functions), and their state as one flat float32 vector (what the chief of a one-policy
+fleet hands a joining worker)."""
 
 from __future__ import annotations
 
+import inspect
+import sys
 from collections.abc import Mapping
 from typing import Any
 
@@ -13,10 +16,35 @@ from torch import nn
 
 from fleetrl.agent.config import PPOConfig
 from fleetrl.agent.flat import Named, split
-from fleetrl.agent.lazy_dynamo import defer_dynamo_import
 
 Layout = list[tuple[str, tuple[int, ...]]]
 SLOTS = ("exp_avg", "exp_avg_sq", "step")
+"""per optimiser and parameter, the state in the flat vector (float32 holds every ``step`` count below 2²⁴
+exactly; an optimiser that has not stepped yet has zeros and step 0)"""
+
+DEFERRED = ("add_param_group", "zero_grad", "state_dict", "load_state_dict")
+"""the methods of ``torch.optim.Optimizer`` that would import ``torch._dynamo`` on their first call"""
+
+
+def defer_dynamo_import() -> None:
+    """Let those methods run without importing ``torch._dynamo`` (idempotent; a no-op once it is imported, or
+    on a PyTorch whose methods are not wrapped this way)."""
+    if "torch._dynamo" in sys.modules:
+        return
+    from torch.optim import Optimizer
+
+    for name in DEFERRED:
+        function = getattr(getattr(Optimizer, name), "__wrapped__", None)
+        if function is not None and getattr(function, "__dynamo_disable", None) is None:
+            # torch._compile._disable_dynamo caches its wrapper here; the function itself runs instead
+            setattr(function, "__dynamo_disable", function)
+
+
+def step_optimiser(optimiser: torch.optim.Optimizer) -> None:
+    """``optimiser.step()`` as eager mode runs it: the step itself, gradients off (what torch's wrapper does
+    besides importing ``torch._dynamo`` to mark a graph break, and calling step hooks fleetrl never sets)."""
+    with torch.no_grad():
+        inspect.unwrap(type(optimiser).step)(optimiser)
 
 
 def adam(shared: Named, own: Named, lr: float) -> torch.optim.Adam:
