@@ -255,17 +255,33 @@ def _rig_ratio(slower: list[RunRecord], faster: list[RunRecord]) -> str:
     return f"{bound}{point:.2f}× ({low:.2f}–{high:.2f}) / {bound}{unit:.2f}× ({unit_low:.2f}–{unit_high:.2f})"
 
 
+def on_shared_seeds(
+    slower: list[RunRecord], faster: list[RunRecord]
+) -> tuple[list[RunRecord], list[RunRecord], str]:
+    """The runs of two arms on the seeds both have (a ratio compares like with like), and a note naming those
+    seeds when one arm has runs the other has not (empty otherwise)."""
+    seeds = [{int(r.result_settings["seed"]) for r in arm} for arm in (slower, faster)]
+    shared = seeds[0] & seeds[1]
+    if seeds[0] == seeds[1]:
+        return slower, faster, ""
+    kept = [[r for r in arm if int(r.result_settings["seed"]) in shared] for arm in (slower, faster)]
+    return kept[0], kept[1], f" (on seeds {seed_list(kept[0]) or 'none'}, the seeds both arms have)"
+
+
 def _ratio_line(ratio: Ratio, records: Records) -> str:
-    slower, faster = records[ratio.slower.key], records[ratio.faster.key]
-    if not slower or not faster:
+    slower, faster, shared = on_shared_seeds(records[ratio.slower.key], records[ratio.faster.key])
+    if not records[ratio.slower.key] or not records[ratio.faster.key]:
         return f"- **{ratio.slower.label} → {ratio.faster.label}**: {NOT_RUN}; {ratio.claim}"
+    pair = f"**{ratio.slower.label} → {ratio.faster.label}**{shared}"
+    if not slower:
+        return f"- {pair}: no seed run by both; {ratio.claim}"
     point, low, high = bootstrap_ratio(_fleet(slower), _fleet(faster))
     unit, unit_low, unit_high = bootstrap_ratio(_per_unit(slower), _per_unit(faster))
     bound = bound_mark(slower, faster)
     rig = _rig_ratio(slower, faster)
     on_rigs = "" if rig == "-" else f"; in time on the rigs, fleet / per unit: {rig}"
     return (
-        f"- **{ratio.slower.label} → {ratio.faster.label}**: fleet speed-up in rounds "
+        f"- {pair}: fleet speed-up in rounds "
         f"{bound}{point:.2f}× (95 % bootstrap {low:.2f}–{high:.2f}), per unit {bound}{unit:.2f}× "
         f"({unit_low:.2f}–{unit_high:.2f}){on_rigs}; {ratio.claim}"
     )
