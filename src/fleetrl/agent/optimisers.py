@@ -31,10 +31,8 @@ def defer_dynamo_import() -> None:
     on a PyTorch whose methods are not wrapped this way)."""
     if "torch._dynamo" in sys.modules:
         return
-    from torch.optim import Optimizer
-
     for name in DEFERRED:
-        function = getattr(getattr(Optimizer, name), "__wrapped__", None)
+        function = getattr(getattr(torch.optim.Optimizer, name), "__wrapped__", None)
         if function is not None and getattr(function, "__dynamo_disable", None) is None:
             # torch._compile._disable_dynamo caches its wrapper here; the function itself runs instead
             setattr(function, "__dynamo_disable", function)

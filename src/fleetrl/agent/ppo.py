@@ -10,6 +10,7 @@ from typing import Any
 import numpy as np
 import torch
 
+from fleetrl.agent import optimisers
 from fleetrl.agent.action_space import ActionSpace, as_action_space
 from fleetrl.agent.checkpoint import check_tensors_fit
 from fleetrl.agent.config import PPOConfig
@@ -17,13 +18,6 @@ from fleetrl.agent.flat import Named, flatten, flatten_tensors, layout, split
 from fleetrl.agent.memory import TrajectoryMemory, score_unscored
 from fleetrl.agent.model_file import architecture, load_agent, save_agent
 from fleetrl.agent.network import ActorCritic
-from fleetrl.agent.optimisers import (
-    adams,
-    load_optimiser_flat,
-    optimiser_flat,
-    optimiser_layout,
-    step_optimiser,
-)
 from fleetrl.agent.pending import PendingTransitions
 from fleetrl.agent.policy_numpy import NumpyPolicy
 from fleetrl.agent.row_acting import FEW_ROWS, RowActing
@@ -85,7 +79,7 @@ class PPOAgent:
         actor_all = [p for _, p in self._actor_named + self._actor_own]
         critic_all = [p for _, p in self._critic_named + self._critic_own]
         own = [(f"own.{key}", p) for key, p in self.net.own.items()]
-        self.actor_optimizer, self.critic_optimizer = adams(
+        self.actor_optimizer, self.critic_optimizer = optimisers.adams(
             config, (self._actor_named, self._actor_own), (self._critic_named, self._critic_own),
             (self._model_named(), own),
         )  # fmt: skip
@@ -98,8 +92,8 @@ class PPOAgent:
         self._discrete = self.action_space.is_discrete
         self._draws = UniformDraws(self._act_rngs)
         self._rows = RowActing(self._policy) if self._discrete else None
-        optimisers = (self.actor_optimizer, self.critic_optimizer)
-        self._model = Model(self.net, actor_all, critic_all, *optimisers, config, choose_variants(config))
+        both = (self.actor_optimizer, self.critic_optimizer)
+        self._model = Model(self.net, actor_all, critic_all, *both, config, choose_variants(config))
         self._parts = self._model.variants.parts
         self._last_actor_gradient: Gradient | None = None  # line 25's: the last one the update applied
         self._exchange: StepExchange | None = None
@@ -304,7 +298,7 @@ class PPOAgent:
         params = [p for _, p in self._actor_named]
         for p, g in zip(params, chunks, strict=True):
             p.grad = g
-        step_optimiser(self.actor_optimizer)
+        optimisers.step_optimiser(self.actor_optimizer)
         for p in params:
             p.grad = None
         self._policy.refresh(self.net)
@@ -352,15 +346,15 @@ class PPOAgent:
 
     def optimiser_layout(self) -> list[tuple[str, tuple[int, ...]]]:
         """Names and shapes of the optimisers' state as one flat vector (:mod:`.optimisers`)."""
-        return optimiser_layout(self.optimisers())
+        return optimisers.optimiser_layout(self.optimisers())
 
     def optimiser_parameters(self) -> np.ndarray:
         """The optimisers' state, flat float32 in :meth:`optimiser_layout` order."""
-        return optimiser_flat(self.optimisers())
+        return optimisers.optimiser_flat(self.optimisers())
 
     def set_optimiser_parameters(self, flat: np.ndarray) -> None:
         """Replace the optimisers' state (a fleet's, from the chief)."""
-        load_optimiser_flat(self.optimisers(), flat)
+        optimisers.load_optimiser_flat(self.optimisers(), flat)
 
     def rng_states(self) -> dict[str, Any]:
         """Unit 0's bit-generator states of action sampling and window starts (JSON-ready)."""
