@@ -184,8 +184,8 @@ def run_chief(
         if checkpoint is not None and (fields := chief_fields(chief)) != committed[0]:
             checkpoint(chief)
             committed[0] = fields
-            if lease.in_doubt():  # stopped while it wrote: the checkpoint may lead the answers (write-ahead)
-                confirm_lease()
+        if lease.in_doubt():  # stopped during the step (or while it wrote: the checkpoint may lead the
+            confirm_lease()  # answers, write-ahead): look before anything leaves or is logged
         for message in step.outgoing:
             stamped = replace(message, epoch=chief.epoch)
             transport.publish(out_topic, encode(stamped, layout=chief.layout_of(message.type), key=chief.key))
