@@ -63,6 +63,11 @@ class EmulatedQube:
         self._zero = [0, 0]
         self._stuck_counts = 0
 
+    def go_wall_clock(self) -> None:
+        """From now on run on the wall clock, going on from the simulated time reached so far."""
+        self._started = time.perf_counter() - self.now
+        self.wall_clock = True
+
     # the injected clock
     def clock(self) -> float:
         """Simulated seconds (or wall seconds since the emulator was made)."""
