@@ -110,8 +110,8 @@ def test_a_driver_fault_ends_the_run_with_its_reason_and_the_amplifier_off(qube:
 @pytest.mark.slow
 def test_in_real_time_the_controller_ticks_the_spi_driver_on_the_wall_clock(qube: EmulatedQube) -> None:
     """The rig's mode: the emulator's clock is the wall clock once the swing-up has settled, so the episode
-    really waits (the swing-up itself on the simulated clock: a test process starved for a tenth of a second
-    by the rest of the suite would hold a pumping command that long and throw the arm off its limits)."""
+    really waits (the swing-up itself on the simulated clock: a test process starved by the rest of the suite
+    held a pumping command for as long and threw the arm off its limits)."""
     driver, spi = spi_driver(qube)
     home = driver.home
 

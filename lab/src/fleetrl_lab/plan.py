@@ -269,9 +269,9 @@ def on_shared_seeds(
 
 
 def _ratio_line(ratio: Ratio, records: Records) -> str:
-    slower, faster, shared = on_shared_seeds(records[ratio.slower.key], records[ratio.faster.key])
     if not records[ratio.slower.key] or not records[ratio.faster.key]:
         return f"- **{ratio.slower.label} → {ratio.faster.label}**: {NOT_RUN}; {ratio.claim}"
+    slower, faster, shared = on_shared_seeds(records[ratio.slower.key], records[ratio.faster.key])
     pair = f"**{ratio.slower.label} → {ratio.faster.label}**{shared}"
     if not slower:
         return f"- {pair}: no seed run by both; {ratio.claim}"
