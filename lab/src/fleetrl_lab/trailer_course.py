@@ -1,0 +1,59 @@
+"""How a fleet's last units fared round by round beside the rest of the fleet, from a run's metrics.csv.
+
+A unit's completion round is the first round its row says ``completed``; the fleet's entropy in a round is
+the median over the units' rows of that round (each row: π_θ's entropy on that unit's own states).
+"""
+
+from __future__ import annotations
+
+import statistics
+from collections.abc import Iterable, Mapping
+from dataclasses import dataclass, field
+
+
+@dataclass
+class Course:
+    """Per round: the units' WMA and entropy; per unit: the round it completed (absent: never)."""
+
+    wma: dict[int, dict[int, float]] = field(default_factory=dict)
+    entropy: dict[int, dict[int, float]] = field(default_factory=dict)
+    completed_at: dict[int, int] = field(default_factory=dict)
+
+    @property
+    def rounds(self) -> list[int]:
+        """Every round with a row, in order."""
+        return sorted(self.wma)
+
+    @property
+    def units(self) -> list[int]:
+        """Every unit with a row."""
+        return sorted({u for by_unit in self.wma.values() for u in by_unit})
+
+    def completed_by(self, round_: int) -> int:
+        """How many units had completed by the end of ``round_``."""
+        return sum(1 for r in self.completed_at.values() if r <= round_)
+
+    def holding(self, round_: int, target: float) -> int:
+        """How many units' WMA was at least ``target`` in ``round_`` (completed or not)."""
+        return sum(1 for wma in self.wma[round_].values() if wma >= target)
+
+    def median_entropy(self, round_: int) -> float:
+        """The median over the units' rows of ``round_`` of π_θ's entropy."""
+        return statistics.median(self.entropy[round_].values())
+
+    def last_units(self, n: int) -> list[int]:
+        """The ``n`` units that completed last (those that never did first), latest first."""
+        never = max(self.rounds, default=0) + 1
+        return sorted(self.units, key=lambda u: (-self.completed_at.get(u, never), u))[:n]
+
+
+def read_course(rows: Iterable[Mapping[str, str]]) -> Course:
+    """The course of a run from metrics.csv rows (``round``, ``worker``, ``wma``, ``entropy``, ``event``)."""
+    course = Course()
+    for row in rows:
+        round_, unit = int(row["round"]), int(row["worker"])
+        course.wma.setdefault(round_, {})[unit] = float(row["wma"])
+        course.entropy.setdefault(round_, {})[unit] = float(row["entropy"])
+        if row["event"] == "completed" and unit not in course.completed_at:
+            course.completed_at[unit] = round_
+    return course
