@@ -151,9 +151,10 @@ def print_table(base: Path, arms: list[str], pairs: list[int], profile: str, uni
 
 def print_pairs(base: Path, arms: list[str], pairs: list[int]) -> None:
     """Per pair and arm: the median unit's time on the rigs and its time waiting for the fleet, and the
-    largest of its units' mean time per reset (a unit that needs a hand reset costs its fleet that much at
-    every round under a barrier)."""
-    print("| pair | arm | median unit on the rigs (s) | median unit waiting (s) | largest mean reset (s) |")
+    largest of its units' reset time per fleet round until it completed (a unit that needs a hand reset
+    costs its fleet that much at every round under a barrier; where a unit plays every round, its mean time
+    per reset; a paced unit the quorum left out of rounds plays fewer resets than that)."""
+    print("| pair | arm | median unit on rigs (s) | median unit waiting (s) | largest reset s per round |")
     print("|---|---|---|---|---|")
     for pair in pairs:
         for arm in arms:
