@@ -10,10 +10,10 @@ Prints a row every ``--every`` rounds and at the run's last round.
 from __future__ import annotations
 
 import argparse
-import csv
 import json
 from pathlib import Path
 
+from fleetrl.runs.records import read_metrics
 from fleetrl_lab.trailer_course import read_course
 
 
@@ -27,8 +27,7 @@ def main() -> None:
     if not metrics.is_file():
         raise SystemExit(f"{metrics}: no such file (a run directory of `fleetrl train` has one)")
     target = float(json.loads((a.run / "config.json").read_text())["target_score"])
-    with metrics.open(newline="") as f:
-        course = read_course(csv.DictReader(f))
+    course = read_course(read_metrics(metrics))
     rounds = course.rounds
     units = course.last_units(a.last)
     done = ", ".join(f"unit {u}: {course.completed_at.get(u, 'not completed')}" for u in units)

@@ -1,14 +1,17 @@
 """How a fleet's last units fared round by round beside the rest of the fleet, from a run's metrics.csv.
 
-A unit's completion round is the first round its row says ``completed``; the fleet's entropy in a round is
-the median over the units' rows of that round (each row: π_θ's entropy on that unit's own states).
+A unit's completion round is the first round whose event names ``completed`` (as
+:func:`fleetrl.runs.fleet_summary.fleet_rounds` reads it); the fleet's entropy in a round is the median over
+the units' rows of that round (each row: π_θ's entropy on that unit's own states).
 """
 
 from __future__ import annotations
 
 import statistics
-from collections.abc import Iterable, Mapping
+from collections.abc import Iterable
 from dataclasses import dataclass, field
+
+from fleetrl.runs.records import MetricsRow
 
 
 @dataclass
@@ -47,13 +50,12 @@ class Course:
         return sorted(self.units, key=lambda u: (-self.completed_at.get(u, never), u))[:n]
 
 
-def read_course(rows: Iterable[Mapping[str, str]]) -> Course:
-    """The course of a run from metrics.csv rows (``round``, ``worker``, ``wma``, ``entropy``, ``event``)."""
+def read_course(rows: Iterable[MetricsRow]) -> Course:
+    """The course of a run from its metrics.csv rows (:func:`fleetrl.runs.records.read_metrics`)."""
     course = Course()
     for row in rows:
-        round_, unit = int(row["round"]), int(row["worker"])
-        course.wma.setdefault(round_, {})[unit] = float(row["wma"])
-        course.entropy.setdefault(round_, {})[unit] = float(row["entropy"])
-        if row["event"] == "completed" and unit not in course.completed_at:
-            course.completed_at[unit] = round_
+        course.wma.setdefault(row.round, {})[row.worker] = row.wma
+        course.entropy.setdefault(row.round, {})[row.worker] = row.entropy
+        if "completed" in row.event.split("+") and row.worker not in course.completed_at:
+            course.completed_at[row.worker] = row.round
     return course
