@@ -23,10 +23,15 @@ def main() -> None:
     p.add_argument("--last", type=int, default=3, help="how many of the last units to follow")
     p.add_argument("--every", type=int, default=10, help="print a row every this many rounds")
     a = p.parse_args()
-    metrics = a.run / "metrics.csv"
-    if not metrics.is_file():
-        raise SystemExit(f"{metrics}: no such file (a run directory of `fleetrl train` has one)")
-    target = float(json.loads((a.run / "config.json").read_text())["target_score"])
+    metrics, config = a.run / "metrics.csv", a.run / "config.json"
+    for needed in (metrics, config):
+        if not needed.is_file():
+            raise SystemExit(f"{needed}: no such file (a run directory of `fleetrl train` has one)")
+    target = json.loads(config.read_text()).get("target_score")
+    if target is None:
+        raise SystemExit(
+            f"{config}: no target_score (written by a fleetrl older than the run directories read here)"
+        )
     course = read_course(read_metrics(metrics))
     rounds = course.rounds
     units = course.last_units(a.last)
