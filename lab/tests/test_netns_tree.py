@@ -71,7 +71,7 @@ def test_a_two_broker_tree_across_namespaces_passes_every_check(namespaces: None
 
 
 def test_a_run_cut_short_fails_and_leaves_no_namespace(namespaces: None) -> None:
-    done, left = run_tree("--timeout", "6")
+    done, left = run_tree("--rounds", "1000", "--timeout", "6")  # runs until its units complete
     assert done.returncode == 1, done.stdout[-3000:]
     assert "FAILED every role exited 0" in done.stdout
     assert left == []
