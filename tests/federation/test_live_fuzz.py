@@ -114,14 +114,18 @@ def test_fuzzed_forged_replayed_unsigned_and_oversized_messages_change_nothing(
         def inject() -> None:
             try:
                 deadline = time.monotonic() + 60
-                while not chiefs or chiefs[0].round < 3 or len(captured) < 6:  # rounds 1-2 seen: replayable
-                    assert time.monotonic() < deadline, "the run did not reach round 3"
-                    time.sleep(0.01)
-                chief = chiefs[0]
+
                 # the workers' own signed messages of rounds 1-2, but their joins: a join that arrived before
                 # its worker's first `online` is due again after it (a new process joins afresh), so a
                 # replayed join may rightly be taken
-                legit = [(topic, payload) for topic, payload in captured if not is_join(payload, layout)]
+                def replayable() -> list[tuple[str, bytes]]:
+                    return [(t, payload) for t, payload in list(captured) if not is_join(payload, layout)]
+
+                while not chiefs or chiefs[0].round < 3 or len(replayable()) < 6:  # rounds 1-2 seen
+                    assert time.monotonic() < deadline, "the run did not reach round 3"
+                    time.sleep(0.01)
+                chief = chiefs[0]
+                legit = replayable()
                 sent: list[paho.MQTTMessageInfo] = []
 
                 def put(kind: str, topic: str, payload: bytes) -> None:
