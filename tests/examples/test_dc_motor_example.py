@@ -182,7 +182,7 @@ def test_a_federated_fleet_of_motors_behind_device_bridges_scores_as_in_process(
     """One process: the chief and 3 workers on the local bus, a bridge thread per motor on an embedded broker
     serving ``driver``; every round of every worker recorded with the in-process run's score, and every
     bridge closed having refused nothing."""
-    argv = ("--transport", "local", "--max-rounds", "3")
+    argv = ("--transport", "local", "--max-rounds", "3", "--quorum", "1")  # every round waits for all 3
     bridged = train(tmp_path / "run", *argv, "--device-link", "mqtt", "--device-driver", DRIVER)
     assert [(w, r) for w, r, _ in scores(bridged)] == [(w, r) for w in (0, 1, 2) for r in (1, 2, 3)]
     assert scores(bridged) == scores(train(tmp_path / "in-process", *argv))
