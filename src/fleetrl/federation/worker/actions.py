@@ -1,15 +1,6 @@
-"""What a federated round is, seen from the worker: the learner's side of it (protocols), what the worker's
-state machine asks of its runner (the actions of a :class:`WorkerStep`), and the round's record.
-
-:class:`RoundPlayer` is what the worker needs from the learner (``fleetrl.agent.learner.Learner``), whose
-``play_round`` returns the learner's :class:`~fleetrl.agent.learner.RoundResult`; every round becomes one
-:class:`FederatedRound` (that result with the worker, the federation's round and its event), and a worker's
-run ends with a :class:`WorkerSummary`.
-
-The machine (:mod:`fleetrl.federation.worker.machine`) decides; the runner
-(:class:`.worker.runner.FederatedWorker`) does: it publishes, plays the learner's rounds and steps,
-applies answers to the agent through the scheme, and reports back. Every input of the machine returns one
-:class:`WorkerStep`, whose outputs are executed in order.
+"""The worker's vocabulary: what it needs of its learner (:class:`RoundPlayer`), a round's record
+(:class:`FederatedRound`), the outputs its state machine hands the runner (one :class:`WorkerStep` per
+input, executed in order), and where the machine is (:class:`Phase`) and what it waits for (:class:`Wait`).
 """
 
 from __future__ import annotations
@@ -17,6 +8,7 @@ from __future__ import annotations
 import logging
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from enum import Enum, auto
 from typing import TYPE_CHECKING, Any, Protocol
 
 import numpy as np
@@ -52,8 +44,7 @@ class RoundPlayer(Protocol):
         ...
 
     def begin_round(self) -> Any:
-        """The round's episodes alone; the result's ``updates`` says whether an update follows (a per-step
-        scheme's worker then drives it, exchanging every step with the chief)."""
+        """The round's episodes alone; the result's ``updates`` says whether an update follows."""
         ...
 
     def end_round(self, played: Any, stats: Any) -> RoundResult:
@@ -63,23 +54,14 @@ class RoundPlayer(Protocol):
 
 @dataclass(frozen=True)
 class FederatedRound:
-    """One round of one worker as the federation saw it: the learner's figures of the round (its
-    :class:`~fleetrl.agent.learner.RoundResult`, kept whole: the figures live in that one value) with the
-    worker, the federation's round number and what the federation made of the round.
-
-    ``round`` is the federation's round (a resumed or rejoining worker's learner counts its own);
-    ``event`` is a :class:`~fleetrl.federation.events.WorkerEvent`, or a
-    :class:`~fleetrl.federation.events.Sent` naming the scheme's message; ``peer`` the other worker of a
-    transfer.
-    """
+    """One round of one worker: the learner's result with the federation's round number (a resumed
+    worker's learner counts its own), its event and ``peer``, the other worker of a transfer."""
 
     worker_id: str
     round: int
     result: RoundResult
-    """the learner's report of the round (score, steps, episodes, wma, the update's statistics)"""
     event: RoundEvent
     peer: str | None = None
-    """the other worker of a transfer (``transfer_in``: the origin; ``finished``: the one forwarded)"""
 
     @property
     def label(self) -> str:
@@ -89,20 +71,17 @@ class FederatedRound:
 
 @dataclass(frozen=True)
 class WorkerSummary:
-    """How a worker's run ended."""
+    """How a worker's run ended; ``finished``: it left W by sending its parameters."""
 
     worker_id: str
     rounds: int
     finished: bool
-    """True if it left W by sending its parameters (fedavg: with the run's last average)."""
     reason: str
 
 
 def resume_round(start_round: int | None, welcome_round: int, worker_id: str) -> int | None:
-    """The round a worker resumed from a checkpoint at ``start_round`` (the first round its state has not
-    played) plays first when the chief welcomes it at ``welcome_round``; None: rejoin at the welcome's round
-    like a fresh worker (not resumed, or rounds were played without it). RuntimeError if the chief is behind
-    the checkpoint (it lost rounds)."""
+    """The round a worker resumed at ``start_round`` plays first when welcomed at ``welcome_round``; None:
+    rejoin at the welcome's round like a fresh worker. RuntimeError if the chief is behind the checkpoint."""
     if start_round is None:
         return None
     if welcome_round < start_round:
@@ -111,9 +90,7 @@ def resume_round(start_round: int | None, welcome_round: int, worker_id: str) ->
             f"checkpoint is at round {start_round}: the chief lost rounds (resume it from its checkpoint)"
         )
     if welcome_round <= start_round + 1:
-        # One round ahead: the message this worker sent before it died closed that round. Playing it again
-        # gives the same message (same state, same RNGs); the chief answers the copy with that round's
-        # answer, and the worker continues exactly as if it had never stopped.
+        # the round it died in is replayed: same state and RNGs, so the chief gets a copy of its message
         return start_round
     log.warning(
         "worker %s: rounds %d-%d were played without this worker; rejoining at round %d",
@@ -123,15 +100,13 @@ def resume_round(start_round: int | None, welcome_round: int, worker_id: str) ->
 
 
 def answer_for(rnd: int, step: int = 0) -> Callable[[Message], bool]:
-    """Accepts the chief's answer for round ``rnd`` (step ``step``) or a later one (ours was missed), or
-    ``done``; an earlier answer is stale."""
+    """Accepts ``done`` or the chief's answer for round ``rnd`` (step ``step``) or a later one."""
     return lambda m: m.type == "done" or (m.type in ANSWERS and (m.round, m.step) >= (rnd, step))
 
 
 @dataclass(frozen=True)
 class Publish:
-    """Publish ``payload`` on ``topic`` (QoS 1, retained if ``retain``); ``message`` is what it encodes (None
-    for a status)."""
+    """Publish ``payload`` on ``topic``; ``message`` is what it encodes (None for a status)."""
 
     topic: str
     payload: bytes
@@ -141,7 +116,7 @@ class Publish:
 
 @dataclass(frozen=True)
 class Announce:
-    """Announce the worker's live status (retained, and again after every reconnect of the transport)."""
+    """Announce the worker's live status (retained, and again after every reconnect)."""
 
     topic: str
     payload: bytes
@@ -149,8 +124,7 @@ class Announce:
 
 @dataclass(frozen=True)
 class TakeParameters:
-    """``scheme.take_parameters(agent, flat)``: a transfer's parameters, or a joining worker's from the
-    welcome (the fleet's model θ*, or the fleet's start)."""
+    """``scheme.take_parameters(agent, flat)``: a transfer's, or the welcome's fleet model or start."""
 
     flat: np.ndarray
 
@@ -166,36 +140,27 @@ class ApplyAverage:
 
 @dataclass(frozen=True)
 class PlayRound:
-    """Play round ``round`` (``learner.play_round``) and report it with
-    :meth:`~fleetrl.federation.worker.machine.WorkerMachine.round_played` — for a per-round scheme with what
-    ``scheme.outgoing`` shares; a per-step scheme's round reports its episodes with ``round_collected``
-    and its update through ``update_begun`` and ``step_computed`` first. A per-round scheme's
-    ``local_loss(agent, config)`` is installed before it."""
+    """Play round ``round`` with the chief's ``config`` (its scheme's ``configure``) and report it."""
 
     round: int
     config: RoundConfig = field(default_factory=dict)
-    """what the chief asks of every worker for this round (its scheme's ``configure``)"""
 
 
 @dataclass(frozen=True)
 class ComputeStep:
-    """Compute the gradients of optimisation step ``step`` (``agent.step_gradients``) and report them with
-    :meth:`~fleetrl.federation.worker.machine.WorkerMachine.step_computed`."""
+    """Compute the gradients of optimisation step ``step`` and report them."""
 
     step: int
 
 
 @dataclass(frozen=True)
 class BeginUpdate:
-    """A per-step round's episodes are played and the worker joins an exchange: ``agent.begin_update()``
-    (no steps if the learner does not update this round) and report it with
-    :meth:`~fleetrl.federation.worker.per_step.StepWorkerMachine.update_begun`."""
+    """A per-step round's episodes are played: ``agent.begin_update()`` and report its steps."""
 
 
 @dataclass(frozen=True)
 class ApplyFleetStep:
-    """``scheme.catch_up_step(agent, step, flat)``: an answer of the fleet's step ``step`` taken while this
-    worker had no update under way (it was behind)."""
+    """``scheme.catch_up_step(agent, step, flat)``: a fleet's step taken while no update is under way."""
 
     step: int
     flat: np.ndarray
@@ -210,13 +175,12 @@ class ApplyStep:
 
 @dataclass(frozen=True)
 class EndUpdate:
-    """Every step of the round's update was exchanged: ``agent.end_update()`` and let the round finish."""
+    """Every step of the round's update was exchanged: ``agent.end_update()`` and finish the round."""
 
 
 @dataclass(frozen=True)
 class AbandonUpdate:
-    """The fleet went on past this worker's round or step: ``agent.abandon_update()`` and let the round
-    finish without its update."""
+    """The fleet went on past this worker: ``agent.abandon_update()`` and finish the round without it."""
 
 
 @dataclass(frozen=True)
@@ -235,29 +199,27 @@ class Checkpoint:
 
 @dataclass(frozen=True)
 class Finish:
-    """The worker's run is over (a round inside an update is abandoned)."""
+    """The worker's run is over."""
 
     summary: WorkerSummary
 
 
 @dataclass(frozen=True)
 class Refused:
-    """The chief refused this worker's shared settings (raise
-    :class:`~fleetrl.federation.shared_settings.SettingsRefused`)."""
+    """The chief refused this worker's shared settings (raise ``SettingsRefused``)."""
 
     reason: str
 
 
 @dataclass(frozen=True)
 class RunEnded:
-    """The chief's status said the run had ended before this worker was welcomed (raise
-    :class:`RunEndedError`)."""
+    """The run had ended before this worker was welcomed (raise :class:`RunEndedError`)."""
 
     detail: str
 
 
 class RunEndedError(OSError):
-    """A worker started after its run was over: it could not do its job (``fleetrl worker`` exits 1)."""
+    """A worker started after its run was over (``fleetrl worker`` exits 1)."""
 
 
 @dataclass(frozen=True)
@@ -286,7 +248,6 @@ WorkerOutput = (
     | RunEnded
     | TimedOut
 )
-"""Everything a :class:`WorkerStep` can hold."""
 
 
 @dataclass(frozen=True)
@@ -296,7 +257,6 @@ class WorkerStep:
     outputs: tuple[WorkerOutput, ...] = ()
 
     def __add__(self, other: WorkerStep) -> WorkerStep:
-        """Both steps, this one first."""
         return WorkerStep(self.outputs + other.outputs)
 
     @property
@@ -308,3 +268,40 @@ class WorkerStep:
     def actions(self) -> tuple[WorkerOutput, ...]:
         """Everything but publishing."""
         return tuple(o for o in self.outputs if not isinstance(o, Publish | Announce))
+
+
+NOTHING = WorkerStep()
+
+
+class Phase(Enum):
+    """Where the worker is: waiting for the chief (``WELCOME``, ``ANSWER``, ``STEP_ANSWER``, a per-step
+    straggler's ``WAIT_ROUND``), for the runner (``PLAYING``, ``JOINING``, ``COMPUTING``, ``STEPS_DONE``),
+    or applying answers already queued (``CATCH_UP`` after a round, a per-step worker's ``DRAIN``)."""
+
+    NEW = auto()
+    WELCOME = auto()
+    PLAYING = auto()
+    DRAIN = auto()
+    WAIT_ROUND = auto()
+    JOINING = auto()
+    COMPUTING = auto()
+    STEP_ANSWER = auto()
+    STEPS_DONE = auto()
+    ANSWER = auto()
+    CATCH_UP = auto()
+    DONE = auto()
+
+
+QUEUED = (Phase.CATCH_UP, Phase.DRAIN)
+"""phases that read only what is already queued (due at once)"""
+
+
+@dataclass
+class Wait:
+    """Waiting for a chief message: what is wanted, what is re-sent (retained: the join), the deadlines."""
+
+    wanted: Callable[[Message], bool]
+    what: str
+    resend: Publish
+    deadline: float | None
+    next_send: float | None

@@ -1,7 +1,6 @@
 """The worker of an asynchronous scheme (``fedasync``) as a pure state machine: it counts its own rounds,
-takes the newest fleet model it has seen before each, and waits for the chief's answer to its own
-contribution (another worker's answer is only a newer model). docs/protocol.md, "Asynchronous schemes".
-"""
+takes the newest fleet model seen before each, and waits for the answer to its own contribution.
+docs/protocol.md, "Asynchronous schemes"."""
 
 from __future__ import annotations
 
@@ -14,9 +13,8 @@ from fleetrl.federation.plan import WorkerPlan
 from fleetrl.federation.shared_settings import settings_difference
 from fleetrl.federation.wire.messages import Message
 from fleetrl.federation.worker import actions
-from fleetrl.federation.worker.actions import WorkerStep, WorkerSummary, resume_round
+from fleetrl.federation.worker.actions import NOTHING, Phase, WorkerStep, WorkerSummary, resume_round
 from fleetrl.federation.worker.machine import WorkerMachine
-from fleetrl.federation.worker.phase import NOTHING, Phase
 
 __all__ = ["AsyncWorkerMachine"]
 
@@ -27,21 +25,18 @@ MODELS = ("welcome", "average")
 
 
 class AsyncWorkerMachine(WorkerMachine):
-    """Algorithm 2 for one worker of an asynchronous scheme (see the module's docstring); the parameters are
-    :class:`~fleetrl.federation.worker.machine.WorkerMachine`'s."""
+    """Algorithm 2 for one worker of an asynchronous scheme."""
 
     current_model = True
 
     def __init__(self, plan: WorkerPlan, **options: Any) -> None:
-        """Prepare the machine; nothing happens before :meth:`start`."""
         super().__init__(plan, **options)
         self.model_version = -1  # no fleet model taken yet
         self.newest: Message | None = None
         """the newest fleet model seen and not yet taken (taken before the next round)"""
 
     def receive(self, message: Message, *, now: float) -> WorkerStep:
-        """A decoded chief message: any fleet model newer than every one seen is kept for the next round;
-        then the message is handled as the rules say (an answer to this worker's round, the run's end)."""
+        """A decoded chief message; a fleet model newer than every one seen is kept for the next round."""
         if message.type in MODELS and message.flat is not None and self.phase is not Phase.DONE:
             seen = self.model_version if self.newest is None else self.newest.model_version
             if message.model_version > seen:
@@ -49,14 +44,12 @@ class AsyncWorkerMachine(WorkerMachine):
         return super().receive(message, now=now)
 
     def _welcome_wanted(self) -> Callable[[Message], bool]:
-        """A ``welcome`` naming this worker in ``contributors`` (each carries its worker's own round), or
-        ``done``."""
+        """A ``welcome`` naming this worker in ``contributors`` (it carries its own round), or ``done``."""
         me = self.worker_id
         return lambda m: m.type == "done" or (m.type == "welcome" and me in m.contributors)
 
     def _welcomed(self, welcome: Message) -> WorkerStep:
-        """Joined: the first round is the welcome's (its checkpoint's, for a worker resumed within a round),
-        played from the welcome's model (the newest there is, kept by :meth:`receive`)."""
+        """Joined: the first round is the welcome's (or its checkpoint's), played from the newest model."""
         if welcome.type == "done":
             return super()._welcomed(welcome)
         why = settings_difference(welcome.settings, self.settings) if welcome.settings else None
@@ -88,7 +81,7 @@ class AsyncWorkerMachine(WorkerMachine):
         )
 
     def _answered(self, reply: Message) -> WorkerStep:
-        """The answer to this worker's round: record the round (its model is taken before the next one)."""
+        """The answer to this worker's round: record it (its model is taken before the next round)."""
         if self._outcome is None:
             raise AssertionError("an answer is awaited only after the round was played")
         if reply.type == "done":
@@ -100,7 +93,7 @@ class AsyncWorkerMachine(WorkerMachine):
         return self._round_over(self._outcome, reply, event, None, self.worker_id in reply.finished)
 
     def _between(self, message: Message, now: float) -> WorkerStep:
-        """Between this worker's rounds: the run's end ends it (a newer model was kept by :meth:`receive`)."""
+        """Between this worker's rounds: only the run's end matters."""
         del now
         if self.phase is not Phase.CATCH_UP:
             return NOTHING

@@ -1,8 +1,6 @@
-"""The worker of a per-step scheme (``pergrad``) as a pure state machine: the rounds of
-:class:`~.worker.machine.WorkerMachine`, each round's update exchanged with the fleet step by step, every
-answer of the fleet applied in order (a straggler catches up first), so the fleet stays one policy.
-docs/protocol.md, "Stragglers under a per-step scheme".
-"""
+"""The worker of a per-step scheme (``pergrad``) as a pure state machine: each round's update exchanged
+with the fleet step by step, every fleet answer applied in order, so the fleet stays one policy.
+docs/protocol.md, "Stragglers under a per-step scheme"."""
 
 from __future__ import annotations
 
@@ -16,9 +14,8 @@ from fleetrl.federation.plan import WorkerPlan
 from fleetrl.federation.schemes import COMPLETED
 from fleetrl.federation.wire.messages import Message
 from fleetrl.federation.worker import actions
-from fleetrl.federation.worker.actions import WorkerStep, WorkerSummary, answer_for
+from fleetrl.federation.worker.actions import NOTHING, Phase, WorkerStep, WorkerSummary, answer_for
 from fleetrl.federation.worker.machine import WorkerMachine
-from fleetrl.federation.worker.phase import NOTHING, Phase
 
 if TYPE_CHECKING:  # the learner (and torch) is not imported by the pure machine
     from fleetrl.agent.round_result import RoundResult
@@ -29,16 +26,12 @@ log = logging.getLogger(__name__)
 
 
 class StepWorkerMachine(WorkerMachine):
-    """Algorithm 2 for one worker of a per-step scheme (see the module's docstring).
-
-    :param plan: the run as this worker sees it; its ``steps_per_round`` is K, the exchanges of one round.
-    :param options: :class:`~fleetrl.federation.worker.machine.WorkerMachine`'s other parameters.
-    """
+    """Algorithm 2 for one worker of a per-step scheme; the plan's ``steps_per_round`` is K, the exchanges
+    of one round."""
 
     current_model = True
 
     def __init__(self, plan: WorkerPlan, **options: Any) -> None:
-        """Prepare the machine; nothing happens before :meth:`start`."""
         super().__init__(plan, **options)
         if self.plan.steps_per_round < 1:
             raise ValueError(f"steps_per_round must be >= 1, got {self.plan.steps_per_round}")
@@ -53,14 +46,12 @@ class StepWorkerMachine(WorkerMachine):
         self._wait_until: float | None = None
         self._rejoining = False
         self._overtaken: Message | None = None
-        """an answer past what this worker could take part in (its own step's answer, or one of a round it
-        played but had not contributed yet, was lost): its round ends without its update"""
+        """an answer past what this worker could take part in: its round ends without its update"""
 
     # ---- reports of the runner ----
 
     def round_collected(self, *, completed: bool, now: float) -> WorkerStep:
-        """The round's episodes are played (``completed``: the criterion holds): apply the fleet's answers
-        already queued, then join its next round-opening exchange."""
+        """The round's episodes are played: apply the fleet's answers queued, then join its next round."""
         del now
         if self.phase is not Phase.PLAYING:
             raise RuntimeError(f"worker {self.worker_id}: round {self.round} collected out of turn")
@@ -95,8 +86,8 @@ class StepWorkerMachine(WorkerMachine):
     def round_played(
         self, outcome: RoundResult, *, now: float, share: tuple[str, np.ndarray] | None = None
     ) -> WorkerStep:
-        """Every step of the round's update was applied: record the round. An update abandoned because the
-        fleet went on past it is recorded as ``late``, and the worker takes the fleet's model again."""
+        """Every step of the round's update was applied: record the round (``late`` if the update was
+        abandoned: the worker then takes the fleet's model again)."""
         del share
         reply = self._last_answer
         if self.phase is not Phase.STEPS_DONE:
@@ -115,9 +106,8 @@ class StepWorkerMachine(WorkerMachine):
     # ---- the rules ----
 
     def _welcomed(self, welcome: Message) -> WorkerStep:
-        """As :class:`WorkerMachine`; a worker that takes the welcome's model holds the fleet's as it is at
-        the exchange the welcome names: answers after it are the ones to apply. A worker that missed answers
-        takes it whatever its checkpoint, and plays the welcome's round."""
+        """As :class:`WorkerMachine`; the welcome's model is the fleet's at the exchange it names. A worker
+        that missed answers takes it whatever its checkpoint, and plays the welcome's round."""
         if self._rejoining and welcome.type == "welcome" and welcome.flat is not None:
             self._rejoining, self._config = False, dict(welcome.config)
             self.fleet_at = (welcome.round, welcome.step)
@@ -133,15 +123,13 @@ class StepWorkerMachine(WorkerMachine):
         return super()._begin_round(rnd)
 
     def _answered(self, reply: Message) -> WorkerStep:
-        """The chief's answer to this worker's step (Algorithm 2, lines 21 and 23, with the fleet's
-        gradient)."""
+        """The chief's answer to this worker's step (Algorithm 2, lines 21 and 23)."""
         if reply.type == "done":  # the run ended inside the round
             return self._finish(
                 WorkerSummary(self.worker_id, self.round - 1, finished=False, reason="run ended")
             )
         if (reply.round, reply.step) != (self.round, self._step):
-            # the fleet went on past this step (its answer was lost, say with a restarted broker): the update
-            # stops here, the round is recorded, and the worker takes the fleet's model again
+            # the fleet went on past this step (its answer was lost): the update stops, the round is recorded
             log.warning(
                 "worker %s: the fleet is at round %d step %d, past this worker's step %d of round %d; taking "
                 "the fleet's model again", self.worker_id, reply.round, reply.step, self._step, self.round,
@@ -159,8 +147,7 @@ class StepWorkerMachine(WorkerMachine):
         return WorkerStep((actions.ApplyStep(reply.flat), actions.EndUpdate()))
 
     def _between(self, message: Message, now: float) -> WorkerStep:
-        """Outside this worker's own exchanges (after its round, before or while joining the fleet's next
-        round): the fleet's answers are applied in order."""
+        """Outside this worker's own exchanges: the fleet's answers are applied in order."""
         if self.phase not in (Phase.CATCH_UP, Phase.DRAIN, Phase.WAIT_ROUND):
             return NOTHING
         if message.type == "done":
@@ -191,8 +178,8 @@ class StepWorkerMachine(WorkerMachine):
         return self.start(now=now)
 
     def _queue_read(self, now: float) -> WorkerStep:
-        """Nothing more is queued. After a round: play the fleet's open round. Before an update: join the
-        fleet's round-opening exchange, or wait for the end of the round it is in."""
+        """Nothing more is queued: after a round, play the fleet's open round; before an update, join the
+        fleet's round-opening exchange or wait for the end of its round."""
         if self.phase is Phase.CATCH_UP:
             nxt = self.fleet_at[0]
             return WorkerStep((actions.Checkpoint(nxt),)) + self._begin_round(nxt)
@@ -227,14 +214,13 @@ class StepWorkerMachine(WorkerMachine):
         return (answer.round + 1, 0)
 
     def next_deadline(self) -> float | None:
-        """When :meth:`tick` is due (a straggler waiting for the end of the fleet's round: its timeout)."""
+        """When :meth:`tick` is due."""
         if self.phase is Phase.WAIT_ROUND:
             return self._wait_until
         return super().next_deadline()
 
     def tick(self, *, now: float) -> WorkerStep:
-        """As :meth:`WorkerMachine.tick`; a straggler waiting for the end of the fleet's round times out
-        like any wait for the chief."""
+        """As :meth:`WorkerMachine.tick`; a straggler waiting for the fleet's next round times out too."""
         if self.phase is not Phase.WAIT_ROUND:
             return super().tick(now=now)
         if self._wait_until is None or now < self._wait_until:

@@ -11,6 +11,7 @@ from fleetrl.federation.schemes import RoundScheme, Scheme, StepScheme
 from fleetrl.federation.schemes.agent import LocalTraining
 from fleetrl.federation.wire.messages import RoundConfig
 from fleetrl.federation.worker.actions import (
+    NOTHING,
     AbandonUpdate,
     ApplyAverage,
     ApplyFleetStep,
@@ -24,18 +25,17 @@ from fleetrl.federation.worker.actions import (
 )
 from fleetrl.federation.worker.machine import WorkerMachine
 from fleetrl.federation.worker.per_step import StepWorkerMachine
-from fleetrl.federation.worker.phase import NOTHING
 
 
 class Play(ABC):
-    """The learner's side of a worker's rounds under one scheme kind; the runner hands it the machine's
-    :class:`~.actions.PlayRound` and the actions only this kind's machine asks for."""
+    """The learner's side of a worker's rounds under one scheme kind: the rounds the machine asks for, and
+    the actions only this kind's machine asks for."""
 
     def __init__(
         self, scheme: Scheme, learner: RoundPlayer, machine: WorkerMachine, clock: Callable[[], float]
     ) -> None:
         """Play ``learner``'s rounds under ``scheme``, reporting to ``machine`` at ``clock``'s times."""
-        self.learner, self.clock = learner, clock
+        self.scheme, self.learner, self.machine, self.clock = scheme, learner, machine, clock
 
     @abstractmethod
     def play(self, config: RoundConfig) -> WorkerStep:
@@ -49,12 +49,7 @@ class Play(ABC):
 class RoundPlay(Play):
     """A round played whole (its K optimisations inside), then what the scheme shares sent once."""
 
-    def __init__(
-        self, scheme: RoundScheme, learner: RoundPlayer, machine: WorkerMachine, clock: Callable[[], float]
-    ) -> None:
-        """Play ``learner``'s rounds under ``scheme``, reporting to ``machine`` at ``clock``'s times."""
-        super().__init__(scheme, learner, machine, clock)
-        self.scheme, self.machine = scheme, machine
+    scheme: RoundScheme
 
     def play(self, config: RoundConfig) -> WorkerStep:
         """The scheme's local loss for the round installed, the round played, its share sent (lines 8, 25)."""
@@ -85,14 +80,10 @@ class RoundPlay(Play):
 class StepPlay(Play):
     """A round's episodes played, then its update's K steps exchanged with the fleet one by one."""
 
-    def __init__(
-        self, scheme: StepScheme, learner: RoundPlayer, machine: StepWorkerMachine, clock: Callable[[], float]
-    ) -> None:
-        """Play ``learner``'s rounds under ``scheme``, reporting to ``machine`` at ``clock``'s times."""
-        super().__init__(scheme, learner, machine, clock)
-        self.scheme, self.machine = scheme, machine
-        self._played: Any = None
-        """the round under way: what ``learner.begin_round`` returned"""
+    scheme: StepScheme
+    machine: StepWorkerMachine
+    _played: Any = None
+    """the round under way: what ``learner.begin_round`` returned"""
 
     def play(self, config: RoundConfig) -> WorkerStep:
         """The round's episodes (no update yet): the machine then joins the fleet's exchange."""

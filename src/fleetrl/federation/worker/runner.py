@@ -1,6 +1,5 @@
-"""The worker of Algorithm 2 (lines 7–31) over a learner and a transport: the loop, the clock and the
-transport around the pure :class:`~.worker.machine.WorkerMachine`, whose actions it executes (the learner's
-side through its scheme kind's :mod:`.worker.play`). Joining, resuming and re-sends: docs/protocol.md.
+"""The worker of Algorithm 2 (lines 7–31) over a learner and a transport: the loop around the pure
+:class:`~.machine.WorkerMachine`, whose actions it executes (the learner's through :mod:`.play`).
 """
 
 from __future__ import annotations
@@ -46,21 +45,15 @@ MIN_WAIT = 0.001
 class FederatedWorker:
     """Algorithm 2 for one worker, talking to the chief only through ``transport``.
 
-    :param learner: plays rounds; its ``agent`` exposes the actor (see :class:`RoundPlayer`). If the plan's
-        scheme ``stays_after_completion``, it must keep learning after its criterion holds.
-    :param transport: an unconnected transport; :meth:`run` connects it (with an ``offline`` last will) and
-        closes it.
-    :param plan: the run as this worker sees it (:class:`~fleetrl.federation.plan.WorkerPlan`, built for
-        ``learner.agent``; its ``start_round`` resumes from a checkpoint: docs/protocol.md, "Checkpoints and
-        resume"). A ``welcome`` carrying other settings, or the chief's ``refused``, raises
-        :class:`~fleetrl.federation.shared_settings.SettingsRefused`.
+    :param learner: plays rounds (:class:`RoundPlayer`); under a scheme that ``stays_after_completion`` it
+        keeps learning after its criterion holds.
+    :param transport: an unconnected transport; :meth:`run` connects it (``offline`` will) and closes it.
+    :param plan: the run as this worker sees it, built for ``learner.agent`` (``start_round``: resumed from a
+        checkpoint). A refusal of its settings raises ``SettingsRefused``.
     :param key: the fleet key: sign what is sent, accept only what is signed with it.
     :param on_record: called with every :class:`FederatedRound`.
-    :param on_round_done: called with the next round to play after each round's answer was applied and
-        before that round starts (the moment to checkpoint the learner).
-    :param clock: the time source handed to the state machine (seconds).
-    :param status_fields: who this process is (pid, host, keep-alive: :func:`~.chief.lease.holder_fields`),
-        said in its status so a second process with its id is refused naming it.
+    :param on_round_done: called with the next round to play once the last one's answer is applied.
+    :param status_fields: who this process is (pid, host, keep-alive), said in its status.
     """
 
     def __init__(
@@ -75,7 +68,6 @@ class FederatedWorker:
         clock: Callable[[], float] = time.monotonic,
         status_fields: Mapping[str, str | int] | None = None,
     ) -> None:
-        """Prepare the worker; nothing is sent before :meth:`run`."""
         self.learner = learner
         self.transport = transport
         self.plan = plan
@@ -101,15 +93,9 @@ class FederatedWorker:
             assert isinstance(finish, Finish)
             summary = finish.summary
             self.transport.publish(machine.own_status, machine.status(OFFLINE), retain=True)
-        except SettingsRefused:  # never admitted: the chief keeps waiting for a worker with its settings
-            # offline, so no stale online holds the place (the chief that refused it does not drop the id)
-            with contextlib.suppress(Exception):
-                self.transport.publish(machine.own_status, machine.status(OFFLINE), retain=True)
-            raise
         except BaseException:
-            # A worker dying of an error closes its connection cleanly, so its last will never fires: it says
-            # what the will would have, or the chief waits for it at every exchange (without a deadline,
-            # for ever). What went wrong goes on up.
+            # a clean close fires no last will: say offline, or the chief waits for this worker (a refused one
+            # too: no stale online holds its place)
             with contextlib.suppress(Exception):
                 self.transport.publish(machine.own_status, machine.status(OFFLINE), retain=True)
             raise
@@ -134,8 +120,7 @@ class FederatedWorker:
         """Wait for a chief message until the machine's next deadline; hand the machine what came, or the
         time."""
         deadline = self.machine.next_deadline()
-        # MIN_WAIT past a resend or timeout, so the tick finds it due; a catch-up (due at once) reads only
-        # what is already queued
+        # MIN_WAIT past the deadline, so the tick finds it due; a catch-up (due at once) reads what is queued
         timeout = None if deadline is None else max(0.0, deadline - self.clock() + MIN_WAIT)
         received = self.transport.receive(timeout)
         now = self.clock()
