@@ -1,7 +1,6 @@
 """Wire format of federation messages: a versioned msgpack envelope with raw little-endian float32 tensors
 (an edge aggregator's sums: float64); never pickle. docs/protocol.md, "Envelope", lists its keys.
-:func:`decode` validates all of it and raises :class:`MessageRejected` with a :class:`Reason` for anything
-wrong; it never raises anything else, whatever the bytes.
+:func:`decode` validates all of it and raises only :class:`MessageRejected`, whatever the bytes.
 """
 
 from __future__ import annotations
@@ -15,19 +14,8 @@ from typing import Any
 import msgpack
 import numpy as np
 
-from fleetrl.federation.wire.rejections import (
-    MAX_TEXT,
-    MessageRejected,
-    Reason,
-    check_config,
-    check_count,
-    check_metrics,
-    check_names,
-    check_settings,
-    short,
-)
 from fleetrl.federation.wire.signing import OVERHEAD as SIGNATURE_OVERHEAD
-from fleetrl.federation.wire.signing import FleetKey
+from fleetrl.federation.wire.signing import FleetKey, MessageRejected, Reason
 
 __all__ = [
     "MESSAGE_TYPES",
@@ -63,46 +51,87 @@ MESSAGE_TYPES: Mapping[str, bool] = {
     "join": False,  # worker → chief: its shared settings, checked against the chief's before it plays
     "refused": False,  # chief → workers: the join of the worker in ``finished`` is refused (``detail``: why)
 }
-"""The protocol's message types, each mapped to whether it must carry the layout's tensors. A scheme's own
-round message (``gradient``, ``model``, ``step_gradient`` …: :func:`check_scheme_type`) is not listed: it
-always carries tensors, and a receiver names the ones it takes (:func:`decode`'s ``scheme_types``)."""
+"""The protocol's message types → whether it must carry the layout's tensors. A scheme's own round message
+(:func:`check_scheme_type`) always carries tensors; a receiver names those it takes (``scheme_types``)."""
 SCHEME_TYPE = re.compile(r"[a-z][a-z0-9_]{0,31}")
-"""the form of a scheme's round-message type"""
-OPTIONAL_TENSORS = frozenset({"welcome", "done"})
-"""Types that carry either no tensors or the whole layout."""
+OPTIONAL_TENSORS = frozenset({"welcome", "done"})  # types that carry no tensors or the whole layout
 
-HEADER_ALLOWANCE = 64 * 1024
-"""Bytes allowed beyond the tensors' own size by :func:`default_max_bytes`."""
-_MAX_ROUND = 2**31 - 1
-_KEYS = frozenset(
-    {
-        "version",
-        "type",
-        "run_id",
-        "sender",
-        "round",
-        "metrics",
-        "origin",
-        "finished",
-        "contributors",
-        "step",
-        "settings",
-        "detail",
-        "samples",
-        "units",
-        "config",
-        "staleness",
-        "model_version",
-        "epoch",
-        "tensors",
-        "data",
-    }
-)
+HEADER_ALLOWANCE = 64 * 1024  # bytes allowed beyond the tensors' own size by default_max_bytes
+MAX_METRICS = 32  # most metrics (or settings, or config entries) one message may carry
+MAX_NAME = 64  # longest metric name or id accepted
+MAX_TEXT = 1024  # longest setting value or detail text accepted
+MAX_COUNT = 2**31 - 1  # largest round, step or count accepted
+
+
+def short(value: object) -> str:
+    """A bounded, recursion-free description of a decoded value for a rejection detail."""
+    if isinstance(value, str | bytes | int | float | bool) or value is None:
+        return repr(value)[:MAX_NAME]
+    return f"<{type(value).__name__}>"
+
+
+def check_names(value: object, what: str) -> tuple[str, ...]:
+    """``value`` as a tuple of worker ids (``what``: the field), or MALFORMED."""
+    if not isinstance(value, list) or len(value) > 4096 or not all(isinstance(v, str) for v in value):
+        raise MessageRejected(Reason.MALFORMED, f"{what} is not a list of strings")
+    return tuple(value)
+
+
+def check_count(value: object, what: str) -> int:
+    """``value`` as a count in [0, MAX_COUNT] (``what``: the field), or MALFORMED."""
+    if not isinstance(value, int) or isinstance(value, bool) or not 0 <= value <= MAX_COUNT:
+        raise MessageRejected(Reason.MALFORMED, f"{what} {short(value)}")
+    return value
+
+
+def check_config(value: object, error: type[ValueError] | None) -> dict[str, float | str]:
+    """The ``config`` map checked: on decode a defect is a MALFORMED rejection, on encode ``error``."""
+    why = None
+    if not isinstance(value, dict) or len(value) > MAX_METRICS:
+        why = f"config is not a map of at most {MAX_METRICS} entries"
+    else:
+        for key, val in value.items():
+            number = isinstance(val, int | float) and not isinstance(val, bool) and math.isfinite(val)
+            text = isinstance(val, str) and len(val) <= MAX_TEXT
+            if not (isinstance(key, str) and len(key) <= MAX_NAME and (number or text)):
+                why = f"config entry {short(key)}: not a finite number or a short text"
+                break
+    if why is not None:
+        if error is not None:
+            raise error(f"refusing to send: {why}")
+        raise MessageRejected(Reason.MALFORMED, why)
+    assert isinstance(value, dict)
+    return {k: v if isinstance(v, str) else float(v) for k, v in value.items()}
+
+
+def check_settings(value: object) -> dict[str, str]:
+    """``value`` as a small map of setting name → short text, or MALFORMED."""
+    if not isinstance(value, dict) or len(value) > MAX_METRICS:
+        raise MessageRejected(Reason.MALFORMED, f"settings is not a map of at most {MAX_METRICS} entries")
+    for key, val in value.items():
+        if not (
+            isinstance(key, str) and len(key) <= MAX_NAME and isinstance(val, str) and len(val) <= MAX_TEXT
+        ):
+            raise MessageRejected(Reason.MALFORMED, f"setting {short(key)}")
+    return dict(value)
+
+
+def check_metrics(value: object) -> dict[str, float]:
+    """``value`` as a small map of metric name → finite number, or BAD_METRICS."""
+    if not isinstance(value, dict) or len(value) > MAX_METRICS:
+        raise MessageRejected(Reason.BAD_METRICS, f"not a map of at most {MAX_METRICS} entries")
+    out: dict[str, float] = {}
+    for key, val in value.items():
+        if not isinstance(key, str) or len(key) > MAX_NAME:
+            raise MessageRejected(Reason.BAD_METRICS, f"bad name {short(key)}")
+        if not isinstance(val, int | float) or isinstance(val, bool) or not math.isfinite(val):
+            raise MessageRejected(Reason.BAD_METRICS, f"{key}={short(val)}")
+        out[key] = float(val)
+    return out
 
 
 def check_scheme_type(name: object, what: str = "a scheme") -> str:
-    """``name`` if it can be a scheme's round-message type (:data:`SCHEME_TYPE`, not a protocol type);
-    otherwise a ValueError saying so."""
+    """``name`` if it can be a scheme's round-message type (:data:`SCHEME_TYPE`, not a protocol type)."""
     if not isinstance(name, str) or not SCHEME_TYPE.fullmatch(name) or name in MESSAGE_TYPES:
         raise ValueError(
             f"{what}: round_message {name!r} must be lower-case letters, digits and _ (at most 32, a letter "
@@ -115,29 +144,21 @@ def check_scheme_type(name: object, what: str = "a scheme") -> str:
 class Message:
     """One federation message, decoded (or to be encoded).
 
-    :param type: one of :data:`MESSAGE_TYPES`.
-    :param run_id: the run it belongs to.
+    :param type: one of :data:`MESSAGE_TYPES`, or a scheme's round message.
     :param sender: ``chief`` or a worker id.
     :param round: the round (episode) number, from 1.
     :param flat: the tensors as one flat float32 vector in layout order, or None for types without tensors.
-    :param metrics: small named numbers (score, losses...) for logs.
     :param origin: for ``transfer``: the worker whose parameters are carried.
     :param finished: workers that leave W with this message (``transfer``).
     :param contributors: workers whose gradients were combined (``average``).
     :param step: the optimisation step within the round (schemes that send per step); 0 otherwise.
-    :param settings: the settings all roles must share (``join``, ``welcome``): name → value text.
-    :param detail: free text (``refused``: the reason).
-    :param samples: the transitions the message's contribution stands for (0: not counted).
-    :param units: the units it stands for (a worker of one unit: 1).
+    :param settings: the settings all roles must share (``join``, ``welcome``).
+    :param samples: the transitions the contribution stands for (0: not counted); ``units``: its units.
     :param config: what the chief asks of every worker for the round this message opens.
-    :param staleness: rounds the fleet moved on while the worker played what it contributes (0: none).
-    :param model_version: an asynchronous scheme's fleet model version (a contribution: the one its round
-        started from; the chief's answer or welcome: the one it carries); 0 otherwise.
-    :param epoch: the chief's epoch (:mod:`.chief.lease`): a chief message's own, a worker message's the
-        highest its worker has seen; 0 before any takeover.
-    :param version: envelope version.
-    :param summed: ``flat`` is an edge aggregator's weighted sum of its members' vectors, float64 (sent as
-        8 bytes a value), standing for ``units``.
+    :param staleness: rounds the fleet moved on while the worker played what it contributes.
+    :param model_version: an asynchronous scheme's fleet model version (started from, or carried).
+    :param epoch: the chief's epoch (:mod:`.chief.lease`): a chief's own, a worker's the highest it has seen.
+    :param summed: ``flat`` is an edge aggregator's weighted sum, float64, standing for ``units``.
     """
 
     type: str
@@ -224,14 +245,13 @@ def envelope(message: Message, *, layout: Layout) -> dict[str, Any]:
     }
 
 
+_KEYS = frozenset(envelope(Message("done", "", "", 0), layout=()))
+"""the keys of every envelope"""
+
+
 def encode(message: Message, *, layout: Layout, key: FleetKey | None = None) -> bytes:
-    """Serialise ``message`` (msgpack envelope, tensors as little-endian float32 following ``layout``).
-
-    With ``key`` the envelope is signed (see :mod:`fleetrl.federation.wire.signing`).
-
-    :raises ValueError: unknown type, tensors missing or not fitting ``layout``, or non-finite values — a
-        sender must not put on the wire what every receiver would reject.
-    """
+    """Serialise ``message`` (tensors following ``layout``), signed with ``key`` if given; ValueError for
+    what every receiver would reject (unknown type, tensors missing or not fitting, non-finite values)."""
     env = envelope(message, layout=layout)
     if (
         env["data"]
@@ -261,16 +281,13 @@ def decode(
 
     :param payload: the bytes received.
     :param run_id: the receiver's run; other runs' messages are rejected.
-    :param known_senders: senders the receiver accepts (the chief: its roster — the run's workers, and in an
-        open fleet any valid worker id; a worker: ``chief``).
+    :param known_senders: senders the receiver accepts (the chief: its roster; a worker: ``chief``).
     :param layout: tensor names and shapes every tensor-carrying message must match exactly.
     :param max_bytes: size cap; default :func:`default_max_bytes` of ``layout`` (plus the signature's bytes
         with ``key``).
     :param key: the fleet key: the payload must be signed with it (checked before anything is parsed).
-    :param scheme_types: the scheme's round-message types the receiver takes besides :data:`MESSAGE_TYPES`
-        (the chief: its scheme's; a worker: none).
-    :param layouts: message type → its own layout, where it is not ``layout`` (a ``welcome`` handing out the
-        fleet's start).
+    :param scheme_types: the scheme's round-message types the receiver takes besides :data:`MESSAGE_TYPES`.
+    :param layouts: message type → its own layout, where it is not ``layout``.
     :param sums: a scheme's round message may carry an edge aggregator's float64 sum (8 bytes a value).
     """
     layouts = layouts or {}
@@ -307,15 +324,13 @@ def decode(
         raise MessageRejected(Reason.UNKNOWN_SENDER, short(sender))
     rnd = env["round"]
     lowest = 0 if mtype == "join" else 1  # a join names the round its worker resumes at, 0 for none
-    if not isinstance(rnd, int) or isinstance(rnd, bool) or not lowest <= rnd <= _MAX_ROUND:
+    if not isinstance(rnd, int) or isinstance(rnd, bool) or not lowest <= rnd <= MAX_COUNT:
         raise MessageRejected(Reason.BAD_ROUND, short(rnd))
     metrics = check_metrics(env["metrics"])
     origin = env["origin"]
     if origin is not None and not isinstance(origin, str):
         raise MessageRejected(Reason.MALFORMED, "origin is not a string")
-    step = env["step"]
-    if not isinstance(step, int) or isinstance(step, bool) or not 0 <= step <= _MAX_ROUND:
-        raise MessageRejected(Reason.MALFORMED, f"step {short(step)}")
+    step = check_count(env["step"], "step")
     detail = env["detail"]
     if not isinstance(detail, str) or len(detail) > MAX_TEXT:
         raise MessageRejected(Reason.MALFORMED, "detail is not a short string")
@@ -361,11 +376,7 @@ def _tensors(tensors: object, data: object, layout: Layout, wide: bool = False) 
         raise MessageRejected(
             Reason.LAYOUT_MISMATCH, f"data has {size} bytes, layout needs {4 * layout_size(layout)}"
         )
-    flat = (
-        np.frombuffer(data, dtype="<f8").astype(np.float64)
-        if wide
-        else np.frombuffer(data, "<f4").astype(np.float32)
-    )
+    flat = np.frombuffer(data, "<f8" if wide else "<f4").astype(np.float64 if wide else np.float32)
     if not np.isfinite(flat).all():
         raise MessageRejected(Reason.NOT_FINITE, f"{int((~np.isfinite(flat)).sum())} non-finite values")
     return flat

@@ -1,16 +1,11 @@
-"""HMAC-SHA256 signatures of federation messages and node statuses under a fleet key (issue 7).
+"""HMAC-SHA256 signatures of federation messages and node statuses under a fleet key, and why a message or
+status is rejected (:class:`Reason`, :class:`MessageRejected`: the lowest module of the wire).
 
-A signed message is ``MAGIC`` (4 bytes ``FRS1``) + HMAC-SHA256(key, ``MAGIC`` + envelope) (32 bytes) + the
-msgpack envelope. The envelope carries the run id, the sender, the type and the round, so the signature binds
-all four: a message cannot be moved to another run, sender or round without the key, and a byte-identical
-replay is caught by the receivers' round rules (one message per (sender, round); see docs/protocol.md).
-
-A status payload is ``<state> <incarnation>[ <name>=<value> …]`` or, signed, the same followed by
-``<hex HMAC>`` over ``run_id/node/state/incarnation`` (and ``/<name>=<value> …`` when there are any). The
-incarnation (nanoseconds since the epoch when the node started) grows with every restart, so a replayed
-``online`` or the late will of an earlier incarnation is recognised. The ``name=value`` fields say who holds
-the node's place (``pid``, ``host``, ``keepalive``) and, for the chief, its ``epoch``
-(:mod:`fleetrl.federation.chief.lease`).
+A signed message is ``MAGIC`` (``FRS1``) + HMAC-SHA256(key, ``MAGIC`` + envelope) + the msgpack envelope; the
+envelope names the run, sender, type and round, so the signature binds all four. A status payload is
+``<state> <incarnation>[ <name>=<value> …]``, signed: followed by ``<hex HMAC>`` over
+``run_id/node/state/incarnation`` (and ``/<name>=<value> …`` when there are any). The incarnation grows with
+every restart, so a replayed ``online`` or a late will of an earlier one is recognised.
 """
 
 from __future__ import annotations
@@ -21,9 +16,47 @@ import os
 import re
 from collections.abc import Mapping
 from dataclasses import dataclass, field
+from enum import StrEnum
 from pathlib import Path
 
-from fleetrl.federation.wire.rejections import MessageRejected, Reason
+
+class Reason(StrEnum):
+    """Why a message was rejected (by the decoder, or by the chief or worker that received it)."""
+
+    OVERSIZED = "oversized"
+    NOT_MSGPACK = "not msgpack"
+    MALFORMED = "malformed envelope"
+    WRONG_VERSION = "wrong version"
+    UNKNOWN_TYPE = "unknown type"
+    WRONG_RUN_ID = "wrong run id"
+    UNKNOWN_SENDER = "unknown sender"
+    BAD_ROUND = "bad round"
+    BAD_METRICS = "bad metrics"
+    LAYOUT_MISMATCH = "tensor names/shapes do not match the layout"
+    NOT_FINITE = "NaN or Inf"
+    UNSIGNED = "unsigned"
+    BAD_SIGNATURE = "bad signature"
+    # Raised by the receivers, not the decoder:
+    TOPIC_MISMATCH = "sender does not match topic"
+    UNEXPECTED_TYPE = "type not expected from this sender"
+    STALE_ROUND = "stale round"
+    FUTURE_ROUND = "future round"
+    DUPLICATE = "duplicate (sender, round)"
+    NOT_IN_W = "sender no longer in W"
+    RUN_OVER = "run is over"
+    REFUSED = "sender was refused at join"
+    REPLAYED = "replayed status"
+
+
+class MessageRejected(Exception):
+    """A received message failed validation; ``reason`` says which rule, ``detail`` says what was seen."""
+
+    def __init__(self, reason: Reason, detail: str = "") -> None:
+        """:param reason: the rule that failed.  :param detail: what was wrong, for the log."""
+        super().__init__(f"{reason.value}: {detail}" if detail else reason.value)
+        self.reason = reason
+        self.detail = detail
+
 
 MAGIC = b"FRS1"
 """First bytes of a signed message."""
@@ -36,14 +69,10 @@ MIN_KEY_BYTES = 16
 
 
 class FleetKey:
-    """The secret every role of a fleet shares; signs and verifies messages and statuses.
-
-    :param secret: at least :data:`MIN_KEY_BYTES` bytes (``fleetrl secure-config`` writes 32 random bytes as
-        64 hex characters).
-    """
+    """The secret every role of a fleet shares (at least :data:`MIN_KEY_BYTES` bytes); signs and verifies
+    messages and statuses."""
 
     def __init__(self, secret: bytes) -> None:
-        """Keep ``secret``; ValueError if it is too short to be a key."""
         if len(secret) < MIN_KEY_BYTES:
             raise ValueError(f"a fleet key needs at least {MIN_KEY_BYTES} bytes, got {len(secret)}")
         self._secret = bytes(secret)
@@ -87,8 +116,6 @@ class FleetKey:
 
 STATES = ("online", "offline", "ended")
 """the states a status payload may name (``ended``: a chief's, once its run is over)"""
-
-
 FIELD = re.compile(r"([a-z]{1,16})=([A-Za-z0-9_.:-]{1,64})")
 """one ``name=value`` field of a status"""
 MAX_FIELDS = 8
@@ -96,8 +123,8 @@ MAX_FIELDS = 8
 
 @dataclass(frozen=True)
 class Status:
-    """A node's status: ``online``, ``offline`` or (a chief's) ``ended``, the incarnation it belongs to
-    (None if not given), and its ``name=value`` fields (who holds the place; a chief's epoch)."""
+    """A node's status: its state, incarnation (None if not given) and ``name=value`` fields (who holds the
+    place: ``pid``, ``host``, ``keepalive``; a chief's ``epoch``)."""
 
     state: str
     incarnation: int | None = None
@@ -118,9 +145,7 @@ def status_payload(
     key: FleetKey | None = None,
     fields: Mapping[str, str | int] | None = None,
 ) -> bytes:
-    """The payload announcing ``state`` (``b"online"``/``b"offline"``/``b"ended"``) of ``node`` with
-    ``fields`` (names of 1–16 lower-case letters, values of 1–64 of ``A-Z a-z 0-9 _ . : -``), signed if
-    ``key``."""
+    """The payload announcing ``state`` of ``node`` with ``fields`` (:data:`FIELD`), signed if ``key``."""
     pairs = " ".join(f"{k}={v}" for k, v in (fields or {}).items())
     if pairs and (len(fields or {}) > MAX_FIELDS or not all(map(FIELD.fullmatch, pairs.split(" ")))):
         raise ValueError(f"status fields {pairs[:80]!r}: at most {MAX_FIELDS} name=value of the allowed form")
@@ -131,10 +156,8 @@ def status_payload(
 
 
 def parse_status(payload: bytes, *, run_id: str, node: str, key: FleetKey | None = None) -> Status:
-    """Validate a status payload; :class:`MessageRejected` if it is malformed, unsigned or forged.
-
-    Without a key, the bare ``online`` / ``offline`` of older nodes is accepted too.
-    """
+    """Validate a status payload; :class:`MessageRejected` if it is malformed, unsigned or forged (without a
+    key, a bare ``online`` / ``offline`` is accepted too)."""
     try:
         parts = payload.decode("ascii").split(" ") if len(payload) <= 1024 else []
     except UnicodeDecodeError:

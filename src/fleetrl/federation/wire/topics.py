@@ -1,13 +1,6 @@
-"""MQTT topic names of a federated run: the public interface that broker ACLs are written against.
-
-All topics of a run live under ``fleetrl/<run_id>/`` so several runs (and fleets) can share one broker:
-
-* ``fleetrl/<run_id>/chief`` — chief → workers (broadcast): averages, transfers, the end of the run.
-* ``fleetrl/<run_id>/worker/<worker_id>`` — worker → chief: a gradient or the actor parameters.
-* ``fleetrl/<run_id>/status/<node_id>`` — retained ``online`` / ``offline`` of a node (``chief`` or a worker
-  id); ``offline`` is also the node's MQTT last will.
-
-See docs/protocol.md.
+"""MQTT topic names of a federated run (what broker ACLs are written against), all under
+``fleetrl/<run_id>/``: ``chief`` (chief → workers), ``worker/<worker_id>`` (worker → chief) and
+``status/<node_id>`` (a node's retained status; ``offline`` is also its last will). docs/protocol.md.
 """
 
 from __future__ import annotations
@@ -16,11 +9,9 @@ import re
 from collections.abc import Iterable
 
 PREFIX = "fleetrl"
-"""First level of every topic."""
 CHIEF_ID = "chief"
 """The chief's node id (a worker may not use it)."""
 ONLINE = b"online"
-"""Status payload of a connected node."""
 OFFLINE = b"offline"
 """Status payload of a node that left (its last will, or a clean goodbye)."""
 ENDED = b"ended"
@@ -30,19 +21,15 @@ _ID = re.compile(r"[A-Za-z0-9_.-]{1,64}")
 
 
 def validate_id(value: str, what: str = "id") -> str:
-    """Return ``value`` if it is usable as one topic level (1–64 of ``A-Z a-z 0-9 _ . -``), else raise
-    ValueError.
-
-    :param value: a run id, worker id or node id.
-    :param what: what the value is, for the error message.
-    """
+    """``value`` if it is usable as one topic level (1–64 of ``A-Z a-z 0-9 _ . -``), else a ValueError
+    naming ``what`` it is."""
     if not isinstance(value, str) or not _ID.fullmatch(value):
         raise ValueError(f"bad {what} {value!r}: use 1-64 characters from A-Z a-z 0-9 _ . -")
     return value
 
 
 def validate_worker_id(worker_id: str) -> str:
-    """Return ``worker_id`` if valid for a worker (a valid id other than ``chief``), else raise ValueError."""
+    """``worker_id`` if valid for a worker (a valid id other than ``chief``), else a ValueError."""
     validate_id(worker_id, "worker id")
     if worker_id == CHIEF_ID:
         raise ValueError(f"bad worker id {worker_id!r}: reserved for the chief")
@@ -50,8 +37,7 @@ def validate_worker_id(worker_id: str) -> str:
 
 
 def worker_sort_key(worker_id: str) -> tuple[int, int, str]:
-    """Sort key giving the fixed order of workers: numeric ids numerically (2 before 10), then others by
-    name."""
+    """The fixed order of workers: numeric ids numerically (2 before 10), then others by name."""
     if worker_id.isdigit():
         return (0, int(worker_id), worker_id)
     return (1, 0, worker_id)
