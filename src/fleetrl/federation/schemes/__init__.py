@@ -1,8 +1,5 @@
 """Federation schemes as strategy objects, found by name: every built-in is one module of this package
-(``paper``, ``fedavg``, ``fedavgm``/``fedadam``, ``fedprox``, ``pergrad``, ``fedasync``), a user's is named
-``package.module:Class``. A new scheme is one module with a subclass of a scheme kind that sets ``name``,
-and its test on hand-computed arrays; nothing else changes.
-"""
+with a subclass of a scheme kind that sets ``name``; a user's is named ``package.module:Class``."""
 
 from __future__ import annotations
 
@@ -26,11 +23,8 @@ from fleetrl.federation.schemes.base import (
 from fleetrl.federation.wire.messages import check_scheme_type
 
 DEFAULT_SCHEME = "pergrad"
-"""the scheme of ``fleetrl demo``, ``fleetrl train --mode federated``, ``chief`` and ``worker`` when none is
-named: the one that won on the held-out seeds (docs/results.md); ``--scheme paper`` is the paper's"""
-
+"""the scheme when none is named: the one that won on the held-out seeds (docs/results.md)"""
 USER_FORM = "package.module:Class"
-"""how a scheme from the user's own code is named"""
 
 __all__ = [
     "COMPLETED",
@@ -50,8 +44,7 @@ __all__ = [
 
 
 def _discover() -> dict[str, type[Scheme]]:
-    """Every concrete scheme class defined in a module of this package, by its ``name`` (modules in name
-    order, classes in the order each module defines them)."""
+    """Every concrete scheme class defined in a module of this package, by its ``name``, in module order."""
     found: dict[str, type[Scheme]] = {}
     for info in sorted(pkgutil.iter_modules(__path__), key=lambda m: m.name):
         if info.name == "base":
@@ -73,9 +66,8 @@ SCHEMES: dict[str, type[Scheme]] = _discover()
 
 
 def get_scheme(name: str, **params: Any) -> Scheme:
-    """A new scheme object called ``name`` (a built-in's name, or ``package.module:Class``) with ``params``,
-    each typed from the scheme's constructor annotations (an int where a float is expected is taken);
-    ValueError naming the choices, the unknown parameter or the bad value otherwise."""
+    """A new scheme object called ``name`` (a built-in's, or ``package.module:Class``) with ``params`` typed
+    from its constructor's annotations; ValueError naming the choices, an unknown parameter or a bad value."""
     cls = scheme_class(name)
     accepted = scheme_parameters(cls)
     unknown = sorted(set(params) - set(accepted))
@@ -92,8 +84,7 @@ def get_scheme(name: str, **params: Any) -> Scheme:
 
 
 def scheme_class(name: str) -> type[Scheme]:
-    """The class ``name`` names: a built-in, or a user's ``package.module:Class`` (imported, and checked to
-    be a concrete :class:`RoundScheme` or :class:`StepScheme` declaring what every scheme declares)."""
+    """The class ``name`` names: a built-in, or a user's ``package.module:Class`` (imported and checked)."""
     if ":" in name:
         return _user_scheme(name)
     try:

@@ -17,84 +17,64 @@ class FederatedAgent(Protocol):
 
     def actor_layout(self) -> list[tuple[str, tuple[int, ...]]]:
         """Names and shapes of the actor's parameters, in flat order."""
-        ...
 
     def actor_gradient(self) -> np.ndarray:
         """The actor's last gradient of the round, flat float32."""
-        ...
 
     def apply_actor_gradient(self, flat: np.ndarray) -> None:
         """Update the actor with ``flat`` through its optimiser."""
-        ...
 
     def actor_parameters(self) -> np.ndarray:
         """The actor's parameters, flat float32."""
-        ...
 
     def set_actor_parameters(self, flat: np.ndarray) -> None:
         """Replace the actor's parameters."""
-        ...
 
     def model_layout(self) -> list[tuple[str, tuple[int, ...]]]:
         """Names and shapes of the whole actor-critic's parameters, in flat order."""
-        ...
 
     def model_parameters(self) -> np.ndarray:
         """The whole actor-critic's parameters, flat float32."""
-        ...
 
     def set_model_parameters(self, flat: np.ndarray) -> None:
         """Replace the whole actor-critic's parameters."""
-        ...
 
     def optimiser_layout(self) -> list[tuple[str, tuple[int, ...]]]:
         """Names and shapes of the optimisers' state as one flat vector."""
-        ...
 
     def optimiser_parameters(self) -> np.ndarray:
         """The optimisers' state, flat float32."""
-        ...
 
     def set_optimiser_parameters(self, flat: np.ndarray) -> None:
         """Replace the optimisers' state."""
-        ...
 
     def step_layout(self, k: int) -> list[tuple[str, tuple[int, ...]]]:
         """Names and shapes of optimisation step ``k``'s flat gradient."""
-        ...
 
     def update_step_count(self) -> int:
         """How many optimisation steps each update takes."""
-        ...
 
     def begin_update(self) -> int:
         """Start the round's update; the number of optimisation steps it takes."""
-        ...
 
     def step_gradients(self, k: int) -> np.ndarray:
         """Step ``k``'s gradient, flat float32 in :meth:`step_layout` order, nothing stepped."""
-        ...
 
     def apply_step(self, flat_grad: np.ndarray) -> None:
         """Step the optimiser(s) with a gradient for the step last computed."""
-        ...
 
     def apply_fleet_step(self, k: int, flat_grad: np.ndarray) -> None:
         """Step the optimiser(s) with the fleet's gradient of step ``k``, no update under way."""
-        ...
 
     def end_update(self) -> Any:
         """Finish the update (every step applied); its statistics."""
-        ...
 
     def abandon_update(self) -> None:
         """Drop the round's update, under way or not begun (the fleet went on past it)."""
-        ...
 
 
 ExtraLoss: TypeAlias = "Callable[[torch.nn.Module], torch.Tensor]"
-"""A term added to the loss of every optimisation step of local training: ``fn(model) -> scalar tensor``
-(FedProx's μ/2‖θ − θ_global‖²); ``model`` is the agent's actor-critic network."""
+"""A term added to the loss of every optimisation step of local training (FedProx's μ/2‖θ − θ_global‖²)."""
 
 
 @runtime_checkable
@@ -103,4 +83,3 @@ class LocalTraining(Protocol):
 
     def set_extra_loss(self, fn: ExtraLoss | None) -> None:
         """Add ``fn(model)`` to the loss of every optimisation step from now on (None: nothing added)."""
-        ...

@@ -1,18 +1,10 @@
 """``fedasync``: no round barrier — each worker's model is mixed into the fleet's on arrival, weighted by how
-stale it is (Xie et al. 2019, "Asynchronous Federated Optimization").
-
-Workers play as under ``fedavg`` (a round of at least the trajectory memory, K local optimisations, the whole
-actor-critic sent), each at its own pace: a worker sends its model with the fleet model version it started
-from, waits for the chief's answer to it, and takes the newest fleet model it has seen before its next round.
-The chief holds the fleet model x and its version v (the contributions applied). A contribution x_w that
-started from version b has staleness s = v − b and is applied at once:
+stale it is (Xie et al. 2019, "Asynchronous Federated Optimization"). A contribution x_w that started from
+version b of the fleet model x (version v) has staleness s = v − b and is applied at once:
 
     α_s = α·(s + 1)^(−a),   x ← (1 − α_s)·x + α_s·x_w,   v ← v + 1
 
-(α = ``alpha``, a = ``decay``: FedAsync's polynomial staleness function). x starts as the fleet's start (drawn
-by the chief's role from the run's seed, handed to every joining worker). Mature workers stay; the run ends at
-the contribution after which every member of W has completed, as with ``fedavg``. docs/algorithm.md
-("Federation schemes") and docs/protocol.md ("Asynchronous schemes").
+x starts as the fleet's start; mature workers stay; the run ends once every member of W has completed.
 """
 
 from __future__ import annotations
@@ -26,20 +18,13 @@ from fleetrl.federation.schemes.base import AsyncScheme, RoundAnswer, RoundConte
 from fleetrl.federation.schemes.fedavg import FedAvgScheme
 from fleetrl.federation.wire.messages import Message
 
-DEFAULT_ALPHA = 0.6
-"""α, the weight of a fresh contribution (FedAsync's mixing hyper-parameter)"""
-DEFAULT_DECAY = 0.5
-"""a, how fast the weight falls with staleness: α·(s + 1)^(−a)"""
+DEFAULT_ALPHA = 0.6  # α, the weight of a fresh contribution
+DEFAULT_DECAY = 0.5  # a, how fast the weight falls with staleness
 
 
 class FedAsyncScheme(AsyncScheme, FedAvgScheme):
-    """FedAsync's staleness-weighted mixing of whole models, one contribution at a time.
-
-    :param alpha: α in (0, 1], the weight of a contribution of staleness 0 (default 0.6).
-    :param decay: a ≥ 0, the staleness decay: a contribution of staleness s weighs α·(s + 1)^(−a) (default
-        0.5; 0: every contribution weighs α).
-    :raises ValueError: a value out of range.
-    """
+    """FedAsync's staleness-weighted mixing of whole models, one contribution at a time: α in (0, 1], a ≥ 0
+    (0: every contribution weighs α)."""
 
     name = "fedasync"
     summary = "no round barrier: each worker's model mixed into the fleet's on arrival, weighted by staleness"
@@ -86,9 +71,8 @@ class FedAsyncScheme(AsyncScheme, FedAvgScheme):
         return np.asarray(mixed, np.float32)
 
     def combine(self, answers: Mapping[str, Message], context: RoundContext) -> RoundAnswer:
-        """Apply each contribution in turn (the chief gives one, its ``staleness`` set), each a new version;
-        the answer carries x after them, and lists every member in ``finished`` once every member of W has
-        completed (the run then ends)."""
+        """Apply each contribution in turn, each a new version; the answer carries x after them, and ends the
+        run once every member of W has completed."""
         if self._model is None:
             raise RuntimeError("scheme fedasync: the fleet model was never given its start (begin)")
         for flat, message in zip(flats(answers), answers.values(), strict=True):

@@ -1,11 +1,6 @@
-"""``fedavg``: whole actor-critic models averaged; mature workers stay until every unit has completed.
-
-Each worker runs its K optimisations and sends its model (trunk, policy and value heads; Adam states stay with
-each worker); the chief averages the models with the run's aggregation rule and every worker continues from
-the average. A worker whose criterion holds says so (a ``parameters`` message carrying the same model), is
-averaged like the others and stays: its unit's episodes keep teaching the fleet's shared policy. The run ends
-after the round in which every member of W has completed at least once; that round's average lists every
-member in ``finished``. docs/algorithm.md ("Federation schemes") gives the measurements.
+"""``fedavg``: whole actor-critic models averaged every round (McMahan et al.); a worker whose criterion holds
+says so (``parameters``), is averaged like the others and stays. The run ends after the round in which every
+member of W has completed at least once. docs/algorithm.md ("Federation schemes").
 """
 
 from __future__ import annotations
@@ -26,7 +21,7 @@ from fleetrl.federation.wire.messages import Layout, Message
 
 
 class FedAvgScheme(RoundScheme):
-    """Federated averaging of whole models (McMahan et al.), one average per round."""
+    """Federated averaging of whole models, one average per round."""
 
     name = "fedavg"
     summary = "average whole actor-critic models every round; mature workers stay until every unit completes"
@@ -52,6 +47,5 @@ class FedAvgScheme(RoundScheme):
         agent.set_model_parameters(flat)
 
     def combine(self, answers: Mapping[str, Message], context: RoundContext) -> RoundAnswer:
-        """The aggregate of the models; in the round in which the last member of W completes, every member is
-        listed in ``finished`` (so none starts another round before the ``done`` that follows)."""
+        """The aggregate of the models; every member ``finished`` in the round the last one completes."""
         return average_until_all_completed(answers, context, fleet_model=True)

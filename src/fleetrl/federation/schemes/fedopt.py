@@ -1,18 +1,11 @@
 """``fedavgm`` and ``fedadam``: fedavg with a server optimiser stepping the fleet's model (Reddi et al. 2021).
-
-Workers do exactly what they do under ``fedavg`` (send their whole actor-critic, continue from the chief's
-answer, stay after completion). The chief keeps the global model x and treats the round's aggregate as a
-pseudo-gradient: Δ = aggregate(models) − x, then
+The chief keeps the global model x and treats the round's aggregate as a pseudo-gradient Δ = aggregate − x:
 
 * ``momentum`` (FedAvgM, Hsu et al. 2019): v ← β·v + Δ;  x ← x + η_s·v
 * ``adam`` (FedAdam, Reddi et al. 2021, Algorithm 2, no bias correction):
   m ← β₁·m + (1 − β₁)·Δ;  v ← β₂·v + (1 − β₂)·Δ²;  x ← x + η_s·m / (√v + τ)
 
-x is initialised with the first round's aggregate (the workers start from their own seeded initialisations,
-so the chief has no earlier model to take a difference from); that round's answer is fedavg's, and the
-moments start at zero. With η_s = 1 and β = 0 every answer is fedavg's, bit for bit (the step is computed in
-float64 and x + (a − x) is exactly a). The state (x and the moments, float32 as in the checkpoint) is saved
-with the chief, so a resumed chief continues identically. docs/algorithm.md ("Federation schemes").
+x starts as the first round's aggregate (that answer is fedavg's). η_s = 1 and β = 0 is fedavg, bit for bit.
 """
 
 from __future__ import annotations
@@ -27,31 +20,19 @@ from fleetrl.federation.schemes.fedavg import FedAvgScheme
 from fleetrl.federation.wire.messages import Message
 
 OPTIMIZERS = ("momentum", "adam")
-"""the server optimisers"""
-
-
 OWN_PARAMETERS = {"momentum": {"momentum": 0.0}, "adam": {"beta1": 0.9, "beta2": 0.99, "tau": 1e-3}}
 """each optimiser's own parameters and their defaults (another optimiser's are refused, not ignored)"""
 
 
 class FedAvgMScheme(FedAvgScheme):
-    """Model averaging whose average is a pseudo-gradient for a server optimiser (momentum by default).
-
-    :param optimizer: ``momentum`` (FedAvgM) or ``adam`` (FedAdam).
-    :param server_lr: η_s, the server learning rate (default 1.0 for momentum, 0.01 for adam).
-    :param momentum: β of ``momentum``, in [0, 1) (default 0; 0 with η_s = 1 is fedavg).
-    :param beta1: β₁ of ``adam``, in [0, 1) (default 0.9).
-    :param beta2: β₂ of ``adam``, in [0, 1) (default 0.99).
-    :param tau: τ of ``adam``, the adaptivity (> 0, default 0.001; larger is closer to momentum SGD).
-    :raises ValueError: an unknown optimiser, a value out of range, or a parameter of another optimiser.
-    """
+    """Model averaging whose average is a pseudo-gradient for a server optimiser: ``momentum`` (β) or
+    ``adam`` (β₁, β₂, τ), with the server learning rate η_s (``server_lr``); ValueError for a value out of
+    range or a parameter of the other optimiser."""
 
     name = "fedavgm"
     summary = "fedavg whose average steps the fleet model through a server optimiser (momentum or adam)"
     default_optimizer: ClassVar[str] = "momentum"
-    """the optimiser when none is given"""
     default_server_lr: ClassVar[dict[str, float]] = {"momentum": 1.0, "adam": 0.01}
-    """η_s when none is given, per optimiser"""
 
     def __init__(
         self,
@@ -80,12 +61,9 @@ class FedAvgMScheme(FedAvgScheme):
                 raise ValueError(f"{key} = {values[key]!r}: must be in [0, 1)")
         if "tau" in values and not values["tau"] > 0:
             raise ValueError(f"tau = {values['tau']!r}: must be > 0")
-        self.hyper: dict[str, float] = values
-        """the optimiser's own parameters (``momentum``, or ``beta1``, ``beta2``, ``tau``)"""
-        self.x: np.ndarray | None = None
-        """the global model (None until the first round closes)"""
-        self.moments: dict[str, np.ndarray] = {}
-        """``v`` (momentum), or ``m`` and ``v`` (adam), float32"""
+        self.hyper: dict[str, float] = values  # the optimiser's own parameters
+        self.x: np.ndarray | None = None  # the global model (None until the first round closes)
+        self.moments: dict[str, np.ndarray] = {}  # v (momentum), or m and v (adam), float32
 
     def params(self) -> dict[str, Any]:
         """Every parameter the optimiser reads, defaults filled in (so equal settings give equal maps)."""

@@ -1,12 +1,6 @@
-"""``fedprox``: fedavg with a proximal term in every worker's local training (Li et al., "Federated
-Optimization in Heterogeneous Networks", MLSys 2020).
-
-The chief does exactly what it does under ``fedavg`` (averages the workers' whole actor-critics). Each round
-it asks every worker for μ (the round's configuration, as Flower's FedProx sends ``proximal_mu`` in its fit
-configuration), and each worker adds μ/2‖θ − θ_global‖² to the loss of every optimisation step of the round,
-θ_global being the model the round started from (the fleet's average it last took). The term pulls each
-worker's local update towards the fleet's model, so units whose dynamics differ drift apart less. μ = 0 is
-fedavg, bit for bit (no term is added).
+"""``fedprox``: fedavg with the proximal term μ/2‖θ − θ_global‖² in every worker's local training (Li et al.,
+MLSys 2020), θ_global being the model the round started from; the chief sends μ in each round's
+configuration (as Flower's ``proximal_mu``). μ = 0 is fedavg, bit for bit.
 """
 
 from __future__ import annotations
@@ -22,11 +16,7 @@ from fleetrl.federation.wire.messages import RoundConfig
 
 
 class FedProxScheme(FedAvgScheme):
-    """Model averaging with a proximal term in local training.
-
-    :param mu: μ ≥ 0, the weight of the proximal term μ/2‖θ − θ_global‖² (default 0.01; 0 is fedavg).
-    :raises ValueError: μ negative or not finite.
-    """
+    """Model averaging with a proximal term of weight ``mu`` (μ ≥ 0) in local training."""
 
     name = "fedprox"
     summary = "fedavg with the proximal term mu/2 ||theta - theta_global||^2 in every worker's local training"
@@ -46,8 +36,8 @@ class FedProxScheme(FedAvgScheme):
         return {"mu": self.mu}
 
     def local_loss(self, agent: FederatedAgent, config: RoundConfig) -> ExtraLoss | None:
-        """μ/2‖θ − θ_global‖² over the whole actor-critic, θ_global = the agent's model now (the round's
-        start); μ from the chief's configuration (this scheme's own μ if it has none); None when μ is 0."""
+        """μ/2‖θ − θ_global‖² over the whole actor-critic, θ_global = the agent's model now; μ from the
+        chief's configuration (else this scheme's); None when μ is 0."""
         mu = float(config.get("mu", self.mu))
         if mu == 0.0:
             return None
@@ -55,8 +45,8 @@ class FedProxScheme(FedAvgScheme):
 
 
 def proximal_term(mu: float, layout: list[tuple[str, tuple[int, ...]]], flat: np.ndarray) -> ExtraLoss:
-    """``fn(model) = mu/2 · Σ ‖p − θ_global[name]‖²`` over the parameters of ``model`` named in ``layout``
-    (θ_global: ``flat`` split by ``layout``, the names ``model.named_parameters()`` gives)."""
+    """``fn(model) = mu/2 · Σ ‖p − θ_global[name]‖²`` over ``model``'s parameters named in ``layout``
+    (θ_global: ``flat`` split by ``layout``)."""
     import torch  # the worker's: a chief reading this module does not load it
 
     anchors, start = {}, 0

@@ -1,12 +1,7 @@
-"""``paper``: the paper's scheme (Algorithms 1 and 2) — average actor gradients; the first mature worker's θ
-is transferred to the others and it leaves W.
-
-Each worker sends the actor's last gradient of the round (Algorithm 2, line 25); the chief averages the
-gradients with the run's aggregation rule (Algorithm 1, lines 11–13) and every worker applies the average
-through its actor optimiser (line 31). The first worker whose criterion holds sends its actor parameters θ
-(line 8) instead: the chief forwards them (lines 6–9; the lowest worker id if several completed in the same
-round), the gradients of that round are discarded, every worker that sent parameters leaves W, and the others
-replace their actor parameters (line 29) and keep learning. The run ends when W is empty.
+"""``paper``: the paper's scheme (Algorithms 1 and 2). Each worker sends its actor's last gradient of the
+round (line 25), the chief averages them (lines 11–13) and every worker applies the average (line 31). The
+first worker whose criterion holds sends its θ instead (line 8): the chief forwards it (lines 6–9; the lowest
+id if several), that round's gradients are discarded, the senders leave W and the others take θ (line 29).
 """
 
 from __future__ import annotations

@@ -1,7 +1,6 @@
 """``pergrad``: the workers' whole actor-critic gradients averaged at every optimisation step (DD-PPO style,
-through the chief). The fleet starts from, and stays, one policy with one optimiser state: the chief keeps
-that model and its ``welcome`` hands it to every joining worker; a completed worker stays; the run ends in the
-round in which every member of W has completed (who an exchange waits for: docs/protocol.md, "Stragglers").
+through the chief). The fleet is one policy with one optimiser state, kept by the chief and handed to every
+joining worker; a completed worker stays; the run ends in the round every member of W has completed.
 """
 
 from __future__ import annotations
@@ -39,8 +38,7 @@ class PerStepGradientScheme(StepScheme):
         return np.concatenate([agent.model_parameters(), agent.optimiser_parameters()])
 
     def take_parameters(self, agent: FederatedAgent, flat: np.ndarray) -> None:
-        """Take the fleet's model (the welcome's; no transfer happens in this scheme): its network and its
-        optimisers' state."""
+        """Take the fleet's model (the welcome's): its network and its optimisers' state."""
         size = sum(math.prod(shape) for _, shape in agent.model_layout())
         agent.set_model_parameters(flat[:size])
         agent.set_optimiser_parameters(flat[size:])

@@ -32,24 +32,19 @@ class RoundPlayer(Protocol):
     @property
     def agent(self) -> FederatedAgent:
         """The agent whose actor is federated."""
-        ...
 
     @property
     def completed(self) -> bool:
         """The completion criterion has held (after this round's episodes, inside ``play_round``)."""
-        ...
 
     def play_round(self) -> RoundResult:
         """Play one episode and, unless learning is complete, optimise (Algorithm 2, lines 2–24)."""
-        ...
 
     def begin_round(self) -> Any:
         """The round's episodes alone; the result's ``updates`` says whether an update follows."""
-        ...
 
     def end_round(self, played: Any, stats: Any) -> RoundResult:
         """The round's outcome from :meth:`begin_round`'s result and the update's statistics (None: none)."""
-        ...
 
 
 @dataclass(frozen=True)
