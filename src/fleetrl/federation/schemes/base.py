@@ -288,15 +288,19 @@ def aggregate(
 
 
 def average_until_all_completed(
-    answers: Mapping[str, Message], context: RoundContext, *, fleet_model: bool
+    answers: Mapping[str, Message],
+    context: RoundContext,
+    *,
+    fleet_model: bool,
+    flat: np.ndarray | None = None,
 ) -> RoundAnswer:
-    """The answers aggregated with the run's rule; at the last exchange of the round in which the last member
-    of W has completed, every member is listed in ``finished`` and the run ends."""
+    """An ``average`` of ``flat`` (default: the answers aggregated with the run's rule); at the last exchange
+    of the round in which the last member of W has completed, every member is ``finished``: the run ends."""
     members = set(context.members)
     ends = context.last_step and bool(members) and members.issubset(context.completed)
     return RoundAnswer(
         "average",
-        aggregate(answers, context),
+        aggregate(answers, context) if flat is None else flat,
         contributors=tuple(answers),
         finished=context.members if ends else (),
         fleet_model=fleet_model,

@@ -14,7 +14,13 @@ from typing import Any
 
 import numpy as np
 
-from fleetrl.federation.schemes.base import AsyncScheme, RoundAnswer, RoundContext, flats
+from fleetrl.federation.schemes.base import (
+    AsyncScheme,
+    RoundAnswer,
+    RoundContext,
+    average_until_all_completed,
+    flats,
+)
 from fleetrl.federation.schemes.fedavg import FedAvgScheme
 from fleetrl.federation.wire.messages import Message
 
@@ -78,16 +84,7 @@ class FedAsyncScheme(AsyncScheme, FedAvgScheme):
         for flat, message in zip(flats(answers), answers.values(), strict=True):
             self._model = self.mix(self._model, flat, message.staleness)
             self._version += 1
-        members = set(context.members)
-        ends = bool(members) and members.issubset(context.completed)
-        return RoundAnswer(
-            "average",
-            self._model.copy(),
-            contributors=tuple(answers),
-            finished=context.members if ends else (),
-            fleet_model=True,
-            ends_run=ends,
-        )
+        return average_until_all_completed(answers, context, fleet_model=True, flat=self._model.copy())
 
     def state(self) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
         """The version and x (nothing before :meth:`begin`)."""

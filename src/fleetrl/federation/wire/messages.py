@@ -17,23 +17,6 @@ import numpy as np
 from fleetrl.federation.wire.signing import OVERHEAD as SIGNATURE_OVERHEAD
 from fleetrl.federation.wire.signing import FleetKey, MessageRejected, Reason
 
-__all__ = [
-    "MESSAGE_TYPES",
-    "SIGNATURE_OVERHEAD",
-    "VERSION",
-    "Layout",
-    "Message",
-    "MessageRejected",
-    "Reason",
-    "RoundConfig",
-    "check_scheme_type",
-    "decode",
-    "default_max_bytes",
-    "encode",
-    "envelope",
-    "layout_size",
-]
-
 VERSION = 8
 """Envelope version; a receiver rejects any other."""
 

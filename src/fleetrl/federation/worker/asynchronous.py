@@ -16,8 +16,6 @@ from fleetrl.federation.worker import actions
 from fleetrl.federation.worker.actions import NOTHING, Phase, WorkerStep, WorkerSummary, resume_round
 from fleetrl.federation.worker.machine import WorkerMachine
 
-__all__ = ["AsyncWorkerMachine"]
-
 log = logging.getLogger(__name__)
 
 MODELS = ("welcome", "average")

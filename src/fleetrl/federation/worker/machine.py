@@ -38,8 +38,6 @@ from fleetrl.federation.worker.actions import (
 if TYPE_CHECKING:  # the learner (and torch) is not imported by the pure machine
     from fleetrl.agent.round_result import RoundResult
 
-__all__ = ["WorkerMachine"]
-
 log = logging.getLogger(__name__)
 
 

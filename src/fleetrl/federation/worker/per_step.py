@@ -20,8 +20,6 @@ from fleetrl.federation.worker.machine import WorkerMachine
 if TYPE_CHECKING:  # the learner (and torch) is not imported by the pure machine
     from fleetrl.agent.round_result import RoundResult
 
-__all__ = ["StepWorkerMachine"]
-
 log = logging.getLogger(__name__)
 
 
