@@ -260,18 +260,15 @@ def decode(
     layouts: Mapping[str, Layout] | None = None,
     sums: bool = False,
 ) -> Message:
-    """Parse and validate one message; raise :class:`MessageRejected` (only) if anything is wrong.
+    """Parse and validate one message of ``run_id`` from one of ``known_senders``; raise
+    :class:`MessageRejected` (only) if anything is wrong.
 
-    :param payload: the bytes received.
-    :param run_id: the receiver's run; other runs' messages are rejected.
-    :param known_senders: senders the receiver accepts (the chief: its roster; a worker: ``chief``).
     :param layout: tensor names and shapes every tensor-carrying message must match exactly.
-    :param max_bytes: size cap; default :func:`default_max_bytes` of ``layout`` (plus the signature's bytes
-        with ``key``).
+    :param max_bytes: size cap; default :func:`default_max_bytes` of ``layout`` (plus the signature's).
     :param key: the fleet key: the payload must be signed with it (checked before anything is parsed).
     :param scheme_types: the scheme's round-message types the receiver takes besides :data:`MESSAGE_TYPES`.
     :param layouts: message type → its own layout, where it is not ``layout``.
-    :param sums: a scheme's round message may carry an edge aggregator's float64 sum (8 bytes a value).
+    :param sums: a scheme's round message may carry an edge aggregator's float64 sum.
     """
     layouts = layouts or {}
     cap = max(map(default_max_bytes, [layout, *layouts.values()])) if max_bytes is None else max_bytes

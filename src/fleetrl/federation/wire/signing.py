@@ -52,20 +52,14 @@ class MessageRejected(Exception):
     """A received message failed validation; ``reason`` says which rule, ``detail`` says what was seen."""
 
     def __init__(self, reason: Reason, detail: str = "") -> None:
-        """:param reason: the rule that failed.  :param detail: what was wrong, for the log."""
         super().__init__(f"{reason.value}: {detail}" if detail else reason.value)
         self.reason = reason
         self.detail = detail
 
 
-MAGIC = b"FRS1"
-"""First bytes of a signed message."""
-SIGNATURE_BYTES = 32
-"""Length of an HMAC-SHA256 tag."""
-OVERHEAD = len(MAGIC) + SIGNATURE_BYTES
-"""Bytes a signature adds to a message (``MAGIC`` + tag)."""
-MIN_KEY_BYTES = 16
-"""Shortest fleet key accepted."""
+MAGIC = b"FRS1"  # the first bytes of a signed message
+OVERHEAD = len(MAGIC) + 32  # bytes a signature adds to a message: MAGIC and an HMAC-SHA256 tag
+MIN_KEY_BYTES = 16  # the shortest fleet key accepted
 
 
 class FleetKey:

@@ -99,8 +99,12 @@ def answer_for(rnd: int, step: int = 0) -> Callable[[Message], bool]:
     return lambda m: m.type == "done" or (m.type in ANSWERS and (m.round, m.step) >= (rnd, step))
 
 
+class WorkerOutput:
+    """One thing the worker's state machine asks of its runner."""
+
+
 @dataclass(frozen=True)
-class Publish:
+class Publish(WorkerOutput):
     """Publish ``payload`` on ``topic``; ``message`` is what it encodes (None for a status)."""
 
     topic: str
@@ -110,7 +114,7 @@ class Publish:
 
 
 @dataclass(frozen=True)
-class Announce:
+class Announce(WorkerOutput):
     """Announce the worker's live status (retained, and again after every reconnect)."""
 
     topic: str
@@ -118,14 +122,14 @@ class Announce:
 
 
 @dataclass(frozen=True)
-class TakeParameters:
+class TakeParameters(WorkerOutput):
     """``scheme.take_parameters(agent, flat)``: a transfer's, or the welcome's fleet model or start."""
 
     flat: np.ndarray
 
 
 @dataclass(frozen=True)
-class ApplyAverage:
+class ApplyAverage(WorkerOutput):
     """``scheme.apply_average(agent, flat, completed=..., contributed=...)``: the fleet's average."""
 
     flat: np.ndarray
@@ -134,7 +138,7 @@ class ApplyAverage:
 
 
 @dataclass(frozen=True)
-class PlayRound:
+class PlayRound(WorkerOutput):
     """Play round ``round`` with the chief's ``config`` (its scheme's ``configure``) and report it."""
 
     round: int
@@ -142,19 +146,19 @@ class PlayRound:
 
 
 @dataclass(frozen=True)
-class ComputeStep:
+class ComputeStep(WorkerOutput):
     """Compute the gradients of optimisation step ``step`` and report them."""
 
     step: int
 
 
 @dataclass(frozen=True)
-class BeginUpdate:
+class BeginUpdate(WorkerOutput):
     """A per-step round's episodes are played: ``agent.begin_update()`` and report its steps."""
 
 
 @dataclass(frozen=True)
-class ApplyFleetStep:
+class ApplyFleetStep(WorkerOutput):
     """``scheme.catch_up_step(agent, step, flat)``: a fleet's step taken while no update is under way."""
 
     step: int
@@ -162,52 +166,52 @@ class ApplyFleetStep:
 
 
 @dataclass(frozen=True)
-class ApplyStep:
+class ApplyStep(WorkerOutput):
     """``scheme.apply_step_answer(agent, flat)``: the chief's combination of one optimisation step."""
 
     flat: np.ndarray
 
 
 @dataclass(frozen=True)
-class EndUpdate:
+class EndUpdate(WorkerOutput):
     """Every step of the round's update was exchanged: ``agent.end_update()`` and finish the round."""
 
 
 @dataclass(frozen=True)
-class AbandonUpdate:
+class AbandonUpdate(WorkerOutput):
     """The fleet went on past this worker: ``agent.abandon_update()`` and finish the round without it."""
 
 
 @dataclass(frozen=True)
-class Record:
+class Record(WorkerOutput):
     """A round is over: hand its record to ``on_record``."""
 
     record: FederatedRound
 
 
 @dataclass(frozen=True)
-class Checkpoint:
+class Checkpoint(WorkerOutput):
     """The round's answers are applied; ``next_round`` is the next to play (the moment to checkpoint)."""
 
     next_round: int
 
 
 @dataclass(frozen=True)
-class Finish:
+class Finish(WorkerOutput):
     """The worker's run is over."""
 
     summary: WorkerSummary
 
 
 @dataclass(frozen=True)
-class Refused:
+class Refused(WorkerOutput):
     """The chief refused this worker's shared settings (raise ``SettingsRefused``)."""
 
     reason: str
 
 
 @dataclass(frozen=True)
-class RunEnded:
+class RunEnded(WorkerOutput):
     """The run had ended before this worker was welcomed (raise :class:`RunEndedError`)."""
 
     detail: str
@@ -218,31 +222,10 @@ class RunEndedError(OSError):
 
 
 @dataclass(frozen=True)
-class TimedOut:
+class TimedOut(WorkerOutput):
     """Nothing from the chief for the whole reply timeout (raise :class:`TimeoutError`)."""
 
     detail: str
-
-
-WorkerOutput = (
-    Publish
-    | Announce
-    | TakeParameters
-    | ApplyAverage
-    | PlayRound
-    | BeginUpdate
-    | ComputeStep
-    | ApplyStep
-    | AbandonUpdate
-    | ApplyFleetStep
-    | EndUpdate
-    | Record
-    | Checkpoint
-    | Finish
-    | Refused
-    | RunEnded
-    | TimedOut
-)
 
 
 @dataclass(frozen=True)
