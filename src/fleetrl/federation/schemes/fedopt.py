@@ -19,7 +19,6 @@ from fleetrl.federation.schemes.base import RoundAnswer, RoundContext
 from fleetrl.federation.schemes.fedavg import FedAvgScheme
 from fleetrl.federation.wire.messages import Message
 
-OPTIMIZERS = ("momentum", "adam")
 OWN_PARAMETERS = {"momentum": {"momentum": 0.0}, "adam": {"beta1": 0.9, "beta2": 0.99, "tau": 1e-3}}
 """each optimiser's own parameters and their defaults (another optimiser's are refused, not ignored)"""
 
@@ -45,8 +44,8 @@ class FedAvgMScheme(FedAvgScheme):
         tau: float | None = None,
     ) -> None:
         self.optimizer = self.default_optimizer if optimizer is None else optimizer
-        if self.optimizer not in OPTIMIZERS:
-            raise ValueError(f"optimizer {self.optimizer!r}: choose {' or '.join(OPTIMIZERS)}")
+        if self.optimizer not in OWN_PARAMETERS:
+            raise ValueError(f"optimizer {self.optimizer!r}: choose {' or '.join(OWN_PARAMETERS)}")
         given = {"momentum": momentum, "beta1": beta1, "beta2": beta2, "tau": tau}
         own = OWN_PARAMETERS[self.optimizer]
         foreign = sorted(k for k, v in given.items() if v is not None and k not in own)
