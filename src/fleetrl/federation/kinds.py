@@ -8,8 +8,8 @@ from dataclasses import dataclass
 from typing import Any
 
 from fleetrl.federation.chief.asynchronous import AsyncChief
-from fleetrl.federation.chief.fleet_model import FleetModel
 from fleetrl.federation.chief.machine import Chief
+from fleetrl.federation.chief.state import FleetModel
 from fleetrl.federation.plan import ChiefPlan, WorkerPlan
 from fleetrl.federation.schemes import AsyncScheme, RoundScheme, Scheme, StepScheme
 from fleetrl.federation.schemes.agent import FederatedAgent

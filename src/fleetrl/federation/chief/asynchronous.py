@@ -9,9 +9,8 @@ from __future__ import annotations
 from dataclasses import replace
 
 from fleetrl.federation.chief.answer import check_round_rules
-from fleetrl.federation.chief.contributions import Contributions
 from fleetrl.federation.chief.machine import Chief
-from fleetrl.federation.chief.state import ChiefState
+from fleetrl.federation.chief.state import ChiefState, Contributions
 from fleetrl.federation.events import ChiefEvent, ChiefStep
 from fleetrl.federation.plan import ChiefPlan
 from fleetrl.federation.schemes import COMPLETED, AsyncScheme, RoundContext

@@ -7,9 +7,8 @@ from typing import Any
 
 import numpy as np
 
-from fleetrl.federation.chief.fleet_model import FleetModel
 from fleetrl.federation.chief.machine import Chief
-from fleetrl.federation.chief.state import SCHEME_TENSOR, STATE_VERSION, ChiefState
+from fleetrl.federation.chief.state import SCHEME_TENSOR, STATE_VERSION, ChiefState, FleetModel
 from fleetrl.federation.events import ChiefEvent, ChiefStep
 from fleetrl.federation.kinds import new_chief
 from fleetrl.federation.plan import ChiefPlan
