@@ -1,5 +1,5 @@
-"""A chief's checkpoint: the chief as data (JSON fields + named float32 tensors) and back, with its run's
-configuration (docs/protocol.md, "Checkpoints and resume"); :mod:`fleetrl.runs.checkpoints` stores it."""
+"""A chief's checkpoint: the chief and its run's configuration as data (JSON fields + named float32 tensors)
+and back (docs/protocol.md, "Checkpoints and resume"); :mod:`fleetrl.runs.checkpoints` stores it."""
 
 from __future__ import annotations
 
@@ -52,9 +52,7 @@ def chief_from_state(
     """The chief as it was when ``fields``/``tensors`` were taken, its open round starting at ``now``.
 
     :param key: the fleet key; required if and only if the saved chief had one.
-    :param now: the current time of the clock the restored chief will be driven with.
-    :param fleet_model: a per-step scheme's fleet model (built as for the chief that wrote the state); it
-        is set to the saved one.
+    :param fleet_model: a per-step scheme's fleet model, built as the saved chief's; set to the saved one.
     :raises ValueError: another state version, or a key where there was none (or the reverse).
     """
     if fields.get("version") != STATE_VERSION:
@@ -77,11 +75,8 @@ def chief_from_state(
 
 
 def replay_last_answer(chief: Chief) -> ChiefStep:
-    """The chief's last answer again, to publish once when a restored chief comes online.
-
-    A chief may die after committing a round but before its answer left; workers that got the answer ignore
-    the copy (they are past that round), those that did not take it.
-    """
+    """The chief's last answer again, published once when a restored chief comes online (it may have died
+    after committing a round but before its answer left)."""
     last = chief.state.answers.last
     if not last:
         return ChiefStep()

@@ -1,6 +1,6 @@
 """One chief per run and one process per worker id on a broker: the lease MQTT's retained statuses and last
-wills give, and the chief's epoch (a chief taking over a run is one newer; a chief that sees a newer one is
-deposed). Pure functions of statuses; docs/protocol.md, "One chief per run, one process per worker id".
+wills give, and the chief's epoch (a chief taking over is one newer; one that sees a newer one is deposed).
+docs/protocol.md, "One chief per run, one process per worker id".
 """
 
 from __future__ import annotations
@@ -12,10 +12,8 @@ from datetime import UTC, datetime
 
 from fleetrl.federation.wire.signing import Status
 
-LEASE_FACTOR = 1.5
-"""the broker fires a silent client's will after this many keep-alive periods (MQTT 3.1.1, 3.1.2.10)"""
-DEFAULT_KEEPALIVE = 30
-"""the roles' MQTT keep-alive in seconds (``--keepalive``): a silent role's place is free after 45 s"""
+LEASE_FACTOR = 1.5  # the broker fires a silent client's will after this many keep-alives (MQTT 3.1.2.10)
+DEFAULT_KEEPALIVE = 30  # the roles' MQTT keep-alive in seconds (``--keepalive``)
 
 
 class Deposed(OSError):
@@ -74,8 +72,8 @@ def place_refusal(run_id: str, node: str, status: Status | None, topic: str) -> 
 
 
 def chief_epoch(*, checkpoint: int | None, retained: Status | None) -> int:
-    """The epoch a starting chief takes: one more than the newest it knows of (its checkpoint's epoch when
-    resuming, the retained chief status's), or 0 for the first chief of a run."""
+    """The epoch a starting chief takes: one more than the newest it knows of (its checkpoint's, the retained
+    status's), or 0 for the first chief of a run."""
     known = [
         e for e in (checkpoint, None if retained is None else retained.number("epoch") or 0) if e is not None
     ]
@@ -83,9 +81,8 @@ def chief_epoch(*, checkpoint: int | None, retained: Status | None) -> int:
 
 
 def supersedes(status: Status, *, epoch: int, incarnation: int) -> bool:
-    """Whether a chief status of another incarnation than ``incarnation`` shows a chief newer than one of
-    ``epoch``: a higher epoch, or the same epoch started later (two chiefs that took the same epoch at
-    once: the later one stays)."""
+    """Whether a chief status of another incarnation shows a chief newer than one of ``epoch``: a higher
+    epoch, or the same epoch started later."""
     if status.incarnation is None or status.incarnation == incarnation:
         return False
     other = status.number("epoch") or 0

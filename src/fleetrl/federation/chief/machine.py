@@ -59,7 +59,7 @@ class Chief:
         if fleet_model is not None and start is None:
             start = fleet_model.start()
         if start is not None:
-            plan = plan.with_welcome(start.layout)
+            plan = replace(plan, welcome_layout=start.layout)
         self.plan = plan
         self.run_id, self.scheme, self.max_rounds = plan.run_id, plan.scheme, plan.max_rounds
         self.roster = Roster(plan.workers, open_fleet=plan.open_fleet)
