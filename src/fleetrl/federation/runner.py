@@ -13,20 +13,10 @@ from typing import Any
 from fleetrl.federation.chief.checkpoint import chief_fields
 from fleetrl.federation.chief.lease import Deposed, deposed_line, describe, supersedes
 from fleetrl.federation.chief.machine import Chief, ChiefEvent, ChiefStep
+from fleetrl.federation.wire import topics
 from fleetrl.federation.wire.messages import MessageRejected, Reason, encode
 from fleetrl.federation.wire.signing import Status, parse_status, status_payload
-from fleetrl.federation.wire.topics import (
-    CHIEF_ID,
-    ENDED,
-    OFFLINE,
-    ONLINE,
-    chief_topic,
-    node_of_status_topic,
-    status_filter,
-    status_topic,
-    worker_filter,
-    worker_of_topic,
-)
+from fleetrl.federation.wire.topics import CHIEF_ID, ENDED, OFFLINE, ONLINE
 from fleetrl.transport.base import Transport, Will
 
 log = logging.getLogger(__name__)
@@ -75,17 +65,12 @@ class ChiefSummary:
 
 
 def run_chief(
-    chief: Chief,
-    transport: Transport,
-    *,
-    on_event: Callable[[ChiefEvent], None] | None = None,
-    idle_timeout: float | None = None,
-    clock: Callable[[], float] = time.monotonic,
-    checkpoint: Callable[[Chief], None] | None = None,
-    first_step: ChiefStep | None = None,
+    chief: Chief, transport: Transport, *, on_event: Callable[[ChiefEvent], None] | None = None,
+    idle_timeout: float | None = None, clock: Callable[[], float] = time.monotonic,
+    checkpoint: Callable[[Chief], None] | None = None, first_step: ChiefStep | None = None,
     read_lease: Callable[[], Status | None] | None = None,
     status_fields: Mapping[str, str | int] | None = None,
-) -> ChiefSummary:
+) -> ChiefSummary:  # fmt: skip
     """Serve one run over ``transport`` (unconnected: connected with an ``offline`` will, closed at the end):
     announce the chief online, feed it worker messages, statuses and time, and publish what it returns on the
     chief topic until it ends the run.
@@ -102,8 +87,8 @@ def run_chief(
         checkpointed after it.
     """
     run_id = chief.run_id
-    own_status = status_topic(run_id, CHIEF_ID)
-    out_topic = chief_topic(run_id)
+    own_status = topics.status_topic(run_id, CHIEF_ID)
+    out_topic = topics.chief_topic(run_id)
     incarnation = time.time_ns()
     keepalive = getattr(transport, "keepalive", None)
     # a main loop late by this much may have been stopped (or starved) towards the end of its lease (1.5 ×
@@ -185,8 +170,8 @@ def run_chief(
     last_input = [clock()]
     clean_exit = False
     try:
-        transport.subscribe(worker_filter(run_id))
-        transport.subscribe(status_filter(run_id))
+        transport.subscribe(topics.worker_filter(run_id))
+        transport.subscribe(topics.status_filter(run_id))
         # after subscribing: workers may send once they see it. Not re-announced by the transport on a
         # reconnect: the lease is checked first (confirm_lease)
         transport.publish(own_status, status(ONLINE), retain=True)
@@ -233,11 +218,11 @@ def run_chief(
                 continue
             last_input[0] = now
             next_note = now + IDLE_LOG_INTERVAL
-            worker = worker_of_topic(run_id, received.topic)
+            worker = topics.worker_of_topic(run_id, received.topic)
             if worker is not None:
                 publish(chief.receive_bytes(received.payload, topic_worker=worker, now=now))
             else:
-                node = node_of_status_topic(run_id, received.topic)
+                node = topics.node_of_status_topic(run_id, received.topic)
                 if node == CHIEF_ID:
                     chief_status(received.payload)
                 elif node is not None:

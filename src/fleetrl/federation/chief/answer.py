@@ -15,14 +15,9 @@ from fleetrl.federation.wire.topics import CHIEF_ID, sorted_workers, validate_wo
 
 
 def check_round_rules(
-    scheme: Scheme,
-    max_rounds: int,
-    quorum: float,
-    round_timeout: float | None,
-    steps_per_round: int,
-    max_staleness: int | None = None,
-    aggregation: str = "mean",
-) -> None:
+    scheme: Scheme, max_rounds: int, quorum: float, round_timeout: float | None, steps_per_round: int,
+    max_staleness: int | None = None, aggregation: str = "mean",
+) -> None:  # fmt: skip
     """Raise ValueError naming the first setting of a chief that cannot run."""
     if max_rounds < 1:
         raise ValueError(f"max_rounds must be >= 1, got {max_rounds}")
@@ -169,13 +164,9 @@ def answer_message(
 
 
 def welcome_step(
-    run_id: str,
-    worker: str,
-    rnd: int,
-    model: Message | None,
-    settings: Mapping[str, str],
+    run_id: str, worker: str, rnd: int, model: Message | None, settings: Mapping[str, str],
     config: RoundConfig,
-) -> ChiefStep:
+) -> ChiefStep:  # fmt: skip
     """The ``welcome`` to ``worker`` for the open round ``rnd`` with its event: the fleet's ``model`` (θ* of
     a transfer, the last average, or the fleet's start) if any, the shared settings and ``config``."""
     welcome = Message(

@@ -42,13 +42,9 @@ def chief_to_state(chief: Chief) -> tuple[dict[str, Any], dict[str, np.ndarray]]
 
 
 def chief_from_state(
-    fields: dict[str, Any],
-    tensors: dict[str, np.ndarray],
-    *,
-    key: FleetKey | None = None,
-    now: float,
+    fields: dict[str, Any], tensors: dict[str, np.ndarray], *, key: FleetKey | None = None, now: float,
     fleet_model: FleetModel | None = None,
-) -> Chief:
+) -> Chief:  # fmt: skip
     """The chief as it was when ``fields``/``tensors`` were taken, its open round starting at ``now``.
 
     :param key: the fleet key; required if and only if the saved chief had one.

@@ -47,15 +47,9 @@ class Chief:
     """
 
     def __init__(
-        self,
-        plan: ChiefPlan,
-        *,
-        key: FleetKey | None = None,
-        start: FleetStart | None = None,
-        fleet_model: FleetModel | None = None,
-        state: ChiefState | None = None,
-        now: float | None = None,
-    ) -> None:
+        self, plan: ChiefPlan, *, key: FleetKey | None = None, start: FleetStart | None = None,
+        fleet_model: FleetModel | None = None, state: ChiefState | None = None, now: float | None = None,
+    ) -> None:  # fmt: skip
         if fleet_model is not None and start is None:
             start = fleet_model.start()
         if start is not None:

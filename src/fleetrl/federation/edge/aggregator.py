@@ -218,14 +218,9 @@ class EdgeAggregator:
     """
 
     def __init__(
-        self,
-        plan: ChiefPlan,
-        *,
-        site_id: str,
-        root_run: str,
-        resend_interval: float = 5.0,
+        self, plan: ChiefPlan, *, site_id: str, root_run: str, resend_interval: float = 5.0,
         **chief_options: Any,
-    ) -> None:
+    ) -> None:  # fmt: skip
         check_tree(plan.scheme, plan.aggregator)
         self.site = SiteChief(plan, site_id=site_id, root_run=root_run, **chief_options)
         self.resend_interval = resend_interval
