@@ -323,20 +323,24 @@ class Chief:
             return self._close_round(now)
         return ChiefStep()
 
-    def _close_round(self, now: float) -> ChiefStep:
-        rnd, exchange = self.state.round, self.state.step
-        last_step = exchange == self.steps_per_round - 1
-        closed = ClosedExchange.of(rnd, self._pending, self.state.members)
+    def _closing(self) -> tuple[ClosedExchange, dict[str, Message], bool]:
+        """The open exchange as it closes: who took part, the answers to combine, whether it ends the round."""
+        last_step = self.state.step == self.steps_per_round - 1
+        closed = ClosedExchange.of(self.state.round, self._pending, self.state.members)
         # a completion counts from any exchange of the round its message got into, not only the last: a unit
         # that misses a round's later exchanges (a straggler, a unit paused whole) still has it counted
         for worker in closed.completed:
-            self.state.completed.setdefault(worker, rnd)
+            self.state.completed.setdefault(worker, closed.round)
+        answers = {w: self._pending[w] for w in closed.answered}
+        self._waits.closed(self.state.pace, set(self.state.members), closed.answered, last_step)
+        return closed, self._waits.averaged(self.state.pace, answers, self.state.step), last_step
+
+    def _close_round(self, now: float) -> ChiefStep:
+        rnd, exchange = self.state.round, self.state.step
+        closed, answers, last_step = self._closing()
         context = RoundContext(
             self._aggregate, self.members, dict(self.state.completed), step=exchange, last_step=last_step
         )
-        answers = {w: self._pending[w] for w in closed.answered}
-        self._waits.closed(self.state.pace, set(self.state.members), closed.answered, last_step)
-        answers = self._waits.averaged(self.state.pace, answers, exchange)
         answer = self.scheme.combine(answers, context)
         self.state.members.difference_update(answer.leave_w)
         self.state.left.update(answer.leave_w)

@@ -86,17 +86,12 @@ class SiteChief(Chief):
         if self.awaiting is not None or not self._pending:
             return ChiefStep()
         rnd, exchange = self.state.round, self.state.step
-        last_step = exchange == self.steps_per_round - 1
-        closed = ClosedExchange.of(rnd, self._pending, self.state.members)
-        answers = {w: self._pending[w] for w in closed.answered}
-        self._waits.closed(self.state.pace, set(self.state.members), closed.answered, last_step)
-        answers = self._waits.averaged(self.state.pace, answers, exchange)
+        closed, answers, _ = self._closing()
         vectors = [m.flat for m in answers.values() if m.flat is not None]
         total, weight = weighted_sum(
             vectors, [float(m.units) for m in answers.values()], summed=[m.summed for m in answers.values()]
         )
-        done = set(self.state.completed) | set(closed.completed)
-        complete = bool(self.state.members) and self.state.members <= done
+        complete = bool(self.state.members) and self.state.members <= set(self.state.completed)
         scores = list(closed.scores.values())
         up = Message(
             COMPLETED if complete else self.scheme.round_message, self.root_run, self.site_id, rnd,
@@ -105,8 +100,6 @@ class SiteChief(Chief):
             staleness=min(m.staleness for m in answers.values()), summed=True,
             metrics={"score": float(np.mean(scores))} if scores else {},
         )  # fmt: skip
-        for worker in closed.completed:  # from any exchange of the round, as at the root
-            self.state.completed.setdefault(worker, rnd)
         self.awaiting, self._pending = (closed, answers), {}
         self.upward.append(up)
         event = ChiefEvent(
