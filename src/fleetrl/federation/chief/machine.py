@@ -324,7 +324,7 @@ class Chief:
         return ChiefStep()
 
     def _closing(self) -> tuple[ClosedExchange, dict[str, Message], bool]:
-        """The open exchange as it closes: who took part, the answers to combine, whether it ends the round."""
+        """The closing exchange: who took part, the answers to combine, whether it is the round's last."""
         last_step = self.state.step == self.steps_per_round - 1
         closed = ClosedExchange.of(self.state.round, self._pending, self.state.members)
         # a completion counts from any exchange of the round its message got into, not only the last: a unit
