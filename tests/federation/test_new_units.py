@@ -1,6 +1,5 @@
-"""A unit new to the fleet joins a running run (:mod:`fleetrl.federation.chief.roster`, docs/protocol.md "A
-new
-unit joins"): the chief's state machine, fed bytes as the broker would deliver them."""
+"""A unit new to the fleet joins a running run (:class:`fleetrl.federation.chief.answer.Roster`,
+docs/protocol.md "A new unit joins"): the chief's state machine, fed bytes as the broker delivers them."""
 
 from __future__ import annotations
 
