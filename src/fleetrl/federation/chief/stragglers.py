@@ -9,6 +9,7 @@ import math
 from collections import Counter
 from collections.abc import Mapping
 from dataclasses import dataclass, field
+from typing import Any
 
 from fleetrl.federation.wire.messages import Message
 
@@ -44,18 +45,16 @@ class FleetPace:
         }
 
     @classmethod
-    def from_fields(cls, fields: Mapping[str, object] | None) -> FleetPace:
+    def from_fields(cls, fields: Mapping[str, Any] | None) -> FleetPace:
         """From :meth:`fields` (None: a state written before stragglers were allowed for)."""
         if not fields:
             return cls()
-        late, stale = fields["late"], fields["stale"]
-        assert isinstance(late, dict) and isinstance(stale, dict)
         return cls(
-            behind={str(w) for w in fields["behind"]},  # type: ignore[attr-defined]
-            participants={str(w) for w in fields["participants"]},  # type: ignore[attr-defined]
-            late=Counter({str(w): int(n) for w, n in late.items()}),
-            stale=Counter({str(w): int(n) for w, n in stale.items()}),
-            missed={str(w) for w in fields.get("missed", ())},  # type: ignore[attr-defined]
+            behind={str(w) for w in fields["behind"]},
+            participants={str(w) for w in fields["participants"]},
+            late=Counter({str(w): int(n) for w, n in fields["late"].items()}),
+            stale=Counter({str(w): int(n) for w, n in fields["stale"].items()}),
+            missed={str(w) for w in fields.get("missed", ())},
         )
 
 
