@@ -27,24 +27,14 @@ def holder_fields(keepalive: int, epoch: int | None = None) -> dict[str, str | i
     return fields if epoch is None else {"epoch": int(epoch), **fields}
 
 
-def since_text(incarnation: int | None) -> str:
-    """When a node started (its incarnation, nanoseconds since 1970), as ISO 8601 UTC."""
-    if incarnation is None:
-        return "an unknown time"
-    return datetime.fromtimestamp(incarnation / 1e9, UTC).isoformat(timespec="seconds")
-
-
 def describe(status: Status) -> str:
-    """``pid 12 on host h since 2024-…`` (what its status says)."""
+    """``pid 12 on host h since 2024-…`` (what its status says; since: its incarnation, in UTC)."""
     pid, host = status.fields.get("pid"), status.fields.get("host")
     who = " ".join(filter(None, (f"pid {pid}" if pid else "", f"on host {host}" if host else "")))
-    return f"{who or 'a process'} since {since_text(status.incarnation)}"
-
-
-def lease_seconds(status: Status) -> float | None:
-    """How long after its last packet the broker keeps a silent holder's place (None: not said)."""
-    keepalive = status.number("keepalive")
-    return None if keepalive is None else LEASE_FACTOR * keepalive
+    since = "an unknown time"
+    if status.incarnation is not None:  # nanoseconds since 1970
+        since = datetime.fromtimestamp(status.incarnation / 1e9, UTC).isoformat(timespec="seconds")
+    return f"{who or 'a process'} since {since}"
 
 
 def place_refusal(run_id: str, node: str, status: Status | None, topic: str) -> str | None:
@@ -52,8 +42,8 @@ def place_refusal(run_id: str, node: str, status: Status | None, topic: str) -> 
     retained ``status`` says a live process holds it; None: the place is free."""
     if status is None or status.state != "online":
         return None
-    lease = lease_seconds(status)
-    wait = f"{lease:g} s" if lease is not None else "1.5 × its keep-alive"
+    keepalive = status.number("keepalive")  # the broker keeps a silent holder's place LEASE_FACTOR times it
+    wait = f"{LEASE_FACTOR * keepalive:g} s" if keepalive is not None else "1.5 × its keep-alive"
     epoch = status.number("epoch")
     role = "chief" if node == "chief" else f"worker {node}"
     if node == "chief":
