@@ -197,9 +197,8 @@ class Chief:
         step = self._rejoin(sender, f"sent {message.type} for round {rnd}")
         self.state.suspects.pop(sender, None)
         self._pending[sender] = message
-        step += ChiefStep(
-            events=(ChiefEvent("accepted", self.state.round, sender=sender, detail=message.type),)
-        )
+        accepted = ChiefEvent("accepted", self.state.round, sender=sender, detail=message.type)
+        step += ChiefStep(events=(accepted,))
         if self._all_in():
             return step + self._close_round(now)
         self._waits.note(self.state.pace, self.state.members, self.state.step, self._pending, now)

@@ -95,8 +95,7 @@ class SiteChief(Chief):
         scores = list(closed.scores.values())
         up = Message(
             COMPLETED if complete else self.scheme.round_message, self.root_run, self.site_id, rnd,
-            flat=total, step=exchange, samples=sum(m.samples for m in answers.values()),
-            units=round(weight),
+            flat=total, step=exchange, samples=sum(m.samples for m in answers.values()), units=round(weight),
             staleness=min(m.staleness for m in answers.values()), summed=True,
             metrics={"score": float(np.mean(scores))} if scores else {},
         )  # fmt: skip
