@@ -10,8 +10,8 @@ import pytest
 from conftest import StepAgent, chief_of
 
 from fleetrl.federation.aggregation import mean, mean_of_parts, weighted_sum
-from fleetrl.federation.chief.fleet_model import FleetModel
 from fleetrl.federation.chief.machine import Chief
+from fleetrl.federation.chief.state import FleetModel
 from fleetrl.federation.edge.aggregator import EdgeAggregator, EdgeStep, check_tree
 from fleetrl.federation.edge.runner import run_edge
 from fleetrl.federation.plan import ChiefPlan

@@ -1,15 +1,14 @@
-"""A unit new to the fleet joins a running run (:mod:`fleetrl.federation.chief.roster`, docs/protocol.md "A
-new
-unit joins"): the chief's state machine, fed bytes as the broker would deliver them."""
+"""A unit new to the fleet joins a running run (:class:`fleetrl.federation.chief.answer.Roster`,
+docs/protocol.md "A new unit joins"): the chief's state machine, fed bytes as the broker delivers them."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
+from fleetrl.federation.chief.answer import Roster
 from fleetrl.federation.chief.checkpoint import chief_from_state, chief_to_state
 from fleetrl.federation.chief.machine import Chief
-from fleetrl.federation.chief.roster import Roster
 from fleetrl.federation.plan import ChiefPlan
 from fleetrl.federation.shared_settings import shared_text
 from fleetrl.federation.wire.messages import Message, Reason, encode

@@ -11,8 +11,8 @@ import numpy as np
 import pytest
 from conftest import StepAgent, worker_of
 
-from fleetrl.federation.chief.fleet_model import FleetModel
 from fleetrl.federation.chief.machine import Chief
+from fleetrl.federation.chief.state import FleetModel
 from fleetrl.federation.plan import ChiefPlan
 from fleetrl.federation.schemes.pergrad import PerStepGradientScheme
 from fleetrl.federation.wire.messages import Message, decode, encode

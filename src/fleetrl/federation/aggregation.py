@@ -14,8 +14,7 @@ import numpy as np
 
 
 class Aggregator(Protocol):
-    """A rule: gradients (same shape, float32, in sorted-worker order), and optionally a weight for each
-    (what it stands for, ≥ 0) → aggregate (float32)."""
+    """A rule: gradients (float32, sorted-worker order) and optionally a weight each (≥ 0) → float32."""
 
     def __call__(
         self, gradients: Sequence[np.ndarray], weights: Sequence[float] | None = None
@@ -28,11 +27,8 @@ _REGISTRY: dict[str, tuple[Callable[..., np.ndarray], str | None]] = {}
 def register_aggregator(
     name: str, *, parameter: str | None = None
 ) -> Callable[[Callable[..., np.ndarray]], Callable[..., np.ndarray]]:
-    """Decorator registering an aggregation rule under ``name``.
-
-    :param name: the rule's name (``--aggregation NAME``).
-    :param parameter: the keyword argument that ``NAME:VALUE`` sets, if the rule takes one.
-    """
+    """Decorator registering an aggregation rule under ``name`` (``--aggregation NAME``); ``parameter``: the
+    keyword argument that ``NAME:VALUE`` sets, if the rule takes one."""
 
     def add(rule: Callable[..., np.ndarray]) -> Callable[..., np.ndarray]:
         if name in _REGISTRY:
@@ -77,14 +73,14 @@ def _stack(gradients: Sequence[np.ndarray]) -> np.ndarray:
 _PROBE = [np.zeros(1, np.float32)] * 3
 
 
-def _unequal(weights: Sequence[float] | None, n: int) -> np.ndarray | None:
-    """The weights as float64 if they differ from one another (None: every vector counts the same)."""
+def _weights(weights: Sequence[float] | None, n: int) -> np.ndarray:
+    """The weights as float64 (None: 1 each); ValueError unless ``n`` finite numbers >= 0, not all 0."""
     if weights is None:
-        return None
+        return np.ones(n)
     w = np.asarray(weights, dtype=np.float64)
     if w.shape != (n,) or not np.isfinite(w).all() or (w < 0).any() or not w.sum() > 0:
         raise ValueError(f"weights must be {n} finite numbers >= 0, not all 0; got {list(weights)}")
-    return None if (w == w[0]).all() else w
+    return w
 
 
 def weighted_sum(
@@ -92,17 +88,13 @@ def weighted_sum(
 ) -> tuple[np.ndarray, float]:
     """(Σ wᵢ·xᵢ, Σ wᵢ): the vectors weighted and added in float64, one after the other in the given order.
 
-    :param weights: one per vector, finite, >= 0, not all 0 (None: 1 each).
     :param summed: per vector, whether it is already a weighted sum (an edge aggregator's float64 Σ w·x,
         whose weight is its total): added as it is. Empty: none is.
     """
     if not vectors:
         raise ValueError("nothing to aggregate")
-    n = len(vectors)
-    w = np.ones(n) if weights is None else np.asarray(weights, dtype=np.float64)
-    if w.shape != (n,) or not np.isfinite(w).all() or (w < 0).any() or not w.sum() > 0:
-        raise ValueError(f"weights must be {n} finite numbers >= 0, not all 0; got {list(w)}")
-    flags = list(summed) or [False] * n
+    w = _weights(weights, len(vectors))
+    flags = list(summed) or [False] * len(vectors)
     total = np.zeros(np.shape(vectors[0]), dtype=np.float64)
     for vector, weight, is_sum in zip(vectors, w, flags, strict=True):
         if is_sum:
@@ -115,32 +107,27 @@ def weighted_sum(
 def mean_of_parts(
     vectors: Sequence[np.ndarray], weights: Sequence[float], summed: Sequence[bool]
 ) -> np.ndarray:
-    """The weighted mean of members some of which are edge aggregators' sums (see :func:`weighted_sum`):
-    fl32(Σ parts / Σ weights)."""
+    """fl32(Σ parts / Σ weights) of members some of which are edge aggregators' sums."""
     total, weight = weighted_sum(vectors, weights, summed=summed)
     return np.asarray(total / weight, dtype=np.float32)
 
 
 @register_aggregator("mean")
 def mean(gradients: Sequence[np.ndarray], weights: Sequence[float] | None = None) -> np.ndarray:
-    """Element-wise arithmetic mean (accumulated in float64, returned as float32): the paper's average ḡ;
-    with ``weights`` the weighted mean fl32(Σ wᵢ gᵢ / Σ wᵢ) (equal weights: np.mean's numbers, bit for
-    bit)."""
+    """The paper's average ḡ, weighted: fl32(Σ wᵢ gᵢ / Σ wᵢ) in float64 (equal weights: np.mean's numbers)."""
     total, weight = weighted_sum(gradients, weights)
     return np.asarray(total / weight, dtype=np.float32)
 
 
 def decomposes(spec: str) -> bool:
-    """Whether the rule ``spec`` names can be applied in two levels (members' sums at edge aggregators,
-    then the chief) with the numbers of one level: only ``mean``."""
+    """Whether the rule ``spec`` can be applied in two levels (edge aggregators' sums, then the chief) with
+    the numbers of one level: only ``mean``."""
     return spec.partition(":")[0] == "mean"
 
 
 @register_aggregator("median")
 def median(gradients: Sequence[np.ndarray], weights: Sequence[float] | None = None) -> np.ndarray:
-    """Coordinate-wise median (the mean of the two middle values for an even count), float32; every member
-    counts once (``weights`` are not used)."""
-    del weights
+    """Coordinate-wise median (of an even count: the mean of the two middle values); weights not used."""
     return np.asarray(np.median(_stack(gradients).astype(np.float64), axis=0), dtype=np.float32)
 
 
@@ -148,12 +135,8 @@ def median(gradients: Sequence[np.ndarray], weights: Sequence[float] | None = No
 def trimmed_mean(
     gradients: Sequence[np.ndarray], weights: Sequence[float] | None = None, trim: float = 0.2
 ) -> np.ndarray:
-    """Per coordinate, drop the ⌊trim·n⌋ smallest and largest values and average the rest (float64 inside);
-    every member counts once (``weights`` are not used).
-
-    :param trim: fraction cut at each end, in [0, 0.5); at least one value per coordinate always remains.
-    """
-    del weights
+    """Per coordinate, drop the ⌊trim·n⌋ smallest and largest values (``trim`` in [0, 0.5)) and average the
+    rest; weights not used."""
     if not 0.0 <= trim < 0.5:
         raise ValueError(f"trim must be in [0, 0.5), got {trim}")
     ordered = np.sort(_stack(gradients).astype(np.float64), axis=0)
@@ -166,11 +149,8 @@ def trimmed_mean(
 def clipped_mean(
     gradients: Sequence[np.ndarray], weights: Sequence[float] | None = None, max_norm: float | None = None
 ) -> np.ndarray:
-    """Mean after scaling each gradient down to L2 norm ``max_norm`` if it is longer (norm clipping),
-    weighted by ``weights`` as :func:`mean` is.
-
-    :param max_norm: the clip C > 0; None clips to the median of the received gradients' norms.
-    """
+    """Weighted mean after scaling each gradient down to L2 norm ``max_norm`` (C > 0; None: the median of
+    the norms) if it is longer."""
     stacked = _stack(gradients).astype(np.float64)
     norms = np.linalg.norm(stacked.reshape(len(stacked), -1), axis=1)
     limit = float(np.median(norms)) if max_norm is None else float(max_norm)
@@ -178,7 +158,7 @@ def clipped_mean(
         raise ValueError(f"max_norm must be > 0, got {max_norm}")
     scale = np.where(norms > limit, limit / np.where(norms > 0, norms, 1.0), 1.0)
     clipped = stacked * scale.reshape((-1,) + (1,) * (stacked.ndim - 1))
-    w = _unequal(weights, len(stacked))
-    if w is None:
+    w = _weights(weights, len(stacked))
+    if (w == w[0]).all():  # every vector counts the same
         return np.asarray(clipped.mean(axis=0), dtype=np.float32)
     return np.asarray(np.tensordot(w / w.sum(), clipped, axes=1), dtype=np.float32)

@@ -1,6 +1,6 @@
 """What the roles decide, as data: the chief's :class:`ChiefEvent` (a log line for people) and
-:class:`ChiefStep`; the worker's :class:`WorkerEvent` (what a round did), which metrics files write through
-:meth:`WorkerEvent.label` — one vocabulary from the state machine to the CSV."""
+:class:`ChiefStep`; the worker's :class:`WorkerEvent` (what a round did), written to metrics files by
+:meth:`WorkerEvent.label`."""
 
 from __future__ import annotations
 
@@ -14,40 +14,25 @@ from fleetrl.federation.wire.messages import Message, Reason
 class ChiefEvent:
     """One decision of the chief.
 
-    :param kind: ``rejected``, ``accepted``, ``averaged``, ``transfer``, ``run_ended``, ``dropped``
-        (a worker left W: offline or silent past the deadline), ``rejoined`` (a dropped worker is back in W),
-        ``welcome`` (the open round was announced to a worker coming online), ``resent`` (the last answer
-        was sent again for a worker that re-sent a closed round), ``admitted`` (a worker new to the run
-        joined W: :mod:`.chief.roster`), ``joined`` (a worker's shared settings match the chief's),
-        ``refused``
-        (they differ: ``detail`` names the setting), ``deposed`` (an input showed a chief of a newer epoch:
-        this one stops) or, at an edge aggregator, ``forwarded`` (an exchange closed at the site: its
-        members' sum went to the root).
-    :param round: the chief's open round when it happened (the closed round for ``averaged``/``transfer``).
-    :param sender: who sent the message concerned, or the worker dropped, rejoined or welcomed.
-    :param reason: why a message was rejected.
-    :param detail: free text (rejection detail, why a worker was dropped, why the run ended).
-    :param answered: workers whose answers closed the round.
-    :param averaged: workers whose gradients entered the aggregate.
-    :param dropped: workers that left W this round.
-    :param origin: the worker whose parameters were transferred.
-    :param remaining: W after the round.
-    :param scores: the ``score`` metric each answer carried, if any.
-    :param late: workers still in W that had not answered when a deadline closed the round (stragglers).
+    :param kind: ``rejected``, ``accepted``, ``averaged``, ``transfer``, ``run_ended``, ``dropped`` (left W),
+        ``rejoined``, ``welcome``, ``resent`` (an answer sent again), ``admitted`` (new to the run),
+        ``joined`` (shared settings match), ``refused`` (they differ), ``deposed`` (a newer chief runs the
+        run) or, at an edge aggregator, ``forwarded`` (the site's sum went to the root).
+    :param round: the chief's open round (the closed round for ``averaged``/``transfer``).
     """
 
     kind: str
     round: int
-    sender: str | None = None
-    reason: Reason | None = None
+    sender: str | None = None  # who sent the message concerned, or the worker dropped, rejoined, welcomed
+    reason: Reason | None = None  # why a message was rejected
     detail: str = ""
-    answered: tuple[str, ...] = ()
-    averaged: tuple[str, ...] = ()
-    dropped: tuple[str, ...] = ()
-    origin: str | None = None
-    remaining: tuple[str, ...] = ()
-    scores: dict[str, float] = field(default_factory=dict)
-    late: tuple[str, ...] = ()
+    answered: tuple[str, ...] = ()  # workers whose answers closed the round
+    averaged: tuple[str, ...] = ()  # workers whose vectors entered the aggregate
+    dropped: tuple[str, ...] = ()  # workers that left W this round
+    origin: str | None = None  # the worker whose parameters were transferred
+    remaining: tuple[str, ...] = ()  # W after the round
+    scores: dict[str, float] = field(default_factory=dict)  # the score each answer carried
+    late: tuple[str, ...] = ()  # members that had not answered when a deadline closed the round
 
     def __str__(self) -> str:
         """One human-readable line."""
@@ -100,24 +85,18 @@ class ChiefStep:
 
 
 class WorkerEvent(StrEnum):
-    """What one round did for a worker (:attr:`.worker.actions.FederatedRound.event`), beside the
-    round in which it sent its scheme's message and applied the answer (:class:`Sent`)."""
+    """What one round did for a worker, beside a round in which it sent its scheme's message and applied the
+    answer (:class:`Sent`)."""
 
-    COMPLETED = "completed"
-    """its criterion held; it sent its parameters, which were averaged, and it stays (``fedavg``)"""
-    LATE = "late"
-    """its message missed the round, which the chief closed without it; the scheme applied the answer"""
-    TRANSFER_IN = "transfer_in"
-    """replaced its shared parameters with the peer's (a transfer)"""
-    TRANSFER_OUT = "transfer_out"
-    """sent its parameters, which the chief forwarded; it left W"""
-    FINISHED = "finished"
-    """sent its parameters, but the peer's (a lower id) were forwarded in the same round; it left W"""
-    RUN_ENDED = "run_ended"
-    """the chief ended the run while it waited"""
+    COMPLETED = "completed"  # its criterion held; its parameters were averaged and it stays (fedavg)
+    LATE = "late"  # its message missed the round; the scheme applied the answer
+    TRANSFER_IN = "transfer_in"  # replaced its shared parameters with the peer's
+    TRANSFER_OUT = "transfer_out"  # sent its parameters, which the chief forwarded; it left W
+    FINISHED = "finished"  # sent its parameters, but a lower id's were forwarded that round; it left W
+    RUN_ENDED = "run_ended"  # the chief ended the run while it waited
     INTERRUPTED = "interrupted"
     """it went down while playing this round and came back (``--resume``) after its fleet had gone on: what
-    it played is lost (the row has no figures); the round stays in its books"""
+    it played is lost (the row has no figures)"""
 
     def label(self, peer: str | None = None) -> str:
         """The event as metrics files write it: ``completed+`` marks a round whose criterion held when the
@@ -137,9 +116,8 @@ class WorkerEvent(StrEnum):
 
 @dataclass(frozen=True)
 class Sent:
-    """A round in which the worker sent its scheme's round message — ``gradient`` (``paper``), ``model``
-    (``fedavg``), ``step_gradient`` (``pergrad``: every step's) … — and applied the chief's answer; labelled
-    with that message type, which only the scheme names."""
+    """A round in which the worker sent its scheme's round message (``gradient``, ``model``,
+    ``step_gradient`` …) and applied the chief's answer; labelled with that message type."""
 
     message: str
 
@@ -149,14 +127,10 @@ class Sent:
         return self.message
 
     def label(self, peer: str | None = None) -> str:
-        """The metrics files' label: the message type."""
-        del peer
+        """The message type, for the metrics files and log lines alike."""
         return self.message
 
-    def describe(self, peer: str | None = None) -> str:
-        """The log line's: the message type."""
-        del peer
-        return self.message
+    describe = label
 
 
 RoundEvent = WorkerEvent | Sent

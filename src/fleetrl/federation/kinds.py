@@ -1,5 +1,5 @@
-"""Each scheme kind (per round, per step, asynchronous) brings its own
-chief, worker machine and worker play; the roles of a run built from its plan."""
+"""Each scheme kind (per round, per step, asynchronous) brings its own chief, worker machine and worker
+play; the roles of a run built from its plan."""
 
 from __future__ import annotations
 
@@ -8,8 +8,8 @@ from dataclasses import dataclass
 from typing import Any
 
 from fleetrl.federation.chief.asynchronous import AsyncChief
-from fleetrl.federation.chief.fleet_model import FleetModel
 from fleetrl.federation.chief.machine import Chief
+from fleetrl.federation.chief.state import FleetModel
 from fleetrl.federation.plan import ChiefPlan, WorkerPlan
 from fleetrl.federation.schemes import AsyncScheme, RoundScheme, Scheme, StepScheme
 from fleetrl.federation.schemes.agent import FederatedAgent
@@ -35,25 +35,22 @@ class Kind:
     """A scheme kind's roles."""
 
     chief: type[Chief]
-    machine: type[WorkerMachine]
-    """the worker's pure state machine"""
-    play: type[Play]
-    """what the worker does with its learner"""
+    machine: type[WorkerMachine]  # the worker's pure state machine
+    play: type[Play]  # what the worker does with its learner
     fleet: Callable[[Any, FederatedAgent], dict[str, Any]] | None = None
-    """what the chief of a one-policy fleet (``shared_start``) keeps of it, from an agent at the fleet's
-    start: its ``start`` or its ``fleet_model`` (the chief's keyword arguments)"""
+    """what the chief of a one-policy fleet keeps of it (its ``start`` or ``fleet_model`` keyword), from an
+    agent at the fleet's start"""
 
     def chief_fleet(self, scheme: Scheme, agent: FederatedAgent) -> dict[str, Any]:
         """What the chief of ``scheme`` keeps of the fleet, from ``agent`` at the fleet's start."""
         return {} if self.fleet is None or not scheme.shared_start else self.fleet(scheme, agent)
 
 
-KINDS: dict[type, Kind] = {
+KINDS: dict[type, Kind] = {  # a scheme takes its nearest kind's roles
     AsyncScheme: Kind(AsyncChief, AsyncWorkerMachine, RoundPlay, _fleet_start),
     StepScheme: Kind(Chief, StepWorkerMachine, StepPlay, _fleet_model),
     RoundScheme: Kind(Chief, WorkerMachine, RoundPlay),
 }
-"""a scheme kind → its roles (a scheme takes its nearest kind's)"""
 
 
 def kind_of(scheme: Scheme) -> Kind:

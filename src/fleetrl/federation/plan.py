@@ -1,11 +1,10 @@
-"""A run's plan, resolved once: what its chief (a site's too) and each worker are built from, and what the
-chief's checkpoint keeps of the run's configuration. :mod:`.kinds` builds each role of the plan's scheme
-kind."""
+"""A run's plan, resolved once: what its chief (a site's too) and each worker are built from (by
+:mod:`.kinds`), and what the chief's checkpoint keeps of the run's configuration."""
 
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
-from dataclasses import asdict, dataclass, replace
+from dataclasses import asdict, dataclass
 from typing import Any
 
 from fleetrl.federation.schemes import Scheme, get_scheme, resolve_scheme, scheme_reference
@@ -13,9 +12,7 @@ from fleetrl.federation.schemes.agent import FederatedAgent
 from fleetrl.federation.wire.messages import Layout
 from fleetrl.federation.wire.topics import validate_id, validate_worker_id
 
-ENDED_GRACE = 30.0
-"""seconds a worker waiting for its welcome gives a new chief of a run whose chief's status says it ended
-(a run id used again: the new chief's ``online`` replaces the retained ``ended``)"""
+ENDED_GRACE = 30.0  # seconds an unwelcomed worker gives a new chief once the retained status says "ended"
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -23,48 +20,31 @@ class ChiefPlan:
     """The run as its chief sees it. ``scheme`` may be given by name (it is resolved once, here)."""
 
     run_id: str
-    workers: Sequence[str]
-    """W at the start (worker ids)"""
+    workers: Sequence[str]  # W at the start
     scheme: Scheme
-    layout: Layout
-    """what a round message carries (what the scheme shares)"""
-    max_rounds: int
-    """M, the last round"""
-    steps_per_round: int = 1
-    """exchanges per round: 1, or a per-step scheme's K"""
-    welcome_layout: Layout | None = None
-    """what a ``welcome`` carries (None: the fleet's start's or model's, else ``layout``)"""
-    settings: Mapping[str, str] | None = None
-    """the settings every worker must share (:mod:`.shared_settings`), sent in the welcome; None: no check"""
-    aggregator: str = "mean"
-    """the aggregation rule, ``name`` or ``name:value`` (:mod:`.aggregation`)"""
+    layout: Layout  # what a round message carries (what the scheme shares)
+    max_rounds: int  # M, the last round
+    steps_per_round: int = 1  # exchanges per round: 1, or a per-step scheme's K
+    welcome_layout: Layout | None = None  # what a welcome carries (None: the fleet's start's, else layout)
+    settings: Mapping[str, str] | None = None  # what every worker must share (:mod:`.shared_settings`)
+    aggregator: str = "mean"  # the aggregation rule, ``name`` or ``name:value`` (:mod:`.aggregation`)
     quorum: float = 1.0
     round_timeout: float | None = None
     max_staleness: int | None = None
-    """the waiting rules (:mod:`.chief.stragglers`): once per round, the share of W whose answers close a
-    round at its deadline, ``round_timeout`` seconds after it opened (None: none); per step, the share after
-    which the others get a grace, and the rounds a straggler's contribution may lag (None: no bound)"""
-    dropout_grace: float = 3.0
-    """seconds an ``offline`` worker has to come back before it leaves W (0: at once)"""
-    resend_holdoff: float = 1.0
-    """least seconds between two re-sends of one answer to one worker"""
-    open_fleet: bool = True
-    """a worker with an id not in ``workers`` may join the run (:mod:`.chief.roster`)"""
-    max_bytes: int | None = None
-    """message size cap; None: from the layout"""
+    """the waiting rules (:mod:`.chief.stragglers`): the quorum, the seconds a round may stay open and the
+    rounds a per-step straggler's contribution may lag (None: no limit)"""
+    dropout_grace: float = 3.0  # seconds an offline worker has to come back before it leaves W
+    resend_holdoff: float = 1.0  # least seconds between two re-sends of one answer to one worker
+    open_fleet: bool = True  # a worker with an id not in ``workers`` may join the run
+    max_bytes: int | None = None  # message size cap; None: from the layout
 
     def __post_init__(self) -> None:
-        """Resolve the scheme once and keep the ids and layouts as tuples."""
         validate_id(self.run_id, "run id")
         object.__setattr__(self, "scheme", resolve_scheme(self.scheme))
         object.__setattr__(self, "workers", tuple(self.workers))
         object.__setattr__(self, "layout", _layout(self.layout))
         if self.welcome_layout is not None:
             object.__setattr__(self, "welcome_layout", _layout(self.welcome_layout))
-
-    def with_welcome(self, layout: Layout) -> ChiefPlan:
-        """The plan whose welcomes carry ``layout`` (the fleet's start's or model's)."""
-        return replace(self, welcome_layout=_layout(layout))
 
     def fields(self) -> dict[str, Any]:
         """The plan as JSON values (the checkpoint's ``config``)."""
@@ -88,34 +68,21 @@ class WorkerPlan:
     """The run as one worker sees it. ``scheme`` may be given by name (it is resolved once, here)."""
 
     run_id: str
-    worker_id: str
-    """a topic level; not ``chief``"""
+    worker_id: str  # a topic level; not ``chief``
     scheme: Scheme
-    layout: Layout
-    """what a round message carries (``scheme.layout(agent)``)"""
-    max_rounds: int
-    """M, the last round"""
-    steps_per_round: int = 1
-    """exchanges per round: 1, or a per-step scheme's K"""
-    welcome_layout: Layout | None = None
-    """what a ``welcome`` or ``done`` carries (None: ``layout``)"""
-    settings: Mapping[str, str] | None = None
-    """this worker's shared settings (:mod:`.shared_settings`), sent in its ``join``"""
-    units: int = 1
-    """the units the worker carries (a unit host: U), said in every message it contributes"""
-    start_round: int | None = None
-    """resuming from a checkpoint: the first round the learner's state has not played"""
-    restarted: bool = False
-    """resumed with no checkpoint: an earlier process went down before its first one, in round 1"""
-    reply_timeout: float | None = 600.0
-    """seconds to wait for the chief (at start, each round, each step); None: forever"""
-    resend_interval: float | None = 5.0
-    """seconds without an answer before re-sending; None: never"""
+    layout: Layout  # what a round message carries (``scheme.layout(agent)``)
+    max_rounds: int  # M, the last round
+    steps_per_round: int = 1  # exchanges per round: 1, or a per-step scheme's K
+    welcome_layout: Layout | None = None  # what a welcome or done carries (None: ``layout``)
+    settings: Mapping[str, str] | None = None  # this worker's shared settings, sent in its join
+    units: int = 1  # the units the worker carries (a unit host: U), said in every contribution
+    start_round: int | None = None  # resuming: the first round the learner's state has not played
+    restarted: bool = False  # resumed with no checkpoint: an earlier process went down in round 1
+    reply_timeout: float | None = 600.0  # seconds to wait for the chief (None: forever)
+    resend_interval: float | None = 5.0  # seconds without an answer before re-sending (None: never)
     ended_grace: float = ENDED_GRACE
-    """seconds an unwelcomed worker waits for a new chief once the chief's status says the run ended"""
 
     def __post_init__(self) -> None:
-        """Check the ids and the units; resolve the scheme once; keep the layouts as tuples."""
         validate_id(self.run_id, "run id")
         validate_worker_id(self.worker_id)
         if self.units < 1:

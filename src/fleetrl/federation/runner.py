@@ -13,35 +13,21 @@ from typing import Any
 from fleetrl.federation.chief.checkpoint import chief_fields
 from fleetrl.federation.chief.lease import Deposed, deposed_line, describe, supersedes
 from fleetrl.federation.chief.machine import Chief, ChiefEvent, ChiefStep
+from fleetrl.federation.wire import topics
 from fleetrl.federation.wire.messages import MessageRejected, Reason, encode
 from fleetrl.federation.wire.signing import Status, parse_status, status_payload
-from fleetrl.federation.wire.topics import (
-    CHIEF_ID,
-    ENDED,
-    OFFLINE,
-    ONLINE,
-    chief_topic,
-    node_of_status_topic,
-    status_filter,
-    status_topic,
-    worker_filter,
-    worker_of_topic,
-)
+from fleetrl.federation.wire.topics import CHIEF_ID, ENDED, OFFLINE, ONLINE
 from fleetrl.transport.base import Transport, Will
 
 log = logging.getLogger(__name__)
 
-IDLE_LOG_INTERVAL = 30.0
-"""seconds between the chief's log lines while nothing arrives"""
-MIN_WAIT = 0.005
-"""the shortest wait for a deadline that is due (a state machine bug would otherwise spin a core)"""
-LEASE_RETRY = 0.2
-"""seconds between two looks at the broker while a chief's lease is in doubt"""
+IDLE_LOG_INTERVAL = 30.0  # seconds between the chief's log lines while nothing arrives
+MIN_WAIT = 0.005  # the shortest wait for a deadline that is due (never a busy loop)
+LEASE_RETRY = 0.2  # seconds between two looks at the broker while a chief's lease is in doubt
 
 
 def chief_client_id(run_id: str, epoch: int) -> str:
-    """The chief's MQTT client id in ``epoch``: each epoch has its own session, so a deposed chief that
-    reconnects never takes over the session (or the connection) of the chief that replaced it."""
+    """The chief's MQTT client id in ``epoch`` (a deposed chief never takes over its successor's session)."""
     return f"fleetrl-{run_id}-chief" + (f"-e{epoch}" if epoch else "")
 
 
@@ -53,23 +39,15 @@ class IdleTimeout(TimeoutError):
 class ChiefSummary:
     """How the chief's run ended."""
 
-    rounds: int
-    """the last round played"""
+    rounds: int  # the last round played
     end_reason: str
-    transfers: tuple[tuple[int, str, tuple[str, ...]], ...]
-    """(round, origin, recipients) of every model transfer"""
+    transfers: tuple[tuple[int, str, tuple[str, ...]], ...]  # (round, origin, recipients)
     rejections: dict[Reason, int]
-    """rejected messages, by reason"""
-    dropouts: tuple[tuple[int, str, str], ...] = ()
-    """(round, worker, reason) of every worker that left W without transferring"""
-    rejoins: tuple[tuple[int, str], ...] = ()
-    """(round, worker) of every dropped worker that came back"""
+    dropouts: tuple[tuple[int, str, str], ...] = ()  # (round, worker, reason) of workers that left W
+    rejoins: tuple[tuple[int, str], ...] = ()  # (round, worker) of dropped workers that came back
     scheme: str = field(kw_only=True)
-    """the federation scheme"""
-    completed: tuple[tuple[str, int], ...] = ()
-    """(worker, round) of the first round each worker's criterion held"""
-    contributions: dict[str, dict[str, Any]] = field(default_factory=dict)
-    """an asynchronous scheme's: worker → its contributions taken, and their staleness"""
+    completed: tuple[tuple[str, int], ...] = ()  # (worker, the first round its criterion held)
+    contributions: dict[str, dict[str, Any]] = field(default_factory=dict)  # an asynchronous scheme's
 
     def to_dict(self) -> dict[str, Any]:
         """A JSON-ready account (chief.json)."""
@@ -87,53 +65,30 @@ class ChiefSummary:
 
 
 def run_chief(
-    chief: Chief,
-    transport: Transport,
-    *,
-    on_event: Callable[[ChiefEvent], None] | None = None,
-    idle_timeout: float | None = None,
-    clock: Callable[[], float] = time.monotonic,
-    checkpoint: Callable[[Chief], None] | None = None,
-    first_step: ChiefStep | None = None,
-    idle_log_interval: float = IDLE_LOG_INTERVAL,
+    chief: Chief, transport: Transport, *, on_event: Callable[[ChiefEvent], None] | None = None,
+    idle_timeout: float | None = None, clock: Callable[[], float] = time.monotonic,
+    checkpoint: Callable[[Chief], None] | None = None, first_step: ChiefStep | None = None,
     read_lease: Callable[[], Status | None] | None = None,
     status_fields: Mapping[str, str | int] | None = None,
-) -> ChiefSummary:
-    """Serve one run: connect, announce the chief online, answer every round until the chief ends the run.
+) -> ChiefSummary:  # fmt: skip
+    """Serve one run over ``transport`` (unconnected: connected with an ``offline`` will, closed at the end):
+    announce the chief online, feed it worker messages, statuses and time, and publish what it returns on the
+    chief topic until it ends the run.
 
-    Workers wait for the chief's ``welcome`` (sent when it sees their ``online`` status) before their first
-    round, so the start order does not matter. Worker topics, worker statuses and the passing of time (the
-    round deadline) are given to the state machine as they come; what it returns is published, QoS 1, on the
-    chief topic, signed if the chief has a fleet key.
-
-    :param chief: the state machine (its run id, W and M define the run).
-    :param transport: an unconnected transport; it is connected with an ``offline`` last will and closed at
-        the end.
-    :param on_event: called with every :class:`ChiefEvent` (also logged: rounds at INFO, rejections at
-        WARNING).
-    :param idle_timeout: raise :class:`IdleTimeout` when nothing arrives for this many seconds (None: wait
-        forever). While it waits the chief sleeps in ``receive`` (no polling) and logs who it is waiting for
-        every ``idle_log_interval`` seconds.
-    :param clock: the time source handed to the state machine (seconds).
-    :param checkpoint: called with the chief at the start and whenever its durable state
-        (:func:`~fleetrl.federation.chief.state.chief_fields`) changed — a round closed, a worker left,
-        rejoined or restarted, the run ended — *before* the step's messages are published, so no worker ever
-        acts on an answer the checkpoint does not hold (write-ahead).
-    :param first_step: published right after the chief announces itself online (a resumed chief passes
-        :func:`~fleetrl.federation.chief.state.replay_last_answer`).
-    :param read_lease: reads the retained chief status of the run over a connection of its own (None: there
-        is none). After the connection was lost, or the loop stalled for half the transport's keep-alive (a
-        stopped process), the chief reads it before it acts again, and stops with
-        :class:`~.chief.lease.Deposed` if a newer chief took the run (docs/protocol.md, "One chief
-        per run"). None: only the chief statuses it receives are checked.
-    :param status_fields: who this chief is (pid, host, keep-alive: :func:`~.chief.lease.holder_fields`), said
-        in its status beside its epoch.
+    :param on_event: called with every :class:`ChiefEvent` (also logged).
+    :param idle_timeout: raise :class:`IdleTimeout` when nothing arrives for this many seconds (None: never).
+    :param checkpoint: called with the chief at the start and whenever its durable state changed, *before*
+        the step's messages are published (write-ahead).
+    :param first_step: published right after the chief is online (a resumed chief's last answer).
+    :param read_lease: reads the run's retained chief status over a connection of its own: after a lost
+        connection or a stall of half the keep-alive, the chief reads it before it acts again.
+    :param status_fields: who this chief is (:func:`~.chief.lease.holder_fields`), said in its status.
     :raises Deposed: a chief status or a worker message showed a newer epoch; nothing was published or
         checkpointed after it.
     """
     run_id = chief.run_id
-    own_status = status_topic(run_id, CHIEF_ID)
-    out_topic = chief_topic(run_id)
+    own_status = topics.status_topic(run_id, CHIEF_ID)
+    out_topic = topics.chief_topic(run_id)
     incarnation = time.time_ns()
     keepalive = getattr(transport, "keepalive", None)
     # a main loop late by this much may have been stopped (or starved) towards the end of its lease (1.5 ×
@@ -153,8 +108,7 @@ def run_chief(
     lease = _Lease(transport, clock, guard)
 
     def confirm_lease() -> None:
-        """The connection was lost or this process was stopped: act again only once connected, and only if
-        no newer chief took the run meanwhile (then re-announce online: the will may have fired)."""
+        """Act again only once connected and no newer chief took the run (then re-announce online)."""
         log.info("chief: connection lost or process stalled; checking that no newer chief took over")
         while True:
             if lease.connected():
@@ -195,8 +149,8 @@ def run_chief(
                 on_event(event)
 
     def chief_status(payload: bytes) -> None:
-        """Another chief's status (or this one's, replayed): a newer chief deposes this one; an older one's
-        (or this chief's will, fired while it was away) is answered by announcing this chief again."""
+        """A chief status: a newer chief deposes this one; an older one's (or this chief's will) is answered
+        by announcing this chief again."""
         try:
             seen = parse_status(payload, run_id=run_id, node=CHIEF_ID, key=chief.key)
         except MessageRejected as exc:
@@ -216,27 +170,21 @@ def run_chief(
     last_input = [clock()]
     clean_exit = False
     try:
-        transport.subscribe(worker_filter(run_id))
-        transport.subscribe(status_filter(run_id))
+        transport.subscribe(topics.worker_filter(run_id))
+        transport.subscribe(topics.status_filter(run_id))
         # after subscribing: workers may send once they see it. Not re-announced by the transport on a
         # reconnect: the lease is checked first (confirm_lease)
         transport.publish(own_status, status(ONLINE), retain=True)
         lease.confirmed()
-        members = ",".join(chief.members)
         params = " ".join(f"{k}={v}" for k, v in chief.scheme.params().items())
         log.info(
             "chief of run %s online: W={%s}, M=%d, scheme %s%s, %s, epoch %d",
-            run_id,
-            members,
-            chief.max_rounds,
-            chief.scheme.name,
-            f" ({params})" if params else "",
-            chief.plan.aggregator,
-            chief.epoch,
-        )
+            run_id, ",".join(chief.members), chief.max_rounds, chief.scheme.name,
+            f" ({params})" if params else "", chief.plan.aggregator, chief.epoch,
+        )  # fmt: skip
         if first_step is not None:
             publish(first_step)
-        next_note = last_input[0] + idle_log_interval  # the next "still waiting" log line
+        next_note = last_input[0] + IDLE_LOG_INTERVAL  # the next "still waiting" log line
         while not chief.finished:
             now = clock()
             waits = [next_note - now]
@@ -266,15 +214,15 @@ def run_chief(
                         chief.round, now - last_input[0], waiting,
                         "" if idle_timeout is None else f" (giving up after {idle_timeout:g} s)",
                     )  # fmt: skip
-                    next_note = now + idle_log_interval
+                    next_note = now + IDLE_LOG_INTERVAL
                 continue
             last_input[0] = now
-            next_note = now + idle_log_interval
-            worker = worker_of_topic(run_id, received.topic)
+            next_note = now + IDLE_LOG_INTERVAL
+            worker = topics.worker_of_topic(run_id, received.topic)
             if worker is not None:
                 publish(chief.receive_bytes(received.payload, topic_worker=worker, now=now))
             else:
-                node = node_of_status_topic(run_id, received.topic)
+                node = topics.node_of_status_topic(run_id, received.topic)
                 if node == CHIEF_ID:
                     chief_status(received.payload)
                 elif node is not None:
@@ -317,8 +265,7 @@ def _log_event(event: ChiefEvent) -> None:
 
 class _Lease:
     """Whether the chief may act without looking at the broker first: not if its connection was lost since
-    it last looked, or its loop came back late by more than ``guard`` s (it was stopped, or the machine
-    stalled: the broker may have fired its will meanwhile)."""
+    it last looked, or its loop came back late by more than ``guard`` s (its will may have fired)."""
 
     def __init__(self, transport: Transport, clock: Callable[[], float], guard: float | None) -> None:
         self.transport, self.clock, self.guard = transport, clock, guard

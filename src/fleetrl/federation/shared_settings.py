@@ -1,17 +1,6 @@
-"""The learning settings of a run as one frozen value, and the part of it every role must share.
-
-:class:`LearningSettings` is what every worker learns with: the unit type and its fleet, the PPO preset and
-its overrides, the scheme and its parameters, the target score, the learning seed and the most rounds.
-``fleetrl train``, ``chief`` and ``worker`` hold it, a worker's spec carries it, a run's config file spells it
-out, and its fields' defaults are the only defaults of those settings (the flags and their help are generated
-from the fields). :func:`fleetrl.runs.settings.resolve_learning` turns one as given into one with every
-default filled in and every value checked (a new value: nothing is changed in place).
-
-The chief's ``welcome`` carries its :func:`shared_text`; a worker's ``join`` carries its own. They are a map
-of setting name → value text over the fields marked ``shared`` (the env, the fleet seed and profile, the
-preset, the ``--set`` overrides, the scheme and its parameters, the target score). A worker whose map differs
-is refused at join, with a reason that names the first differing key in sorted order. The learning seed is not
-shared: each worker's own seed draws its actions and windows.
+"""A run's learning settings as one frozen value (:class:`LearningSettings`: its fields' defaults are the
+only defaults, its flags and help are generated from them), and the part every role must share: the chief's
+``welcome`` and a worker's ``join`` carry :func:`shared_text`; a worker whose map differs is refused at join.
 """
 
 from __future__ import annotations
@@ -25,14 +14,10 @@ from typing import Any
 from fleetrl.agent.config import DEFAULT_PRESET, PPOConfig, get_preset
 from fleetrl.federation.schemes import Scheme, get_scheme
 
-SharedSettings = Mapping[str, str]
-"""setting name → its value as text (the same text for the same value on every machine)"""
+SharedSettings = Mapping[str, str]  # setting name → its value as text, the same on every machine
 
-MISSING = "<not set>"
-"""How a setting one side lacks is shown."""
-
-NOT_SHARED = {"shared": False}
-"""field metadata of a learning setting each role may have its own of (not checked at join)"""
+MISSING = "<not set>"  # how a setting one side lacks is shown
+NOT_SHARED = {"shared": False}  # field metadata of a setting each role may have its own of
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -93,8 +78,7 @@ class LearningSettings:
 
 
 def shared_text(settings: LearningSettings) -> dict[str, str]:
-    """What a run of the resolved ``settings`` carries in the chief's ``welcome`` and a worker's ``join``:
-    every shared field as text, each written the same way on every machine (JSON with sorted keys)."""
+    """Every shared field of the resolved ``settings`` as text, written the same way on every machine."""
     text = {}
     for f in dataclasses.fields(settings):
         if f.metadata.get("shared", True):
@@ -122,40 +106,3 @@ def settings_difference(chief: SharedSettings, worker: SharedSettings) -> str | 
         if ours != theirs:
             return f"setting {key!r} differs (chief {ours!r}, worker {theirs!r})"
     return None
-
-
-class JoinGate:
-    """The chief's record of who joined with matching settings and who was refused (and why).
-
-    :param settings: the chief's shared settings; None checks nothing (every join matches).
-    """
-
-    def __init__(self, settings: SharedSettings | None) -> None:
-        """Nobody has joined yet."""
-        self.settings: dict[str, str] | None = None if settings is None else dict(settings)
-        self._refused: dict[str, str] = {}  # worker → why its last join was refused
-        self._joined: set[str] = (
-            set()
-        )  # workers whose join matched, since their newest incarnation came online
-
-    def join(self, worker: str, settings: SharedSettings) -> str:
-        """Check a join: ``joined``, ``duplicate`` (a matching join already seen) or ``refused`` (then
-        :meth:`refusal` says why)."""
-        why = None if self.settings is None else settings_difference(self.settings, settings)
-        if why is not None:
-            self._refused[worker] = why
-            return "refused"
-        if worker in self._joined:
-            return "duplicate"
-        self._joined.add(worker)
-        self._refused.pop(worker, None)
-        return "joined"
-
-    def refusal(self, worker: str) -> str | None:
-        """Why ``worker`` is refused, or None."""
-        return self._refused.get(worker)
-
-    def new_incarnation(self, worker: str) -> None:
-        """A new process of ``worker`` came online: it joins afresh."""
-        self._joined.discard(worker)
-        self._refused.pop(worker, None)

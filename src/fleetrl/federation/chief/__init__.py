@@ -1,4 +1,3 @@
-"""The chief of Algorithm 1: its machine (:mod:`.machine`, and :mod:`.asynchronous` for a scheme without a
-round barrier), what it remembers (:mod:`.state`, :mod:`.checkpoint`), what it answers (:mod:`.answer`), who
-it waits for (:mod:`.stragglers`), who may join (:mod:`.roster`), the fleet's model (:mod:`.fleet_model`), its
-contributions count (:mod:`.contributions`) and its epoch (:mod:`.lease`)."""
+"""The chief of Algorithm 1: its machine (:mod:`.machine`; :mod:`.asynchronous` without a round barrier), who
+it takes and what it answers (:mod:`.answer`), who it waits for (:mod:`.stragglers`), what it remembers
+(:mod:`.state`, :mod:`.checkpoint`) and its epoch (:mod:`.lease`)."""

@@ -1,47 +1,31 @@
-"""The chief of an asynchronous scheme (``fedasync``) as a pure state machine: no round barrier. Each
-contribution is mixed into the fleet model on arrival (unless staler than ``max_staleness``) and answered
-with the model and its version; joining, dropping out, refusals and checkpoints are the synchronous chief's.
-docs/protocol.md, "Asynchronous schemes".
+"""The chief of an asynchronous scheme (``fedasync``) as a pure state machine, with no round barrier: each
+contribution is mixed into the fleet model on arrival (unless staler than ``max_staleness``) and answered with
+the model and its version; the rest is the synchronous chief's (docs/protocol.md, "Asynchronous schemes").
 """
 
 from __future__ import annotations
 
 from dataclasses import replace
+from typing import Any
 
 from fleetrl.federation.chief.answer import check_round_rules
-from fleetrl.federation.chief.contributions import Contributions
 from fleetrl.federation.chief.machine import Chief
-from fleetrl.federation.chief.state import ChiefState
+from fleetrl.federation.chief.state import Contributions
 from fleetrl.federation.events import ChiefEvent, ChiefStep
 from fleetrl.federation.plan import ChiefPlan
 from fleetrl.federation.schemes import COMPLETED, AsyncScheme, RoundContext
 from fleetrl.federation.schemes.base import FleetStart
 from fleetrl.federation.wire.messages import Message, Reason
-from fleetrl.federation.wire.signing import FleetKey
 from fleetrl.federation.wire.topics import CHIEF_ID
-
-__all__ = ["AsyncChief"]
 
 
 class AsyncChief(Chief):
-    """The chief of an asynchronous scheme (see the module's docstring); the parameters are
-    :class:`~fleetrl.federation.chief.machine.Chief`'s, ``start`` (the fleet's start) required unless the
-    scheme holds a restored model."""
+    """The chief of an asynchronous scheme: :class:`~.chief.machine.Chief`'s parameters, ``start`` required
+    unless the scheme holds a restored model; the scheme keeps the fleet model (``fleet_model`` is unused)."""
 
-    def __init__(
-        self,
-        plan: ChiefPlan,
-        *,
-        key: FleetKey | None = None,
-        start: FleetStart | None = None,
-        fleet_model: object = None,
-        state: ChiefState | None = None,
-        now: float | None = None,
-    ) -> None:
-        """Create the chief; the scheme's fleet model starts at ``start`` (a fresh run). The scheme keeps the
-        fleet model: ``fleet_model`` is not used."""
-        del fleet_model
-        super().__init__(plan, key=key, start=start, state=state, now=now)
+    def __init__(self, plan: ChiefPlan, *, start: FleetStart | None = None, **options: Any) -> None:
+        options.pop("fleet_model", None)
+        super().__init__(plan, start=start, **options)
         if not isinstance(self.scheme, AsyncScheme):  # a check of what was built, not a choice of behaviour
             raise ValueError(f"scheme {self.scheme.name!r} is not asynchronous: use Chief")
         self.fleet: AsyncScheme = self.scheme
@@ -78,7 +62,7 @@ class AsyncChief(Chief):
         return step + ChiefStep(events=(accepted,)) + self._take(message, record, now)
 
     def _admission(self, message: Message) -> tuple[Reason, str] | None:
-        """Why a worker's message is refused whatever the worker's rounds (None: it is a contribution)."""
+        """Why a worker's message is refused whatever its round (None: it is a contribution)."""
         sender, rnd = message.sender, message.round
         if not self.scheme.accepts(message.type):
             return Reason.UNEXPECTED_TYPE, message.type
@@ -134,7 +118,7 @@ class AsyncChief(Chief):
         )  # fmt: skip
 
     def _answer_again(self, worker: str, rnd: int, now: float) -> ChiefStep:
-        """A re-sent contribution: its answer again (x as it now is; after the end, the last answer and
+        """A re-sent contribution's answer again (x as it now is; after the end, the last answer and
         ``done``), at most once per hold-off."""
         if now < self._resent.get(worker, -float("inf")) + self.plan.resend_holdoff:
             return ChiefStep()
@@ -157,9 +141,7 @@ class AsyncChief(Chief):
         return ChiefStep((welcome,), (ChiefEvent("welcome", rnd, sender=worker, detail=detail),))
 
     def _maybe_close(self, now: float) -> ChiefStep:
-        """After a contribution or a worker leaving W: the end if every member has played M rounds, or W is
-        empty (nothing closes otherwise: there are no rounds of the fleet)."""
-        del now
+        """The end if every member has played M rounds, or W is empty (the fleet has no rounds to close)."""
         played_out = {w for w, c in self.state.contributions.items() if c.last_round >= self.max_rounds}
         if self.state.members and self.state.members <= played_out:
             return self._end(f"reached M={self.max_rounds} rounds")

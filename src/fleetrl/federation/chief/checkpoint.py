@@ -1,5 +1,5 @@
-"""A chief's checkpoint: the chief as data (JSON fields + named float32 tensors) and back, with its run's
-configuration (docs/protocol.md, "Checkpoints and resume"); :mod:`fleetrl.runs.checkpoints` stores it."""
+"""A chief's checkpoint: the chief and its run's configuration as data (JSON fields + named float32 tensors)
+and back (docs/protocol.md, "Checkpoints and resume"); :mod:`fleetrl.runs.checkpoints` stores it."""
 
 from __future__ import annotations
 
@@ -7,9 +7,8 @@ from typing import Any
 
 import numpy as np
 
-from fleetrl.federation.chief.fleet_model import FleetModel
 from fleetrl.federation.chief.machine import Chief
-from fleetrl.federation.chief.state import SCHEME_TENSOR, STATE_VERSION, ChiefState
+from fleetrl.federation.chief.state import SCHEME_TENSOR, STATE_VERSION, ChiefState, FleetModel
 from fleetrl.federation.events import ChiefEvent, ChiefStep
 from fleetrl.federation.kinds import new_chief
 from fleetrl.federation.plan import ChiefPlan
@@ -43,19 +42,13 @@ def chief_to_state(chief: Chief) -> tuple[dict[str, Any], dict[str, np.ndarray]]
 
 
 def chief_from_state(
-    fields: dict[str, Any],
-    tensors: dict[str, np.ndarray],
-    *,
-    key: FleetKey | None = None,
-    now: float,
+    fields: dict[str, Any], tensors: dict[str, np.ndarray], *, key: FleetKey | None = None, now: float,
     fleet_model: FleetModel | None = None,
-) -> Chief:
+) -> Chief:  # fmt: skip
     """The chief as it was when ``fields``/``tensors`` were taken, its open round starting at ``now``.
 
     :param key: the fleet key; required if and only if the saved chief had one.
-    :param now: the current time of the clock the restored chief will be driven with.
-    :param fleet_model: a per-step scheme's fleet model (built as for the chief that wrote the state); it
-        is set to the saved one.
+    :param fleet_model: a per-step scheme's fleet model, built as the saved chief's; set to the saved one.
     :raises ValueError: another state version, or a key where there was none (or the reverse).
     """
     if fields.get("version") != STATE_VERSION:
@@ -78,11 +71,8 @@ def chief_from_state(
 
 
 def replay_last_answer(chief: Chief) -> ChiefStep:
-    """The chief's last answer again, to publish once when a restored chief comes online.
-
-    A chief may die after committing a round but before its answer left; workers that got the answer ignore
-    the copy (they are past that round), those that did not take it.
-    """
+    """The chief's last answer again, published once when a restored chief comes online (it may have died
+    after committing a round but before its answer left)."""
     last = chief.state.answers.last
     if not last:
         return ChiefStep()

@@ -1,6 +1,6 @@
 """One chief per run and one process per worker id on a broker: the lease MQTT's retained statuses and last
-wills give, and the chief's epoch (a chief taking over a run is one newer; a chief that sees a newer one is
-deposed). Pure functions of statuses; docs/protocol.md, "One chief per run, one process per worker id".
+wills give, and the chief's epoch (a chief taking over is one newer; one that sees a newer one is deposed).
+docs/protocol.md, "One chief per run, one process per worker id".
 """
 
 from __future__ import annotations
@@ -12,10 +12,8 @@ from datetime import UTC, datetime
 
 from fleetrl.federation.wire.signing import Status
 
-LEASE_FACTOR = 1.5
-"""the broker fires a silent client's will after this many keep-alive periods (MQTT 3.1.1, 3.1.2.10)"""
-DEFAULT_KEEPALIVE = 30
-"""the roles' MQTT keep-alive in seconds (``--keepalive``): a silent role's place is free after 45 s"""
+LEASE_FACTOR = 1.5  # the broker fires a silent client's will after this many keep-alives (MQTT 3.1.2.10)
+DEFAULT_KEEPALIVE = 30  # the roles' MQTT keep-alive in seconds (``--keepalive``)
 
 
 class Deposed(OSError):
@@ -29,24 +27,14 @@ def holder_fields(keepalive: int, epoch: int | None = None) -> dict[str, str | i
     return fields if epoch is None else {"epoch": int(epoch), **fields}
 
 
-def since_text(incarnation: int | None) -> str:
-    """When a node started (its incarnation, nanoseconds since 1970), as ISO 8601 UTC."""
-    if incarnation is None:
-        return "an unknown time"
-    return datetime.fromtimestamp(incarnation / 1e9, UTC).isoformat(timespec="seconds")
-
-
 def describe(status: Status) -> str:
-    """``pid 12 on host h since 2024-…`` (what its status says)."""
+    """``pid 12 on host h since 2024-…`` (what its status says; since: its incarnation, in UTC)."""
     pid, host = status.fields.get("pid"), status.fields.get("host")
     who = " ".join(filter(None, (f"pid {pid}" if pid else "", f"on host {host}" if host else "")))
-    return f"{who or 'a process'} since {since_text(status.incarnation)}"
-
-
-def lease_seconds(status: Status) -> float | None:
-    """How long after its last packet the broker keeps a silent holder's place (None: not said)."""
-    keepalive = status.number("keepalive")
-    return None if keepalive is None else LEASE_FACTOR * keepalive
+    since = "an unknown time"
+    if status.incarnation is not None:  # nanoseconds since 1970
+        since = datetime.fromtimestamp(status.incarnation / 1e9, UTC).isoformat(timespec="seconds")
+    return f"{who or 'a process'} since {since}"
 
 
 def place_refusal(run_id: str, node: str, status: Status | None, topic: str) -> str | None:
@@ -54,8 +42,8 @@ def place_refusal(run_id: str, node: str, status: Status | None, topic: str) -> 
     retained ``status`` says a live process holds it; None: the place is free."""
     if status is None or status.state != "online":
         return None
-    lease = lease_seconds(status)
-    wait = f"{lease:g} s" if lease is not None else "1.5 × its keep-alive"
+    keepalive = status.number("keepalive")  # the broker keeps a silent holder's place LEASE_FACTOR times it
+    wait = f"{LEASE_FACTOR * keepalive:g} s" if keepalive is not None else "1.5 × its keep-alive"
     epoch = status.number("epoch")
     role = "chief" if node == "chief" else f"worker {node}"
     if node == "chief":
@@ -74,8 +62,8 @@ def place_refusal(run_id: str, node: str, status: Status | None, topic: str) -> 
 
 
 def chief_epoch(*, checkpoint: int | None, retained: Status | None) -> int:
-    """The epoch a starting chief takes: one more than the newest it knows of (its checkpoint's epoch when
-    resuming, the retained chief status's), or 0 for the first chief of a run."""
+    """The epoch a starting chief takes: one more than the newest it knows of (its checkpoint's, the retained
+    status's), or 0 for the first chief of a run."""
     known = [
         e for e in (checkpoint, None if retained is None else retained.number("epoch") or 0) if e is not None
     ]
@@ -83,9 +71,8 @@ def chief_epoch(*, checkpoint: int | None, retained: Status | None) -> int:
 
 
 def supersedes(status: Status, *, epoch: int, incarnation: int) -> bool:
-    """Whether a chief status of another incarnation than ``incarnation`` shows a chief newer than one of
-    ``epoch``: a higher epoch, or the same epoch started later (two chiefs that took the same epoch at
-    once: the later one stays)."""
+    """Whether a chief status of another incarnation shows a chief newer than one of ``epoch``: a higher
+    epoch, or the same epoch started later."""
     if status.incarnation is None or status.incarnation == incarnation:
         return False
     other = status.number("epoch") or 0

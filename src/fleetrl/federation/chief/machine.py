@@ -1,8 +1,6 @@
-"""The chief of Algorithm 1 as a pure state machine: messages, statuses and time in → messages and events
-out (every input takes ``now``). It keeps W and the open round (and step), takes one message per worker and
-exchange, closes the exchange with its scheme's combination in sorted worker order, and ends the run; its
-reliability rules are docs/protocol.md's "Rounds" and "Reliability". What it remembers is :attr:`Chief.state`.
-"""
+"""The chief of Algorithm 1 as a pure state machine: messages, statuses and time (``now``) in → messages and
+events out. Its rules are docs/protocol.md's "Rounds" and "Reliability"; what it remembers is
+:attr:`Chief.state`."""
 
 from __future__ import annotations
 
@@ -12,23 +10,21 @@ from dataclasses import replace
 from fleetrl.federation.aggregation import Aggregator, decomposes, get_aggregator
 from fleetrl.federation.chief.answer import (
     ClosedExchange,
+    JoinGate,
+    Roster,
     admission,
     answer_event,
     answer_message,
     check_round_rules,
     refusal_step,
-    start_welcome,
     welcome_step,
     where,
 )
-from fleetrl.federation.chief.fleet_model import FleetModel
-from fleetrl.federation.chief.roster import Roster
-from fleetrl.federation.chief.state import AnswerBook, ChiefState
+from fleetrl.federation.chief.state import AnswerBook, ChiefState, FleetModel
 from fleetrl.federation.events import ChiefEvent, ChiefStep
 from fleetrl.federation.plan import ChiefPlan
 from fleetrl.federation.schemes import RoundContext
 from fleetrl.federation.schemes.base import FleetStart
-from fleetrl.federation.shared_settings import JoinGate
 from fleetrl.federation.wire.messages import Layout, Message, MessageRejected, Reason, decode
 from fleetrl.federation.wire.signing import FleetKey, parse_status
 from fleetrl.federation.wire.topics import CHIEF_ID, sorted_workers
@@ -37,36 +33,27 @@ __all__ = ["Chief", "ChiefEvent", "ChiefStep"]
 
 DEADLINE_DROP = "no message within the round deadline"
 OFFLINE_DROP = "went offline"
-EVERY_WORKER_DROPPED = "every worker dropped out"
-"""the end of a run whose last member left W: the run did not do its job (``fleetrl chief`` exits 1)"""
+EVERY_WORKER_DROPPED = "every worker dropped out"  # the run did not do its job: `fleetrl chief` exits 1
 
 
 class Chief:
     """Algorithm 1 (the chief) for one run.
 
-    :param plan: the run as the chief sees it (:class:`~fleetrl.federation.plan.ChiefPlan`).
     :param key: the fleet key; if given, only messages and statuses signed with it are accepted.
     :param start: the fleet's start (a ``shared_start`` scheme), welcomed until the fleet has a model.
-    :param fleet_model: a per-step scheme's fleet model (:mod:`.fleet_model`): every welcome carries it.
+    :param fleet_model: a per-step scheme's fleet model: every welcome carries it.
     :param state: a restored chief's (:func:`.checkpoint.chief_from_state`); None: round 1.
     :param now: when the open round opened (a restored chief: now); None: at the first input.
     """
 
     def __init__(
-        self,
-        plan: ChiefPlan,
-        *,
-        key: FleetKey | None = None,
-        start: FleetStart | None = None,
-        fleet_model: FleetModel | None = None,
-        state: ChiefState | None = None,
-        now: float | None = None,
-    ) -> None:
-        """Create the chief with W = the plan's workers and round 1 open (or as ``state`` says)."""
+        self, plan: ChiefPlan, *, key: FleetKey | None = None, start: FleetStart | None = None,
+        fleet_model: FleetModel | None = None, state: ChiefState | None = None, now: float | None = None,
+    ) -> None:  # fmt: skip
         if fleet_model is not None and start is None:
             start = fleet_model.start()
         if start is not None:
-            plan = plan.with_welcome(start.layout)
+            plan = replace(plan, welcome_layout=start.layout)
         self.plan = plan
         self.run_id, self.scheme, self.max_rounds = plan.run_id, plan.scheme, plan.max_rounds
         self.roster = Roster(plan.workers, open_fleet=plan.open_fleet)
@@ -84,28 +71,28 @@ class Chief:
         self.key = key
         if state is None:
             config = dict(self.scheme.configure(1, self.all_workers))
-            model = start_welcome(plan.run_id, start)
+            model = None
+            if start is not None:
+                model = Message("welcome", plan.run_id, CHIEF_ID, 1, flat=start.flat, origin=CHIEF_ID)
             state = ChiefState(
                 set(self.all_workers), AnswerBook(plan.resend_holdoff), model=model, config=config
             )
-        self.state = state
-        """what the chief remembers (its checkpoint serialises it)"""
+        self.state = state  # what the chief remembers (its checkpoint serialises it)
         self._opened_at: float | None = now
         self._pending: dict[str, Message] = {}  # the open exchange's answers (workers re-send them)
         self._restarted: set[str] = set()  # workers seen restarting, until their join (not a replayed one)
         # the state's records, under the names the runner and people read (the same objects: never rebound)
         self.rejections, self.completed, self.transfers = state.rejections, state.completed, state.transfers
         self.dropouts, self.rejoins = state.dropouts, state.rejoins
-        self.superseded: str | None = None
-        """set when an input showed a chief of a newer epoch (what showed it): this chief must stop acting"""
+        self.superseded: str | None = None  # what showed a chief of a newer epoch: this one must stop
 
     @property
     def epoch(self) -> int:
-        """The chief's epoch (:mod:`fleetrl.federation.chief.lease`), stamped on every message it sends."""
+        """The chief's epoch (:mod:`.lease`), stamped on every message it sends."""
         return self.state.epoch
 
     def take_epoch(self, epoch: int) -> None:
-        """Run as the chief of ``epoch`` from now on (taking over a run: one past the newest it knew of)."""
+        """Run as the chief of ``epoch`` from now on."""
         if epoch < self.state.epoch:
             raise ValueError(f"epoch {epoch} is older than this chief's {self.state.epoch}")
         self.state.epoch = epoch
@@ -150,7 +137,7 @@ class Chief:
         return self.state.end_reason
 
     def next_deadline(self) -> float | None:
-        """When :meth:`tick` may next change something (a round deadline, a grace running out), or None."""
+        """When :meth:`tick` may next change something, or None."""
         if self.finished:
             return None
         times = list(self.state.suspects.values())
@@ -161,8 +148,7 @@ class Chief:
         return min(times, default=None)
 
     def receive_bytes(self, payload: bytes, *, topic_worker: str | None = None, now: float) -> ChiefStep:
-        """Decode and handle one payload received on the topic of ``topic_worker`` (the envelope's sender
-        must match it); any defect becomes a ``rejected`` event, never an exception."""
+        """Decode and handle one payload of ``topic_worker``'s topic; a defect is a ``rejected`` event."""
         try:
             message = decode(
                 payload, run_id=self.run_id, known_senders=self.roster, layout=self.layout,
@@ -176,8 +162,7 @@ class Chief:
         return self.receive(message, now=now)
 
     def _newer_epoch(self, message: Message) -> ChiefStep | None:
-        """A worker message stamped with a newer epoch than this chief's: its worker follows a newer chief,
-        so this one is deposed (nothing changes; the runner stops it)."""
+        """A worker message stamped with a newer epoch: this chief is deposed (the runner stops it)."""
         if message.epoch <= self.state.epoch:
             return None  # an older stamp: sent (or re-sent) before the worker heard of this chief
         self.superseded = f"worker {message.sender}'s {message.type} carries epoch {message.epoch}"
@@ -212,18 +197,16 @@ class Chief:
         step = self._rejoin(sender, f"sent {message.type} for round {rnd}")
         self.state.suspects.pop(sender, None)
         self._pending[sender] = message
-        step += ChiefStep(
-            events=(ChiefEvent("accepted", self.state.round, sender=sender, detail=message.type),)
-        )
+        accepted = ChiefEvent("accepted", self.state.round, sender=sender, detail=message.type)
+        step += ChiefStep(events=(accepted,))
         if self._all_in():
             return step + self._close_round(now)
         self._waits.note(self.state.pace, self.state.members, self.state.step, self._pending, now)
         return step
 
     def status(self, worker: str, payload: bytes, *, retained: bool = False, now: float) -> ChiefStep:
-        """Handle a status payload of ``worker``: a live ``offline`` (goodbye or last will) drops it from
-        W after its grace, a live ``online`` brings it back, any ``online`` is welcomed; a retained one
-        (replayed by the broker) never changes W."""
+        """Handle a status payload of ``worker``: a live ``offline`` drops it from W after its grace, a live
+        ``online`` brings it back, any ``online`` is welcomed; a retained one never changes W."""
         self._start_clock(now)
         if worker not in self.all_workers:  # a new unit's status: its join admits and welcomes it
             may_join = self.roster.may_join(worker)
@@ -259,14 +242,12 @@ class Chief:
         return step + self._welcome(worker)
 
     def _welcome(self, worker: str) -> ChiefStep:
-        """The ``welcome`` to ``worker``: the open round, the fleet's model, the shared settings."""
-        model, config = self.state.model, self.state.config
-        return welcome_step(self.run_id, worker, self.state.round, model, self.settings or {}, config)
+        state = self.state
+        return welcome_step(self.run_id, worker, state.round, state.model, self.settings or {}, state.config)
 
     def tick(self, now: float) -> ChiefStep:
-        """Apply the deadlines at time ``now``: offline workers whose grace ran out leave W; then the round
-        deadline's rule (docs/protocol.md, "Reliability": nobody answered, keep waiting; a quorum answered,
-        close with them; else the silent members leave W and the round closes with what it has)."""
+        """Apply the deadlines at ``now``: offline workers whose grace ran out leave W; then the round
+        deadline's rule (docs/protocol.md, "Reliability")."""
         self._start_clock(now)
         step = ChiefStep()
         gone = sorted_workers(w for w, t in self.state.suspects.items() if t <= now)
@@ -282,9 +263,8 @@ class Chief:
         return step + self._drop(sorted_workers(leave), DEADLINE_DROP) + self._close_round(now)
 
     def _join(self, message: Message, now: float) -> ChiefStep:
-        """Refuse a worker whose shared settings differ (until a join that matches); admit and welcome a new
-        one whose match. A restarted process of a known worker that will not replay the open round (its join
-        names the round it resumes at, 0: none) is not waited for in that round's later exchanges."""
+        """Refuse a worker whose shared settings differ; admit and welcome a new one whose match. A restarted
+        worker that will not replay the open round is not waited for in its later exchanges."""
         worker = message.sender
         outcome = self._gate.join(worker, message.settings)
         if outcome == "duplicate":  # a re-sent or replayed join: nothing to do
@@ -333,7 +313,6 @@ class Chief:
         return ChiefStep(events=self.state.rejoin(worker, why))
 
     def _all_in(self) -> bool:
-        """Every member the open exchange waits for has answered."""
         return self._waits.all_in(self.state.pace, self.state.members, self.state.step, self._pending)
 
     def _maybe_close(self, now: float) -> ChiefStep:
@@ -343,20 +322,24 @@ class Chief:
             return self._close_round(now)
         return ChiefStep()
 
-    def _close_round(self, now: float) -> ChiefStep:
-        rnd, exchange = self.state.round, self.state.step
-        last_step = exchange == self.steps_per_round - 1
-        closed = ClosedExchange.of(rnd, self._pending, self.state.members)
+    def _closing(self) -> tuple[ClosedExchange, dict[str, Message], bool]:
+        """The closing exchange: who took part, the answers to combine, whether it is the round's last."""
+        last_step = self.state.step == self.steps_per_round - 1
+        closed = ClosedExchange.of(self.state.round, self._pending, self.state.members)
         # a completion counts from any exchange of the round its message got into, not only the last: a unit
         # that misses a round's later exchanges (a straggler, a unit paused whole) still has it counted
         for worker in closed.completed:
-            self.state.completed.setdefault(worker, rnd)
+            self.state.completed.setdefault(worker, closed.round)
+        answers = {w: self._pending[w] for w in closed.answered}
+        self._waits.closed(self.state.pace, set(self.state.members), closed.answered, last_step)
+        return closed, self._waits.averaged(self.state.pace, answers, self.state.step), last_step
+
+    def _close_round(self, now: float) -> ChiefStep:
+        rnd, exchange = self.state.round, self.state.step
+        closed, answers, last_step = self._closing()
         context = RoundContext(
             self._aggregate, self.members, dict(self.state.completed), step=exchange, last_step=last_step
         )
-        answers = {w: self._pending[w] for w in closed.answered}
-        self._waits.closed(self.state.pace, set(self.state.members), closed.answered, last_step)
-        answers = self._waits.averaged(self.state.pace, answers, exchange)
         answer = self.scheme.combine(answers, context)
         self.state.members.difference_update(answer.leave_w)
         self.state.left.update(answer.leave_w)

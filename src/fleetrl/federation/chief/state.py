@@ -1,51 +1,43 @@
-"""What the chief remembers, as one value it owns (:class:`ChiefState`, with its :class:`AnswerBook`), and
-that value as data. Times are not kept (a restored chief re-arms its deadlines at the ``now`` it is given),
-nor the open exchange's answers (the workers re-send them): docs/protocol.md, "Checkpoints and resume"."""
+"""What the chief remembers: :class:`ChiefState` with its :class:`AnswerBook`, an asynchronous scheme's
+:class:`Contributions`, a per-step scheme's :class:`FleetModel`, and the state as data. Times and the open
+exchange's answers are not kept (docs/protocol.md, "Checkpoints and resume")."""
 
 from __future__ import annotations
 
 import math
 from collections import Counter
 from collections.abc import Iterable
-from dataclasses import dataclass, field
+from dataclasses import asdict, dataclass, field
 from typing import Any
 
 import numpy as np
 
-from fleetrl.federation.chief.contributions import Contributions
 from fleetrl.federation.chief.stragglers import FleetPace
 from fleetrl.federation.events import ChiefEvent
-from fleetrl.federation.wire.messages import Message, Reason
+from fleetrl.federation.schemes.agent import FederatedAgent
+from fleetrl.federation.schemes.base import FleetStart, StepScheme
+from fleetrl.federation.wire.messages import Layout, Message, Reason
 from fleetrl.federation.wire.topics import CHIEF_ID, sorted_workers
 
 STATE_VERSION = 2
-"""Version of the state's fields; :func:`chief_from_state` refuses any other (2: the round's ``config`` and
-the fleet's start)."""
+"""Version of the state's fields; :func:`~.checkpoint.chief_from_state` refuses any other."""
 SCHEME_TENSOR = "scheme."
 """Prefix of the scheme's own state tensors (a server optimiser's moments) in the tensor file."""
 
 
 class AnswerBook:
-    """The answers the chief broadcast, kept to answer re-sends (docs/protocol.md, "Broker loss and idempotent
-    resends").
+    """The answers the chief broadcast, kept to answer re-sends: every exchange's of the open round and the
+    round before, and the last one (followed by ``done`` once the run ended). A re-sent message gets the
+    answer of its (round, step), or the last one if that is no longer kept (docs/protocol.md, "Broker loss and
+    idempotent resends").
 
-    It keeps the answer of every exchange of the open round and of the round before it, and the last answer
-    (followed by ``done`` once the run ended). A worker resumed from its checkpoint replays its round from
-    step 0 and re-sends each step's message; each is answered with the answer of exactly that (round, step),
-    so the worker continues as if it had never stopped. A re-send of an exchange no longer kept (older, or
-    lost with a restarted chief, which keeps only the last answer) gets the last answer.
-
-    :param holdoff: least seconds between two re-sends of one answer to one worker, counted from its
-        broadcast too (a flood of one stale message, or a re-send crossing the broadcast, is answered at most
-        once per hold-off).
-    :param last: the last answer of a restored chief (re-sent to each worker's first re-send at once).
+    :param holdoff: least seconds between two re-sends of one answer to one worker (from its broadcast too).
+    :param last: the last answer of a restored chief.
     """
 
     def __init__(self, holdoff: float, last: tuple[Message, ...] = ()) -> None:
-        """An empty book (or a restored chief's, holding only ``last``)."""
         self.holdoff = holdoff
         self.last = last
-        """the last answer broadcast (and ``done`` after the end)"""
         self._kept: dict[tuple[int, int], tuple[Message, ...]] = {}  # (round, step) → its answer
         self._sent: dict[tuple[str, int, int], float] = {}  # (worker, round, step) → last sent
 
@@ -65,8 +57,8 @@ class AnswerBook:
         self.last = (*self.last, done)
 
     def resend(self, worker: str, at: tuple[int, int], now: float) -> tuple[Message, ...]:
-        """The answer to send again for ``worker``'s stale message of (round, step) ``at``: that exchange's,
-        else the last; nothing if there is none yet or within the hold-off of its last sending."""
+        """The answer to send again for ``worker``'s stale message of (round, step) ``at``; nothing if there
+        is none yet or within the hold-off."""
         answer = self._kept.get(at, self.last)
         if not answer:
             return ()
@@ -78,49 +70,94 @@ class AnswerBook:
 
 
 @dataclass
-class ChiefState:
-    """Everything the chief remembers across inputs that a checkpoint keeps; the
-    :class:`~.chief.machine.Chief` owns
-    one and changes it as its rules say."""
+class Contributions:
+    """One worker's contributions to an asynchronous run (a re-sent one is answered again, never applied)."""
 
-    members: set[str]
-    """W: the workers still learning"""
+    applied: int = 0
+    left_out: int = 0  # staler than the run's max_staleness
+    last_round: int = 0  # the worker's last round taken: a contribution of this round or before is a re-send
+    staleness_total: int = 0
+    staleness_max: int = 0
+
+    def take(self, rnd: int, staleness: int, *, applied: bool) -> None:
+        """Count the worker's contribution of round ``rnd`` and staleness ``staleness``."""
+        self.last_round = rnd
+        self.staleness_total += staleness
+        self.staleness_max = max(self.staleness_max, staleness)
+        if applied:
+            self.applied += 1
+        else:
+            self.left_out += 1
+
+    def to_dict(self) -> dict[str, Any]:
+        """The counts, and the mean staleness (chief.json)."""
+        taken = self.applied + self.left_out
+        mean = round(self.staleness_total / taken, 3) if taken else 0.0
+        return {**asdict(self), "staleness_mean": mean}
+
+    @classmethod
+    def from_dict(cls, data: dict[str, Any]) -> Contributions:
+        """The record :meth:`to_dict` wrote."""
+        return cls(**{key: int(data[key]) for key in cls.__dataclass_fields__})
+
+
+class FleetModel:
+    """A per-step scheme's one policy, kept by its chief: its copy of ``agent`` (set to the fleet's start)
+    steps with every answer as each worker's does, so a joining worker's welcome and the checkpoint carry it.
+    """
+
+    def __init__(self, scheme: StepScheme, agent: FederatedAgent) -> None:
+        self.scheme = scheme
+        self.agent = agent
+        self.layout: Layout = list(scheme.welcome_layout(agent))
+
+    def apply(self, answer: Message) -> None:
+        """Apply one of the chief's step answers (every one, in order, as the workers do)."""
+        if answer.flat is None:
+            raise ValueError(f"a {answer.type} without tensors cannot move the fleet's model")
+        self.scheme.catch_up_step(self.agent, answer.step, answer.flat)
+
+    def snapshot(self) -> np.ndarray:
+        """The model a joining worker takes: network and optimiser state, flat in :attr:`layout` order."""
+        return np.asarray(self.scheme.start_parameters(self.agent), dtype=np.float32)
+
+    def start(self) -> FleetStart:
+        """The fleet's start a welcome carries until the fleet's first answer: the model as it is."""
+        return FleetStart(self.layout, self.snapshot())
+
+    def welcome(self, run_id: str, rnd: int, step: int) -> Message:
+        """The welcome a worker joining at exchange (``rnd``, ``step``) takes: the model as it now is."""
+        return Message("welcome", run_id, CHIEF_ID, rnd, step=step, origin=CHIEF_ID, flat=self.snapshot())
+
+    def load(self, flat: np.ndarray) -> None:
+        """Make the copy ``flat`` (a checkpoint's :meth:`snapshot`)."""
+        self.scheme.take_parameters(self.agent, flat)
+
+
+@dataclass
+class ChiefState:
+    """Everything the chief remembers across inputs that a checkpoint keeps."""
+
+    members: set[str]  # W: the workers still learning
     answers: AnswerBook
-    """the answers broadcast (the last one is kept across a restart)"""
-    round: int = 1
-    """the open round (after the end: the last round played)"""
-    step: int = 0
-    """the open exchange of the round (always 0 for a scheme that sends once per round)"""
-    config: dict[str, float | str] = field(default_factory=dict)
-    """what the scheme asks of every worker for the open round (sent in the welcome)"""
-    left: set[str] = field(default_factory=set)
-    """workers that sent parameters and left W for good"""
+    round: int = 1  # the open round (after the end: the last round played)
+    step: int = 0  # the open exchange of the round
+    config: dict[str, float | str] = field(default_factory=dict)  # the scheme's asks for the open round
+    left: set[str] = field(default_factory=set)  # workers that sent parameters and left W for good
     end_reason: str | None = None
-    """why the run ended, or None while it runs"""
-    suspects: dict[str, float] = field(default_factory=dict)
-    """went offline → leaves W at this time unless it comes back"""
-    incarnations: dict[str, int] = field(default_factory=dict)
-    """the newest incarnation seen of each worker"""
+    suspects: dict[str, float] = field(default_factory=dict)  # offline → leaves W at this time
+    incarnations: dict[str, int] = field(default_factory=dict)  # the newest seen of each worker
     model: Message | None = None
     """what a (re)joining worker starts from: the last transfer's θ* (fedavg: the last average) or the
     fleet's start"""
     rejections: Counter[Reason] = field(default_factory=Counter)
-    """how many messages were rejected, by reason"""
-    completed: dict[str, int] = field(default_factory=dict)
-    """worker → the first round its criterion held"""
-    transfers: list[tuple[int, str, tuple[str, ...]]] = field(default_factory=list)
-    """(round, origin, recipients) of every model transfer"""
-    dropouts: list[tuple[int, str, str]] = field(default_factory=list)
-    """(round, worker, reason) of every worker that left W without transferring"""
-    rejoins: list[tuple[int, str]] = field(default_factory=list)
-    """(round, worker) of every dropped worker that re-entered W"""
-    pace: FleetPace = field(default_factory=FleetPace)
-    """a per-step scheme's stragglers: who is behind, who took part in the open round, per member the
-    rounds closed without it and the contributions left out for their staleness"""
-    contributions: dict[str, Contributions] = field(default_factory=dict)
-    """an asynchronous scheme's: worker → its contributions taken (:mod:`.chief.contributions`)"""
-    epoch: int = 0
-    """the chief's epoch (:mod:`.chief.lease`): 0, or one more than the newest it knew of when it took over"""
+    completed: dict[str, int] = field(default_factory=dict)  # worker → the first round its criterion held
+    transfers: list[tuple[int, str, tuple[str, ...]]] = field(default_factory=list)  # (round, origin, to)
+    dropouts: list[tuple[int, str, str]] = field(default_factory=list)  # (round, worker, reason)
+    rejoins: list[tuple[int, str]] = field(default_factory=list)  # (round, worker)
+    pace: FleetPace = field(default_factory=FleetPace)  # a per-step scheme's stragglers
+    contributions: dict[str, Contributions] = field(default_factory=dict)  # an asynchronous scheme's
+    epoch: int = 0  # 0, or one more than the newest the chief knew of when it took over (:mod:`.lease`)
 
     def drop(self, workers: Iterable[str], reason: str) -> tuple[ChiefEvent, ...]:
         """``workers`` leave W (they may come back) for ``reason``; their events."""
@@ -148,10 +185,9 @@ class ChiefState:
         """``worker``, new to the run, is in W from now on."""
         self.members.add(worker)
         remaining = tuple(sorted_workers(self.members))
-        event = ChiefEvent(
-            "admitted", self.round, sender=worker, detail="new to the fleet", remaining=remaining
+        return (
+            ChiefEvent("admitted", self.round, sender=worker, detail="new to the fleet", remaining=remaining),
         )
-        return (event,)
 
     def fields(self) -> dict[str, Any]:
         """The JSON part (cheap: the runner compares it after every input)."""
@@ -194,8 +230,7 @@ class ChiefState:
         grace: float, now: float,
     ) -> ChiefState:  # fmt: skip
         """The state :meth:`fields` and :meth:`tensors` describe, its suspects' grace re-armed at ``now``."""
-        # only the last answer: each worker's first re-send gets it at once (docs/protocol.md, "Checkpoints
-        # and resume", on a worker replaying a round the restarted chief had half answered)
+        # only the last answer: each worker's first re-send gets it at once
         last = tuple(_message(run_id, m, tensors) for m in fields["last_answer"])
         return cls(
             members=set(fields["members"]),

@@ -1,7 +1,6 @@
 """Who the chief waits for at an exchange, and for how long: a once-per-round scheme's deadline and quorum
-(:class:`RoundWaits`), and a per-step scheme's stragglers after DD-PPO (:class:`StepWaits`: a quorum, then a
-grace; a member that missed an exchange is not waited for until heard from again; stale contributions left
-out). The rules: docs/protocol.md, "Deadline and quorum" and "Stragglers under a per-step scheme".
+(:class:`RoundWaits`), and a per-step scheme's stragglers after DD-PPO (:class:`StepWaits`). docs/protocol.md,
+"Deadline and quorum" and "Stragglers under a per-step scheme".
 """
 
 from __future__ import annotations
@@ -10,14 +9,12 @@ import math
 from collections import Counter
 from collections.abc import Mapping
 from dataclasses import dataclass, field
+from typing import Any
 
 from fleetrl.federation.wire.messages import Message
 
-GRACE_SHARE = 0.25
-"""after the quorum, the others' grace as a share of the time the quorum took (a round waits at most 1.25×
-its quorum's time)"""
-GRACE_FLOOR = 0.25
-"""the shortest grace in seconds (a fleet of fast simulated rounds is not cut by scheduling jitter)"""
+GRACE_SHARE = 0.25  # after the quorum, the others' grace as a share of the time the quorum took
+GRACE_FLOOR = 0.25  # the shortest grace in seconds (fast simulated rounds are not cut by jitter)
 
 
 def quorum_count(quorum: float, n: int) -> int:
@@ -29,17 +26,13 @@ def quorum_count(quorum: float, n: int) -> int:
 class FleetPace:
     """Who took part in what: the part of the chief's state (checkpointed) these rules keep."""
 
-    behind: set[str] = field(default_factory=set)
-    """members that took no part in the last round: not waited for at the next round's first exchange"""
-    participants: set[str] = field(default_factory=set)
-    """who has answered an exchange of the open round"""
-    late: Counter[str] = field(default_factory=Counter)
-    """per member: rounds that closed without it"""
-    stale: Counter[str] = field(default_factory=Counter)
-    """per member: contributions left out of the average for their staleness"""
+    behind: set[str] = field(default_factory=set)  # no part in the last round: not waited for at step 0
+    participants: set[str] = field(default_factory=set)  # who answered an exchange of the open round
+    late: Counter[str] = field(default_factory=Counter)  # per member: rounds that closed without it
+    stale: Counter[str] = field(default_factory=Counter)  # per member: contributions left out as stale
     missed: set[str] = field(default_factory=set)
-    """members that did not answer the last exchange that closed and have not been heard from about the open
-    round since: not waited for (under a quorum below 1)"""
+    """members that missed the last exchange that closed, not heard from since: not waited for (under a
+    quorum below 1)"""
 
     def fields(self) -> dict[str, object]:
         """As JSON."""
@@ -52,44 +45,36 @@ class FleetPace:
         }
 
     @classmethod
-    def from_fields(cls, fields: Mapping[str, object] | None) -> FleetPace:
+    def from_fields(cls, fields: Mapping[str, Any] | None) -> FleetPace:
         """From :meth:`fields` (None: a state written before stragglers were allowed for)."""
         if not fields:
             return cls()
-        late, stale = fields["late"], fields["stale"]
-        assert isinstance(late, dict) and isinstance(stale, dict)
         return cls(
-            behind={str(w) for w in fields["behind"]},  # type: ignore[attr-defined]
-            participants={str(w) for w in fields["participants"]},  # type: ignore[attr-defined]
-            late=Counter({str(w): int(n) for w, n in late.items()}),
-            stale=Counter({str(w): int(n) for w, n in stale.items()}),
-            missed={str(w) for w in fields.get("missed", ())},  # type: ignore[attr-defined]
+            behind={str(w) for w in fields["behind"]},
+            participants={str(w) for w in fields["participants"]},
+            late=Counter({str(w): int(n) for w, n in fields["late"].items()}),
+            stale=Counter({str(w): int(n) for w, n in fields["stale"].items()}),
+            missed={str(w) for w in fields.get("missed", ())},
         )
 
 
 @dataclass
 class RoundWaits:
     """A once-per-round scheme's waiting rule: a round waits for every member of W; at its deadline
-    (``round_timeout`` after it opened) it closes with the answers it has if ⌈quorum·|W|⌉ answered, else the
-    silent members leave W first.
-
-    :param quorum: the share of W whose answers close a round at its deadline.
-    :param round_timeout: seconds a round may stay open before the deadline rule applies; None: no deadline.
-    """
+    (``round_timeout`` after it opened; None: none) it closes with the answers it has if ⌈quorum·|W|⌉
+    answered, else the silent members leave W first."""
 
     quorum: float
     round_timeout: float | None
 
     def all_in(self, pace: FleetPace, members: set[str], step: int, pending: Mapping[str, Message]) -> bool:
         """Everyone waited for has answered (and someone has)."""
-        del pace, step
         return bool(pending) and members.issubset(pending)
 
     def note(
         self, pace: FleetPace, members: set[str], step: int, pending: Mapping[str, Message], now: float
     ) -> None:
         """An answer was taken at ``now`` and the exchange stays open."""
-        del pace, members, step, pending, now
 
     def deadline(self, opened: float | None) -> float | None:
         """When the open exchange closes with whoever answered (None: not before everyone waited for)."""
@@ -97,7 +82,6 @@ class RoundWaits:
 
     def heard(self, pace: FleetPace, worker: str) -> None:
         """``worker`` answered an exchange of the open round that had already closed (a late answer)."""
-        del pace, worker
 
     def silent_leave(self, members: set[str], pending: Mapping[str, Message]) -> set[str]:
         """At the deadline: the members that leave W as the exchange closes."""
@@ -105,37 +89,30 @@ class RoundWaits:
         return set() if len(answered) >= quorum_count(self.quorum, len(members)) else members - answered
 
     def admit(self, pace: FleetPace, worker: str) -> None:
-        """``worker`` is new to the run: a round's fleet waits for it from its next round (nothing to do)."""
-        del pace, worker
+        """``worker`` is new to the run (waited for from its next round)."""
 
     def excused(self, pace: FleetPace, worker: str, step: int) -> bool:
         """Whether a restarted ``worker`` that will not replay the open round is not waited for in its later
         exchanges (once per round: there are none)."""
-        del pace, worker, step
         return False
 
     def averaged(self, pace: FleetPace, answers: Mapping[str, Message], step: int) -> dict[str, Message]:
         """The answers the scheme combines."""
-        del pace, step
         return dict(answers)
 
     def closed(self, pace: FleetPace, members: set[str], answered: tuple[str, ...], last_step: bool) -> None:
         """An exchange closed with ``answered``."""
-        del pace, members, answered, last_step
 
 
 @dataclass
 class StepWaits(RoundWaits):
-    """The open exchange's waiting rule for a per-step scheme (see the module's docstring).
-
-    :param quorum: the share of those waited for after which the grace starts.
-    :param round_timeout: seconds after which an exchange closes with whoever answered; None: no such limit.
-    :param max_staleness: rounds a contribution may lag the fleet and still be averaged; None: no bound.
-    """
+    """A per-step scheme's waiting rule: after ``quorum`` of those waited for answered, the rest get a grace;
+    a member that missed an exchange is not waited for until heard from again; contributions staler than
+    ``max_staleness`` rounds (None: no bound) are left out; ``round_timeout`` closes an exchange with whoever
+    answered."""
 
     max_staleness: int | None = None
-    quorum_at: float | None = None
-    """when the open exchange reached its quorum (None: not yet)"""
+    quorum_at: float | None = None  # when the open exchange reached its quorum
 
     def waited_for(self, pace: FleetPace, members: set[str], step: int) -> set[str]:
         """The members the open exchange (``step`` of its round) waits for."""
@@ -168,24 +145,20 @@ class StepWaits(RoundWaits):
         return min(times, default=None)
 
     def heard(self, pace: FleetPace, worker: str) -> None:
-        """``worker`` answered an exchange of the open round late: it is not silent, so it is waited for again
-        (under a quorum below 1; see the module's docstring)."""
+        """``worker`` answered an exchange of the open round late: it is waited for again (quorum < 1)."""
         if self.quorum < 1:
             pace.missed.discard(worker)
 
     def silent_leave(self, members: set[str], pending: Mapping[str, Message]) -> set[str]:
         """Nobody leaves W for being late: a straggler catches up."""
-        del members, pending
         return set()
 
     def admit(self, pace: FleetPace, worker: str) -> None:
-        """``worker`` is new to the run: it is behind (it plays its first round from the fleet's model and
-        joins the next round-opening exchange after it)."""
+        """``worker`` is new to the run: behind until the round-opening exchange after its first round."""
         pace.behind.add(worker)
 
     def excused(self, pace: FleetPace, worker: str, step: int) -> bool:
-        """A restarted ``worker`` that will not replay the open round is not waited for in its exchanges
-        after the first: it joins the fleet's next round."""
+        """A restarted ``worker`` that will not replay the open round joins the fleet's next round."""
         if step == 0:
             return False
         pace.participants.discard(worker)
@@ -203,9 +176,8 @@ class StepWaits(RoundWaits):
         return fresh
 
     def closed(self, pace: FleetPace, members: set[str], answered: tuple[str, ...], last_step: bool) -> None:
-        """An exchange closed with ``answered``: the members that did not answer it missed it (an exchange
-        closed with no answer — a site's, the root having gone on without it — changes nothing of that); at
-        the round's last, who took no part in the round is behind."""
+        """An exchange closed with ``answered`` (none: a site's the root closed without it): the others
+        missed it; at the round's last, who took no part in the round is behind."""
         self.quorum_at = None
         if answered:
             pace.missed = members - set(answered)

@@ -1,10 +1,6 @@
-"""The edge aggregator's loop: drive :class:`~.edge.aggregator.EdgeAggregator` over two transports —
-downstream, its
-members' (the site's run: a site broker, or the central one under the site's own run id), and upstream, the
-root's (where the site is one worker).
-
-Each transport is read by a small thread that only queues what arrives; the state machine is fed from that
-one queue, in arrival order, on the caller's thread, so its inputs are never concurrent.
+"""The edge aggregator's loop: drive :class:`~.edge.aggregator.EdgeAggregator` over two transports, its
+members' (downstream: the site's run) and the root's (upstream: the site is one worker there). A thread per
+transport only queues what arrives; the state machine is fed from that queue on the caller's thread.
 """
 
 from __future__ import annotations
@@ -20,27 +16,15 @@ from fleetrl.federation.edge.aggregator import EdgeAggregator, EdgeStep
 from fleetrl.federation.events import ChiefEvent
 from fleetrl.federation.runner import MIN_WAIT, IdleTimeout
 from fleetrl.federation.shared_settings import SettingsRefused
+from fleetrl.federation.wire import topics
 from fleetrl.federation.wire.messages import encode
 from fleetrl.federation.wire.signing import status_payload
-from fleetrl.federation.wire.topics import (
-    CHIEF_ID,
-    ENDED,
-    OFFLINE,
-    ONLINE,
-    chief_topic,
-    node_of_status_topic,
-    status_filter,
-    status_topic,
-    worker_filter,
-    worker_of_topic,
-    worker_topic,
-)
+from fleetrl.federation.wire.topics import CHIEF_ID, ENDED, OFFLINE, ONLINE
 from fleetrl.transport.base import Received, Transport, Will
 
 log = logging.getLogger(__name__)
 
-POLL = 0.1
-"""seconds a reader thread waits on its transport before looking whether the loop has ended"""
+POLL = 0.1  # seconds a reader thread waits on its transport before looking whether the loop has ended
 
 
 @dataclass(frozen=True)
@@ -50,24 +34,17 @@ class EdgeSummary:
     site: str
     rounds: int
     end_reason: str
-    members: tuple[str, ...]
-    """the site's members when it ended"""
+    members: tuple[str, ...]  # the site's members when it ended
 
 
 def run_edge(
-    edge: EdgeAggregator,
-    *,
-    upstream: Transport,
-    downstream: Transport,
-    on_event: Callable[[ChiefEvent], None] | None = None,
-    idle_timeout: float | None = None,
+    edge: EdgeAggregator, *, upstream: Transport, downstream: Transport,
+    on_event: Callable[[ChiefEvent], None] | None = None, idle_timeout: float | None = None,
     clock: Callable[[], float] = time.monotonic,
-) -> EdgeSummary:
-    """Serve one site until the root ends the run: connect both sides (each with an ``offline`` last will),
-    join the root, and relay.
+) -> EdgeSummary:  # fmt: skip
+    """Serve one site until the root ends the run: connect both sides (unconnected transports to the root's
+    and the site's broker, each with an ``offline`` last will), join the root, and relay.
 
-    :param edge: the state machine.  :param upstream: an unconnected transport to the root's broker.
-    :param downstream: an unconnected transport to the site's broker (may be the same broker).
     :param on_event: called with every event (also logged).
     :param idle_timeout: raise :class:`~.runner.IdleTimeout` when nothing arrives for this long (None: never).
     :raises SettingsRefused: the root refused the site's shared settings (its members were sent ``done``).
@@ -75,7 +52,7 @@ def run_edge(
     site = edge.site
     incarnation = time.time_ns()
     root_run, site_run, site_id = site.root_run, site.run_id, site.site_id
-    up_status, down_status = status_topic(root_run, site_id), status_topic(site_run, CHIEF_ID)
+    up_status, down_status = topics.status_topic(root_run, site_id), topics.status_topic(site_run, CHIEF_ID)
 
     def up_state(state: bytes) -> bytes:
         return status_payload(state, run_id=root_run, node=site_id, incarnation=incarnation, key=site.key)
@@ -89,10 +66,10 @@ def run_edge(
             if retain:  # a re-sent join goes with the site's online status, as a worker's does
                 upstream.publish(up_status, up_state(ONLINE), retain=True)
             payload = encode(message, layout=site.layout, key=site.key)
-            upstream.publish(worker_topic(root_run, site_id), payload, retain=retain)
+            upstream.publish(topics.worker_topic(root_run, site_id), payload, retain=retain)
         for message in step.down:
             payload = encode(message, layout=site.layout_of(message.type), key=site.key)
-            downstream.publish(chief_topic(site_run), payload)
+            downstream.publish(topics.chief_topic(site_run), payload)
         for event in step.events:
             (log.warning if event.kind in ("rejected", "dropped", "refused") else log.info)(
                 "site %s: %s", site_id, event
@@ -116,9 +93,9 @@ def run_edge(
         for side, t in (("up", upstream), ("down", downstream))
     ]
     try:
-        downstream.subscribe(worker_filter(site_run))
-        downstream.subscribe(status_filter(site_run))
-        upstream.subscribe(chief_topic(root_run))
+        downstream.subscribe(topics.worker_filter(site_run))
+        downstream.subscribe(topics.status_filter(site_run))
+        upstream.subscribe(topics.chief_topic(root_run))
         for thread in readers:
             thread.start()
         downstream.announce(down_status, down_state(ONLINE))
@@ -131,14 +108,16 @@ def run_edge(
             waits = [] if idle_timeout is None else [last_input + idle_timeout - now]
             if (deadline := edge.next_deadline()) is not None:
                 waits.append(max(deadline - now + 0.001, MIN_WAIT))
-            item = _next(inbox, max(0.0, min(waits)) if waits else None)
-            if item is None:  # a deadline, or the idle timeout
+            try:
+                side, received = inbox.get(timeout=max(0.0, min(waits)) if waits else None)
+            except queue.Empty:  # a deadline, or the idle timeout
                 now = clock()
                 publish(edge.tick(now))
                 if idle_timeout is not None and now - last_input >= idle_timeout:
-                    raise IdleTimeout(f"site {site_id}: nothing for {idle_timeout:g} s in round {site.round}")
+                    raise IdleTimeout(
+                        f"site {site_id}: nothing for {idle_timeout:g} s in round {site.round}"
+                    ) from None
                 continue
-            side, received = item
             now = last_input = clock()
             publish(_feed(edge, side, received, now))
             publish(edge.tick(now))
@@ -156,23 +135,15 @@ def run_edge(
     return EdgeSummary(site_id, site.round, site.end_reason or "?", site.members)
 
 
-def _next(inbox: queue.Queue[tuple[str, Received]], timeout: float | None) -> tuple[str, Received] | None:
-    """What a transport delivered next, or None after ``timeout`` seconds."""
-    try:
-        return inbox.get(timeout=timeout)
-    except queue.Empty:
-        return None
-
-
 def _feed(edge: EdgeAggregator, side: str, received: Received, now: float) -> EdgeStep:
     """One received payload, to the side of the machine it belongs to."""
     site = edge.site
     if side == "up":
         return edge.root_bytes(received.payload, now=now)
-    worker = worker_of_topic(site.run_id, received.topic)
+    worker = topics.worker_of_topic(site.run_id, received.topic)
     if worker is not None:
         return edge.receive_bytes(received.payload, topic_worker=worker, now=now)
-    node = node_of_status_topic(site.run_id, received.topic)
+    node = topics.node_of_status_topic(site.run_id, received.topic)
     if node is not None and node != CHIEF_ID:
         return edge.status(node, received.payload, retained=received.retained, now=now)
     return EdgeStep()
