@@ -1,68 +1,41 @@
 """The QUBE-Servo 2's SPI frames (Raspberry Pi variant): the 17-byte command and reply, as pure functions.
-
-Every constant is a fact of ``reference/qube-spi-protocol.md`` (the frames the paper's rig exchanged); the
-section of that sheet each one comes from is named beside it. Verify the layout against your unit's data
-sheet before trusting it on hardware (docs/hardware.md).
-"""
+Every constant is a fact of ``reference/qube-spi-protocol.md``; check it against your unit's data sheet."""
 
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass
 
-SPI_MODE = 0b10
-"""bus settings: SPI mode 2 (CPOL = 1, CPHA = 0), not mode 0"""
+SPI_MODE = 0b10  # SPI mode 2 (CPOL = 1, CPHA = 0), not mode 0
 SPI_SPEED_HZ = 1_000_000
-"""bus settings: 1 MHz clock"""
-FRAME_BYTES = 17
-"""bus settings: one full-duplex transfer of 17 bytes writes the command and returns the reply"""
+FRAME_BYTES = 17  # one full-duplex transfer writes the command and returns the reply
 
-MODE_WRITE = 0x01
-"""command byte 0: write what the mask selects"""
-MASK_MOTOR = 1 << 0
-"""write mask bit 0: write the motor command"""
-MASK_ENABLE = 1 << 1
-"""write mask bit 1: write the motor (amplifier) enable"""
-MASK_RED, MASK_GREEN, MASK_BLUE = 1 << 2, 1 << 3, 1 << 4
-"""write mask bits 2-4: write the red, green, blue LED"""
-MASK_PRESET_ARM, MASK_PRESET_PENDULUM = 1 << 5, 1 << 6
-"""write mask bits 5-6: preset encoder 0 (arm), encoder 1 (pendulum)"""
-STEP_MASK = MASK_MOTOR | MASK_ENABLE | MASK_RED | MASK_GREEN | MASK_BLUE
-"""what the lab's code wrote every control step: motor, enable, three LEDs"""
-RESET_MASK = STEP_MASK | MASK_PRESET_ARM | MASK_PRESET_PENDULUM
-"""what it wrote once at reset: the same and both encoder presets (zeroing both encoders)"""
-LED_FULL = 999
-"""an LED's full brightness (0x03E7), big-endian in two bytes"""
+MODE_WRITE = 0x01  # command byte 0: write what the mask selects
+MASK_MOTOR = 1 << 0  # write mask bit 0: write the motor command
+MASK_ENABLE = 1 << 1  # write mask bit 1: write the motor (amplifier) enable
+MASK_RED, MASK_GREEN, MASK_BLUE = 1 << 2, 1 << 3, 1 << 4  # write mask bits 2-4: the LEDs
+MASK_PRESET_ARM, MASK_PRESET_PENDULUM = 1 << 5, 1 << 6  # bits 5-6: preset encoder 0 (arm), 1 (pendulum)
+STEP_MASK = MASK_MOTOR | MASK_ENABLE | MASK_RED | MASK_GREEN | MASK_BLUE  # written every control step
+RESET_MASK = STEP_MASK | MASK_PRESET_ARM | MASK_PRESET_PENDULUM  # written once at reset: zeroes both encoders
+LED_FULL = 999  # an LED's full brightness (0x03E7), big-endian in two bytes
 
-AMPLIFIER_ENABLE = 0x8000
-"""motor command word bit 15: amplifier enabled"""
-DUTY_MASK = 0x7FFF
-"""the duty value masked to 15 bits (an 11-bit two's-complement value sign-extended into bits 11-14)"""
-DUTY_LIMIT = 1023
-"""the largest magnitude an 11-bit two's-complement duty holds"""
-VOLTS_PER_DUTY = 15.0 / 625.0
-"""625 duty units ≈ 15 V"""
+AMPLIFIER_ENABLE = 0x8000  # motor command word bit 15: amplifier enabled
+DUTY_MASK = 0x7FFF  # an 11-bit two's-complement duty, sign-extended into bits 11-14
+DUTY_LIMIT = 1023  # the largest magnitude an 11-bit two's-complement duty holds
+VOLTS_PER_DUTY = 15.0 / 625.0  # 625 duty units ≈ 15 V
 
-COUNTS_PER_REV = 2048
-"""counts per revolution of both encoders"""
+COUNTS_PER_REV = 2048  # counts per revolution of both encoders
 RADIANS_PER_COUNT = 2.0 * math.pi / COUNTS_PER_REV
-"""2π / 2048 rad per count"""
-COUNTS_MODULUS = 1 << 24
-"""encoder counts are 24-bit two's complement (sign bit 0x800000)"""
+COUNTS_MODULUS = 1 << 24  # encoder counts are 24-bit two's complement (sign bit 0x800000)
 
 
 @dataclass(frozen=True)
 class Reply:
-    """The fields of a reply frame the driver uses.
+    """The fields of a reply frame the driver uses."""
 
-    :param device_id: bytes 0-1, big-endian
-    :param arm_counts: bytes 2-4, encoder 0, signed
-    :param pendulum_counts: bytes 5-7, encoder 1, signed
-    """
-
-    device_id: int
-    arm_counts: int
-    pendulum_counts: int
+    device_id: int  # bytes 0-1, big-endian
+    arm_counts: int  # bytes 2-4, encoder 0, signed
+    pendulum_counts: int  # bytes 5-7, encoder 1, signed
 
 
 def duty_of_volts(volts: float) -> int:

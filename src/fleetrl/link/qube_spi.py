@@ -1,9 +1,5 @@
-"""``QubeSpiDriver``: a QUBE-Servo 2 (Raspberry Pi variant) on the Pi's SPI bus, behind ``DeviceDriver``.
-
-One full-duplex transfer of the 17-byte frames (``fleetrl.link.qube_frames``) per read or write; the
-command clamped to ±10 V, every reply's device id checked, a stuck arm encoder a fault, and the amplifier
-disabled on any fault, ``motor_off`` or ``close`` (docs/hardware.md). ``spidev`` is the ``pi`` extra.
-"""
+"""``QubeSpiDriver``: a QUBE-Servo 2 (Raspberry Pi variant) on the Pi's SPI bus, behind ``DeviceDriver``
+(docs/hardware.md); ``spidev`` is the ``pi`` extra."""
 
 from __future__ import annotations
 
@@ -36,15 +32,11 @@ from fleetrl.link.qube_reset import ResetSettings, reset_through_driver
 
 log = logging.getLogger(__name__)
 
-STUCK_VOLTS = 2.0
-"""a held command at least this large (V) must move the arm…"""
-STUCK_SECONDS = 0.3
-"""…by a count within this long, or the arm encoder (or the motor) is stuck"""
+STUCK_VOLTS = 2.0  # a held command at least this large must move the arm…
+STUCK_SECONDS = 0.3  # …by a count within this long, or the arm encoder (or the motor) is stuck
 STUCK_DUTY = duty_of_volts(STUCK_VOLTS)
-SAFE_DUTY = math.floor(QUBE_SAFE_VOLTS / VOLTS_PER_DUTY)
-"""the largest duty inside ±10 V (416 ≈ 9.98 V)"""
-NO_DEVICE_IDS = (0x0000, 0xFFFF)
-"""what a bus with nothing on it reads back: never a QUBE's id"""
+SAFE_DUTY = math.floor(QUBE_SAFE_VOLTS / VOLTS_PER_DUTY)  # the largest duty inside ±10 V
+NO_DEVICE_IDS = (0x0000, 0xFFFF)  # what a bus with nothing on it reads back
 INSTALL_HINT = "pip install 'fleetrl[pi]'"
 
 
@@ -58,17 +50,9 @@ class SpiDevice(Protocol):
     mode: int
     max_speed_hz: int
 
-    def open(self, bus: int, device: int) -> None:
-        """Open ``/dev/spidev<bus>.<device>``."""
-        ...
-
-    def xfer2(self, data: list[int]) -> list[int]:
-        """One full-duplex transfer, chip select held throughout."""
-        ...
-
-    def close(self) -> None:
-        """Release the bus."""
-        ...
+    def open(self, bus: int, device: int) -> None: ...
+    def xfer2(self, data: list[int]) -> list[int]: ...
+    def close(self) -> None: ...
 
 
 def spidev_factory() -> Callable[[], SpiDevice]:
@@ -82,20 +66,10 @@ def spidev_factory() -> Callable[[], SpiDevice]:
 
 
 class QubeSpiDriver:
-    """A QUBE-Servo 2 over SPI (mode 2, 1 MHz, 17-byte frames) as a ``DeviceDriver``.
-
-    Opening zeroes both encoders: start it with the pendulum hanging still and the arm centred.
-
-    :param bus: SPI bus number (``/dev/spidev<bus>.<device>``)
-    :param device: chip-select number on that bus
-    :param control_period: seconds of one agent step (the rig: 6 ms)
-    :param expected_id: the device id every reply must carry; None: the id of the first reply (which must
-        not be 0x0000 or 0xFFFF, what an empty bus reads)
-    :param spi_factory: makes the bus object (default ``spidev.SpiDev``)
-    :param clock: seconds, monotonic (default ``time.perf_counter``)
-    :param sleep_until: sleeps until ``clock() >= deadline`` (default ``precise_sleep_until``)
-    :param reset: how ``home`` runs the device-side reset
-    """
+    """A QUBE-Servo 2 on ``/dev/spidev<bus>.<device>`` as a ``DeviceDriver``: the command clamped to ±10 V,
+    every reply's device id checked (``expected_id``, default the first reply's), a stuck arm encoder a
+    fault, the amplifier disabled on any fault. Opening zeroes both encoders: start it with the pendulum
+    hanging still and the arm centred."""
 
     def __init__(
         self,
@@ -112,12 +86,9 @@ class QubeSpiDriver:
         self.spec = qube_spec(control_period, QUBE_SAFE_VOLTS)
         self.expected_id = expected_id
         self.reset_settings = reset or ResetSettings()
-        self.faulted: str | None = None
-        """why the driver stopped (None while healthy)"""
-        self.duty = 0
-        """the duty value held"""
-        self.amplifier = False
-        """whether the amplifier is enabled"""
+        self.faulted: str | None = None  # why the driver stopped
+        self.duty = 0  # the duty value held
+        self.amplifier = False  # whether the amplifier is enabled
         self._clock = clock
         self._sleep_until = sleep_until
         self._obs = np.zeros(4, dtype=np.float32)
@@ -142,15 +113,13 @@ class QubeSpiDriver:
             raise
         log.info("QUBE on /dev/spidev%d.%d, device id 0x%04x", bus, device, self.expected_id)
 
-    # -- DeviceDriver ---------------------------------------------------------------------------------
-
     def time(self) -> float:
         """Seconds on the clock since the driver opened."""
         return self._clock() - self._origin
 
     def read_sensors(self) -> np.ndarray:
-        """One transfer (the held command resent); float32 [alpha, alpha_dot, theta, theta_dot], the
-        velocities by finite difference over the measured time since the previous read (as the rig)."""
+        """One transfer (the held command resent); [alpha, alpha_dot, theta, theta_dot], the velocities by
+        finite difference since the previous read (as the rig)."""
         self._refuse_if_faulted()
         reply = self._transfer()
         now = self.time()
@@ -196,20 +165,15 @@ class QubeSpiDriver:
         self._spi.close()
 
     def __enter__(self) -> QubeSpiDriver:
-        """The driver itself."""
         return self
 
     def __exit__(
         self, exc_type: type[BaseException] | None, exc: BaseException | None, tb: TracebackType | None
     ) -> None:
-        """Close (amplifier off), whatever happened."""
         self.close()
 
-    # -- frames and faults ----------------------------------------------------------------------------
-
     def _transfer(self, mask: int | None = None, *, check: bool = True) -> Reply:
-        """Send the held duty word (LEDs: green running, red faulted, blue amplifier off); return the
-        decoded reply, its device id checked unless ``check`` is False."""
+        """Send the held duty word (LEDs: green running, red faulted, blue amplifier off); the reply."""
         led = (LED_FULL, 0, 0) if self.faulted else (0, LED_FULL, 0) if self.amplifier else (0, 0, LED_FULL)
         word = motor_word(self.duty, enabled=self.amplifier)
         frame = command_frame(word, led=led) if mask is None else command_frame(word, mask=mask, led=led)
