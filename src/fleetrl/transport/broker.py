@@ -33,6 +33,7 @@ _CONNECT = (
 )
 _DISCONNECT = b"\xe0\x00"
 HIDE_MOSQUITTO_ENV = "FLEETRL_HIDE_MOSQUITTO"
+READY_TIMEOUT = 15.0  # seconds to wait for the first CONNACK
 
 
 def find_mosquitto() -> str | None:
@@ -213,7 +214,6 @@ class EmbeddedBroker:
         prefer: Preference = "auto",
         *,
         port: int | None = None,
-        ready_timeout: float = 15.0,
         config: Path | None = None,
     ) -> None:
         if prefer not in ("auto", "mosquitto", "amqtt"):
@@ -230,7 +230,6 @@ class EmbeddedBroker:
         self._config = config
         self.host = "127.0.0.1"
         self.port = port or 0
-        self._ready_timeout = ready_timeout
         self._running = False
 
     @property
@@ -251,8 +250,8 @@ class EmbeddedBroker:
             while not self._ready():
                 if isinstance(self._backend, _Mosquitto) and not self._backend.alive():
                     raise RuntimeError(f"mosquitto exited at start (port {self.port} taken?)")
-                if time.monotonic() - started > self._ready_timeout:
-                    raise RuntimeError(f"{self.kind} broker not ready within {self._ready_timeout:g} s")
+                if time.monotonic() - started > READY_TIMEOUT:
+                    raise RuntimeError(f"{self.kind} broker not ready within {READY_TIMEOUT:g} s")
                 time.sleep(0.01)
         except BaseException:
             self._backend.stop()

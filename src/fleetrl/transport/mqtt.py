@@ -257,11 +257,9 @@ def probe_broker(url: str, *, timeout: float, **options: Any) -> None:
 RETAINED_GRACE = 0.5  # seconds to wait after a SUBACK (a retained message follows it at once)
 
 
-def read_retained(
-    url: str, topic: str, *, client_id: str, timeout: float, grace: float = RETAINED_GRACE, **options: Any
-) -> bytes | None:
-    """The message retained on ``topic`` (None: there is none, ``grace`` s after the SUBACK), read over a
-    clean-session connection of its own as ``client_id``; ConnectionError if it fails within ``timeout`` s."""
+def read_retained(url: str, topic: str, *, client_id: str, timeout: float, **options: Any) -> bytes | None:
+    """The message retained on ``topic`` (None: none came ``RETAINED_GRACE`` s after the SUBACK), read over
+    a clean-session connection of its own; ConnectionError if that fails within ``timeout`` s."""
     transport = MqttTransport(url, connect_timeout=timeout, clean_session=True, **options)
     acked = threading.Event()
     transport.connect(client_id)
@@ -279,7 +277,7 @@ def read_retained(
             now = time.monotonic()
             if acked_at is None and acked.is_set():
                 acked_at = now
-            if acked_at is not None and now >= acked_at + grace:
+            if acked_at is not None and now >= acked_at + RETAINED_GRACE:
                 return None
             if now >= deadline:
                 raise ConnectionError(
