@@ -10,10 +10,9 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from fleetrl.cli.device_command import DRIVERS, add_driver_arguments, make_driver
+from fleetrl.cli.device_command import DRIVERS, add_driver_arguments, make_driver, realtime_mode
 from fleetrl.cli.settings_args import add_fleet_profile_argument
 from fleetrl.envs.catalog import get_env_spec
-from fleetrl.link.realtime import request_realtime_priority
 
 DEFAULT_ENV = "qube"
 
@@ -135,9 +134,7 @@ def cmd_control(args: argparse.Namespace) -> int:
     spec = get_env_spec(env)
     if args.driver in DRIVERS and spec.device is None:
         raise ValueError(f"{spec.title} is your own unit type: give its driver as --driver PKG.MOD:FUNCTION")
-    realtime = args.realtime or args.driver == "qube-spi"
-    if realtime and args.rt_priority > 0:
-        request_realtime_priority(args.rt_priority)
+    realtime = realtime_mode(args)
     device = spec.device if args.driver in DRIVERS else None  # which built-in unit --driver sim simulates
     driver = make_driver(argparse.Namespace(**{**vars(args), "env": device}), realtime)
     mode = "real time" if realtime else "lockstep"

@@ -81,10 +81,7 @@ def cmd_device(args: argparse.Namespace) -> int:
 
     login = BrokerLogin(broker=args.broker, broker_password_file=args.broker_password_file)
     login.validate_broker()  # before the driver or a broker starts
-    # on hardware time runs whether a command came or not: a real unit's bridge always runs in real time
-    realtime = args.realtime or args.driver == "qube-spi"
-    if realtime and args.rt_priority > 0:
-        request_realtime_priority(args.rt_priority)
+    realtime = realtime_mode(args)
     driver = make_driver(args, realtime)
     broker = None
     bridge = None
@@ -112,6 +109,15 @@ def cmd_device(args: argparse.Namespace) -> int:
         if broker is not None:
             broker.close()
     return 0
+
+
+def realtime_mode(args: argparse.Namespace) -> bool:
+    """Whether the unit runs in real time (on hardware always: time runs whether a command came or not);
+    then at ``--rt-priority``."""
+    realtime = args.realtime or args.driver == "qube-spi"
+    if realtime and args.rt_priority > 0:
+        request_realtime_priority(args.rt_priority)
+    return realtime
 
 
 def make_driver(args: argparse.Namespace, realtime: bool) -> DeviceDriver:

@@ -71,11 +71,8 @@ class Command:
         """A step carrying an action index (int) or a command vector (floats); ValueError otherwise."""
         if isinstance(action, int | np.integer) and not isinstance(action, bool | np.bool_):
             return cls(sid, seq, "step", action=int(action))
-        vector = (
-            np.asarray(action)
-            if isinstance(action, np.ndarray | list | tuple | float | np.floating)
-            else None
-        )
+        vectors = np.ndarray | list | tuple | float | np.floating
+        vector = np.asarray(action) if isinstance(action, vectors) else None
         if vector is None or not np.issubdtype(vector.dtype, np.floating) or vector.ndim > 1:
             raise ValueError(f"a step takes an action index (int) or a 1-D vector of floats, got {action!r}")
         return cls(sid, seq, "step", command=tuple(vector.reshape(-1).astype(np.float32).tolist()))

@@ -43,7 +43,6 @@ class DelayedTransport:
         self._send(lambda: self.inner.publish(topic, payload, qos=qos, retain=retain))
 
     def announce(self, topic: str, payload: bytes) -> None:
-        """Announce ``payload`` on ``topic`` through ``inner``, ``delay`` seconds from now."""
         self._send(lambda: self.inner.announce(topic, payload))
 
     def subscribe(self, topic_filter: str, *, qos: int = 1) -> None:

@@ -67,7 +67,6 @@ class LocalTransport:
         self._will: Will | None = None
 
     def connect(self, client_id: str, *, will: Will | None = None, timeout: float | None = None) -> None:
-        """Join the bus as ``client_id`` with an optional last will."""
         self._client_id = client_id
         self._will = will
         self._bus._attach(client_id, self)
@@ -97,7 +96,6 @@ class LocalTransport:
             return None
 
     def close(self) -> None:
-        """Leave the bus cleanly (no will)."""
         self._detach(publish_will=False)
 
     def abort(self) -> None:

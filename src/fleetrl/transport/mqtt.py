@@ -169,7 +169,6 @@ class MqttTransport:
                 self._unacked.append(info)
 
     def announce(self, topic: str, payload: bytes) -> None:
-        """Publish retained now and after every reconnect (once subscriptions are renewed)."""
         with self._lock:
             self._announced[topic] = payload
         self.publish(topic, payload, retain=True)
@@ -183,7 +182,6 @@ class MqttTransport:
             client.subscribe(topic_filter, qos=qos)
 
     def receive(self, timeout: float | None = None) -> Received | None:
-        """The next message, or None after ``timeout`` seconds."""
         try:
             return self._queue.get(timeout=timeout)
         except queue.Empty:
