@@ -307,11 +307,9 @@ class DeviceBridge:
             self._flags |= FLAG_WATCHDOG
             self.stats.watchdog_trips += 1
             # in lockstep every pause between episodes trips it: a warning only in real time
+            level = logging.WARNING if self.realtime else logging.DEBUG
             log.log(
-                logging.WARNING if self.realtime else logging.DEBUG,
-                "unit %d watchdog: no command for %.0f ms; motor off",
-                self.unit,
-                1e3 * self.watchdog,
+                level, "unit %d watchdog: no command for %.0f ms; motor off", self.unit, 1e3 * self.watchdog
             )
 
     def _poll_timeout(self) -> float:

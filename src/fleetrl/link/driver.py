@@ -101,14 +101,9 @@ def cartpole_spec(tau: float) -> DriverSpec:
 
 def qube_spec(control_period: float, max_volts: float = QUBE_SAFE_VOLTS) -> DriverSpec:
     """A QUBE-Servo 2: command ``[volts]`` within ±``max_volts``, the paper's three actions, the arm limit."""
+    actions = tuple((volts,) for volts in ACTION_VOLTS)
     return DriverSpec(
-        "qube",
-        (-max_volts,),
-        (max_volts,),
-        tuple((volts,) for volts in ACTION_VOLTS),
-        control_period,
-        QUBE_ARM_INDEX,
-        QUBE_ARM_LIMIT,
+        "qube", (-max_volts,), (max_volts,), actions, control_period, QUBE_ARM_INDEX, QUBE_ARM_LIMIT
     )
 
 
