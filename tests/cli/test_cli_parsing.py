@@ -3,7 +3,7 @@
 import pytest
 
 from fleetrl.cli.main import main
-from fleetrl.cli.parsing import parse_overrides
+from fleetrl.cli.settings_args import parse_overrides
 
 
 def test_overrides_are_json_typed() -> None:

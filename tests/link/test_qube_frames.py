@@ -8,7 +8,7 @@ import math
 import pytest
 from qube_emulator import EmulatedQube
 
-from fleetrl.link.qube_frames import (
+from fleetrl.link.qube_spi import (
     RESET_MASK,
     SPI_MODE,
     SPI_SPEED_HZ,

@@ -11,9 +11,8 @@ import time
 
 import pytest
 
-from fleetrl.transport.amqtt_mended import SnapshotSubscriptions
 from fleetrl.transport.base import Transport, Will
-from fleetrl.transport.broker import EmbeddedBroker, free_port, mqtt_ready
+from fleetrl.transport.broker import EmbeddedBroker, SnapshotSubscriptions, free_port, mqtt_ready
 from fleetrl.transport.mqtt import BrokerAddress, MqttTransport
 
 

@@ -1,3 +1,3 @@
 """The ``fleetrl`` command line: the commands (``main``), the roles of a run spread over machines (``roles``),
-``device`` (``device_command``), ``export`` and ``control`` (``control_command``), the flags made from the
-settings classes (``settings_args``, ``parsing``), and a quicker start (``startup``)."""
+``device`` (``device_command``), the commands on a model file (``control_command``), the flags made from the
+settings classes (``settings_args``), and a quicker start (``startup``)."""

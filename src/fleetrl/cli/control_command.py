@@ -1,27 +1,24 @@
-"""``fleetrl export`` (a model file's greedy policy as ONNX, checked) and ``fleetrl control`` (a saved policy
-run on one unit through its driver, with the device bridge's safety; no torch, no broker).
-
-Registered on the main parser by ``register(subparsers)``; the handlers import the work, which loads numba
-(neither the parser nor ``fleetrl control`` loads torch: docs/on-device.md).
-"""
+"""The commands on a model file: ``fleetrl export`` (its greedy policy as ONNX, checked), ``fleetrl control``
+(a saved policy run on one unit through its driver, with the bridge's safety; no torch, no broker) and
+``fleetrl adapt`` (the fleet's policy fitted to one unit in a few episodes: docs/on-device.md)."""
 
 from __future__ import annotations
 
 import argparse
 import json
+import sys
 from pathlib import Path
 from typing import Any
 
-from fleetrl.cli.device_command import DRIVERS, add_driver_arguments, make_driver
+from fleetrl.cli.device_command import DRIVERS, add_driver_arguments, make_driver, realtime_mode
 from fleetrl.cli.settings_args import add_fleet_profile_argument
 from fleetrl.envs.catalog import get_env_spec
-from fleetrl.link.realtime import request_realtime_priority
 
 DEFAULT_ENV = "qube"
 
 
 def register(subparsers: Any) -> None:
-    """Add the ``export`` and ``control`` subcommands to ``subparsers``."""
+    """Add the ``export``, ``control`` and ``adapt`` subcommands to ``subparsers``."""
     export: argparse.ArgumentParser = subparsers.add_parser(
         "export", help="write a saved policy as ONNX (observation -> greedy action) and check it"
     )
@@ -48,6 +45,30 @@ def register(subparsers: Any) -> None:
     add_driver_arguments(control)
     control.set_defaults(handler=cmd_control)
 
+    adapt: argparse.ArgumentParser = subparsers.add_parser(
+        "adapt", help="fit the fleet's policy to one unit in a few episodes: that unit's own model file"
+    )
+    adapt.add_argument("model", type=Path, help="the fleet's policy: a models/worker-K.safetensors file")
+    adapt.add_argument("--out", type=Path, required=True, help="the unit's model file to write")
+    add_model_env_argument(adapt)
+    adapt.add_argument("--unit", type=int, default=0, help="the simulated unit to fit (default 0)")
+    adapt.add_argument("--fleet-seed", type=int, default=0)
+    add_fleet_profile_argument(adapt)
+    adapt.add_argument("--episodes", type=int, default=5, help="episodes on the unit (default 5)")
+    adapt.add_argument(
+        "--check",
+        type=int,
+        default=10,
+        help="greedy episodes before and after, to compare; a fit that scores less is not kept (default 10)",
+    )
+    adapt.add_argument(
+        "--own-part",
+        default=None,
+        help="input, heads or biases (default: the model's own part, else biases; docs/algorithm.md)",
+    )
+    adapt.add_argument("--seed", type=int, default=0, help="the unit's action draws and check episodes")
+    adapt.set_defaults(handler=cmd_adapt)
+
 
 def add_model_env_argument(p: argparse.ArgumentParser) -> None:
     """``--env``: the task the policy was trained on (its observations, actions and reward)."""
@@ -61,8 +82,7 @@ def add_model_env_argument(p: argparse.ArgumentParser) -> None:
 
 
 def run_env(model: Path) -> str | None:
-    """The env of the run a model file belongs to (``RUN/models/worker-K.safetensors`` beside
-    ``RUN/config.json``), or None when it is not in a run directory."""
+    """The env in ``RUN/config.json`` for a model file ``RUN/models/worker-K.safetensors``, else None."""
     config = model.parent.parent / "config.json"
     if model.parent.name != "models" or not config.is_file():
         return None
@@ -101,8 +121,7 @@ def cmd_export(args: argparse.Namespace) -> int:
 
 
 def cmd_control(args: argparse.Namespace) -> int:
-    """Run the episodes, printing each score as it ends and their mean; the motor is off when this returns
-    (Ctrl-C and SIGTERM included)."""
+    """Run the episodes, printing each score and their mean; the motor is off when this returns."""
     from fleetrl.control.controller import run_on_unit
     from fleetrl.control.policies import load_policy
 
@@ -115,9 +134,7 @@ def cmd_control(args: argparse.Namespace) -> int:
     spec = get_env_spec(env)
     if args.driver in DRIVERS and spec.device is None:
         raise ValueError(f"{spec.title} is your own unit type: give its driver as --driver PKG.MOD:FUNCTION")
-    realtime = args.realtime or args.driver == "qube-spi"
-    if realtime and args.rt_priority > 0:
-        request_realtime_priority(args.rt_priority)
+    realtime = realtime_mode(args)
     device = spec.device if args.driver in DRIVERS else None  # which built-in unit --driver sim simulates
     driver = make_driver(argparse.Namespace(**{**vars(args), "env": device}), realtime)
     mode = "real time" if realtime else "lockstep"
@@ -140,4 +157,48 @@ def cmd_control(args: argparse.Namespace) -> int:
         report=report,
     )
     print(f"mean score {sum(scores) / len(scores):g} over {len(scores)} episodes", flush=True)
+    return 0
+
+
+def cmd_adapt(args: argparse.Namespace) -> int:
+    """Fit, write the unit's model file, print one JSON line: episodes, time on the rig, check scores."""
+    from fleetrl.runs.adapt import adapt_model
+
+    if args.out.exists():
+        raise ValueError(f"--out {args.out} exists: choose another file (nothing is overwritten)")
+    if not args.out.parent.is_dir():
+        raise ValueError(f"--out {args.out}: no directory {args.out.parent} to write it in")
+    env = args.env or run_env(args.model) or DEFAULT_ENV
+    done = adapt_model(
+        args.model,
+        env,
+        args.unit,
+        fleet_seed=args.fleet_seed,
+        fleet_profile=args.fleet_profile,
+        episodes=args.episodes,
+        check=args.check,
+        seed=args.seed,
+        own_part=args.own_part,
+        out=args.out,
+    )
+    if not done.kept_fit:
+        print(
+            f"the fit scored less on the check episodes than the fleet's policy; {args.out} holds "
+            "the fleet's policy (its own part zero)",
+            file=sys.stderr,
+        )
+    cap = done.cap or float("inf")
+    result = {
+        "model": str(args.out),
+        "unit": args.unit,
+        "episodes": len(done.scores),
+        "scores": done.scores,
+        "rig_seconds": None if done.rig_seconds is None else round(done.rig_seconds, 1),
+        "check_before": done.before,
+        "check_after": done.after,
+        "held_before": sum(s >= cap for s in done.before),
+        "held_after": sum(s >= cap for s in done.after),
+        "kept": "fit" if done.kept_fit else "fleet policy",
+    }
+    print(json.dumps(result))
     return 0

@@ -1,8 +1,5 @@
-"""``fleetrl device``: serve one unit over MQTT through a device bridge (the Raspberry Pi's role): a
-simulated unit (``--driver sim``), a QUBE-Servo 2 on the Pi's SPI bus (``--driver qube-spi``, always in
-real time) or a user's driver (``--driver package.module:function``). Without ``--broker`` it starts an
-embedded broker and prints its URL.
-"""
+"""``fleetrl device``: serve one unit over MQTT through a device bridge (the Raspberry Pi's role), and the
+driver options it shares with ``fleetrl control``."""
 
 from __future__ import annotations
 
@@ -42,9 +39,7 @@ def register(subparsers: Any) -> None:
 
 
 def add_driver_arguments(p: argparse.ArgumentParser) -> None:
-    """The options that choose and configure a unit's driver and its safety (``fleetrl device`` and
-    ``fleetrl control`` take the same): ``--driver``, the simulated unit's fleet, the SPI bus, the period,
-    real time, the watchdog."""
+    """The options that choose and configure a unit's driver and its safety."""
     p.add_argument("--fleet-seed", type=int, default=0, help="seed of the fleet's per-unit dynamics")
     add_fleet_profile_argument(p)
     p.add_argument("--realtime", action="store_true", help="fixed control period, last command held")
@@ -78,18 +73,15 @@ def add_driver_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def cmd_device(args: argparse.Namespace) -> int:
-    """Run the bridge until interrupted (Ctrl-C or SIGTERM); the motor is off and ``offline`` announced
-    when it returns."""
+    """Run the bridge (on an embedded broker without ``--broker``) until Ctrl-C or SIGTERM; the motor is off
+    and ``offline`` announced when it returns."""
     from fleetrl.link.bridge import DeviceBridge
     from fleetrl.transport.broker import EmbeddedBroker
     from fleetrl.transport.mqtt import MqttTransport
 
     login = BrokerLogin(broker=args.broker, broker_password_file=args.broker_password_file)
     login.validate_broker()  # before the driver or a broker starts
-    # on hardware time runs whether a command came or not: a real unit's bridge always runs in real time
-    realtime = args.realtime or args.driver == "qube-spi"
-    if realtime and args.rt_priority > 0:
-        request_realtime_priority(args.rt_priority)
+    realtime = realtime_mode(args)
     driver = make_driver(args, realtime)
     broker = None
     bridge = None
@@ -119,9 +111,18 @@ def cmd_device(args: argparse.Namespace) -> int:
     return 0
 
 
+def realtime_mode(args: argparse.Namespace) -> bool:
+    """Whether the unit runs in real time (on hardware always: time runs whether a command came or not);
+    then at ``--rt-priority``."""
+    realtime = args.realtime or args.driver == "qube-spi"
+    if realtime and args.rt_priority > 0:
+        request_realtime_priority(args.rt_priority)
+    return realtime
+
+
 def make_driver(args: argparse.Namespace, realtime: bool) -> DeviceDriver:
-    """The driver the arguments choose; ValueError (exit 2) for a bad combination, ``QubeFault`` (an
-    OSError: exit 1) when the QUBE cannot be reached or answers wrongly."""
+    """The driver the arguments choose; ValueError (exit 2) for a bad combination, ``QubeFault`` (exit 1)
+    when the QUBE cannot be reached or answers wrongly."""
     from fleetrl.link.driver import simulated_driver
 
     period = None if args.period_ms is None else args.period_ms / 1e3
@@ -154,9 +155,8 @@ def make_driver(args: argparse.Namespace, realtime: bool) -> DeviceDriver:
 
 
 def user_driver(args: argparse.Namespace, realtime: bool) -> DeviceDriver:
-    """The driver a user's driver function (``--driver package.module:function``) returns for ``--unit`` of
-    ``--fleet-seed``; a ValueError (exit 2) for a reference that names no such function, for what it returns,
-    or for options that configure the built-in units."""
+    """The driver a user's ``--driver package.module:function`` returns for ``--unit`` of ``--fleet-seed``;
+    ValueError (exit 2) for a bad reference or result, or options of the built-in units."""
     from fleetrl.link.driver import driver_of
 
     if not is_factory_reference(args.driver):

@@ -12,10 +12,9 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
-from fleetrl.cli import adapt_command, control_command, device_command, roles
+from fleetrl.cli import control_command, device_command, roles
 from fleetrl.cli.settings_args import (
     add_broker_arguments,
-    add_env_argument,
     add_fleet_profile_argument,
     add_learning_argument,
     add_settings_arguments,
@@ -34,15 +33,6 @@ LAB_MISSING = (
 )
 
 
-def add_train_arguments(p: argparse.ArgumentParser) -> None:
-    """``fleetrl train``'s options: one per setting of RunSettings (and a key of a --config file)."""
-    notes = {
-        "broker": "unset: an embedded broker",
-        "scheme": f"unset: {DEFAULT_SCHEME} ({ALONE_SCHEME} with --mode individual, where it is unused)",
-    }
-    add_settings_arguments(p, RunSettings, notes=notes)
-
-
 def build_parser() -> argparse.ArgumentParser:
     """The whole command line."""
     parser = argparse.ArgumentParser(prog="fleetrl", description=__doc__)
@@ -50,7 +40,11 @@ def build_parser() -> argparse.ArgumentParser:
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
 
     train = sub.add_parser("train", help="train a simulated fleet (individual or federated)")
-    add_train_arguments(train)
+    notes = {
+        "broker": "unset: an embedded broker",
+        "scheme": f"unset: {DEFAULT_SCHEME} ({ALONE_SCHEME} with --mode individual, where it is unused)",
+    }
+    add_settings_arguments(train, RunSettings, notes=notes)
     train.set_defaults(handler=cmd_train)
 
     demo = sub.add_parser("demo", help="the main job: a 3-unit federated QUBE run on an embedded broker")
@@ -60,7 +54,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     evaluate = sub.add_parser("evaluate", help="run a saved policy greedily and print its mean score")
     evaluate.add_argument("model", type=Path, help="a models/worker-K.safetensors file")
-    add_env_argument(evaluate, defaulted=True)
+    add_learning_argument(evaluate, "env")
     evaluate.add_argument("--unit", type=int, default=0)
     add_learning_argument(evaluate, "fleet_seed")
     add_fleet_profile_argument(evaluate)
@@ -93,7 +87,6 @@ def build_parser() -> argparse.ArgumentParser:
     roles.register(sub)
     device_command.register(sub)
     control_command.register(sub)
-    adapt_command.register(sub)
     return parser
 
 
@@ -110,8 +103,7 @@ def cmd_train(args: argparse.Namespace) -> int:
 
 
 def exit_code(summary: dict[str, Any]) -> int:
-    """A run's exit code: 130 interrupted, 1 if the chief or any worker failed (or no round was played),
-    else 0 — so a script or CI can trust it."""
+    """A run's exit code: 130 interrupted, 1 if the chief or a worker failed or no round was played, or 0."""
     if summary.get("interrupted"):
         return 130
     failed = [w for w, info in summary["workers"].items() if str(info["state"]).startswith("failed")]
@@ -144,8 +136,7 @@ def duration(seconds: float) -> str:
 
 
 def print_summary(summary: dict[str, Any], out: Path, *, summarise: bool = False) -> None:
-    """What a person wants to see when a run ends: a line per worker, or with ``summarise`` (a large fleet)
-    the fleet's completions and final WMA quantiles and its slowest units."""
+    """A run's end: a line per worker, or with ``summarise`` (a large fleet) the fleet's in a few lines."""
     print(f"run directory: {out}  ({summary['wall_seconds']:.1f} s, {summary['rounds']} rounds)")
     workers = summary["workers"]
     if summarise:
@@ -171,9 +162,8 @@ def print_summary(summary: dict[str, Any], out: Path, *, summarise: bool = False
 
 
 def controlled_text(controlled: dict[str, float | None] | None) -> str:
-    """The fleet's time on the rigs until 50, 90 and 100 % of its units were controlled (summary.json's
-    ``rig_seconds.controlled``), as shown: ``until 50 / 90 / 100 % of the units were controlled: 20.1 s /
-    41.9 s / not reached``; empty for a summary written before it was kept."""
+    """``until 50 / 90 / 100 % of the units were controlled: 20.1 s / 41.9 s / not reached`` of summary.json's
+    ``rig_seconds.controlled`` (empty without it)."""
     if not controlled:
         return ""
     shares = " / ".join(controlled)
@@ -187,8 +177,7 @@ def wma_text(wma: float | None) -> str:
 
 
 def print_fleet_summary(workers: dict[str, dict[str, Any]]) -> None:
-    """A large fleet's outcome in a few lines: units completed, the final WMA's quantiles, the slowest
-    units."""
+    """A large fleet's outcome: units completed, the final WMA's quantiles, the slowest units."""
     from fleetrl.runs.fleet_summary import SLOWEST_SHOWN, wma_quantiles
 
     finals = [math.nan if info["final_wma"] is None else info["final_wma"] for info in workers.values()]
@@ -222,24 +211,14 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
         open_link,
     )
     mean = sum(scores) / len(scores)
-    print(
-        json.dumps(
-            {
-                "model": str(args.model),
-                "env": args.env,
-                "unit": args.unit,
-                "episodes": len(scores),
-                "mean_score": mean,
-                "scores": scores,
-            }
-        )
-    )
+    result = {"model": str(args.model), "env": args.env, "unit": args.unit, "episodes": len(scores)}
+    print(json.dumps(result | {"mean_score": mean, "scores": scores}))
     return 0
 
 
 def bridge_link(args: argparse.Namespace) -> Callable[[], Any]:
     """``evaluate --broker URL``: its settings checked now (exit 2), and what opens a device link to the
-    bridge of ``--unit`` under ``--run-id`` (no bridge online within 10 s: a TimeoutError naming the unit)."""
+    bridge of ``--unit`` under ``--run-id``."""
     from fleetrl.envs.device_side import check_takes_link
     from fleetrl.runs.factory import bridge_link as open_bridge_link
     from fleetrl.transport.mqtt import MqttTransport
@@ -280,8 +259,7 @@ def cmd_experiment(args: argparse.Namespace) -> int:
 
 
 def _thread_failed(hook: threading.ExceptHookArgs) -> None:
-    """A library's thread that dies (e.g. TensorBoard's writer on a full disk) logs one line, not a traceback;
-    the main thread decides what the command does about it."""
+    """A library's thread that dies (e.g. TensorBoard's writer on a full disk) logs one line, no traceback."""
     name = hook.thread.name if hook.thread is not None else "?"
     verbose = logging.getLogger().isEnabledFor(logging.DEBUG)
     error = hook.exc_value if verbose else None  # with -v: its traceback too
@@ -304,9 +282,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     logging.getLogger("fleetrl").debug("fleetrl %s: command line read", args.command)
     threading.excepthook = _thread_failed
     logging.raiseExceptions = False  # a log file on a full disk must not print tracebacks over the real error
-    # SIGTERM unwinds like Ctrl-C: brokers, bridges and worker processes this command started are stopped.
-    # SIGINT is re-armed too: a process started in the background inherits it ignored, and Ctrl-C (or the
-    # launcher's stop request) must still end a run cleanly.
+    # SIGTERM unwinds like Ctrl-C, stopping what this command started; SIGINT is re-armed (a process started
+    # in the background inherits it ignored).
     signal.signal(signal.SIGTERM, _terminate)
     signal.signal(signal.SIGINT, signal.default_int_handler)
     try:

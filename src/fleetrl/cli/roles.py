@@ -1,9 +1,6 @@
-"""The roles of a run spread over several machines: ``fleetrl broker``, ``fleetrl chief``, ``fleetrl worker``,
-``fleetrl aggregator`` (a site's edge aggregator) and ``fleetrl secure-config`` (a mosquitto config with
-logins, per-role ACLs, TLS and a fleet key).
-
-See docs/deploy.md and docs/security.md. Start order does not matter: workers wait for the chief's welcome.
-"""
+"""The roles of a run spread over several machines (docs/deploy.md, docs/security.md): ``fleetrl broker``,
+``chief``, ``worker``, ``aggregator`` (a site's edge aggregator) and ``secure-config`` (a mosquitto config
+with logins, per-role ACLs, TLS and a fleet key)."""
 
 import argparse
 import json
@@ -26,7 +23,7 @@ log = logging.getLogger(__name__)
 
 
 def register(sub: Any) -> None:
-    """Add the three role commands to the ``fleetrl`` sub-command parser."""
+    """Add the role commands to the ``fleetrl`` sub-command parser."""
     broker = sub.add_parser("broker", help="run an embedded MQTT broker on 127.0.0.1 and print its URL")
     broker.add_argument("--prefer", default="auto", help="auto (mosquitto if installed), mosquitto or amqtt")
     broker.add_argument("--port", type=int, default=None, help="port (default: a free one)")
@@ -163,14 +160,12 @@ def cmd_chief(args: argparse.Namespace) -> int:
 
 
 def _chief_result(settings: Any, summary: Any) -> dict[str, Any]:
-    """What a chief prints and keeps in chief.json: its run id and how the run went."""
     return {"run_id": settings.run_id, **summary.to_dict()}
 
 
 def claim_place(settings: Any, node: str, lock: Any = None) -> Any:
     """The retained status of ``node``'s place in the run (``chief``, a worker's or a host's id), read
-    before this process connects under its client id; RoleConflict (exit 1, one line naming the holder) if
-    a live process holds it — after releasing ``lock`` and removing what it created."""
+    before this process connects; RoleConflict (exit 1) if a live process holds it, ``lock`` abandoned."""
     from fleetrl.runs.dirlock import RoleConflict
 
     try:
@@ -186,8 +181,7 @@ def claim_place(settings: Any, node: str, lock: Any = None) -> Any:
 
 
 def _lease_options(settings: Any) -> dict[str, Any]:
-    """What ``run_chief`` needs to hold the run's lease: who this process is, and how to read the chief
-    status after the connection was lost or the process stalled."""
+    """What ``run_chief`` needs to hold the run's lease: who this process is, how to read the chief status."""
     return {
         "read_lease": lambda: settings.read_status(CHIEF_ID),
         "status_fields": holder_fields(settings.keepalive),
@@ -195,8 +189,7 @@ def _lease_options(settings: Any) -> dict[str, Any]:
 
 
 def _forget_previous_session(settings: Any, retained: Any) -> None:
-    """Remove the broker session of the chief this one replaces (its own epoch's client id): nobody would
-    read the worker messages the broker keeps queuing there."""
+    """Remove the broker session of the chief this one replaces (nobody would read what is queued there)."""
     from fleetrl.federation.runner import chief_client_id
 
     if retained is None:
@@ -210,9 +203,8 @@ def _forget_previous_session(settings: Any, retained: Any) -> None:
 
 
 def _serve_with_checkpoints(chief: Any, settings: Any, retained: Any) -> Any:
-    """Run the chief with a checkpoint every round in ``settings.out`` (resuming from it with ``--resume``)
-    and its events appended to chief.log as they happen. ``retained``: the chief status the broker kept
-    (the epoch taken is one more than the newest of it and the checkpoint's)."""
+    """Run the chief with a checkpoint every round in ``settings.out`` (resumed with ``--resume``) and its
+    events appended to chief.log; its epoch follows the newest of ``retained``'s and the checkpoint's."""
     from fleetrl.federation.chief.checkpoint import replay_last_answer
     from fleetrl.federation.runner import run_chief
     from fleetrl.runs.checkpoints import ChiefCheckpoint, chief_checkpoint_dir
@@ -292,7 +284,7 @@ def _serve_worker(settings: Any, spec: Any, config: dict[str, Any], learner: Any
 
 
 def _serve_host(settings: Any, config: dict[str, Any]) -> int:
-    """Serve as the unit host of ``settings.unit_ids()``: its run directory gets each unit's rows, model."""
+    """Serve as the unit host of ``settings.unit_ids()`` in the run directory this process has locked."""
     from fleetrl.runs.fleet_summary import summarised
     from fleetrl.runs.host import train_host
     from fleetrl.runs.rundir import RunRecorder
@@ -317,8 +309,8 @@ def _serve_host(settings: Any, config: dict[str, Any]) -> int:
 
 
 def _recorded(recorder: Any, train: Callable[[], Any]) -> int:
-    """Run a standalone worker's ``train`` into ``recorder``: how it ended in summary.json, the summary
-    printed as JSON, whether interrupted (Ctrl-C) or not; the exit code."""
+    """Run a standalone worker's ``train`` into ``recorder`` (how it ended in summary.json, printed as JSON);
+    the exit code."""
     try:
         outcome = train()
         recorder.extra["worker"] = {

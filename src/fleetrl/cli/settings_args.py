@@ -1,20 +1,17 @@
-"""Settings from a ``--config`` TOML file and the flags given (flags win): ``train``, ``chief``, ``worker``.
-
-The flags are made from the fields of the command's settings class: a field's name is its flag and its
-config-file key, its type the flag's type, its docstring the help. Every flag defaults to None (not given),
-so a config file can set what no flag gives.
-"""
+"""Settings from a ``--config`` TOML file and the flags given (flags win). A settings field's name is its flag
+and config-file key, its type the flag's type, its docstring the help; every flag defaults to None (not
+given), so a config file can set what no flag gives."""
 
 from __future__ import annotations
 
 import argparse
 import dataclasses
 import functools
+import json
 import types
 from pathlib import Path
 from typing import Any, TypeVar, Union, get_args, get_origin
 
-from fleetrl.cli.parsing import parse_overrides
 from fleetrl.federation.schemes import DEFAULT_SCHEME
 from fleetrl.federation.shared_settings import LearningSettings
 from fleetrl.runs.role_settings import RoleSettings
@@ -34,12 +31,14 @@ from fleetrl.runs.settings import BrokerLogin
 
 S = TypeVar("S")
 
-NOT_SETTINGS = frozenset({"command", "handler", "verbose", "config"})
-"""parsed names that are not settings"""
+NOT_SETTINGS = frozenset({"command", "handler", "verbose", "config"})  # parsed names that are not settings
 
 
-def add_config_argument(p: argparse.ArgumentParser) -> None:
-    """``--config FILE``: settings from a TOML file; flags given on the command line override it."""
+def add_settings_arguments(
+    p: argparse.ArgumentParser, cls: type, *, notes: dict[str, str] | None = None
+) -> None:
+    """``--config FILE`` and one flag per setting of the settings class ``cls`` (its groups' too), each with
+    its help from the field's docstring and ``notes`` (setting → what this command adds)."""
     p.add_argument(
         "--config",
         type=Path,
@@ -47,14 +46,6 @@ def add_config_argument(p: argparse.ArgumentParser) -> None:
         metavar="FILE",
         help="read settings from this TOML file (keys: the flags' names with _ for -); flags override it",
     )
-
-
-def add_settings_arguments(
-    p: argparse.ArgumentParser, cls: type, *, notes: dict[str, str] | None = None
-) -> None:
-    """``--config`` and one flag per setting of the settings class ``cls`` (its groups' settings too), each
-    with its help from the field's docstring and ``notes`` (setting → what this command adds)."""
-    add_config_argument(p)
     notes = {"scheme": f"unset: {DEFAULT_SCHEME}"} | (notes or {})
     for name in setting_fields(cls):
         add_setting_argument(p, cls, name, note=notes.get(name))
@@ -63,9 +54,8 @@ def add_settings_arguments(
 def add_setting_argument(
     p: argparse.ArgumentParser, cls: type, name: str, *, default: Any = None, note: str | None = None
 ) -> None:
-    """The flag of setting ``name`` of the settings class ``cls``: its type, and its help from the field's
-    docstring, its default (or ``required``) and ``note``. ``default`` is what the flag gives when it is not
-    given (None: not given, the settings class's default applies)."""
+    """The flag of setting ``name`` of the settings class ``cls``, giving ``default`` when it is not given
+    (None: the settings class's default applies)."""
     field, kind = setting_fields(cls)[name]
     help_text = field_docs(cls).get(name, "")
     if note:
@@ -93,8 +83,8 @@ def add_setting_argument(
 
 
 def _parse_type(kind: Any) -> Any:
-    """The argparse ``type`` of a setting's type (its non-None option for an optional one; for a choice of
-    types, such as a number or ``auto``, the first of them that reads the text)."""
+    """The argparse ``type`` of a setting's type (for a choice such as a number or ``auto``: the first of
+    them that reads the text)."""
     if get_origin(kind) in (Union, types.UnionType):
         options = [a for a in get_args(kind) if a is not type(None)]
         if len(options) > 1:
@@ -104,7 +94,7 @@ def _parse_type(kind: Any) -> Any:
 
 
 def _first_that_reads(parsers: list[Any], text: str) -> Any:
-    """``text`` as the first of ``parsers`` reads it (as text if none does; the setting's check says why)."""
+    """``text`` as the first of ``parsers`` reads it (as text if none does)."""
     for parse in parsers:
         try:
             return parse(text)
@@ -114,15 +104,10 @@ def _first_that_reads(parsers: list[Any], text: str) -> Any:
 
 
 def add_learning_argument(p: argparse.ArgumentParser, name: str, *, defaulted: bool = True) -> None:
-    """The flag of learning setting ``name`` for a command that is not a role (``evaluate``,
-    ``homogeneity``): with ``defaulted``, the flag gives the setting's default when it is not given."""
+    """The flag of learning setting ``name`` for a command that is not a role; with ``defaulted`` it gives
+    the setting's default when not given."""
     field = setting_fields(LearningSettings)[name][0]
     add_setting_argument(p, LearningSettings, name, default=field_default(field) if defaulted else None)
-
-
-def add_env_argument(p: argparse.ArgumentParser, *, defaulted: bool) -> None:
-    """``--env``: a built-in unit type, or the user's own as ``package.module:factory``."""
-    add_learning_argument(p, "env", defaulted=defaulted)
 
 
 def add_target_score_argument(p: argparse.ArgumentParser) -> None:
@@ -142,10 +127,27 @@ def add_broker_arguments(p: argparse.ArgumentParser, note: str) -> None:
 
 
 def add_connect_timeout(p: argparse.ArgumentParser) -> None:
-    """``--connect-timeout``: how long a role retries an unreachable broker (start order does not matter)
-    before it exits 1; the flag's default is the roles' setting's."""
+    """``--connect-timeout``, its default the roles' setting's."""
     timeout = next(f for f in dataclasses.fields(RoleSettings) if f.name == "connect_timeout")
     add_setting_argument(p, RoleSettings, "connect_timeout", default=timeout.default)
+
+
+def parse_overrides(items: list[str], flag: str = "--set") -> dict[str, Any]:
+    """``["clip_eps=0.2", "activation=tanh"]`` as a dict of JSON-typed values (text if not JSON); ``flag``
+    names the option in errors."""
+    result: dict[str, Any] = {}
+    for item in items:
+        key, sep, raw = item.partition("=")
+        if not sep or not key.strip():
+            raise ValueError(f"{flag} takes KEY=VALUE, got {item!r}")
+        try:
+            value: Any = json.loads(raw)
+        except json.JSONDecodeError:
+            value = raw
+        if isinstance(value, list):
+            value = tuple(value)
+        result[key.strip()] = value
+    return result
 
 
 def settings_from_args(cls: type[S], args: argparse.Namespace) -> S:

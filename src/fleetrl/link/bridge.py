@@ -1,8 +1,5 @@
 """The device bridge (the Raspberry Pi's role): one unit, driven through a ``DeviceDriver``, served on its
-MQTT device topics (``fleetrl.link.wire``), with the unit's safety on its own side: a watchdog and a
-protective stop. Lockstep (simulation: one command, one period) or real time (a tick every control period,
-answer then act, as on the rig). docs/devices.md and docs/hardware.md describe both.
-"""
+MQTT device topics, with its own watchdog and protective stop; lockstep or real time (docs/devices.md)."""
 
 from __future__ import annotations
 
@@ -33,39 +30,26 @@ from fleetrl.transport.base import Received, Transport, Will
 
 log = logging.getLogger(__name__)
 
-WATCHDOG_SECONDS = 0.1
-"""default: motor off after this long without a command (≈16 periods of 6 ms; an agent's pause between
-episodes trips it harmlessly, a dead worker is caught within a tenth of a second)"""
-IDLE_POLL = 0.1
-"""seconds a lockstep bridge waits for a command before looking at its watchdog and stop flag again"""
+WATCHDOG_SECONDS = 0.1  # default: motor off after this long without a command
+IDLE_POLL = 0.1  # seconds a lockstep bridge waits for a command before checking its watchdog and stop flag
 _EMPTY = np.zeros(0, dtype=np.float32)
-TICK_HISTORY = 100_000
-"""real-time tick times kept for jitter measurements"""
+TICK_HISTORY = 100_000  # real-time tick times kept for jitter measurements
 
 
 @dataclass
 class BridgeStats:
     """Counters of one bridge, for logs, tests and benchmarks."""
 
-    commands: int = 0
-    """commands accepted"""
-    rejected: int = 0
-    """commands refused as malformed, out of range or stale"""
+    commands: int = 0  # accepted
+    rejected: int = 0  # refused as malformed, out of range or stale
     watchdog_trips: int = 0
-    """times the watchdog switched the motor off"""
     protective_stops: int = 0
-    """times the arm limit tripped a protective stop"""
-    overruns: int = 0
-    """real-time ticks that started more than a period late"""
+    overruns: int = 0  # real-time ticks that started more than a period late
 
 
 class DeviceBridge:
-    """Serve one unit over a transport.
+    """Serve one unit over a transport (unconnected: the bridge connects it with its last will).
 
-    :param transport: an unconnected transport (the bridge connects it with its last will)
-    :param driver: the unit's driver
-    :param run_id: the run whose device topics to serve
-    :param unit: the unit's index (topic level)
     :param realtime: real-time mode (fixed control period, last command held); default lockstep
     :param watchdog: seconds without a command after which the motor is switched off
     """
@@ -91,12 +75,9 @@ class DeviceBridge:
         self.state_topic = device_topic(run_id, unit, "state")
         self.status_topic = device_topic(run_id, unit, "status")
         self.stats = BridgeStats()
-        self.tick_times: collections.deque[float] = collections.deque(maxlen=TICK_HISTORY)
-        """driver-clock times at which real-time ticks read the sensors"""
-        self.motor_on = False
-        """whether a command is being held (the watchdog's concern)"""
-        self.stopped = False
-        """protective stop in force (cleared by a reset)"""
+        self.tick_times: collections.deque[float] = collections.deque(maxlen=TICK_HISTORY)  # driver clock
+        self.motor_on = False  # a command is being held (the watchdog's concern)
+        self.stopped = False  # protective stop in force (cleared by a reset)
         self._trip_reading: np.ndarray | None = None
         self._spec = driver.spec
         self._commands = [driver.spec.command_of(action) for action in range(driver.spec.n_actions)]
@@ -108,8 +89,6 @@ class DeviceBridge:
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
         self._connected = False
-
-    # -- lifecycle -------------------------------------------------------------------------------------
 
     def open(self) -> None:
         """Connect, subscribe to commands, and announce ``online`` (retained)."""
@@ -165,8 +144,6 @@ class DeviceBridge:
             self._connected = False
         self.driver.close()
         log.info("bridge for unit %d closed (%s)", self.unit, self.stats)
-
-    # -- the two loops ---------------------------------------------------------------------------------
 
     def _serve_lockstep(self) -> None:
         while not self._stop.is_set():
@@ -231,12 +208,8 @@ class DeviceBridge:
         self._check_limit(obs)
         self._answer(command, obs)
 
-    # -- commands, answers, safety ---------------------------------------------------------------------
-
     def _home(self, command: Command) -> None:
-        """Run the device-side reset and answer with its observation; a reset that fails (the unit did not
-        settle: the driver has switched the motor off) is answered with the reason. Driver faults are not
-        caught: they end ``serve`` with the motor off."""
+        """Reset the device and answer with its observation, or with why the reset failed (motor off)."""
         try:
             obs = self.driver.home(command.seed)
         except DeviceResetError as err:
@@ -246,8 +219,7 @@ class DeviceBridge:
         self._answer(command, obs, reset=True)
 
     def _actuate(self, command: Command) -> None:
-        """Hold ``command``'s actuator command vector: its action index's, or its vector clamped to the
-        bounds (both validated on decoding)."""
+        """Hold ``command``'s action index's command vector, or its own vector clamped to the bounds."""
         if command.action is not None:
             self.driver.write_command(self._commands[command.action])
         else:
@@ -287,8 +259,8 @@ class DeviceBridge:
         self._publish(State(command.sid, command.seq, self.driver.time(), _EMPTY, error=reason))
 
     def _answer_stopped(self, command: Command) -> None:
-        """A step while the protective stop is in force: the first one after the trip learns of it with the
-        reading that tripped it (flagged), the later ones are refused; none is acted on."""
+        """A step under the protective stop: the first gets the tripping reading (flagged), later ones are
+        refused; none is acted on."""
         if self._trip_reading is not None:
             self._answer(command, self._trip_reading)
         else:
@@ -334,13 +306,10 @@ class DeviceBridge:
             self.motor_on = False
             self._flags |= FLAG_WATCHDOG
             self.stats.watchdog_trips += 1
-            # in lockstep no simulated time passes between commands, and every pause between episodes
-            # trips it: worth a warning only when the unit really runs on
+            # in lockstep every pause between episodes trips it: a warning only in real time
+            level = logging.WARNING if self.realtime else logging.DEBUG
             log.log(
-                logging.WARNING if self.realtime else logging.DEBUG,
-                "unit %d watchdog: no command for %.0f ms; motor off",
-                self.unit,
-                1e3 * self.watchdog,
+                level, "unit %d watchdog: no command for %.0f ms; motor off", self.unit, 1e3 * self.watchdog
             )
 
     def _poll_timeout(self) -> float:

@@ -1,8 +1,5 @@
-"""The hardware seam of the device bridge: ``DeviceDriver`` (read the sensors, write an actuator command
-vector, keep time), its ``DriverSpec`` (the commands a unit takes, the sensors it returns, its protective
-stop), simulated units as one driver, and a unit type's *driver function* ``driver(unit, fleet_seed, *,
-realtime) -> DeviceDriver`` (docs/devices.md, "Putting your unit behind a device bridge").
-"""
+"""The device bridge's hardware seam: ``DeviceDriver``, its ``DriverSpec``, the simulated units' driver, and
+a unit type's driver function (docs/devices.md, "Putting your unit behind a device bridge")."""
 
 from __future__ import annotations
 
@@ -22,29 +19,19 @@ from fleetrl.link.base import Device
 from fleetrl.link.realtime import precise_sleep_until
 from fleetrl.link.wire import MAX_VECTOR
 
-QUBE_SAFE_VOLTS = 10.0
-"""Quanser's recommended amplifier range (±10 V; ±15 V is the absolute maximum): every QUBE driver clamps
-its command to this"""
-QUBE_ARM_LIMIT = math.pi / 2.0
-"""the rig's protective stop: |arm angle| past this ends the episode"""
-QUBE_ARM_INDEX = 2
-"""the arm angle's place in the QUBE observation [alpha, alpha_dot, theta, theta_dot]"""
+QUBE_SAFE_VOLTS = 10.0  # Quanser's recommended amplifier range (±15 V is the absolute maximum)
+QUBE_ARM_LIMIT = math.pi / 2.0  # the rig's protective stop: |arm angle| past this ends the episode
+QUBE_ARM_INDEX = 2  # the arm angle in the QUBE observation [alpha, alpha_dot, theta, theta_dot]
 
 
 @dataclass(frozen=True)
 class DriverSpec:
     """What the bridge must know about a unit type.
 
-    :param kind: the unit type (``qube``, ``cartpole``, or a user's name for theirs; for logs and errors)
+    :param kind: the unit type's name (for logs and errors)
     :param command_low: lower bound of each actuator command component (its length is the command size)
-    :param command_high: upper bound of each component
-    :param discrete_commands: the command vector of each discrete action index (empty: no discrete actions)
-    :param control_period: seconds of one agent step
-    :param limit_index: the sensor component the protective stop watches (QUBE: arm angle)
+    :param discrete_commands: the command vector of each discrete action index (empty: none)
     :param limit: the protective stop trips when ``abs(sensors[limit_index]) > limit``
-    :param sensor_size: length of the sensor vector ``read_sensors`` returns (float32; at most
-        ``MAX_VECTOR``, like the command size)
-    :param command_dtype: numpy dtype name of a command vector
     """
 
     kind: str
@@ -77,12 +64,11 @@ class DriverSpec:
 
     @property
     def command_size(self) -> int:
-        """How many floats an actuator command holds."""
         return len(self.command_low)
 
     @property
     def n_actions(self) -> int:
-        """How many discrete action indices a command may use (0: continuous commands only)."""
+        """How many discrete action indices a command may use (0: none)."""
         return len(self.discrete_commands)
 
     def command_of(self, action: int) -> np.ndarray:
@@ -90,12 +76,10 @@ class DriverSpec:
         return np.array(self.discrete_commands[action], dtype=self.command_dtype)
 
     def off_command(self) -> np.ndarray:
-        """The zero command (motor off)."""
         return np.zeros(self.command_size, dtype=self.command_dtype)
 
     def clamp(self, command: np.ndarray) -> np.ndarray:
-        """``command`` as a vector of ``command_dtype`` clipped to the bounds; ValueError when it has the
-        wrong size or a value that is not finite (a driver never acts on such a command)."""
+        """``command`` clipped to the bounds; ValueError for a wrong size or a value that is not finite."""
         vector = np.asarray(command, dtype=self.command_dtype).reshape(-1)
         if vector.size != self.command_size:
             raise ValueError(f"a {self.kind} command holds {self.command_size} values, got {vector.size}")
@@ -110,80 +94,47 @@ class DriverSpec:
 
 
 def cartpole_spec(tau: float) -> DriverSpec:
-    """The spec of a simulated CartPole: command ``[force fraction]`` within ±1 (the cart pushes with full
-    force the way its sign says), the two actions push left / right, the track's end as the limit on
-    observation [x, x_dot, theta, theta_dot] (beyond the env's own termination band: it never cuts an
-    episode short)."""
+    """A simulated CartPole: command ``[force fraction]`` within ±1, actions left / right, the track's end
+    (past the env's own termination band) as the limit on x."""
     return DriverSpec("cartpole", (-1.0,), (1.0,), ((-1.0,), (1.0,)), tau, 0, 2.0 * X_LIMIT)
 
 
 def qube_spec(control_period: float, max_volts: float = QUBE_SAFE_VOLTS) -> DriverSpec:
-    """The spec of a QUBE-Servo 2 driver: command ``[volts]`` within ±``max_volts``, the paper's three
-    actions (−1.44, 0, +1.44 V), the arm limit ±π/2 on observation [alpha, alpha_dot, theta, theta_dot]."""
+    """A QUBE-Servo 2: command ``[volts]`` within ±``max_volts``, the paper's three actions, the arm limit."""
+    actions = tuple((volts,) for volts in ACTION_VOLTS)
     return DriverSpec(
-        "qube",
-        (-max_volts,),
-        (max_volts,),
-        tuple((volts,) for volts in ACTION_VOLTS),
-        control_period,
-        QUBE_ARM_INDEX,
-        QUBE_ARM_LIMIT,
+        "qube", (-max_volts,), (max_volts,), actions, control_period, QUBE_ARM_INDEX, QUBE_ARM_LIMIT
     )
 
 
 @runtime_checkable
 class DeviceDriver(Protocol):
-    """One unit's I/O as the bridge sees it; every method is called from the bridge's one thread."""
+    """One unit's I/O as the bridge sees it (from the bridge's one thread): a monotonic clock, the sensor
+    vector (float32, may be reused), an actuator command held until the next (clamped; ValueError for a
+    wrong size or a value not finite), the zero command, waiting under the held command, the device-side
+    reset returning the first sensor vector, and close (motor off, hardware released)."""
 
     spec: DriverSpec
 
-    def time(self) -> float:
-        """Seconds on the driver's clock (monotonic; hardware: wall time, lockstep simulation: simulated)."""
-        ...
-
-    def read_sensors(self) -> np.ndarray:
-        """The sensor vector read now (QUBE: encoder angles, velocity estimates; float32, may be reused)."""
-        ...
-
-    def write_command(self, command: np.ndarray) -> None:
-        """Command the actuator vector ``command`` (clamped to the spec's bounds); held until the next write.
-        Raises ValueError for a vector of the wrong size or with a value that is not finite."""
-        ...
-
-    def motor_off(self) -> None:
-        """The safe state: zero command (hardware: amplifier disabled until the next ``write_command``)."""
-        ...
-
-    def wait_until(self, deadline: float) -> None:
-        """Let the unit run, under the held command, until ``time() >= deadline``."""
-        ...
-
-    def home(self, seed: int | None) -> np.ndarray:
-        """Device-side reset (QUBE: swing up from hanging, catch, settle); return the first sensor vector."""
-        ...
-
-    def close(self) -> None:
-        """Switch the motor off and release the hardware."""
-        ...
+    def time(self) -> float: ...
+    def read_sensors(self) -> np.ndarray: ...
+    def write_command(self, command: np.ndarray) -> None: ...
+    def motor_off(self) -> None: ...
+    def wait_until(self, deadline: float) -> None: ...
+    def home(self, seed: int | None) -> np.ndarray: ...
+    def close(self) -> None: ...
 
 
 class SimulatedDriver:
-    """A simulated unit behind the driver interface, bit-identical to stepping the device in-process.
+    """A simulated unit behind the driver interface, bit-identical to stepping the device in-process. In
+    lockstep time is simulated; in real time ``wait_until`` sleeps, then simulates the periods that elapsed.
 
-    In lockstep (``realtime=False``) time is simulated: ``wait_until`` integrates the physics at once. In
-    real time the clock is ``time.perf_counter`` and ``wait_until`` sleeps until the deadline, then
-    integrates every control period that elapsed under the held command.
-
-    :param device: the simulated unit: a ``QubeDevice`` or ``CartPoleDevice`` (its built-in spec applies), or
-        any ``fleetrl.link.base.Device`` whose ``step`` takes a command vector of ``spec`` (a user's
-        simulated physics; ``reset`` is its device-side reset; the zero command is "motor off")
-    :param spec: what the unit takes and returns (required unless ``device`` is a built-in)
-    :param realtime: pace the simulation by the wall clock
+    :param device: a ``QubeDevice`` or ``CartPoleDevice``, or any ``Device`` whose ``step`` takes a command
+        vector of ``spec`` (required then)
     """
 
     def __init__(self, device: Device, spec: DriverSpec | None = None, *, realtime: bool = False) -> None:
         self.device = device
-        """the simulated unit as given"""
         self.realtime = realtime
         unit: Device = device
         if isinstance(device, QubeDevice):
@@ -198,10 +149,8 @@ class SimulatedDriver:
                 "it takes and returns): SimulatedDriver(device, spec)"
             )
         self.spec = spec
-        self.command = self.spec.off_command()
-        """the command the motor holds"""
-        self.periods = 0
-        """control periods simulated since the last reset"""
+        self.command = self.spec.off_command()  # the command the motor holds
+        self.periods = 0  # control periods simulated since the last reset
         self._unit = unit
         self._step = unit.step
         self._origin = time.perf_counter()
@@ -214,15 +163,12 @@ class SimulatedDriver:
         return self.periods * self.spec.control_period
 
     def read_sensors(self) -> np.ndarray:
-        """The observation after the last simulated period."""
         return self._obs
 
     def write_command(self, command: np.ndarray) -> None:
-        """Hold ``command`` (clamped to the spec's bounds) from the next simulated period on."""
         self.command = self.spec.clamp(command)
 
     def motor_off(self) -> None:
-        """Hold the zero command."""
         self.command = self.spec.off_command()
 
     def wait_until(self, deadline: float) -> None:
@@ -239,15 +185,13 @@ class SimulatedDriver:
         self.periods += 1
 
     def home(self, seed: int | None) -> np.ndarray:
-        """The device's own reset (QUBE: swing-up and settle, simulated instantly). In lockstep the
-        simulated clock restarts at 0; in real time the clock runs on and the period count catches up."""
+        """The device's own reset; the lockstep clock restarts at 0, the real-time one runs on."""
         self._obs[:] = self._unit.reset(seed)
         self.motor_off()
         self.periods = math.floor(self.time() / self.spec.control_period) if self.realtime else 0
         return self._obs
 
     def close(self) -> None:
-        """Motor off; close the simulated unit."""
         self.motor_off()
         self._unit.close()
 
@@ -261,16 +205,11 @@ def simulated_driver(
     period: float | None = None,
     realtime: bool = False,
 ) -> SimulatedDriver:
-    """A driver over unit ``unit`` of fleet ``fleet_seed`` of type ``env`` (``qube`` or ``cartpole``).
-
-    :param fleet_profile: the unit type's fleet profile (None: the default)
-    :param period: control period in seconds (QUBE only; default the device's 6 ms; CartPole's is 20 ms)
-    :param realtime: pace by the wall clock (see ``SimulatedDriver``)
-    """
+    """A driver over unit ``unit`` of fleet ``fleet_seed`` of type ``env`` (``qube`` or ``cartpole``);
+    ``period``: the control period in seconds (QUBE only)."""
     if env not in DEVICE_TYPES:
         raise ValueError(f"unknown env {env!r} (choose {' or '.join(DEVICE_TYPES)})")
-    # in real time the bridge itself answers before the new command acts (the rig's one-period delay),
-    # so the simulated actuator must not add another
+    # in real time the bridge itself delays the command one period (as the rig): the simulation must not
     options: dict[str, object] = {"actuation_delay": False} if realtime and env == "qube" else {}
     if period is not None:
         if env != "qube":
@@ -281,15 +220,13 @@ def simulated_driver(
 
 
 DriverFunction = Callable[..., DeviceDriver]
-"""``driver(unit: int, fleet_seed: int, *, realtime: bool) -> DeviceDriver``: the device side of a unit type,
-unit ``unit`` of fleet ``fleet_seed`` (lockstep when ``realtime`` is False)"""
+"""``driver(unit: int, fleet_seed: int, *, realtime: bool) -> DeviceDriver``: a unit type's device side"""
 
 
 def driver_of(
     function: DriverFunction, unit: int, fleet_seed: int, *, realtime: bool = False
 ) -> DeviceDriver:
-    """What ``function(unit, fleet_seed, realtime=realtime)`` returns, checked to be a ``DeviceDriver``; a
-    ValueError naming the unit and what is wrong otherwise (the function's own failure included)."""
+    """What ``function(unit, fleet_seed, realtime=realtime)`` returns, checked; ValueError if not a driver."""
     name = getattr(function, "__qualname__", repr(function))
     try:
         driver = function(unit, fleet_seed, realtime=realtime)

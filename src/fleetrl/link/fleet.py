@@ -1,7 +1,5 @@
-"""Start one simulated device bridge per unit as daemon threads, each with its own MQTT connection, for
-``fleetrl train … --device-link mqtt`` (``fleetrl device --unit K`` serves one per process instead; the
-workers cannot tell). A user's unit type is served the same way, its driver function in place of a name.
-"""
+"""One device bridge per unit as daemon threads, each with its own MQTT connection, for ``fleetrl train …
+--device-link mqtt`` (``fleetrl device --unit K`` serves one per process instead)."""
 
 from __future__ import annotations
 
@@ -25,13 +23,11 @@ class BridgeFleet:
             bridge.close()
 
     def __enter__(self) -> BridgeFleet:
-        """The fleet itself."""
         return self
 
     def __exit__(
         self, exc_type: type[BaseException] | None, exc: BaseException | None, tb: TracebackType | None
     ) -> None:
-        """Close; see :meth:`close`."""
         self.close()
 
 
@@ -47,20 +43,12 @@ def start_bridges(
     period: float | None = None,
     watchdog: float = WATCHDOG_SECONDS,
 ) -> BridgeFleet:
-    """Serve each of ``units`` (of fleet ``fleet_seed``) from a bridge thread on ``url``.
+    """Serve each of ``units`` of fleet ``fleet_seed`` from a bridge thread on ``url``; returns once every
+    bridge has announced ``online``.
 
-    Returns once every bridge has announced ``online``, so links opened afterwards find them.
-
-    :param url: broker URL (``mqtt://host:port``)
-    :param run_id: the run whose device topics to serve
-    :param env: a built-in unit type's simulated units (``qube`` or ``cartpole``), or a driver function
-        ``driver(unit, fleet_seed, *, realtime) -> DeviceDriver`` (a user's unit type)
-    :param units: unit indices
-    :param fleet_seed: seed of the fleet's per-unit dynamics (must match the workers' envs)
-    :param fleet_profile: the unit type's fleet profile (None: the default; must match the workers' envs)
-    :param realtime: real-time mode instead of lockstep
-    :param period: control period in seconds (QUBE only; default 6 ms; not with a driver function)
-    :param watchdog: seconds without a command before a bridge switches its motor off
+    :param env: a built-in unit type's simulated units (``qube`` or ``cartpole``), or a user's driver
+        function ``driver(unit, fleet_seed, *, realtime) -> DeviceDriver``
+    :param period: control period in seconds (QUBE only; not with a driver function)
     """
     if callable(env) and (fleet_profile is not None or period is not None):
         raise ValueError(

@@ -20,14 +20,12 @@ class InProcessLink:
 
     @property
     def last_reset_seconds(self) -> float:
-        """What the device's last reset took on a rig (its ``last_reset_rig_seconds``: a QUBE's swing-up, a
-        hand reset's person included); 0 for a device that reports none (a CartPole)."""
+        """What the device's last reset took on a rig (its ``last_reset_rig_seconds``; 0 if it has none)."""
         return float(getattr(self.device, "last_reset_rig_seconds", 0.0))
 
     def step(self, action: Action) -> tuple[np.ndarray, Mapping[str, float]]:
-        """Step the device; the in-process link has no extras to report."""
+        """Step the device (no extras to report)."""
         return self._step(action), NO_INFO
 
     def close(self) -> None:
-        """Close the device."""
         self.device.close()

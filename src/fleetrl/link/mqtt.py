@@ -1,10 +1,5 @@
-"""``MqttLink``: a ``DeviceLink`` to a unit served by a device bridge, over any ``Transport``.
-
-Each command carries the link's session id and the next sequence number, and only the state with the same
-pair answers it (anything else is counted in ``stale`` and dropped). No answer in time is a
-``DeviceTimeoutError``; a refusal, the bridge going offline or an observation of the wrong size a
-``DeviceLinkError`` with its reason.
-"""
+"""``MqttLink``: a ``DeviceLink`` to a unit served by a device bridge, over any ``Transport``; only the state
+carrying a command's (session id, sequence number) answers it."""
 
 from __future__ import annotations
 
@@ -34,12 +29,9 @@ from fleetrl.transport.mqtt import MqttTransport
 
 log = logging.getLogger(__name__)
 
-STEP_TIMEOUT = 1.0
-"""default seconds to wait for the state answering a step"""
-RESET_TIMEOUT = 60.0
-"""default seconds to wait for a device-side reset (a real swing-up takes seconds)"""
-ONLINE_TIMEOUT = 10.0
-"""default seconds to wait for the bridge's retained ``online`` when the link opens"""
+STEP_TIMEOUT = 1.0  # default seconds to wait for the state answering a step
+RESET_TIMEOUT = 60.0  # … for a device-side reset (a real swing-up takes seconds)
+ONLINE_TIMEOUT = 10.0  # … for the bridge's retained ``online`` when the link opens
 
 _EXTRAS = {
     FLAG_PROTECTIVE_STOP: MappingProxyType({"protective_stop": 1.0}),
@@ -49,8 +41,7 @@ _EXTRAS = {
 
 
 class DeviceLinkError(ConnectionError):
-    """The bridge refused a command, or went away: the unit cannot be driven. An ``OSError``, so a command
-    that meets it (``fleetrl worker``, ``evaluate``) exits 1 with this one line, not a traceback."""
+    """The bridge refused a command, or went away (an ``OSError``: a command meeting it exits 1)."""
 
 
 class DeviceTimeoutError(DeviceLinkError, TimeoutError):
@@ -58,17 +49,8 @@ class DeviceTimeoutError(DeviceLinkError, TimeoutError):
 
 
 class MqttLink:
-    """A ``DeviceLink`` over a transport to the bridge serving ``unit`` of run ``run_id``.
-
-    :param transport: an unconnected transport; the link connects it and closes it on :meth:`close`
-    :param run_id: the run whose device topics to use
-    :param unit: the unit's index
-    :param step_timeout: seconds to wait for a step's state
-    :param reset_timeout: seconds to wait for a reset's state
-    :param online_timeout: seconds to wait for the bridge to be online when opening
-    :param obs_size: the observation size the env declares: every observation of another size is a
-        ``DeviceLinkError`` (None: not checked)
-    """
+    """A ``DeviceLink`` over ``transport`` (unconnected; closed by :meth:`close`) to the bridge serving
+    ``unit`` of run ``run_id``; an observation of another size than ``obs_size`` is a ``DeviceLinkError``."""
 
     def __init__(
         self,
@@ -83,20 +65,15 @@ class MqttLink:
     ) -> None:
         self.unit = unit
         self.obs_size = obs_size
-        """the observation size the env declares (None: not checked)"""
         self.cmd_topic = device_topic(run_id, unit, "cmd")
         self.state_topic = device_topic(run_id, unit, "state")
         self.status_topic = device_topic(run_id, unit, "status")
         self.step_timeout = step_timeout
         self.reset_timeout = reset_timeout
-        self.session = secrets.randbits(32)
-        """this link's session id, echoed in every state meant for it"""
-        self.seq = 0
-        """sequence number of the last command sent"""
-        self.stale = 0
-        """states dropped because they did not answer the command being waited for"""
+        self.session = secrets.randbits(32)  # echoed in every state meant for this link
+        self.seq = 0  # of the last command sent
+        self.stale = 0  # states dropped as not answering the command waited for
         self.last_state: State | None = None
-        """the last fresh state (its ``time`` is the device's clock)"""
         self._transport = transport
         transport.connect(f"fleetrl-link-{run_id}-{unit}-{self.session:08x}")
         transport.subscribe(self.status_topic, qos=1)
@@ -110,9 +87,8 @@ class MqttLink:
         return state.obs
 
     def step(self, action: Action) -> tuple[np.ndarray, Mapping[str, float]]:
-        """Send ``action`` (an action index, or a vector of floats: a command vector); return the fresh
-        observation and extras (``protective_stop``, ``watchdog`` = 1.0 when the bridge's safety acted).
-        A ValueError for an action that is neither, before anything is sent."""
+        """Send ``action`` (an index or a command vector); return the observation and extras
+        (``protective_stop``, ``watchdog`` = 1.0 when the bridge's safety acted)."""
         state = self._call(Command.step(self.session, self.seq + 1, action), self.step_timeout)
         return state.obs, _EXTRAS.get(state.flags, NO_INFO)
 
@@ -121,8 +97,7 @@ class MqttLink:
         self._transport.close()
 
     def __deepcopy__(self, memo: dict[int, object]) -> MqttLink:
-        """The link itself: it is the handle of one connection to one unit, not a value (gymnasium copies an
-        env's spec, the ``link=`` it was made with included, whenever the spec is read)."""
+        """The link itself: a connection's handle, not a value (gymnasium deep-copies an env's spec)."""
         return self
 
     def _call(self, command: Command, timeout: float) -> State:
@@ -186,6 +161,5 @@ class MqttLink:
 def open_mqtt_link(
     url: str, run_id: str, unit: int, *, obs_size: int | None = None, **timeouts: float
 ) -> MqttLink:
-    """An ``MqttLink`` over a new ``MqttTransport`` to the broker at ``url`` (``timeouts``: ``MqttLink``'s;
-    ``obs_size``: the observation size the env declares)."""
+    """An ``MqttLink`` over a new ``MqttTransport`` to the broker at ``url``."""
     return MqttLink(MqttTransport(url), run_id, unit, obs_size=obs_size, **timeouts)

@@ -1,7 +1,5 @@
-"""The QUBE's device-side reset run step by step through any ``DeviceDriver`` (wait still → swing up →
-catch → settle): the simulator's phase logic (``controllers.reset_phase_step``) fed with the driver's
-readings and Quanser's velocity filter, on the driver's clock (a simulated clock runs it without sleeping).
-"""
+"""The QUBE's device-side reset through any ``DeviceDriver`` (wait still → swing up → catch → settle): the
+simulator's phase logic fed the driver's readings and Quanser's velocity filter, on the driver's clock."""
 
 from __future__ import annotations
 
@@ -15,40 +13,27 @@ from fleetrl.devices.qube.device import SETTLE_SECONDS, DeviceResetError
 from fleetrl.devices.qube.dynamics import filtered_rate, wrap_angle
 from fleetrl.link.driver import DeviceDriver
 
-ALPHA, THETA = 0, 2
-"""places of the pendulum and arm angles in a QUBE sensor vector [alpha, alpha_dot, theta, theta_dot]"""
+ALPHA, THETA = (
+    0,
+    2,
+)  # the pendulum and arm angles in a QUBE sensor vector [alpha, alpha_dot, theta, theta_dot]
 
 
 @dataclass(frozen=True)
 class ResetSettings:
     """How a reset through a driver runs (defaults: the simulator's device-side reset)."""
 
-    period: float = 0.002
-    """seconds between readings (the simulator's device period: 500 Hz)"""
-    still_rate: float = 1.0
-    """the arm counts as at rest while its filtered velocity is below this (rad/s; a swinging pendulum
-    rocks it a little)…"""
-    still_swing: float = math.radians(5.0)
-    """…and the pendulum as hanging while it stays within this of straight down (rad): a lightly damped
-    pendulum swings for minutes, and the swing-up starts from a small swing as well as from rest"""
-    still_seconds: float = 0.5
-    """how long both must hold, motor off, before the swing-up starts (0: start at once)"""
-    still_timeout: float = 30.0
-    """seconds to wait for that before giving up"""
-    kick_volts: float = 3.0
-    """a pendulum hanging at rest gives the energy law nothing to pump (its sign(α̇) is 0): the arm is
-    pushed with this many volts first (the simulated reset starts from a seeded perturbation instead)"""
-    kick_seconds: float = 0.05
-    """how long the push lasts (0: none)"""
-    timeout: float = 20.0
-    """seconds the swing-up, catch and settle may take before giving up"""
-    settle_seconds: float = SETTLE_SECONDS
-    """the readings stay inside the hand-off windows this long before the reset ends"""
-    arm_limit: float = math.radians(150.0)
-    """past this |arm angle| (rad) the reset stops the motor and fails (the simulated swing-up travels up
-    to ~120°, docs/devices.md; the bridge's own ±90° stop is not active during a reset)"""
-    velocity_cutoff: float = 50.0
-    """cut-off of the velocity filter (rad/s), Quanser's"""
+    period: float = 0.002  # seconds between readings (the simulator's 500 Hz)
+    still_rate: float = 1.0  # rad/s: the arm is at rest while its filtered velocity is below this…
+    still_swing: float = math.radians(5.0)  # …and the pendulum hangs while within this of straight down
+    still_seconds: float = 0.5  # how long both must hold, motor off, before the swing-up (0: at once)
+    still_timeout: float = 30.0  # seconds to wait for that
+    kick_volts: float = 3.0  # a pendulum at rest gives the energy law nothing to pump: push the arm first
+    kick_seconds: float = 0.05  # how long the push lasts (0: none)
+    timeout: float = 20.0  # seconds the swing-up, catch and settle may take
+    settle_seconds: float = SETTLE_SECONDS  # inside the hand-off windows this long before the reset ends
+    arm_limit: float = math.radians(150.0)  # past this |arm angle| the reset fails (swing-up travels ~120°)
+    velocity_cutoff: float = 50.0  # of the velocity filter (rad/s), Quanser's
 
 
 class AngleRates:
@@ -75,17 +60,10 @@ class AngleRates:
 def reset_through_driver(
     driver: DeviceDriver, settings: ResetSettings | None = None, constants: np.ndarray | None = None
 ) -> np.ndarray:
-    """Run the device-side reset on ``driver``'s QUBE and return the last sensor vector, its velocities the
-    filtered ones the reset judged by (the balance law's last command is left held, as the simulator's
-    reset leaves it, until the bridge's first step).
-
-    Phases: hold the arm at centre (the swing-up law's arm spring-damper, no pumping) until it is at rest
-    and the pendulum hangs; push; swing up, catch and settle (``ResetPhases``). Raises ``DeviceResetError``
-    with the motor off when the unit does not come to rest, does not settle in time, or the arm passes
-    ``arm_limit``; any driver fault propagates (the driver switches itself off).
-
-    :param constants: the controllers' constants (default: ``controller_constants()``, nominal)
-    """
+    """Run the device-side reset on ``driver``'s QUBE: hold the arm at centre until all is still, push, swing
+    up, catch and settle (``ResetPhases``, with ``constants``); return the last sensor vector with the
+    filtered velocities, the last command left held. ``DeviceResetError`` (motor off) if the unit does not
+    come to rest, does not settle in time or the arm passes ``arm_limit``."""
     if driver.spec.kind != "qube":
         raise ValueError(f"the QUBE reset needs a qube driver, got a {driver.spec.kind} one")
     s = settings or ResetSettings()
@@ -122,8 +100,8 @@ def reset_through_driver(
 
 
 class _Reader:
-    """Paces a reset at ``period`` on the driver's clock: each ``next`` waits for the next tick (the first
-    reads at once), reads the angles, filters the velocities and enforces the arm limit."""
+    """Paces a reset on the driver's clock: each ``next`` waits for the next tick (the first reads at once),
+    reads the angles, filters the velocities and enforces the arm limit."""
 
     def __init__(self, driver: DeviceDriver, rates: AngleRates, settings: ResetSettings) -> None:
         self.driver = driver

@@ -1,9 +1,7 @@
-"""``QubeSpiDriver``: a QUBE-Servo 2 (Raspberry Pi variant) on the Pi's SPI bus, behind ``DeviceDriver``.
-
-One full-duplex transfer of the 17-byte frames (``fleetrl.link.qube_frames``) per read or write; the
-command clamped to ±10 V, every reply's device id checked, a stuck arm encoder a fault, and the amplifier
-disabled on any fault, ``motor_off`` or ``close`` (docs/hardware.md). ``spidev`` is the ``pi`` extra.
-"""
+"""``QubeSpiDriver``: a QUBE-Servo 2 (Raspberry Pi variant) on the Pi's SPI bus, behind ``DeviceDriver``
+(docs/hardware.md), and its 17-byte command and reply frames as pure functions: every frame constant is a
+fact of ``reference/qube-spi-protocol.md``; check it against your unit's data sheet. ``spidev`` is the
+``pi`` extra."""
 
 from __future__ import annotations
 
@@ -11,40 +9,118 @@ import logging
 import math
 import time
 from collections.abc import Callable
+from dataclasses import dataclass
 from types import TracebackType
 from typing import Protocol
 
 import numpy as np
 
 from fleetrl.link.driver import QUBE_SAFE_VOLTS, precise_sleep_until, qube_spec
-from fleetrl.link.qube_frames import (
-    LED_FULL,
-    RESET_MASK,
-    SPI_MODE,
-    SPI_SPEED_HZ,
-    VOLTS_PER_DUTY,
-    Reply,
-    arm_angle,
-    command_frame,
-    decode_reply,
-    duty_of_volts,
-    motor_word,
-    pendulum_angle,
-    volts_of_duty,
-)
 from fleetrl.link.qube_reset import ResetSettings, reset_through_driver
 
 log = logging.getLogger(__name__)
 
-STUCK_VOLTS = 2.0
-"""a held command at least this large (V) must move the arm…"""
-STUCK_SECONDS = 0.3
-"""…by a count within this long, or the arm encoder (or the motor) is stuck"""
+SPI_MODE = 0b10  # SPI mode 2 (CPOL = 1, CPHA = 0), not mode 0
+SPI_SPEED_HZ = 1_000_000
+FRAME_BYTES = 17  # one full-duplex transfer writes the command and returns the reply
+
+MODE_WRITE = 0x01  # command byte 0: write what the mask selects
+MASK_MOTOR = 1 << 0  # write mask bit 0: write the motor command
+MASK_ENABLE = 1 << 1  # write mask bit 1: write the motor (amplifier) enable
+MASK_RED, MASK_GREEN, MASK_BLUE = 1 << 2, 1 << 3, 1 << 4  # write mask bits 2-4: the LEDs
+MASK_PRESET_ARM, MASK_PRESET_PENDULUM = 1 << 5, 1 << 6  # bits 5-6: preset encoder 0 (arm), 1 (pendulum)
+STEP_MASK = MASK_MOTOR | MASK_ENABLE | MASK_RED | MASK_GREEN | MASK_BLUE  # written every control step
+RESET_MASK = STEP_MASK | MASK_PRESET_ARM | MASK_PRESET_PENDULUM  # written once at reset: zeroes both encoders
+LED_FULL = 999  # an LED's full brightness (0x03E7), big-endian in two bytes
+
+AMPLIFIER_ENABLE = 0x8000  # motor command word bit 15: amplifier enabled
+DUTY_MASK = 0x7FFF  # an 11-bit two's-complement duty, sign-extended into bits 11-14
+DUTY_LIMIT = 1023  # the largest magnitude an 11-bit two's-complement duty holds
+VOLTS_PER_DUTY = 15.0 / 625.0  # 625 duty units ≈ 15 V
+
+COUNTS_PER_REV = 2048  # counts per revolution of both encoders
+RADIANS_PER_COUNT = 2.0 * math.pi / COUNTS_PER_REV
+COUNTS_MODULUS = 1 << 24  # encoder counts are 24-bit two's complement (sign bit 0x800000)
+
+
+@dataclass(frozen=True)
+class Reply:
+    """The fields of a reply frame the driver uses."""
+
+    device_id: int  # bytes 0-1, big-endian
+    arm_counts: int  # bytes 2-4, encoder 0, signed
+    pendulum_counts: int  # bytes 5-7, encoder 1, signed
+
+
+def duty_of_volts(volts: float) -> int:
+    """The nearest duty value to ``volts`` (625 ≈ 15 V); ValueError beyond the 11-bit range."""
+    duty = round(volts / VOLTS_PER_DUTY)
+    if not -DUTY_LIMIT <= duty <= DUTY_LIMIT:
+        raise ValueError(f"{volts} V is duty {duty}, outside the 11-bit range ±{DUTY_LIMIT}")
+    return duty
+
+
+def volts_of_duty(duty: int) -> float:
+    """The volts a duty value commands."""
+    return duty * VOLTS_PER_DUTY
+
+
+def motor_word(duty: int, *, enabled: bool) -> int:
+    """The 16-bit motor command word: ``duty`` masked to 15 bits, bit 15 set when the amplifier is on."""
+    if not -DUTY_LIMIT <= duty <= DUTY_LIMIT:
+        raise ValueError(f"duty {duty} is outside the 11-bit range ±{DUTY_LIMIT}")
+    return (duty & DUTY_MASK) | (AMPLIFIER_ENABLE if enabled else 0)
+
+
+def command_frame(
+    word: int,
+    *,
+    mask: int = STEP_MASK,
+    led: tuple[int, int, int] = (0, 0, 0),
+    presets: tuple[int, int] = (0, 0),
+) -> list[int]:
+    """The 17 command bytes: write ``mask``'s fields, motor command ``word``, LED levels (0-999, red,
+    green, blue), encoder presets (arm, pendulum; 24-bit, used only where ``mask`` selects them)."""
+    if not all(0 <= level <= LED_FULL for level in led):
+        raise ValueError(f"LED levels must be 0 to {LED_FULL}, got {led}")
+    frame = bytearray(FRAME_BYTES)
+    frame[0] = MODE_WRITE
+    frame[2] = mask
+    for field, level in enumerate(led):
+        frame[3 + 2 * field : 5 + 2 * field] = level.to_bytes(2, "big")
+    frame[9:12] = (presets[0] % COUNTS_MODULUS).to_bytes(3, "big")
+    frame[12:15] = (presets[1] % COUNTS_MODULUS).to_bytes(3, "big")
+    frame[15:17] = word.to_bytes(2, "big")
+    return list(frame)
+
+
+def decode_reply(reply: list[int] | bytes) -> Reply:
+    """The device id and both encoder counts of a reply frame; ValueError for a frame of the wrong size."""
+    data = bytes(reply)
+    if len(data) != FRAME_BYTES:
+        raise ValueError(f"a reply frame has {FRAME_BYTES} bytes, got {len(data)}")
+    return Reply(
+        int.from_bytes(data[0:2], "big"),
+        int.from_bytes(data[2:5], "big", signed=True),
+        int.from_bytes(data[5:8], "big", signed=True),
+    )
+
+
+def arm_angle(counts: int) -> float:
+    """Arm angle (rad) of encoder 0's counts, negated so that positive is counter-clockwise."""
+    return -counts * RADIANS_PER_COUNT
+
+
+def pendulum_angle(counts: int) -> float:
+    """Pendulum angle (rad, 0 upright, −π hanging) of encoder 1's counts, zeroed hanging still."""
+    return (counts % COUNTS_PER_REV) * RADIANS_PER_COUNT - math.pi
+
+
+STUCK_VOLTS = 2.0  # a held command at least this large must move the arm…
+STUCK_SECONDS = 0.3  # …by a count within this long, or the arm encoder (or the motor) is stuck
 STUCK_DUTY = duty_of_volts(STUCK_VOLTS)
-SAFE_DUTY = math.floor(QUBE_SAFE_VOLTS / VOLTS_PER_DUTY)
-"""the largest duty inside ±10 V (416 ≈ 9.98 V)"""
-NO_DEVICE_IDS = (0x0000, 0xFFFF)
-"""what a bus with nothing on it reads back: never a QUBE's id"""
+SAFE_DUTY = math.floor(QUBE_SAFE_VOLTS / VOLTS_PER_DUTY)  # the largest duty inside ±10 V
+NO_DEVICE_IDS = (0x0000, 0xFFFF)  # what a bus with nothing on it reads back
 INSTALL_HINT = "pip install 'fleetrl[pi]'"
 
 
@@ -58,17 +134,9 @@ class SpiDevice(Protocol):
     mode: int
     max_speed_hz: int
 
-    def open(self, bus: int, device: int) -> None:
-        """Open ``/dev/spidev<bus>.<device>``."""
-        ...
-
-    def xfer2(self, data: list[int]) -> list[int]:
-        """One full-duplex transfer, chip select held throughout."""
-        ...
-
-    def close(self) -> None:
-        """Release the bus."""
-        ...
+    def open(self, bus: int, device: int) -> None: ...
+    def xfer2(self, data: list[int]) -> list[int]: ...
+    def close(self) -> None: ...
 
 
 def spidev_factory() -> Callable[[], SpiDevice]:
@@ -82,20 +150,10 @@ def spidev_factory() -> Callable[[], SpiDevice]:
 
 
 class QubeSpiDriver:
-    """A QUBE-Servo 2 over SPI (mode 2, 1 MHz, 17-byte frames) as a ``DeviceDriver``.
-
-    Opening zeroes both encoders: start it with the pendulum hanging still and the arm centred.
-
-    :param bus: SPI bus number (``/dev/spidev<bus>.<device>``)
-    :param device: chip-select number on that bus
-    :param control_period: seconds of one agent step (the rig: 6 ms)
-    :param expected_id: the device id every reply must carry; None: the id of the first reply (which must
-        not be 0x0000 or 0xFFFF, what an empty bus reads)
-    :param spi_factory: makes the bus object (default ``spidev.SpiDev``)
-    :param clock: seconds, monotonic (default ``time.perf_counter``)
-    :param sleep_until: sleeps until ``clock() >= deadline`` (default ``precise_sleep_until``)
-    :param reset: how ``home`` runs the device-side reset
-    """
+    """A QUBE-Servo 2 on ``/dev/spidev<bus>.<device>`` as a ``DeviceDriver``: the command clamped to ±10 V,
+    every reply's device id checked (``expected_id``, default the first reply's), a stuck arm encoder a
+    fault, the amplifier disabled on any fault. Opening zeroes both encoders: start it with the pendulum
+    hanging still and the arm centred."""
 
     def __init__(
         self,
@@ -112,12 +170,9 @@ class QubeSpiDriver:
         self.spec = qube_spec(control_period, QUBE_SAFE_VOLTS)
         self.expected_id = expected_id
         self.reset_settings = reset or ResetSettings()
-        self.faulted: str | None = None
-        """why the driver stopped (None while healthy)"""
-        self.duty = 0
-        """the duty value held"""
-        self.amplifier = False
-        """whether the amplifier is enabled"""
+        self.faulted: str | None = None  # why the driver stopped
+        self.duty = 0  # the duty value held
+        self.amplifier = False  # whether the amplifier is enabled
         self._clock = clock
         self._sleep_until = sleep_until
         self._obs = np.zeros(4, dtype=np.float32)
@@ -142,15 +197,13 @@ class QubeSpiDriver:
             raise
         log.info("QUBE on /dev/spidev%d.%d, device id 0x%04x", bus, device, self.expected_id)
 
-    # -- DeviceDriver ---------------------------------------------------------------------------------
-
     def time(self) -> float:
         """Seconds on the clock since the driver opened."""
         return self._clock() - self._origin
 
     def read_sensors(self) -> np.ndarray:
-        """One transfer (the held command resent); float32 [alpha, alpha_dot, theta, theta_dot], the
-        velocities by finite difference over the measured time since the previous read (as the rig)."""
+        """One transfer (the held command resent); [alpha, alpha_dot, theta, theta_dot], the velocities by
+        finite difference since the previous read (as the rig)."""
         self._refuse_if_faulted()
         reply = self._transfer()
         now = self.time()
@@ -196,20 +249,15 @@ class QubeSpiDriver:
         self._spi.close()
 
     def __enter__(self) -> QubeSpiDriver:
-        """The driver itself."""
         return self
 
     def __exit__(
         self, exc_type: type[BaseException] | None, exc: BaseException | None, tb: TracebackType | None
     ) -> None:
-        """Close (amplifier off), whatever happened."""
         self.close()
 
-    # -- frames and faults ----------------------------------------------------------------------------
-
     def _transfer(self, mask: int | None = None, *, check: bool = True) -> Reply:
-        """Send the held duty word (LEDs: green running, red faulted, blue amplifier off); return the
-        decoded reply, its device id checked unless ``check`` is False."""
+        """Send the held duty word (LEDs: green running, red faulted, blue amplifier off); the reply."""
         led = (LED_FULL, 0, 0) if self.faulted else (0, LED_FULL, 0) if self.amplifier else (0, 0, LED_FULL)
         word = motor_word(self.duty, enabled=self.amplifier)
         frame = command_frame(word, led=led) if mask is None else command_frame(word, mask=mask, led=led)

@@ -9,8 +9,7 @@ import time
 
 log = logging.getLogger(__name__)
 
-SPIN_SECONDS = 0.0005
-"""``precise_sleep_until`` sleeps in the OS until this close to the deadline, then spins"""
+SPIN_SECONDS = 0.0005  # ``precise_sleep_until`` sleeps until this close to the deadline, then spins
 
 
 def precise_sleep_until(deadline: float) -> None:
@@ -24,10 +23,8 @@ def precise_sleep_until(deadline: float) -> None:
 
 
 def request_realtime_priority(priority: int = 10) -> bool:
-    """Put this process under the SCHED_FIFO real-time policy at ``priority`` (as ``chrt -f`` would), so a
-    real-time bridge's ticks are not delayed by ordinary processes; threads started afterwards (the MQTT
-    client's) inherit it. Needs root or CAP_SYS_NICE; returns False (and logs why) where not permitted.
-    Call it before the bridge opens its transport."""
+    """Put this process under SCHED_FIFO at ``priority`` (as ``chrt -f``; threads started later inherit it);
+    False (logged) where not permitted (it needs root or CAP_SYS_NICE)."""
     try:
         os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(priority))
     except (AttributeError, OSError) as err:

@@ -1,8 +1,6 @@
-"""Device topics (``fleetrl/<run_id>/device/<unit>/cmd``, ``…/state``, ``…/status``) and their two msgpack
-messages: a command (link → bridge) and a state (bridge → link). The decoders check every field and raise
-:class:`WireError` with a reason, so a bad message is refused, never acted on; sizes are capped by
-:data:`MAX_VECTOR`. The fields are in docs/protocol.md, "Device bridges".
-"""
+"""Device topics (``fleetrl/<run_id>/device/<unit>/cmd``, ``…/state``, ``…/status``) and their msgpack
+messages, a command (link → bridge) and a state (bridge → link), fully validated on decoding
+(docs/protocol.md, "Device bridges")."""
 
 from __future__ import annotations
 
@@ -14,28 +12,17 @@ from typing import Any
 import msgpack
 import numpy as np
 
-VERSION = 2
-"""wire version of both messages (1: an action index only, at most 16 observation values)"""
-MAX_VECTOR = 64
-"""most components of an observation or a command vector any unit may declare (float32 each)"""
-MAX_ERROR = 200
-"""characters of a refusal reason kept on the wire"""
-HEADER_BYTES = 64
-"""msgpack bytes of a message's map, keys, scalar fields and length prefixes (at most 60)"""
-MAX_PAYLOAD = HEADER_BYTES + 4 * MAX_VECTOR + 4 * MAX_ERROR
-"""bytes (a full vector plus a refusal reason of up to 4 UTF-8 bytes a character); anything longer is refused
-before it is decoded"""
+VERSION = 2  # of both messages
+MAX_VECTOR = 64  # most float32 values of an observation or a command vector
+MAX_ERROR = 200  # characters of a refusal reason kept on the wire
+HEADER_BYTES = 64  # msgpack bytes of a message's map, keys, scalars and length prefixes (at most 60)
+MAX_PAYLOAD = HEADER_BYTES + 4 * MAX_VECTOR + 4 * MAX_ERROR  # longer messages are refused undecoded
 MAX_SEQ = 2**63 - 1
-"""sequence numbers are non-negative 63-bit integers"""
-MAX_SID = 2**32 - 1
-"""session ids are unsigned 32-bit integers (one per link instance)"""
-MAX_SEED = 2**64 - 1
-"""a reset seed fits numpy's SeedSequence entropy of one 64-bit word"""
+MAX_SID = 2**32 - 1  # one session id per link instance
+MAX_SEED = 2**64 - 1  # one 64-bit word of numpy's SeedSequence entropy
 
-FLAG_PROTECTIVE_STOP = 1
-"""the arm (cart) went past its limit; the motor is off until the next reset"""
-FLAG_WATCHDOG = 2
-"""commands stopped arriving for the watchdog time; the motor was switched off"""
+FLAG_PROTECTIVE_STOP = 1  # the arm (cart) passed its limit; motor off until the next reset
+FLAG_WATCHDOG = 2  # no command for the watchdog time; the motor was switched off
 
 OPS = ("step", "reset")
 _RUN_ID = re.compile(r"[A-Za-z0-9_.-]{1,64}")
@@ -44,10 +31,7 @@ _STATE_KEYS = {"v", "sid", "seq", "t", "obs", "flags"}
 
 
 class WireError(ValueError):
-    """A device message that fails validation; the text says what is wrong with it.
-
-    ``sid`` and ``seq`` are set when the message's header was valid, so the refusal can be answered.
-    """
+    """A device message that fails validation; ``sid`` and ``seq`` set when its header was valid."""
 
     def __init__(self, reason: str, sid: int | None = None, seq: int | None = None) -> None:
         super().__init__(reason)
@@ -66,24 +50,14 @@ def device_topic(run_id: str, unit: int, leaf: str) -> str:
     return f"fleetrl/{run_id}/device/{unit}/{leaf}"
 
 
-ONLINE = b"online"
-"""retained status of a running bridge"""
-OFFLINE = b"offline"
-"""status of a bridge that stopped (its last will, or a clean goodbye)"""
+ONLINE = b"online"  # retained status of a running bridge
+OFFLINE = b"offline"  # of a bridge that stopped (its last will, or a clean goodbye)
 
 
 @dataclass(frozen=True)
 class Command:
-    """One command to a bridge.
-
-    :param sid: the sending link's session id (a new link takes the unit over)
-    :param seq: the sequence number the state answering it will carry
-    :param op: ``step`` (apply ``action`` or ``command`` for one control period) or ``reset`` (device-side
-        reset)
-    :param action: a step's discrete action index (None: the step carries ``command``)
-    :param command: a step's command vector (float32 values; None: the step carries ``action``)
-    :param seed: seed of a reset (None: unseeded)
-    """
+    """One command to a bridge: ``step`` (with an ``action`` index or a ``command`` vector) or ``reset``
+    (with its ``seed``), from link session ``sid``, to be answered with sequence number ``seq``."""
 
     sid: int
     seq: int
@@ -94,15 +68,11 @@ class Command:
 
     @classmethod
     def step(cls, sid: int, seq: int, action: object) -> Command:
-        """A step carrying ``action``: an integer is an action index, a vector of floats a command vector
-        (sent as float32); a ValueError for anything else (a bool, an integer vector, text)."""
+        """A step carrying an action index (int) or a command vector (floats); ValueError otherwise."""
         if isinstance(action, int | np.integer) and not isinstance(action, bool | np.bool_):
             return cls(sid, seq, "step", action=int(action))
-        vector = (
-            np.asarray(action)
-            if isinstance(action, np.ndarray | list | tuple | float | np.floating)
-            else None
-        )
+        vectors = np.ndarray | list | tuple | float | np.floating
+        vector = np.asarray(action) if isinstance(action, vectors) else None
         if vector is None or not np.issubdtype(vector.dtype, np.floating) or vector.ndim > 1:
             raise ValueError(f"a step takes an action index (int) or a 1-D vector of floats, got {action!r}")
         return cls(sid, seq, "step", command=tuple(vector.reshape(-1).astype(np.float32).tolist()))
@@ -110,15 +80,8 @@ class Command:
 
 @dataclass(frozen=True)
 class State:
-    """One state from a bridge, answering the command with the same ``(sid, seq)``.
-
-    :param sid: session id of the command answered
-    :param seq: sequence number of the command answered
-    :param time: the device's clock (s) when the observation was read
-    :param obs: the observation (float32)
-    :param flags: ``FLAG_*`` bits
-    :param error: why the command was refused (then ``obs`` is empty)
-    """
+    """One state from a bridge, answering the command with the same ``(sid, seq)``: the device's clock
+    ``time``, the observation, ``FLAG_*`` bits, or why the command was refused (``obs`` then empty)."""
 
     sid: int
     seq: int
@@ -157,8 +120,8 @@ def encode_state(state: State) -> bytes:
 
 
 def decode_command(payload: bytes, n_actions: int, command_size: int) -> Command:
-    """Validate and decode a command for a unit with ``n_actions`` discrete action indices (0: it takes
-    command vectors only) and command vectors of ``command_size`` float32 values; WireError otherwise."""
+    """The command in ``payload`` for a unit with ``n_actions`` action indices and command vectors of
+    ``command_size``; WireError otherwise."""
     body = _unpack(payload)
     sid, seq = _header(body)
     try:

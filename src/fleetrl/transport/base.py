@@ -8,13 +8,7 @@ from typing import Protocol, runtime_checkable
 
 @dataclass(frozen=True)
 class Will:
-    """A last will: published by the broker (or bus) for a client that vanishes without closing.
-
-    :param topic: where the will is published.
-    :param payload: what is published (e.g. ``b"offline"``).
-    :param qos: its quality of service.
-    :param retain: whether the broker keeps it as the topic's retained message.
-    """
+    """A last will: published by the broker (or bus) for a client that vanishes without closing."""
 
     topic: str
     payload: bytes
@@ -33,16 +27,11 @@ class Received:
 
 @runtime_checkable
 class Transport(Protocol):
-    """A publish/subscribe client. Messages to subscribed topics are queued and taken with :meth:`receive`.
-
-    Implementations: :class:`fleetrl.transport.local.LocalTransport` (in-process bus) and
-    :class:`fleetrl.transport.mqtt.MqttTransport` (paho-mqtt). All methods may be called from any one thread;
-    :meth:`receive` should be called from a single consumer thread.
-    """
+    """A publish/subscribe client (``LocalTransport``, ``MqttTransport``): messages to subscribed topics are
+    queued and taken with :meth:`receive`, from a single consumer thread."""
 
     def connect(self, client_id: str, *, will: Will | None = None, timeout: float | None = None) -> None:
-        """Connect as ``client_id`` with ``will``; ConnectionError if not connected within ``timeout`` s
-        (None: the transport's own default)."""
+        """Connect as ``client_id``; ConnectionError if not connected within ``timeout`` s (None: default)."""
         ...
 
     def publish(self, topic: str, payload: bytes, *, qos: int = 1, retain: bool = False) -> None:
@@ -58,8 +47,7 @@ class Transport(Protocol):
         ...
 
     def announce(self, topic: str, payload: bytes) -> None:
-        """Publish ``payload`` retained on ``topic`` now and again after every reconnect (a node's ``online``
-        status, so the others learn it is back after a broker restart)."""
+        """Publish ``payload`` retained on ``topic`` now and again after every reconnect (``online``)."""
         ...
 
     def close(self) -> None:

@@ -1,8 +1,5 @@
 """A slow uplink, simulated: every message a client sends reaches the transport a fixed delay after it was
-sent, in the order it was sent; the sender does not wait for it (a message in flight, not a blocked sender).
-
-What the client receives is not delayed. A last will is the broker's, so it is not delayed either.
-"""
+sent, in order, without blocking the sender; what it receives (and its will, the broker's) is not delayed."""
 
 from __future__ import annotations
 
@@ -20,15 +17,8 @@ Send = Callable[[], None]
 
 
 class DelayedTransport:
-    """``inner`` with ``delay`` seconds added to every message published or announced through it.
-
-    Messages leave in the order they were sent, each ``delay`` after its send (one sender thread, started
-    at :meth:`connect`); :meth:`close` first lets every message in flight arrive.
-
-    :param inner: the transport the messages leave on
-    :param delay: seconds each message spends in flight; ≥ 0
-    :param clock: the time source (seconds; monotonic)
-    """
+    """``inner`` with ``delay`` seconds (≥ 0) added to every message published or announced through it, by one
+    sender thread started at :meth:`connect`; :meth:`close` first lets every message in flight arrive."""
 
     def __init__(
         self, inner: Transport, delay: float, *, clock: Callable[[], float] = time.monotonic
@@ -53,7 +43,6 @@ class DelayedTransport:
         self._send(lambda: self.inner.publish(topic, payload, qos=qos, retain=retain))
 
     def announce(self, topic: str, payload: bytes) -> None:
-        """Announce ``payload`` on ``topic`` through ``inner``, ``delay`` seconds from now."""
         self._send(lambda: self.inner.announce(topic, payload))
 
     def subscribe(self, topic_filter: str, *, qos: int = 1) -> None:
@@ -61,7 +50,6 @@ class DelayedTransport:
         self.inner.subscribe(topic_filter, qos=qos)
 
     def receive(self, timeout: float | None = None) -> Received | None:
-        """The next message ``inner`` received (not delayed)."""
         return self.inner.receive(timeout)
 
     def close(self) -> None:

@@ -1,7 +1,5 @@
 """An in-process publish/subscribe bus for runs whose roles are threads: immediate delivery in publish
-order, retained messages and last wills as on a broker, thread-safe and deterministic, behind the same
-:class:`Transport` interface as MQTT.
-"""
+order, retained messages and last wills as on a broker, thread-safe and deterministic."""
 
 from __future__ import annotations
 
@@ -15,7 +13,6 @@ class LocalBus:
     """The shared hub (the broker's role). Create one per run and give each role a :meth:`client`."""
 
     def __init__(self) -> None:
-        """An empty bus."""
         self._lock = threading.Lock()
         self._clients: dict[str, LocalTransport] = {}
         self._retained: dict[str, bytes] = {}
@@ -59,13 +56,9 @@ class LocalBus:
 
 
 class LocalTransport:
-    """A :class:`fleetrl.transport.base.Transport` on a :class:`LocalBus`.
-
-    :meth:`abort` simulates a client that dies (its will is published); :meth:`close` is a clean goodbye.
-    """
+    """A :class:`~fleetrl.transport.base.Transport` on a :class:`LocalBus`."""
 
     def __init__(self, bus: LocalBus) -> None:
-        """A client of ``bus``; call :meth:`connect` before use."""
         self._bus = bus
         self._queue: queue.Queue[Received] = queue.Queue()
         self._filters: list[str] = []
@@ -74,19 +67,18 @@ class LocalTransport:
         self._will: Will | None = None
 
     def connect(self, client_id: str, *, will: Will | None = None, timeout: float | None = None) -> None:
-        """Join the bus as ``client_id`` with an optional last will."""
         self._client_id = client_id
         self._will = will
         self._bus._attach(client_id, self)
 
     def publish(self, topic: str, payload: bytes, *, qos: int = 1, retain: bool = False) -> None:
-        """Publish on the bus (``qos`` is accepted for interface parity; delivery is always exactly once)."""
+        """Publish on the bus (delivery is always exactly once, whatever ``qos``)."""
         if self._client_id is None:
             raise ConnectionError("publish before connect")
         self._bus.publish(topic, payload, retain=retain)
 
     def announce(self, topic: str, payload: bytes) -> None:
-        """Publish retained (the bus never drops a client, so there is no reconnect to repeat it after)."""
+        """Publish retained (the bus never drops a client: no reconnect to repeat it after)."""
         self.publish(topic, payload, retain=True)
 
     def subscribe(self, topic_filter: str, *, qos: int = 1) -> None:
@@ -98,14 +90,12 @@ class LocalTransport:
         self._bus._subscribed(self, topic_filter)
 
     def receive(self, timeout: float | None = None) -> Received | None:
-        """The next message, or None after ``timeout`` seconds."""
         try:
             return self._queue.get(timeout=timeout)
         except queue.Empty:
             return None
 
     def close(self) -> None:
-        """Leave the bus cleanly (no will)."""
         self._detach(publish_will=False)
 
     def abort(self) -> None:

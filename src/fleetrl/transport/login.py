@@ -1,7 +1,5 @@
 """The broker password, kept off command lines and out of files a run writes: the URL names the user, the
-password comes from a 0600 file (``--broker-password-file``) or ``FLEETRL_BROKER_PASSWORD``. One in the
-URL still works, with a warning (``ps`` shows it to every local user).
-"""
+password comes from a 0600 file (``--broker-password-file``) or ``FLEETRL_BROKER_PASSWORD``."""
 
 from __future__ import annotations
 
@@ -12,7 +10,6 @@ from pathlib import Path
 from urllib.parse import unquote, urlsplit, urlunsplit
 
 PASSWORD_ENV = "FLEETRL_BROKER_PASSWORD"
-"""the environment variable a broker password may come from"""
 
 
 def password_in_url(url: str) -> bool:
@@ -21,8 +18,7 @@ def password_in_url(url: str) -> bool:
 
 
 def without_password(url: str) -> str:
-    """``url`` with its password removed (the user stays): safe to log, to write and to put on a command
-    line."""
+    """``url`` without its password (the user stays): safe to log, write and put on a command line."""
     parts = urlsplit(url)
     if parts.password is None:
         return url
@@ -58,8 +54,8 @@ def broker_password(
 
 @contextmanager
 def password_in_environment(password: str | None) -> Iterator[None]:
-    """Put ``password`` in ``FLEETRL_BROKER_PASSWORD`` while the block runs (None: change nothing), so every
-    transport of this process and every child process it starts logs in without a password in any argv."""
+    """``password`` in ``FLEETRL_BROKER_PASSWORD`` while the block runs (None: nothing changes), for every
+    transport of this process and its children."""
     if password is None:
         yield
         return

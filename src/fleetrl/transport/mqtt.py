@@ -1,8 +1,5 @@
 """A :class:`~fleetrl.transport.base.Transport` over MQTT 3.1.1 with paho-mqtt 2.x: TCP_NODELAY on every
-connection (docs/protocol.md), reconnection with backoff, subscriptions renewed on every connect. The
-federation roles ask for persistent sessions; the default is a clean one (a device link must not receive
-commands queued while it was away).
-"""
+connection (docs/protocol.md), reconnection with backoff, subscriptions renewed on every connect."""
 
 from __future__ import annotations
 
@@ -26,20 +23,12 @@ from fleetrl.transport.login import broker_password
 
 log = logging.getLogger(__name__)
 
-CONNECT_LOG_INTERVAL = 10.0
-"""seconds between log lines while :meth:`MqttTransport.connect` waits for an unreachable broker"""
+CONNECT_LOG_INTERVAL = 10.0  # seconds between log lines while connect waits for an unreachable broker
 
 
 @dataclass(frozen=True)
 class BrokerAddress:
-    """Where a broker is and how to log in, parsed from ``mqtt://[user:pass@]host[:port]`` or ``mqtts://…``.
-
-    :param host: host name or address.
-    :param port: TCP port (default 1883, or 8883 for ``mqtts``).
-    :param tls: whether to use TLS.
-    :param username: login name, if any.
-    :param password: password, if any.
-    """
+    """Where a broker is and how to log in, parsed from ``mqtt://[user:pass@]host[:port]`` or ``mqtts://…``."""
 
     host: str
     port: int
@@ -60,13 +49,9 @@ class BrokerAddress:
             port = parts.port or (8883 if tls else 1883)
         except ValueError:
             raise ValueError(f"bad broker URL {url!r}: bad port") from None
-        return cls(
-            host=parts.hostname,
-            port=port,
-            tls=tls,
-            username=unquote(parts.username) if parts.username else None,
-            password=unquote(parts.password) if parts.password else None,
-        )
+        username = unquote(parts.username) if parts.username else None
+        password = unquote(parts.password) if parts.password else None
+        return cls(parts.hostname, port, tls, username, password)
 
     @property
     def url(self) -> str:
@@ -77,17 +62,12 @@ class BrokerAddress:
 class MqttTransport:
     """An MQTT client implementing :class:`~fleetrl.transport.base.Transport`.
 
-    :param url: ``mqtt://[user:pass@]host:port`` or ``mqtts://…``.
-    :param ca_file: CA certificate file for ``mqtts`` (None: the system's CAs).
-    :param keepalive: MQTT keep-alive in seconds; the broker publishes the will after 1.5× this of silence.
-    :param reconnect_delay: (min, max) seconds of exponential reconnect backoff.
-    :param clean_session: True (default) starts afresh on every connect; False asks the broker to keep the
-        session (subscriptions, queued QoS 1 messages) across disconnects — what the federation roles use.
-    :param cert_file: client certificate for ``mqtts`` (optional; with ``key_file``).
-    :param key_file: the client certificate's private key.
-    :param connect_timeout: seconds :meth:`connect` keeps trying to reach the broker before it gives up.
-    :param password: the login's password (from a file, :mod:`fleetrl.transport.login`); it replaces one in
-        ``url``. Without either, a URL naming a user takes ``FLEETRL_BROKER_PASSWORD`` from the environment.
+    :param ca_file: CA certificate file for ``mqtts`` (None: the system's CAs)
+    :param keepalive: seconds; the broker publishes the will after 1.5× this of silence
+    :param clean_session: False asks the broker to keep the session across disconnects (the federation
+        roles); a device link must not receive commands queued while it was away
+    :param password: replaces one in ``url``; without either, a URL naming a user takes
+        ``FLEETRL_BROKER_PASSWORD`` from the environment
     """
 
     def __init__(
@@ -103,19 +83,16 @@ class MqttTransport:
         connect_timeout: float = 10.0,
         password: str | None = None,
     ) -> None:
-        """Prepare a client for the broker at ``url``; nothing is sent before :meth:`connect`."""
         self.address = BrokerAddress.parse(url)
         if password is None and self.address.username is not None and self.address.password is None:
             password = broker_password(None)  # FLEETRL_BROKER_PASSWORD, if set
         if password is not None:
             self.address = dataclasses.replace(self.address, password=password)
         self.connect_timeout = connect_timeout
-        self._ca_file = ca_file
-        self._keepalive = keepalive
+        self.keepalive = keepalive
+        self._tls: dict[str, Any] = {"ca_certs": ca_file, "certfile": cert_file, "keyfile": key_file}
         self._reconnect_delay = reconnect_delay
         self._clean_session = clean_session
-        self._cert_file = cert_file
-        self._key_file = key_file
         self._queue: queue.Queue[Received] = queue.Queue()
         self._filters: dict[str, int] = {}
         self._announced: dict[str, bytes] = {}
@@ -124,13 +101,7 @@ class MqttTransport:
         self._refused: str | None = None
         self._unacked: list[paho.MQTTMessageInfo] = []
         self._client: paho.Client | None = None
-        self.connection_losses = 0
-        """how many times the connection was lost after it was made (a chief's lease is in doubt after one)"""
-
-    @property
-    def keepalive(self) -> int:
-        """The MQTT keep-alive in seconds (the broker fires the will after 1.5 × this of silence)."""
-        return self._keepalive
+        self.connection_losses = 0  # after it was made (a chief's lease is in doubt after one)
 
     @property
     def connected(self) -> bool:
@@ -138,9 +109,8 @@ class MqttTransport:
         return self._connected.is_set() and self._refused is None
 
     def connect(self, client_id: str, *, will: Will | None = None, timeout: float | None = None) -> None:
-        """Connect as ``client_id`` and start the network thread; ConnectionError on failure (a refused login
-        at once; an unreachable broker after ``timeout`` s, default the ``connect_timeout`` given at
-        construction, of retries with backoff)."""
+        """Connect as ``client_id`` and start the network thread; ConnectionError at once for a refused login,
+        after ``timeout`` s (default ``connect_timeout``) of retries for an unreachable broker."""
         timeout = self.connect_timeout if timeout is None else timeout
         client = paho.Client(
             CallbackAPIVersion.VERSION2,
@@ -151,12 +121,7 @@ class MqttTransport:
         if self.address.username is not None:
             client.username_pw_set(self.address.username, self.address.password)
         if self.address.tls:
-            client.tls_set(
-                ca_certs=self._ca_file,
-                certfile=self._cert_file,
-                keyfile=self._key_file,
-                cert_reqs=ssl.CERT_REQUIRED,
-            )
+            client.tls_set(**self._tls, cert_reqs=ssl.CERT_REQUIRED)
         if will is not None:
             client.will_set(will.topic, will.payload, qos=will.qos, retain=will.retain)
         client.reconnect_delay_set(*self._reconnect_delay)
@@ -164,7 +129,7 @@ class MqttTransport:
         client.on_disconnect = self._on_disconnect
         client.on_message = self._on_message
         self._client = client
-        client.connect_async(self.address.host, self.address.port, keepalive=self._keepalive)
+        client.connect_async(self.address.host, self.address.port, keepalive=self.keepalive)
         client.loop_start()
         if not self._wait_connected(timeout) or self._refused:
             self._shutdown()
@@ -176,8 +141,6 @@ class MqttTransport:
             )
 
     def _wait_connected(self, timeout: float) -> bool:
-        """Wait for the first CONNACK while paho retries with backoff; log a line every
-        ``CONNECT_LOG_INTERVAL`` seconds."""
         started = time.monotonic()
         deadline = started + timeout
         while not self._connected.wait(min(CONNECT_LOG_INTERVAL, max(0.0, deadline - time.monotonic()))):
@@ -202,7 +165,6 @@ class MqttTransport:
                 self._unacked.append(info)
 
     def announce(self, topic: str, payload: bytes) -> None:
-        """Publish retained now and after every reconnect (once subscriptions are renewed)."""
         with self._lock:
             self._announced[topic] = payload
         self.publish(topic, payload, retain=True)
@@ -216,7 +178,6 @@ class MqttTransport:
             client.subscribe(topic_filter, qos=qos)
 
     def receive(self, timeout: float | None = None) -> Received | None:
-        """The next message, or None after ``timeout`` seconds."""
         try:
             return self._queue.get(timeout=timeout)
         except queue.Empty:
@@ -281,26 +242,18 @@ class MqttTransport:
 
 
 def probe_broker(url: str, *, timeout: float, **options: Any) -> None:
-    """Connect to the broker at ``url`` and leave at once; ConnectionError (naming the broker) if it cannot be
-    reached within ``timeout`` s or refuses the login. ``options`` are :class:`MqttTransport`'s."""
+    """Connect to the broker at ``url`` and leave; ConnectionError if that fails within ``timeout`` s."""
     transport = MqttTransport(url, connect_timeout=timeout, **options)
     transport.connect(f"fleetrl-probe-{os.getpid()}-{time.monotonic_ns() % 10**6}")
     transport.close()
 
 
-RETAINED_GRACE = 0.5
-"""seconds :func:`read_retained` waits after the broker acknowledged its subscription (a retained message
-follows the SUBACK at once)"""
+RETAINED_GRACE = 0.5  # seconds to wait after a SUBACK (a retained message follows it at once)
 
 
-def read_retained(
-    url: str, topic: str, *, client_id: str, timeout: float, grace: float = RETAINED_GRACE, **options: Any
-) -> bytes | None:
-    """The message retained on ``topic`` (None: there is none), read over a connection of its own under
-    ``client_id`` with a clean session, so no role's session is touched; ConnectionError if the broker cannot
-    be reached or refuses the login within ``timeout`` s. ``options`` are :class:`MqttTransport`'s.
-
-    The answer is known when a retained message arrives, or ``grace`` s after the subscription's SUBACK."""
+def read_retained(url: str, topic: str, *, client_id: str, timeout: float, **options: Any) -> bytes | None:
+    """The message retained on ``topic`` (None: none came ``RETAINED_GRACE`` s after the SUBACK), read over
+    a clean-session connection of its own; ConnectionError if that fails within ``timeout`` s."""
     transport = MqttTransport(url, connect_timeout=timeout, clean_session=True, **options)
     acked = threading.Event()
     transport.connect(client_id)
@@ -318,7 +271,7 @@ def read_retained(
             now = time.monotonic()
             if acked_at is None and acked.is_set():
                 acked_at = now
-            if acked_at is not None and now >= acked_at + grace:
+            if acked_at is not None and now >= acked_at + RETAINED_GRACE:
                 return None
             if now >= deadline:
                 raise ConnectionError(
@@ -332,9 +285,7 @@ def read_retained(
 
 
 def _settled(info: paho.MQTTMessageInfo) -> bool:
-    """Whether a QoS 1 publish needs no more waiting: acknowledged, or queued while disconnected (paho then
-    reports ``not connected`` but sends it after reconnecting; the roles' resends cover a broker that lost
-    it)."""
+    """Whether a QoS 1 publish needs no more waiting: acknowledged, or queued while disconnected."""
     try:
         return info.is_published()
     except (RuntimeError, ValueError):
