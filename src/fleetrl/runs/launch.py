@@ -300,4 +300,8 @@ def host_thread(
     specs: list[WorkerSpec], make_transport: Callable[[], Transport], run_id: str
 ) -> Callable[[Emit], None]:
     """The body of a unit host's thread on the in-process bus."""
-    return lambda emit: train_host(specs, make_transport(), run_id, emit, reply_timeout=CHIEF_IDLE_TIMEOUT)
+
+    def body(emit: Emit) -> None:
+        train_host(specs, make_transport(), run_id, emit, reply_timeout=CHIEF_IDLE_TIMEOUT)
+
+    return body
