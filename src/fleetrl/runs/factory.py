@@ -22,14 +22,9 @@ from fleetrl.runs.uneven import unit_stall
 from fleetrl.transport.base import Transport
 
 
-def action_space_of(unit: UnitDescription) -> ActionSpace:
-    """The agent's action space for ``unit``'s: Discrete n (a softmax head) or a 1-D Box (a Gaussian head)."""
-    return ActionSpace.of_unit(unit.action)
-
-
 def agent_for(unit: UnitDescription, config: PPOConfig, seed: int) -> PPOAgent:
     """A PPO agent of ``unit``'s shapes (ValueError: actions of a space the agent does not handle)."""
-    return PPOAgent(unit.obs_dim, action_space_of(unit), config, seed=seed)
+    return PPOAgent(unit.obs_dim, ActionSpace.of_unit(unit.action), config, seed=seed)
 
 
 def bridge_link(env: str, url: str, run_id: str, unit: int, transport: Transport | None = None) -> MqttLink:
@@ -112,7 +107,7 @@ def make_host_learner(specs: Sequence[WorkerSpec]) -> Learner:
     unit = built[0][1]
     config = learning.ppo()
     seeds = [s.worker_seed for s in specs]
-    agent = PPOAgent(unit.obs_dim, action_space_of(unit), config, seeds)
+    agent = PPOAgent(unit.obs_dim, ActionSpace.of_unit(unit.action), config, seeds)
     scheme = learning.federation_scheme()
     if scheme.shared_start:
         agent.set_model_parameters(agent_for(unit, config, seed=learning.seed).model_parameters())
