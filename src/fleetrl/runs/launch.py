@@ -16,12 +16,11 @@ from fleetrl.envs.catalog import ENV_SPECS, describe_env, get_env_spec
 from fleetrl.federation.kinds import new_chief
 from fleetrl.federation.runner import ChiefSummary, run_chief
 from fleetrl.link.fleet import start_bridges
-from fleetrl.runs.factory import make_learner, probe_agent
+from fleetrl.runs.factory import chief_plan, make_learner, probe_agent
 from fleetrl.runs.fleet import Fleet, ThreadFleet, follow
 from fleetrl.runs.fleet_summary import summarised
 from fleetrl.runs.host_settings import host_groups, member_ids
 from fleetrl.runs.live import LiveView
-from fleetrl.runs.plans import chief_plan
 from fleetrl.runs.processes import ProcessFleet, fork_available
 from fleetrl.runs.roles import Emit, train_federated, train_host
 from fleetrl.runs.rundir import RunDirectoryError, RunRecorder, write_json_atomic

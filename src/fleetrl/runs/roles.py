@@ -13,9 +13,8 @@ from fleetrl.federation.wire.signing import FleetKey
 from fleetrl.federation.worker.actions import FederatedRound
 from fleetrl.federation.worker.runner import FederatedWorker, WorkerSummary
 from fleetrl.runs.checkpoints import WorkerCheckpoint
-from fleetrl.runs.factory import make_host_learner, make_learner
+from fleetrl.runs.factory import make_host_learner, make_learner, worker_plan
 from fleetrl.runs.host_settings import host_id
-from fleetrl.runs.plans import worker_plan
 from fleetrl.runs.records import MetricsRow
 from fleetrl.runs.rundir import model_path
 from fleetrl.runs.spec import WorkerSpec
