@@ -42,14 +42,6 @@ class Holder:
         return " ".join(parts) or "a process that did not say who it is"
 
 
-def this_process(role: str) -> Holder:
-    return Holder(role, os.getpid(), socket.gethostname(), now_text())
-
-
-def now_text() -> str:
-    return datetime.now(UTC).isoformat(timespec="seconds")
-
-
 class DirectoryLock:
     """The exclusive lock of ``directory`` for ``role`` (``chief``, ``worker K``, ``unit host K``), from
     :meth:`acquire` (or ``with``) until :meth:`release` or the process's end."""
@@ -86,8 +78,9 @@ class DirectoryLock:
         except OSError:
             os.close(fd)
             raise
-        me = this_process(self.role)
-        record = json.dumps({"role": me.role, "pid": me.pid, "host": me.host, "since": me.since}) + "\n"
+        since = datetime.now(UTC).isoformat(timespec="seconds")
+        me = {"role": self.role, "pid": os.getpid(), "host": socket.gethostname(), "since": since}
+        record = json.dumps(me) + "\n"
         os.ftruncate(fd, 0)
         os.pwrite(fd, record.encode(), 0)
         os.fsync(fd)

@@ -104,7 +104,7 @@ def fleet_rounds(records: Sequence[MetricsRow]) -> FleetRounds:
     quantiles = np.full((3, last), np.nan)
     played = np.isfinite(grid).any(axis=0)
     if played.any():
-        quantiles[:, played] = _nanpercentile(grid[:, played])
+        quantiles[:, played] = np.nanpercentile(grid[:, played], QUANTILES, axis=0)
     return FleetRounds(np.arange(1, last + 1), quantiles, completed, int(units.size))
 
 
@@ -115,8 +115,3 @@ def _forward_filled(grid: np.ndarray) -> np.ndarray:
     filled = grid[np.arange(grid.shape[0])[:, None], positions]
     started = np.maximum.accumulate(np.isfinite(grid), axis=1)
     return np.where(started, filled, np.nan)
-
-
-def _nanpercentile(grid: np.ndarray) -> np.ndarray:
-    """:data:`QUANTILES` of each column over its finite values (every column has one)."""
-    return np.asarray(np.nanpercentile(grid, QUANTILES, axis=0))

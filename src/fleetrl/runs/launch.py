@@ -92,7 +92,11 @@ def _train(settings: RunSettings) -> dict[str, Any]:
             broker_url(settings) as url,
             device_bridges(settings, url, run_id),
             LiveView(
-                title, threshold, enabled=settings.live, summarise=summarise, members=members(settings)
+                title,
+                threshold,
+                enabled=settings.live,
+                summarise=summarise,
+                members=host_groups(settings.units, settings.per_host),
             ) as view,
         ):
             device_url = url if settings.device_link == "mqtt" else None
@@ -113,10 +117,6 @@ def _train(settings: RunSettings) -> dict[str, Any]:
         if not recorder.finished:
             summary = recorder.finish()
     return summary
-
-
-def members(settings: RunSettings) -> list[list[int]]:
-    return host_groups(settings.units, settings.per_host)
 
 
 @contextmanager
@@ -258,10 +258,10 @@ def transports(
     settings: RunSettings, url: str | None, specs: dict[int, WorkerSpec], run_id: str
 ) -> tuple[Callable[[], Transport], Callable[[], Fleet]]:
     """(a factory of the chief's transport, a starter of the workers) for the run's transport."""
+    groups = {units[0]: units for units in host_groups(settings.units, settings.per_host)}
     if url is None:
         bus = LocalBus()
         if settings.per_host > 1:
-            groups = {units[0]: units for units in host_groups(settings.units, settings.per_host)}
             hosts = {
                 k: host_thread([specs[u] for u in units], bus.client, run_id) for k, units in groups.items()
             }
@@ -270,7 +270,6 @@ def transports(
         return bus.client, lambda: ThreadFleet(bodies)
 
     def federated_fleet() -> Fleet:
-        groups = {units[0]: units for units in host_groups(settings.units, settings.per_host)}
         commands = {
             k: worker_args(specs[k], "--broker", url, "--run-id", run_id, *host_args(units))
             for k, units in groups.items()

@@ -47,7 +47,11 @@ class MetricsRow:
 
     def to_json(self) -> str:
         """One line of JSON (non-finite floats become null)."""
-        return json.dumps({k: _finite_or_none(v) for k, v in asdict(self).items()})
+        values = asdict(self)
+        for name, value in values.items():
+            if isinstance(value, float) and not math.isfinite(value):
+                values[name] = None
+        return json.dumps(values)
 
     @classmethod
     def from_json(cls, line: str) -> "MetricsRow":
@@ -83,12 +87,6 @@ CSV_COLUMNS = tuple(f.name for f in fields(MetricsRow))
 IDENTITY = frozenset({"round", "worker", "wall_time", "event"})
 FIGURES = frozenset(CSV_COLUMNS) - IDENTITY
 COUNTS = frozenset(f.name for f in fields(MetricsRow) if f.type is int)
-
-
-def _finite_or_none(value: object) -> object:
-    if isinstance(value, float) and not math.isfinite(value):
-        return None
-    return value
 
 
 def read_metrics(path: Path) -> list[MetricsRow]:

@@ -211,7 +211,11 @@ class RunRecorder:
         write_json_atomic(self.out / "summary.json", summary)
         from fleetrl.runs.plots import plot_run  # matplotlib loads only when a run ends
 
-        title = _plot_title(self.config)
+        config = self.config
+        title = (
+            f"{config.get('env')} · {config.get('mode')} · preset {config.get('preset')} · "
+            f"seed {config.get('seed')} · {config.get('units')} units"
+        )
         if self.summarise:  # the fleet's panel, against rounds
             target = self.config.get("completion_threshold")
             plot_run(self.records, self.out / "scores.png", title=title, summarise=True, target=target)
@@ -220,10 +224,3 @@ class RunRecorder:
         if any(r.episodes > 1 for r in self.records):  # rounds of several episodes: both x-axes
             plot_run(self.records, self.out / "scores-by-episode.png", title=title, x_axis="episodes")
         return summary
-
-
-def _plot_title(config: dict[str, Any]) -> str:
-    return (
-        f"{config.get('env')} · {config.get('mode')} · preset {config.get('preset')} · "
-        f"seed {config.get('seed')} · {config.get('units')} units"
-    )

@@ -91,20 +91,10 @@ class UnevenFleet:
                 raise SettingError(
                     f"{label('pace')}: this unit type declares no control period, so it cannot be paced"
                 )
-        slow = _per_unit("slow", self.slow, units)
-        for unit, factor in slow.items():
-            if not factor >= 1:
-                raise SettingError(f"{label('slow')} {unit}={factor:g}: must be ≥ 1 (slower, not faster)")
-        delay = _per_unit("link_delay", self.link_delay, units)
-        for unit, seconds in delay.items():
-            if not seconds >= 0:
-                raise SettingError(f"{label('link_delay')} {unit}={seconds:g}: must be ≥ 0 seconds")
-        stall = _per_unit("stall", self.stall, units)
-        for unit, share in stall.items():
-            if not 0 <= share < 1:
-                raise SettingError(
-                    f"{label('stall')} {unit}={share:g}: must be in [0, 1) (the share of each second paused)"
-                )
+        slow = _per_unit("slow", self.slow, units, lambda f: f >= 1, "≥ 1 (slower, not faster)")
+        delay = _per_unit("link_delay", self.link_delay, units, lambda s: s >= 0, "≥ 0 seconds")
+        paused = "in [0, 1) (the share of each second paused)"
+        stall = _per_unit("stall", self.stall, units, lambda s: 0 <= s < 1, paused)
         if not 0 <= self.absent < 1:
             raise SettingError(f"{label('absent')} = {self.absent!r}: must be in [0, 1) (a share of rounds)")
         if not self.absent_rounds >= 1:
@@ -140,8 +130,10 @@ def unit_name(worker: int) -> str:
     return f"w{worker}"
 
 
-def _per_unit(name: str, table: dict[str, float], units: int | None) -> dict[str, float]:
-    """``table`` with its keys as ``wK`` and its values as numbers; SettingError for an unknown unit."""
+def _per_unit(
+    name: str, table: dict[str, float], units: int | None, fits: Callable[[float], bool], must: str
+) -> dict[str, float]:
+    """``table`` with its keys as ``wK`` and its values as numbers that ``fits``; else SettingError."""
     known = "w0" if units == 1 else f"w0 … w{(units or 0) - 1}"
     named: dict[str, float] = {}
     for key, value in table.items():
@@ -153,6 +145,9 @@ def _per_unit(name: str, table: dict[str, float], units: int | None) -> dict[str
         if isinstance(value, bool) or not isinstance(value, int | float):
             raise SettingError(f"{label(name)} {key}={value!r}: expected a number")
         named[unit_name(int(digits))] = float(value)
+    for unit, number in named.items():
+        if not fits(number):
+            raise SettingError(f"{label(name)} {unit}={number:g}: must be {must}")
     return named
 
 
