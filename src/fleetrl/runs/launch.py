@@ -86,18 +86,13 @@ def _train(settings: RunSettings) -> dict[str, Any]:
     title = f"fleetrl {settings.mode} · {learning.env} × {settings.units} · preset {learning.preset}"
     threshold = learning.target_score
     assert threshold is not None, "validation fills in the target score"
+    members = host_groups(settings.units, settings.per_host)  # the units each member of the run carries
     try:
         with (
             run_logging(recorder.out / "logs" / "run.log", quiet=settings.live),
             broker_url(settings) as url,
             device_bridges(settings, url, run_id),
-            LiveView(
-                title,
-                threshold,
-                enabled=settings.live,
-                summarise=summarise,
-                members=host_groups(settings.units, settings.per_host),
-            ) as view,
+            LiveView(title, threshold, enabled=settings.live, summarise=summarise, members=members) as view,
         ):
             device_url = url if settings.device_link == "mqtt" else None
             specs = worker_specs(settings, device_url, run_id)
