@@ -14,7 +14,7 @@ from fleetrl.envs.catalog import get_env_spec
 from fleetrl.envs.host_envs import HostEnvs
 from fleetrl.envs.registration import CARTPOLE_UNIT_ID
 from fleetrl.link.inprocess import InProcessLink
-from fleetrl.runs.host import make_host_learner
+from fleetrl.runs.factory import make_host_learner
 from fleetrl.runs.settings import LearningSettings, resolve_learning
 from fleetrl.runs.spec import WorkerSpec
 

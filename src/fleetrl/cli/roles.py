@@ -286,7 +286,7 @@ def _serve_worker(settings: Any, spec: Any, config: dict[str, Any], learner: Any
 def _serve_host(settings: Any, config: dict[str, Any]) -> int:
     """Serve as the unit host of ``settings.unit_ids()`` in the run directory this process has locked."""
     from fleetrl.runs.fleet_summary import summarised
-    from fleetrl.runs.host import train_host
+    from fleetrl.runs.roles import train_host
     from fleetrl.runs.rundir import RunRecorder
 
     first = settings.worker_spec()

@@ -14,44 +14,37 @@ from fleetrl.agent.criterion import CompletionCriterion
 from fleetrl.agent.learner import Learner
 from fleetrl.agent.ppo import PPOAgent, UpdateStats
 from fleetrl.control.episodes import greedy_scores
-from fleetrl.control.policies import check_fits
-from fleetrl.envs.catalog import describe_env, get_env_spec
+from fleetrl.runs.evaluate import load_policy
 from fleetrl.runs.rig_time import reset_seconds
 
 DEFAULT_ADAPT_PART = "biases"
-"""the own part fitted when the fleet's model has none (docs/algorithm.md, "A unit's own part")"""
+"""the own part fitted when the fleet's model has none"""
 
 
 @dataclass(frozen=True)
 class Adapted:
-    """What adapting one unit did."""
+    """What adapting one unit did: the scores and steps of the episodes it played to adapt, their time on a
+    rig (None: unknown), the greedy check episodes before and after, the env's episode cap, and whether the
+    model file holds the fit (:func:`keep_fit`)."""
 
     scores: list[float]
-    """the score of each episode the unit played to adapt (sampled from the policy, as in training)"""
     steps: int
-    """the steps those episodes took"""
     rig_seconds: float | None
-    """their time on a real-time rig: steps × control period plus a reset before each (None: unknown)"""
     before: list[float]
-    """greedy check episodes of the fleet's policy on the unit, before adapting"""
     after: list[float]
-    """the same check episodes (same reset seeds) of the adapted policy"""
     cap: int | None
-    """the env's episode cap (an episode that reaches it is held)"""
     kept_fit: bool
-    """whether the unit's model file holds the fit (else the fleet's policy with zero offsets: the fit did
-    worse on the check episodes, :func:`keep_fit`)"""
 
 
 def keep_fit(before: list[float], after: list[float]) -> bool:
-    """Whether to keep a fit whose greedy check episodes scored ``after`` against the fleet's policy's
-    ``before`` (the same reset seeds): unless it scored less on average. With no checks it is kept."""
+    """Whether to keep a fit whose greedy check episodes scored ``after`` against the fleet policy's
+    ``before``: unless it scored less on average."""
     return not before or not after or float(np.mean(after)) >= float(np.mean(before))
 
 
 def with_own_part(agent: PPOAgent, own_part: str, seed: int) -> PPOAgent:
     """A new agent of ``agent``'s shared weights and settings with the own part ``own_part``, its offsets
-    zero: the fleet's shared policy, ready to fit a unit."""
+    zero."""
     if own_part not in OWN_PART_NAMES or own_part == "none":
         parts = ", ".join(p for p in OWN_PART_NAMES if p != "none")
         raise ValueError(f"--own-part must be one of {parts}, got {own_part!r}")
@@ -65,8 +58,8 @@ def with_own_part(agent: PPOAgent, own_part: str, seed: int) -> PPOAgent:
 
 
 def update_own_part(agent: PPOAgent) -> UpdateStats:
-    """One round's update with the shared part held: every step's shared gradient is replaced by zeros (the
-    agent's fresh Adam then leaves the shared weights exactly where they are); only the own offsets move."""
+    """One round's update with the shared part held: every step's shared gradient is zeros (a fresh Adam
+    leaves the shared weights where they are); only the own offsets move."""
     count = agent.begin_update()
     for k in range(count):
         agent.apply_step(np.zeros_like(agent.step_gradients(k)))
@@ -87,23 +80,12 @@ def adapt_model(
     out: Path | None = None,
 ) -> Adapted:
     """Fit the fleet's policy in ``model`` to ``unit`` in ``episodes`` episodes (one update after each) and
-    write the unit's model file to ``out``; ``check`` greedy episodes before and after say what it gained,
-    and a fit that scored less on them than the fleet's policy is not kept (:func:`keep_fit`).
-
-    :raises FileNotFoundError: no model file
-    :raises ValueError: a bad setting, a file that is not a fleetrl model of this env's shapes
-    """
+    write the unit's model file to ``out``; ``check`` greedy episodes before and after say what it gained
+    (:func:`keep_fit`). Raises as :func:`~fleetrl.runs.evaluate.load_policy` does."""
     if episodes < 1 or check < 0:
         raise ValueError(f"need --episodes >= 1 and --check >= 0, got {episodes} and {check}")
-    if not Path(model).is_file():
-        raise FileNotFoundError(f"no model file at {model}")
-    torch.set_num_threads(1)
-    spec = get_env_spec(env)
-    describe_env(env)  # a bad factory fails before the model is read
-    loaded = PPOAgent.load(model)
+    spec, loaded, description = load_policy(model, env)
     last_step = loaded.config.last_step
-    description = describe_env(env, last_step)
-    check_fits(loaded.obs_dim, loaded.action_space, description, env, model)
     part = own_part or (loaded.config.own_part if loaded.config.own_part != "none" else DEFAULT_ADAPT_PART)
     agent = with_own_part(loaded, part, seed)
     gym_env, spec_unit = spec.make(unit, fleet_seed, fleet_profile=fleet_profile, last_step=last_step)

@@ -1,6 +1,5 @@
-"""The settings of ``fleetrl aggregator``, a site's edge aggregator (docs/deploy.md, "A site behind an edge
-aggregator"): the run's shared settings and round rules as the chief has them, its id at the root, and where
-its members are. Resolved once, before any connection."""
+"""The settings of ``fleetrl aggregator``, a site's edge aggregator (docs/deploy.md): the run's settings and
+round rules as the chief has them, its id at the root, and where its members are."""
 
 from __future__ import annotations
 
@@ -42,8 +41,7 @@ class AggregatorSettings(RoleSettings, RoundRules):
     """take only the members named (by default a worker with another id joins the site: a new unit)"""
 
     def resolved(self) -> AggregatorSettings:
-        """A new value with every default filled in; SettingError naming the first setting that cannot
-        work. Nothing is created."""
+        """A new value with every default filled in; SettingError naming the first that cannot work."""
         learning, shape = self.resolved_learning()
         quorum = self.resolved_quorum(learning, shape)
         as_setting_error("scheme", check_tree, learning.federation_scheme(), self.aggregation)
@@ -61,7 +59,6 @@ class AggregatorSettings(RoleSettings, RoundRules):
 
     @property
     def member_ids(self) -> list[str]:
-        """The site's members."""
         return [str(k) for k in range(self.first_member, self.first_member + self.members)]
 
     def site_transport(self) -> Any:

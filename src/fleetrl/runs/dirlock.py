@@ -1,6 +1,5 @@
 """One process per run directory: the exclusive ``fcntl.flock`` a role holds on ``DIR/.lock-chief`` or
-``DIR/.lock-worker`` for its whole life, naming its holder; a second process is refused in one line
-(docs/protocol.md, "The run directory is locked"). Local disks only: flock may not exclude across NFS."""
+``DIR/.lock-worker`` for its whole life, naming its holder (local disks only: flock may not hold over NFS)."""
 
 from __future__ import annotations
 
@@ -15,23 +14,21 @@ from pathlib import Path
 from typing import Any
 
 LOCK_PREFIX = ".lock-"
-"""the lock files inside a run directory: ``.lock-chief``, ``.lock-worker``"""
 
 
 class RoleConflict(OSError):
-    """Another process holds what this role needs (its run directory, or its place in the run on the
-    broker): the command did not start (exit 1). Its message is one line naming the holder."""
+    """Another process holds what this role needs (its run directory, or its place in the run): the command
+    did not start (exit 1)."""
 
 
 @dataclass(frozen=True)
 class Holder:
-    """Who holds a run directory (or a place in a run): what the refusal names."""
+    """Who holds a run directory (or a place in a run), since when (ISO 8601, UTC)."""
 
     role: str
     pid: int | None
     host: str | None
     since: str | None
-    """when it started (ISO 8601, UTC)"""
 
     def describe(self) -> str:
         """``pid 123 on host h since 2024-…`` (what is known of it)."""
@@ -45,26 +42,11 @@ class Holder:
         return " ".join(parts) or "a process that did not say who it is"
 
 
-def this_process(role: str) -> Holder:
-    """The holder this process is: its pid, host name and start time."""
-    return Holder(role, os.getpid(), socket.gethostname(), now_text())
-
-
-def now_text() -> str:
-    """The current time as the holder records name it (ISO 8601, UTC, seconds)."""
-    return datetime.now(UTC).isoformat(timespec="seconds")
-
-
 class DirectoryLock:
-    """The exclusive lock of ``directory`` for ``role`` (``chief``, ``worker K``, ``unit host K``): the
-    lock file is ``.lock-chief`` for the chief and ``.lock-worker`` for the others.
-
-    Use :meth:`acquire` (or the lock as a context manager); the lock lasts until :meth:`release` or the
-    process's end.
-    """
+    """The exclusive lock of ``directory`` for ``role`` (``chief``, ``worker K``, ``unit host K``), from
+    :meth:`acquire` (or ``with``) until :meth:`release` or the process's end."""
 
     def __init__(self, directory: Path, role: str) -> None:
-        """Bind to ``directory``; nothing is touched before :meth:`acquire`."""
         self.directory = Path(directory)
         self.role = role
         self._fd: int | None = None
@@ -74,12 +56,11 @@ class DirectoryLock:
 
     @property
     def path(self) -> Path:
-        """The lock file."""
         return self.directory / (LOCK_PREFIX + ("chief" if self.role == "chief" else "worker"))
 
     def acquire(self) -> DirectoryLock:
         """Take the lock (creating the directory if needed); :class:`RoleConflict` naming the holder if
-        another process has it. Nothing is written unless the lock was taken."""
+        another process has it."""
         self.created = not self.directory.exists()
         self.directory.mkdir(parents=True, exist_ok=True)
         self._new_file = not self.path.exists()
@@ -97,8 +78,9 @@ class DirectoryLock:
         except OSError:
             os.close(fd)
             raise
-        me = this_process(self.role)
-        record = json.dumps({"role": me.role, "pid": me.pid, "host": me.host, "since": me.since}) + "\n"
+        since = datetime.now(UTC).isoformat(timespec="seconds")
+        me = {"role": self.role, "pid": os.getpid(), "host": socket.gethostname(), "since": since}
+        record = json.dumps(me) + "\n"
         os.ftruncate(fd, 0)
         os.pwrite(fd, record.encode(), 0)
         os.fsync(fd)
@@ -125,16 +107,13 @@ class DirectoryLock:
                 self.directory.rmdir()
 
     def __enter__(self) -> DirectoryLock:
-        """:meth:`acquire` (unless already held: a second flock of this process would conflict with it)."""
         return self if self._fd is not None else self.acquire()
 
     def __exit__(self, *exc: object) -> None:
-        """:meth:`release`."""
         self.release()
 
 
 def _read_holder(fd: int) -> Holder:
-    """The holder recorded in a lock file (what can be read of it)."""
     try:
         data: Any = json.loads(os.pread(fd, 4096, 0).decode() or "{}")
     except (OSError, ValueError):

@@ -1,6 +1,9 @@
-"""Building a worker's learner (env + PPO agent + completion criterion) from its spec."""
+"""Building a worker's learner (env + PPO agent + completion criterion) from its spec, or a unit host's from
+its units' specs, and a run's plan: what its chief (a site's too) and each worker are built from
+(:mod:`fleetrl.federation.plan`)."""
 
-from typing import Any
+from collections.abc import Sequence
+from typing import Any, Protocol
 
 import gymnasium
 import torch
@@ -14,31 +17,24 @@ from fleetrl.envs.catalog import describe_env, get_env_spec
 from fleetrl.envs.paced import PacedEnv
 from fleetrl.envs.spaces import UnitDescription
 from fleetrl.envs.stalled import StalledEnv
+from fleetrl.federation.kinds import kind_of
+from fleetrl.federation.plan import ChiefPlan, WorkerPlan
+from fleetrl.federation.schemes.agent import FederatedAgent
+from fleetrl.federation.shared_settings import LearningSettings, shared_text
 from fleetrl.link.mqtt import MqttLink, open_mqtt_link
 from fleetrl.runs.spec import WorkerSpec
 from fleetrl.runs.uneven import unit_stall
 from fleetrl.transport.base import Transport
 
 
-def action_space_of(unit: UnitDescription) -> ActionSpace:
-    """The agent's action space for ``unit``'s: Discrete n (a softmax head) or a 1-D Box (a Gaussian head)."""
-    return ActionSpace.of_unit(unit.action)
-
-
 def agent_for(unit: UnitDescription, config: PPOConfig, seed: int) -> PPOAgent:
-    """A PPO agent of ``unit``'s shapes (the one place that maps a unit's spaces to the agent's).
-
-    :raises ValueError: the unit's actions are not a space the agent handles (named, with what is)
-    """
-    return PPOAgent(unit.obs_dim, action_space_of(unit), config, seed=seed)
+    """A PPO agent of ``unit``'s shapes (ValueError: actions of a space the agent does not handle)."""
+    return PPOAgent(unit.obs_dim, ActionSpace.of_unit(unit.action), config, seed=seed)
 
 
 def bridge_link(env: str, url: str, run_id: str, unit: int, transport: Transport | None = None) -> MqttLink:
     """A device link to the bridge serving ``unit`` of run ``run_id``: over ``transport`` (a role's login and
-    TLS files), else over a plain transport to ``url``. Every state must have the size ``env`` reads.
-
-    :raises DeviceTimeoutError: no bridge announced itself in time (a ``TimeoutError`` naming the unit)
-    """
+    TLS files), else over a plain transport to ``url``."""
     obs_size = describe_env(env).sensor_dim
     if transport is None:
         return open_mqtt_link(url, run_id, unit, obs_size=obs_size)
@@ -46,19 +42,8 @@ def bridge_link(env: str, url: str, run_id: str, unit: int, transport: Transport
 
 
 def make_learner(spec: WorkerSpec, device_transport: Transport | None = None) -> Learner:
-    """The learner for one worker: its unit's env, a seeded agent with the preset (and overrides).
-
-    With ``spec.device_url`` the unit is driven through its device bridge, over ``device_transport`` (a
-    role's login and TLS files) or else a plain transport to that URL.
-
-    Under a scheme whose mature workers stay in the federation (``fedavg``) the learner keeps learning after
-    its criterion holds; under one that needs a shared start (``pergrad``) every worker's network starts from
-    the one the run's seed draws (its actions and windows still come from its own seed).
-
-    A unit paced in real time (``spec.uneven.step_seconds``) has its env wrapped in a
-    :class:`~fleetrl.envs.paced.PacedEnv`, a stalling one (``spec.uneven.stall``) in a
-    :class:`~fleetrl.envs.stalled.StalledEnv`.
-    """
+    """The learner for one worker: its unit's env (:func:`unit_env`), a seeded agent with the preset, its
+    criterion; under a scheme with a shared start, the network the run's seed draws."""
     torch.set_num_threads(1)
     learning = spec.learning
     env, unit = unit_env(spec, device_transport)
@@ -75,8 +60,7 @@ def unit_env(
     spec: WorkerSpec, device_transport: Transport | None = None
 ) -> tuple[gymnasium.Env[Any, Any], UnitDescription]:
     """The env of the spec's unit and its description: simulated in-process, or through its device bridge
-    (``spec.device_url``, over ``device_transport`` or a plain transport), paced and stalling if its spec
-    says so."""
+    (``spec.device_url``), paced and stalling if its spec says so."""
     learning = spec.learning
     env_spec, last_step = get_env_spec(learning.env), learning.ppo().last_step
     if spec.device_url is None:
@@ -104,12 +88,86 @@ def unit_criterion(spec: WorkerSpec, unit: UnitDescription) -> CompletionCriteri
 
 
 def probe_agent(env: str, config: PPOConfig) -> PPOAgent:
-    """An agent of the shapes of ``env`` with ``config`` (seed 0): what a scheme's layout and step count are
-    read from before any worker exists. Built on one thread: its initial weights are not used, and a
-    multi-threaded orthogonal init on a loaded machine took 0.5 s instead of 10 ms."""
+    """An agent of the shapes of ``env`` with ``config`` (seed 0, its weights unused), built on one thread
+    (a multi-threaded orthogonal init is slow on a loaded machine)."""
     threads = torch.get_num_threads()
     torch.set_num_threads(1)
     try:
         return agent_for(describe_env(env, config.last_step), config, seed=0)
     finally:
         torch.set_num_threads(threads)
+
+
+def make_host_learner(specs: Sequence[WorkerSpec]) -> Learner:
+    """The learner of a unit host of the specs' units (one run's, in order): each unit's env and criterion as
+    :func:`make_learner` builds them, one agent with each unit's seed.
+
+    :raises ValueError: no spec, or units of different runs
+    """
+    if not specs or any(s.learning != specs[0].learning for s in specs):
+        raise ValueError("a unit host needs one or more units of one run")
+    torch.set_num_threads(1)
+    learning = specs[0].learning
+    built = [unit_env(spec) for spec in specs]
+    unit = built[0][1]
+    config = learning.ppo()
+    seeds = [s.worker_seed for s in specs]
+    agent = PPOAgent(unit.obs_dim, ActionSpace.of_unit(unit.action), config, seeds)
+    scheme = learning.federation_scheme()
+    if scheme.shared_start:
+        agent.set_model_parameters(agent_for(unit, config, seed=learning.seed).model_parameters())
+    criteria = [
+        unit_criterion(spec, description) for spec, (_, description) in zip(specs, built, strict=True)
+    ]
+    envs = [env for env, _ in built]
+    return Learner(envs, agent, criteria, seeds, keep_learning=scheme.stays_after_completion)
+
+
+class RoundRules(Protocol):
+    """What a chief's plan takes of the resolved round rules (:class:`fleetrl.runs.settings.RoundRules`)."""
+
+    @property
+    def aggregation(self) -> str: ...
+    @property
+    def chief_quorum(self) -> float: ...
+    @property
+    def round_timeout(self) -> float | None: ...
+    @property
+    def max_staleness(self) -> int | None: ...
+
+
+def chief_plan(
+    learning: LearningSettings, rules: RoundRules, *, run_id: str, workers: Sequence[str], **role: Any
+) -> tuple[ChiefPlan, dict[str, Any]]:
+    """The plan of a run of resolved ``learning`` and ``rules`` as its chief (or a site's) sees it, and what
+    that chief keeps of the fleet (:meth:`~fleetrl.federation.kinds.Kind.chief_fleet`): the scheme object and
+    one agent built once. ``role``: the chief's own settings (``dropout_grace``, ``open_fleet``)."""
+    scheme = learning.federation_scheme()
+    agent = fleet_agent(learning) if scheme.shared_start else probe_agent(learning.env, learning.ppo())
+    plan = ChiefPlan(
+        run_id=run_id, workers=workers, scheme=scheme, layout=scheme.layout(agent),
+        steps_per_round=scheme.exchanges_per_round(agent), max_rounds=learning.max_rounds,
+        settings=shared_text(learning), aggregator=rules.aggregation, quorum=rules.chief_quorum,
+        round_timeout=rules.round_timeout, max_staleness=rules.max_staleness, **role,
+    )  # fmt: skip
+    return plan, kind_of(scheme).chief_fleet(scheme, agent)
+
+
+def worker_plan(
+    learning: LearningSettings, agent: FederatedAgent, *, run_id: str, worker_id: str, **role: Any
+) -> WorkerPlan:
+    """The plan of a run of resolved ``learning`` as one of its workers sees it, whose learner's agent is
+    ``agent``. ``role``: the worker's own settings (``units``, ``reply_timeout``, ``start_round``, …)."""
+    return WorkerPlan.for_agent(
+        agent, scheme=learning.federation_scheme(), run_id=run_id, worker_id=worker_id,
+        max_rounds=learning.max_rounds, settings=shared_text(learning), **role,
+    )  # fmt: skip
+
+
+def fleet_agent(learning: LearningSettings) -> Any:
+    """An agent at the fleet's start, built as :func:`make_learner` builds a worker's from the settings'
+    learning seed. Torch is set to one thread in this process, as in every worker (the
+    initialisation's QR differs with the threads)."""
+    torch.set_num_threads(1)
+    config = learning.ppo()
+    return agent_for(describe_env(learning.env, config.last_step), config, seed=learning.seed)

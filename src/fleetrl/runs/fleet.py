@@ -29,12 +29,8 @@ class Fleet(Protocol):
 
 
 class ThreadFleet:
-    """Workers as threads of this process (the in-process transport's fleet).
-
-    :param bodies: worker id → a function that runs the worker, reporting each round through its argument
-    :param units: worker id → the units it reports for (a unit host: its units; each unit's exit is reported
-        when the thread ends); by default each worker is the unit of its id
-    """
+    """Workers as threads of this process: worker id → a body reporting each round through its argument;
+    ``units``: worker id → the units it reports for (default: its own)."""
 
     def __init__(
         self,
@@ -63,7 +59,6 @@ class ThreadFleet:
             self.events.put(WorkerExit(unit, code))
 
     def size(self) -> int:
-        """How many units the worker threads report for (one per thread unless they are unit hosts)."""
         return sum(len(units) for units in self.units.values())
 
     def interrupt(self) -> None:

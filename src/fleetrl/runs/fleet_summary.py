@@ -1,11 +1,5 @@
-"""A large fleet at a glance: how many units completed, where the fleet's WMA stands, which units lag.
-
-Above :data:`SUMMARY_ABOVE_UNITS` units a run's plot, live view and TensorBoard show these figures instead of
-one line, one row or one series per unit (unless per-unit detail is asked for); metrics.csv keeps one row per
-unit per round whatever the fleet's size. A unit's WMA "at round r" is its latest WMA up to round r: a unit
-that left the fleet (completed under a scheme that drops it, or stopped) keeps its last value, so every
-quantile is over every unit that has played a round.
-"""
+"""A large fleet at a glance (the plot, live view and TensorBoard above :data:`SUMMARY_ABOVE_UNITS` units):
+units completed, quantiles of the units' latest WMA (a unit that left keeps its last), the slowest units."""
 
 from __future__ import annotations
 
@@ -18,17 +12,12 @@ import numpy as np
 from fleetrl.runs.records import MetricsRow, WorkerProgress
 
 SUMMARY_ABOVE_UNITS = 16
-"""fleets of more units than this are summarised in the plot, the live view and TensorBoard (per-unit detail
-on request); 16 panels are the most a scores plot shows legibly on one page"""
+"""fleets of more units than this are summarised (16 panels are the most a plot shows legibly)"""
 SLOWEST_SHOWN = 5
-"""how many of the slowest units the live view names"""
 QUANTILES = (10.0, 50.0, 90.0)
-"""the percentiles of the fleet's WMA that are shown: p10, median, p90"""
 
 
 def summarised(units: int, per_unit_detail: bool) -> bool:
-    """Whether a run of ``units`` units is shown summarised (more than :data:`SUMMARY_ABOVE_UNITS` units, and
-    per-unit detail not asked for)."""
     return units > SUMMARY_ABOVE_UNITS and not per_unit_detail
 
 
@@ -44,20 +33,16 @@ def wma_quantiles(values: Sequence[float] | np.ndarray) -> tuple[float, float, f
 
 @dataclass(frozen=True)
 class FleetSnapshot:
-    """The fleet as the run knows it now (the live view's summary, TensorBoard's fleet scalars)."""
+    """The fleet as the run knows it now: its units and those completed, p10, median and p90 of their latest
+    WMA, the units not completed with the lowest WMA (lowest first), members online and members."""
 
     units: int
-    """units in the fleet"""
     completed: int
-    """units whose completion criterion has held"""
     wma: tuple[float, float, float]
-    """p10, median and p90 of the units' latest WMA (units that have played a round)"""
     slowest: list[tuple[int, WorkerProgress]]
-    """the units not completed with the lowest WMA (a unit without a round first), lowest first"""
     members_online: int
     """members (workers, or unit hosts) that have reported a round and not ended"""
     members: int
-    """members in the fleet"""
 
 
 def snapshot(
@@ -87,22 +72,17 @@ def snapshot(
 
 @dataclass(frozen=True)
 class FleetRounds:
-    """The fleet's course round by round (the summarised scores plot)."""
+    """The fleet's course over rounds 1 … R: p10, median and p90 of the units' latest WMA (shape (3, R)), the
+    units completed by each round, and the units that played."""
 
     rounds: np.ndarray
-    """the rounds 1 … R (R: the last round any unit played)"""
     wma: np.ndarray
-    """shape (3, R): p10, median and p90 of the units' latest WMA at each round (NaN before any unit
-    played)"""
     completed: np.ndarray
-    """units whose criterion had held by each round"""
     units: int
-    """units that played at least one round"""
 
 
 def fleet_rounds(records: Sequence[MetricsRow]) -> FleetRounds:
-    """Per round: the quantiles of the units' latest WMA and the units completed so far. Vectorised: a fleet
-    of 1,000 units over 200 rounds takes a fraction of a second."""
+    """Per round: the quantiles of the units' latest WMA and the units completed so far."""
     if not records:
         empty = np.zeros(0)
         return FleetRounds(np.zeros(0, dtype=np.int64), np.zeros((3, 0)), empty.astype(np.int64), 0)
@@ -124,7 +104,7 @@ def fleet_rounds(records: Sequence[MetricsRow]) -> FleetRounds:
     quantiles = np.full((3, last), np.nan)
     played = np.isfinite(grid).any(axis=0)
     if played.any():
-        quantiles[:, played] = _nanpercentile(grid[:, played])
+        quantiles[:, played] = np.nanpercentile(grid[:, played], QUANTILES, axis=0)
     return FleetRounds(np.arange(1, last + 1), quantiles, completed, int(units.size))
 
 
@@ -135,8 +115,3 @@ def _forward_filled(grid: np.ndarray) -> np.ndarray:
     filled = grid[np.arange(grid.shape[0])[:, None], positions]
     started = np.maximum.accumulate(np.isfinite(grid), axis=1)
     return np.where(started, filled, np.nan)
-
-
-def _nanpercentile(grid: np.ndarray) -> np.ndarray:
-    """:data:`QUANTILES` of each column over its finite values (every column has one)."""
-    return np.asarray(np.nanpercentile(grid, QUANTILES, axis=0))

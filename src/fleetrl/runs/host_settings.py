@@ -10,8 +10,7 @@ from fleetrl.federation.schemes.base import Scheme
 
 
 def host_setting_problem(per_host: int, *, mode: str, scheme: Scheme, own_part: str = "none") -> str | None:
-    """Why a run cannot have ``per_host`` units per host (one line, naming what to change), or None. A host
-    is a worker process on a broker (``--transport mqtt``) or a thread on the in-process bus (``local``)."""
+    """Why a run cannot have ``per_host`` units per host (naming what to change), or None."""
     if per_host < 1:
         return f"must be at least 1, got {per_host}"
     if per_host == 1:
@@ -29,50 +28,44 @@ def host_setting_problem(per_host: int, *, mode: str, scheme: Scheme, own_part: 
 
 
 AUTO: Literal["auto"] = "auto"
-"""``--units-per-host auto``: about one unit host per core for a large fleet (:func:`auto_units_per_host`)"""
+"""``--units-per-host auto``: :func:`auto_units_per_host`"""
 AUTO_HOSTS_ABOVE_UNITS = 16
-"""``auto`` keeps one worker per unit up to this many units, so small runs (and their records) stay as
-they were"""
+"""``auto`` keeps one worker per unit up to this many units"""
 
 
 def usable_cores() -> int:
-    """The cores this process may run on."""
     if hasattr(os, "sched_getaffinity"):
         return len(os.sched_getaffinity(0))
     return os.cpu_count() or 1
 
 
 def units_per_core(units: int, cores: int) -> int:
-    """Units per host for about one host per core."""
     return max(1, math.ceil(units / max(cores, 1)))
 
 
 def hosts_possible(*, mode: str, scheme: Scheme, even: bool, own_part: str = "none") -> bool:
-    """Whether ``auto`` groups a run of these settings into unit hosts: an even fleet that can have them (an
-    uneven unit's conditions are its own; in a host they are its host's)."""
+    """Whether ``auto`` groups a run of these settings into unit hosts: an even fleet that can have them."""
     return even and host_setting_problem(2, mode=mode, scheme=scheme, own_part=own_part) is None
 
 
 def auto_units_per_host(units: int, *, possible: bool, cores: int) -> int:
-    """What ``auto`` chooses: about one host per core (:func:`units_per_core`) for a fleet of more than
-    :data:`AUTO_HOSTS_ABOVE_UNITS` units that can have hosts (``possible``), else 1 (a worker per unit)."""
+    """What ``auto`` chooses: about one host per core for a fleet of more than :data:`AUTO_HOSTS_ABOVE_UNITS`
+    units that can have hosts, else 1."""
     return units_per_core(units, cores) if possible and units > AUTO_HOSTS_ABOVE_UNITS else 1
 
 
 def host_groups(units: int, per_host: int) -> list[list[int]]:
-    """The units of each host, in order: hosts of ``per_host`` units (0 … per_host − 1 the first), the last
-    one carrying what is left."""
+    """The units of each host, in order (the last one carrying what is left)."""
     return [list(range(start, min(start + per_host, units))) for start in range(0, units, per_host)]
 
 
 def host_id(units: list[int]) -> str:
-    """A host's federation id: ``host-`` and its first unit (its units' own ids stay in the metrics)."""
+    """A host's federation id: ``host-`` and its first unit."""
     return f"host-{units[0]}"
 
 
 def member_ids(units: int, per_host: int) -> list[str]:
-    """The federation's members for ``units`` units in hosts of ``per_host``: the worker ids 0 … N-1 (one
-    unit each), or each host's :func:`host_id`."""
+    """The federation's members: the worker ids 0 … N-1, or each host's :func:`host_id`."""
     if per_host == 1:
         return [str(k) for k in range(units)]
     return [host_id(group) for group in host_groups(units, per_host)]

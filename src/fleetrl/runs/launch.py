@@ -1,20 +1,6 @@
-"""Launching a training run: individual (each unit alone) or federated (chief + workers over a transport).
-
-=============  ===============================  =============================================
-mode           workers                          chief
-=============  ===============================  =============================================
-individual     one process each                 none
-federated      one process each (``mqtt``)      a thread of this process, on the same broker
-federated      threads of this process          a thread, on the in-process bus (``local``)
-=============  ===============================  =============================================
-
-With more than one unit per host (``--units-per-host``) a federated run's workers are unit hosts
-(:mod:`fleetrl.runs.host`): processes of ``mqtt``, threads of ``local``.
-
-Every worker reports its rounds as :class:`~fleetrl.runs.records.MetricsRow` objects; this process
-owns the run directory and the live view. Worker processes are forked from this one where the OS can
-(:mod:`fleetrl.runs.processes`: torch and fleetrl are imported once), before the chief's thread starts.
-"""
+"""Launching ``fleetrl train``: individual (a worker process per unit) or federated (the chief a thread of
+this process; workers, or unit hosts, processes on a broker or threads on the in-process bus). This process
+owns the run directory and the live view; worker processes are forked before the chief's thread starts."""
 
 import logging
 import threading
@@ -30,14 +16,13 @@ from fleetrl.envs.catalog import ENV_SPECS, describe_env, get_env_spec
 from fleetrl.federation.kinds import new_chief
 from fleetrl.federation.runner import ChiefSummary, run_chief
 from fleetrl.link.fleet import start_bridges
-from fleetrl.runs.factory import make_learner, probe_agent
+from fleetrl.runs.factory import chief_plan, make_learner, probe_agent
 from fleetrl.runs.fleet import Fleet, ThreadFleet, follow
 from fleetrl.runs.fleet_summary import summarised
 from fleetrl.runs.host_settings import host_groups, member_ids
 from fleetrl.runs.live import LiveView
-from fleetrl.runs.plans import chief_plan
 from fleetrl.runs.processes import ProcessFleet, fork_available
-from fleetrl.runs.roles import Emit, train_federated
+from fleetrl.runs.roles import Emit, train_federated, train_host
 from fleetrl.runs.rundir import RunDirectoryError, RunRecorder, write_json_atomic
 from fleetrl.runs.settings import LearningSettings, RunSettings
 from fleetrl.runs.spec import WorkerSpec
@@ -51,18 +36,16 @@ log = logging.getLogger(__name__)
 
 CHIEF_IDLE_TIMEOUT = 600.0
 TRAIN_CONNECT_WINDOW = 10.0
-"""seconds ``fleetrl train`` retries a broker given with ``--broker`` before it gives up (exit 1)"""
+"""seconds ``fleetrl train`` retries a broker given with ``--broker`` before it gives up"""
 
 
 def demo_settings(out: Path, seed: int = 0) -> RunSettings:
-    """The main job: a simulated 3-unit QUBE fleet trained federated through an embedded MQTT broker, with
-    fleetrl's best scheme (the default; docs/results.md measures it against the paper's). Every other
-    setting is its default."""
+    """The main job: every setting its default (a simulated 3-unit QUBE fleet, federated, embedded broker)."""
     return RunSettings(learning=LearningSettings(seed=seed), out=out)
 
 
 def worker_specs(settings: RunSettings, device_url: str | None, run_id: str) -> dict[int, WorkerSpec]:
-    """One spec per worker; worker K trains unit K of the fleet (uneven as the settings make it)."""
+    """One spec per worker; worker K trains unit K of the fleet."""
     period = get_env_spec(settings.learning.env).control_period
     return {
         k: WorkerSpec(
@@ -79,8 +62,7 @@ def worker_specs(settings: RunSettings, device_url: str | None, run_id: str) -> 
 
 
 def train(settings: RunSettings) -> dict[str, Any]:
-    """Run the whole training of resolved ``settings`` (:meth:`RunSettings.resolved`) and return
-    summary.json's content."""
+    """Run the training of resolved ``settings`` and return summary.json's content."""
     password = settings.broker_password if settings.broker else None
     with password_in_environment(password):  # children inherit it; no argv or file holds it
         if settings.needs_broker and settings.broker:  # fatal now, before the run directory exists
@@ -104,14 +86,13 @@ def _train(settings: RunSettings) -> dict[str, Any]:
     title = f"fleetrl {settings.mode} · {learning.env} × {settings.units} · preset {learning.preset}"
     threshold = learning.target_score
     assert threshold is not None, "validation fills in the target score"
+    members = host_groups(settings.units, settings.per_host)  # the units each member of the run carries
     try:
         with (
             run_logging(recorder.out / "logs" / "run.log", quiet=settings.live),
             broker_url(settings) as url,
             device_bridges(settings, url, run_id),
-            LiveView(
-                title, threshold, enabled=settings.live, summarise=summarise, members=members(settings)
-            ) as view,
+            LiveView(title, threshold, enabled=settings.live, summarise=summarise, members=members) as view,
         ):
             device_url = url if settings.device_link == "mqtt" else None
             specs = worker_specs(settings, device_url, run_id)
@@ -133,14 +114,9 @@ def _train(settings: RunSettings) -> dict[str, Any]:
     return summary
 
 
-def members(settings: RunSettings) -> list[list[int]]:
-    """The units each member of the run carries: a unit host's units, or one unit per worker."""
-    return host_groups(settings.units, settings.per_host)
-
-
 @contextmanager
 def device_bridges(settings: RunSettings, url: str | None, run_id: str) -> Iterator[None]:
-    """One device bridge per unit (threads of this process) when workers reach their devices over MQTT."""
+    """One device bridge thread per unit when workers reach their devices over MQTT."""
     if settings.device_link != "mqtt":
         yield
         return
@@ -182,18 +158,15 @@ def run_logging(path: Path, quiet: bool) -> Iterator[None]:
 def process_fleet(
     settings: RunSettings, commands: dict[int, list[str]], units: dict[int, list[int]] | None = None
 ) -> ProcessFleet:
-    """The run's worker processes (:func:`worker_args` each; ``units``: what each reports for, as
-    :class:`ProcessFleet` takes it); forked ones start with the kernels loaded."""
+    """The run's worker processes; forked ones start with the kernels loaded."""
     if fork_available():
         load_kernels(settings)
     return ProcessFleet(commands, Path(settings.out) / "logs", units)
 
 
 def load_kernels(settings: RunSettings) -> None:
-    """Load (or compile) the numba kernels of a step once in this process: the agent's acting and, for a
-    built-in unit type on an in-process link, the unit's physics and reset. Worker processes forked from here
-    start with them loaded (each would otherwise spend ~0.4 s of CPU on its first step, more on a cold cache);
-    a user's unit is not stepped here."""
+    """Load the numba kernels of a step once, for the forked workers: the agent's acting and, for a built-in
+    unit type on an in-process link, the unit's physics and reset."""
     learning = settings.learning
     config = learning.ppo()
     agent = probe_agent(learning.env, config)
@@ -218,7 +191,7 @@ def host_args(units: list[int]) -> list[str]:
 
 
 def worker_args(spec: WorkerSpec, *extra: str) -> list[str]:
-    """The arguments of a worker process's :mod:`fleetrl.runs.worker_main` (its spec as JSON first)."""
+    """The arguments of a worker process's :mod:`fleetrl.runs.worker_main`."""
     return [spec.to_json(), *extra]
 
 
@@ -265,7 +238,7 @@ def train_fleet(
 
 @contextmanager
 def broker_url(settings: RunSettings) -> Iterator[str | None]:
-    """The broker to use: the given one, an embedded one for the run's lifetime, or none (nothing MQTT)."""
+    """The broker to use: the given one, an embedded one for the run's lifetime, or none."""
     if not settings.needs_broker:
         yield None
     elif settings.broker:
@@ -280,10 +253,10 @@ def transports(
     settings: RunSettings, url: str | None, specs: dict[int, WorkerSpec], run_id: str
 ) -> tuple[Callable[[], Transport], Callable[[], Fleet]]:
     """(a factory of the chief's transport, a starter of the workers) for the run's transport."""
+    groups = {units[0]: units for units in host_groups(settings.units, settings.per_host)}
     if url is None:
         bus = LocalBus()
         if settings.per_host > 1:
-            groups = {units[0]: units for units in host_groups(settings.units, settings.per_host)}
             hosts = {
                 k: host_thread([specs[u] for u in units], bus.client, run_id) for k, units in groups.items()
             }
@@ -292,7 +265,6 @@ def transports(
         return bus.client, lambda: ThreadFleet(bodies)
 
     def federated_fleet() -> Fleet:
-        groups = {units[0]: units for units in host_groups(settings.units, settings.per_host)}
         commands = {
             k: worker_args(specs[k], "--broker", url, "--run-id", run_id, *host_args(units))
             for k, units in groups.items()
@@ -320,11 +292,9 @@ def federated_thread(
 def host_thread(
     specs: list[WorkerSpec], make_transport: Callable[[], Transport], run_id: str
 ) -> Callable[[Emit], None]:
-    """The body of a unit host's thread on the in-process bus (:mod:`fleetrl.runs.host`)."""
+    """The body of a unit host's thread on the in-process bus."""
 
     def body(emit: Emit) -> None:
-        from fleetrl.runs.host import train_host
-
         train_host(specs, make_transport(), run_id, emit, reply_timeout=CHIEF_IDLE_TIMEOUT)
 
     return body

@@ -1,10 +1,6 @@
-"""The learning settings resolved once before anything starts: every default filled in, every value checked
-(env, preset, scheme, overrides, target), and the fleet's shape the chief needs before any worker exists.
-
-Shared by every command that starts a run (:mod:`fleetrl.runs.settings`, :mod:`fleetrl.runs.role_settings`);
-the small checks (:func:`choose`, :func:`positive`, :func:`as_setting_error`) turn a lower layer's ValueError
-into a :class:`~fleetrl.runs.setting_values.SettingError` naming the setting.
-"""
+"""The learning settings resolved once before anything starts (every default filled in, every value checked),
+the fleet's shape the chief needs before any worker exists, and the small checks every command's settings
+use."""
 
 from __future__ import annotations
 
@@ -44,11 +40,8 @@ def as_setting_error(name: str, check: Any, *args: Any) -> Any:
 
 
 def resolve_learning(learning: LearningSettings, *, default_scheme: str = DEFAULT_SCHEME) -> LearningSettings:
-    """``learning`` with every default filled in (the fleet profile's name, ``default_scheme`` if none is
-    named, the scheme's parameters, the typed overrides, the unit type's target score) and every value
-    checked (env, preset, scheme and its parameters, M, seeds, every PPO override's name, type and range;
-    unit 0 of the env is built once). A new value; SettingError naming the first setting that cannot work.
-    No agent is built (:func:`resolve_and_probe` builds one)."""
+    """``learning`` with every default filled in (``default_scheme`` if none is named) and every value
+    checked: a new value, or SettingError naming the first setting that cannot work. No agent is built."""
     resolved, _ = _resolve(learning, default_scheme, probe=False)
     return resolved
 
@@ -56,8 +49,7 @@ def resolve_learning(learning: LearningSettings, *, default_scheme: str = DEFAUL
 def resolve_and_probe(
     learning: LearningSettings, *, default_scheme: str = DEFAULT_SCHEME
 ) -> tuple[LearningSettings, FleetShape]:
-    """:func:`resolve_learning`, and the fleet's shape read from the one agent built for it (so the env's
-    spaces are known to fit the agent, and the scheme to run with the preset)."""
+    """:func:`resolve_learning`, and the fleet's shape read from the one agent built for it."""
     resolved, shape = _resolve(learning, default_scheme, probe=True)
     assert shape is not None
     return resolved, shape
@@ -99,9 +91,8 @@ def _probe_agent(learning: LearningSettings) -> Any:
 
 
 def with_large_fleet_update(learning: LearningSettings, units: int) -> LearningSettings:
-    """``learning`` for a federated fleet of ``units``: where the unit type has a large-fleet update
-    (:class:`~fleetrl.envs.catalog.LargeFleetUpdate`), the fleet reaches its size and the preset is the
-    default one, its settings are filled in under the ``--set`` overrides (an explicit one wins)."""
+    """``learning`` for a federated fleet of ``units``: the unit type's large-fleet update, from its size on
+    and with the default preset, under the ``--set`` overrides (an explicit one wins)."""
     rule = as_setting_error("env", get_env_spec, learning.env).large_fleet
     if rule is None or units < rule.from_units or learning.preset != DEFAULT_PRESET:
         return learning
@@ -121,18 +112,16 @@ def typed_overrides(overrides: dict[str, Any]) -> dict[str, Any]:
 
 @dataclass(frozen=True)
 class FleetShape:
-    """What the chief of resolved learning settings needs before any worker exists."""
+    """What the chief needs before any worker exists: the names and shapes of what the scheme shares, and its
+    exchanges per round."""
 
     layout: list[tuple[str, tuple[int, ...]]]
-    """names and shapes of what the scheme shares (the chief validates every message with it)"""
     exchanges_per_round: int
-    """the chief's ``steps_per_round``: 1, or the optimisation steps of an update for a per-step scheme"""
 
 
 def fleet_shape(learning: LearningSettings, agent: Any = None) -> FleetShape:
     """The shape of a fleet of resolved ``learning`` settings, read from ``agent`` or else from one agent
-    built for it (torch); SettingError if the env's spaces do not fit the agent or the scheme cannot run
-    with the preset."""
+    built for it; SettingError if the agent or the scheme cannot run."""
     agent = _probe_agent(learning) if agent is None else agent
     scheme = learning.federation_scheme()
     steps = as_setting_error("scheme", scheme.exchanges_per_round, agent)

@@ -1,10 +1,6 @@
-"""The live terminal view: one row per worker with its round, score, WMA and state; for a large fleet
-(``summarise``) one screen whatever its size: units completed of N, the WMA's p10 / median / p90, the slowest
-units (not completed, lowest WMA) and the members online (:mod:`fleetrl.runs.fleet_summary`).
-
-On a terminal it is a ``rich`` table redrawn in place; elsewhere (CI, a pipe) it prints one plain progress
-line every few seconds, so logs stay readable. A disabled view (``--no-live``) does not import ``rich``.
-"""
+"""The live terminal view: one row per worker, or for a large fleet its summary
+(:mod:`fleetrl.runs.fleet_summary`); a ``rich`` table redrawn in place on a terminal, elsewhere a plain
+progress line every few seconds."""
 
 from __future__ import annotations
 
@@ -27,16 +23,22 @@ def _fmt(value: float) -> str:
     return "-" if math.isnan(value) else f"{value:.1f}"
 
 
+def _progress_table(title: str, who: str, wma: str, rows: Sequence[tuple[int, WorkerProgress]]) -> Table:
+    """A table of one row per worker (or unit): its round, score, WMA, state and last event."""
+    from rich.table import Table
+
+    table = Table(title=title, title_justify="left")
+    for column in (who, "round", "score", wma, "state", "last event"):
+        table.add_column(column, justify="right" if column != "state" else "left")
+    for worker, p in rows:
+        last = p.events[-1] if p.events else ""
+        table.add_row(str(worker), str(p.round), _fmt(p.score), _fmt(p.wma), p.state, last)
+    return table
+
+
 class LiveView:
     """Shows a run's progress; call :meth:`update` whenever something changed (it rate-limits itself).
-
-    :param title: shown above the table
-    :param threshold: the completion threshold, shown next to the WMA
-    :param enabled: ``False`` silences the view entirely
-    :param summarise: show the fleet's summary instead of one row per worker
-    :param members: the units each member of the federation carries (a worker: one; a unit host: its
-        units), for the summary's members online; default one member per unit
-    """
+    ``summarise``: the fleet's summary, ``members`` the units each member carries (default: one each)."""
 
     def __init__(
         self,
@@ -81,21 +83,8 @@ class LiveView:
 
     def table(self, progress: dict[int, WorkerProgress], elapsed: float) -> Table:
         """The table as it stands."""
-        from rich.table import Table
-
-        table = Table(title=f"{self.title}  ·  {elapsed:.0f} s", title_justify="left")
-        for column in ("worker", "round", "score", f"WMA (→ {self.threshold:g})", "state", "last event"):
-            table.add_column(column, justify="right" if column != "state" else "left")
-        for worker, p in sorted(progress.items()):
-            table.add_row(
-                str(worker),
-                str(p.round),
-                _fmt(p.score),
-                _fmt(p.wma),
-                p.state,
-                p.events[-1] if p.events else "",
-            )
-        return table
+        title = f"{self.title}  ·  {elapsed:.0f} s"
+        return _progress_table(title, "worker", f"WMA (→ {self.threshold:g})", sorted(progress.items()))
 
     def fleet_tables(self, fleet: FleetSnapshot, elapsed: float) -> Group:
         """The summary as it stands: one table of the fleet's figures, one of its slowest units."""
@@ -110,16 +99,10 @@ class LiveView:
             " / ".join(_fmt(q) for q in fleet.wma),
             f"{fleet.members_online} of {fleet.members}",
         )
-        slowest = Table(title="slowest units (not completed, lowest WMA)", title_justify="left")
-        for column in ("unit", "round", "score", "WMA", "state", "last event"):
-            slowest.add_column(column, justify="right" if column != "state" else "left")
-        for unit, p in fleet.slowest:
-            last = p.events[-1] if p.events else ""
-            slowest.add_row(str(unit), str(p.round), _fmt(p.score), _fmt(p.wma), p.state, last)
+        slowest = _progress_table("slowest units (not completed, lowest WMA)", "unit", "WMA", fleet.slowest)
         return Group(figures, slowest)
 
     def fleet_line(self, fleet: FleetSnapshot) -> str:
-        """The summary as one plain progress line."""
         p10, median, p90 = (_fmt(q) for q in fleet.wma)
         slow = ", ".join(f"u{u} r{p.round} wma {_fmt(p.wma)}" for u, p in fleet.slowest) or "none"
         return (
@@ -136,7 +119,7 @@ class LiveView:
         ended: Collection[int] = (),
     ) -> None:
         """Redraw (terminal) or print a progress line at most every few seconds (elsewhere); ``ended``: the
-        units whose worker has ended (the summary's members online)."""
+        units whose worker has ended."""
         if self.console is None:
             return
         now = time.monotonic()

@@ -1,6 +1,5 @@
-"""Whether a run fits this machine's memory, checked with the settings before anything starts: measured
-costs per process, worker, unit host and unit (``python lab/benchmarks/run_memory.py``) against
-``MemAvailable``, keeping :data:`HEADROOM` free (docs/usage.md, "Large fleets")."""
+"""Whether a run fits this machine's memory: measured costs per process, worker, unit host and unit
+(``lab/benchmarks/run_memory.py``) against ``MemAvailable``, keeping :data:`HEADROOM` free."""
 
 from __future__ import annotations
 
@@ -14,32 +13,24 @@ from fleetrl.runs.processes import fork_available
 MB = 2**20
 
 COMMAND_MB = 320.0
-"""the ``fleetrl train`` process itself: torch and fleetrl imported, the chief, the run's recorder (measured
-310 MB: lab/benchmarks/run_memory.py, part ``thread``, the intercept)"""
+"""the ``fleetrl train`` process itself: torch and fleetrl imported, the chief, the run's recorder"""
 FORKED_WORKER_MB = 145.0
-"""a worker process forked from the command (the default where the OS has ``fork``: it shares the command's
-imported pages) carrying one unit (measured 127 and 142 MB: lab/benchmarks/run_memory.py, part ``process``)"""
+"""a worker process forked from the command, carrying one unit"""
 SPAWNED_WORKER_MB = 275.0
-"""a worker process started afresh (``FLEETRL_WORKER_START=spawn``, or no ``fork``): it imports torch and
-fleetrl itself (measured 272 MB: lab/benchmarks/run_memory.py, part ``spawned``; its resident set is ~400 MB,
-of which the shared libraries' pages count once across the processes)"""
+"""a worker process started afresh: it imports torch and fleetrl itself"""
 THREAD_UNIT_MB = 6.5
-"""a unit run as its own worker thread of the command (``--transport local``): its env, learner and agent
-(measured 6.5 MB: lab/benchmarks/run_memory.py, part ``thread``)"""
+"""a unit run as its own worker thread of the command (``--transport local``)"""
 HOST_MB = 5.0
-"""a unit host's own cost: its agent, optimiser and worker (measured 4.3 MB: lab/benchmarks/run_memory.py,
-part ``host``)"""
+"""a unit host's own cost: its agent, optimiser and worker"""
 HOSTED_UNIT_MB = 2.0
-"""each unit a host carries: its env, trajectory memory and criterion (measured 1.8 MB:
-lab/benchmarks/run_memory.py, part ``host``)"""
+"""each unit a host carries: its env, trajectory memory and criterion"""
 HEADROOM = 0.2
 """the share of the available memory a run leaves free"""
 MEMINFO = Path("/proc/meminfo")
 
 
 def available_mb(meminfo: Path = MEMINFO) -> float | None:
-    """The memory the kernel says is available to new work (MB), or None where it does not say (no
-    /proc/meminfo, or no ``MemAvailable`` line: the check is skipped)."""
+    """``MemAvailable`` in MB, or None where the kernel does not say (the check is skipped)."""
     try:
         lines = meminfo.read_text().splitlines()
     except OSError:
@@ -52,32 +43,25 @@ def available_mb(meminfo: Path = MEMINFO) -> float | None:
 
 @dataclass(frozen=True)
 class RunLayout:
-    """Where a run's units live: worker processes or worker threads of the command, each carrying one unit
-    or a unit host's."""
+    """Where a run's units live: worker processes (forked or spawned) or threads of the command, each carrying
+    one unit or a unit host's ``per_host``."""
 
     units: int
-    """units in the fleet"""
     processes: bool
-    """the workers are processes (``--mode individual``, or ``--transport mqtt``), else threads"""
     per_host: int = 1
-    """units each worker carries (1: a worker per unit)"""
     forked: bool = True
-    """worker processes are forked from the command (else spawned)"""
 
     @classmethod
     def of(cls, units: int, mode: str, transport: str, per_host: int, forked: bool) -> RunLayout:
-        """The layout of a run of these settings."""
         processes = mode == "individual" or transport == "mqtt"
         return cls(units, processes, per_host, forked)
 
     @property
     def hosts(self) -> int:
-        """Unit hosts (0: none)."""
         return 0 if self.per_host == 1 else math.ceil(self.units / self.per_host)
 
     @property
     def process_mb(self) -> float:
-        """One worker process's own cost (forked or spawned)."""
         return FORKED_WORKER_MB if self.forked else SPAWNED_WORKER_MB
 
     def estimate_mb(self) -> float:
@@ -90,7 +74,6 @@ class RunLayout:
         return COMMAND_MB + self.units * THREAD_UNIT_MB
 
     def described(self) -> str:
-        """How the layout holds its units, in words."""
         if self.hosts:
             where = " (processes)" if self.processes else ""
             return f"{self.hosts} unit hosts of {self.per_host} units{where}"
@@ -118,10 +101,8 @@ def memory_problem(
     hosts_possible: bool,
     cores: int,
 ) -> str | None:
-    """Why ``layout`` does not fit ``available`` MB (one line: what it needs, what fits, what to type
-    instead), or None when it fits or nothing is known of the memory. ``threads_possible``: the run can
-    have its workers in-process (federated); ``hosts_possible``: its scheme and settings allow unit hosts
-    (then the advice is hosts of about one per ``cores``)."""
+    """Why ``layout`` does not fit ``available`` MB (what it needs, what fits, what to type instead), or None
+    when it fits or nothing is known of the memory."""
     if available is None:
         return None
     budget = available * (1 - HEADROOM)
@@ -154,8 +135,7 @@ def _gb(mb: float) -> str:
 def run_memory_problem(
     units: int, mode: str, transport: str, per_host: int, *, hosts_possible: bool
 ) -> str | None:
-    """:func:`memory_problem` of a run of these settings on this machine: its worker processes forked or
-    spawned as :mod:`fleetrl.runs.processes` will start them, its available memory from /proc/meminfo."""
+    """:func:`memory_problem` of a run of these settings on this machine."""
     try:
         forked = fork_available()
     except ValueError:  # a bad FLEETRL_WORKER_START: the run refuses it when it starts its workers

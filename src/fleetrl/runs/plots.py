@@ -1,12 +1,5 @@
-"""Figure-5-style plots: per worker, the score per round (blue), its WMA (red), the actor loss (green
-dotted, right axis, where the rows carry it), and model transfers as vertical lines. A large fleet's plot
-(:func:`fleet_figure`) is one panel: the fleet's median WMA per round in a 10-90 % band, and the units
-completed by each round on a right axis.
-
-The x-axis counts rounds (one update each) or, with ``x_axis="episodes"``, the episodes played by the end
-of each round; the two differ with the ``paper-code`` preset, whose rounds play several episodes. Every
-axis carries a label naming its quantity and unit.
-"""
+"""Figure-5-style plots: per worker, its score, WMA and actor loss per round (or episode) with its transfers;
+for a large fleet, one panel of the median WMA in a 10-90 % band and the units completed."""
 
 import itertools
 import math
@@ -29,15 +22,10 @@ X_LABELS: dict[str, str] = {
     "rounds": "round (one update: one episode, or with paper-code the episodes filling the memory)",
     "episodes": "episodes played",
 }
-"""the axis label for each choice of x-axis"""
 SCORE_LABEL = "score (episode return)"
-"""the left axis of a worker's panel: the score (blue) and its WMA (red) share it"""
 LOSS_LABEL = r"actor loss $-L^{\mathrm{CLIP}}$ (dotted)"
-"""the right axis of a worker's panel: the PPO actor loss, a dimensionless objective"""
 FLEET_WMA_LABEL = "WMA of the last 10 scores\n(fleet median, 10-90 % band)"
-"""the left axis of a fleet's panel: the quantiles of the units' WMA"""
 COMPLETED_LABEL = "units completed (of {units})"
-"""the right axis of a fleet's panel: how many units' criterion had held by each round"""
 
 
 def by_worker(records: list[MetricsRow]) -> dict[int, list[MetricsRow]]:
@@ -49,15 +37,15 @@ def by_worker(records: list[MetricsRow]) -> dict[int, list[MetricsRow]]:
 
 
 def x_values(rows: list[MetricsRow], x_axis: XAxis = "rounds") -> list[int]:
-    """Where each of one worker's rounds sits on the x-axis: its number, or the episodes played by its end."""
+    """Where each of one worker's rounds sits on the x-axis: its number, or the episodes played by then."""
     if x_axis == "rounds":
         return [r.round for r in rows]
     return list(itertools.accumulate(r.episodes for r in rows))
 
 
 def draw_worker(ax: Axes, rows: list[MetricsRow], label: str, x_axis: XAxis = "rounds") -> None:
-    """One worker's panel: score, WMA, actor loss (right axis, drawn only where a row carries one),
-    transfers and completion; ``label`` names the worker above the score axis's label."""
+    """One worker's panel: score, WMA, actor loss (right axis, where a row carries one), transfers and
+    completion."""
     rounds = x_values(rows, x_axis)
     ax.plot(rounds, [r.score for r in rows], color="tab:blue", lw=0.8, label="score")
     ax.plot(rounds, [r.wma for r in rows], color="tab:red", lw=1.5, label="WMA (last 10)")
@@ -102,9 +90,8 @@ def scores_figure(records: list[MetricsRow], title: str = "", x_axis: XAxis = "r
 
 
 def fleet_figure(records: list[MetricsRow], title: str = "", target: float | None = None) -> Figure:
-    """One panel for the whole fleet against rounds: the median of the units' latest WMA with its 10-90 %
-    band, the completion ``target`` (if given) dashed, and the units completed by each round on a right axis
-    (:func:`fleetrl.runs.fleet_summary.fleet_rounds`); the caller saves and closes it."""
+    """One panel for the whole fleet against rounds (:func:`fleetrl.runs.fleet_summary.fleet_rounds`), the
+    ``target`` dashed; the caller saves and closes it."""
     fleet = fleet_rounds(records)
     fig, ax = plt.subplots(figsize=(9, 4.2))
     p10, median, p90 = fleet.wma
@@ -136,20 +123,14 @@ def plot_run(
     summarise: bool = False,
     target: float | None = None,
 ) -> None:
-    """Draw one panel per worker against rounds or episodes (``x_axis``), or with ``summarise`` the fleet's
-    panel (:func:`fleet_figure`, against rounds; ``target`` the completion target), and save a PNG at
-    ``path``."""
+    """Save a PNG at ``path`` of :func:`scores_figure`, or with ``summarise`` of :func:`fleet_figure`."""
     fig = fleet_figure(records, title, target) if summarise else scores_figure(records, title, x_axis)
     fig.savefig(path, dpi=110)
     plt.close(fig)
 
 
 def unlabelled_axes(fig: Figure) -> list[str]:
-    """Every shown axis of ``fig`` that has no label, named as "panel N x|y" (empty when all are labelled).
-
-    An axis counts as shown when it is visible and draws tick labels (a shared x-axis hidden above the
-    bottom panel, or a twin's hidden x-axis, needs no label). Draws the figure's canvas to lay out ticks.
-    """
+    """Every shown axis of ``fig`` (visible, with tick labels) that has no label, as "panel N x|y"."""
     fig.canvas.draw()
     missing = []
     for i, ax in enumerate(fig.axes):

@@ -1,17 +1,7 @@
-"""Worker processes that report their rounds as JSON lines on stdout.
-
-Each child runs :mod:`fleetrl.runs.worker_main` with its arguments (its spec as JSON), prints one
-:class:`MetricsRow` per line on stdout and logs to stderr (kept in ``<run>/logs/worker-K.log``). The parent
-reads every child's stdout on a thread and hands the parsed records to one queue, so the main thread owns the
-run directory and the live view. Nothing crosses the process boundary but text.
-
-Where the OS has ``fork`` a child is forked from this process: it starts with torch, numba and fleetrl
-already imported (a new interpreter spends 2-3 s of CPU importing them, benchmarks/startup.py), and runs
-``worker_main.main`` with the same arguments a new interpreter would get. The fleet must then be started
-before this process starts threads that the children could need (the run's chief), and before torch runs a
-multi-threaded operation here (an OpenMP pool does not survive a fork). ``FLEETRL_WORKER_START=spawn`` starts
-new interpreters instead (``python -m fleetrl.runs.worker_main``).
-"""
+"""Worker processes (:mod:`fleetrl.runs.worker_main`) that print their rounds as JSON lines on stdout, read
+on threads into one queue. Where the OS has ``fork`` a child is forked with fleetrl already imported (so the
+fleet starts before this process starts threads or a multi-threaded torch operation);
+``FLEETRL_WORKER_START=spawn`` starts new interpreters instead."""
 
 import logging
 import os
@@ -34,13 +24,12 @@ log = logging.getLogger(__name__)
 
 WORKER_MODULE = "fleetrl.runs.worker_main"
 START_ENV = "FLEETRL_WORKER_START"
-"""``fork`` (the default where the OS has it) or ``spawn``: how worker processes are started"""
 CHILD_ENV = {"PYTHONUNBUFFERED": "1", "OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
 
 
 @dataclass
 class WorkerExit:
-    """A worker (process or thread) ended; ``returncode`` 0 is a clean end."""
+    """A worker (process or thread) ended (``returncode`` 0: a clean end)."""
 
     worker: int
     returncode: int
@@ -50,7 +39,7 @@ FleetEvent = MetricsRow | WorkerExit
 
 
 class Child(Protocol):
-    """What the fleet uses of a child process (a ``subprocess.Popen`` or a :class:`ForkedChild`)."""
+    """What the fleet uses of a ``subprocess.Popen`` or a :class:`ForkedChild`."""
 
     pid: int
 
@@ -69,7 +58,6 @@ class ForkedChild:
         self._lock = threading.Lock()
 
     def poll(self) -> int | None:
-        """The exit code if the child has ended (a signal: its negative number), else None."""
         with self._lock:
             if self.returncode is None:
                 pid, status = os.waitpid(self.pid, os.WNOHANG)
@@ -78,7 +66,6 @@ class ForkedChild:
             return self.returncode
 
     def wait(self, timeout: float | None = None) -> int:
-        """Wait for the child's end (``subprocess.TimeoutExpired`` after ``timeout`` seconds)."""
         deadline = None if timeout is None else time.monotonic() + timeout
         while (code := self.poll()) is None:
             if deadline is not None and time.monotonic() >= deadline:
@@ -87,17 +74,15 @@ class ForkedChild:
         return code
 
     def send_signal(self, sig: int) -> None:
-        """Signal the child unless it has ended."""
         if self.poll() is None:
             os.kill(self.pid, sig)
 
     def kill(self) -> None:
-        """SIGKILL."""
         self.send_signal(signal.SIGKILL)
 
 
 def fork_available() -> bool:
-    """Whether worker processes are forked (see the module's docstring)."""
+    """Whether worker processes are forked."""
     how = os.environ.get(START_ENV, "fork").strip().lower()
     if how not in ("fork", "spawn"):
         raise ValueError(f"{START_ENV}={how!r}: use fork or spawn")
@@ -105,8 +90,8 @@ def fork_available() -> bool:
 
 
 def _run_forked_worker(args: Sequence[str], stdout_fd: int, log_path: Path) -> NoReturn:
-    """The forked child: a new session, stdout to the parent's pipe, stderr to its log, the parent's log
-    handlers dropped; run the worker and exit without returning into the parent's code."""
+    """The forked child: a new session, stdout to the parent's pipe, stderr to its log; run the worker and
+    exit without returning into the parent's code."""
     code = 1
     try:
         os.setsid()
@@ -139,13 +124,8 @@ def _run_forked_worker(args: Sequence[str], stdout_fd: int, log_path: Path) -> N
 
 
 class ProcessFleet:
-    """Starts one child per worker and streams their records.
-
-    :param commands: worker id → the arguments of its :mod:`fleetrl.runs.worker_main`
-    :param log_dir: where each child's stderr goes (``worker-K.log``; a unit host's ``host-K.log``)
-    :param units: worker id → the units its process reports for (a unit host: its units, each unit's exit
-        reported when the process ends); by default each worker is the unit of its id
-    """
+    """Starts one child per worker (its :mod:`fleetrl.runs.worker_main` arguments) and streams their records;
+    ``units``: worker id → the units it reports for (default: its own); stderr to ``log_dir``."""
 
     def __init__(
         self,
@@ -213,7 +193,6 @@ class ProcessFleet:
             self.events.put(WorkerExit(unit, code))
 
     def size(self) -> int:
-        """How many units the children report for (one per child unless they are unit hosts)."""
         return sum(len(self.units[worker]) for worker in self.children)
 
     def interrupt(self, grace_seconds: float = 15.0) -> None:

@@ -1,6 +1,5 @@
-"""A run's metrics row — one worker's round flattened (:meth:`MetricsRow.of`), metrics.csv's columns, read
-back by :func:`read_metrics` for plots, resume and the lab's records — and :class:`WorkerProgress`, what a
-run knows of each worker so far."""
+"""A run's metrics row (one worker's round: metrics.csv's columns) and :class:`WorkerProgress`, what a run
+knows of each worker so far."""
 
 import csv
 import json
@@ -17,15 +16,9 @@ nan = math.nan
 
 @dataclass(frozen=True)
 class MetricsRow:
-    """A worker's round: the round's score, the learning statistics, and what federation did.
-
-    ``event`` is empty for a plain round, ``gradient`` for a gradient-sharing round, ``completed`` when the
-    worker's criterion holds, ``transfer_out`` / ``transfer_in:<from>`` for model transfers. A round is one
-    episode, or with the ``paper-code`` preset the episodes that fill the memory: ``score`` is then their
-    mean return, ``steps`` their total and ``episodes`` their number. The fields are metrics.csv's columns,
-    in order; a field named like one of :class:`~fleetrl.agent.learner.RoundResult`'s is that figure of the
-    round.
-    """
+    """A worker's round: its score, the learning statistics (the figures of its ``RoundResult``), and what
+    federation did (``event``: empty, ``gradient``, ``completed``, ``transfer_out``, ``transfer_in:<from>``).
+    The fields are metrics.csv's columns, in order."""
 
     round: int
     worker: int
@@ -48,14 +41,17 @@ class MetricsRow:
     def of(
         cls, worker: int, round_: int, result: "RoundResult", wall_time: float, event: str
     ) -> "MetricsRow":
-        """The row of the learner's ``result``, played by ``worker`` as round ``round_`` (the federation's
-        number; alone: the learner's), ``wall_time`` seconds into the worker's run, ``event`` what it did."""
+        """The row of the learner's ``result``, played by ``worker`` as round ``round_``."""
         figures: dict[str, Any] = {k: (int if k in COUNTS else float)(getattr(result, k)) for k in FIGURES}
         return cls(round=round_, worker=worker, wall_time=wall_time, event=event, **figures)
 
     def to_json(self) -> str:
         """One line of JSON (non-finite floats become null)."""
-        return json.dumps({k: _finite_or_none(v) for k, v in asdict(self).items()})
+        values = asdict(self)
+        for name, value in values.items():
+            if isinstance(value, float) and not math.isfinite(value):
+                values[name] = None
+        return json.dumps(values)
 
     @classmethod
     def from_json(cls, line: str) -> "MetricsRow":
@@ -89,28 +85,18 @@ class MetricsRow:
 CSV_COLUMNS = tuple(f.name for f in fields(MetricsRow))
 """metrics.csv's columns: :class:`MetricsRow`'s fields, in order"""
 IDENTITY = frozenset({"round", "worker", "wall_time", "event"})
-"""the columns that say who played the round, when, and what the federation did"""
 FIGURES = frozenset(CSV_COLUMNS) - IDENTITY
-"""the columns that are the learner's figures of the round (fields of the same name of its RoundResult)"""
 COUNTS = frozenset(f.name for f in fields(MetricsRow) if f.type is int)
-"""the columns that hold whole numbers"""
-
-
-def _finite_or_none(value: object) -> object:
-    if isinstance(value, float) and not math.isfinite(value):
-        return None
-    return value
 
 
 def read_metrics(path: Path) -> list[MetricsRow]:
-    """Every row of a run's metrics.csv."""
     with path.open(newline="") as f:
         return [MetricsRow.from_csv_row(row) for row in csv.DictReader(f)]
 
 
 @dataclass
 class WorkerProgress:
-    """What the run knows of one worker so far (feeds the live view and summary.json)."""
+    """What the run knows of one worker so far (the live view and summary.json)."""
 
     round: int = 0
     score: float = math.nan

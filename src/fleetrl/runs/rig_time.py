@@ -1,6 +1,5 @@
-"""Time on the rigs: what a fleet would spend on real-time hardware until its units complete, one
-accounting for every scheme and uneven condition — a unit's clock runs while it plays, is reset, is absent
-and waits for the fleet; computing is left out (docs/benchmarks.md, "Time on the rigs: one accounting")."""
+"""Time on the rigs: what a fleet would spend on real-time hardware until its units complete (a unit's clock
+runs while it plays, is reset, is absent and waits for the fleet; docs/benchmarks.md, "Time on the rigs")."""
 
 from __future__ import annotations
 
@@ -20,14 +19,11 @@ from fleetrl.runs.uneven import absences
 RESET_SAMPLES = 10
 """seeded resets (seeds 0 … 9) whose mean is a QUBE unit's reset time"""
 CONTROLLED_SHARES = (50, 90, 100)
-"""the shares of a fleet's units, in per cent, for which a run's summary gives the time on the rigs until
-they were controlled (:meth:`RigTime.until_controlled`)"""
+"""the shares of a fleet's units, in per cent, a summary gives the time until they were controlled"""
 
 
 def units_for(percent: int, units: int) -> int:
-    """How many of ``units`` units make ``percent`` % of them: the smallest whole number ≥ percent/100 ·
-    units, computed in integers (no float rounding: 7 % of 100 is 7). 50 % of 3 units is 2, 90 % of 4 is
-    4, 90 % of 10 is 9, 90 % of 1,000 is 900, 50 % of 1 is 1."""
+    """How many of ``units`` units make ``percent`` % of them, rounded up, in integers (7 % of 100 is 7)."""
     if not 0 <= percent <= 100:
         raise ValueError(f"share {percent!r} %: must be 0 … 100")
     return -(-percent * units // 100)
@@ -35,19 +31,15 @@ def units_for(percent: int, units: int) -> int:
 
 @dataclass(frozen=True)
 class Waits:
-    """Who waits for whom: a round barrier (federated, not asynchronous) or none; under a per-step scheme,
-    the quorum after which a unit that took part in the round before gets a grace, then is left behind."""
+    """Who waits for whom: a round barrier or none; under a per-step scheme (``grace``), the quorum after
+    which a unit that took part in the round before gets a grace, then is left behind."""
 
     barrier: bool
-    """a round closes when its contributors are ready; they start their next episode then"""
     quorum: float = 1.0
-    """``pergrad``'s quorum (1: every unit that took part in the round before is waited for)"""
     grace: bool = False
-    """a per-step scheme's deadline: the quorum's time plus a grace (a per-round scheme waits for all)"""
 
     @property
     def rule(self) -> str:
-        """How the waiting reads in a summary: ``nobody waits``, ``round barrier`` (with its quorum)."""
         if not self.barrier:
             return "nobody waits"
         return f"round barrier, quorum {self.quorum:g}" if self.grace and self.quorum < 1 else "round barrier"
@@ -59,18 +51,15 @@ NO_BARRIER = Waits(barrier=False)
 
 @dataclass(frozen=True)
 class UnitPlay:
-    """What one unit played: its rounds' steps, when its criterion held, its resets and absences."""
+    """What one unit played: round → steps (a sequence: rounds 1, 2, …), the round its criterion held in,
+    seconds of reset before each episode, round → episodes (None: one each), and before its own 2nd, 3rd, …
+    round the rounds' worth it is absent."""
 
     steps: Mapping[int, int] | Sequence[int]
-    """round → steps played for it (the round it contributed to; a sequence: rounds 1, 2, …)"""
     completed_at: int | None
-    """the round in which its criterion held (None: never)"""
     reset: float = 0.0
-    """seconds of reset before each episode"""
     episodes: Mapping[int, int] | Sequence[int] | None = None
-    """round → episodes in it (as ``steps``; None: one each)"""
     absent: Sequence[int] = ()
-    """before its own 2nd, 3rd, … round: how many rounds' worth it is absent (0: present; missing: 0)"""
 
 
 @dataclass(frozen=True)
@@ -84,33 +73,23 @@ class UnitClock:
 
     @property
     def total(self) -> float:
-        """Seconds on its rig."""
         return self.played + self.reset + self.absent + self.waited
 
 
 @dataclass(frozen=True)
 class RigTime:
-    """Seconds on real-time rigs until the fleet, and each unit, completed."""
+    """Seconds on real-time rigs until the fleet, and each unit, completed (or played its last round;
+    ``complete`` False: the figures are lower bounds), where each unit's time went, and which completed."""
 
     fleet: float
-    """until the last unit completed (or played its last round)"""
     per_unit: dict[str, float]
-    """unit → until its own criterion held (or it played its last round)"""
     complete: bool
-    """every unit completed (False: the figures are lower bounds)"""
     clocks: dict[str, UnitClock] = field(default_factory=dict)
-    """unit → where its time went"""
     completed: frozenset[str] = frozenset()
-    """the units whose criterion held (their ``per_unit`` is the time until it did)"""
 
     def until_controlled(self, percent: int) -> float | None:
-        """Seconds on the rigs until ``percent`` % of the fleet's units were controlled (their criterion
-        held): the k-th smallest ``per_unit`` of the units that completed, k = :func:`units_for`
-        (``percent``, the fleet's units). The fleet's rigs start together at 0, so this is when, on that one
-        clock, the k-th unit's criterion held, in the accounting of ``fleet`` (under a round barrier: when
-        the round it held in closed; with nobody waiting: when its own round ended). 100 % is ``fleet``
-        when every unit completed; None where fewer than k units did (a unit that never completed is never
-        counted, however long it played). 0 % of a fleet, or any share of no units: 0."""
+        """Seconds until ``percent`` % of the fleet's units were controlled: the k-th smallest ``per_unit`` of
+        the units that completed, k = :func:`units_for`; None where fewer than k units completed."""
         need = units_for(percent, len(self.per_unit))
         if need == 0:
             return 0.0
@@ -118,8 +97,7 @@ class RigTime:
         return done[need - 1] if need <= len(done) else None
 
     def to_dict(self) -> dict[str, object]:
-        """A JSON-ready account, rounded to milliseconds (``controlled``: share in per cent →
-        :meth:`until_controlled`, null where that share of units never completed)."""
+        """A JSON-ready account, rounded to milliseconds."""
         controlled = {str(p): self.until_controlled(p) for p in CONTROLLED_SHARES}
         return {
             "fleet": round(self.fleet, 3),
@@ -140,17 +118,14 @@ def _by_round(played: Mapping[int, int] | Sequence[int]) -> dict[int, int]:
 
 @dataclass
 class _Unit:
-    """A unit's rounds as its clock runs through them."""
+    """A unit's rounds (round, play seconds, reset seconds) as its clock runs through them up to ``stop``
+    (the last it played up to the one its criterion held in); ``free``: when it may start its next round."""
 
     rounds: list[tuple[int, float, float]]
-    """(round, play seconds, reset seconds) in order"""
     stop: int
-    """the round its clock stops at: the last it played up to the one its criterion held in (0: none)"""
     absent: Sequence[int]
     free: float = 0.0
-    """when it may start its next round (under a barrier: when the last round it contributed to closed)"""
     clock: UnitClock = field(default_factory=UnitClock)
-    """its own time up to its stop (played, reset, absent)"""
 
 
 def _units(units: Mapping[str, UnitPlay], period: float) -> dict[str, _Unit]:
@@ -168,8 +143,7 @@ def _units(units: Mapping[str, UnitPlay], period: float) -> dict[str, _Unit]:
 
 
 def _play(unit: _Unit, index: int, start: float) -> float:
-    """Unit's own round ``index`` (0-based) from ``start``, absent first if due: when it is ready. Its own
-    time counts up to its stop."""
+    """Unit's own round ``index`` from ``start``, absent first if due: when it is ready."""
     r, play, reset = unit.rounds[index]
     away = 0.0
     if index and index - 1 < len(unit.absent) and unit.absent[index - 1]:
@@ -182,12 +156,7 @@ def _play(unit: _Unit, index: int, start: float) -> float:
 
 
 def rig_time(units: Mapping[str, UnitPlay], period: float, waits: Waits) -> RigTime:
-    """The time on the rigs of one run (see the module's docstring).
-
-    :param units: unit → what it played.
-    :param period: seconds per step (the unit type's control period).
-    :param waits: who waits for whom (:func:`waits_of`).
-    """
+    """The time on the rigs of one run of ``units`` at ``period`` seconds per step."""
     if period <= 0:
         raise ValueError(f"control period {period!r}: must be > 0")
     built = _units(units, period)
@@ -244,11 +213,7 @@ def _barrier(built: dict[str, _Unit], waits: Waits) -> dict[str, float]:
 
 
 def waits_of(mode: str | None, scheme: str | None = None, quorum: float | None = None) -> Waits:
-    """Who waits for whom in a run of ``mode`` under ``scheme`` (its name) with ``quorum``: ``individual``
-    units and an asynchronous scheme's wait for nobody; a per-step scheme waits as
-    :class:`~fleetrl.federation.chief.stragglers.StepWaits` does; any other federated fleet waits for each
-    round's
-    last contributor."""
+    """Who waits for whom in a run of ``mode`` under ``scheme`` (its name) with ``quorum``."""
     if mode == "individual":
         return NO_BARRIER
     barrier, leaves_late = RoundScheme.round_barrier, RoundScheme.leaves_late_units
@@ -263,10 +228,8 @@ def waits_of(mode: str | None, scheme: str | None = None, quorum: float | None =
 
 @functools.lru_cache(maxsize=4096)
 def reset_seconds(env: str, unit: int, fleet_seed: int, fleet_profile: str | None = None) -> float:
-    """A unit's reset time: the mean ``last_reset_rig_seconds`` of a QUBE unit's simulated device over
-    :data:`RESET_SAMPLES` seeded resets (its swing-up; a reset it could not settle: the failed 20 s swing-up
-    plus a person's time); any other unit type: 0 (a CartPole's reset is the simulator's, no time on a rig
-    is known)."""
+    """A unit's reset time: a QUBE unit's mean ``last_reset_rig_seconds`` over :data:`RESET_SAMPLES` seeded
+    resets; any other unit type: 0 (no time on a rig is known)."""
     try:
         spec = get_env_spec(env)
     except ValueError:
@@ -289,9 +252,8 @@ def run_units(
     *,
     episodes: Mapping[str, Mapping[int, int] | Sequence[int]] | None = None,
 ) -> dict[str, UnitPlay]:
-    """Each worker's :class:`UnitPlay` in a run of ``settings`` (a record's result settings, or a run's
-    config: ``env``, ``fleet_seed``, ``fleet_profile``, ``seed``, ``absent``, ``absent_rounds``): its absences
-    replayed from the learning seed and its id (worker K trains unit K), its resets measured."""
+    """Each worker's :class:`UnitPlay` in a run of ``settings`` (a run's config or result settings): its
+    absences replayed from the learning seed and its id, its resets measured."""
     if set(steps) != set(completed_at):
         raise ValueError(f"units with steps {sorted(steps)} != units with completions {sorted(completed_at)}")
     absent = float(settings.get("absent") or 0.0)

@@ -1,6 +1,5 @@
-"""The settings of the standalone roles ``fleetrl chief`` and ``fleetrl worker`` (docs/deploy.md): what both
-must agree on (:class:`RoleSettings`) and what each adds. Resolved once, before any file, connection or
-process."""
+"""The settings of ``fleetrl chief`` and ``fleetrl worker`` (docs/deploy.md): what both must agree on
+(:class:`RoleSettings`) and what each adds."""
 
 from __future__ import annotations
 
@@ -57,8 +56,8 @@ class RoleSettings(BrokerLogin):
     (its lease: how long the place of a stopped or cut-off chief or worker stays held)"""
 
     def resolved_learning(self) -> tuple[LearningSettings, FleetShape]:
-        """The learning settings resolved (and the fleet's shape, from the one agent built for them), then
-        the broker URL and login, the run id, and every file the role will read checked."""
+        """The learning settings resolved (and the fleet's shape), then the broker, the run id and every file
+        the role will read checked."""
         learning, shape = resolve_and_probe(self.learning)
         if self.broker is None:
             raise SettingError(f"missing setting: {label('broker')} (mqtt://[user@]host:port or mqtts://…)")
@@ -79,14 +78,13 @@ class RoleSettings(BrokerLogin):
         return learning, shape
 
     def fleet_key(self) -> FleetKey | None:
-        """The fleet key, read from its file (None: messages are not signed)."""
+        """The fleet key (None: messages are not signed)."""
         if self.fleet_key_file is None:
             return None
         return as_setting_error("fleet_key_file", FleetKey.from_file, self.fleet_key_file)
 
     def transport(self, *, clean_session: bool = False) -> Any:
-        """An unconnected MQTT transport to the broker with the role's login (by default a persistent
-        session under the role's client id)."""
+        """An unconnected MQTT transport to the broker with the role's login."""
         from fleetrl.transport.mqtt import MqttTransport
 
         assert self.broker is not None, "resolution requires a broker"
@@ -102,9 +100,8 @@ class RoleSettings(BrokerLogin):
         )
 
     def read_status(self, node: str) -> Status | None:
-        """The retained status of ``node`` (``chief`` or a worker id) of this run, read over a connection of
-        its own (no role's session is touched); None if there is none, or it cannot be read as a status.
-        ConnectionError if the broker cannot be reached within ``connect_timeout`` s."""
+        """The retained status of ``node`` (``chief`` or a worker id) of this run, over a connection of its
+        own; None if there is none, or it is not a status (ConnectionError: no broker in time)."""
         from fleetrl.transport.mqtt import read_retained
 
         assert self.broker is not None, "resolution requires a broker"
@@ -147,8 +144,7 @@ class ChiefSettings(RoleSettings, RoundRules):
     """take only workers 0 … N-1 (by default a worker with another id joins the running fleet: a new unit)"""
 
     def resolved(self) -> ChiefSettings:
-        """A new value with every default filled in; SettingError naming the first setting that cannot
-        work. Nothing is created."""
+        """A new value with every default filled in; SettingError naming the first that cannot work."""
         learning, shape = self.resolved_learning()
         quorum = self.resolved_quorum(learning, shape)
         if self.workers < 1:
@@ -171,7 +167,7 @@ class ChiefSettings(RoleSettings, RoundRules):
         return replace(self, learning=learning, quorum=quorum)
 
     def member_ids(self) -> list[str]:
-        """W at the start: the worker ids 0 … N-1, or with hosts each host's id (host-0, host-U, …)."""
+        """W at the start: the worker ids 0 … N-1, or each host's id."""
         return member_ids(self.workers, self.units_per_host)
 
 
@@ -203,8 +199,7 @@ class WorkerSettings(RoleSettings):
     ``--absent-rounds``; a table's entries for other workers are not this one's)"""
 
     def resolved(self) -> WorkerSettings:
-        """A new value with every default filled in; SettingError naming the first setting that cannot
-        work. Nothing is created."""
+        """A new value with every default filled in; SettingError naming the first that cannot work."""
         learning, _ = self.resolved_learning()  # the env's spaces fit the agent, the scheme the preset
         choose("device_link", self.device_link, DEVICE_LINKS)
         if self.device_link == "mqtt":
@@ -221,7 +216,6 @@ class WorkerSettings(RoleSettings):
         return replace(self, learning=learning, uneven=uneven)
 
     def _check_host(self, learning: LearningSettings) -> None:
-        """SettingError if this worker cannot be the unit host ``units`` asks for."""
         if self.units == 1:
             return
         scheme, own_part = learning.federation_scheme(), learning.ppo().own_part
@@ -241,11 +235,10 @@ class WorkerSettings(RoleSettings):
 
     @property
     def device_unit(self) -> int:
-        """The unit this worker trains on."""
         return self.worker_id if self.unit is None else self.unit
 
     def worker_spec(self) -> WorkerSpec:
-        """The spec this worker trains with (with a device link: its unit served under this run's id)."""
+        """The spec this worker trains with."""
         return WorkerSpec(
             worker=self.worker_id,
             unit=self.device_unit,
@@ -257,6 +250,6 @@ class WorkerSettings(RoleSettings):
         )
 
     def device_transport(self) -> Any:
-        """With ``device_link = "mqtt"``: an unconnected transport for the device link (its own connection
-        and a clean session, this worker's login and TLS files); None without."""
+        """With ``device_link = "mqtt"``: an unconnected transport for the device link (a clean session);
+        None without."""
         return self.transport(clean_session=True) if self.device_link == "mqtt" else None

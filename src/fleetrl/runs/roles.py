@@ -1,26 +1,24 @@
-"""What one worker does in a run, in individual or federated mode, wherever it runs (process or thread).
-
-Both modes report every round as a :class:`~fleetrl.runs.records.MetricsRow` through ``emit`` and save the
-worker's model when they end, however they end. An uneven unit (its spec's ``uneven``:
-:mod:`fleetrl.runs.uneven`) plays through its wrappers here: slowed, absent at times, its messages delayed,
-its work and its link paused at times.
-"""
+"""What one worker, or one unit host of several units, does in a run (process or thread): it reports every
+round as a :class:`~fleetrl.runs.records.MetricsRow` through ``emit`` and saves its model however it ends; an
+uneven unit plays through its wrappers (:mod:`fleetrl.runs.uneven`)."""
 
 import logging
 import time
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 
 from fleetrl.agent.learner import Learner, RoundResult
+from fleetrl.federation.events import WorkerEvent
 from fleetrl.federation.wire.signing import FleetKey
+from fleetrl.federation.worker.actions import FederatedRound
 from fleetrl.federation.worker.runner import FederatedWorker, WorkerSummary
 from fleetrl.runs.checkpoints import WorkerCheckpoint
-from fleetrl.runs.factory import make_learner
-from fleetrl.runs.plans import worker_plan
+from fleetrl.runs.factory import make_host_learner, make_learner, worker_plan
+from fleetrl.runs.host_settings import host_id
 from fleetrl.runs.records import MetricsRow
 from fleetrl.runs.rundir import model_path
 from fleetrl.runs.spec import WorkerSpec
-from fleetrl.runs.uneven import uneven_unit, unit_stall
+from fleetrl.runs.uneven import UnitConditions, uneven_unit, unit_stall
 from fleetrl.transport.base import Transport
 from fleetrl.transport.delayed import DelayedTransport
 from fleetrl.transport.stalled import StalledTransport
@@ -29,13 +27,24 @@ log = logging.getLogger(__name__)
 
 Emit = Callable[[MetricsRow], None]
 FINISHED_REASONS = ("transfer_out", "every unit completed")
-"""how a worker's run ends when it left W having completed (paper: its θ was forwarded; fedavg: the last
-average)"""
+"""how a worker's run ends when it left W having completed"""
 
 
 def metrics_row(worker: int, round_: int, result: RoundResult, started: float, event: str) -> MetricsRow:
     """The metrics row of ``result`` (``wall_time`` counted from ``started``, the worker's start)."""
     return MetricsRow.of(worker, round_, result, round(time.monotonic() - started, 4), event)
+
+
+def uneven_transport(
+    transport: Transport, conditions: UnitConditions | None, *, seed: int, worker: int
+) -> Transport:
+    """``transport`` paused with the unit's stalls and delayed by its link delay."""
+    stall = unit_stall(conditions, seed=seed, worker=worker)
+    if stall is not None:  # innermost: a message due to leave a slow uplink during a pause waits too
+        transport = StalledTransport(transport, stall.wait)
+    if conditions is not None and conditions.link_delay > 0:
+        transport = DelayedTransport(transport, conditions.link_delay)
+    return transport
 
 
 def train_alone(spec: WorkerSpec, emit: Emit, learner: Learner | None = None) -> None:
@@ -70,12 +79,10 @@ def train_federated(
 ) -> WorkerSummary:
     """Federated mode (Algorithm 2): one worker of run ``run_id`` over ``transport``; save the model.
 
-    :param checkpoint_dir: commit the worker's state there after every round (see
-        :class:`~fleetrl.runs.checkpoints.WorkerCheckpoint`); None: no checkpoints.
-    :param resume: first restore the state committed in ``checkpoint_dir`` (if there is one) and continue
-        from its round; a worker whose run was already over returns at once.
-    :param status_fields: who this process is, said in its status
-        (:func:`~fleetrl.federation.chief.lease.holder_fields`).
+    :param checkpoint_dir: commit the worker's state there after every round; None: no checkpoints.
+    :param resume: first restore the state committed in ``checkpoint_dir`` (if any) and continue from its
+        round; a worker whose run was already over returns at once.
+    :param status_fields: who this process is, said in its status.
     """
     learner = learner or make_learner(spec)
     started = time.monotonic()
@@ -92,12 +99,9 @@ def train_federated(
         start_round = where.next_round
     elif resume:
         log.warning("worker %d: nothing to resume in %s; starting afresh", spec.worker, checkpoint_dir)
-    stall = unit_stall(spec.uneven, seed=spec.learning.seed, worker=spec.worker)
-    if stall is not None:  # innermost: a message due to leave a slow uplink during a pause waits too
-        transport = StalledTransport(transport, stall.wait)
-    if spec.uneven is not None and spec.uneven.link_delay > 0:
-        transport = DelayedTransport(transport, spec.uneven.link_delay)
-    player = uneven_unit(learner, spec.uneven, seed=spec.learning.seed, worker=spec.worker)
+    seed = spec.learning.seed
+    transport = uneven_transport(transport, spec.uneven, seed=seed, worker=spec.worker)
+    player = uneven_unit(learner, spec.uneven, seed=seed, worker=spec.worker)
     plan = worker_plan(
         spec.learning, player.agent, run_id=run_id, worker_id=str(spec.worker), reply_timeout=reply_timeout,
         resend_interval=resend_interval, start_round=start_round, restarted=resume and start_round is None,
@@ -118,3 +122,70 @@ def train_federated(
         return summary
     finally:
         learner.agent.save(model_path(Path(spec.out), spec.worker))
+
+
+def host_conditions(specs: Sequence[WorkerSpec]) -> UnitConditions | None:
+    """What slows, delays, stalls and absents a unit host: its units' largest slowdown, link delay and stall,
+    the fleet's absence (None: no unit is uneven); each unit's pace and env stalls stay in its env."""
+    uneven = [spec.uneven for spec in specs if spec.uneven is not None]
+    if not uneven:
+        return None
+    return UnitConditions(
+        slowdown=max(c.slowdown for c in uneven),
+        link_delay=max(c.link_delay for c in uneven),
+        absent=uneven[0].absent,
+        absent_rounds=uneven[0].absent_rounds,
+        stall=max(c.stall for c in uneven),
+    )
+
+
+def unit_rows(
+    record: FederatedRound, learner: Learner, specs: Sequence[WorkerSpec], started: float
+) -> list[MetricsRow]:
+    """One metrics row per unit of a host's round, under the unit's worker id; its event is the host's, or
+    ``completed`` where the unit's criterion holds."""
+    rows = []
+    for spec, result in zip(specs, learner.unit_rounds, strict=True):
+        event = record.label
+        if result.completed and record.event is not WorkerEvent.RUN_ENDED:
+            event = WorkerEvent.COMPLETED.label(None)
+        rows.append(metrics_row(spec.worker, record.round, result, started, event))
+    return rows
+
+
+def train_host(
+    specs: Sequence[WorkerSpec],
+    transport: Transport,
+    run_id: str,
+    emit: Emit,
+    *,
+    reply_timeout: float | None = 600.0,
+    resend_interval: float | None = 5.0,
+    key: FleetKey | None = None,
+    learner: Learner | None = None,
+    status_fields: Mapping[str, str | int] | None = None,
+) -> WorkerSummary:
+    """Federated mode for a unit host of the specs' units: one worker of id :func:`host_id` carrying them;
+    every unit's rows emitted each round, every unit's model file (the host's network) saved at the end."""
+    if learner is None:
+        learner = make_host_learner(specs)
+        log.info("host of units %d-%d: learner ready", specs[0].worker, specs[-1].worker)
+    first, conditions = specs[0], host_conditions(specs)
+    seed, started = first.learning.seed, time.monotonic()
+    transport = uneven_transport(transport, conditions, seed=seed, worker=first.worker)
+
+    def record(r: FederatedRound) -> None:
+        for row in unit_rows(r, learner, specs, started):
+            emit(row)
+
+    player = uneven_unit(learner, conditions, seed=seed, worker=first.worker)
+    plan = worker_plan(
+        first.learning, player.agent, run_id=run_id, worker_id=host_id([spec.worker for spec in specs]),
+        units=len(specs), reply_timeout=reply_timeout, resend_interval=resend_interval,
+    )  # fmt: skip
+    worker = FederatedWorker(player, transport, plan, key=key, on_record=record, status_fields=status_fields)
+    try:
+        return worker.run()
+    finally:
+        for spec in specs:
+            learner.agent.save(model_path(Path(spec.out), spec.worker))

@@ -1,12 +1,6 @@
-"""A run directory: config.json, metrics.csv, TensorBoard events, models/, summary.json and the plot.
-
-A summarised run (a large fleet: :mod:`fleetrl.runs.fleet_summary`) writes the fleet's scalars to TensorBoard
-(``fleet/completed``, ``fleet/wma_p10`` …) and draws the fleet's plot instead of one series and one panel per
-unit; metrics.csv has one row per unit per round either way.
-
-Files are written as the run goes (every metrics row is flushed), so an interrupted run leaves a valid,
-partial directory; :meth:`RunRecorder.finish` writes the summary and the plot.
-"""
+"""A run directory: config.json, metrics.csv, TensorBoard events, models/, summary.json and the plot, written
+as the run goes (an interrupted run leaves a valid, partial directory); a summarised run (a large fleet) gets
+the fleet's scalars and plot instead of one per unit."""
 
 import csv
 import json
@@ -26,7 +20,7 @@ if TYPE_CHECKING:
 
 
 PLAIN_EVENTS = frozenset({"", "gradient", "model", "step_gradient"})
-"""metrics ``event`` values of rounds that only shared (not listed among a worker's events)"""
+"""``event`` values of rounds that only shared (not listed among a worker's events)"""
 
 
 class RunDirectoryError(OSError):
@@ -34,7 +28,6 @@ class RunDirectoryError(OSError):
 
 
 def model_path(out: Path, worker: int) -> Path:
-    """Where worker ``worker``'s actor-critic is saved."""
     return out / "models" / f"worker-{worker}.safetensors"
 
 
@@ -46,17 +39,9 @@ def write_json_atomic(path: Path, data: Any) -> None:
 
 
 class RunRecorder:
-    """Receives round records from every worker and keeps the run directory up to date.
-
-    :param out: the run directory (created if missing; an existing metrics.csv is refused so no run
-        silently overwrites another)
-    :param config: every setting of the run, written to config.json
-    :param workers: the worker ids taking part
-    :param resume_from: continue the run already in ``out`` (``--resume``): worker id → the first round it
-        will play again (from its checkpoint); its rows from that round on are dropped, the others kept
-    :param summarise: a large fleet: TensorBoard gets the fleet's scalars once per round (written when the
-        first row of the next round arrives, and at the end), the plot is the fleet's
-    """
+    """Receives round records from every worker and keeps the run directory ``out`` up to date (an existing
+    metrics.csv is refused). ``resume_from``: continue the run in ``out``, worker id → the first round it will
+    play again (its rows from there on are dropped); ``summarise``: the fleet's scalars, once per round."""
 
     def __init__(
         self,
@@ -85,9 +70,8 @@ class RunRecorder:
         self.records: list[MetricsRow] = []
         self.interrupted = False
         self.finished = False
-        """whether :meth:`finish` was called"""
         self.extra: dict[str, Any] = {}
-        """more entries for summary.json (e.g. the chief's account of a federated run)"""
+        """more entries for summary.json"""
         write_json_atomic(self.out / "config.json", config)
         metrics = self.out / "metrics.csv"
         partial = metrics.with_name(".metrics.csv.partial")  # the kept rows replace the file in one rename
@@ -100,11 +84,10 @@ class RunRecorder:
         self._csv_file = metrics.open("a", newline="")
         self._csv = csv.writer(self._csv_file)
         self._tb: SummaryWriter | None = None
-        self._fleet_round = max((r.round for r in kept), default=0)
-        """the latest round whose fleet scalars are (or, once a later round begins, will be) written"""
+        self._fleet_round = max((r.round for r in kept), default=0)  # its fleet scalars: when the next begins
 
     def _board(self) -> "SummaryWriter":
-        """The TensorBoard writer, made on the first round (its imports, ~0.3 s, stay out of the start-up)."""
+        """The TensorBoard writer, made on the first round (its imports stay out of the start-up)."""
         if self._tb is None:
             from torch.utils.tensorboard import SummaryWriter
 
@@ -112,7 +95,6 @@ class RunRecorder:
         return self._tb
 
     def elapsed(self) -> float:
-        """Seconds since the run started."""
         return time.monotonic() - self.started
 
     def add(self, record: MetricsRow) -> None:
@@ -137,8 +119,6 @@ class RunRecorder:
                 board.add_scalar(f"train/{name}/{tag}", value, record.round)
 
     def _board_fleet(self) -> None:
-        """The fleet's scalars at the latest round seen, from every unit's progress so far (nothing before
-        the first round)."""
         if self._fleet_round < 1:
             return
         fleet = snapshot(self.progress)
@@ -164,7 +144,7 @@ class RunRecorder:
                 progress.state = "completed"
 
     def set_state(self, worker: int, state: str) -> None:
-        """Mark a worker's state for the live view (e.g. ``finished``, ``failed``, ``offline``)."""
+        """Mark a worker's state for the live view."""
         self.progress.setdefault(worker, WorkerProgress()).state = state
 
     def summary(self) -> dict[str, Any]:
@@ -195,15 +175,13 @@ class RunRecorder:
         }
 
     def criterion(self) -> dict[str, Any]:
-        """What a unit's completion proves in this run: the criterion (``sampled``, the paper's, or
-        ``argmax``, the deployed policy's) and its target WMA."""
+        """What a unit's completion proves in this run: the criterion's kind and its target WMA."""
         ppo = self.config.get("ppo") or {}
         return {"kind": ppo.get("criterion", "sampled"), "target": self.config.get("completion_threshold")}
 
     def rig_seconds(self) -> dict[str, Any] | None:
-        """The time the rounds played so far would take on real-time rigs (:mod:`fleetrl.runs.rig_time`:
-        play, resets, absences, waits for the fleet), until the fleet, each unit and 50, 90 and 100 % of the
-        units completed; None before any round, or for a unit type whose control period is not known."""
+        """The time the rounds played so far would take on real-time rigs (:mod:`fleetrl.runs.rig_time`);
+        None before any round, or for a unit type whose control period is not known."""
         if not self.records:
             return None
         try:
@@ -233,7 +211,11 @@ class RunRecorder:
         write_json_atomic(self.out / "summary.json", summary)
         from fleetrl.runs.plots import plot_run  # matplotlib loads only when a run ends
 
-        title = _plot_title(self.config)
+        config = self.config
+        title = (
+            f"{config.get('env')} · {config.get('mode')} · preset {config.get('preset')} · "
+            f"seed {config.get('seed')} · {config.get('units')} units"
+        )
         if self.summarise:  # the fleet's panel, against rounds
             target = self.config.get("completion_threshold")
             plot_run(self.records, self.out / "scores.png", title=title, summarise=True, target=target)
@@ -242,10 +224,3 @@ class RunRecorder:
         if any(r.episodes > 1 for r in self.records):  # rounds of several episodes: both x-axes
             plot_run(self.records, self.out / "scores-by-episode.png", title=title, x_axis="episodes")
         return summary
-
-
-def _plot_title(config: dict[str, Any]) -> str:
-    return (
-        f"{config.get('env')} · {config.get('mode')} · preset {config.get('preset')} · "
-        f"seed {config.get('seed')} · {config.get('units')} units"
-    )

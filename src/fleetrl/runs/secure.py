@@ -34,14 +34,8 @@ pattern read fleetrl/+/status/chief
 
 @dataclass(frozen=True)
 class SecureFleet:
-    """What :func:`write_secure_config` wrote.
-
-    :param directory: where the files are.
-    :param host: the address clients use.
-    :param port: the listener's port.
-    :param tls: whether the listener speaks TLS (``mqtts://``).
-    :param passwords: MQTT user → password (``chief`` and every worker id).
-    """
+    """What :func:`write_secure_config` wrote into ``directory``: the address clients use, the port, whether
+    it speaks TLS, and MQTT user → password."""
 
     directory: Path
     host: str
@@ -51,12 +45,10 @@ class SecureFleet:
 
     @property
     def config(self) -> Path:
-        """The mosquitto config file."""
         return self.directory / "mosquitto.conf"
 
     @property
     def key_file(self) -> Path:
-        """The fleet key file."""
         return self.directory / "fleet.key"
 
     @property
@@ -65,8 +57,7 @@ class SecureFleet:
         return self.directory / "ca.crt" if self.tls else None
 
     def url(self, user: str) -> str:
-        """The broker URL with ``user``'s login, password included (in-process use only: a URL on a command
-        line is visible in ``ps``; roles get :meth:`login_url` and :meth:`password_file`)."""
+        """The broker URL with ``user``'s login and password (in-process use only: visible in ``ps``)."""
         scheme = "mqtts" if self.tls else "mqtt"
         login = f"{quote(user, safe='')}:{quote(self.passwords[user], safe='')}"
         return f"{scheme}://{login}@{self.host}:{self.port}"
@@ -98,16 +89,10 @@ def write_secure_config(
     bind: str | None = None,
     self_signed_tls: bool = False,
 ) -> SecureFleet:
-    """Write a secure broker configuration for the chief and ``workers`` into ``directory``.
-
-    :param directory: created if missing; existing files of the same names are replaced.
-    :param workers: the worker ids (each becomes an MQTT user).
-    :param port: the listener's port.
-    :param host: the address clients will use (and the TLS certificate's name).
-    :param bind: the address mosquitto listens on (default: ``host``).
-    :param self_signed_tls: make a CA and a server certificate for ``host`` with ``openssl`` and listen with
-        TLS.
-    """
+    """Write a secure broker configuration for the chief and ``workers`` (each an MQTT user) into
+    ``directory``, replacing files of the same names; ``host``: the address clients use (the certificate's
+    name), ``bind``: where mosquitto listens (default ``host``); ``self_signed_tls``: an openssl CA and server
+    certificate."""
     out = Path(directory)
     out.mkdir(parents=True, exist_ok=True)
     out.chmod(0o755)

@@ -1,14 +1,6 @@
-"""Typed settings from a TOML file and the command line: one coercion, one error style, checked before
-anything starts.
-
-A settings class is a frozen ``kw_only`` dataclass whose field names are the TOML keys and the flags' ``dest``
-(``round_timeout`` and ``--round-timeout``); a field holding a settings dataclass (``learning``) is a group
-whose fields are settings under their own names, so a config file stays flat. :func:`build` merges the
-defaults, a config file and the flags given (flags win), checks every value against its field's type
-(:func:`fleetrl.coercion.coerce`) and returns the class's ``resolved()`` value; a :class:`SettingError` names
-the setting, the value and what is accepted. The flags and their help are generated from the fields and their
-docstrings (:func:`field_docs`). Nothing here creates a file, a directory, a connection or a process.
-"""
+"""Typed settings from a TOML file and the command line: a settings class is a frozen dataclass whose field
+names are the TOML keys and the flags' ``dest`` (a field holding a settings dataclass is a group of settings
+under their own names); :func:`build` merges defaults, file and flags and returns the ``resolved()`` value."""
 
 from __future__ import annotations
 
@@ -33,7 +25,7 @@ from fleetrl.coercion import CoercionError
 from fleetrl.coercion import coerce as typed
 
 MIN_FREE_BYTES = 64 * 2**20
-"""free space an ``--out`` file system must have at start (a long QUBE run writes tens of MB)"""
+"""free space an ``--out`` file system must have at start"""
 MIN_FILE_SIZE_LIMIT = 64 * 2**20
 """the smallest file size limit (``ulimit -f``) a run accepts at start"""
 
@@ -45,7 +37,7 @@ class SettingError(ValueError):
 
 
 NEGATED_FLAGS = {"live": "--no-live"}
-"""settings whose flag switches them off (the key ``live = false``, the flag ``--no-live``)"""
+"""settings whose flag switches them off"""
 TABLE_FLAGS = {
     "overrides": "--set",
     "scheme_params": "--scheme-param",
@@ -55,7 +47,7 @@ TABLE_FLAGS = {
 }
 """table-valued settings and their repeatable ``KEY=VALUE`` flag"""
 TABLE_METAVARS = {"slow": "UNIT=FACTOR", "link_delay": "UNIT=SECONDS", "stall": "UNIT=SHARE"}
-"""how a table flag's help shows its entries, where ``KEY=VALUE`` says too little"""
+"""how a table flag's help shows its entries (default ``KEY=VALUE``)"""
 
 
 def flag(name: str) -> str:
@@ -64,8 +56,7 @@ def flag(name: str) -> str:
 
 
 def label(name: str) -> str:
-    """How an error names a setting: its flag (the config-file key is its name with ``_`` for ``-``), or for a
-    setting whose flag switches it off, its key and that flag."""
+    """How an error names a setting: its flag (with its key, for a flag that switches it off)."""
     return f"{name} (flag {NEGATED_FLAGS[name]})" if name in NEGATED_FLAGS else flag(name)
 
 
@@ -78,22 +69,18 @@ def coerce(name: str, value: Any, kind: Any) -> Any:
 
 
 def group_type(kind: Any) -> type | None:
-    """The settings dataclass a field of type ``kind`` holds (its fields are settings of their own), or
-    None for a field that is one setting."""
+    """The settings dataclass a field of type ``kind`` holds (a group), or None for one setting."""
     return kind if isinstance(kind, type) and dataclasses.is_dataclass(kind) else None
 
 
 def setting_fields(cls: type) -> dict[str, tuple[dataclasses.Field[Any], Any]]:
-    """Every setting of the settings dataclass ``cls`` by name, with its field and type: the fields of a
-    field that holds a settings dataclass (``learning``) are settings of ``cls`` too, under their own names
-    (the config file and the flags are flat)."""
+    """Every setting of ``cls`` by name (a group's too), with its field and type."""
     return dict(_setting_fields(cls))
 
 
 @functools.cache
 def _setting_fields(cls: type) -> dict[str, tuple[dataclasses.Field[Any], Any]]:
-    # read once per class: a command line's flags ask for it once per setting, and resolving the string
-    # annotations (get_type_hints) is most of the parser's start-up time
+    # once per class: resolving the string annotations is most of the parser's start-up time
     hints = get_type_hints(cls)  # annotations may be strings
     found: dict[str, tuple[dataclasses.Field[Any], Any]] = {}
     for f in dataclasses.fields(cls):
@@ -103,8 +90,7 @@ def _setting_fields(cls: type) -> dict[str, tuple[dataclasses.Field[Any], Any]]:
 
 
 def construct(cls: type[S], values: Mapping[str, Any]) -> S:
-    """``cls`` from flat setting values (:func:`setting_fields`'s names), each group from its own names;
-    a value not given takes its field's default."""
+    """``cls`` from flat setting values; a value not given takes its field's default."""
     hints = get_type_hints(cls)
     kwargs: dict[str, Any] = {}
     for f in dataclasses.fields(cls):  # type: ignore[arg-type]
@@ -117,7 +103,7 @@ def construct(cls: type[S], values: Mapping[str, Any]) -> S:
 
 
 def flat_values(settings: Any) -> dict[str, Any]:
-    """The settings' values by setting name (a group's fields at the top, as in a config file)."""
+    """The settings' values by setting name (a group's at the top, as in a config file)."""
     values: dict[str, Any] = {}
     for f in dataclasses.fields(settings):
         value = getattr(settings, f.name)
@@ -133,10 +119,8 @@ def build(
     *,
     resolve: bool = True,
 ) -> S:
-    """The settings dataclass ``cls`` from its defaults, then ``file_values`` (a config file's table;
-    ``source`` names the file in errors), then ``flag_values`` (the flags given; None means not given).
-    Table-valued settings (the PPO overrides) merge key by key. With ``resolve``: the value its
-    ``resolved()`` returns (every default filled in, every setting checked)."""
+    """``cls`` from its defaults, then ``file_values`` (``source`` names the file in errors), then
+    ``flag_values`` (None: not given); tables merge key by key. With ``resolve``: its ``resolved()``."""
     fields = setting_fields(cls)
     unknown = sorted(set(file_values) - set(fields))
     if unknown:
@@ -167,7 +151,6 @@ def build(
 
 
 def required(field: dataclasses.Field[Any]) -> bool:
-    """Whether a setting has no default (it must be given)."""
     return field.default is dataclasses.MISSING and field.default_factory is dataclasses.MISSING
 
 
@@ -182,8 +165,7 @@ def field_default(field: dataclasses.Field[Any]) -> Any:
 
 @functools.cache
 def field_docs(cls: type) -> dict[str, str]:
-    """The docstring under each field of the settings dataclass ``cls`` and of its bases and groups (the
-    string literal right after the field, as in CleanRL), as one line of plain text."""
+    """The docstring under each field of ``cls``, its bases and groups, as one line of plain text."""
     docs: dict[str, str] = {}
     for klass in reversed(cls.__mro__):
         if not dataclasses.is_dataclass(klass):
@@ -207,8 +189,7 @@ def field_docs(cls: type) -> dict[str, str]:
 
 
 def _class_definition(klass: type) -> ast.ClassDef:
-    """The syntax tree of ``klass``'s definition, found in its module's tree (each module is parsed once;
-    a class the tree does not hold at its qualified name, e.g. one defined in a function, is read alone)."""
+    """The syntax tree of ``klass``'s definition: in its module's tree, else (defined in a function) alone."""
     filename = inspect.getsourcefile(klass)
     nodes = _module_tree(filename).body if filename else []
     found: ast.ClassDef | None = None
@@ -232,7 +213,6 @@ def _module_tree(filename: str) -> ast.Module:
 
 
 def _plain(doc: str) -> str:
-    """A docstring as one line of plain text: reST roles and literals unwrapped, whitespace collapsed."""
     text = re.sub(r":[a-z]+:`~?(?:[\w.]+\.)?([\w]+)`", r"\1", doc)
     return " ".join(text.replace("``", "").split())
 
@@ -249,8 +229,7 @@ def load_toml(path: Path) -> dict[str, Any]:
 
 
 def toml_values(settings: Any) -> dict[str, Any]:
-    """The settings as a TOML-ready flat table (Paths as strings, unset values and empty tables left out)
-    that :func:`build` reads back to the same settings."""
+    """The settings as a flat TOML table :func:`build` reads (unset values and empty tables left out)."""
     table: dict[str, Any] = {}
     for name, value in flat_values(settings).items():
         if value is None or value == {}:
@@ -282,9 +261,8 @@ def check_readable_file(name: str, path: Path | None) -> None:
 
 
 def check_writable_dir(name: str, path: Path) -> None:
-    """SettingError unless a run directory can be created (or written) at ``path``, on a file system with at
-    least :data:`MIN_FREE_BYTES` free and a file size limit of at least :data:`MIN_FILE_SIZE_LIMIT`.
-    Nothing is created."""
+    """SettingError unless a run directory can be written at ``path``, with room (:data:`MIN_FREE_BYTES`,
+    :data:`MIN_FILE_SIZE_LIMIT`); nothing is created."""
     if path.exists() and not path.is_dir():
         raise SettingError(f"{label(name)} = {str(path)!r}: it is a file, not a directory")
     existing = path.absolute()

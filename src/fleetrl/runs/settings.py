@@ -1,15 +1,6 @@
-"""The settings of a run, for every command that starts one: typed, defaulted, resolved once before anything
-starts.
-
-``RunSettings`` is ``fleetrl train``'s; :mod:`fleetrl.runs.role_settings` has the chief's and the worker's.
-Each is a frozen value built from parts every command shares: the learning settings
-(:class:`~fleetrl.federation.shared_settings.LearningSettings`, one field ``learning``), :class:`RoundRules`
-and :class:`BrokerLogin`. A new setting is one field (a type, a default, a docstring: its flag and help are
-generated from them) in the part it belongs to, plus its check in that part's resolution. A field's name is
-its config-file key and its flag's ``dest``; :func:`fleetrl.runs.setting_values.build` reads a file and the
-flags into them and returns the ``resolved()`` value: a new value with every default filled in and every
-setting checked (nothing is changed in place).
-"""
+"""``fleetrl train``'s settings (:class:`RunSettings`) and the parts every command shares
+(:class:`RoundRules`, :class:`BrokerLogin`): frozen, each field a setting (its docstring the flag's help),
+resolved once before anything starts."""
 
 from __future__ import annotations
 
@@ -71,11 +62,9 @@ MODES = ("individual", "federated")
 TRANSPORTS = ("mqtt", "local")
 DEVICE_LINKS = ("inprocess", "mqtt")
 NOT_RESULT_SETTINGS = ("out", "live", "per_unit_detail", "broker", "broker_password_file")
-"""settings that cannot change what a run learns (where it writes, the live view and the plot, the broker's
-address)"""
+"""settings that cannot change what a run learns"""
 ALONE_SCHEME = PaperScheme.name
-"""the scheme of a run whose units learn alone (``--mode individual``): its learners stop at completion, and
-the result settings stay those of the individual runs made before federated runs took another default"""
+"""the scheme of a run whose units learn alone (``--mode individual``): its learners stop at completion"""
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -97,14 +86,11 @@ class RoundRules:
 
     @property
     def chief_quorum(self) -> float:
-        """The quorum the chief is given (the settings are resolved: it is filled in)."""
         assert self.quorum is not None, "resolved() fills in the quorum"
         return self.quorum
 
     def resolved_quorum(self, learning: LearningSettings, shape: FleetShape) -> float:
-        """The aggregation rule, and the round rules a chief of ``learning`` checks (the quorum, the round
-        timeout and how they fit the scheme: :func:`fleetrl.federation.chief.answer.check_round_rules`);
-        the quorum: the scheme's own unless one was given."""
+        """The quorum (the scheme's own unless given), with the aggregation and the round rules checked."""
         from fleetrl.federation.chief.answer import check_round_rules
 
         as_setting_error("aggregation", get_aggregator, self.aggregation)
@@ -122,8 +108,7 @@ class RoundRules:
 
 @dataclass(frozen=True, kw_only=True)
 class BrokerLogin:
-    """Where the broker is and how to log in; the password never travels in a URL a run writes or passes
-    on."""
+    """Where the broker is and how to log in (the password never travels in a URL a run writes)."""
 
     broker: str | None = None
     """``mqtt://[user@]host:port`` or ``mqtts://…``"""
@@ -131,7 +116,6 @@ class BrokerLogin:
     """the broker password's file (else ``$FLEETRL_BROKER_PASSWORD``; never put it in the URL)"""
 
     def validate_broker(self) -> None:
-        """The URL parses; the password file is readable; a password inside the URL is warned about."""
         if self.broker is None:
             return
         from fleetrl.transport.mqtt import BrokerAddress  # paho: not needed to build the flags
@@ -146,12 +130,12 @@ class BrokerLogin:
 
     @property
     def broker_password(self) -> str | None:
-        """The password: from the file, else from the URL, else from the environment (None: no login)."""
+        """From the file, else the URL, else the environment (None: no login)."""
         return broker_password(self.broker_password_file, self.broker)
 
     @property
     def public_broker(self) -> str | None:
-        """The broker URL without its password (safe to log, to write and to pass on a command line)."""
+        """The broker URL without its password."""
         return None if self.broker is None else without_password(self.broker)
 
 
@@ -192,9 +176,8 @@ class RunSettings(RoundRules, BrokerLogin):
     ``--link-delay``, ``--absent``, ``--absent-rounds``); not a learning setting, never shared at join"""
 
     def resolved(self) -> RunSettings:
-        """These settings with every default filled in and every setting checked, before anything is
-        created: a new value, or SettingError naming the first setting that cannot work. The probe agent
-        is built once."""
+        """A new value with every default filled in and every setting checked (SettingError naming the first
+        that cannot work); nothing is created."""
         scheme = ALONE_SCHEME if self.mode == "individual" else DEFAULT_SCHEME
         learning = self.learning
         if self.mode == "federated":
@@ -238,8 +221,7 @@ class RunSettings(RoundRules, BrokerLogin):
         return replace(self, learning=learning, quorum=quorum, uneven=uneven, units_per_host=per_host)
 
     def chosen_units_per_host(self, learning: LearningSettings, even: bool) -> int:
-        """``units_per_host`` as a number: ``auto`` chooses for this run (:func:`auto_units_per_host`: 1 up
-        to 16 units or where the run cannot have hosts, else about one host per core)."""
+        """``units_per_host`` as a number (``auto``: :func:`auto_units_per_host`)."""
         if self.units_per_host != AUTO:
             return self.units_per_host
         scheme, own_part = learning.federation_scheme(), learning.ppo().own_part
@@ -248,16 +230,12 @@ class RunSettings(RoundRules, BrokerLogin):
 
     @property
     def per_host(self) -> int:
-        """The units each worker carries (the settings are resolved: ``auto`` is a number)."""
         assert self.units_per_host != AUTO, "resolved() chooses the units per host"
         return self.units_per_host
 
     def learning_resolved(self) -> RunSettings:
-        """These settings with their learning settings resolved (:func:`resolve_learning`; the scheme by
-        default :data:`ALONE_SCHEME` for units alone, else the default scheme), the quorum (the scheme's own
-        unless given) and the uneven fleet's units named as a resolved run names them, nothing else
-        checked (``auto`` units per host chosen): what :meth:`result_settings` needs, without building an
-        agent."""
+        """What :meth:`result_settings` needs, without building an agent: the learning settings, quorum,
+        uneven fleet and units per host resolved, nothing else checked."""
         scheme = ALONE_SCHEME if self.mode == "individual" else DEFAULT_SCHEME
         learning = resolve_learning(self.learning, default_scheme=scheme)
         uneven = self.uneven.resolved_uneven(get_env_spec(learning.env).control_period, self.units)
@@ -266,9 +244,8 @@ class RunSettings(RoundRules, BrokerLogin):
         return replace(self, learning=learning, quorum=quorum, uneven=uneven, units_per_host=per_host)
 
     def validate_device_link(self, learning: LearningSettings) -> None:
-        """With device bridges: the unit type can be reached through a link, and its driver function (a
-        user's, named by ``device_driver``) loads, builds unit 0 and fits the env's spaces. Without: no
-        driver is named."""
+        """With device bridges: the unit type can be reached and its driver builds unit 0 to the env's spaces;
+        without: no driver is named."""
         if self.device_link != "mqtt":
             if self.device_driver is not None:
                 raise SettingError(
@@ -285,20 +262,17 @@ class RunSettings(RoundRules, BrokerLogin):
         as_setting_error("device_driver", check_bridge_driver, driver, unit, learning.fleet_seed)
 
     def bridge_driver(self) -> Any:
-        """What the run's device bridges serve (:func:`fleetrl.envs.device_side.bridge_driver`)."""
         from fleetrl.envs.device_side import bridge_driver
 
         return bridge_driver(get_env_spec(self.learning.env), self.device_driver)
 
     @property
     def needs_broker(self) -> bool:
-        """Whether any part of the run talks MQTT."""
         federated_mqtt = self.mode == "federated" and self.transport == "mqtt"
         return federated_mqtt or self.device_link == "mqtt"
 
     def to_toml(self) -> str:
-        """config.toml of the run directory: every setting (no password), so that
-        ``fleetrl train --config runs/x/config.toml --out runs/y`` reruns the run."""
+        """config.toml: every setting but the password, so that ``fleetrl train --config`` reruns the run."""
         table = toml_values(self)
         if self.broker is not None:
             table["broker"] = self.public_broker
@@ -309,14 +283,13 @@ class RunSettings(RoundRules, BrokerLogin):
         return dump_toml(table, header)
 
     def result_settings(self) -> dict[str, Any]:
-        """Every setting of these resolved settings that can change the run's result, as JSON-plain values:
-        two runs with equal result settings learn the same."""
+        """Every setting that can change the run's result, as JSON-plain values."""
         values = {k: v for k, v in flat_values(self).items() if k not in NOT_RESULT_SETTINGS}
         plain: dict[str, Any] = json.loads(json.dumps(values, sort_keys=True, default=str))
         return plain
 
     def to_config(self) -> dict[str, Any]:
-        """Everything that defines the resolved run, for config.json (the PPO config too; no password)."""
+        """config.json: everything that defines the resolved run (no password)."""
         import torch
 
         config = flat_values(self)
@@ -334,5 +307,4 @@ class RunSettings(RoundRules, BrokerLogin):
 
 
 def path_text(path: Path | None) -> str | None:
-    """A path as text (None stays None)."""
     return None if path is None else str(path)

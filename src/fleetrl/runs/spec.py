@@ -12,25 +12,19 @@ from fleetrl.runs.uneven import UnitConditions
 
 @dataclass(frozen=True, kw_only=True)
 class WorkerSpec:
-    """Everything that defines one worker of a run: the run's learning settings and where this worker is."""
+    """Everything that defines one worker of a run: its id and device unit, the run's resolved learning
+    settings and directory, the broker and run id of the unit's device bridge (None: simulated in-process),
+    and how the unit is uneven (None: it is not)."""
 
     worker: int
-    """worker id within the run (also the device unit it trains on, unless ``unit`` says otherwise)"""
     unit: int
-    """device unit index in the fleet"""
     learning: LearningSettings
-    """the run's resolved learning settings (env, fleet, preset and overrides, scheme, target, seed, M)"""
     out: str
-    """the run directory"""
     device_url: str | None = None
-    """broker of the unit's device bridge; None: the device is simulated in-process"""
     device_run_id: str = "default"
-    """run id under which the device bridge serves the unit's topics"""
     uneven: UnitConditions | None = None
-    """how this simulated unit is uneven (paced, slowed, on a slow link, absent at times); None: it is not"""
 
     def to_json(self) -> str:
-        """Serialise for a child process's command line."""
         data: dict[str, Any] = {
             "worker": self.worker, "unit": self.unit, "learning": self.learning.to_json(), "out": self.out,
             "device_url": self.device_url, "device_run_id": self.device_run_id,
@@ -41,7 +35,6 @@ class WorkerSpec:
 
     @classmethod
     def from_json(cls, text: str) -> "WorkerSpec":
-        """Parse :meth:`to_json`'s output."""
         data = json.loads(text)
         uneven = data.pop("uneven", None)
         learning = LearningSettings(**data.pop("learning"))
@@ -50,7 +43,7 @@ class WorkerSpec:
 
     @property
     def worker_seed(self) -> int:
-        """A seed for this worker alone, derived from the run's learning seed and the worker id."""
+        """A seed for this worker alone, derived from the run's learning seed."""
         return derive_seed(self.learning.seed, self.worker)
 
 

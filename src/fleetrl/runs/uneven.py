@@ -1,11 +1,6 @@
-"""An uneven simulated fleet: real-time pacing, slow units, slow links, absent and stalling units
-(docs/usage.md, "Uneven fleets, simulated").
-
-:class:`UnevenFleet` is the run setting; :meth:`UnevenFleet.for_worker` gives a worker its
-:class:`UnitConditions` (carried in its spec) and :func:`uneven_unit` wraps its learner with them. A slow unit
-sleeps (F − 1)× the CPU time of each piece of its own work; a stalling unit keeps its own pause schedule
-(:class:`StallSchedule`) at each env step, agent call, send and receive, so no number it computes changes.
-"""
+"""An uneven simulated fleet (docs/usage.md, "Uneven fleets, simulated"): the :class:`UnevenFleet` setting,
+each worker's :class:`UnitConditions`, and :func:`uneven_unit`, its learner slowed, absent at times and
+stalling (:class:`StallSchedule`) without changing any number it computes."""
 
 from __future__ import annotations
 
@@ -20,13 +15,13 @@ import numpy as np
 from fleetrl.runs.setting_values import SettingError, label
 
 ABSENCE_STREAM = 0xAB5E
-"""the third word of an absence generator's seed ([seed, worker, this]): no learning stream draws from it"""
+"""the third word of an absence generator's seed ([seed, worker, this])"""
 STALL_STREAM = 0x57A1
 """the third word of a stall phase's seed ([seed, worker, this])"""
 STALL_PERIOD = 1.0
-"""seconds of one stall cycle: a unit stalling at F is paused F × this of every such period"""
+"""seconds of one stall cycle"""
 TIMED_AGENT_CALLS = ("begin_update", "step_gradients", "apply_step", "end_update")
-"""the agent's own work in a per-step round's update (the worker calls them between exchanges)"""
+"""the agent's own work in a per-step round's update"""
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -34,11 +29,10 @@ class UnitConditions:
     """How one simulated unit is uneven (JSON-plain: a worker's spec carries it)."""
 
     step_seconds: float | None = None
-    """wall seconds per env step (its control period × the pace scale); None: as fast as possible"""
+    """wall seconds per env step (None: as fast as possible)"""
     reset_scale: float = 0.0
-    """a reset lasts its time on the rig × this (the pace scale of a paced unit); 0: as fast as possible"""
+    """a reset lasts its time on the rig × this (0: as fast as possible)"""
     slowdown: float = 1.0
-    """the unit takes this many times its own time for its work"""
     link_delay: float = 0.0
     """seconds added to each message the unit sends"""
     absent: float = 0.0
@@ -46,15 +40,13 @@ class UnitConditions:
     absent_rounds: float = 3.0
     """the mean length of an absence, in rounds"""
     stall: float = 0.0
-    """the share of each second the unit is paused whole (computing, sending, receiving), in [0, 1)"""
+    """the share of each second the unit is paused whole, in [0, 1)"""
 
     def to_dict(self) -> dict[str, Any]:
-        """The conditions as a JSON-plain dict (:meth:`from_dict` reads it back)."""
         return dataclasses.asdict(self)
 
     @classmethod
     def from_dict(cls, data: dict[str, Any]) -> UnitConditions:
-        """Read :meth:`to_dict`'s output."""
         return cls(**data)
 
 
@@ -99,20 +91,10 @@ class UnevenFleet:
                 raise SettingError(
                     f"{label('pace')}: this unit type declares no control period, so it cannot be paced"
                 )
-        slow = _per_unit("slow", self.slow, units)
-        for unit, factor in slow.items():
-            if not factor >= 1:
-                raise SettingError(f"{label('slow')} {unit}={factor:g}: must be ≥ 1 (slower, not faster)")
-        delay = _per_unit("link_delay", self.link_delay, units)
-        for unit, seconds in delay.items():
-            if not seconds >= 0:
-                raise SettingError(f"{label('link_delay')} {unit}={seconds:g}: must be ≥ 0 seconds")
-        stall = _per_unit("stall", self.stall, units)
-        for unit, share in stall.items():
-            if not 0 <= share < 1:
-                raise SettingError(
-                    f"{label('stall')} {unit}={share:g}: must be in [0, 1) (the share of each second paused)"
-                )
+        slow = _per_unit("slow", self.slow, units, lambda f: f >= 1, "≥ 1 (slower, not faster)")
+        delay = _per_unit("link_delay", self.link_delay, units, lambda s: s >= 0, "≥ 0 seconds")
+        paused = "in [0, 1) (the share of each second paused)"
+        stall = _per_unit("stall", self.stall, units, lambda s: 0 <= s < 1, paused)
         if not 0 <= self.absent < 1:
             raise SettingError(f"{label('absent')} = {self.absent!r}: must be in [0, 1) (a share of rounds)")
         if not self.absent_rounds >= 1:
@@ -148,8 +130,10 @@ def unit_name(worker: int) -> str:
     return f"w{worker}"
 
 
-def _per_unit(name: str, table: dict[str, float], units: int | None) -> dict[str, float]:
-    """``table`` with its keys as ``wK`` and its values as numbers; SettingError for an unknown unit."""
+def _per_unit(
+    name: str, table: dict[str, float], units: int | None, fits: Callable[[float], bool], must: str
+) -> dict[str, float]:
+    """``table`` with its keys as ``wK`` and its values as numbers that ``fits``; else SettingError."""
     known = "w0" if units == 1 else f"w0 … w{(units or 0) - 1}"
     named: dict[str, float] = {}
     for key, value in table.items():
@@ -161,19 +145,20 @@ def _per_unit(name: str, table: dict[str, float], units: int | None) -> dict[str
         if isinstance(value, bool) or not isinstance(value, int | float):
             raise SettingError(f"{label(name)} {key}={value!r}: expected a number")
         named[unit_name(int(digits))] = float(value)
+    for unit, number in named.items():
+        if not fits(number):
+            raise SettingError(f"{label(name)} {unit}={number:g}: must be {must}")
     return named
 
 
 def leave_probability(absent: float, absent_rounds: float) -> float:
-    """The chance that a present unit leaves before a round, so that with absences of ``absent_rounds``
-    rounds on average it is absent for ``absent`` of the rounds: q·L / (1 + q·L) = absent."""
+    """The chance q that a present unit leaves before a round: q·L / (1 + q·L) = absent, L = absent_rounds."""
     return absent / (absent_rounds * (1 - absent))
 
 
 def absences(absent: float, absent_rounds: float, seed: int, worker: int) -> Iterator[int]:
-    """For each round after the first, how many rounds' worth the unit is absent before it (0: present):
-    it leaves with :func:`leave_probability`, for a geometric number of rounds of mean ``absent_rounds``.
-    The same (seed, worker) gives the same pattern."""
+    """For each round after the first, the rounds' worth the unit is absent before it (0: present), a
+    geometric number of mean ``absent_rounds``; the same (seed, worker) gives the same pattern."""
     rng = np.random.default_rng([seed, worker, ABSENCE_STREAM])
     leave = leave_probability(absent, absent_rounds)
     while True:
@@ -182,41 +167,28 @@ def absences(absent: float, absent_rounds: float, seed: int, worker: int) -> Ite
 
 @dataclass(frozen=True)
 class StallSchedule:
-    """When a stalling unit is paused: the first ``share × period`` seconds of every ``period`` of the clock,
-    shifted by ``phase`` (the pause of the period that starts at ``phase + k·period``).
-
-    :param share: the share of each period paused, in [0, 1)
-    :param phase: seconds the periods are shifted by, in [0, period)
-    :param period: seconds of one cycle
-    """
+    """A stalling unit is paused the first ``share × period`` seconds of every ``period``, shifted by
+    ``phase``."""
 
     share: float
     phase: float
     period: float = STALL_PERIOD
 
     def resumes_at(self, now: float) -> float | None:
-        """When the pause under way at ``now`` ends (None: the unit is not paused at ``now``)."""
+        """When the pause under way at ``now`` ends (None: not paused)."""
         into = (now - self.phase) % self.period
         paused = self.share * self.period
         return now + (paused - into) if into < paused else None
 
 
 def stall_schedule(share: float, seed: int, worker: int) -> StallSchedule:
-    """Worker ``worker``'s pauses at ``share``: its phase drawn from the learning seed and its id (the same
-    (seed, worker) gives the same phase, in every process of the machine)."""
+    """Worker ``worker``'s pauses at ``share``, its phase drawn from the learning seed and its id."""
     rng = np.random.default_rng([seed, worker, STALL_STREAM])
     return StallSchedule(share, float(rng.random()) * STALL_PERIOD)
 
 
 class Stall:
-    """A unit's pauses as it lives through them: :meth:`wait` returns at once when the unit is not paused,
-    else when its pause ends (thread-safe: the schedule is read, never changed).
-
-    :param schedule: when the unit is paused
-    :param clock: the time source the schedule is on (seconds; :func:`time.monotonic` is one clock for every
-        process of the machine)
-    :param sleep: how to wait (seconds)
-    """
+    """A unit's pauses as it lives through them, on ``clock`` (monotonic: one clock for every process)."""
 
     def __init__(
         self,
@@ -230,9 +202,8 @@ class Stall:
         self._sleep = sleep
 
     def wait(self) -> float:
-        """Wait until the pause under way (if any) ends; the seconds waited (0.0: not paused). A sleep that
-        ends early is resumed; one that overshoots into the next pause does not wait that one out (it
-        returns)."""
+        """Wait until the pause under way (if any) ends; the seconds waited. A sleep that ends early is
+        resumed; one that overshoots into the next pause returns."""
         waited = 0.0
         now = self._clock()
         resume = self.schedule.resumes_at(now)
@@ -252,21 +223,9 @@ def unit_stall(conditions: UnitConditions | None, *, seed: int, worker: int) -> 
 
 
 class UnevenUnit:
-    """A learner (:class:`~fleetrl.federation.worker.actions.RoundPlayer`) that plays as an uneven unit: each
-    piece
-    of its own work is followed by ``(slowdown − 1)×`` its computing time asleep, and before a round it may
-    be absent.
-
-    :param learner: the unit's learner (its env already paced, if it is)
-    :param slowdown: the factor its computing time is stretched by (1: not slowed)
-    :param absent_for: for each round after the first, the rounds' worth it is absent before it
-        (:func:`absences`); None: always present
-    :param stall: the unit's pauses: each piece of its own work and each call of its agent waits out a
-        pause first (its env steps wait in :class:`~fleetrl.envs.stalled.StalledEnv`); None: never paused
-    :param clock: the wall-time source (seconds)
-    :param cpu_clock: the computing-time source (seconds of this thread's CPU)
-    :param sleep: how to wait (seconds)
-    """
+    """A learner that plays as an uneven unit: each piece of its own work waits out a stall's pause first
+    and is followed by ``(slowdown − 1)×`` its computing time asleep; before a round it may be absent
+    (``absent_for``: :func:`absences`)."""
 
     def __init__(
         self,
@@ -286,38 +245,28 @@ class UnevenUnit:
         self._clock = clock
         self._sleep = sleep
         self.stall = stall
-        self._agent = _TimedAgent(learner.agent, self._timed, None if stall is None else stall.wait)
+        self.agent = _TimedAgent(learner.agent, self._timed, None if stall is None else stall.wait)
         self.own_time = 0.0
         """the unit's own time in the round under way (its work, slowed; not its waits)"""
         self.last_round_time: float | None = None
-        """its own time in the last round it played (None before the first)"""
         self.absences: list[tuple[int, float]] = []
         """every absence so far: (rounds' worth, seconds paused)"""
 
     @property
-    def agent(self) -> Any:
-        """The learner's agent, whose update steps count as the unit's own work (slowed)."""
-        return self._agent
-
-    @property
     def completed(self) -> bool:
-        """The learner's completion criterion has held."""
         return bool(self.learner.completed)
 
     def play_round(self) -> Any:
-        """A whole round (per-round schemes), after an absence if one is due."""
         self._begin()
         result = self._timed(self.learner.play_round)
         self.last_round_time = self.own_time
         return result
 
     def begin_round(self) -> Any:
-        """A per-step round's episodes, after an absence if one is due."""
         self._begin()
         return self._timed(self.learner.begin_round)
 
     def end_round(self, played: Any, stats: Any) -> Any:
-        """A per-step round's result."""
         result = self._timed(lambda: self.learner.end_round(played, stats))
         self.last_round_time = self.own_time
         return result
@@ -333,8 +282,6 @@ class UnevenUnit:
             self._sleep(pause)
 
     def _timed(self, work: Callable[[], Any]) -> Any:
-        """Do ``work`` (after a pause under way, if the unit stalls), then sleep (slowdown − 1)× its computing
-        time; count both as the unit's own time."""
         started = self._clock()
         if self.stall is not None:
             self.stall.wait()
@@ -348,8 +295,8 @@ class UnevenUnit:
 
 
 class _TimedAgent:
-    """An agent whose update steps (:data:`TIMED_AGENT_CALLS`) go through ``timed``; with ``before`` (a
-    stalling unit's wait), every other method call waits on it first; everything else is the agent's own."""
+    """An agent whose update steps go through ``timed``; with ``before`` (a stall's wait), every other
+    method call waits on it first."""
 
     def __init__(
         self,
@@ -382,9 +329,9 @@ class _TimedAgent:
 
 
 def uneven_unit(learner: Any, conditions: UnitConditions | None, *, seed: int, worker: int) -> Any:
-    """``learner`` as the unit ``conditions`` describe (slowed, absent at times, stalling), or itself when
-    the unit is not slowed, never absent and never stalls (pacing and a stall's env steps are in its env; a
-    link delay and a stall's messages in its transport)."""
+    """``learner`` as the unit ``conditions`` describe, or itself when it is not slowed, never absent and
+    never stalls (pacing and a stall's env steps are in its env; a link delay and a stall's messages in its
+    transport)."""
     if conditions is None or (conditions.slowdown == 1 and conditions.absent == 0 and conditions.stall == 0):
         return learner
     schedule = None

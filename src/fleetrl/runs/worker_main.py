@@ -1,12 +1,7 @@
-"""Entry point of one worker process of a run launched by ``fleetrl train``.
-
-``python -m fleetrl.runs.worker_main SPEC_JSON`` trains alone (individual mode);
-``python -m fleetrl.runs.worker_main SPEC_JSON --broker URL --run-id R`` joins a federated run;
-``… --host-units U`` joins it as a unit host (:mod:`fleetrl.runs.host`) of the spec's unit and the U − 1
-after it.
-It prints one JSON round record per line on stdout (the launcher reads them) and logs to stderr. SIGINT
-stops it after saving its model.
-"""
+"""Entry point of one worker process of ``fleetrl train``: ``python -m fleetrl.runs.worker_main SPEC_JSON``
+trains alone; with ``--broker URL --run-id R`` it joins a federated run (with ``--host-units U`` as the unit
+host of the spec's unit and the U − 1 after it). One JSON round record per line on stdout; SIGINT stops it
+after saving its model."""
 
 import argparse
 import logging
@@ -17,7 +12,7 @@ from pathlib import Path
 
 from fleetrl.runs.factory import make_learner
 from fleetrl.runs.records import MetricsRow
-from fleetrl.runs.roles import train_alone, train_federated
+from fleetrl.runs.roles import train_alone, train_federated, train_host
 from fleetrl.runs.spec import WorkerSpec
 from fleetrl.transport.mqtt import MqttTransport
 
@@ -78,8 +73,6 @@ def main(argv: list[str] | None = None) -> int:
 
 def host_main(first: WorkerSpec, units: int, broker: str, run_id: str, reply_timeout: float) -> int:
     """A unit host of ``units`` units from ``first``'s on, over MQTT at ``broker``; the exit code."""
-    from fleetrl.runs.host import train_host
-
     specs = [replace(first, worker=k, unit=k) for k in range(first.worker, first.worker + units)]
     transport = MqttTransport(broker, clean_session=False)
     train_host(specs, transport, run_id, print_record, reply_timeout=reply_timeout)
