@@ -23,10 +23,8 @@ from fleetrl.transport.local import LocalBus
 
 log = logging.getLogger(__name__)
 
-RUN_ID = "control"
-"""the run id of the in-process bus's device topics"""
-JOIN_SECONDS = 5.0
-"""how long the controller waits for the policy's thread once the bridge has closed"""
+RUN_ID = "control"  # the run id of the in-process bus's device topics
+JOIN_SECONDS = 5.0  # how long the controller waits for the policy's thread once the bridge has closed
 
 
 class _Episodes:
@@ -35,8 +33,7 @@ class _Episodes:
 
     def __init__(self, bridge: DeviceBridge, play: Callable[[], list[float]]) -> None:
         self.scores: list[float] = []
-        self.error: BaseException | None = None
-        """what ended the episodes early"""
+        self.error: BaseException | None = None  # what ended the episodes early
         self._bridge, self._play = bridge, play
         self._thread = threading.Thread(target=self._run, name="fleetrl-control-policy", daemon=True)
         self._thread.start()

@@ -16,8 +16,7 @@ from fleetrl.control.onnx_graph import policy_graph
 from fleetrl.control.policies import ModelPolicy, OnnxPolicy, check_fits
 from fleetrl.envs.catalog import describe_env, get_env_spec
 
-CHECK_OBSERVATIONS = 1000
-"""observations ``fleetrl export`` checks the exported file on"""
+CHECK_OBSERVATIONS = 1000  # observations ``fleetrl export`` checks the exported file on
 RELATIVE_TOLERANCE = 1e-5
 """a box's actions agree when they differ by at most this fraction of the half range (float32 rounding)"""
 STEPS_PER_OBSERVATION = 4
@@ -28,14 +27,10 @@ STEPS_PER_OBSERVATION = 4
 class ExportCheck:
     """How the exported graph's actions compared with fleetrl's."""
 
-    observations: int
-    """observations checked"""
-    agreeing: int
-    """how many got the same action (a box's: within the tolerance)"""
-    max_difference: float
-    """a box's largest absolute difference in any component (0 for discrete actions)"""
-    tolerance: float
-    """a box's allowed absolute difference (0: discrete, exact)"""
+    observations: int  # observations checked
+    agreeing: int  # how many got the same action (a box's: within the tolerance)
+    max_difference: float  # a box's largest absolute difference in any component (0 for discrete actions)
+    tolerance: float  # a box's allowed absolute difference (0: discrete, exact)
 
     @property
     def passed(self) -> bool:

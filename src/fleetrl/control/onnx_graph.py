@@ -13,8 +13,7 @@ import numpy as np
 
 from fleetrl.agent.policy_file import PolicyFile
 
-FORMAT = "fleetrl.policy/1"
-"""the ``format`` in every exported file's ``fleetrl`` metadata"""
+FORMAT = "fleetrl.policy/1"  # the ``format`` in every exported file's ``fleetrl`` metadata
 OPSET = 17
 IR_VERSION = 8
 INPUT = "observation"

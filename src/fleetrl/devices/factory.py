@@ -5,8 +5,7 @@ from fleetrl.devices.qube.device import QubeDevice
 from fleetrl.devices.qube.params import qube_config
 from fleetrl.devices.variation import check_unit
 
-DEVICE_TYPES = ("qube", "cartpole")
-"""the unit types a fleet can be made of"""
+DEVICE_TYPES = ("qube", "cartpole")  # the unit types a fleet can be made of
 
 
 def make_device(

@@ -13,8 +13,8 @@ from typing import Any, NamedTuple
 
 import gymnasium
 
-from fleetrl.devices.cartpole_profiles import DEFAULT_CARTPOLE_FLEET_PROFILE, cartpole_fleet_profile
-from fleetrl.devices.qube.fleet_profiles import fleet_profile
+from fleetrl.devices.cartpole import DEFAULT_CARTPOLE_FLEET_PROFILE, cartpole_fleet_profile
+from fleetrl.devices.qube.params import fleet_profile
 from fleetrl.envs.last_step import LastStep
 from fleetrl.envs.registration import CARTPOLE_UNIT_ID, QUBE_BALANCE_CONTINUOUS_ID, QUBE_BALANCE_ID
 from fleetrl.envs.spaces import UnitDescription, describe_unit
@@ -45,8 +45,7 @@ class EnvSpec:
     name: str
     """what ``--env`` names it by: a built-in's short name (``qube``, ``cartpole``) or
     ``package.module:factory``"""
-    builder: UnitBuilder
-    """builds unit ``unit`` of fleet ``fleet_seed`` (with the options the type offers)"""
+    builder: UnitBuilder  # builds unit ``unit`` of fleet ``fleet_seed`` (with the options the type offers)
     declared_target: float | None = None
     """the weighted moving average of the last 10 scores at which a worker's learning is complete, as the
     unit type declares it (None: the env spec's ``reward_threshold``, else ``--target-score`` is needed)"""
@@ -54,8 +53,7 @@ class EnvSpec:
     """the name of the fleet profile chosen by a name (None: the default), with a ValueError for an unknown
     one (the name None for a profile a run's settings leave unset: CartPole's ``standard``); None if the unit
     type has a single fleet"""
-    builtin: bool = False
-    """a built-in unit type"""
+    builtin: bool = False  # a built-in unit type
     device: str | None = None
     """a built-in's simulated device type a bridge serves (``qube`` for both QUBE tasks, ``cartpole``); None:
     a user's unit type, whose bridges serve what its ``--device-driver`` function returns"""
@@ -188,10 +186,8 @@ CARTPOLE_LARGE_FLEET = LargeFleetUpdate(
 QUBE has none: with these settings a few of 1,000 QUBE units never held their target, with the preset's every
 unit completed (docs/results.md, "A fleet of any size")."""
 
-QUBE_CONTROL_PERIOD = 0.006
-"""the QUBE-Servo 2 rig's control period (``QubeConfig.control_period``: 6 ms)"""
-CARTPOLE_CONTROL_PERIOD = 0.02
-"""CartPole's step (``CartPoleParams.tau``: 20 ms)"""
+QUBE_CONTROL_PERIOD = 0.006  # the QUBE-Servo 2 rig's control period (``QubeConfig.control_period``: 6 ms)
+CARTPOLE_CONTROL_PERIOD = 0.02  # CartPole's step (``CartPoleParams.tau``: 20 ms)
 
 ENV_SPECS: dict[str, EnvSpec] = {
     name: EnvSpec(

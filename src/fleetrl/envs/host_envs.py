@@ -25,22 +25,17 @@ from fleetrl.link.inprocess import InProcessLink
 
 __all__ = ["HostEnvs", "StepRows", "batched_device"]
 
-_TRANSPARENT = (OrderEnforcing, PassiveEnvChecker)
-"""wrappers that change no number of a step"""
+_TRANSPARENT = (OrderEnforcing, PassiveEnvChecker)  # wrappers that change no number of a step
 
 
 @dataclass(frozen=True)
 class StepRows:
     """One time step of some units: row j is unit ``units[j]``'s."""
 
-    obs: np.ndarray
-    """s_{t+1}, one row per unit"""
-    rewards: np.ndarray
-    """r_{t+1}, float64"""
-    terminated: np.ndarray
-    """bool"""
-    truncated: np.ndarray
-    """bool"""
+    obs: np.ndarray  # s_{t+1}, one row per unit
+    rewards: np.ndarray  # r_{t+1}, float64
+    terminated: np.ndarray  # bool
+    truncated: np.ndarray  # bool
 
 
 @dataclass(frozen=True)
@@ -49,12 +44,10 @@ class _Kind:
 
     env: type[gymnasium.Env[Any, Any]]
     device: type
-    batch: Callable[[list[Any]], Any]
-    """the batch of a list of such devices"""
+    batch: Callable[[list[Any]], Any]  # the batch of a list of such devices
     judge_rows: Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]]
     """the env's reward and termination of each row of observations"""
-    available: bool = True
-    """whether such a batch can run in this process"""
+    available: bool = True  # whether such a batch can run in this process
 
 
 _KINDS = (
@@ -109,8 +102,7 @@ class HostEnvs:
         found = [batched_device(env) for env in self.envs]
         self._kind = np.full(len(self.envs), -1, dtype=np.int64)
         """unit → its batch's kind (-1: stepped through its own env)"""
-        self._row = np.full(len(self.envs), -1, dtype=np.int64)
-        """unit → its row in its batch"""
+        self._row = np.full(len(self.envs), -1, dtype=np.int64)  # unit → its row in its batch
         self._batches: dict[int, _Batch] = {}
         for index, kind in enumerate(_KINDS):
             units = [u for u, f in enumerate(found) if f is not None and f[0] == index]

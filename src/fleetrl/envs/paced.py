@@ -42,8 +42,7 @@ class PacedEnv(gymnasium.Wrapper[Any, Any, Any, Any]):
         self.reset_scale = reset_scale
         self._clock = clock
         self._sleep = sleep
-        self._due: float | None = None
-        """when the last step was due to return (None before the first reset)"""
+        self._due: float | None = None  # when the last step was due to return (None before the first reset)
 
     def reset(self, **kwargs: Any) -> tuple[Any, dict[str, Any]]:
         """Reset the unit and wait until its time on the rig, scaled, has passed since the reset began; the

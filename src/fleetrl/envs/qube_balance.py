@@ -18,10 +18,8 @@ from fleetrl.envs.render import qube_frame
 from fleetrl.link.base import DeviceLink
 from fleetrl.link.inprocess import InProcessLink
 
-PENDULUM_LIMIT = math.radians(7.5)
-"""the paper's success band on the pendulum angle"""
-ARM_LIMIT = math.pi / 2.0
-"""the rig's arm protection limit"""
+PENDULUM_LIMIT = math.radians(7.5)  # the paper's success band on the pendulum angle
+ARM_LIMIT = math.pi / 2.0  # the rig's arm protection limit
 VELOCITY_BOUND = 500.0
 """observation-space bound on the velocity estimates (rad/s); the arm's no-load speed at the ±10 V
 amplifier limit is about 240 rad/s"""
@@ -40,8 +38,7 @@ class QubeBalanceEnv(LinkEnv):
         ``quantise=True``, ``velocity_estimate="difference"``, ``actuation_delay=True``
     """
 
-    index_actions = 3
-    """how many action indices the env takes (0: none, a continuous task)"""
+    index_actions = 3  # how many action indices the env takes (0: none, a continuous task)
 
     def __init__(
         self,

@@ -4,8 +4,7 @@ import math
 
 import numpy as np
 
-FRAME = 200
-"""frame height and width in pixels"""
+FRAME = 200  # frame height and width in pixels
 ARM, PENDULUM, CART, TRACK = (40, 90, 160), (200, 60, 40), (60, 60, 60), (170, 170, 170)
 
 

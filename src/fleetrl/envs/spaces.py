@@ -24,14 +24,10 @@ class ActionSpec:
 
     kind: Literal["discrete", "box"]
     """``discrete``: one of ``n`` actions; ``box``: a float vector of ``shape`` within ``low``/``high``"""
-    n: int = 0
-    """discrete: how many actions"""
-    shape: tuple[int, ...] = ()
-    """box: the action vector's shape"""
-    low: tuple[float, ...] = ()
-    """box: each component's lower bound"""
-    high: tuple[float, ...] = ()
-    """box: each component's upper bound"""
+    n: int = 0  # discrete: how many actions
+    shape: tuple[int, ...] = ()  # box: the action vector's shape
+    low: tuple[float, ...] = ()  # box: each component's lower bound
+    high: tuple[float, ...] = ()  # box: each component's upper bound
 
     def __str__(self) -> str:
         return f"Discrete({self.n})" if self.kind == "discrete" else f"Box{self.shape}"
@@ -41,16 +37,13 @@ class ActionSpec:
 class UnitDescription:
     """The facts of one built unit env that a run needs before any worker exists."""
 
-    obs_shape: tuple[int, ...]
-    """the observation's shape (1-D: ``(obs_dim,)``)"""
-    action: ActionSpec
-    """the action space"""
+    obs_shape: tuple[int, ...]  # the observation's shape (1-D: ``(obs_dim,)``)
+    action: ActionSpec  # the action space
     episode_cap: int | None
     """the env's own TimeLimit (``env.spec.max_episode_steps``); None: the env ends its episodes itself"""
     reward_threshold: float | None
     """``env.spec.reward_threshold``: the env's own idea of a solved task (None: it has none)"""
-    env_id: str | None
-    """``env.spec.id`` (None: the env was not made from a registered id)"""
+    env_id: str | None  # ``env.spec.id`` (None: the env was not made from a registered id)
     sensor_size: int | None = None
     """``env.unwrapped.sensor_size``: what an env that composes its observation from its device's sensor
     vector and its own task state declares as that vector's length (None: the observation is the vector)"""

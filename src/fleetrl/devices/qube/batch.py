@@ -1,7 +1,5 @@
-"""Many QUBE units stepped together: one compiled call per time step for every unit of a unit host, each
-unit a row of arrays run through the very control period a lone ``QubeDevice`` runs
-(:func:`~fleetrl.devices.qube.dynamics.agent_step`), so the states are equal bit for bit
-(``tests/devices/test_qube_batch.py``).
+"""Many QUBE units stepped together: one compiled call per time step, each unit a row of arrays run through
+the very control period a lone ``QubeDevice`` runs (``agent_step``), so the states are equal bit for bit.
 """
 
 from __future__ import annotations
@@ -14,8 +12,7 @@ from numba import njit
 from fleetrl.devices.qube.device import ACTION_VOLTS, QubeDevice
 from fleetrl.devices.qube.dynamics import agent_step
 
-_VOLTS = np.array(ACTION_VOLTS, dtype=np.float64)
-"""volts of action index 0, 1, 2"""
+_VOLTS = np.array(ACTION_VOLTS, dtype=np.float64)  # volts of action index 0, 1, 2
 
 
 @njit(cache=True)
@@ -28,21 +25,14 @@ def _step_rows(
     volts: np.ndarray,
     obs: np.ndarray,
 ) -> None:  # pragma: no cover - compiled (each row is QubeDevice.step's own call; the tests compare both)
-    """One control period for the units ``rows`` (indices into the row arrays), row j at ``volts[j]``; each
-    one's new observation (float32) written into ``obs[j]``."""
     for j in range(rows.shape[0]):
         i = rows[j]
         agent_step(states[i], coefficients[i], sensors[i], settings[i], volts[j], obs[j])
 
 
 class QubeBatch:
-    """The devices ``devices`` stepped together.
-
-    The batch holds each unit's state and sensor pipeline while it steps it: :meth:`load` takes them from
-    the unit's device (after the device's own reset), :meth:`store` hands them back.
-
-    :param devices: the simulated units, row i for ``devices[i]``
-    """
+    """The devices ``devices`` (row i: ``devices[i]``) stepped together; the batch holds each unit's state and
+    sensor pipeline while it steps it (:meth:`load` takes them from its device, :meth:`store` hands back)."""
 
     def __init__(self, devices: Sequence[QubeDevice]) -> None:
         if not devices:
@@ -74,11 +64,8 @@ class QubeBatch:
         return self._sensor[row].copy()
 
     def step(self, rows: np.ndarray, actions: np.ndarray) -> np.ndarray:
-        """One control period for the units ``rows`` with action indices ``actions`` (0, 1, 2: power −60,
-        0, +60); their new observations (float32, one row per unit of ``rows``).
-
-        :raises ValueError: an action other than 0, 1 or 2
-        """
+        """One control period for the units ``rows`` with action indices ``actions`` (0, 1, 2); their new
+        observations (float32, one row per unit of ``rows``)."""
         indices = np.asarray(actions, dtype=np.int64)
         if indices.size and not bool(np.all((indices >= 0) & (indices <= 2))):
             bad = int(indices[(indices < 0) | (indices > 2)][0])

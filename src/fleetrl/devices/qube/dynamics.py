@@ -10,21 +10,8 @@ import numpy as np
 from numba import njit, prange
 
 # indices into QubeParams.coefficients()
-(
-    C_M11,
-    C_QUARTER,
-    C_HALF,
-    C_M22,
-    C_GRAV,
-    C_KM,
-    C_RM,
-    C_DR,
-    C_DP,
-    C_THETA_OFF,
-    C_ALPHA_OFF,
-    C_CABLE,
-    C_DEADBAND,
-) = range(13)
+C_M11, C_QUARTER, C_HALF, C_M22, C_GRAV, C_KM, C_RM, C_DR, C_DP = range(9)
+C_THETA_OFF, C_ALPHA_OFF, C_CABLE, C_DEADBAND = range(9, 13)
 
 # indices into the sensor array: readings (unwrapped), velocity estimates, the actuator's voltages
 S_THETA, S_ALPHA, S_THETA_VEL, S_ALPHA_VEL, S_HELD, S_APPLIED = range(6)
