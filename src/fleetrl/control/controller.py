@@ -14,8 +14,7 @@ from collections.abc import Callable
 
 from fleetrl.control.episodes import greedy_scores
 from fleetrl.control.policies import GreedyPolicy, check_fits
-from fleetrl.envs.catalog import describe_env, get_env_spec
-from fleetrl.envs.device_side import check_driver_fits, check_takes_link
+from fleetrl.envs.catalog import check_driver_fits, check_takes_link, describe_env, get_env_spec
 from fleetrl.link.bridge import WATCHDOG_SECONDS, DeviceBridge
 from fleetrl.link.driver import DeviceDriver
 from fleetrl.link.mqtt import MqttLink

@@ -1,6 +1,6 @@
 """The unit types a fleet can train on, each an :class:`EnvSpec`: the built-ins by their short names and a
-user's own ``package.module:factory``. Every run builds its units through :meth:`EnvSpec.make`, which
-checks what the builder returned, so both take one path.
+user's own ``package.module:factory``, every unit built and checked by :meth:`EnvSpec.make`; and their
+device side behind device bridges (a built-in's simulated units or a user's driver function).
 """
 
 from __future__ import annotations
@@ -15,20 +15,21 @@ import gymnasium
 
 from fleetrl.devices.cartpole import DEFAULT_CARTPOLE_FLEET_PROFILE, cartpole_fleet_profile
 from fleetrl.devices.qube.params import fleet_profile
-from fleetrl.envs.last_step import LastStep
 from fleetrl.envs.registration import CARTPOLE_UNIT_ID, QUBE_BALANCE_CONTINUOUS_ID, QUBE_BALANCE_ID
 from fleetrl.envs.spaces import UnitDescription, describe_unit
 from fleetrl.envs.unit_factory import (
+    DRIVER_FORM,
     FACTORY_FORM,
     UnitFactory,
     is_factory_reference,
+    load_driver_function,
     load_factory,
     takes_link,
 )
+from fleetrl.envs.wrappers import LastStep
+from fleetrl.link.driver import DriverFunction, DriverSpec, driver_of
 
-UnitBuilder = Callable[..., Any]
-"""``builder(unit, fleet_seed, **options)``: a unit's env; options (``fleet_profile``, ``link``) only for a
-unit type that offers them"""
+UnitBuilder = Callable[..., Any]  # builder(unit, fleet_seed, **options) -> a unit's env
 
 
 class BuiltUnit(NamedTuple):
@@ -42,28 +43,19 @@ class BuiltUnit(NamedTuple):
 class EnvSpec:
     """One unit type: how to build its units and what a run of it needs to know."""
 
-    name: str
-    """what ``--env`` names it by: a built-in's short name (``qube``, ``cartpole``) or
-    ``package.module:factory``"""
-    builder: UnitBuilder  # builds unit ``unit`` of fleet ``fleet_seed`` (with the options the type offers)
+    name: str  # what ``--env`` names it by: a built-in's short name or ``package.module:factory``
+    builder: UnitBuilder
     declared_target: float | None = None
-    """the weighted moving average of the last 10 scores at which a worker's learning is complete, as the
-    unit type declares it (None: the env spec's ``reward_threshold``, else ``--target-score`` is needed)"""
+    """the score (weighted moving average of the last 10) that completes a worker's learning (None: the env
+    spec's ``reward_threshold``, else ``--target-score`` is needed)"""
     fleet_profile: Callable[[str | None], str | None] | None = None
-    """the name of the fleet profile chosen by a name (None: the default), with a ValueError for an unknown
-    one (the name None for a profile a run's settings leave unset: CartPole's ``standard``); None if the unit
-    type has a single fleet"""
-    builtin: bool = False  # a built-in unit type
-    device: str | None = None
-    """a built-in's simulated device type a bridge serves (``qube`` for both QUBE tasks, ``cartpole``); None:
-    a user's unit type, whose bridges serve what its ``--device-driver`` function returns"""
-    takes_link: bool = False
-    """whether the builder takes a ``link`` (its units can be reached through a device bridge)"""
-    control_period: float | None = None
-    """seconds per step on the real unit (a built-in's control period; None: not known), for the time a
-    fleet would spend on real-time rigs (:mod:`fleetrl.runs.rig_time`)"""
-    large_fleet: LargeFleetUpdate | None = None
-    """the default preset's update for a large fleet of this type (None: the preset's at every size)"""
+    """the fleet profile a name chooses (None: the default; the name None where a run's settings leave it
+    unset), a ValueError for an unknown one; None if the unit type has a single fleet"""
+    builtin: bool = False
+    device: str | None = None  # a built-in's simulated device type a bridge serves; None: a user's type
+    takes_link: bool = False  # whether the builder takes a ``link`` (units behind a device bridge)
+    control_period: float | None = None  # seconds per step on the real unit (None: not known)
+    large_fleet: LargeFleetUpdate | None = None  # the default preset's update for a large fleet of this type
 
     @property
     def title(self) -> str:
@@ -72,8 +64,7 @@ class EnvSpec:
 
     def resolve_fleet_profile(self, name: str | None) -> str | None:
         """The fleet profile a run of this env draws its units with (``name``, or the type's default; None
-        where the settings leave it unset: a unit type of one fleet, and CartPole's ``standard``); a
-        ValueError if ``name`` is unknown or this unit type has no profiles."""
+        where the settings leave it unset); a ValueError if ``name`` is unknown or there are no profiles."""
         if self.fleet_profile is not None:
             return self.fleet_profile(name)
         if name is None:
@@ -100,14 +91,10 @@ class EnvSpec:
         last_step: bool = False,
     ) -> BuiltUnit:
         """Unit ``unit`` of fleet ``fleet_seed`` (simulated in-process, or reached through ``link``),
-        checked: a ValueError names the unit and what is wrong with what the builder gave. With
-        ``last_step`` its observation holds its last step too (:class:`~fleetrl.envs.last_step.LastStep`;
-        the description's sensor size stays the unit's own)."""
-        if link is not None and not self.takes_link:
-            raise ValueError(
-                f"{self.title} takes no link keyword: to put its units behind a device bridge, define it as "
-                "factory(unit, fleet_seed, link=None) and build the env over the link it is given"
-            )
+        checked (a ValueError names the unit and what is wrong); with ``last_step`` its observation holds its
+        last step too (:class:`~fleetrl.envs.wrappers.LastStep`; the sensor size stays the unit's own)."""
+        if link is not None:
+            check_takes_link(self)
         options = self.make_kwargs(fleet_profile) if link is None else {"link": link}
         where = f"{self.title}: unit {unit}"
         try:
@@ -126,8 +113,7 @@ class EnvSpec:
         return BuiltUnit(wrapped, dataclasses.replace(seen, sensor_size=description.sensor_dim))
 
     def default_target(self, description: UnitDescription) -> float:
-        """The target score when none is given: the declared one, else the env spec's ``reward_threshold``;
-        a ValueError saying a target is needed otherwise."""
+        """The target score when none is given: the declared one, else the env spec's ``reward_threshold``."""
         if self.declared_target is not None:
             return self.declared_target
         if description.reward_threshold is not None:
@@ -140,7 +126,7 @@ class EnvSpec:
 
 
 def _registered(gym_id: str) -> UnitBuilder:
-    """A built-in's builder: ``gymnasium.make`` of its registered id (its TimeLimit is the episode cap)."""
+    """A built-in's builder: ``gymnasium.make`` of its registered id."""
 
     def build(unit: int, fleet_seed: int, **options: Any) -> Any:
         return gymnasium.make(gym_id, unit=unit, fleet_seed=fleet_seed, **options)
@@ -162,18 +148,16 @@ def _qube_fleet_profile(name: str | None) -> str:
 
 
 def _cartpole_fleet_profile(name: str | None) -> str | None:
-    """CartPole's profile by name; its default, ``standard`` (the fleet CartPole had before it had profiles),
-    resolves to None, as every CartPole run's settings always held it: their shared settings, config files
-    and lab records stay equal, and naming ``standard`` is the same run as naming nothing."""
+    """CartPole's profile by name; its default, ``standard``, resolves to None, as CartPole runs' settings
+    held it before there were profiles (naming ``standard`` is the same run as naming nothing)."""
     chosen = cartpole_fleet_profile(name).name
     return None if chosen == DEFAULT_CARTPOLE_FLEET_PROFILE else chosen
 
 
 @dataclass(frozen=True)
 class LargeFleetUpdate:
-    """PPO settings a federated fleet of at least ``from_units`` units of one type learns with by default:
-    a fleet's step averages every unit's window, so a large fleet's batch pays only if the update uses it
-    (more steps, larger rates; lab/tuning.md, "How the update scales with the fleet's batch")."""
+    """PPO settings a federated fleet of at least ``from_units`` units of one type learns with by default
+    (lab/tuning.md, "How the update scales with the fleet's batch")."""
 
     from_units: int
     settings: tuple[tuple[str, float | int], ...]
@@ -182,9 +166,7 @@ class LargeFleetUpdate:
 CARTPOLE_LARGE_FLEET = LargeFleetUpdate(
     1000, (("batch_size", 16), ("n_optimisations", 40), ("actor_lr", 2e-3), ("critic_lr", 2e-3))
 )
-"""measured at 1,000 CartPole units (held-out seeds 100–104: 18 rounds per unit against the preset's 21).
-QUBE has none: with these settings a few of 1,000 QUBE units never held their target, with the preset's every
-unit completed (docs/results.md, "A fleet of any size")."""
+"""measured at 1,000 CartPole units; QUBE has none (docs/results.md, "A fleet of any size")"""
 
 QUBE_CONTROL_PERIOD = 0.006  # the QUBE-Servo 2 rig's control period (``QubeConfig.control_period``: 6 ms)
 CARTPOLE_CONTROL_PERIOD = 0.02  # CartPole's step (``CartPoleParams.tau``: 20 ms)
@@ -214,7 +196,6 @@ ENV_SPECS: dict[str, EnvSpec] = {
         ("cartpole", CARTPOLE_UNIT_ID, 475.0, _cartpole_fleet_profile, "cartpole", CARTPOLE_CONTROL_PERIOD),
     ]
 }
-"""the built-in unit types (a unit factory seam's instances like any user's)"""
 
 
 def get_env_spec(name: str) -> EnvSpec:
@@ -236,9 +217,62 @@ def get_env_spec(name: str) -> EnvSpec:
 
 @functools.lru_cache(maxsize=16)
 def describe_env(name: str, last_step: bool = False) -> UnitDescription:
-    """The description of unit 0 of fleet 0 of env ``name`` (built once per process and closed): its spaces,
-    episode cap and reward threshold, its observation with the last step in it if ``last_step``. A
-    ValueError if the env cannot be built or is not supported."""
+    """The description of unit 0 of fleet 0 of env ``name`` (built once per process and closed), its
+    observation with the last step in it if ``last_step``; a ValueError if it cannot be built or used."""
     built = get_env_spec(name).make(0, 0, last_step=last_step)
     built.env.close()
     return built.description
+
+
+def check_takes_link(env: EnvSpec) -> None:
+    """A ValueError saying how to fix it unless ``env``'s units can be built over a device link."""
+    if not env.takes_link:
+        raise ValueError(
+            f"{env.title} takes no link keyword: to put its units behind device bridges, define it as "
+            "factory(unit, fleet_seed, link=None) and build the env over the link it is given"
+        )
+
+
+def bridge_driver(env: EnvSpec, device_driver: str | None) -> str | DriverFunction:
+    """What the bridges of ``env``'s units serve: the driver function ``device_driver`` names, else the
+    built-in's simulated device type; a ValueError saying what is missing or wrong otherwise."""
+    check_takes_link(env)
+    if device_driver is not None:
+        function: DriverFunction = load_driver_function(device_driver)
+        return function
+    if env.device is None:
+        raise ValueError(
+            f"{env.title} needs --device-driver {DRIVER_FORM} for its device bridges: the function "
+            "driver(unit, fleet_seed, *, realtime) -> DeviceDriver that serves one unit"
+        )
+    return env.device
+
+
+def check_driver_fits(spec: DriverSpec, unit: UnitDescription, where: str) -> None:
+    """A ValueError naming ``where`` if a driver of ``spec`` cannot serve an env described by ``unit``."""
+    if spec.sensor_size != unit.sensor_dim:
+        reads = (
+            f"observes {unit.obs_dim}"
+            if unit.sensor_size is None
+            else f"reads {unit.sensor_size} (its sensor_size)"
+        )
+        raise ValueError(f"{where} declares {spec.sensor_size} sensor values; the env {reads}")
+    action = unit.action
+    if action.kind == "discrete" and spec.n_actions != action.n:
+        raise ValueError(f"{where} declares {spec.n_actions} discrete commands; the env has {action} actions")
+    if action.kind == "box" and (spec.command_size,) != action.shape:
+        raise ValueError(
+            f"{where} takes a command vector of {spec.command_size}; the env's actions are Box{action.shape}"
+        )
+
+
+def check_bridge_driver(driver: str | DriverFunction, unit: UnitDescription, fleet_seed: int = 0) -> None:
+    """Build unit 0's driver of a user's ``driver`` function (lockstep), check it fits ``unit`` and close
+    it; a ValueError that says what is wrong. A built-in's (a name) fits by construction."""
+    if isinstance(driver, str):
+        return
+    served = driver_of(driver, 0, fleet_seed, realtime=False)
+    try:
+        check_driver_fits(served.spec, unit, f"device driver {served.spec.kind!r} (unit 0)")
+    finally:
+        served.close()

@@ -21,7 +21,7 @@ def register_envs() -> None:
     if QUBE_BALANCE_CONTINUOUS_ID not in registry:  # the same units and cap, the voltage as the action
         gymnasium.register(
             id=QUBE_BALANCE_CONTINUOUS_ID,
-            entry_point="fleetrl.envs.qube_continuous:QubeBalanceContinuousEnv",
+            entry_point="fleetrl.envs.qube_balance:QubeBalanceContinuousEnv",
             max_episode_steps=QUBE_EPISODE_CAP,
         )
     if CARTPOLE_UNIT_ID not in registry:

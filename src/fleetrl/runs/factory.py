@@ -11,9 +11,8 @@ from fleetrl.agent.criterion import CompletionCriterion
 from fleetrl.agent.learner import Learner
 from fleetrl.agent.ppo import PPOAgent
 from fleetrl.envs.catalog import describe_env, get_env_spec
-from fleetrl.envs.paced import PacedEnv
 from fleetrl.envs.spaces import UnitDescription
-from fleetrl.envs.stalled import StalledEnv
+from fleetrl.envs.wrappers import PacedEnv, StalledEnv
 from fleetrl.link.mqtt import MqttLink, open_mqtt_link
 from fleetrl.runs.spec import WorkerSpec
 from fleetrl.runs.uneven import unit_stall
