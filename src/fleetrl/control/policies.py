@@ -1,12 +1,15 @@
 """Greedy policies a unit runs without torch: a fleetrl model file on numpy (numba), or an exported ONNX file
-on onnxruntime (the ``onnx`` extra), behind one small interface."""
+on onnxruntime (the ``onnx`` extra), behind one small interface; and the greedy episodes ``fleetrl evaluate``
+and ``fleetrl control`` play."""
 
 from __future__ import annotations
 
 import json
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any, Protocol
 
+import gymnasium
 import numpy as np
 
 from fleetrl.agent.action_space import ActionSpace
@@ -50,11 +53,8 @@ class ModelPolicy:
 
 
 class OnnxPolicy:
-    """An exported policy (``fleetrl export``) on onnxruntime, one thread (a unit acts on one observation
-    per control period; threads would only add jitter).
-
-    :raises ValueError: the file is not an ONNX model, or not one fleetrl exported
-    """
+    """An exported policy (``fleetrl export``) on onnxruntime, one thread (more would only add jitter); a
+    ValueError if the file is not an ONNX model fleetrl exported."""
 
     def __init__(self, path: str | Path) -> None:
         try:
@@ -97,11 +97,8 @@ class OnnxPolicy:
 
 
 def load_policy(path: str | Path) -> GreedyPolicy:
-    """The greedy policy in ``path``: a fleetrl model file (``.safetensors``) or an exported ``.onnx``.
-
-    :raises FileNotFoundError: no file at ``path``
-    :raises ValueError: another kind of file, or one that is not a fleetrl policy (says which)
-    """
+    """The greedy policy in ``path``: a fleetrl model file (``.safetensors``) or an exported ``.onnx``; a
+    FileNotFoundError for no file, a ValueError for another kind of file or not a fleetrl policy."""
     source = Path(path)
     if not source.is_file():
         raise FileNotFoundError(f"no model file at {source}")
@@ -125,3 +122,26 @@ def check_fits(
             f"{source} is a policy for {obs_dim} observations and {actions} actions; env {env!r} has "
             f"{description.obs_dim} and {wanted} (choose the env it was trained on: --env)"
         )
+
+
+def greedy_scores(
+    env: gymnasium.Env[Any, Any],
+    act: Callable[[np.ndarray], Any],
+    episodes: int,
+    seed: int = 0,
+    report: Callable[[int, float], None] | None = None,
+) -> list[float]:
+    """The scores (summed rewards) of ``episodes`` episodes of ``env`` acting with ``act``; episode ``k``
+    resets with seed ``seed + k``; ``report(k, score)`` is called as each one ends."""
+    scores = []
+    for episode in range(episodes):
+        obs, _ = env.reset(seed=seed + episode)
+        score, done = 0.0, False
+        while not done:
+            obs, reward, terminated, truncated, _ = env.step(act(obs))
+            score += float(reward)
+            done = terminated or truncated
+        scores.append(score)
+        if report is not None:
+            report(episode, score)
+    return scores

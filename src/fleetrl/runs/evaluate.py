@@ -6,8 +6,7 @@ from pathlib import Path
 import torch
 
 from fleetrl.agent.ppo import PPOAgent
-from fleetrl.control.episodes import greedy_scores
-from fleetrl.control.policies import check_fits
+from fleetrl.control.policies import check_fits, greedy_scores
 from fleetrl.envs.catalog import describe_env, get_env_spec
 from fleetrl.link.base import DeviceLink
 
