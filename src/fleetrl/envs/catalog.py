@@ -20,7 +20,6 @@ from fleetrl.envs.spaces import UnitDescription, describe_unit
 from fleetrl.envs.unit_factory import (
     DRIVER_FORM,
     FACTORY_FORM,
-    UnitFactory,
     is_factory_reference,
     load_driver_function,
     load_factory,
@@ -134,15 +133,6 @@ def _registered(gym_id: str) -> UnitBuilder:
     return build
 
 
-def _factory_builder(factory: UnitFactory) -> UnitBuilder:
-    """A user's factory as a builder: ``factory(unit, fleet_seed)``, or with ``link=`` when given one."""
-
-    def build(unit: int, fleet_seed: int, **link: Any) -> Any:
-        return factory(unit, fleet_seed, **link)
-
-    return build
-
-
 def _qube_fleet_profile(name: str | None) -> str:
     return fleet_profile(name).name
 
@@ -170,6 +160,7 @@ CARTPOLE_LARGE_FLEET = LargeFleetUpdate(
 
 QUBE_CONTROL_PERIOD = 0.006  # the QUBE-Servo 2 rig's control period (``QubeConfig.control_period``: 6 ms)
 CARTPOLE_CONTROL_PERIOD = 0.02  # CartPole's step (``CartPoleParams.tau``: 20 ms)
+_QUBE = (_qube_fleet_profile, "qube", QUBE_CONTROL_PERIOD)  # both QUBE tasks' profiles, device and period
 
 ENV_SPECS: dict[str, EnvSpec] = {
     name: EnvSpec(
@@ -184,15 +175,8 @@ ENV_SPECS: dict[str, EnvSpec] = {
         large_fleet=CARTPOLE_LARGE_FLEET if name == "cartpole" else None,
     )
     for name, gym_id, target, profiles, device, period in [
-        ("qube", QUBE_BALANCE_ID, 2450.0, _qube_fleet_profile, "qube", QUBE_CONTROL_PERIOD),
-        (
-            "qube-continuous",
-            QUBE_BALANCE_CONTINUOUS_ID,
-            2450.0,
-            _qube_fleet_profile,
-            "qube",
-            QUBE_CONTROL_PERIOD,
-        ),
+        ("qube", QUBE_BALANCE_ID, 2450.0, *_QUBE),
+        ("qube-continuous", QUBE_BALANCE_CONTINUOUS_ID, 2450.0, *_QUBE),
         ("cartpole", CARTPOLE_UNIT_ID, 475.0, _cartpole_fleet_profile, "cartpole", CARTPOLE_CONTROL_PERIOD),
     ]
 }
@@ -205,7 +189,7 @@ def get_env_spec(name: str) -> EnvSpec:
         return ENV_SPECS[name]
     if is_factory_reference(name):
         factory = load_factory(name)
-        return EnvSpec(name, _factory_builder(factory), takes_link=takes_link(factory))
+        return EnvSpec(name, factory, takes_link=takes_link(factory))
     *others, last = sorted(ENV_SPECS)
     choices = f"{', '.join(others)} or {last}"
     module, dot, attr = name.rpartition(".")
@@ -251,11 +235,8 @@ def bridge_driver(env: EnvSpec, device_driver: str | None) -> str | DriverFuncti
 def check_driver_fits(spec: DriverSpec, unit: UnitDescription, where: str) -> None:
     """A ValueError naming ``where`` if a driver of ``spec`` cannot serve an env described by ``unit``."""
     if spec.sensor_size != unit.sensor_dim:
-        reads = (
-            f"observes {unit.obs_dim}"
-            if unit.sensor_size is None
-            else f"reads {unit.sensor_size} (its sensor_size)"
-        )
+        size = unit.sensor_size
+        reads = f"observes {unit.obs_dim}" if size is None else f"reads {size} (its sensor_size)"
         raise ValueError(f"{where} declares {spec.sensor_size} sensor values; the env {reads}")
     action = unit.action
     if action.kind == "discrete" and spec.n_actions != action.n:

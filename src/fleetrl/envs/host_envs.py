@@ -1,8 +1,6 @@
-"""The envs of many units, stepped together where they can be: in-process CartPoles and QUBEs (as
-``gymnasium.make`` builds them, under ``TimeLimit``, ``OrderEnforcing`` and ``PassiveEnvChecker`` only) in
-one compiled batch call per type and time step (two or more of a type), each unit's numbers those its own
-env gives; every other unit (behind a device bridge, paced, a user's type) through its own env. Resets go
-through each unit's env."""
+"""The envs of many units, stepped together where they can be: in-process CartPoles and QUBEs as
+``gymnasium.make`` builds them in one compiled batch call per type and time step (two or more of a type), each
+unit's numbers those its own env gives; every other unit, and every reset, through its own env."""
 
 from __future__ import annotations
 
@@ -42,27 +40,22 @@ class StepRows:
 class _Kind:
     """A unit type whose in-process units a batch can step."""
 
-    env: type[gymnasium.Env[Any, Any]]
+    env: type[CartPoleUnitEnv | QubeBalanceEnv]  # its ``judge_rows`` judges a batch's steps
     device: type
     batch: Callable[[list[Any]], Any]  # the batch of a list of such devices
-    judge_rows: Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]]
-    """the env's reward and termination of each row of observations"""
     available: bool = True  # whether such a batch can run in this process
 
 
 _KINDS = (
-    _Kind(
-        CartPoleUnitEnv, CartPoleDevice, CartPoleBatch, CartPoleUnitEnv.judge_rows, cartpole_batch.AVAILABLE
-    ),
-    _Kind(QubeBalanceEnv, QubeDevice, QubeBatch, QubeBalanceEnv.judge_rows),
+    _Kind(CartPoleUnitEnv, CartPoleDevice, CartPoleBatch, cartpole_batch.AVAILABLE),
+    _Kind(QubeBalanceEnv, QubeDevice, QubeBatch),
 )
 """the unit types stepped in batches, the kind's index its batch's"""
 
 
 def batched_device(env: gymnasium.Env[Any, Any]) -> tuple[int, Any, int | None] | None:
     """The batch kind (an index into the kinds), the in-process device and the episode cap (None: none) of
-    an env a batch can step, or None if ``env`` is anything else (another unit type, a link, another
-    wrapper, rendering), or no batch of its type can step in this process."""
+    an env a batch can step, or None for any other env or where no batch of its type can step."""
     cap: int | None = None
     inner: Any = env
     while isinstance(inner, gymnasium.Wrapper):
@@ -92,16 +85,12 @@ class _Batch:
 
 
 class HostEnvs:
-    """The units' envs (unit u's is ``envs[u]``): :meth:`reset` one, :meth:`step` many.
-
-    :param envs: one Gymnasium env per unit
-    """
+    """The units' envs (unit u's is ``envs[u]``): :meth:`reset` one, :meth:`step` many."""
 
     def __init__(self, envs: Sequence[gymnasium.Env[Any, Any]]) -> None:
         self.envs = list(envs)
         found = [batched_device(env) for env in self.envs]
-        self._kind = np.full(len(self.envs), -1, dtype=np.int64)
-        """unit → its batch's kind (-1: stepped through its own env)"""
+        self._kind = np.full(len(self.envs), -1, dtype=np.int64)  # unit → its batch's kind (-1: none)
         self._row = np.full(len(self.envs), -1, dtype=np.int64)  # unit → its row in its batch
         self._batches: dict[int, _Batch] = {}
         for index, kind in enumerate(_KINDS):
@@ -153,7 +142,7 @@ class HostEnvs:
             rows = self._row[units[mine]]
             stepped = batch.stepper.step(rows, chosen[mine])
             obs[mine] = stepped
-            rewards[mine], terminated[mine] = batch.kind.judge_rows(stepped)
+            rewards[mine], terminated[mine] = batch.kind.env.judge_rows(stepped)
             batch.elapsed[rows] += 1
             truncated[mine] = batch.elapsed[rows] >= batch.cap[rows]
             for row in rows[terminated[mine] | truncated[mine]].tolist():

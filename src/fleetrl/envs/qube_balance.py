@@ -1,9 +1,6 @@
 """``fleetrl/QubeBalance-v0``: balance an (already swung-up) QUBE-Servo 2 pendulum, as in the paper, and
 ``fleetrl/QubeBalanceContinuous-v0``, the same task with the motor voltage as a continuous action.
-
 Observation: pendulum angle (0 upright) and velocity, motor angle and velocity, as the encoders read them.
-Actions 0, 1, 2: motor power −60, 0, +60 (≈ −1.44, 0, +1.44 V), or ``[volts]`` within ±``action_volts``.
-Reward +1 while |pendulum angle| ≤ 7.5°; beyond it, or the arm beyond ±π/2, 0 and the end.
 """
 
 import math
@@ -37,14 +34,9 @@ def qube_frame(obs: np.ndarray) -> np.ndarray:
 
 
 class QubeBalanceEnv(LinkEnv):
-    """Balance one QUBE unit of a seeded fleet.
-
-    :param unit: index of the unit in the fleet; (fleet_seed, unit) fixes the unit's parameters
-    :param fleet_profile: the fleet profile the in-process unit is drawn with (None: ``table2``)
-    :param link: reach the device through this link instead of simulating it in-process
-    :param render_mode: None, or ``rgb_array`` for :meth:`render` frames
-    :param options: ``QubeConfig`` fields for the in-process simulation, e.g. ``control_period=0.006``
-    """
+    """Balance unit ``unit`` of fleet ``fleet_seed`` (``fleet_profile`` None: ``table2``), simulated
+    in-process (``options``: ``QubeConfig`` fields) or reached through ``link``; ``render_mode`` None or
+    ``rgb_array``. Actions 0, 1, 2: motor power −60, 0, +60 (≈ −1.44, 0, +1.44 V)."""
 
     index_actions = 3  # how many action indices the env takes (0: none, a continuous task)
 

@@ -1,8 +1,5 @@
-"""What a run needs to know about one unit's env, read from a built env: its spaces, episode cap and target.
-
-The spaces are described generally (the observation's shape; the actions ``discrete`` with ``n`` choices
-or a ``box`` with a shape), so a layer that cannot handle one kind says so in its own words.
-"""
+"""What a run needs to know about one unit's env, read from a built env: its spaces (described generally,
+so a layer that cannot handle one kind says so in its own words), episode cap and target."""
 
 from __future__ import annotations
 
@@ -22,12 +19,11 @@ SUPPORTED_ACTIONS = "Discrete (at least 2 actions) or a 1-D Box of floats"
 class ActionSpec:
     """A unit's action space, in the terms the layers above use."""
 
-    kind: Literal["discrete", "box"]
-    """``discrete``: one of ``n`` actions; ``box``: a float vector of ``shape`` within ``low``/``high``"""
-    n: int = 0  # discrete: how many actions
-    shape: tuple[int, ...] = ()  # box: the action vector's shape
-    low: tuple[float, ...] = ()  # box: each component's lower bound
-    high: tuple[float, ...] = ()  # box: each component's upper bound
+    kind: Literal["discrete", "box"]  # one of ``n`` actions, or a float vector of ``shape`` within low/high
+    n: int = 0
+    shape: tuple[int, ...] = ()
+    low: tuple[float, ...] = ()
+    high: tuple[float, ...] = ()
 
     def __str__(self) -> str:
         return f"Discrete({self.n})" if self.kind == "discrete" else f"Box{self.shape}"
@@ -37,16 +33,14 @@ class ActionSpec:
 class UnitDescription:
     """The facts of one built unit env that a run needs before any worker exists."""
 
-    obs_shape: tuple[int, ...]  # the observation's shape (1-D: ``(obs_dim,)``)
-    action: ActionSpec  # the action space
-    episode_cap: int | None
-    """the env's own TimeLimit (``env.spec.max_episode_steps``); None: the env ends its episodes itself"""
-    reward_threshold: float | None
-    """``env.spec.reward_threshold``: the env's own idea of a solved task (None: it has none)"""
+    obs_shape: tuple[int, ...]  # 1-D: ``(obs_dim,)``
+    action: ActionSpec
+    episode_cap: int | None  # ``env.spec.max_episode_steps`` (None: the env ends its episodes itself)
+    reward_threshold: float | None  # ``env.spec.reward_threshold``
     env_id: str | None  # ``env.spec.id`` (None: the env was not made from a registered id)
     sensor_size: int | None = None
-    """``env.unwrapped.sensor_size``: what an env that composes its observation from its device's sensor
-    vector and its own task state declares as that vector's length (None: the observation is the vector)"""
+    """``env.unwrapped.sensor_size``: the length of the device's sensor vector, declared by an env that
+    composes its observation from it and its own task state (None: the observation is the vector)"""
 
     @property
     def obs_dim(self) -> int:
@@ -55,17 +49,13 @@ class UnitDescription:
 
     @property
     def sensor_dim(self) -> int:
-        """Length of the sensor vector the env reads from its device link: the declared ``sensor_size``,
-        else the observation's length."""
+        """Length of the sensor vector the env reads from its device link."""
         return self.obs_dim if self.sensor_size is None else self.sensor_size
 
 
 def describe_unit(env: object, where: str) -> UnitDescription:
-    """``env``'s description, or a ValueError naming ``where`` it came from and what is supported.
-
-    :param env: what a unit factory returned
-    :param where: how the error names its source, e.g. ``"env 'pkg.units:factory' unit 0"``
-    """
+    """``env``'s description (what a unit factory returned), or a ValueError naming ``where`` it came from
+    (e.g. ``"env 'pkg.units:factory' unit 0"``) and what is supported."""
     if not isinstance(env, gymnasium.Env):
         raise ValueError(f"{where} is a {type(env).__name__}, not a gymnasium.Env")
     obs = env.observation_space

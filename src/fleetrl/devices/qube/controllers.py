@@ -18,7 +18,7 @@ from fleetrl.devices.qube.dynamics import (
     control_period,
     wrap_angle,
 )
-from fleetrl.devices.qube.params import NOMINAL, QubeParams
+from fleetrl.devices.qube.params import NOMINAL
 
 BALANCE_GAINS = (-2.0, 35.0, -1.5, 3.0)  # Quanser's K for V = −K·x, x = [theta, alpha, theta_dot, alpha_dot]
 
@@ -31,53 +31,29 @@ G_SETTLE_ALPHA, G_SETTLE_ALPHA_DOT, G_SETTLE_THETA, G_SETTLE_THETA_DOT = range(1
 CATCH_DEGREES = 20.0  # the swing-up hands over to the balance law inside this distance from upright (degrees)
 
 
-def controller_constants(
-    params: QubeParams = NOMINAL,
-    *,
-    mu: float = 1000.0,
-    target_amplitude_deg: float = 230.0,
-    energy_ceiling: float = 1.2,
-    arm_p: float = 6.0,
-    arm_d: float = 0.2,
-    swing_max_volts: float = 8.0,
-    catch_deg: float = CATCH_DEGREES,
-    drop_deg: float = 30.0,
-    recentre: float = 0.5,
-    settle_alpha_deg: float = 3.0,
-    settle_alpha_dot: float = 1.5,
-    settle_theta_deg: float = 20.0,
-    settle_theta_dot: float = 1.5,
-) -> np.ndarray:
-    """Pack the controllers' constants (from the *nominal* model, as on a real unit).
-
-    :param mu: swing-up pumping voltage per joule still missing (V/J)
-    :param target_amplitude_deg: the swing amplitude (from hanging) the pumping aims at, past 180°
-    :param energy_ceiling: stop pumping while the pendulum's energy exceeds this multiple of mp·g·Lp
-    :param arm_p: volts per radian (``arm_d``: per rad/s) holding the arm near centre during swing-up
-    :param catch_deg: hand over to balance inside this distance from upright (``drop_deg``: fall back beyond)
-    :param recentre: the rate (rad/s) at which the arm's set-point walks from the catch angle back to centre
-    :param settle_alpha_deg: hand-off window on |alpha| (likewise the other ``settle_*``, in degrees or rad/s)
-    """
+def controller_constants() -> np.ndarray:
+    """Pack the controllers' constants, from the *nominal* model as on a real unit (indices K_*, G_*)."""
+    p = NOMINAL
     rad = math.pi / 180.0
-    upright_energy = params.mp * params.g * params.Lp
+    upright_energy = p.mp * p.g * p.Lp
     return np.array(
         [
             *BALANCE_GAINS,
-            mu,
-            target_amplitude_deg * rad,
-            energy_ceiling * upright_energy,
-            params.Jp + 0.25 * params.mp * params.Lp**2,
-            0.5 * params.mp * params.g * params.Lp,
-            arm_p,
-            arm_d,
-            swing_max_volts,
-            catch_deg * rad,
-            drop_deg * rad,
-            recentre,
-            settle_alpha_deg * rad,
-            settle_alpha_dot,
-            settle_theta_deg * rad,
-            settle_theta_dot,
+            1000.0,  # swing-up pumping voltage per joule still missing (V/J)
+            230.0 * rad,  # the swing amplitude (from hanging) the pumping aims at, past 180°
+            1.2 * upright_energy,  # stop pumping while the pendulum's energy exceeds this
+            p.Jp + 0.25 * p.mp * p.Lp**2,
+            0.5 * p.mp * p.g * p.Lp,
+            6.0,  # volts per radian (and per rad/s below) holding the arm near centre during swing-up
+            0.2,
+            8.0,  # voltage limit of the swing-up
+            CATCH_DEGREES * rad,  # hand over to balance inside this distance from upright
+            30.0 * rad,  # fall back to swing-up beyond this distance from upright
+            0.5,  # rate (rad/s) at which the arm's set-point walks from the catch angle back to centre
+            3.0 * rad,  # the hand-off windows on |alpha|, |alpha_dot|, |theta|, |theta_dot|
+            1.5,
+            20.0 * rad,
+            1.5,
         ],
         dtype=np.float64,
     )
