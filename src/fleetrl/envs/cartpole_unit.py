@@ -14,26 +14,6 @@ from fleetrl.link.base import DeviceLink
 from fleetrl.link.inprocess import InProcessLink
 
 
-def cartpole_frame(obs: np.ndarray) -> np.ndarray:
-    """The cart on its track (±2.4 m across the frame) and the pole (θ, 0 = upright)."""
-    x, theta = float(obs[0]), float(obs[2])
-    img = blank()
-    track_y, scale = FRAME * 0.75, FRAME / 5.6
-    line(img, (0, track_y), (FRAME - 1, track_y), TRACK, 1)
-    cart_x = FRAME / 2 + x * scale
-    line(img, (cart_x - 12, track_y - 5), (cart_x + 12, track_y - 5), CART, 9)
-    length = FRAME * 0.4
-    pole_y = track_y - 10
-    line(
-        img,
-        (cart_x, pole_y),
-        (cart_x + length * math.sin(theta), pole_y - length * math.cos(theta)),
-        PENDULUM,
-        5,
-    )
-    return img
-
-
 class CartPoleUnitEnv(LinkEnv):
     """CartPole-v1 on unit ``unit`` of fleet ``fleet_seed`` (``fleet_profile`` None: ``standard``),
     simulated in-process or reached through ``link``; ``render_mode`` None or ``rgb_array``."""
@@ -71,5 +51,15 @@ class CartPoleUnitEnv(LinkEnv):
         return np.ones(obs.shape[0]), ~((x <= X_LIMIT) & (theta <= THETA_LIMIT))
 
     def frame(self, obs: np.ndarray) -> np.ndarray:
-        """An RGB picture of the unit in state ``obs``."""
-        return cartpole_frame(obs)
+        """The cart on its track (±2.4 m across the frame) and the pole (θ, 0 = upright)."""
+        x, theta = float(obs[0]), float(obs[2])
+        img = blank()
+        track_y, scale = FRAME * 0.75, FRAME / 5.6
+        line(img, (0, track_y), (FRAME - 1, track_y), TRACK, 1)
+        cart_x = FRAME / 2 + x * scale
+        line(img, (cart_x - 12, track_y - 5), (cart_x + 12, track_y - 5), CART, 9)
+        length = FRAME * 0.4
+        pole_y = track_y - 10
+        tip = (cart_x + length * math.sin(theta), pole_y - length * math.cos(theta))
+        line(img, (cart_x, pole_y), tip, PENDULUM, 5)
+        return img

@@ -15,8 +15,7 @@ from gymnasium.wrappers import OrderEnforcing, PassiveEnvChecker, TimeLimit
 from fleetrl.devices import cartpole_batch
 from fleetrl.devices.cartpole import CartPoleDevice
 from fleetrl.devices.cartpole_batch import CartPoleBatch
-from fleetrl.devices.qube.batch import QubeBatch
-from fleetrl.devices.qube.device import QubeDevice
+from fleetrl.devices.qube.device import QubeBatch, QubeDevice
 from fleetrl.envs.cartpole_unit import CartPoleUnitEnv
 from fleetrl.envs.qube_balance import QubeBalanceEnv
 from fleetrl.link.inprocess import InProcessLink

@@ -21,18 +21,6 @@ VELOCITY_BOUND = 500.0  # observation bound on the velocities (rad/s); the arm's
 ACTION_VOLTS = 3.0  # the continuous task's action bound (V): about twice the discrete task's ±1.44 V
 
 
-def qube_frame(obs: np.ndarray) -> np.ndarray:
-    """Left: the arm seen from above (angle θ); right: the pendulum seen from the front (α, 0 = upright)."""
-    alpha, theta = float(obs[0]), float(obs[2])
-    img = blank()
-    cx, cy, r = FRAME * 0.25, FRAME * 0.5, FRAME * 0.2
-    line(img, (cx, cy), (cx + r * math.sin(theta), cy - r * math.cos(theta)), ARM, 5)
-    px, py, length = FRAME * 0.75, FRAME * 0.75, FRAME * 0.5
-    line(img, (px - 25, py), (px + 25, py), TRACK, 3)
-    line(img, (px, py), (px + length * math.sin(alpha), py - length * math.cos(alpha)), PENDULUM, 5)
-    return img
-
-
 class QubeBalanceEnv(LinkEnv):
     """Balance unit ``unit`` of fleet ``fleet_seed`` (``fleet_profile`` None: ``table2``), simulated
     in-process (``options``: ``QubeConfig`` fields) or reached through ``link``; ``render_mode`` None or
@@ -83,8 +71,15 @@ class QubeBalanceEnv(LinkEnv):
         return held.astype(np.float64), ~held
 
     def frame(self, obs: np.ndarray) -> np.ndarray:
-        """An RGB picture of the unit in state ``obs``."""
-        return qube_frame(obs)
+        """Left: the arm seen from above (θ); right: the pendulum seen from the front (α, 0 = upright)."""
+        alpha, theta = float(obs[0]), float(obs[2])
+        img = blank()
+        cx, cy, r = FRAME * 0.25, FRAME * 0.5, FRAME * 0.2
+        line(img, (cx, cy), (cx + r * math.sin(theta), cy - r * math.cos(theta)), ARM, 5)
+        px, py, length = FRAME * 0.75, FRAME * 0.75, FRAME * 0.5
+        line(img, (px - 25, py), (px + 25, py), TRACK, 3)
+        line(img, (px, py), (px + length * math.sin(alpha), py - length * math.cos(alpha)), PENDULUM, 5)
+        return img
 
 
 class QubeBalanceContinuousEnv(QubeBalanceEnv):

@@ -175,16 +175,6 @@ class ResetPhases:
         k = self.constants
         return float(swing_up_volts(theta, alpha, theta_dot, alpha_dot, k[G_TARGET_AMPLITUDE], k))
 
-    @property
-    def balancing(self) -> bool:
-        """Whether the balance law is in charge."""
-        return bool(self.memory[R_BALANCING] != 0.0)
-
-    @property
-    def travel(self) -> float:
-        """The largest |arm angle| reading seen since ``start`` (rad)."""
-        return float(self.memory[R_TRAVEL])
-
 
 @njit(cache=True)
 def device_reset(
