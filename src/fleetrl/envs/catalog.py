@@ -66,14 +66,12 @@ class EnvSpec:
         where the settings leave it unset); a ValueError if ``name`` is unknown or there are no profiles."""
         if self.fleet_profile is not None:
             return self.fleet_profile(name)
-        if name is None:
-            return None
-        if not self.builtin:
+        if name is not None:  # a user's unit type (every built-in has profiles)
             raise ValueError(
                 f"{self.title} has no fleet profiles (got {name!r}): a factory draws each unit from "
                 "(unit, fleet_seed) itself; vary the fleet with --fleet-seed"
             )
-        raise ValueError(f"{self.name} units have one fleet, no fleet profiles (got {name!r})")
+        return None
 
     def make_kwargs(self, fleet_profile: str | None) -> dict[str, Any]:
         """The builder's keyword arguments that pick the fleet profile (none for one fleet)."""
