@@ -38,8 +38,7 @@ def policy_metadata(policy: PolicyFile, env: str | None) -> dict[str, Any]:
 
 
 def policy_graph(policy: PolicyFile, env: str | None = None) -> Any:
-    """The greedy policy of ``policy`` as an ``onnx.ModelProto`` checked by ``onnx.checker`` (``env``, the env
-    it is for, goes in the metadata)."""
+    """The greedy policy of ``policy`` as an ``onnx.ModelProto`` (checked), ``env`` in its metadata."""
     import onnx
     from onnx import TensorProto, helper, numpy_helper
 
@@ -181,8 +180,7 @@ def draw_observations(
     fleet_seed: int = 0,
     fleet_profile: str | None = None,
 ) -> np.ndarray:
-    """``n`` float32 observations: half visited by the simulated unit under the policy's sampled actions,
-    half uniform in a box around those; seeded by ``seed``."""
+    """``n`` float32 observations: half visited under the policy's sampled actions, half drawn around them."""
     rng = np.random.default_rng(seed)
     built = get_env_spec(env).make(unit, fleet_seed, fleet_profile=fleet_profile, last_step=policy.last_step)
     gym_env, acting, space = built.env, policy.numpy_policy(), policy.action_space

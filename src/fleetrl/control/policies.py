@@ -53,8 +53,7 @@ class ModelPolicy:
 
 
 class OnnxPolicy:
-    """An exported policy (``fleetrl export``) on onnxruntime, one thread (more would only add jitter); a
-    ValueError if the file is not an ONNX model fleetrl exported."""
+    """An exported policy (``fleetrl export``) on onnxruntime, one thread; a ValueError for another file."""
 
     def __init__(self, path: str | Path) -> None:
         try:
@@ -97,8 +96,7 @@ class OnnxPolicy:
 
 
 def load_policy(path: str | Path) -> GreedyPolicy:
-    """The greedy policy in ``path``: a fleetrl model file (``.safetensors``) or an exported ``.onnx``; a
-    FileNotFoundError for no file, a ValueError for another kind of file or not a fleetrl policy."""
+    """The greedy policy in ``path``: a fleetrl model file (``.safetensors``) or an exported ``.onnx``."""
     source = Path(path)
     if not source.is_file():
         raise FileNotFoundError(f"no model file at {source}")
@@ -114,8 +112,7 @@ def load_policy(path: str | Path) -> GreedyPolicy:
 def check_fits(
     obs_dim: int, actions: ActionSpace, description: UnitDescription, env: str, source: object = "the policy"
 ) -> None:
-    """A ValueError, naming ``source``, unless a policy of ``obs_dim`` observations and ``actions`` fits
-    ``env``'s units."""
+    """A ValueError, naming ``source``, unless a policy of this size and ``actions`` fits ``env``'s units."""
     wanted = ActionSpace.of_unit(description.action)
     if (obs_dim, actions) != (description.obs_dim, wanted):
         raise ValueError(
@@ -131,8 +128,7 @@ def greedy_scores(
     seed: int = 0,
     report: Callable[[int, float], None] | None = None,
 ) -> list[float]:
-    """The scores (summed rewards) of ``episodes`` episodes of ``env`` acting with ``act``; episode ``k``
-    resets with seed ``seed + k``; ``report(k, score)`` is called as each one ends."""
+    """The scores of ``episodes`` episodes of ``env`` played by ``act``, episode ``k`` seeded ``seed + k``."""
     scores = []
     for episode in range(episodes):
         obs, _ = env.reset(seed=seed + episode)

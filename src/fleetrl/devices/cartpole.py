@@ -32,8 +32,7 @@ CARTPOLE_NOMINAL = CartPoleParams()
 
 @dataclass(frozen=True)
 class CartPoleVariation:
-    """How far units deviate: each parameter is its nominal value times a factor drawn uniformly from
-    [1 − spread, 1 + spread], a spread below 1 so every unit stays physical (gravity and τ are nominal)."""
+    """How far units deviate: each parameter times a factor uniform in [1 − spread, 1 + spread]."""
 
     masscart: float = 0.10
     masspole: float = 0.10
@@ -70,8 +69,7 @@ def cartpole_fleet_profile(name: str | None = None) -> FleetProfile[CartPoleVari
 def cartpole_unit_params(
     fleet_seed: int, unit: int, variation: CartPoleVariation | None = None
 ) -> CartPoleParams:
-    """The parameters of CartPole unit ``unit`` of fleet ``fleet_seed`` (``variation`` None: the default
-    profile's). The draws come in one order, so another profile's unit deviates the same way, only further."""
+    """The parameters of CartPole unit ``unit`` of fleet ``fleet_seed`` (None: the default profile's)."""
     spread = cartpole_fleet_profile().variation if variation is None else variation
     rng = unit_generator(fleet_seed, unit, CARTPOLE_FAMILY)
     n = CARTPOLE_NOMINAL
@@ -144,8 +142,7 @@ class CartPoleDevice:
 
 
 class CartPoleForceUnit:
-    """A CartPole unit commanded by a vector ``[force fraction]``: a positive value pushes right, a negative
-    one left, each with full force; 0 is the motor off, the cart then braked (its state held)."""
+    """A CartPole commanded by ``[force fraction]``: its sign pushes right or left; 0 brakes the cart."""
 
     def __init__(self, device: CartPoleDevice) -> None:
         self.device = device

@@ -18,8 +18,7 @@ from fleetrl.devices.cartpole import CartPoleDevice
 # library's cos, sin and pow (what math and ** call) reached through ctypes: the compiler can then neither
 # fuse nor replace them (LLVM makes pow(x, 2) x * x, which differs in the last bit about once in 1,000).
 def _libm_functions() -> tuple[Any, Any, Any] | None:
-    """The C library's ``cos``, ``sin`` and ``pow`` (those this process's Python calls), or None where
-    ctypes cannot find them (then no unit is stepped in a batch: :data:`AVAILABLE`)."""
+    """The C library's ``cos``, ``sin`` and ``pow`` (those Python calls), or None where not found."""
     name = ctypes.util.find_library("m")
     if name is None:
         return None
@@ -83,8 +82,7 @@ def _step_rows(
 
 
 class CartPoleBatch:
-    """The devices ``devices`` (row i: ``devices[i]``) stepped together; the batch holds each unit's state
-    while it steps it (:meth:`load` takes it from its device, :meth:`store` hands it back)."""
+    """The devices ``devices`` stepped together, row i ``devices[i]``, each state held while it steps."""
 
     def __init__(self, devices: Sequence[CartPoleDevice]) -> None:
         self.devices = list(devices)
@@ -108,8 +106,7 @@ class CartPoleBatch:
         return self._state[row].copy()
 
     def step(self, rows: np.ndarray, actions: np.ndarray) -> np.ndarray:
-        """Push the units ``rows`` left (0) or right (1) as ``actions`` say; their new observations
-        (float32, one row per unit of ``rows``)."""
+        """Push the units ``rows`` left (0) or right (1) as ``actions`` say; their new observations."""
         moves = np.asarray(actions, dtype=np.int64)
         if moves.size and not bool(np.all((moves == 0) | (moves == 1))):
             bad = int(moves[(moves != 0) & (moves != 1)][0])

@@ -116,8 +116,7 @@ def pooled_homogeneity(
     impulses: int = 100,
     profile: str | None = None,
 ) -> PooledHomogeneity:
-    """Run ``homogeneity_test`` for every (fleet seed, impulse seed) and pool the off-diagonal pairs (a
-    simulated fleet is judged by their median: single pairs scatter widely)."""
+    """Run ``homogeneity_test`` for every (fleet seed, impulse seed) and pool the off-diagonal pairs."""
     fleets, seeds = tuple(fleet_seeds), tuple(impulse_seeds)
     pairs = np.triu_indices(units, 1)
     results = tuple(

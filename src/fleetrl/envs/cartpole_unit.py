@@ -15,8 +15,7 @@ from fleetrl.link.inprocess import InProcessLink
 
 
 class CartPoleUnitEnv(LinkEnv):
-    """CartPole-v1 on unit ``unit`` of fleet ``fleet_seed`` (``fleet_profile`` None: ``standard``),
-    simulated in-process or reached through ``link``; ``render_mode`` None or ``rgb_array``."""
+    """CartPole-v1 on unit ``unit`` of fleet ``fleet_seed``, simulated in-process or reached by ``link``."""
 
     def __init__(
         self,

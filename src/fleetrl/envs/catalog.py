@@ -45,11 +45,9 @@ class EnvSpec:
     name: str  # what ``--env`` names it by: a built-in's short name or ``package.module:factory``
     builder: UnitBuilder
     declared_target: float | None = None
-    """the score (weighted moving average of the last 10) that completes a worker's learning (None: the env
-    spec's ``reward_threshold``, else ``--target-score`` is needed)"""
+    """the score that completes a worker's learning (None: the env spec's ``reward_threshold``)"""
     fleet_profile: Callable[[str | None], str | None] | None = None
-    """the fleet profile a name chooses (None: the default; the name None where a run's settings leave it
-    unset), a ValueError for an unknown one; None if the unit type has a single fleet"""
+    """the fleet profile a name chooses (None: the default); None if the unit type has a single fleet"""
     builtin: bool = False
     device: str | None = None  # a built-in's simulated device type a bridge serves; None: a user's type
     takes_link: bool = False  # whether the builder takes a ``link`` (units behind a device bridge)
@@ -62,8 +60,7 @@ class EnvSpec:
         return f"env {self.name!r}" if self.builtin else f"unit factory {self.name!r}"
 
     def resolve_fleet_profile(self, name: str | None) -> str | None:
-        """The fleet profile a run of this env draws its units with (``name``, or the type's default; None
-        where the settings leave it unset); a ValueError if ``name`` is unknown or there are no profiles."""
+        """The fleet profile a run of this env draws its units with (``name``, or the type's default)."""
         if self.fleet_profile is not None:
             return self.fleet_profile(name)
         if name is not None:  # a user's unit type (every built-in has profiles)
@@ -136,16 +133,14 @@ def _qube_fleet_profile(name: str | None) -> str:
 
 
 def _cartpole_fleet_profile(name: str | None) -> str | None:
-    """CartPole's profile by name; its default, ``standard``, resolves to None, as CartPole runs' settings
-    held it before there were profiles (naming ``standard`` is the same run as naming nothing)."""
+    """CartPole's profile by name; its default, ``standard``, resolves to None, as before profiles."""
     chosen = cartpole_fleet_profile(name).name
     return None if chosen == DEFAULT_CARTPOLE_FLEET_PROFILE else chosen
 
 
 @dataclass(frozen=True)
 class LargeFleetUpdate:
-    """PPO settings a federated fleet of at least ``from_units`` units of one type learns with by default
-    (lab/tuning.md, "How the update scales with the fleet's batch")."""
+    """PPO settings a federated fleet of at least ``from_units`` units of one type learns with by default."""
 
     from_units: int
     settings: tuple[tuple[str, float | int], ...]
@@ -181,8 +176,7 @@ ENV_SPECS: dict[str, EnvSpec] = {
 
 
 def get_env_spec(name: str) -> EnvSpec:
-    """A built-in by short name, or a user's unit type by ``package.module:factory``; a ValueError that
-    lists the choices (or says what is wrong with the factory) otherwise."""
+    """A built-in by short name, or a user's unit type by ``package.module:factory``."""
     if name in ENV_SPECS:
         return ENV_SPECS[name]
     if is_factory_reference(name):
@@ -199,8 +193,7 @@ def get_env_spec(name: str) -> EnvSpec:
 
 @functools.lru_cache(maxsize=16)
 def describe_env(name: str, last_step: bool = False) -> UnitDescription:
-    """The description of unit 0 of fleet 0 of env ``name`` (built once per process and closed), its
-    observation with the last step in it if ``last_step``; a ValueError if it cannot be built or used."""
+    """The description of unit 0 of fleet 0 of env ``name`` (built once per process and closed)."""
     built = get_env_spec(name).make(0, 0, last_step=last_step)
     built.env.close()
     return built.description
@@ -216,8 +209,7 @@ def check_takes_link(env: EnvSpec) -> None:
 
 
 def bridge_driver(env: EnvSpec, device_driver: str | None) -> str | DriverFunction:
-    """What the bridges of ``env``'s units serve: the driver function ``device_driver`` names, else the
-    built-in's simulated device type; a ValueError saying what is missing or wrong otherwise."""
+    """What the bridges of ``env``'s units serve: a user's driver function, else the built-in's device."""
     check_takes_link(env)
     if device_driver is not None:
         function: DriverFunction = load_driver_function(device_driver)
@@ -246,8 +238,7 @@ def check_driver_fits(spec: DriverSpec, unit: UnitDescription, where: str) -> No
 
 
 def check_bridge_driver(driver: str | DriverFunction, unit: UnitDescription, fleet_seed: int = 0) -> None:
-    """Build unit 0's driver of a user's ``driver`` function (lockstep), check it fits ``unit`` and close
-    it; a ValueError that says what is wrong. A built-in's (a name) fits by construction."""
+    """Build unit 0's driver of a user's ``driver`` function, check it fits ``unit`` and close it."""
     if isinstance(driver, str):
         return
     served = driver_of(driver, 0, fleet_seed, realtime=False)

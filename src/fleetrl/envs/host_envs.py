@@ -53,8 +53,7 @@ _KINDS = (
 
 
 def batched_device(env: gymnasium.Env[Any, Any]) -> tuple[int, Any, int | None] | None:
-    """The batch kind (an index into the kinds), the in-process device and the episode cap (None: none) of
-    an env a batch can step, or None for any other env or where no batch of its type can step."""
+    """The batch kind, in-process device and episode cap of an env a batch can step, else None."""
     cap: int | None = None
     inner: Any = env
     while isinstance(inner, gymnasium.Wrapper):
@@ -125,8 +124,7 @@ class HostEnvs:
         return first
 
     def step(self, units: np.ndarray, actions: Sequence[Any] | np.ndarray) -> StepRows:
-        """Step every unit of ``units`` with its action (row j: ``actions[j]``, as its env takes it), all
-        reset before; the batched units in one call per batch, the others one by one."""
+        """Step every unit of ``units`` with its action (row j: ``actions[j]``), all reset before."""
         n = len(units)
         kinds = self._kind[units]
         dtype = self._obs_dtype if self._obs_dtype is not None else np.float32

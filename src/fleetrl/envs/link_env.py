@@ -28,8 +28,7 @@ def action_index(action: object, n_actions: int) -> int:
 
 
 def box_action(action: object, space: gymnasium.spaces.Box) -> np.ndarray:
-    """``action`` as a float32 vector of the box's shape, clipped to its bounds; a ValueError that says what
-    is allowed if it has another shape or a value that is not a finite number."""
+    """``action`` as a float32 vector of the box's shape, clipped to its bounds, or a ValueError."""
     if type(action) is np.ndarray and action.dtype == np.float32 and action.shape == space.shape:
         vector = action  # the common case (an agent's action), checked in a few µs
     else:
@@ -71,8 +70,7 @@ def line(
 
 
 class LinkEnv(gymnasium.Env[np.ndarray, Any]):
-    """A Gymnasium env whose device sits behind a ``DeviceLink``; subclasses judge each observation. Actions
-    are indices 0 .. ``n_actions`` − 1; a subclass with another action space overrides :meth:`link_action`."""
+    """A Gymnasium env whose device sits behind a ``DeviceLink``; subclasses judge each observation."""
 
     metadata: dict[str, Any] = {"render_modes": ["rgb_array"], "render_fps": 50}  # noqa: RUF012 (gymnasium's convention)
 
@@ -111,8 +109,7 @@ class LinkEnv(gymnasium.Env[np.ndarray, Any]):
     def reset(
         self, *, seed: int | None = None, options: dict[str, Any] | None = None
     ) -> tuple[np.ndarray, dict[str, Any]]:
-        """Seed (if given) and reset the device with a seed drawn from the env's generator; the info holds
-        ``reset_seconds``, what the reset took on a rig, where the link knows it."""
+        """Seed and reset the device; the info holds ``reset_seconds`` where the link knows it."""
         super().reset(seed=seed)
         device_seed = int(self.np_random.integers(0, 2**63 - 1))
         self._last_obs = self._link.reset(device_seed).copy()

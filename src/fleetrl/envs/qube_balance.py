@@ -83,8 +83,7 @@ class QubeBalanceEnv(LinkEnv):
 
 
 class QubeBalanceContinuousEnv(QubeBalanceEnv):
-    """Balance one QUBE unit commanding the motor voltage: ``[volts]`` in ``Box(-action_volts,
-    +action_volts, (1,))``, clipped beyond it; ``action_volts`` at most the amplifier's ``max_volts``."""
+    """Balance one QUBE unit commanding the motor voltage, ``[volts]`` within ±``action_volts``."""
 
     index_actions = 0
 

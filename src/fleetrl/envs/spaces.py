@@ -39,8 +39,7 @@ class UnitDescription:
     reward_threshold: float | None  # ``env.spec.reward_threshold``
     env_id: str | None  # ``env.spec.id`` (None: the env was not made from a registered id)
     sensor_size: int | None = None
-    """``env.unwrapped.sensor_size``: the length of the device's sensor vector, declared by an env that
-    composes its observation from it and its own task state (None: the observation is the vector)"""
+    """``env.unwrapped.sensor_size``: the device's sensor vector's length (None: the observation's)"""
 
     @property
     def obs_dim(self) -> int:
@@ -54,8 +53,7 @@ class UnitDescription:
 
 
 def describe_unit(env: object, where: str) -> UnitDescription:
-    """``env``'s description (what a unit factory returned), or a ValueError naming ``where`` it came from
-    (e.g. ``"env 'pkg.units:factory' unit 0"``) and what is supported."""
+    """``env``'s description, or a ValueError naming ``where`` it came from and what is supported."""
     if not isinstance(env, gymnasium.Env):
         raise ValueError(f"{where} is a {type(env).__name__}, not a gymnasium.Env")
     obs = env.observation_space

@@ -15,8 +15,7 @@ from collections.abc import Callable
 from typing import Any
 
 UnitFactory = Callable[..., Any]
-"""``factory(unit, fleet_seed, link=None)``: builds unit ``unit`` of fleet ``fleet_seed`` (it must be a
-gymnasium.Env); the ``link`` keyword is optional"""
+"""``factory(unit, fleet_seed, link=None) -> gymnasium.Env``; the ``link`` keyword is optional"""
 
 FACTORY_FORM = "package.module:factory"
 SIGNATURE = "factory(unit: int, fleet_seed: int, link=None) -> gymnasium.Env"
@@ -32,15 +31,13 @@ def is_factory_reference(text: str) -> bool:
 
 
 def load_factory(text: str) -> UnitFactory:
-    """The callable ``text`` (``package.module:factory``) names; otherwise a ValueError saying what is
-    wrong."""
+    """The callable ``text`` (``package.module:factory``) names, or a ValueError saying what is wrong."""
     factory: UnitFactory = load_callable(text, f"unit factory {text!r}", FACTORY_FORM, SIGNATURE)
     return factory
 
 
 def load_driver_function(text: str) -> Callable[..., Any]:
-    """The driver function ``text`` (``package.module:function``) names; otherwise a ValueError saying what
-    is wrong."""
+    """The driver function ``text`` (``package.module:function``) names, or a ValueError."""
     return load_callable(text, f"device driver {text!r}", DRIVER_FORM, DRIVER_SIGNATURE)
 
 
@@ -57,8 +54,7 @@ def takes_link(factory: Callable[..., Any]) -> bool:
 
 
 def load_callable(text: str, what: str, form: str, signature: str) -> Any:
-    """The callable ``text`` (``package.module:attr``) names, described as ``what`` in errors; otherwise a
-    ValueError that says what is wrong (the expected ``form`` and ``signature`` in it)."""
+    """The callable ``text`` (``package.module:attr``) names, or a ValueError naming ``what``."""
     match = _REFERENCE.fullmatch(text)
     if match is None:
         raise ValueError(f"{what} is not in {form} form")

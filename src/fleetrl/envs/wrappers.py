@@ -91,8 +91,7 @@ class PacedEnv(gymnasium.Wrapper[Any, Any, Any, Any]):
         self._due: float | None = None  # when the last step was due to return (None before the first reset)
 
     def reset(self, **kwargs: Any) -> tuple[Any, dict[str, Any]]:
-        """Reset the unit and wait until its time on the rig, scaled, has passed since the reset began; the
-        episode's clock starts when the reset returns."""
+        """Reset the unit and wait until its time on the rig, scaled, has passed since the reset began."""
         began = self._clock()
         obs, info = self.env.reset(**kwargs)
         due = began + float(info.get("reset_seconds", 0.0)) * self.reset_scale
@@ -114,8 +113,7 @@ class PacedEnv(gymnasium.Wrapper[Any, Any, Any, Any]):
 
 
 class StalledEnv(gymnasium.Wrapper[Any, Any, Any, Any]):
-    """``env`` whose steps and resets first call ``wait`` (:meth:`~fleetrl.runs.uneven.Stall.wait`: returns
-    when the unit is not paused), so no step of its device happens during a pause."""
+    """``env`` whose steps and resets first call ``wait`` (a stalling unit's: returns when not paused)."""
 
     def __init__(self, env: gymnasium.Env[Any, Any], wait: Callable[[], Any]) -> None:
         super().__init__(env)

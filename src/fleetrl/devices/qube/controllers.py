@@ -150,8 +150,7 @@ def reset_phase_step(
 
 
 class ResetPhases:
-    """The device-side reset's phase machine fed one reading at a time (from Python, e.g. a driver's loop),
-    ``period`` seconds apart, ended by ``settle_periods`` readings in a row inside the settle windows."""
+    """The device-side reset's phase machine fed one reading at a time, ``period`` seconds apart."""
 
     def __init__(self, period: float, settle_periods: int, constants: np.ndarray | None = None) -> None:
         self.constants = controller_constants() if constants is None else constants
@@ -186,8 +185,7 @@ def device_reset(
     max_periods: int,
     settle_periods: int,
 ) -> tuple[int, float]:
-    """Swing up, catch and settle; return the periods used (−1 if not settled within ``max_periods``)
-    and the largest |arm angle| reading seen (rad)."""
+    """Swing up, catch and settle: the periods used (−1: not settled in time) and the arm's travel (rad)."""
     walk = k[G_RECENTRE] * settings[P_H] * settings[P_NSUB]
     memory = np.empty(N_RESET_MEMORY, dtype=np.float64)
     reset_phase_start(memory, sensor[S_ALPHA])

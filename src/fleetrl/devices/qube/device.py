@@ -87,8 +87,7 @@ class QubeDevice:
         *,
         profile: str | None = None,
     ) -> "QubeDevice":
-        """Unit ``unit`` of fleet ``fleet_seed``, drawn with ``variation`` or fleet profile ``profile`` (None:
-        the default)."""
+        """Unit ``unit`` of fleet ``fleet_seed``, drawn with ``variation`` or fleet profile ``profile``."""
         if variation is not None and profile is not None:
             raise ValueError("give a fleet profile or a variation, not both")
         chosen = variation if variation is not None else fleet_profile(profile).variation
@@ -158,8 +157,7 @@ class QubeDevice:
         return self.last_reset_seconds + (HAND_RESET_SECONDS if self.last_reset_by_hand else 0.0)
 
     def _settle(self, seconds: float) -> tuple[int, float]:
-        """The device-side reset's controllers from the present state for at most ``seconds``: the periods
-        used (−1: not settled in time) and the arm's travel."""
+        """The reset's controllers for at most ``seconds``: periods used (−1: not settled), arm travel."""
         period = self.config.device_period
         return device_reset(
             self._state,
@@ -239,8 +237,7 @@ def _step_rows(
 
 
 class QubeBatch:
-    """The devices ``devices`` (row i: ``devices[i]``) stepped together; the batch holds each unit's state and
-    sensor pipeline while it steps it (:meth:`load` takes them from its device, :meth:`store` hands back)."""
+    """The devices ``devices`` stepped together, row i ``devices[i]``, each state held while it steps."""
 
     def __init__(self, devices: Sequence[QubeDevice]) -> None:
         if not devices:
@@ -272,8 +269,7 @@ class QubeBatch:
         return self._sensor[row].copy()
 
     def step(self, rows: np.ndarray, actions: np.ndarray) -> np.ndarray:
-        """One control period for the units ``rows`` with action indices ``actions`` (0, 1, 2); their new
-        observations (float32, one row per unit of ``rows``)."""
+        """One control period for the units ``rows`` with action indices ``actions``: their observations."""
         indices = np.asarray(actions, dtype=np.int64)
         if indices.size and not bool(np.all((indices >= 0) & (indices <= 2))):
             bad = int(indices[(indices < 0) | (indices > 2)][0])

@@ -31,8 +31,7 @@ def pipeline_settings(
     delay: bool,
     max_volts: float,
 ) -> np.ndarray:
-    """Pack one control period's settings for the kernels (``velocity_filter``: the cut-off (rad/s) of the
-    first-order velocity filter, or None for a finite difference over the period)."""
+    """Pack one control period's settings (``velocity_filter`` None: a finite difference over the period)."""
     n = max(1, math.ceil(period / max_substep - 1e-9))
     h = period / n
     coeff = 0.0 if velocity_filter is None else 1.0 - math.exp(-velocity_filter * h)
@@ -179,8 +178,7 @@ def agent_step(
 def physics_batch(
     states: np.ndarray, coefficients: np.ndarray, volts: np.ndarray, n_periods: int, n_sub: int, h: float
 ) -> None:
-    """Raw physics for many units over numba's threads: each row of ``states`` advances ``n_periods`` control
-    periods of ``n_sub`` RK4 steps at its own constant voltage and its own row of ``coefficients``."""
+    """Raw physics: each row of ``states`` advances ``n_periods`` periods at its own constant voltage."""
     for i in prange(states.shape[0]):
         x = states[i]
         c = coefficients[i]
