@@ -1,7 +1,6 @@
 """``fleetrl control``: a saved policy run greedily on one unit through its driver, served by a device bridge
 in this process (main thread, so an interrupt stops it) and reached through a worker's link by the policy
-(a second thread): it sees what a worker's agent would, the unit keeps every safety of the bridge.
-"""
+(a second thread): it sees what a worker's agent would, the unit keeps every safety of the bridge."""
 
 from __future__ import annotations
 

@@ -1,8 +1,7 @@
 """``fleetrl export``: a model file's greedy policy written as an ONNX graph (opset 17) built node by node
 from the actor's weights (``observation`` in; ``action`` out, a discrete action's index or a box's clipped
 mean; ``fleetrl`` metadata), then checked: onnxruntime must pick fleetrl's actions on observations half from
-the unit's own episodes and half drawn around them (a box's within a float32 tolerance).
-"""
+the unit's own episodes and half drawn around them (a box's within a float32 tolerance)."""
 
 from __future__ import annotations
 

@@ -1,8 +1,7 @@
 """CartPole units: Gymnasium CartPole-v1 physics (``gymnasium.envs.classic_control.CartPoleEnv``: its
 equations, constants, start states and Euler integrator) with per-unit cart mass, pole mass, pole length and
 push force, and the named fleet profiles they are drawn with: ``standard`` (each ±10 %, the default) and
-``wide`` (each ±40 %, a fleet of mixed builds).
-"""
+``wide`` (each ±40 %, a fleet of mixed builds)."""
 
 import math
 from dataclasses import dataclass

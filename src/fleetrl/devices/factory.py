@@ -16,11 +16,8 @@ def make_device(
     fleet_profile: str | None = None,
     **config: object,
 ) -> QubeDevice | CartPoleDevice:
-    """Unit ``unit`` of fleet ``fleet_seed`` of type ``qube`` or ``cartpole``.
-
-    ``fleet_profile`` names a fleet profile of the unit type (None: its default); ``config`` holds
-    ``QubeConfig`` fields for a QUBE (a CartPole takes none).
-    """
+    """Unit ``unit`` of fleet ``fleet_seed`` of type ``qube`` or ``cartpole``, drawn with ``fleet_profile``
+    (None: its default); ``config`` holds ``QubeConfig`` fields for a QUBE (a CartPole takes none)."""
     unit, fleet_seed = check_unit(unit, fleet_seed)
     if unit_type == "qube":
         return QubeDevice.from_fleet(unit, fleet_seed, qube_config(**config), profile=fleet_profile)

@@ -1,8 +1,7 @@
 """The paper's homogeneity test (section 5.3, Table 2) on simulated units. QUBE units get the same seeded
 sequence of motor impulses from rest and their arm's and pendulum's encoder changes are correlated (1 for
 identical units). CartPole units play the same seeded trials (start state and pushes), each afresh as an
-episode is, and pairs compare their cart and pole changes by correlation and by relative difference.
-"""
+episode is, and pairs compare their cart and pole changes by correlation and by relative difference."""
 
 import csv
 import math

@@ -1,6 +1,5 @@
 """``fleetrl/CartPoleUnit-v0``: CartPole-v1 (observation, actions, reward, termination) on one unit of a fleet
-whose units differ by up to ±10 % (the ``standard`` fleet profile; ``wide``: ±40 %).
-"""
+whose units differ by up to ±10 % (the ``standard`` fleet profile; ``wide``: ±40 %)."""
 
 import math
 

@@ -1,7 +1,6 @@
 """The unit types a fleet can train on, each an :class:`EnvSpec`: the built-ins by their short names and a
 user's own ``package.module:factory``, every unit built and checked by :meth:`EnvSpec.make`; and their
-device side behind device bridges (a built-in's simulated units or a user's driver function).
-"""
+device side behind device bridges (a built-in's simulated units or a user's driver function)."""
 
 from __future__ import annotations
 

@@ -1,7 +1,6 @@
 """``fleetrl/QubeBalance-v0``: balance an (already swung-up) QUBE-Servo 2 pendulum, as in the paper, and
 ``fleetrl/QubeBalanceContinuous-v0``, the same task with the motor voltage as a continuous action.
-Observation: pendulum angle (0 upright) and velocity, motor angle and velocity, as the encoders read them.
-"""
+Observation: pendulum angle (0 upright) and velocity, motor angle and velocity, as the encoders read them."""
 
 import math
 

@@ -1,8 +1,7 @@
 """A user's unit type named on the command line: ``--env package.module:factory`` with ``factory(unit,
 fleet_seed, link=None) -> gymnasium.Env``, and its device side ``--device-driver package.module:function``
 with ``driver(unit, fleet_seed, *, realtime) -> DeviceDriver``. Modules are imported as ``python -m`` would;
-a text that names no such callable is a one-line ValueError.
-"""
+a text that names no such callable is a one-line ValueError."""
 
 from __future__ import annotations
 

@@ -1,7 +1,6 @@
 """Wrappers of a unit's env: its observation with its last step in it (``LastStep``, the ``last_step``
 setting), a unit paced in real time as on the rig (``PacedEnv``), and one that stalls at times
-(``StalledEnv``, ``--stall``). Pacing and stalls change nothing the env computes, only when.
-"""
+(``StalledEnv``, ``--stall``). Pacing and stalls change nothing the env computes, only when."""
 
 from __future__ import annotations
 

@@ -1,7 +1,6 @@
 """The rig's device-side controllers, Quanser's balance law and an energy swing-up, reading the sensor
 pipeline with nominal parameters as a real unit does; ``reset_phase_step`` is one reading's reset phase
-logic, looped compiled by ``device_reset`` and from Python by ``ResetPhases``.
-"""
+logic, looped compiled by ``device_reset`` and from Python by ``ResetPhases``."""
 
 import math
 

@@ -121,8 +121,7 @@ class QubeDevice:
         """Device-side reset like the rig: from a (seeded) hanging start, swing up, catch, settle; where the
         swing-up has not settled within ``config.reset_timeout`` the pendulum is put upright by hand (at
         rest, arm centred) and settled. Returns the first observation (a buffer the device reuses).
-        Raises DeviceResetError if that has not settled within :data:`HAND_SETTLE_SECONDS` either.
-        """
+        Raises DeviceResetError if that has not settled within :data:`HAND_SETTLE_SECONDS` either."""
         rng = np.random.default_rng(seed)
         angle, rate = RESET_PERTURBATION
         self.set_state(np.array([0.0, math.pi + rng.uniform(-angle, angle), 0.0, rng.uniform(-rate, rate)]))

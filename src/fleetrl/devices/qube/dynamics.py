@@ -1,6 +1,5 @@
 """Compiled QUBE-Servo 2 physics and sensor pipeline, one allocation-free numba call per control period:
-``reference/qube-servo2-model.md``'s equations on float64 states ``[theta, alpha, theta_dot, alpha_dot]``.
-"""
+``reference/qube-servo2-model.md``'s equations on float64 states ``[theta, alpha, theta_dot, alpha_dot]``."""
 
 import math
 

@@ -1,7 +1,6 @@
 """QUBE-Servo 2 parameters: a unit's physical constants, the simulator's configuration, per-unit deviations
 drawn from (fleet_seed, unit) and the named fleet profiles. Nominal values are from
-``reference/qube-servo2-model.md``; docs/devices.md lists every value with its source and deviation.
-"""
+``reference/qube-servo2-model.md``; docs/devices.md lists every value with its source and deviation."""
 
 import math
 from dataclasses import dataclass, fields
