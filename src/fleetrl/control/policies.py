@@ -25,7 +25,7 @@ class GreedyPolicy(Protocol):
     obs_dim: int
     action_space: ActionSpace
     env: str | None  # the env the policy names (an exported file's metadata; None: not recorded)
-    last_step: bool  # its observation holds the unit's last step (:mod:`fleetrl.envs.last_step`)
+    last_step: bool  # its observation holds the unit's last step (:class:`~fleetrl.envs.wrappers.LastStep`)
 
     def act(self, obs: np.ndarray) -> Any:
         """The greedy action for one observation."""
