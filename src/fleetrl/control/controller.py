@@ -4,7 +4,6 @@ in this process (main thread, so an interrupt stops it) and reached through a wo
 
 from __future__ import annotations
 
-import logging
 import threading
 from collections.abc import Callable
 
@@ -14,8 +13,6 @@ from fleetrl.link.bridge import WATCHDOG_SECONDS, DeviceBridge
 from fleetrl.link.driver import DeviceDriver
 from fleetrl.link.mqtt import MqttLink
 from fleetrl.transport.local import LocalBus
-
-log = logging.getLogger(__name__)
 
 RUN_ID = "control"  # the run id of the in-process bus's device topics
 JOIN_SECONDS = 5.0  # how long the controller waits for the policy's thread once the bridge has closed

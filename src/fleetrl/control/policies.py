@@ -4,6 +4,7 @@ and ``fleetrl control`` play."""
 
 from __future__ import annotations
 
+import functools
 import json
 from collections.abc import Callable
 from pathlib import Path
@@ -41,11 +42,9 @@ class ModelPolicy:
         self.obs_dim = policy.obs_dim
         self.action_space = policy.action_space
         self.last_step = policy.last_step
-        self._numpy = policy.numpy_policy()
-        self._act = self._numpy.act_greedy if self.action_space.is_discrete else self._continuous
-
-    def _continuous(self, obs: np.ndarray) -> np.ndarray:
-        return self._numpy.act_continuous(obs, None)
+        numpy_policy = policy.numpy_policy()
+        greedy = functools.partial(numpy_policy.act_continuous, z=None)
+        self._act = numpy_policy.act_greedy if self.action_space.is_discrete else greedy
 
     def act(self, obs: np.ndarray) -> Any:
         """The arg-max action index, or the Gaussian's mean clipped to the box."""

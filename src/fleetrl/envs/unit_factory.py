@@ -58,8 +58,19 @@ def load_callable(text: str, what: str, form: str, signature: str) -> Any:
     if match is None:
         raise ValueError(f"{what} is not in {form} form")
     module_name, attr = match["module"], match["attr"]
-    module = _import(module_name, what)
-    target: Any = module
+    here = os.getcwd()
+    if here not in sys.path and "" not in sys.path:  # as `python -m` would: the current directory first
+        sys.path.insert(0, here)
+    try:
+        target: Any = importlib.import_module(module_name)
+    except ImportError as err:
+        raise ValueError(
+            f"{what}: cannot import module {module_name!r} ({type(err).__name__}: {err})"
+        ) from None
+    except Exception as err:  # the module's own code failed while importing
+        raise ValueError(
+            f"{what}: importing module {module_name!r} raised {type(err).__name__}: {err}"
+        ) from None
     for part in attr.split("."):
         if not hasattr(target, part):
             raise ValueError(f"{what}: module {module_name!r} has no attribute {attr!r}")
@@ -69,19 +80,3 @@ def load_callable(text: str, what: str, form: str, signature: str) -> Any:
             f"{what}: {attr!r} is a {type(target).__name__}, not callable (it must be {signature})"
         )
     return target
-
-
-def _import(module_name: str, what: str) -> Any:
-    here = os.getcwd()
-    if here not in sys.path and "" not in sys.path:  # as `python -m` would: the current directory first
-        sys.path.insert(0, here)
-    try:
-        return importlib.import_module(module_name)
-    except ImportError as err:
-        raise ValueError(
-            f"{what}: cannot import module {module_name!r} ({type(err).__name__}: {err})"
-        ) from None
-    except Exception as err:  # the module's own code failed while importing
-        raise ValueError(
-            f"{what}: importing module {module_name!r} raised {type(err).__name__}: {err}"
-        ) from None
