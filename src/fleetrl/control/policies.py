@@ -15,7 +15,7 @@ import numpy as np
 
 from fleetrl.agent.action_space import ActionSpace
 from fleetrl.agent.policy_file import PolicyFile, read_policy_file
-from fleetrl.envs.spaces import UnitDescription
+from fleetrl.envs.catalog import UnitDescription
 
 ONNX_HINT = "pip install 'fleetrl[onnx]'"
 

@@ -10,8 +10,7 @@ from fleetrl.agent.config import PPOConfig
 from fleetrl.agent.criterion import CompletionCriterion
 from fleetrl.agent.learner import Learner
 from fleetrl.agent.ppo import PPOAgent
-from fleetrl.envs.catalog import describe_env, get_env_spec
-from fleetrl.envs.spaces import UnitDescription
+from fleetrl.envs.catalog import UnitDescription, describe_env, get_env_spec
 from fleetrl.envs.wrappers import PacedEnv, StalledEnv
 from fleetrl.link.mqtt import MqttLink, open_mqtt_link
 from fleetrl.runs.spec import WorkerSpec
