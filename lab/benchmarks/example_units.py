@@ -38,7 +38,7 @@ from fleetrl import portable  # noqa: E402
 from fleetrl.agent.action_space import ActionSpace  # noqa: E402
 from fleetrl.agent.config import get_preset  # noqa: E402
 from fleetrl.agent.ppo import PPOAgent  # noqa: E402
-from fleetrl.control.episodes import greedy_scores  # noqa: E402
+from fleetrl.control.policies import greedy_scores  # noqa: E402
 from fleetrl.transport.broker import EmbeddedBroker  # noqa: E402
 
 FACTORY = "fleet_dc_motor.units:factory"

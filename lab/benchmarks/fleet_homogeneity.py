@@ -59,10 +59,9 @@ import argparse
 
 import numpy as np
 
-from fleetrl.devices.cartpole_homogeneity import pooled_cartpole_homogeneity
-from fleetrl.devices.cartpole_profiles import CARTPOLE_FLEET_PROFILES, DEFAULT_CARTPOLE_FLEET_PROFILE
-from fleetrl.devices.homogeneity import pooled_homogeneity
-from fleetrl.devices.qube.fleet_profiles import DEFAULT_FLEET_PROFILE, FLEET_PROFILES
+from fleetrl.devices.cartpole import CARTPOLE_FLEET_PROFILES, DEFAULT_CARTPOLE_FLEET_PROFILE
+from fleetrl.devices.homogeneity import pooled_cartpole_homogeneity, pooled_homogeneity
+from fleetrl.devices.qube.params import DEFAULT_FLEET_PROFILE, FLEET_PROFILES
 
 PAPER = {"motor": (0.75, 0.86), "pendulum": (0.96, 0.98)}
 """off-diagonal ranges of the paper's Table 2 (three real units)"""

@@ -13,7 +13,7 @@ import numpy as np
 
 import fleetrl  # noqa: F401  (registers the envs)
 from fleetrl.devices.qube.dynamics import physics_batch, pipeline_settings
-from fleetrl.devices.qube.units import qube_unit_params
+from fleetrl.devices.qube.params import qube_unit_params
 from fleetrl.envs.registration import QUBE_BALANCE_ID
 
 

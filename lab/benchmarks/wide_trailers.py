@@ -18,9 +18,7 @@ from pathlib import Path
 import numpy as np
 from wide_fleet import parse_pairs, records_dir
 
-from fleetrl.devices.qube.fleet_profiles import fleet_profile
-from fleetrl.devices.qube.params import NOMINAL
-from fleetrl.devices.qube.units import qube_unit_params
+from fleetrl.devices.qube.params import NOMINAL, fleet_profile, qube_unit_params
 from fleetrl.runs.rig_time import reset_seconds
 
 COLUMNS = ("authority", "dead zone V", "cable N·m/rad", "pendulum m·L", "swing-up s")

@@ -13,9 +13,8 @@ import pytest
 
 from fleetrl.agent.ppo import PPOAgent
 from fleetrl.control.controller import run_on_unit
-from fleetrl.control.episodes import greedy_scores
 from fleetrl.control.export import export_policy
-from fleetrl.control.policies import GreedyPolicy, load_policy
+from fleetrl.control.policies import GreedyPolicy, greedy_scores, load_policy
 from fleetrl.envs.catalog import get_env_spec
 from fleetrl.link.driver import SimulatedDriver, simulated_driver
 from fleetrl.runs.evaluate import evaluate_model

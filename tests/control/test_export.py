@@ -15,7 +15,7 @@ from onnx import numpy_helper
 from fleetrl.agent.policy_file import read_policy_file
 from fleetrl.agent.ppo import PPOAgent
 from fleetrl.cli.main import main
-from fleetrl.control import export, onnx_graph
+from fleetrl.control import export
 from fleetrl.control.export import draw_observations, export_policy
 from fleetrl.envs.catalog import get_env_spec
 
@@ -97,7 +97,7 @@ def test_a_graph_that_disagrees_fails_the_check_and_is_not_written(
     capsys: pytest.CaptureFixture[str],
     monkeypatch: pytest.MonkeyPatch,
 ) -> None:
-    original = onnx_graph.policy_graph
+    original = export.policy_graph
 
     def flipped(*args: object, **kwargs: object) -> onnx.ModelProto:  # the policy head's weights negated
         model = original(*args, **kwargs)  # type: ignore[arg-type]

@@ -5,12 +5,15 @@ from dataclasses import astuple, fields
 import numpy as np
 import pytest
 
-from fleetrl.devices.cartpole import CARTPOLE_NOMINAL, CartPoleDevice, CartPoleParams, cartpole_unit_params
-from fleetrl.devices.cartpole_profiles import (
+from fleetrl.devices.cartpole import (
     CARTPOLE_FLEET_PROFILES,
+    CARTPOLE_NOMINAL,
     DEFAULT_CARTPOLE_FLEET_PROFILE,
+    CartPoleDevice,
+    CartPoleParams,
     CartPoleVariation,
     cartpole_fleet_profile,
+    cartpole_unit_params,
 )
 from fleetrl.devices.factory import make_device
 from fleetrl.devices.variation import CARTPOLE_FAMILY, unit_generator

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from fleetrl.devices.cartpole import CartPoleDevice
-from fleetrl.devices.cartpole_homogeneity import (
+from fleetrl.devices.homogeneity import (
     START_SPAN,
     cartpole_changes,
     correlation,

@@ -8,9 +8,14 @@ import pytest
 
 from fleetrl.devices.homogeneity import homogeneity_test, pooled_homogeneity
 from fleetrl.devices.qube.device import QubeDevice
-from fleetrl.devices.qube.fleet_profiles import DEFAULT_FLEET_PROFILE, FLEET_PROFILES, fleet_profile
-from fleetrl.devices.qube.params import NOMINAL
-from fleetrl.devices.qube.units import QubeVariation, qube_unit_params
+from fleetrl.devices.qube.params import (
+    DEFAULT_FLEET_PROFILE,
+    FLEET_PROFILES,
+    NOMINAL,
+    QubeVariation,
+    fleet_profile,
+    qube_unit_params,
+)
 
 # the paper's Table 2 (three real units): off-diagonal motor 0.75-0.86, pendulum 0.96-0.98
 TABLE2_MOTOR = (0.75, 0.86)

@@ -5,8 +5,7 @@ import numpy as np
 import pytest
 from batch_checks import steps_match_alone
 
-from fleetrl.devices.qube.batch import QubeBatch
-from fleetrl.devices.qube.device import QubeDevice
+from fleetrl.devices.qube.device import QubeBatch, QubeDevice
 from fleetrl.devices.qube.params import qube_config
 
 

@@ -9,9 +9,7 @@ import pytest
 
 from fleetrl.devices.qube.controllers import BALANCE_GAINS
 from fleetrl.devices.qube.device import QubeDevice
-from fleetrl.devices.qube.fleet_profiles import FLEET_PROFILES
-from fleetrl.devices.qube.params import NOMINAL, QubeConfig
-from fleetrl.devices.qube.units import qube_unit_params
+from fleetrl.devices.qube.params import FLEET_PROFILES, NOMINAL, QubeConfig, qube_unit_params
 
 FLEET = range(10)
 PROFILES = sorted(FLEET_PROFILES)

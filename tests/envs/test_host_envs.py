@@ -18,9 +18,9 @@ from fleetrl.agent.row_acting import FEW_ROWS
 from fleetrl.devices.cartpole import CartPoleDevice
 from fleetrl.envs.cartpole_unit import CartPoleUnitEnv
 from fleetrl.envs.host_envs import HostEnvs, batched_device
-from fleetrl.envs.paced import PacedEnv
 from fleetrl.envs.qube_balance import QubeBalanceEnv
 from fleetrl.envs.registration import CARTPOLE_UNIT_ID, QUBE_BALANCE_CONTINUOUS_ID, QUBE_BALANCE_ID
+from fleetrl.envs.wrappers import PacedEnv
 from fleetrl.link.base import NO_INFO
 
 

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from fleetrl.envs.catalog import describe_env, get_env_spec
-from fleetrl.envs.last_step import LastStep
+from fleetrl.envs.wrappers import LastStep
 
 
 def test_an_observation_holds_the_last_observation_and_the_one_hot_action_that_followed_it() -> None:

@@ -11,8 +11,8 @@ import pytest
 
 from fleetrl.devices.qube.device import HAND_RESET_SECONDS
 from fleetrl.envs.catalog import get_env_spec
-from fleetrl.envs.paced import PacedEnv
 from fleetrl.envs.registration import CARTPOLE_UNIT_ID
+from fleetrl.envs.wrappers import PacedEnv
 
 
 class FakeTime:

@@ -8,8 +8,7 @@ import pytest
 from gymnasium.utils.env_checker import check_env
 
 import fleetrl  # noqa: F401  (registers the envs)
-from fleetrl.envs.qube_balance import QubeBalanceEnv
-from fleetrl.envs.qube_continuous import ACTION_VOLTS, QubeBalanceContinuousEnv
+from fleetrl.envs.qube_balance import ACTION_VOLTS, QubeBalanceContinuousEnv, QubeBalanceEnv
 from fleetrl.envs.registration import QUBE_BALANCE_CONTINUOUS_ID, QUBE_EPISODE_CAP
 from fleetrl.link.inprocess import InProcessLink
 

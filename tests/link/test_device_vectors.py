@@ -15,7 +15,7 @@ import pytest
 from slider_units import SLIDER_ID, SliderDevice, SliderEnv, driver
 from trajectory_helpers import assert_same, run_episodes
 
-from fleetrl.envs.qube_continuous import QubeBalanceContinuousEnv
+from fleetrl.envs.qube_balance import QubeBalanceContinuousEnv
 from fleetrl.link.bridge import DeviceBridge
 from fleetrl.link.driver import DeviceDriver, SimulatedDriver, driver_of, simulated_driver
 from fleetrl.link.mqtt import DeviceLinkError, MqttLink

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from fleetrl.agent.learner import Learner
-from fleetrl.envs.stalled import StalledEnv
+from fleetrl.envs.wrappers import StalledEnv
 from fleetrl.runs.factory import make_learner
 from fleetrl.runs.launch import worker_specs
 from fleetrl.runs.settings import RunSettings

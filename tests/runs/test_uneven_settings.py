@@ -14,7 +14,7 @@ import pytest
 from fleetrl.cli.main import build_parser, main
 from fleetrl.cli.settings_args import settings_from_args
 from fleetrl.envs.catalog import CARTPOLE_CONTROL_PERIOD, QUBE_CONTROL_PERIOD
-from fleetrl.envs.paced import PacedEnv
+from fleetrl.envs.wrappers import PacedEnv
 from fleetrl.federation.shared_settings import shared_text
 from fleetrl.runs.factory import make_learner
 from fleetrl.runs.launch import worker_specs

@@ -6,8 +6,8 @@ from __future__ import annotations
 
 import gymnasium
 
-from fleetrl.envs.last_step import LastStep
 from fleetrl.envs.registration import QUBE_BALANCE_ID, register_envs
+from fleetrl.envs.wrappers import LastStep
 
 
 def qube_wide(unit: int, fleet_seed: int) -> gymnasium.Env:

@@ -12,7 +12,7 @@ import gymnasium
 import numpy as np
 
 if TYPE_CHECKING:
-    from fleetrl.envs.spaces import ActionSpec
+    from fleetrl.envs.catalog import ActionSpec
 
 DISCRETE = "discrete"
 BOX = "box"

@@ -219,7 +219,7 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
 def bridge_link(args: argparse.Namespace) -> Callable[[], Any]:
     """``evaluate --broker URL``: its settings checked now (exit 2), and what opens a device link to the
     bridge of ``--unit`` under ``--run-id``."""
-    from fleetrl.envs.device_side import check_takes_link
+    from fleetrl.envs.catalog import check_takes_link
     from fleetrl.runs.factory import bridge_link as open_bridge_link
     from fleetrl.transport.mqtt import MqttTransport
 

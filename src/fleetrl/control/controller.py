@@ -1,42 +1,29 @@
-"""``fleetrl control``: a saved policy run greedily on one unit, at its control period, through its driver.
-
-The unit is served by the device bridge itself, in this process, and its env reaches it through the link a
-worker uses, so the policy sees what a worker's agent would and the unit keeps every safety of the bridge
-(docs/on-device.md). The bridge runs in the main thread, so an interrupt stops it; the policy plays in a
-second thread.
-"""
+"""``fleetrl control``: a saved policy run greedily on one unit through its driver, served by a device bridge
+in this process (main thread, so an interrupt stops it) and reached through a worker's link by the policy
+(a second thread): it sees what a worker's agent would, the unit keeps every safety of the bridge."""
 
 from __future__ import annotations
 
-import logging
 import threading
 from collections.abc import Callable
 
-from fleetrl.control.episodes import greedy_scores
-from fleetrl.control.policies import GreedyPolicy, check_fits
-from fleetrl.envs.catalog import describe_env, get_env_spec
-from fleetrl.envs.device_side import check_driver_fits, check_takes_link
+from fleetrl.control.policies import GreedyPolicy, check_fits, greedy_scores
+from fleetrl.envs.catalog import check_driver_fits, check_takes_link, describe_env, get_env_spec
 from fleetrl.link.bridge import WATCHDOG_SECONDS, DeviceBridge
 from fleetrl.link.driver import DeviceDriver
 from fleetrl.link.mqtt import MqttLink
 from fleetrl.transport.local import LocalBus
 
-log = logging.getLogger(__name__)
-
-RUN_ID = "control"
-"""the run id of the in-process bus's device topics"""
-JOIN_SECONDS = 5.0
-"""how long the controller waits for the policy's thread once the bridge has closed"""
+RUN_ID = "control"  # the run id of the in-process bus's device topics
+JOIN_SECONDS = 5.0  # how long the controller waits for the policy's thread once the bridge has closed
 
 
 class _Episodes:
-    """The policy's side, in a thread: the unit's env over a link to the bridge, ``greedy_scores`` on it;
-    when the episodes end (or fail) it asks the bridge to stop."""
+    """The policy's side, in a thread; when its episodes end (or fail) it asks the bridge to stop."""
 
     def __init__(self, bridge: DeviceBridge, play: Callable[[], list[float]]) -> None:
         self.scores: list[float] = []
-        self.error: BaseException | None = None
-        """what ended the episodes early"""
+        self.error: BaseException | None = None  # what ended the episodes early
         self._bridge, self._play = bridge, play
         self._thread = threading.Thread(target=self._run, name="fleetrl-control-policy", daemon=True)
         self._thread.start()
@@ -68,12 +55,8 @@ def run_on_unit(
     report: Callable[[int, float], None] | None = None,
 ) -> list[float]:
     """The scores of ``episodes`` greedy episodes of ``policy`` on the unit ``driver`` drives, judged by
-    ``env``'s reward (episode ``k`` resets with seed ``seed + k``; ``report(k, score)`` as each ends). The
-    driver is closed (motor off) when this returns or raises.
-
-    :raises ValueError: the policy or the driver does not fit ``env`` (nothing has moved)
-    :raises OSError: the unit failed (a driver fault, a refused step or reset): the motor is off
-    """
+    ``env``'s reward (as :func:`greedy_scores`); the driver is closed (motor off) when this returns or raises:
+    a ValueError if the policy or the driver does not fit ``env``, an OSError if the unit failed."""
     try:
         if episodes < 1:
             raise ValueError(f"--episodes must be at least 1, got {episodes}")
@@ -96,8 +79,7 @@ def run_on_unit(
         finally:
             gym_env.close()
 
-    # The bridge runs in this (the main) thread, as under `fleetrl device`: Ctrl-C and SIGTERM interrupt it
-    # wherever it is — a device-side reset included — and it switches the motor off on the way out.
+    # the bridge runs in the main thread: Ctrl-C and SIGTERM interrupt it anywhere; it turns the motor off
     try:
         bridge.open()
         played = _Episodes(bridge, play)

@@ -1,10 +1,11 @@
-"""``fleetrl export``: a model file's greedy policy written as ONNX, then checked: onnxruntime must pick
-fleetrl's actions on observations half from the unit's own episodes and half drawn around them (a box's
-actions within ``tolerance``: the graph computes in float32, fleetrl in float64).
-"""
+"""``fleetrl export``: a model file's greedy policy written as an ONNX graph (opset 17) built node by node
+from the actor's weights (``observation`` in; ``action`` out, a discrete action's index or a box's clipped
+mean; ``fleetrl`` metadata), then checked: onnxruntime must pick fleetrl's actions on observations half from
+the unit's own episodes and half drawn around them (a box's within a float32 tolerance)."""
 
 from __future__ import annotations
 
+import json
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -12,12 +13,84 @@ from typing import Any
 import numpy as np
 
 from fleetrl.agent.policy_file import PolicyFile, read_policy_file
-from fleetrl.control.onnx_graph import policy_graph
 from fleetrl.control.policies import ModelPolicy, OnnxPolicy, check_fits
 from fleetrl.envs.catalog import describe_env, get_env_spec
 
-CHECK_OBSERVATIONS = 1000
-"""observations ``fleetrl export`` checks the exported file on"""
+FORMAT = "fleetrl.policy/1"  # the ``format`` in every exported file's ``fleetrl`` metadata
+OPSET = 17
+IR_VERSION = 8
+INPUT = "observation"
+OUTPUT = "action"
+
+
+def policy_metadata(policy: PolicyFile, env: str | None) -> dict[str, Any]:
+    """What an exported file records about its policy (the ``fleetrl`` metadata, as a dict)."""
+    return {
+        "format": FORMAT,
+        "obs_dim": policy.obs_dim,
+        "last_step": policy.last_step,
+        "action_space": policy.action_space.to_dict(),
+        "action": "index" if policy.action_space.is_discrete else "clipped mean",
+        "env": env,
+        "source": policy.source,
+    }
+
+
+def policy_graph(policy: PolicyFile, env: str | None = None) -> Any:
+    """The greedy policy of ``policy`` as an ``onnx.ModelProto`` (checked), ``env`` in its metadata."""
+    import onnx
+    from onnx import TensorProto, helper, numpy_helper
+
+    initialisers: list[Any] = []
+    nodes: list[Any] = []
+
+    def constant(name: str, array: np.ndarray) -> str:
+        initialisers.append(numpy_helper.from_array(np.asarray(array, dtype=np.float32), name))
+        return name
+
+    x = INPUT
+    activation = "Tanh" if policy.activation == "tanh" else "Relu"
+    last = len(policy.layers) - 1
+    for i, (weight, bias) in enumerate(policy.layers):
+        name = "policy" if i == last else f"trunk.{i}"
+        w, b = constant(f"{name}.weight", weight), constant(f"{name}.bias", bias)
+        out = f"{name}.linear"
+        nodes.append(helper.make_node("Gemm", [x, w, b], [out], transB=1, name=f"{name}.gemm"))
+        if i < last:
+            x = f"{name}.out"
+            nodes.append(helper.make_node(activation, [out], [x], name=f"{name}.{activation.lower()}"))
+        else:
+            x = out
+    space = policy.action_space
+    if space.is_discrete:
+        nodes.append(helper.make_node("ArgMax", [x], [OUTPUT], axis=1, keepdims=0, name="greedy"))
+        output = helper.make_tensor_value_info(OUTPUT, TensorProto.INT64, ["batch"])
+    else:
+        half, centre = constant("half_range", space.half_range()), constant("centre", space.centre())
+        low, high = constant("low", np.asarray(space.low)), constant("high", np.asarray(space.high))
+        nodes += [
+            helper.make_node("Mul", [x, half], ["scaled"], name="scale"),
+            helper.make_node("Add", ["scaled", centre], ["mean"], name="mean"),
+            helper.make_node("Max", ["mean", low], ["above_low"], name="clip_low"),
+            helper.make_node("Min", ["above_low", high], [OUTPUT], name="clip_high"),
+        ]
+        output = helper.make_tensor_value_info(OUTPUT, TensorProto.FLOAT, ["batch", space.dim])
+    observation = helper.make_tensor_value_info(INPUT, TensorProto.FLOAT, ["batch", policy.obs_dim])
+    metadata = policy_metadata(policy, env)
+    graph = helper.make_graph(nodes, "fleetrl_greedy_policy", [observation], [output], initialisers)
+    model = helper.make_model(
+        graph,
+        producer_name="fleetrl",
+        opset_imports=[helper.make_opsetid("", OPSET)],
+        ir_version=IR_VERSION,
+        doc_string=f"greedy policy of {policy.source}: observation -> {metadata['action']}",
+    )
+    helper.set_model_props(model, {"fleetrl": json.dumps(metadata, sort_keys=True)})
+    onnx.checker.check_model(model)
+    return model
+
+
+CHECK_OBSERVATIONS = 1000  # observations ``fleetrl export`` checks the exported file on
 RELATIVE_TOLERANCE = 1e-5
 """a box's actions agree when they differ by at most this fraction of the half range (float32 rounding)"""
 STEPS_PER_OBSERVATION = 4
@@ -28,14 +101,10 @@ STEPS_PER_OBSERVATION = 4
 class ExportCheck:
     """How the exported graph's actions compared with fleetrl's."""
 
-    observations: int
-    """observations checked"""
-    agreeing: int
-    """how many got the same action (a box's: within the tolerance)"""
-    max_difference: float
-    """a box's largest absolute difference in any component (0 for discrete actions)"""
-    tolerance: float
-    """a box's allowed absolute difference (0: discrete, exact)"""
+    observations: int  # observations checked
+    agreeing: int  # how many got the same action (a box's: within the tolerance)
+    max_difference: float  # a box's largest absolute difference in any component (0 for discrete actions)
+    tolerance: float  # a box's allowed absolute difference (0: discrete, exact)
 
     @property
     def passed(self) -> bool:
@@ -65,11 +134,8 @@ def export_policy(
     fleet_profile: str | None = None,
 ) -> ExportCheck:
     """Write ``model``'s greedy policy to ``out`` as ONNX and check it on ``observations`` observations of
-    ``unit`` of fleet ``fleet_seed`` of ``env``; a file that fails the check is not left at ``out``.
-
-    :raises FileNotFoundError: no model file
-    :raises ValueError: not a fleetrl model, not one for ``env``, or a bad setting
-    """
+    ``unit`` of fleet ``fleet_seed`` of ``env``; a file that fails the check is not left at ``out``. A
+    FileNotFoundError for no model file, a ValueError for a model not for ``env`` or a bad setting."""
     if observations < 1:
         raise ValueError(f"--check must be at least 1 observation, got {observations}")
     if out.suffix != ".onnx":
@@ -113,8 +179,7 @@ def draw_observations(
     fleet_seed: int = 0,
     fleet_profile: str | None = None,
 ) -> np.ndarray:
-    """``n`` float32 observations: half visited by the simulated unit under the policy's sampled actions,
-    half uniform in a box around those (module docstring); seeded by ``seed``."""
+    """``n`` float32 observations: half visited under the policy's sampled actions, half drawn around them."""
     rng = np.random.default_rng(seed)
     built = get_env_spec(env).make(unit, fleet_seed, fleet_profile=fleet_profile, last_step=policy.last_step)
     gym_env, acting, space = built.env, policy.numpy_policy(), policy.action_space

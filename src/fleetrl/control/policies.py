@@ -1,17 +1,21 @@
 """Greedy policies a unit runs without torch: a fleetrl model file on numpy (numba), or an exported ONNX file
-on onnxruntime (the ``onnx`` extra), behind one small interface."""
+on onnxruntime (the ``onnx`` extra), behind one small interface; and the greedy episodes ``fleetrl evaluate``
+and ``fleetrl control`` play."""
 
 from __future__ import annotations
 
+import functools
 import json
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any, Protocol
 
+import gymnasium
 import numpy as np
 
 from fleetrl.agent.action_space import ActionSpace
 from fleetrl.agent.policy_file import PolicyFile, read_policy_file
-from fleetrl.envs.spaces import UnitDescription
+from fleetrl.envs.catalog import UnitDescription
 
 ONNX_HINT = "pip install 'fleetrl[onnx]'"
 
@@ -21,10 +25,8 @@ class GreedyPolicy(Protocol):
 
     obs_dim: int
     action_space: ActionSpace
-    env: str | None
-    """the env the policy names (an exported file's metadata; None: not recorded)"""
-    last_step: bool
-    """its observation holds the unit's last step (:mod:`fleetrl.envs.last_step`)"""
+    env: str | None  # the env the policy names (an exported file's metadata; None: not recorded)
+    last_step: bool  # its observation holds the unit's last step (:class:`~fleetrl.envs.wrappers.LastStep`)
 
     def act(self, obs: np.ndarray) -> Any:
         """The greedy action for one observation."""
@@ -40,11 +42,9 @@ class ModelPolicy:
         self.obs_dim = policy.obs_dim
         self.action_space = policy.action_space
         self.last_step = policy.last_step
-        self._numpy = policy.numpy_policy()
-        self._act = self._numpy.act_greedy if self.action_space.is_discrete else self._continuous
-
-    def _continuous(self, obs: np.ndarray) -> np.ndarray:
-        return self._numpy.act_continuous(obs, None)
+        numpy_policy = policy.numpy_policy()
+        greedy = functools.partial(numpy_policy.act_continuous, z=None)
+        self._act = numpy_policy.act_greedy if self.action_space.is_discrete else greedy
 
     def act(self, obs: np.ndarray) -> Any:
         """The arg-max action index, or the Gaussian's mean clipped to the box."""
@@ -52,11 +52,7 @@ class ModelPolicy:
 
 
 class OnnxPolicy:
-    """An exported policy (``fleetrl export``) on onnxruntime, one thread (a unit acts on one observation
-    per control period; threads would only add jitter).
-
-    :raises ValueError: the file is not an ONNX model, or not one fleetrl exported
-    """
+    """An exported policy (``fleetrl export``) on onnxruntime, one thread; a ValueError for another file."""
 
     def __init__(self, path: str | Path) -> None:
         try:
@@ -99,11 +95,7 @@ class OnnxPolicy:
 
 
 def load_policy(path: str | Path) -> GreedyPolicy:
-    """The greedy policy in ``path``: a fleetrl model file (``.safetensors``) or an exported ``.onnx``.
-
-    :raises FileNotFoundError: no file at ``path``
-    :raises ValueError: another kind of file, or one that is not a fleetrl policy (says which)
-    """
+    """The greedy policy in ``path``: a fleetrl model file (``.safetensors``) or an exported ``.onnx``."""
     source = Path(path)
     if not source.is_file():
         raise FileNotFoundError(f"no model file at {source}")
@@ -119,11 +111,32 @@ def load_policy(path: str | Path) -> GreedyPolicy:
 def check_fits(
     obs_dim: int, actions: ActionSpace, description: UnitDescription, env: str, source: object = "the policy"
 ) -> None:
-    """A ValueError, naming ``source``, unless a policy of ``obs_dim`` observations and ``actions`` fits
-    ``env``'s units."""
+    """A ValueError, naming ``source``, unless a policy of this size and ``actions`` fits ``env``'s units."""
     wanted = ActionSpace.of_unit(description.action)
     if (obs_dim, actions) != (description.obs_dim, wanted):
         raise ValueError(
             f"{source} is a policy for {obs_dim} observations and {actions} actions; env {env!r} has "
             f"{description.obs_dim} and {wanted} (choose the env it was trained on: --env)"
         )
+
+
+def greedy_scores(
+    env: gymnasium.Env[Any, Any],
+    act: Callable[[np.ndarray], Any],
+    episodes: int,
+    seed: int = 0,
+    report: Callable[[int, float], None] | None = None,
+) -> list[float]:
+    """The scores of ``episodes`` episodes of ``env`` played by ``act``, episode ``k`` seeded ``seed + k``."""
+    scores = []
+    for episode in range(episodes):
+        obs, _ = env.reset(seed=seed + episode)
+        score, done = 0.0, False
+        while not done:
+            obs, reward, terminated, truncated, _ = env.step(act(obs))
+            score += float(reward)
+            done = terminated or truncated
+        scores.append(score)
+        if report is not None:
+            report(episode, score)
+    return scores

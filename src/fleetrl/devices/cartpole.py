@@ -1,23 +1,17 @@
-"""CartPole units: Gymnasium CartPole-v1 physics with per-unit pole length, masses and force magnitude.
-
-The equations, constants, initial-state distribution and Euler integrator are those of
-``gymnasium.envs.classic_control.CartPoleEnv`` (CartPole-v1); each unit scales ``length``, ``masscart``,
-``masspole`` and ``force_mag`` by its own factors drawn uniformly, from [0.9, 1.1] in the default fleet
-profile (``cartpole_profiles``: ``standard``; ``wide``: [0.6, 1.4]).
-"""
+"""CartPole units: Gymnasium CartPole-v1 physics (``gymnasium.envs.classic_control.CartPoleEnv``: its
+equations, constants, start states and Euler integrator) with per-unit cart mass, pole mass, pole length and
+push force, and the named fleet profiles they are drawn with: ``standard`` (each ±10 %, the default) and
+``wide`` (each ±40 %, a fleet of mixed builds)."""
 
 import math
 from dataclasses import dataclass
 
 import numpy as np
 
-from fleetrl.devices.cartpole_profiles import CartPoleVariation, cartpole_fleet_profile
-from fleetrl.devices.variation import CARTPOLE_FAMILY, scaled, unit_generator
+from fleetrl.devices.variation import CARTPOLE_FAMILY, FleetProfile, named_profile, scaled, unit_generator
 
-X_LIMIT = 2.4
-"""cart position beyond which an episode ends (m)"""
-THETA_LIMIT = 12.0 * 2.0 * math.pi / 360.0
-"""pole angle beyond which an episode ends (rad)"""
+X_LIMIT = 2.4  # cart position beyond which an episode ends (m)
+THETA_LIMIT = 12.0 * 2.0 * math.pi / 360.0  # pole angle beyond which an episode ends (rad)
 
 
 @dataclass(frozen=True)
@@ -27,22 +21,54 @@ class CartPoleParams:
     gravity: float = 9.8
     masscart: float = 1.0
     masspole: float = 0.1
-    length: float = 0.5
-    """half the pole's length (m), as in Gymnasium"""
+    length: float = 0.5  # half the pole's length (m), as in Gymnasium
     force_mag: float = 10.0
-    tau: float = 0.02
-    """seconds per step"""
+    tau: float = 0.02  # seconds per step
 
 
 CARTPOLE_NOMINAL = CartPoleParams()
 
 
+@dataclass(frozen=True)
+class CartPoleVariation:
+    """How far units deviate: each parameter times a factor uniform in [1 − spread, 1 + spread]."""
+
+    masscart: float = 0.10
+    masspole: float = 0.10
+    length: float = 0.10
+    force_mag: float = 0.10
+
+    def __post_init__(self) -> None:
+        for name, spread in vars(self).items():
+            if not 0.0 <= spread < 1.0:
+                raise ValueError(f"{name} spread must be in [0, 1) so units stay physical, got {spread!r}")
+
+
+STANDARD = FleetProfile(
+    "standard",
+    CartPoleVariation(),
+    "the fleet every CartPole run was made on: cart mass, pole mass, pole length and push force each ±10 %",
+)
+WIDE = FleetProfile(
+    "wide",
+    CartPoleVariation(masscart=0.40, masspole=0.40, length=0.40, force_mag=0.40),
+    "a fleet of mixed builds: cart mass, pole mass, pole length and push force each ±40 %",
+)
+CARTPOLE_FLEET_PROFILES: dict[str, FleetProfile[CartPoleVariation]] = {p.name: p for p in (STANDARD, WIDE)}
+DEFAULT_CARTPOLE_FLEET_PROFILE = STANDARD.name
+
+
+def cartpole_fleet_profile(name: str | None = None) -> FleetProfile[CartPoleVariation]:
+    """The CartPole profile called ``name`` (None: the default); an unknown name is a ValueError."""
+    return named_profile(
+        CARTPOLE_FLEET_PROFILES, name, DEFAULT_CARTPOLE_FLEET_PROFILE, "cartpole fleet profile"
+    )
+
+
 def cartpole_unit_params(
     fleet_seed: int, unit: int, variation: CartPoleVariation | None = None
 ) -> CartPoleParams:
-    """The parameters of CartPole unit ``unit`` of fleet ``fleet_seed``, deviating as ``variation`` says
-    (None: the default profile's, each by up to ±10 %). The draws come in one fixed order (cart mass, pole
-    mass, length, force), so a unit of another profile deviates the same way, only further."""
+    """The parameters of CartPole unit ``unit`` of fleet ``fleet_seed`` (None: the default profile's)."""
     spread = cartpole_fleet_profile().variation if variation is None else variation
     rng = unit_generator(fleet_seed, unit, CARTPOLE_FAMILY)
     n = CARTPOLE_NOMINAL
@@ -66,8 +92,7 @@ class CartPoleDevice:
 
     @classmethod
     def from_fleet(cls, unit: int, fleet_seed: int, *, profile: str | None = None) -> "CartPoleDevice":
-        """Unit ``unit`` of the fleet ``fleet_seed`` drawn with fleet profile ``profile``
-        (``cartpole_profiles``; None: the default, ``standard``)."""
+        """Unit ``unit`` of fleet ``fleet_seed`` drawn with fleet profile ``profile`` (None: the default)."""
         return cls(cartpole_unit_params(fleet_seed, unit, cartpole_fleet_profile(profile).variation))
 
     @property
@@ -116,12 +141,7 @@ class CartPoleDevice:
 
 
 class CartPoleForceUnit:
-    """A CartPole unit commanded by a vector ``[force fraction]``: a positive value pushes right, a negative
-    one left, each with full force; 0 is the motor off, and the simulated cart is then braked (its state
-    held: a CartPole has no "off" action).
-
-    :param device: the simulated unit
-    """
+    """A CartPole commanded by ``[force fraction]``: its sign pushes right or left; 0 brakes the cart."""
 
     def __init__(self, device: CartPoleDevice) -> None:
         self.device = device

@@ -1,7 +1,5 @@
-"""Many CartPole units stepped together: one compiled call per time step for every unit of a unit host,
-each unit a row of two arrays, bit for bit the states :class:`~fleetrl.devices.cartpole.CartPoleDevice`
-steps alone to (``tests/devices/test_cartpole_batch.py``).
-"""
+"""Many CartPole units stepped together: one compiled call per time step, each unit a row of two arrays, bit
+for bit the states :class:`~fleetrl.devices.cartpole.CartPoleDevice` steps alone to."""
 
 from __future__ import annotations
 
@@ -20,8 +18,7 @@ from fleetrl.devices.cartpole import CartPoleDevice
 # library's cos, sin and pow (what math and ** call) reached through ctypes: the compiler can then neither
 # fuse nor replace them (LLVM makes pow(x, 2) x * x, which differs in the last bit about once in 1,000).
 def _libm_functions() -> tuple[Any, Any, Any] | None:
-    """The C library's ``cos``, ``sin`` and ``pow`` (those this process's Python calls), or None where
-    ctypes cannot find them (then no unit is stepped in a batch: :data:`AVAILABLE`)."""
+    """The C library's ``cos``, ``sin`` and ``pow`` (those Python calls), or None where not found."""
     name = ctypes.util.find_library("m")
     if name is None:
         return None
@@ -50,8 +47,6 @@ _MASSCART, _MASSPOLE, _LENGTH, _FORCE_MAG, _TAU, _GRAVITY = range(6)
 def _step_rows(
     params: np.ndarray, state: np.ndarray, rows: np.ndarray, actions: np.ndarray, obs: np.ndarray
 ) -> None:  # pragma: no cover - compiled (its Python twin is CartPoleDevice.step; the tests compare both)
-    """Step the units ``rows`` (indices into ``params`` and ``state``), row j with ``actions[j]``; write
-    each one's new observation (float32) into ``obs[j]``."""
     for j in range(rows.shape[0]):
         i = rows[j]
         masscart = params[i, _MASSCART]
@@ -87,13 +82,7 @@ def _step_rows(
 
 
 class CartPoleBatch:
-    """The devices ``devices`` stepped together (their parameters and states as rows of arrays).
-
-    The batch holds each unit's state while it steps it: :meth:`load` takes a unit's state from its device
-    (after the device's own reset), :meth:`store` hands it back.
-
-    :param devices: the simulated units, row i for ``devices[i]``
-    """
+    """The devices ``devices`` stepped together, row i ``devices[i]``, each state held while it steps."""
 
     def __init__(self, devices: Sequence[CartPoleDevice]) -> None:
         self.devices = list(devices)
@@ -117,11 +106,7 @@ class CartPoleBatch:
         return self._state[row].copy()
 
     def step(self, rows: np.ndarray, actions: np.ndarray) -> np.ndarray:
-        """Push the units ``rows`` left (0) or right (1) as ``actions`` say, one step each; their new
-        observations (float32, one row per unit of ``rows``).
-
-        :raises ValueError: an action other than 0 or 1
-        """
+        """Push the units ``rows`` left (0) or right (1) as ``actions`` say; their new observations."""
         moves = np.asarray(actions, dtype=np.int64)
         if moves.size and not bool(np.all((moves == 0) | (moves == 1))):
             bad = int(moves[(moves != 0) & (moves != 1)][0])

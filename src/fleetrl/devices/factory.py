@@ -5,8 +5,7 @@ from fleetrl.devices.qube.device import QubeDevice
 from fleetrl.devices.qube.params import qube_config
 from fleetrl.devices.variation import check_unit
 
-DEVICE_TYPES = ("qube", "cartpole")
-"""the unit types a fleet can be made of"""
+DEVICE_TYPES = ("qube", "cartpole")  # the unit types a fleet can be made of
 
 
 def make_device(
@@ -17,11 +16,8 @@ def make_device(
     fleet_profile: str | None = None,
     **config: object,
 ) -> QubeDevice | CartPoleDevice:
-    """Unit ``unit`` of fleet ``fleet_seed`` of type ``qube`` or ``cartpole``.
-
-    ``fleet_profile`` names a fleet profile of the unit type (None: its default); ``config`` holds
-    ``QubeConfig`` fields for a QUBE (a CartPole takes none).
-    """
+    """Unit ``unit`` of fleet ``fleet_seed`` of type ``qube`` or ``cartpole``, drawn with ``fleet_profile``
+    (None: its default); ``config`` holds ``QubeConfig`` fields for a QUBE (a CartPole takes none)."""
     unit, fleet_seed = check_unit(unit, fleet_seed)
     if unit_type == "qube":
         return QubeDevice.from_fleet(unit, fleet_seed, qube_config(**config), profile=fleet_profile)

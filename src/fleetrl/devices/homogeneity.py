@@ -1,20 +1,28 @@
-"""The paper's homogeneity test (section 5.3, Table 2) on simulated QUBE units: every unit gets the same
-seeded sequence of motor impulses from rest, the arm's and pendulum's encoder changes after each are
-recorded, and the units' Pearson correlation is the result (1 for identical units).
-"""
+"""The paper's homogeneity test (section 5.3, Table 2) on simulated units. QUBE units get the same seeded
+sequence of motor impulses from rest and their arm's and pendulum's encoder changes are correlated (1 for
+identical units). CartPole units play the same seeded trials (start state and pushes), each afresh as an
+episode is, and pairs compare their cart and pole changes by correlation and by relative difference."""
 
 import csv
 import math
-from collections.abc import Iterable
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
+from fleetrl.devices.cartpole import CartPoleDevice, cartpole_fleet_profile
 from fleetrl.devices.qube.device import QubeDevice
-from fleetrl.devices.qube.fleet_profiles import fleet_profile
-from fleetrl.devices.qube.params import QubeConfig
+from fleetrl.devices.qube.params import QubeConfig, fleet_profile
 from fleetrl.devices.variation import check_unit
+
+START_SPAN = 0.05  # every CartPole start state component is drawn uniformly from ±this (CartPole-v1's reset)
+
+
+def _check_count(name: str, value: object, least: int) -> None:
+    if isinstance(value, bool) or not isinstance(value, int) or value < least:
+        wanted = "a positive integer" if least == 1 else f"an integer of at least {least}"
+        raise ValueError(f"{name} must be {wanted}, got {value!r}")
 
 
 @dataclass(frozen=True)
@@ -23,12 +31,9 @@ class HomogeneityResult:
 
     units: tuple[int, ...]
     fleet_seed: int
-    profile: str
-    """the fleet profile the units were drawn with"""
-    motor: np.ndarray
-    """Pearson correlation matrix of motor (arm) angle changes"""
-    pendulum: np.ndarray
-    """Pearson correlation matrix of pendulum angle changes"""
+    profile: str  # the fleet profile the units were drawn with
+    motor: np.ndarray  # Pearson correlation matrix of motor (arm) angle changes
+    pendulum: np.ndarray  # Pearson correlation matrix of pendulum angle changes
     motor_changes: np.ndarray
     pendulum_changes: np.ndarray
 
@@ -44,20 +49,11 @@ def homogeneity_test(
     window_seconds: float = 0.5,
     profile: str | None = None,
 ) -> HomogeneityResult:
-    """Run the test on units 0 … units−1 of fleet ``fleet_seed`` drawn with fleet profile ``profile``.
-
-    :param units: how many units (at least 2)
-    :param impulses: how many impulses per unit (at least 3)
-    :param seed: seed of the impulse directions (the same sequence for every unit)
-    :param impulse_volts: voltage of an impulse
-    :param impulse_seconds: duration of an impulse
-    :param window_seconds: coasting time after each impulse before the change is read
-    :param profile: the fleet profile (``fleetrl.devices.qube.fleet_profiles``); None: the default
-    """
-    if isinstance(units, bool) or not isinstance(units, int) or units < 2:
-        raise ValueError(f"units must be an integer of at least 2, got {units!r}")
-    if isinstance(impulses, bool) or not isinstance(impulses, int) or impulses < 3:
-        raise ValueError(f"impulses must be an integer of at least 3, got {impulses!r}")
+    """Run the test on QUBE units 0 … units−1 (at least 2) of fleet ``fleet_seed`` drawn with fleet profile
+    ``profile``: ``impulses`` impulses (directions drawn from ``seed``) of ``impulse_volts`` for
+    ``impulse_seconds``, each change read after ``window_seconds`` of coasting."""
+    _check_count("units", units, 2)
+    _check_count("impulses", impulses, 3)
     check_unit(0, fleet_seed)
     chosen = fleet_profile(profile).name
     config = QubeConfig()
@@ -91,17 +87,14 @@ def homogeneity_test(
 
 @dataclass(frozen=True)
 class PooledHomogeneity:
-    """The off-diagonal correlations of many homogeneity tests, pooled (one entry per pair of units)."""
+    """The off-diagonal correlations of many QUBE tests, pooled (one entry per pair of units)."""
 
     profile: str
     fleet_seeds: tuple[int, ...]
     impulse_seeds: tuple[int, ...]
-    motor: np.ndarray
-    """motor-angle correlations of every unit pair of every (fleet seed, impulse seed)"""
-    pendulum: np.ndarray
-    """pendulum-angle correlations, in the same order"""
-    results: tuple[HomogeneityResult, ...] = ()
-    """every test, fleet seed major (for its matrices and raw changes)"""
+    motor: np.ndarray  # motor-angle correlations of every unit pair of every (fleet seed, impulse seed)
+    pendulum: np.ndarray  # pendulum-angle correlations, in the same order
+    results: tuple[HomogeneityResult, ...] = ()  # every test, fleet seed major
 
     @property
     def motor_median(self) -> float:
@@ -122,11 +115,7 @@ def pooled_homogeneity(
     impulses: int = 100,
     profile: str | None = None,
 ) -> PooledHomogeneity:
-    """Run ``homogeneity_test`` for every (fleet seed, impulse seed) and pool the off-diagonal pairs.
-
-    The paper's Table 2 is one such test on three real units; a simulated fleet is judged by the median
-    over several fleet and impulse seeds (single pairs scatter widely).
-    """
+    """Run ``homogeneity_test`` for every (fleet seed, impulse seed) and pool the off-diagonal pairs."""
     fleets, seeds = tuple(fleet_seeds), tuple(impulse_seeds)
     pairs = np.triu_indices(units, 1)
     results = tuple(
@@ -181,4 +170,96 @@ def format_tables(result: HomogeneityResult) -> str:
     return (
         f"Homogeneity test, fleet seed {result.fleet_seed} (profile {result.profile}), "
         f"{result.motor_changes.shape[1]} impulses per unit\n\n" + "\n\n".join(blocks)
+    )
+
+
+def cartpole_changes(
+    units: int = 3,
+    fleet_seed: int = 0,
+    trials: int = 100,
+    seed: int = 0,
+    *,
+    pushes: int = 10,
+    profile: str | None = None,
+) -> tuple[np.ndarray, np.ndarray]:
+    """The changes (units × trials) of cart position (m) and pole angle (rad) of CartPole units 0 … units−1
+    of fleet ``fleet_seed`` over ``trials`` trials of ``pushes`` steps each; ``seed`` draws the trials'
+    start states and pushes, the same for every unit."""
+    _check_count("units", units, 2)
+    _check_count("trials", trials, 3)
+    _check_count("pushes", pushes, 1)
+    check_unit(0, fleet_seed)
+    chosen = cartpole_fleet_profile(profile).name
+    rng = np.random.default_rng(seed)
+    starts = rng.uniform(-START_SPAN, START_SPAN, size=(trials, 4))
+    actions = rng.integers(0, 2, size=(trials, pushes)).tolist()
+    cart = np.empty((units, trials))
+    pole = np.empty((units, trials))
+    for unit in range(units):
+        device = CartPoleDevice.from_fleet(unit, fleet_seed, profile=chosen)
+        for i, start in enumerate(starts):
+            device.set_state(start)
+            for action in actions[i]:
+                device.step(action)
+            end = device.state
+            cart[unit, i] = end[0] - start[0]
+            pole[unit, i] = end[2] - start[2]
+    return cart, pole
+
+
+def correlation(a: np.ndarray, b: np.ndarray) -> float:
+    """The Pearson correlation of ``a`` and ``b`` (blind to a change's size)."""
+    return float(np.corrcoef(a, b)[0, 1])
+
+
+def relative_difference(a: np.ndarray, b: np.ndarray) -> float:
+    """RMS(a − b) / √((RMS(a)² + RMS(b)²) / 2): 0 for equal changes, 2 for opposite ones."""
+    scale = math.sqrt((float(np.mean(a**2)) + float(np.mean(b**2))) / 2.0)
+    return float(np.sqrt(np.mean((a - b) ** 2))) / scale
+
+
+@dataclass(frozen=True)
+class CartPoleHomogeneity:
+    """The pairs of many CartPole tests, pooled (one entry per pair of units per (fleet seed, seed))."""
+
+    profile: str
+    fleet_seeds: tuple[int, ...]
+    seeds: tuple[int, ...]
+    cart_correlation: np.ndarray
+    pole_correlation: np.ndarray
+    cart_difference: np.ndarray  # relative differences (:func:`relative_difference`)
+    pole_difference: np.ndarray
+
+
+def pooled_cartpole_homogeneity(
+    fleet_seeds: Iterable[int],
+    seeds: Iterable[int],
+    *,
+    units: int = 3,
+    trials: int = 100,
+    pushes: int = 10,
+    profile: str | None = None,
+) -> CartPoleHomogeneity:
+    """Run :func:`cartpole_changes` for every (fleet seed, seed) and pool every pair of units' figures."""
+    fleets, trial_seeds = tuple(fleet_seeds), tuple(seeds)
+    tests = [
+        cartpole_changes(units, fleet_seed, trials, seed, pushes=pushes, profile=profile)
+        for fleet_seed in fleets
+        for seed in trial_seeds
+    ]
+    if not tests:
+        raise ValueError("give at least one fleet seed and one seed")
+    pairs = [(a, b) for a in range(units) for b in range(a + 1, units)]
+
+    def pooled(figure: Callable[[np.ndarray, np.ndarray], float], part: int) -> np.ndarray:
+        return np.array([figure(test[part][a], test[part][b]) for test in tests for a, b in pairs])
+
+    return CartPoleHomogeneity(
+        profile=cartpole_fleet_profile(profile).name,
+        fleet_seeds=fleets,
+        seeds=trial_seeds,
+        cart_correlation=pooled(correlation, 0),
+        pole_correlation=pooled(correlation, 1),
+        cart_difference=pooled(relative_difference, 0),
+        pole_difference=pooled(relative_difference, 1),
     )

@@ -1,14 +1,18 @@
 """Deterministic per-unit deviations: unit ``u`` of fleet ``s`` always gets the same parameters, drawn from
 its own generator (``SeedSequence(fleet_seed, spawn_key=(family, unit))``), independent of the other units
-and of the fleet's size. docs/devices.md lists the ranges with their sources.
+and of the fleet's size; and the named fleet profiles they are drawn with. docs/devices.md lists the ranges.
 """
 
 import math
+from dataclasses import dataclass
+from typing import Generic, TypeVar
 
 import numpy as np
 
 QUBE_FAMILY = 1
 CARTPOLE_FAMILY = 2
+
+V = TypeVar("V")
 
 
 def check_unit(unit: object, fleet_seed: object) -> tuple[int, int]:
@@ -35,3 +39,23 @@ def scaled(rng: np.random.Generator, value: float, relative: float) -> float:
 def log_uniform(rng: np.random.Generator, span: tuple[float, float]) -> float:
     """A value drawn log-uniformly from ``span``."""
     return float(math.exp(rng.uniform(math.log(span[0]), math.log(span[1]))))
+
+
+@dataclass(frozen=True)
+class FleetProfile(Generic[V]):
+    """A named per-unit variation (how far its units deviate from nominal) and one line on what it is for."""
+
+    name: str
+    variation: V
+    summary: str
+
+
+def named_profile(
+    profiles: dict[str, FleetProfile[V]], name: str | None, default: str, what: str
+) -> FleetProfile[V]:
+    """The profile called ``name`` (None: ``default``); an unknown name is a ValueError naming the choices."""
+    try:
+        return profiles[default if name is None else name]
+    except (KeyError, TypeError):
+        *others, last = profiles
+        raise ValueError(f"unknown {what} {name!r} (choose {', '.join(others)} or {last})") from None

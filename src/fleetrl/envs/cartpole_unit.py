@@ -1,32 +1,20 @@
-"""``fleetrl/CartPoleUnit-v0``: CartPole-v1 on one unit of a fleet whose units differ by up to ±10 % (the
-``standard`` fleet profile; ``wide``: ±40 %).
+"""``fleetrl/CartPoleUnit-v0``: CartPole-v1 (observation, actions, reward, termination) on one unit of a fleet
+whose units differ by up to ±10 % (the ``standard`` fleet profile; ``wide``: ±40 %)."""
 
-Observation, actions, reward (+1 every step, the terminating one included) and termination
-(|x| > 2.4 or |theta| > 12°) are CartPole-v1's; the 500-step cap is gymnasium's TimeLimit from the
-registration.
-"""
+import math
 
 import gymnasium
 import numpy as np
 
 from fleetrl.devices.cartpole import THETA_LIMIT, X_LIMIT, CartPoleDevice
 from fleetrl.devices.variation import check_unit
-from fleetrl.envs.link_env import LinkEnv
-from fleetrl.envs.render import cartpole_frame
+from fleetrl.envs.link_env import CART, FRAME, PENDULUM, TRACK, LinkEnv, blank, line
 from fleetrl.link.base import DeviceLink
 from fleetrl.link.inprocess import InProcessLink
 
 
 class CartPoleUnitEnv(LinkEnv):
-    """CartPole-v1 on unit ``unit`` of fleet ``fleet_seed``.
-
-    :param unit: index of the unit in the fleet (non-negative)
-    :param fleet_seed: seed of the fleet; (fleet_seed, unit) fixes the unit's parameters
-    :param fleet_profile: the fleet profile the in-process unit is drawn with (``standard``, the default, or
-        ``wide``; see ``fleetrl.devices.cartpole_profiles``)
-    :param link: reach the device through this link instead of simulating it in-process
-    :param render_mode: None, or ``rgb_array`` for :meth:`render` frames
-    """
+    """CartPole-v1 on unit ``unit`` of fleet ``fleet_seed``, simulated in-process or reached by ``link``."""
 
     def __init__(
         self,
@@ -55,12 +43,21 @@ class CartPoleUnitEnv(LinkEnv):
 
     @staticmethod
     def judge_rows(obs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """:meth:`judge` for every row of ``obs`` (n, 4): rewards (float64) and terminations (bool), each
-        row's what :meth:`judge` says of it (compared in float64, as :meth:`judge` does)."""
+        """:meth:`judge` for every row of ``obs`` (n, 4), compared in float64 as :meth:`judge` does."""
         x = np.abs(obs[:, 0].astype(np.float64))
         theta = np.abs(obs[:, 2].astype(np.float64))
         return np.ones(obs.shape[0]), ~((x <= X_LIMIT) & (theta <= THETA_LIMIT))
 
     def frame(self, obs: np.ndarray) -> np.ndarray:
-        """An RGB picture of the unit in state ``obs``."""
-        return cartpole_frame(obs)
+        """The cart on its track (±2.4 m across the frame) and the pole (θ, 0 = upright)."""
+        x, theta = float(obs[0]), float(obs[2])
+        img = blank()
+        track_y, scale = FRAME * 0.75, FRAME / 5.6
+        line(img, (0, track_y), (FRAME - 1, track_y), TRACK, 1)
+        cart_x = FRAME / 2 + x * scale
+        line(img, (cart_x - 12, track_y - 5), (cart_x + 12, track_y - 5), CART, 9)
+        length = FRAME * 0.4
+        pole_y = track_y - 10
+        tip = (cart_x + length * math.sin(theta), pole_y - length * math.cos(theta))
+        line(img, (cart_x, pole_y), tip, PENDULUM, 5)
+        return img

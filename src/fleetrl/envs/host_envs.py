@@ -1,8 +1,6 @@
-"""The envs of many units, stepped together where they can be: in-process CartPoles and QUBEs (as
-``gymnasium.make`` builds them, under ``TimeLimit``, ``OrderEnforcing`` and ``PassiveEnvChecker`` only) in
-one compiled batch call per type and time step (two or more of a type), each unit's numbers those its own
-env gives; every other unit (behind a device bridge, paced, a user's type) through its own env. Resets go
-through each unit's env."""
+"""The envs of many units, stepped together where they can be: in-process CartPoles and QUBEs as
+``gymnasium.make`` builds them in one compiled batch call per type and time step (two or more of a type), each
+unit's numbers those its own env gives; every other unit, and every reset, through its own env."""
 
 from __future__ import annotations
 
@@ -17,59 +15,45 @@ from gymnasium.wrappers import OrderEnforcing, PassiveEnvChecker, TimeLimit
 from fleetrl.devices import cartpole_batch
 from fleetrl.devices.cartpole import CartPoleDevice
 from fleetrl.devices.cartpole_batch import CartPoleBatch
-from fleetrl.devices.qube.batch import QubeBatch
-from fleetrl.devices.qube.device import QubeDevice
+from fleetrl.devices.qube.device import QubeBatch, QubeDevice
 from fleetrl.envs.cartpole_unit import CartPoleUnitEnv
 from fleetrl.envs.qube_balance import QubeBalanceEnv
 from fleetrl.link.inprocess import InProcessLink
 
 __all__ = ["HostEnvs", "StepRows", "batched_device"]
 
-_TRANSPARENT = (OrderEnforcing, PassiveEnvChecker)
-"""wrappers that change no number of a step"""
+_TRANSPARENT = (OrderEnforcing, PassiveEnvChecker)  # wrappers that change no number of a step
 
 
 @dataclass(frozen=True)
 class StepRows:
     """One time step of some units: row j is unit ``units[j]``'s."""
 
-    obs: np.ndarray
-    """s_{t+1}, one row per unit"""
-    rewards: np.ndarray
-    """r_{t+1}, float64"""
-    terminated: np.ndarray
-    """bool"""
-    truncated: np.ndarray
-    """bool"""
+    obs: np.ndarray  # s_{t+1}, one row per unit
+    rewards: np.ndarray  # r_{t+1}, float64
+    terminated: np.ndarray  # bool
+    truncated: np.ndarray  # bool
 
 
 @dataclass(frozen=True)
 class _Kind:
     """A unit type whose in-process units a batch can step."""
 
-    env: type[gymnasium.Env[Any, Any]]
+    env: type[CartPoleUnitEnv | QubeBalanceEnv]  # its ``judge_rows`` judges a batch's steps
     device: type
-    batch: Callable[[list[Any]], Any]
-    """the batch of a list of such devices"""
-    judge_rows: Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]]
-    """the env's reward and termination of each row of observations"""
-    available: bool = True
-    """whether such a batch can run in this process"""
+    batch: Callable[[list[Any]], Any]  # the batch of a list of such devices
+    available: bool = True  # whether such a batch can run in this process
 
 
 _KINDS = (
-    _Kind(
-        CartPoleUnitEnv, CartPoleDevice, CartPoleBatch, CartPoleUnitEnv.judge_rows, cartpole_batch.AVAILABLE
-    ),
-    _Kind(QubeBalanceEnv, QubeDevice, QubeBatch, QubeBalanceEnv.judge_rows),
+    _Kind(CartPoleUnitEnv, CartPoleDevice, CartPoleBatch, cartpole_batch.AVAILABLE),
+    _Kind(QubeBalanceEnv, QubeDevice, QubeBatch),
 )
 """the unit types stepped in batches, the kind's index its batch's"""
 
 
 def batched_device(env: gymnasium.Env[Any, Any]) -> tuple[int, Any, int | None] | None:
-    """The batch kind (an index into the kinds), the in-process device and the episode cap (None: none) of
-    an env a batch can step, or None if ``env`` is anything else (another unit type, a link, another
-    wrapper, rendering), or no batch of its type can step in this process."""
+    """The batch kind, in-process device and episode cap of an env a batch can step, else None."""
     cap: int | None = None
     inner: Any = env
     while isinstance(inner, gymnasium.Wrapper):
@@ -99,18 +83,13 @@ class _Batch:
 
 
 class HostEnvs:
-    """The units' envs (unit u's is ``envs[u]``): :meth:`reset` one, :meth:`step` many.
-
-    :param envs: one Gymnasium env per unit
-    """
+    """The units' envs (unit u's is ``envs[u]``): :meth:`reset` one, :meth:`step` many."""
 
     def __init__(self, envs: Sequence[gymnasium.Env[Any, Any]]) -> None:
         self.envs = list(envs)
         found = [batched_device(env) for env in self.envs]
-        self._kind = np.full(len(self.envs), -1, dtype=np.int64)
-        """unit → its batch's kind (-1: stepped through its own env)"""
-        self._row = np.full(len(self.envs), -1, dtype=np.int64)
-        """unit → its row in its batch"""
+        self._kind = np.full(len(self.envs), -1, dtype=np.int64)  # unit → its batch's kind (-1: none)
+        self._row = np.full(len(self.envs), -1, dtype=np.int64)  # unit → its row in its batch
         self._batches: dict[int, _Batch] = {}
         for index, kind in enumerate(_KINDS):
             units = [u for u, f in enumerate(found) if f is not None and f[0] == index]
@@ -145,8 +124,7 @@ class HostEnvs:
         return first
 
     def step(self, units: np.ndarray, actions: Sequence[Any] | np.ndarray) -> StepRows:
-        """Step every unit of ``units`` with its action (row j: ``actions[j]``, as its env takes it), all
-        reset before; the batched units in one call per batch, the others one by one."""
+        """Step every unit of ``units`` with its action (row j: ``actions[j]``), all reset before."""
         n = len(units)
         kinds = self._kind[units]
         dtype = self._obs_dtype if self._obs_dtype is not None else np.float32
@@ -161,7 +139,7 @@ class HostEnvs:
             rows = self._row[units[mine]]
             stepped = batch.stepper.step(rows, chosen[mine])
             obs[mine] = stepped
-            rewards[mine], terminated[mine] = batch.kind.judge_rows(stepped)
+            rewards[mine], terminated[mine] = batch.kind.env.judge_rows(stepped)
             batch.elapsed[rows] += 1
             truncated[mine] = batch.elapsed[rows] >= batch.cap[rows]
             for row in rows[terminated[mine] | truncated[mine]].tolist():

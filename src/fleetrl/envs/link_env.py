@@ -1,14 +1,17 @@
-"""What the cyber environments share: a device link, seeded resets, action checking."""
+"""What the cyber environments share: a device link, seeded resets, action checking, and small
+``rgb_array`` frames drawn with numpy alone."""
 
 import math
 from abc import abstractmethod
-from collections.abc import Mapping
 from typing import Any
 
 import gymnasium
 import numpy as np
 
 from fleetrl.link.base import DeviceLink
+
+FRAME = 200  # frame height and width in pixels
+ARM, PENDULUM, CART, TRACK = (40, 90, 160), (200, 60, 40), (60, 60, 60), (170, 170, 170)
 
 
 def action_index(action: object, n_actions: int) -> int:
@@ -25,8 +28,7 @@ def action_index(action: object, n_actions: int) -> int:
 
 
 def box_action(action: object, space: gymnasium.spaces.Box) -> np.ndarray:
-    """``action`` as a float32 vector of the box's shape, clipped to its bounds; a ValueError that says what
-    is allowed if it has another shape or a value that is not a finite number."""
+    """``action`` as a float32 vector of the box's shape, clipped to its bounds, or a ValueError."""
     if type(action) is np.ndarray and action.dtype == np.float32 and action.shape == space.shape:
         vector = action  # the common case (an agent's action), checked in a few µs
     else:
@@ -43,12 +45,32 @@ def box_action(action: object, space: gymnasium.spaces.Box) -> np.ndarray:
     return np.minimum(np.maximum(vector, space.low), space.high)
 
 
-class LinkEnv(gymnasium.Env[np.ndarray, Any]):
-    """A Gymnasium env whose device sits behind a ``DeviceLink``; subclasses judge each observation.
+def blank() -> np.ndarray:
+    """A white frame."""
+    return np.full((FRAME, FRAME, 3), 255, dtype=np.uint8)
 
-    Actions are discrete indices 0 .. ``n_actions`` − 1 checked by :func:`action_index`; a subclass with
-    another action space (a box) overrides :meth:`link_action`.
-    """
+
+def line(
+    img: np.ndarray,
+    start: tuple[float, float],
+    end: tuple[float, float],
+    color: tuple[int, ...],
+    width: int = 3,
+) -> None:
+    """Draw a thick segment between two (x, y) pixel points (y down), clipped to the frame."""
+    n = int(max(abs(end[0] - start[0]), abs(end[1] - start[1]))) + 1
+    xs = np.rint(np.linspace(start[0], end[0], n)).astype(int)
+    ys = np.rint(np.linspace(start[1], end[1], n)).astype(int)
+    half = width // 2
+    for dx in range(-half, half + 1):
+        for dy in range(-half, half + 1):
+            x, y = xs + dx, ys + dy
+            keep = (x >= 0) & (x < img.shape[1]) & (y >= 0) & (y < img.shape[0])
+            img[y[keep], x[keep]] = color
+
+
+class LinkEnv(gymnasium.Env[np.ndarray, Any]):
+    """A Gymnasium env whose device sits behind a ``DeviceLink``; subclasses judge each observation."""
 
     metadata: dict[str, Any] = {"render_modes": ["rgb_array"], "render_fps": 50}  # noqa: RUF012 (gymnasium's convention)
 
@@ -87,9 +109,7 @@ class LinkEnv(gymnasium.Env[np.ndarray, Any]):
     def reset(
         self, *, seed: int | None = None, options: dict[str, Any] | None = None
     ) -> tuple[np.ndarray, dict[str, Any]]:
-        """Seed (if given) and reset the device; the device's seed is drawn from the env's generator. The info
-        holds ``reset_seconds``, what the reset took on a rig, where the link knows it (a simulated unit in
-        this process: :class:`~fleetrl.envs.paced.PacedEnv` waits that long, scaled)."""
+        """Seed and reset the device; the info holds ``reset_seconds`` where the link knows it."""
         super().reset(seed=seed)
         device_seed = int(self.np_random.integers(0, 2**63 - 1))
         self._last_obs = self._link.reset(device_seed).copy()
@@ -102,12 +122,8 @@ class LinkEnv(gymnasium.Env[np.ndarray, Any]):
         obs, extra = self._link_step(self.link_action(action) if index is None else index)
         reward, terminated = self.judge(obs)
         self._last_obs = obs = obs.copy()
-        return obs, reward, terminated, False, _info(extra)
+        return obs, reward, terminated, False, dict(extra) if extra else {}
 
     def close(self) -> None:
         """Close the link."""
         self._link.close()
-
-
-def _info(extra: Mapping[str, float]) -> dict[str, Any]:
-    return dict(extra) if extra else {}

@@ -12,21 +12,10 @@ CARTPOLE_EPISODE_CAP = 500
 def register_envs() -> None:
     """Register the environments once; calling again is harmless."""
     registry = gymnasium.envs.registration.registry
-    if QUBE_BALANCE_ID not in registry:
-        gymnasium.register(
-            id=QUBE_BALANCE_ID,
-            entry_point="fleetrl.envs.qube_balance:QubeBalanceEnv",
-            max_episode_steps=QUBE_EPISODE_CAP,
-        )
-    if QUBE_BALANCE_CONTINUOUS_ID not in registry:  # the same units and cap, the voltage as the action
-        gymnasium.register(
-            id=QUBE_BALANCE_CONTINUOUS_ID,
-            entry_point="fleetrl.envs.qube_continuous:QubeBalanceContinuousEnv",
-            max_episode_steps=QUBE_EPISODE_CAP,
-        )
-    if CARTPOLE_UNIT_ID not in registry:
-        gymnasium.register(
-            id=CARTPOLE_UNIT_ID,
-            entry_point="fleetrl.envs.cartpole_unit:CartPoleUnitEnv",
-            max_episode_steps=CARTPOLE_EPISODE_CAP,
-        )
+    for env_id, entry_point, cap in (
+        (QUBE_BALANCE_ID, "fleetrl.envs.qube_balance:QubeBalanceEnv", QUBE_EPISODE_CAP),
+        (QUBE_BALANCE_CONTINUOUS_ID, "fleetrl.envs.qube_balance:QubeBalanceContinuousEnv", QUBE_EPISODE_CAP),
+        (CARTPOLE_UNIT_ID, "fleetrl.envs.cartpole_unit:CartPoleUnitEnv", CARTPOLE_EPISODE_CAP),
+    ):
+        if env_id not in registry:
+            gymnasium.register(id=env_id, entry_point=entry_point, max_episode_steps=cap)

@@ -13,7 +13,7 @@ from fleetrl.agent.config import OWN_PART_NAMES, PPOConfig
 from fleetrl.agent.criterion import CompletionCriterion
 from fleetrl.agent.learner import Learner
 from fleetrl.agent.ppo import PPOAgent, UpdateStats
-from fleetrl.control.episodes import greedy_scores
+from fleetrl.control.policies import greedy_scores
 from fleetrl.runs.evaluate import load_policy
 from fleetrl.runs.rig_time import reset_seconds
 

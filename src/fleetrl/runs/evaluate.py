@@ -6,10 +6,8 @@ from pathlib import Path
 import torch
 
 from fleetrl.agent.ppo import PPOAgent
-from fleetrl.control.episodes import greedy_scores
-from fleetrl.control.policies import check_fits
-from fleetrl.envs.catalog import EnvSpec, describe_env, get_env_spec
-from fleetrl.envs.spaces import UnitDescription
+from fleetrl.control.policies import check_fits, greedy_scores
+from fleetrl.envs.catalog import EnvSpec, UnitDescription, describe_env, get_env_spec
 from fleetrl.link.base import DeviceLink
 
 

@@ -13,10 +13,8 @@ from fleetrl.agent.config import PPOConfig
 from fleetrl.agent.criterion import CompletionCriterion
 from fleetrl.agent.learner import Learner
 from fleetrl.agent.ppo import PPOAgent
-from fleetrl.envs.catalog import describe_env, get_env_spec
-from fleetrl.envs.paced import PacedEnv
-from fleetrl.envs.spaces import UnitDescription
-from fleetrl.envs.stalled import StalledEnv
+from fleetrl.envs.catalog import UnitDescription, describe_env, get_env_spec
+from fleetrl.envs.wrappers import PacedEnv, StalledEnv
 from fleetrl.federation.kinds import kind_of
 from fleetrl.federation.plan import ChiefPlan, WorkerPlan
 from fleetrl.federation.schemes.agent import FederatedAgent

@@ -203,7 +203,7 @@ class WorkerSettings(RoleSettings):
         learning, _ = self.resolved_learning()  # the env's spaces fit the agent, the scheme the preset
         choose("device_link", self.device_link, DEVICE_LINKS)
         if self.device_link == "mqtt":
-            from fleetrl.envs.device_side import check_takes_link
+            from fleetrl.envs.catalog import check_takes_link
 
             as_setting_error("device_link", check_takes_link, get_env_spec(learning.env))
         if self.worker_id < 0 or (self.unit is not None and self.unit < 0):

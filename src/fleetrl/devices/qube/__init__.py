@@ -1,3 +1,3 @@
-"""The QUBE-Servo 2 rotary inverted pendulum: parameters (``params``), compiled physics (``dynamics``),
-reset and balance controllers (``controllers``), per-unit variation (``units``, ``fleet_profiles``), the unit
-(``device``) and units stepped together (``batch``)."""
+"""The QUBE-Servo 2 rotary inverted pendulum: parameters, per-unit variation and fleet profiles (``params``),
+compiled physics (``dynamics``), reset and balance controllers (``controllers``), the unit and units stepped
+together (``device``)."""

@@ -1,9 +1,6 @@
-"""The device-side controllers of the rig: Quanser's balance law and an energy swing-up.
-
-They read the sensor pipeline (never the true state) with nominal parameters, as on a real unit.
-``reset_phase_step`` is one reading's phase logic (swing up, catch, drop back, settle), run in one compiled
-loop by ``device_reset`` and one reading at a time by ``ResetPhases`` (docs/devices.md, "Device-side reset").
-"""
+"""The rig's device-side controllers, Quanser's balance law and an energy swing-up, reading the sensor
+pipeline with nominal parameters as a real unit does; ``reset_phase_step`` is one reading's reset phase
+logic, looped compiled by ``device_reset`` and from Python by ``ResetPhases``."""
 
 import math
 
@@ -20,92 +17,42 @@ from fleetrl.devices.qube.dynamics import (
     control_period,
     wrap_angle,
 )
-from fleetrl.devices.qube.params import NOMINAL, QubeParams
+from fleetrl.devices.qube.params import NOMINAL
 
-BALANCE_GAINS = (-2.0, 35.0, -1.5, 3.0)
-"""Quanser's K for V = −K·x, x = [theta, alpha, theta_dot, alpha_dot]"""
+BALANCE_GAINS = (-2.0, 35.0, -1.5, 3.0)  # Quanser's K for V = −K·x, x = [theta, alpha, theta_dot, alpha_dot]
 
 # indices into the controller constants (see controller_constants)
-(
-    K_THETA,
-    K_ALPHA,
-    K_THETA_DOT,
-    K_ALPHA_DOT,
-    G_MU,
-    G_TARGET_AMPLITUDE,
-    G_ENERGY_CEILING,
-    G_J_PIVOT,
-    G_HALF_MGL,
-    G_ARM_P,
-    G_ARM_D,
-    G_SWING_VMAX,
-    G_CATCH,
-    G_DROP,
-    G_RECENTRE,
-    G_SETTLE_ALPHA,
-    G_SETTLE_ALPHA_DOT,
-    G_SETTLE_THETA,
-    G_SETTLE_THETA_DOT,
-) = range(19)
+K_THETA, K_ALPHA, K_THETA_DOT, K_ALPHA_DOT = range(4)
+G_MU, G_TARGET_AMPLITUDE, G_ENERGY_CEILING, G_J_PIVOT, G_HALF_MGL, G_ARM_P, G_ARM_D = range(4, 11)
+G_SWING_VMAX, G_CATCH, G_DROP, G_RECENTRE = range(11, 15)
+G_SETTLE_ALPHA, G_SETTLE_ALPHA_DOT, G_SETTLE_THETA, G_SETTLE_THETA_DOT = range(15, 19)
+
+CATCH_DEGREES = 20.0  # the swing-up hands over to the balance law inside this distance from upright (degrees)
 
 
-CATCH_DEGREES = 20.0
-"""the swing-up hands over to the balance law inside this distance from upright (degrees)"""
-
-
-def controller_constants(
-    params: QubeParams = NOMINAL,
-    *,
-    mu: float = 1000.0,
-    target_amplitude_deg: float = 230.0,
-    energy_ceiling: float = 1.2,
-    arm_p: float = 6.0,
-    arm_d: float = 0.2,
-    swing_max_volts: float = 8.0,
-    catch_deg: float = CATCH_DEGREES,
-    drop_deg: float = 30.0,
-    recentre: float = 0.5,
-    settle_alpha_deg: float = 3.0,
-    settle_alpha_dot: float = 1.5,
-    settle_theta_deg: float = 20.0,
-    settle_theta_dot: float = 1.5,
-) -> np.ndarray:
-    """Pack the controllers' constants (from the *nominal* model, as on a real unit).
-
-    :param mu: swing-up pumping voltage per joule still missing (V/J)
-    :param target_amplitude_deg: the swing amplitude (from hanging) the pumping aims at; past 180° so the
-        pendulum goes over the top instead of creeping towards it
-    :param energy_ceiling: stop pumping while the pendulum's energy exceeds this multiple of mp·g·Lp
-    :param arm_p: volts per radian pulling the arm back to centre during swing-up (limits arm travel)
-    :param arm_d: volts per rad/s damping the arm during swing-up
-    :param swing_max_volts: voltage limit of the swing-up
-    :param catch_deg: hand over from swing-up to balance inside this distance from upright
-    :param drop_deg: fall back to swing-up beyond this distance from upright
-    :param recentre: after a catch the balance law holds the arm where it caught the pendulum and walks
-        that set-point back to centre at this rate (rad/s)
-    :param settle_alpha_deg: hand-off window on |alpha| (and likewise the other ``settle_*`` windows, on
-        |alpha_dot| in rad/s, |theta| in degrees, |theta_dot| in rad/s)
-    """
+def controller_constants() -> np.ndarray:
+    """Pack the controllers' constants, from the *nominal* model as on a real unit (indices K_*, G_*)."""
+    p = NOMINAL
     rad = math.pi / 180.0
-    upright_energy = params.mp * params.g * params.Lp
+    upright_energy = p.mp * p.g * p.Lp
     return np.array(
         [
             *BALANCE_GAINS,
-            mu,
-            target_amplitude_deg * rad,
-            energy_ceiling * upright_energy,
-            params.Jp + 0.25 * params.mp * params.Lp**2,
-            0.5 * params.mp * params.g * params.Lp,
-            arm_p,
-            arm_d,
-            swing_max_volts,
-            catch_deg * rad,
-            drop_deg * rad,
-            recentre,
-            settle_alpha_deg * rad,
-            settle_alpha_dot,
-            settle_theta_deg * rad,
-            settle_theta_dot,
+            1000.0,  # swing-up pumping voltage per joule still missing (V/J)
+            230.0 * rad,  # the swing amplitude (from hanging) the pumping aims at, past 180°
+            1.2 * upright_energy,  # stop pumping while the pendulum's energy exceeds this
+            p.Jp + 0.25 * p.mp * p.Lp**2,
+            0.5 * p.mp * p.g * p.Lp,
+            6.0,  # volts per radian (and per rad/s below) holding the arm near centre during swing-up
+            0.2,
+            8.0,  # voltage limit of the swing-up
+            CATCH_DEGREES * rad,  # hand over to balance inside this distance from upright
+            30.0 * rad,  # fall back to swing-up beyond this distance from upright
+            0.5,  # rate (rad/s) at which the arm's set-point walks from the catch angle back to centre
+            3.0 * rad,  # the hand-off windows on |alpha|, |alpha_dot|, |theta|, |theta_dot|
+            1.5,
+            20.0 * rad,
+            1.5,
         ],
         dtype=np.float64,
     )
@@ -123,13 +70,9 @@ def balance_volts(theta: float, alpha: float, theta_dot: float, alpha_dot: float
 def swing_up_volts(
     theta: float, alpha: float, theta_dot: float, alpha_dot: float, amplitude: float, k: np.ndarray
 ) -> float:
-    """Energy swing-up.
-
-    Pumps with a voltage against sign(α̇·cos α_d) (α_d from hanging), sized by the energy still missing
-    judged at the last turning point ``amplitude`` (there the pendulum's energy is all potential, so the
-    arm's motion cannot fool the estimate); coasts while E = ½·J·α̇² + ½·mp·g·Lp·(1 − cos α_d) is above the
-    ceiling; a spring-damper keeps the arm near centre.
-    """
+    """Energy swing-up: pumps against sign(α̇·cos α_d) (α_d from hanging), sized by the energy missing at
+    the last turning point ``amplitude``; coasts while E = ½·J·α̇² + ½·mp·g·Lp·(1 − cos α_d) is above the
+    ceiling; a spring-damper keeps the arm near centre."""
     cos_d = -math.cos(alpha)
     direction = alpha_dot * cos_d
     sign = 1.0 if direction > 0.0 else (-1.0 if direction < 0.0 else 0.0)
@@ -152,7 +95,7 @@ def reset_phase_start(memory: np.ndarray, alpha: float) -> None:
     """Start a reset's phase memory from the pendulum reading ``alpha`` (swinging up, nothing seen yet)."""
     memory[R_BALANCING] = 0.0
     memory[R_INSIDE] = 0.0
-    memory[R_REFERENCE] = 0.0  # arm set-point of the balance law: the catch angle, walked back to centre
+    memory[R_REFERENCE] = 0.0  # the balance law's arm set-point
     memory[R_AMPLITUDE] = abs(wrap_angle(alpha - math.pi))
     memory[R_LAST_ALPHA_DOT] = 0.0
     memory[R_TRAVEL] = 0.0
@@ -169,13 +112,10 @@ def reset_phase_step(
     walk: float,
     settle_periods: int,
 ) -> tuple[float, bool]:
-    """One period of the device-side reset: the volts to apply and whether the pendulum has settled.
-
-    Hands over to the balance law inside ``catch`` of upright (its arm set-point starts where it caught
-    and walks back to centre by ``walk`` rad per period), falls back to the swing-up beyond ``drop``;
-    settled means every reading stayed inside its ``settle_*`` window for ``settle_periods`` periods in a
-    row while the balance law was in charge. ``memory`` (from ``reset_phase_start``) carries the phase.
-    """
+    """One period of the device-side reset: the volts to apply and whether the pendulum has settled (every
+    reading inside its ``settle_*`` window for ``settle_periods`` periods in a row under the balance law,
+    whose arm set-point walks from the catch angle to centre by ``walk`` rad a period). ``memory`` (from
+    ``reset_phase_start``) carries the phase."""
     alpha = wrap_angle(alpha_reading)
     memory[R_TRAVEL] = max(memory[R_TRAVEL], abs(theta))
     balancing = memory[R_BALANCING] != 0.0
@@ -209,12 +149,7 @@ def reset_phase_step(
 
 
 class ResetPhases:
-    """The device-side reset's phase machine fed one reading at a time (from Python, e.g. a driver's loop).
-
-    :param period: seconds between readings (the set-point walk per period follows from it)
-    :param settle_periods: readings in a row inside the settle windows that end the reset
-    :param constants: the controllers' constants (default: ``controller_constants()``, nominal)
-    """
+    """The device-side reset's phase machine fed one reading at a time, ``period`` seconds apart."""
 
     def __init__(self, period: float, settle_periods: int, constants: np.ndarray | None = None) -> None:
         self.constants = controller_constants() if constants is None else constants
@@ -234,20 +169,9 @@ class ResetPhases:
         return float(volts), bool(settled)
 
     def hold_volts(self, theta: float, alpha: float, theta_dot: float, alpha_dot: float) -> float:
-        """The swing-up law with nothing left to pump (its amplitude at the target): only its arm
-        spring-damper acts, bringing the arm back to centre while the pendulum calms down."""
+        """The swing-up law with nothing left to pump: only its arm spring-damper acts."""
         k = self.constants
         return float(swing_up_volts(theta, alpha, theta_dot, alpha_dot, k[G_TARGET_AMPLITUDE], k))
-
-    @property
-    def balancing(self) -> bool:
-        """Whether the balance law is in charge."""
-        return bool(self.memory[R_BALANCING] != 0.0)
-
-    @property
-    def travel(self) -> float:
-        """The largest |arm angle| reading seen since ``start`` (rad)."""
-        return float(self.memory[R_TRAVEL])
 
 
 @njit(cache=True)
@@ -260,12 +184,7 @@ def device_reset(
     max_periods: int,
     settle_periods: int,
 ) -> tuple[int, float]:
-    """Swing up, catch and settle; return the periods used (−1 if not settled within ``max_periods``)
-    and the largest |arm angle| reading seen (rad).
-
-    Settled means every reading stays inside its ``settle_*`` window for ``settle_periods`` periods in a row
-    while the balance law is in charge.
-    """
+    """Swing up, catch and settle: the periods used (−1: not settled in time) and the arm's travel (rad)."""
     walk = k[G_RECENTRE] * settings[P_H] * settings[P_NSUB]
     memory = np.empty(N_RESET_MEMORY, dtype=np.float64)
     reset_phase_start(memory, sensor[S_ALPHA])

@@ -1,9 +1,13 @@
-"""One simulated QUBE-Servo 2 unit: physics, sensor pipeline, actions and the device-side reset."""
+"""One simulated QUBE-Servo 2 unit (physics, sensor pipeline, actions and the device-side reset), and many
+stepped together in one compiled call per time step, each row through the very control period a lone unit
+runs (``agent_step``), so the states are equal bit for bit."""
 
 import logging
 import math
+from collections.abc import Sequence
 
 import numpy as np
+from numba import njit
 
 from fleetrl.devices.qube.controllers import CATCH_DEGREES, controller_constants, device_reset, run_balance
 from fleetrl.devices.qube.dynamics import (
@@ -16,23 +20,23 @@ from fleetrl.devices.qube.dynamics import (
     sense_at_rest,
     write_observation,
 )
-from fleetrl.devices.qube.fleet_profiles import fleet_profile
-from fleetrl.devices.qube.params import ACTION_POWERS, POWER_TO_VOLTS, QubeConfig, QubeParams
-from fleetrl.devices.qube.units import QubeVariation, qube_unit_params
+from fleetrl.devices.qube.params import (
+    ACTION_POWERS,
+    POWER_TO_VOLTS,
+    QubeConfig,
+    QubeParams,
+    QubeVariation,
+    fleet_profile,
+    qube_unit_params,
+)
 
 log = logging.getLogger(__name__)
 
-ACTION_VOLTS = tuple(p * POWER_TO_VOLTS for p in ACTION_POWERS)
-"""volts of action index 0, 1, 2 (−1.44, 0, +1.44 V)"""
-RESET_PERTURBATION = (math.radians(3.0), 0.2)
-"""a reset starts hanging, off by up to ±3° and ±0.2 rad/s (uniform, from the reset seed)"""
-HAND_RESET_SECONDS = 30.0
-"""a reset whose swing-up does not settle is ended by a person (the pendulum put upright by hand): this much
-of a person's time on the rig, on top of the device's own (its failed swing-up and the settle)"""
-SETTLE_SECONDS = 0.2
-"""the readings must stay inside the hand-off windows this long before the agent gets the pendulum"""
-HAND_SETTLE_SECONDS = 5.0
-"""a pendulum put upright by hand (a swing-up out of time) must settle within this long"""
+ACTION_VOLTS = tuple(p * POWER_TO_VOLTS for p in ACTION_POWERS)  # of action index 0, 1, 2 (±1.44 V)
+RESET_PERTURBATION = (math.radians(3.0), 0.2)  # a reset starts hanging, off by up to ±3° and ±0.2 rad/s
+HAND_RESET_SECONDS = 30.0  # a person's time on the rig to put the pendulum upright after a failed swing-up
+SETTLE_SECONDS = 0.2  # the readings stay inside the hand-off windows this long before the agent gets them
+HAND_SETTLE_SECONDS = 5.0  # a pendulum put upright by hand must settle within this long
 
 
 class DeviceResetError(RuntimeError):
@@ -40,11 +44,7 @@ class DeviceResetError(RuntimeError):
 
 
 class QubeDevice:
-    """A QUBE unit as the agent's side sees it: a command in, encoder readings and velocity estimates out.
-
-    :param params: the unit's physical parameters (see ``from_fleet`` for a unit of a seeded fleet)
-    :param config: how the unit is simulated and sensed
-    """
+    """A QUBE unit as the agent's side sees it: a command in, encoder readings and velocity estimates out."""
 
     def __init__(self, params: QubeParams, config: QubeConfig | None = None) -> None:
         self.params = params
@@ -54,37 +54,28 @@ class QubeDevice:
         self._state = np.zeros(4, dtype=np.float64)
         self._sensor = np.zeros(N_SENSOR, dtype=np.float64)
         self._obs = np.zeros(4, dtype=np.float32)
+
+        def settings(period: float, velocity_filter: float | None) -> np.ndarray:
+            return pipeline_settings(
+                period,
+                cfg.max_substep,
+                quantise=cfg.quantise,
+                velocity_filter=velocity_filter,
+                delay=cfg.actuation_delay,
+                max_volts=cfg.max_volts,
+            )
+
         filter_cutoff = cfg.velocity_cutoff if cfg.velocity_estimate == "filter" else None
-        self._agent_settings = pipeline_settings(
-            cfg.control_period,
-            cfg.max_substep,
-            quantise=cfg.quantise,
-            velocity_filter=filter_cutoff,
-            delay=cfg.actuation_delay,
-            max_volts=cfg.max_volts,
-        )
+        self._agent_settings = settings(cfg.control_period, filter_cutoff)
         # the device's own controllers always read velocities through Quanser's filter
-        self._device_settings = pipeline_settings(
-            cfg.device_period,
-            cfg.max_substep,
-            quantise=cfg.quantise,
-            velocity_filter=cfg.velocity_cutoff,
-            delay=cfg.actuation_delay,
-            max_volts=cfg.max_volts,
-        )
+        self._device_settings = settings(cfg.device_period, cfg.velocity_cutoff)
         self._controllers = controller_constants()
-        self.last_reset_seconds = math.nan
-        """simulated seconds the last device-side reset took (swing-up, catch, settle)"""
-        self.last_reset_arm_travel = math.nan
-        """largest |arm angle| reading (rad) during the last reset"""
-        self.last_reset_by_hand = False
-        """whether the last reset's swing-up did not settle in time (the pendulum was put upright by hand)"""
-        self.last_unsettled = ""
-        """why the last reset needed a hand (:func:`unsettled_reason`); empty when it settled"""
-        self.hand_resets = 0
-        """resets so far whose pendulum was put upright by hand"""
-        self.name = "a QUBE unit"
-        """how the log names this unit"""
+        self.last_reset_seconds = math.nan  # simulated seconds the last device-side reset took
+        self.last_reset_arm_travel = math.nan  # largest |arm angle| reading (rad) during the last reset
+        self.last_reset_by_hand = False  # the last swing-up did not settle in time: put upright by hand
+        self.last_unsettled = ""  # why the last reset needed a hand (:func:`unsettled_reason`)
+        self.hand_resets = 0  # resets so far whose pendulum was put upright by hand
+        self.name = "a QUBE unit"  # how the log names this unit
 
     @classmethod
     def from_fleet(
@@ -96,11 +87,7 @@ class QubeDevice:
         *,
         profile: str | None = None,
     ) -> "QubeDevice":
-        """Unit ``unit`` of the fleet ``fleet_seed`` (parameters drawn deterministically).
-
-        :param variation: draw with this variation instead of a named profile's
-        :param profile: the fleet profile (``fleet_profiles``); None: the default, ``table2``
-        """
+        """Unit ``unit`` of fleet ``fleet_seed``, drawn with ``variation`` or fleet profile ``profile``."""
         if variation is not None and profile is not None:
             raise ValueError("give a fleet profile or a variation, not both")
         chosen = variation if variation is not None else fleet_profile(profile).variation
@@ -131,17 +118,10 @@ class QubeDevice:
         return self._obs
 
     def reset(self, seed: int | None = None) -> np.ndarray:
-        """Device-side reset like the rig: from a (seeded) hanging start, swing up, catch, settle.
-
-        Where the swing-up has not settled within ``config.reset_timeout`` (a few units of a large fleet,
-        docs/devices.md) the pendulum is put upright by hand, as a person at the rig would: at rest, arm
-        centred, then settled by the balance law like any reset (``last_reset_by_hand``; ``hand_resets``
-        counts them). A reset that settles in time is never touched.
-
-        Returns the first observation of an episode (a buffer the device reuses: copy it to keep it).
-        Raises DeviceResetError if even the pendulum put upright has not settled within
-        :data:`HAND_SETTLE_SECONDS`.
-        """
+        """Device-side reset like the rig: from a (seeded) hanging start, swing up, catch, settle; where the
+        swing-up has not settled within ``config.reset_timeout`` the pendulum is put upright by hand (at
+        rest, arm centred) and settled. Returns the first observation (a buffer the device reuses).
+        Raises DeviceResetError if that has not settled within :data:`HAND_SETTLE_SECONDS` either."""
         rng = np.random.default_rng(seed)
         angle, rate = RESET_PERTURBATION
         self.set_state(np.array([0.0, math.pi + rng.uniform(-angle, angle), 0.0, rng.uniform(-rate, rate)]))
@@ -172,14 +152,11 @@ class QubeDevice:
 
     @property
     def last_reset_rig_seconds(self) -> float:
-        """What the last reset took on a rig: its device time, plus :data:`HAND_RESET_SECONDS` if a person
-        ended it."""
+        """What the last reset took on a rig: its device time, plus a person's if one ended it."""
         return self.last_reset_seconds + (HAND_RESET_SECONDS if self.last_reset_by_hand else 0.0)
 
     def _settle(self, seconds: float) -> tuple[int, float]:
-        """The device-side reset's controllers from the present state (swing-up where the pendulum is far
-        from upright, catch, settle) for at most ``seconds``: the periods used (−1: not settled in time) and
-        the arm's travel."""
+        """The reset's controllers for at most ``seconds``: periods used (−1: not settled), arm travel."""
         period = self.config.device_period
         return device_reset(
             self._state,
@@ -200,39 +177,19 @@ class QubeDevice:
         """One control period with action index 0, 1 or 2 (power −60, 0, +60); returns the observation."""
         if not 0 <= action <= 2:
             raise ValueError(f"action {action!r} is out of range (choose 0, 1 or 2: power -60, 0, +60)")
-        agent_step(
-            self._state,
-            self._coefficients,
-            self._sensor,
-            self._agent_settings,
-            ACTION_VOLTS[action],
-            self._obs,
-        )
-        return self._obs
+        return self.step_volts(ACTION_VOLTS[action])
 
     def balance(self, n_periods: int) -> float:
         """Run Quanser's balance law at the agent's control period; return the largest |alpha| reading."""
-        return float(
-            run_balance(
-                self._state,
-                self._coefficients,
-                self._sensor,
-                self._agent_settings,
-                self._controllers,
-                n_periods,
-            )
-        )
+        x, c, settings = self._state, self._coefficients, self._agent_settings
+        return float(run_balance(x, c, self._sensor, settings, self._controllers, n_periods))
 
     def close(self) -> None:
         """Nothing to release for a simulated unit."""
 
 
 class QubeVoltageUnit:
-    """A QUBE unit commanded in volts: ``step`` takes a command vector ``[volts]`` (a continuous action)
-    instead of an action index; the amplifier still saturates at ``config.max_volts``.
-
-    :param device: the simulated unit
-    """
+    """A QUBE unit commanded by a vector ``[volts]`` (a continuous action) instead of an action index."""
 
     def __init__(self, device: QubeDevice) -> None:
         self.device = device
@@ -252,10 +209,78 @@ class QubeVoltageUnit:
 
 def unsettled_reason(state: np.ndarray) -> str:
     """Why a swing-up that ran out of time stands where it does (``state``: [theta, alpha, ...], alpha from
-    upright): ``held up, not settled`` when the balance law holds the pendulum up but not inside the settle
-    windows (the arm held off centre by a strong cable torque or a dead zone against a law without integral
-    action), else ``never caught`` (the swings never came within the catch angle)."""
+    upright): ``held up, not settled`` (the balance law holds it, but outside the settle windows: an arm held
+    off centre by cable torque or dead zone) or ``never caught``."""
     alpha = abs(math.remainder(float(state[1]), 2.0 * math.pi))
     if alpha < math.radians(CATCH_DEGREES):
         return f"held up, not settled: arm at {math.degrees(float(state[0])):+.0f}°"
     return "never caught"
+
+
+_VOLTS = np.array(ACTION_VOLTS, dtype=np.float64)  # volts of action index 0, 1, 2
+
+
+@njit(cache=True)
+def _step_rows(
+    states: np.ndarray,
+    coefficients: np.ndarray,
+    sensors: np.ndarray,
+    settings: np.ndarray,
+    rows: np.ndarray,
+    volts: np.ndarray,
+    obs: np.ndarray,
+) -> None:  # pragma: no cover - compiled (each row is QubeDevice.step's own call; the tests compare both)
+    for j in range(rows.shape[0]):
+        i = rows[j]
+        agent_step(states[i], coefficients[i], sensors[i], settings[i], volts[j], obs[j])
+
+
+class QubeBatch:
+    """The devices ``devices`` stepped together, row i ``devices[i]``, each state held while it steps."""
+
+    def __init__(self, devices: Sequence[QubeDevice]) -> None:
+        if not devices:
+            raise ValueError("a batch of QUBE units needs at least one unit")
+        self.devices = list(devices)
+        self._coefficients = np.array([d._coefficients for d in self.devices], dtype=np.float64)
+        self._settings = np.array([d._agent_settings for d in self.devices], dtype=np.float64)
+        self._state = np.array([d._state for d in self.devices], dtype=np.float64)
+        self._sensor = np.array([d._sensor for d in self.devices], dtype=np.float64)
+
+    def load(self, row: int) -> None:
+        """Take unit ``row``'s state and sensor pipeline from its device."""
+        device = self.devices[row]
+        self._state[row] = device._state
+        self._sensor[row] = device._sensor
+
+    def store(self, row: int) -> None:
+        """Hand unit ``row``'s state and sensor pipeline back to its device."""
+        device = self.devices[row]
+        device._state[:] = self._state[row]
+        device._sensor[:] = self._sensor[row]
+
+    def state(self, row: int) -> np.ndarray:
+        """A copy of unit ``row``'s true state as the batch holds it (float64)."""
+        return self._state[row].copy()
+
+    def sensor(self, row: int) -> np.ndarray:
+        """A copy of unit ``row``'s sensor pipeline as the batch holds it (float64)."""
+        return self._sensor[row].copy()
+
+    def step(self, rows: np.ndarray, actions: np.ndarray) -> np.ndarray:
+        """One control period for the units ``rows`` with action indices ``actions``: their observations."""
+        indices = np.asarray(actions, dtype=np.int64)
+        if indices.size and not bool(np.all((indices >= 0) & (indices <= 2))):
+            bad = int(indices[(indices < 0) | (indices > 2)][0])
+            raise ValueError(f"action {bad!r} is out of range (choose 0, 1 or 2: power -60, 0, +60)")
+        obs = np.empty((len(rows), 4), dtype=np.float32)
+        _step_rows(
+            self._state,
+            self._coefficients,
+            self._sensor,
+            self._settings,
+            np.asarray(rows, dtype=np.int64),
+            _VOLTS[indices],
+            obs,
+        )
+        return obs

@@ -1,8 +1,5 @@
-"""Compiled QUBE-Servo 2 physics and sensor pipeline: one allocation-free numba call per control period.
-
-The equations of motion are ``reference/qube-servo2-model.md``'s (at :func:`accelerations`); state arrays
-are float64 ``[theta, alpha, theta_dot, alpha_dot]``, parameters ``QubeParams.coefficients()``.
-"""
+"""Compiled QUBE-Servo 2 physics and sensor pipeline, one allocation-free numba call per control period:
+``reference/qube-servo2-model.md``'s equations on float64 states ``[theta, alpha, theta_dot, alpha_dot]``."""
 
 import math
 
@@ -10,21 +7,8 @@ import numpy as np
 from numba import njit, prange
 
 # indices into QubeParams.coefficients()
-(
-    C_M11,
-    C_QUARTER,
-    C_HALF,
-    C_M22,
-    C_GRAV,
-    C_KM,
-    C_RM,
-    C_DR,
-    C_DP,
-    C_THETA_OFF,
-    C_ALPHA_OFF,
-    C_CABLE,
-    C_DEADBAND,
-) = range(13)
+C_M11, C_QUARTER, C_HALF, C_M22, C_GRAV, C_KM, C_RM, C_DR, C_DP = range(9)
+C_THETA_OFF, C_ALPHA_OFF, C_CABLE, C_DEADBAND = range(9, 13)
 
 # indices into the sensor array: readings (unwrapped), velocity estimates, the actuator's voltages
 S_THETA, S_ALPHA, S_THETA_VEL, S_ALPHA_VEL, S_HELD, S_APPLIED = range(6)
@@ -46,11 +30,7 @@ def pipeline_settings(
     delay: bool,
     max_volts: float,
 ) -> np.ndarray:
-    """Pack one control period's settings for the kernels.
-
-    :param velocity_filter: cut-off (rad/s) of the first-order velocity filter, or None for a finite
-        difference over the period.
-    """
+    """Pack one control period's settings (``velocity_filter`` None: a finite difference over the period)."""
     n = max(1, math.ceil(period / max_substep - 1e-9))
     h = period / n
     coeff = 0.0 if velocity_filter is None else 1.0 - math.exp(-velocity_filter * h)
@@ -116,8 +96,7 @@ def encoder(angle: float, offset: float, quantise: bool) -> float:
 
 @njit(cache=True, inline="always")
 def filtered_rate(rate: float, delta: float, dt: float, coeff: float) -> float:
-    """One update of the first-order velocity filter: ``rate`` moves by ``coeff`` (1 − e^(−cut-off·dt))
-    towards the difference quotient ``delta / dt`` of the reading."""
+    """One update of the first-order velocity filter: ``rate`` moves by ``coeff`` towards ``delta / dt``."""
     return rate + coeff * (delta / dt - rate)
 
 
@@ -135,8 +114,7 @@ def dead_zone(volts: float, width: float) -> float:
 def control_period(
     x: np.ndarray, c: np.ndarray, sensor: np.ndarray, settings: np.ndarray, cmd: float
 ) -> None:
-    """One control period: actuator (saturation, optional delay, dead zone), RK4 substeps, encoders,
-    velocities."""
+    """One control period: actuator (saturation, delay, dead zone), RK4 substeps, encoders, velocities."""
     vmax = settings[P_VMAX]
     cmd = min(max(cmd, -vmax), vmax)
     if settings[P_DELAY] != 0.0:
@@ -199,9 +177,7 @@ def agent_step(
 def physics_batch(
     states: np.ndarray, coefficients: np.ndarray, volts: np.ndarray, n_periods: int, n_sub: int, h: float
 ) -> None:
-    """Raw physics for many units: each row of ``states`` advances ``n_periods`` control periods of
-    ``n_sub`` RK4 steps at its own constant voltage and its own row of ``coefficients``. Units are spread
-    over numba's threads (``numba.set_num_threads``)."""
+    """Raw physics: each row of ``states`` advances ``n_periods`` periods at its own constant voltage."""
     for i in prange(states.shape[0]):
         x = states[i]
         c = coefficients[i]
@@ -211,8 +187,7 @@ def physics_batch(
 
 
 def energy(x: np.ndarray, c: np.ndarray) -> float:
-    """Total mechanical energy (J) of ``x``: kinetic ½·q̇ᵀMq̇ plus the potentials of the pendulum (zero at
-    the pivot) and of the cable (½·Kc·θ²)."""
+    """Total mechanical energy (J) of ``x``: ½·q̇ᵀMq̇ plus the pendulum's and the cable's potentials."""
     s = math.sin(x[1])
     m11 = c[C_M11] + c[C_QUARTER] * s * s
     m12 = -c[C_HALF] * math.cos(x[1])
