@@ -5,7 +5,7 @@ Run: ``.venv/bin/python lab/benchmarks/fleet_homogeneity.py --profile table2 --f
 Prints the median (and the range) of the off-diagonal motor- and pendulum-angle correlations of 3-unit
 fleets, next to the paper's rig (motor 0.75–0.86, pendulum 0.96–0.98); docs/devices.md records the figures.
 
-``--env cartpole`` runs the CartPole test instead (``fleetrl.devices.cartpole_homogeneity``; ``--profile``
+``--env cartpole`` runs the CartPole test instead (``fleetrl.devices.homogeneity``; ``--profile``
 then names a CartPole profile, standard or wide, and each impulse seed draws one test's 100 trials): the
 median (and range) of the cart- and pole-change correlations and relative differences of every unit pair.
 

@@ -1,6 +1,6 @@
 """QUBE units whose observation holds their last observation and action, as ``--env
 fleetrl_lab.history_env:qube_wide`` or ``qube_table2``: the runs that chose the product's ``last_step``
-setting, made before it was one (the same observation: :class:`fleetrl.envs.last_step.LastStep`)."""
+setting, made before it was one (the same observation: :class:`fleetrl.envs.wrappers.LastStep`)."""
 
 from __future__ import annotations
 

@@ -95,7 +95,7 @@ class PPOConfig:
     one policy for every unit"""
     last_step: bool = False
     """the policy's input holds the unit's last observation and action beside the observation
-    (:mod:`fleetrl.envs.last_step`): one shared policy that can tell units apart by how they answered its
+    (:mod:`fleetrl.envs.wrappers`): one shared policy that can tell units apart by how they answered its
     last action"""
 
     def to_dict(self) -> dict[str, Any]:
