@@ -13,9 +13,8 @@ from typing import Any
 import gymnasium
 import numpy as np
 
-from fleetrl.agent.criterion import CompletionCriterion
+from fleetrl.agent.criterion import CompletionCriterion, Episodes, RoundResult
 from fleetrl.agent.ppo import PPOAgent, UpdateStats
-from fleetrl.agent.round_result import Episodes, RoundResult
 from fleetrl.envs.host_envs import HostEnvs
 
 __all__ = ["Learner", "PlayedEpisodes"]

@@ -15,14 +15,12 @@ from fleetrl.agent.action_space import ActionSpace, as_action_space
 from fleetrl.agent.checkpoint import check_tensors_fit
 from fleetrl.agent.config import PPOConfig
 from fleetrl.agent.flat import Named, flatten, flatten_tensors, layout, split
-from fleetrl.agent.memory import TrajectoryMemory, score_unscored
+from fleetrl.agent.memory import PendingTransitions, TrajectoryMemory, score_unscored
 from fleetrl.agent.model_file import architecture, load_agent, save_agent
 from fleetrl.agent.network import ActorCritic
-from fleetrl.agent.pending import PendingTransitions
 from fleetrl.agent.policy_numpy import NumpyPolicy
-from fleetrl.agent.row_acting import FEW_ROWS, RowActing
+from fleetrl.agent.row_acting import FEW_ROWS, RowActing, UniformDraws
 from fleetrl.agent.step_exchange import StepExchange
-from fleetrl.agent.unit_draws import UniformDraws
 from fleetrl.agent.update import (
     ACTOR,
     CRITIC,

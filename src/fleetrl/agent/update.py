@@ -1,10 +1,6 @@
-"""One round's PPO update (Algorithm 2, lines 11-24) for U ≥ 1 units of one policy, in :func:`ppo_update`.
-
-A generator: it yields each optimisation step's gradient and steps the optimisers with what is sent back
-(:func:`hand_back` sends each back; a per-step scheme sends the fleet's mean). Each unit keeps its own memory
-and window draws; the loss is the mean over the units of each unit's loss on its own window. The preset's
-variants (:mod:`fleetrl.agent.variants`) are chosen once.
-"""
+"""The paper's losses (Eqs. 2, 3, 6) and one round's PPO update (Algorithm 2, lines 11-24) for U ≥ 1 units
+of one policy, :func:`ppo_update`: a generator that yields each step's gradient and steps the optimisers with
+what is sent back (:func:`hand_back`: its own; a per-step scheme: the fleet's mean)."""
 
 from __future__ import annotations
 
@@ -15,38 +11,110 @@ from typing import TypeVar
 import numpy as np
 import torch
 from torch import nn
+from torch.nn import functional
 
 from fleetrl.agent.config import PPOConfig
-from fleetrl.agent.losses import clipped_surrogate, critic_loss
 from fleetrl.agent.memory import Transitions, concatenate, sample_window
 from fleetrl.agent.network import ActorCritic
 from fleetrl.agent.optimisers import step_optimiser
 
-CRITIC = "critic"
-"""the part of a step that moves μ (lines 20-21)"""
-ACTOR = "actor"
-"""the part of a step that moves θ (lines 22-23)"""
+CRITIC = "critic"  # the part of a step that moves μ (lines 20-21)
+ACTOR = "actor"  # the part of a step that moves θ (lines 22-23)
 
 Gradient = list[torch.Tensor]
-"""one step's gradient: a tensor per parameter the step moves, critic part first (``PPOAgent.step_layout``)"""
+"""one step's gradient: a tensor per parameter the step moves, critic part first"""
 ExtraLoss = Callable[[nn.Module], torch.Tensor]
-"""a scalar added to each minibatch's loss (FedProx's μ/2·‖θ − θ_global‖², say), given the network"""
+"""a scalar added to each minibatch's loss (FedProx's μ/2·‖θ − θ_global‖²), given the network"""
+
+
+def td_targets(
+    rewards: torch.Tensor, next_values: torch.Tensor, terminated: torch.Tensor, gamma: float
+) -> torch.Tensor:
+    """V^target(s_t) = r_{t+1} + γ·V(s_{t+1}) (Eq. 3), no bootstrap where s_{t+1} is terminal (a truncation
+    bootstraps)."""
+    return rewards + gamma * (1.0 - terminated) * next_values
+
+
+def gae(
+    rewards: torch.Tensor,
+    values: torch.Tensor,
+    next_values: torch.Tensor,
+    terminated: torch.Tensor,
+    episode_end: torch.Tensor,
+    gamma: float,
+    gae_lambda: float,
+    lengths: Sequence[int] | None = None,
+) -> torch.Tensor:
+    """Generalised advantage estimates (Eq. 2), detached: δ_t = r_{t+1} + γ·V(s_{t+1})·(1 − terminated_t)
+    − V(s_t) and Â_t = δ_t + (γλ)·Â_{t+1}, stopping at an episode's end and at the end of its run: one run
+    (``lengths`` None) or runs of ``lengths`` one after the other, side by side in float64 arithmetic."""
+    with torch.no_grad():
+        deltas = (td_targets(rewards, next_values, terminated, gamma) - values).numpy()
+        carry = gamma * gae_lambda * (1.0 - episode_end.numpy())
+    if lengths is None or len(lengths) == 1:
+        advantages = np.zeros_like(deltas)
+        running = 0.0
+        for t in range(deltas.shape[0] - 1, -1, -1):  # plain floats: ~30x faster than torch scalars
+            running = float(deltas[t]) + float(carry[t]) * running
+            advantages[t] = running
+        return torch.from_numpy(advantages)
+    # one row per run, a shorter run padded with zeros after its end (they leave the sum at 0)
+    offsets = np.concatenate([[0], np.cumsum(lengths)])
+    longest = int(max(lengths))
+    delta_rows, carry_rows = np.zeros((len(lengths), longest)), np.zeros((len(lengths), longest))
+    for u, (start, n) in enumerate(zip(offsets[:-1], lengths, strict=True)):
+        delta_rows[u, :n] = deltas[start : start + n]
+        carry_rows[u, :n] = carry[start : start + n]
+    rows = np.zeros((len(lengths), longest))
+    running_rows = np.zeros(len(lengths))
+    for t in range(longest - 1, -1, -1):
+        running_rows = delta_rows[:, t] + carry_rows[:, t] * running_rows
+        rows[:, t] = running_rows
+    return torch.from_numpy(np.concatenate([rows[u, :n] for u, n in enumerate(lengths)]).astype(np.float32))
+
+
+def critic_loss(
+    values: torch.Tensor, targets: torch.Tensor, kind: str = "abs", dim: int | None = None
+) -> torch.Tensor:
+    """L^V(μ) = Ê[|V^target(s_t) − V_μ(s_t)|] (Eq. 3), or for ``huber`` the smooth L1 loss of the authors'
+    code; no gradient through the targets. Ê: over every element, or over ``dim`` only (one per unit)."""
+    error = targets.detach() - values
+    if kind == "abs":
+        return error.abs().mean() if dim is None else error.abs().mean(dim)
+    if kind == "huber":
+        if dim is None:
+            return functional.smooth_l1_loss(values, targets.detach(), beta=1.0)
+        return functional.smooth_l1_loss(values, targets.detach(), beta=1.0, reduction="none").mean(dim)
+    raise ValueError(f"unknown critic loss {kind!r} (choose abs or huber)")
+
+
+def clipped_surrogate(
+    log_probs: torch.Tensor,
+    old_log_probs: torch.Tensor,
+    advantages: torch.Tensor,
+    clip_eps: float,
+    dim: int | None = None,
+) -> torch.Tensor:
+    """L^CLIP(θ) = Ê[min(R_t·Â_t, clip(R_t, 1 − ε, 1 + ε)·Â_t)] (Eq. 6; Schulman et al.'s form, the products
+    inside the min), R_t = π_θ / π_θold (Eq. 5), to maximise. Ê as in :func:`critic_loss`."""
+    ratio = torch.exp(log_probs - old_log_probs.detach())
+    unclipped = ratio * advantages
+    clipped = torch.clamp(ratio, 1.0 - clip_eps, 1.0 + clip_eps) * advantages
+    surrogate = torch.min(unclipped, clipped)
+    return surrogate.mean() if dim is None else surrogate.mean(dim)
 
 
 @dataclass(frozen=True)
 class UpdateStats:
-    """What one round's update did, averaged over its K optimisations."""
+    """What one round's update did, averaged over its K optimisations: −L^CLIP (Eq. 6, no entropy bonus),
+    L^V (Eq. 3, unweighted), π_θ's mean entropy, Ê[(R − 1) − log R] ≈ KL(π_θold ‖ π_θ), and the share of
+    ratios R_t outside [1 − ε, 1 + ε]."""
 
     actor_loss: float
-    """−L^CLIP (Eq. 6), the quantity the actor minimises (entropy bonus not included)"""
     critic_loss: float
-    """L^V (Eq. 3; unweighted by ``critic_coef``)"""
     entropy: float
-    """mean entropy of π_θ over the sampled windows (nats)"""
     approx_kl: float
-    """mean of (R − 1) − log R, an estimate of KL(π_θold ‖ π_θ) (diagnostic)"""
     clip_fraction: float
-    """share of samples whose ratio R_t lay outside [1 − ε, 1 + ε] (diagnostic)"""
 
 
 @dataclass(frozen=True)
@@ -58,16 +126,13 @@ class Finished:
     actor_gradient: Gradient
 
 
-ACTOR_TOTALS = np.array([0, 2, 3, 4])
-"""the columns of an update's per-unit totals the actor objective fills (the critic loss is column 1)"""
+ACTOR_TOTALS = np.array([0, 2, 3, 4])  # the columns of the per-unit totals the actor fills (critic: 1)
 T = TypeVar("T")
-UpdateSteps = Generator[Gradient, Gradient, Finished]
-"""an update under way: yields a step's gradient, is sent the gradient to apply, returns :class:`Finished`"""
 
 
 def ppo_update(
     model: Model, memories: Sequence[Transitions], window_rngs: Sequence[np.random.Generator]
-) -> UpdateSteps:
+) -> Generator[Gradient, Gradient, Finished]:
     """Algorithm 2, lines 11-24: K optimisations on windows of each unit's memory (each non-empty); unit u
     draws its K window starts from ``window_rngs[u]`` (line 13), all of them at line 11."""
     cfg, net, variants = model.config, model.net, model.variants
@@ -135,12 +200,11 @@ def ppo_update(
 
 @dataclass(frozen=True)
 class Windows:
-    """One optimisation's windows, one per unit, as rows of the units' memories one after the other."""
+    """One optimisation's windows, one per unit, as rows of the units' memories one after the other: one
+    unit's as a slice, several units' grouped by their window's length, ``groups``: (units, length)."""
 
     rows: slice | torch.Tensor
-    """one unit's window as a slice; several units' rows, grouped by their window's length"""
     groups: tuple[tuple[np.ndarray, int], ...]
-    """(the units, their windows' length), in the order of :attr:`rows`"""
 
     @classmethod
     def of(cls, offsets: np.ndarray, spans: Sequence[tuple[int, int]]) -> Windows:
@@ -172,25 +236,21 @@ class Windows:
 
 @dataclass
 class Model:
-    """What an update trains: the network, its two parameter groups and their Adam optimisers."""
+    """What an update trains: the network, θ (trunk + actor head) and μ (trunk + value head) with their
+    Adam optimisers (one Adam twice with ``one_sequential``), and the variants ``config`` names."""
 
     net: ActorCritic
     actor: list[nn.Parameter]
-    """θ: the trunk and the actor head (what the federation shares)"""
     critic: list[nn.Parameter]
-    """μ: what the critic's optimiser steps (the trunk and the value head)"""
     actor_optimiser: torch.optim.Optimizer
     critic_optimiser: torch.optim.Optimizer
-    """the same Adam as ``actor_optimiser`` with ``optimisers='one_sequential'``"""
     config: PPOConfig
     variants: Variants
-    """the functions ``config`` names (:func:`fleetrl.agent.variants.choose_variants`)"""
     extra_loss: ExtraLoss | None = None
-    """added to each minibatch's loss (``PPOAgent.set_extra_loss``)"""
 
     def step(self, part: str, gradient: Gradient) -> None:
-        """Lines 21 / 23: one optimiser's step with ``gradient`` over its parameters (a gradient of the shared
-        ones alone leaves the unit's own offsets where they are)."""
+        """Lines 21 / 23: one optimiser's step with ``gradient`` (of the shared parameters alone: the unit's
+        own offsets stay)."""
         params, optimiser = (
             (self.actor, self.actor_optimiser) if part == ACTOR else (self.critic, self.critic_optimiser)
         )
@@ -237,17 +297,14 @@ class Batch:
 
 @dataclass
 class Minibatch:
-    """One optimisation's windows and what lines 14-17 computed on them."""
+    """One optimisation's windows and what lines 14-17 computed on them: s_t, the actor head's output, Â_t
+    and the units' mean L^V."""
 
     windows: Windows
     obs: torch.Tensor
-    """s_t on the windows"""
     head: torch.Tensor
-    """the actor head's output on the windows (logits, or the Gaussian mean in units of the box)"""
     advantages: torch.Tensor
-    """Â_t on the windows (standardised per window if the preset says so)"""
     critic_loss: torch.Tensor
-    """the units' mean L^V"""
 
 
 Advantages = Callable[[Windows, torch.Tensor, torch.Tensor], tuple[torch.Tensor, torch.Tensor]]
@@ -258,8 +315,6 @@ CriticTarget = Callable[
 """(memory, rows, V(s_{t+1}), Â, the V(s_t) of Â, γ) → V^target on the rows"""
 Objective = Callable[[Minibatch, torch.Tensor], torch.Tensor]
 """(windows, actor head output) → the actor's objective, −L^CLIP − β·H"""
-Schedule = Callable[[Model, Minibatch, Objective], Generator[Gradient, Gradient, Gradient]]
-"""how an optimisation is cut into steps; returns the actor gradient it applied"""
 
 
 @dataclass(frozen=True)
@@ -269,11 +324,11 @@ class Variants:
     old_policy: Callable[[ActorCritic, torch.Tensor, Batch], torch.Tensor]
     advantages: Callable[[ActorCritic, Batch, torch.Tensor, PPOConfig, list[int]], Advantages]
     critic_target: CriticTarget
-    schedule: Schedule
+    schedule: Callable[[Model, Minibatch, Objective], Generator[Gradient, Gradient, Gradient]]
     parts: tuple[tuple[str, ...], ...]
     """what each step of an optimisation moves, in the order its optimisers step"""
     needs_next_values: bool
-    """whether a window's V(s_{t+1}) enters its advantages or critic target; otherwise not computed"""
+    """whether a window's V(s_{t+1}) enters its advantages or critic target"""
 
 
 def next_values(model: Model, next_obs: torch.Tensor) -> torch.Tensor:

@@ -1,6 +1,5 @@
 """The choices of the update a preset names (:func:`choose_variants`): which policy is π_θold, how Â is
-scoped, what the critic chases and how an optimisation is cut into steps. The ``paper`` and ``paper-code``
-presets' own choices are the first four functions; ``standard``'s follow."""
+scoped, what the critic chases and how an optimisation is cut into steps."""
 
 from __future__ import annotations
 
@@ -9,7 +8,6 @@ from collections.abc import Generator
 import torch
 
 from fleetrl.agent.config import PPOConfig
-from fleetrl.agent.losses import gae, td_targets
 from fleetrl.agent.network import ActorCritic
 from fleetrl.agent.update import (
     ACTOR,
@@ -22,6 +20,8 @@ from fleetrl.agent.update import (
     Objective,
     Variants,
     Windows,
+    gae,
+    td_targets,
 )
 
 # ---- the paper's (``paper``, and ``paper-code`` where the authors' code does the same) -------------------

@@ -14,7 +14,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from fleetrl.agent.round_result import interrupted_round
+from fleetrl.agent.criterion import interrupted_round
 from fleetrl.federation.events import RoundEvent, Sent, WorkerEvent
 from fleetrl.federation.plan import WorkerPlan
 from fleetrl.federation.shared_settings import settings_difference
@@ -35,7 +35,7 @@ from fleetrl.federation.worker.chief_watch import ChiefWatch
 from fleetrl.federation.worker.phase import NOTHING, QUEUED, Phase, Wait
 
 if TYPE_CHECKING:  # the learner (and torch) is not imported by the pure machine
-    from fleetrl.agent.round_result import RoundResult
+    from fleetrl.agent.criterion import RoundResult
 
 __all__ = ["WorkerMachine"]
 

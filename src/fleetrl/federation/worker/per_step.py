@@ -21,7 +21,7 @@ from fleetrl.federation.worker.machine import WorkerMachine
 from fleetrl.federation.worker.phase import NOTHING, Phase
 
 if TYPE_CHECKING:  # the learner (and torch) is not imported by the pure machine
-    from fleetrl.agent.round_result import RoundResult
+    from fleetrl.agent.criterion import RoundResult
 
 __all__ = ["StepWorkerMachine"]
 
