@@ -7,7 +7,7 @@ from collections.abc import Callable, Generator
 
 import numpy as np
 
-from fleetrl.agent.flat import Named, flatten_tensors, split
+from fleetrl.agent.optimisers import Named, flatten_tensors, split
 from fleetrl.agent.update import Gradient, UpdateStats
 
 
