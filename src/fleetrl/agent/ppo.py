@@ -12,10 +12,9 @@ import torch
 
 from fleetrl.agent import optimisers
 from fleetrl.agent.action_space import ActionSpace, as_action_space
-from fleetrl.agent.checkpoint import check_tensors_fit
+from fleetrl.agent.checkpoint import architecture, check_tensors_fit, load_agent, save_agent
 from fleetrl.agent.config import PPOConfig
 from fleetrl.agent.memory import PendingTransitions, TrajectoryMemory, score_unscored
-from fleetrl.agent.model_file import architecture, load_agent, save_agent
 from fleetrl.agent.network import ActorCritic
 from fleetrl.agent.optimisers import Named, flatten, flatten_tensors, layout, split
 from fleetrl.agent.policy_numpy import NumpyPolicy
@@ -321,7 +320,7 @@ class PPOAgent:
                 p.copy_(value)
         self._policy.refresh(self.net)
 
-    # ---- resumable state (fleetrl.agent.state) and model files (fleetrl.agent.model_file) ---------------
+    # ---- resumable state (fleetrl.agent.state) and model files (fleetrl.agent.checkpoint) ---------------
 
     def optimisers(self) -> dict[str, torch.optim.Optimizer]:
         """The Adam optimisers by name: ``actor`` and ``critic``, or the one ``shared`` optimiser."""
@@ -373,7 +372,7 @@ class PPOAgent:
         n_actions: int | None = None,
         action_space: ActionSpace | None = None,
     ) -> PPOAgent:
-        """An agent rebuilt from a model file (:func:`.model_file.load_agent`)."""
+        """An agent rebuilt from a model file (:func:`.checkpoint.load_agent`)."""
         return load_agent(cls, path, obs_dim, n_actions, action_space)
 
     def load_weights(self, tensors: dict[str, np.ndarray], source: str) -> None:
