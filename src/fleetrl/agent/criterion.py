@@ -70,27 +70,21 @@ class RoundResult:
     round: int
     """1-based index of the round"""
     score: float
-    """the mean return of the round's episodes (with one episode: its return)"""
+    """the mean return of the round's episodes"""
     steps: int
-    """number of steps in the round (all its episodes)"""
     episodes: int
-    """number of episodes in the round"""
     wma: float
-    """weighted moving average of the last scores after this one (see CompletionCriterion)"""
+    """weighted moving average of the last scores after this one"""
     completed: bool
     """the criterion holds after this round; then no update was made (line 7) unless learning goes on"""
     actor_loss: float
-    """−L^CLIP averaged over the round's K optimisations (NaN when no update was made)"""
+    """−L^CLIP averaged over the update's K optimisations; this and the next NaN without an update"""
     critic_loss: float
-    """L^V averaged over the K optimisations (NaN when no update was made)"""
     entropy: float
-    """mean policy entropy over the windows (NaN when no update was made)"""
     seconds: float
-    """wall time of the round (episode and update)"""
+    """wall time of the round (episodes and update)"""
     approx_kl: float = math.nan
-    """the update's estimate of KL(π_θold ‖ π_θ), averaged over the K optimisations (NaN without an update)"""
     clip_fraction: float = math.nan
-    """share of the update's samples whose ratio R_t lay outside [1 − ε, 1 + ε] (NaN without an update)"""
 
 
 def interrupted_round(number: int) -> RoundResult:
