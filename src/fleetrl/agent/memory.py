@@ -11,22 +11,19 @@ import numpy as np
 
 @dataclass(frozen=True)
 class Transitions:
-    """A chronological run of transitions ⟨s_t, a_t, r_{t+1}, s_{t+1}⟩ (Algorithm 2, line 5), oldest first."""
+    """A chronological run of transitions ⟨s_t, a_t, r_{t+1}, s_{t+1}⟩ (Algorithm 2, line 5), oldest first:
+    float32 arrays, but int64 discrete actions (a continuous action as sampled, before clipping)."""
 
     obs: np.ndarray
-    """s_t, float32 (n, obs_dim)"""
     actions: np.ndarray
-    """a_t: int64 indices (n,), or float32 continuous actions as sampled, before clipping (n, action_dim)"""
     rewards: np.ndarray
-    """r_{t+1}, float32 (n,)"""
     next_obs: np.ndarray
-    """s_{t+1}, float32 (n, obs_dim); for the last step of an episode, the final observation"""
     terminated: np.ndarray
-    """float32 (n,): 1 where s_{t+1} is terminal (no bootstrap from V(s_{t+1}))"""
+    """1 where s_{t+1} is terminal (no bootstrap from V(s_{t+1}))"""
     episode_end: np.ndarray
-    """float32 (n,): 1 where the episode ended at this step (terminated or truncated): GAE stops here"""
+    """1 where the episode ended at this step (terminated or truncated): GAE stops here"""
     behaviour_log_probs: np.ndarray
-    """float32 (n,): log π(a_t|s_t) under the policy that acted (filled in by the agent)"""
+    """log π(a_t|s_t) under the policy that acted (filled in by the agent)"""
 
     def __len__(self) -> int:
         return int(self.actions.shape[0])
@@ -227,8 +224,7 @@ def score_unscored(
         at += s.size
 
 
-ROWS = 256
-"""transitions a unit may have pending before every unit's are moved into its memory"""
+ROWS = 256  # transitions a unit may have pending before every unit's are moved into its memory
 
 
 class PendingTransitions:
@@ -236,8 +232,7 @@ class PendingTransitions:
     assignment per field and time step for every unit at once)."""
 
     def __init__(self, units: int, obs_dim: int, action_dim: int = 0) -> None:
-        self.counts = np.zeros(units, dtype=np.int64)
-        """each unit's pending transitions"""
+        self.counts = np.zeros(units, dtype=np.int64)  # each unit's pending transitions
         self._obs = np.zeros((ROWS, units, obs_dim), dtype=np.float32)
         self._next_obs = np.zeros((ROWS, units, obs_dim), dtype=np.float32)
         if action_dim == 0:
@@ -278,7 +273,7 @@ class PendingTransitions:
         self._any = True
 
     def drain(self, memories: Sequence[TrajectoryMemory]) -> None:
-        """Move every unit's pending transitions into its memory (unit u's into ``memories[u]``), in order."""
+        """Move every unit's pending transitions into its memory, in order."""
         if not self._any:
             return
         for u in np.flatnonzero(self.counts).tolist():

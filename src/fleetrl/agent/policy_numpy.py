@@ -15,8 +15,7 @@ from fleetrl.agent.action_space import ActionSpace
 if TYPE_CHECKING:
     from fleetrl.agent.network import ActorCritic
 
-Layer = tuple[np.ndarray, np.ndarray]
-"""one linear layer as (weight (out, in), bias (out,))"""
+Layer = tuple[np.ndarray, np.ndarray]  # weight (out, in), bias (out,)
 
 _TANH = 0
 _RELU = 1
@@ -104,8 +103,7 @@ def _act_rows_kernel(
     u: np.ndarray,
     out: np.ndarray,
 ) -> None:
-    """:func:`_act_kernel` for every row of ``obs`` (n, obs_dim) with its draw ``u[i]``, into ``out`` (n,):
-    each row's action is the one :func:`_act_kernel` returns for it alone (the same arithmetic)."""
+    """:func:`_act_kernel` for every row of ``obs`` with its draw ``u[row]``, into ``out``."""
     for row in range(obs.shape[0]):
         out[row] = _act_kernel(weights, biases, dims, activation, obs[row], a, b, u[row])
 

@@ -16,11 +16,8 @@ from fleetrl.agent.policy_numpy import NumpyPolicy
 
 __all__ = ["MARGIN", "RowActing", "UniformDraws"]
 
-MARGIN = 1e-7
-"""how close (as a probability) a draw may come to a boundary of the cumulative distribution before the row
-goes to the per-row kernel; a boundary moves by at most half the largest logit difference"""
-FEW_ROWS = 16
-"""below this many rows the per-row kernel alone is as fast"""
+MARGIN = 1e-7  # how close a draw may come to a boundary of the cumulative distribution (a probability)
+FEW_ROWS = 16  # below this many rows the per-row kernel alone is as fast
 
 
 class RowActing:
@@ -34,12 +31,10 @@ class RowActing:
         self._policy = policy
         self._layers = [(torch.from_numpy(w), torch.from_numpy(b)) for w, b in policy.layers()]
         self._tanh = policy.activation == "tanh"
-        self.kernel_rows = 0
-        """rows decided by the per-row kernel so far (few rows, or a draw near a boundary)"""
+        self.kernel_rows = 0  # rows decided by the per-row kernel so far
 
     def act(self, obs: np.ndarray, u: np.ndarray) -> np.ndarray:
-        """Actions (int64, n) for the rows of ``obs`` (n, obs_dim), row i with the uniform draw ``u[i]``:
-        row i's action is :meth:`NumpyPolicy.act` ``(obs[i], u[i])``."""
+        """Actions (int64) for the rows of ``obs``: row i's is :meth:`NumpyPolicy.act` ``(obs[i], u[i])``."""
         rows = np.ascontiguousarray(obs, dtype=np.float64)
         draws = np.ascontiguousarray(u, dtype=np.float64)
         out = np.empty(rows.shape[0], dtype=np.int64)
@@ -70,7 +65,6 @@ class RowActing:
         return out
 
     def _logits(self, rows: np.ndarray) -> np.ndarray:
-        """The actor's head for every row, float64 (n, head size), by matrix products."""
         activations = torch.from_numpy(rows)
         last = len(self._layers) - 1
         with torch.no_grad():
@@ -86,7 +80,6 @@ DrawKernel = Callable[[np.ndarray, np.ndarray, np.ndarray], None]
 
 @functools.cache
 def _kernel(next_double: int) -> DrawKernel:
-    """A compiled loop over units that calls the C function at address ``next_double`` (one per process)."""
     function = ctypes.CFUNCTYPE(ctypes.c_double, ctypes.c_size_t)(next_double)
 
     @numba.njit  # no cache: the address differs from process to process
@@ -117,7 +110,6 @@ class UniformDraws:
 
     @property
     def compiled(self) -> bool:
-        """Whether the draws take the compiled path (every Generator a PCG64)."""
         return self._draw is not None
 
     def draw(self, units: np.ndarray) -> np.ndarray:

@@ -13,12 +13,10 @@ from fleetrl.agent.update import Gradient, UpdateStats
 
 class StepExchange:
     """The update ``steps`` under way: :meth:`gradient_of` hands out a step's gradient, :meth:`apply` applies
-    what the fleet sends back and computes the next; its first step is computed here.
+    what the fleet sends back and computes the next.
 
-    :param steps: the update (``PPOAgent.update_steps``)
     :param parts: the parts step k moves, in its gradient's order: each part's shared parameters (what the
         flat vector holds) and how many of the unit's own offsets follow them (their gradient stays here)
-    :param count: the steps the update takes
     """
 
     def __init__(
@@ -28,17 +26,14 @@ class StepExchange:
         count: int,
     ) -> None:
         self._steps, self._parts, self.count = steps, parts, count
-        self.step = 0
-        """the index of the step whose gradient is :attr:`gradient`"""
-        self.taken = False
-        """the step's gradient was handed out and awaits :meth:`apply`"""
+        self.step = 0  # the index of the step whose gradient is :attr:`gradient`
+        self.taken = False  # the step's gradient was handed out and awaits :meth:`apply`
         self.stats: UpdateStats | None = None
         self.gradient: Gradient | None = None
         self._advance(lambda: next(steps))
 
     def gradient_of(self, k: int) -> np.ndarray:
-        """Step ``k``'s gradient, flat float32; RuntimeError if it is not the step next, or the last one
-        handed out was not applied."""
+        """Step ``k``'s gradient, flat float32; RuntimeError if it is not the step next."""
         if self.taken:
             raise RuntimeError(f"step {self.step}'s gradient is not applied yet: call apply_step()")
         if self.gradient is None or k != self.step:
@@ -71,7 +66,6 @@ class StepExchange:
         self.gradient, self.taken = None, False
 
     def _pieces(self, gradient: Gradient) -> list[tuple[Gradient, Gradient]]:
-        """``gradient`` cut into each part's shared and own tensors."""
         pieces, at = [], 0
         for shared, own in self._parts(self.step):
             pieces.append(

@@ -5,7 +5,7 @@ what is sent back (:func:`hand_back`: its own; a per-step scheme: the fleet's me
 from __future__ import annotations
 
 from collections.abc import Callable, Generator, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 from typing import TypeVar
 
 import numpy as np
@@ -208,7 +208,7 @@ class Windows:
 
     @classmethod
     def of(cls, offsets: np.ndarray, spans: Sequence[tuple[int, int]]) -> Windows:
-        """The windows ``spans`` (unit u's: ``spans[u]``, in its memory starting at ``offsets[u]``)."""
+        """The windows ``spans`` (unit u's in its memory, which starts at row ``offsets[u]``)."""
         if len(spans) == 1:
             (start, stop), one = spans[0], np.zeros(1, dtype=np.int64)
             return cls(slice(int(offsets[0]) + start, int(offsets[0]) + stop), ((one, stop - start),))
@@ -263,7 +263,7 @@ class Model:
             p.grad = None
 
     def with_extra_loss(self, gradient: Gradient, params: list[nn.Parameter]) -> Gradient:
-        """``gradient`` over ``params`` plus the gradient of :attr:`extra_loss` (unchanged without one)."""
+        """``gradient`` over ``params`` plus the gradient of :attr:`extra_loss`, if any."""
         if self.extra_loss is None:
             return gradient
         unique = list({id(p): p for p in params}.values())
@@ -288,11 +288,8 @@ class Batch:
 
     @classmethod
     def of(cls, data: Transitions) -> Batch:
-        """The transitions as tensors sharing their arrays."""
-        return cls(*(torch.from_numpy(a) for a in (
-            data.obs, data.actions, data.rewards, data.next_obs, data.terminated, data.episode_end,
-            data.behaviour_log_probs,
-        )))  # fmt: skip
+        """The transitions as tensors sharing their arrays (the fields of the same names)."""
+        return cls(*(torch.from_numpy(getattr(data, f.name)) for f in fields(cls)))
 
 
 @dataclass

@@ -28,7 +28,7 @@ from fleetrl.agent.update import (
 
 
 def round_start_policy(net: ActorCritic, head: torch.Tensor, memory: Batch) -> torch.Tensor:
-    """π_θold = π_θ at line 11 (the paper): log π of the stored actions as the round begins."""
+    """π_θold = π_θ at line 11 (the paper)."""
     return net.log_probs_and_entropies(head, memory.actions)[0]
 
 
@@ -65,8 +65,8 @@ def td_target(
 def critic_then_actor(
     model: Model, batch: Minibatch, objective: Objective
 ) -> Generator[Gradient, Gradient, Gradient]:
-    """The authors' code: one optimisation is two steps of one Adam. The critic's gradient and step (lines
-    20-21), then π_θ again at the parameters that step left and the actor's gradient and step (22-23)."""
+    """The authors' code, two steps of one Adam: the critic's gradient and step (lines 20-21), then π_θ again
+    at the parameters that step left and the actor's gradient and step (22-23)."""
     g_mu = list(torch.autograd.grad(model.config.critic_coef * batch.critic_loss, model.critic))
     applied = yield model.with_extra_loss(g_mu, model.critic)
     model.step(CRITIC, applied)
@@ -81,7 +81,7 @@ def critic_then_actor(
 
 
 def behaviour_policy(net: ActorCritic, head: torch.Tensor, memory: Batch) -> torch.Tensor:
-    """π_θold = the policy that acted: log π of each stored action as it was drawn (importance sampling)."""
+    """π_θold = the policy that acted (importance sampling)."""
     del net, head
     return memory.behaviour_log_probs
 
@@ -89,8 +89,8 @@ def behaviour_policy(net: ActorCritic, head: torch.Tensor, memory: Batch) -> tor
 def memory_advantages(
     net: ActorCritic, memory: Batch, values: torch.Tensor, cfg: PPOConfig, lengths: list[int]
 ) -> Advantages:
-    """Eq. 2 once over each unit's memory with the critic of line 11; a window takes its rows, and V(s_t) of
-    line 11 with them (the λ-return target Â + V is then fixed for the round like Â)."""
+    """Eq. 2 once over each unit's memory with the critic of line 11; a window takes its rows of Â and of
+    V(s_t)."""
     next_values = net.value_of(memory.next_obs)
     gamma, lam = cfg.gamma, cfg.gae_lambda
     adv = gae(memory.rewards, values, next_values, memory.terminated, memory.episode_end, gamma, lam, lengths)
@@ -113,8 +113,8 @@ def lambda_return(
 def both_models_at_once(
     model: Model, batch: Minibatch, objective: Objective
 ) -> Generator[Gradient, Gradient, Gradient]:
-    """Lines 19-23 as printed: g_θ (line 22) and g_μ (line 20) at the same parameters, one step; μ's
-    optimiser steps (line 21), then θ's (line 23); each steps the shared trunk with its own loss."""
+    """Lines 19-23 as printed: g_θ (line 22) and g_μ (line 20) at the same parameters; μ's optimiser steps
+    (line 21), then θ's (line 23)."""
     g_theta = list(torch.autograd.grad(objective(batch, batch.head), model.actor, retain_graph=True))
     g_mu = list(torch.autograd.grad(model.config.critic_coef * batch.critic_loss, model.critic))
     applied = yield model.with_extra_loss([*g_mu, *g_theta], model.critic + model.actor)
