@@ -29,8 +29,8 @@ from fleetrl.agent.update import (
     UpdateStats,
     hand_back,
     ppo_update,
+    step_parts,
 )
-from fleetrl.agent.variants import choose_variants
 
 __all__ = ["PPOAgent", "UpdateStats"]
 
@@ -86,8 +86,8 @@ class PPOAgent:
         self._draws = UniformDraws(self._act_rngs)
         self._rows = RowActing(self._policy) if self._discrete else None
         both = (self.actor_optimizer, self.critic_optimizer)
-        self._model = Model(self.net, actor_all, critic_all, *both, config, choose_variants(config))
-        self._parts = self._model.variants.parts
+        self._model = Model(self.net, actor_all, critic_all, *both, config)
+        self._parts = step_parts(config)
         self._last_actor_gradient: Gradient | None = None  # line 25's: the last one the update applied
         self._exchange: StepExchange | None = None
         self.unit_stats: tuple[UpdateStats, ...] | None = None  # each unit's, of the last update

@@ -135,20 +135,26 @@ def ppo_update(
 ) -> Generator[Gradient, Gradient, Finished]:
     """Algorithm 2, lines 11-24: K optimisations on windows of each unit's memory (each non-empty); unit u
     draws its K window starts from ``window_rngs[u]`` (line 13), all of them at line 11."""
-    cfg, net, variants = model.config, model.net, model.variants
+    cfg, net = model.config, model.net
     lengths = [len(m) for m in memories]
     offsets = np.concatenate([[0], np.cumsum(lengths)]).astype(np.int64)
     memory, units = Batch.of(concatenate(memories)), len(lengths)
-    # Line 11: π_θold ← π_θ. Its log-probabilities of the stored actions (or the acting policy's, standard
-    # PPO), and V_μ(s) of every memory as the round begins.
+    # Line 11: π_θold ← π_θ, and V_μ(s) of every memory as the round begins.
     with torch.no_grad():
         head, values = net(memory.obs)
-        old_log_probs = variants.old_policy(net, head, memory)
-        advantages = variants.advantages(net, memory, values, cfg, lengths)  # Eq. 2 now, or on each window
+        if cfg.old_policy == "round_start":  # the paper: log π_θ of the stored actions at line 11
+            old_log_probs = net.log_probs_and_entropies(head, memory.actions)[0]
+        else:  # "behaviour": the policy that acted (standard PPO's importance sampling)
+            old_log_probs = memory.behaviour_log_probs
+        if cfg.gae_scope == "memory":  # Eq. 2 once over each unit's memory, with the critic of line 11
+            next_values = net.value_of(memory.next_obs)
+            ends = memory.terminated, memory.episode_end
+            memory_adv = gae(memory.rewards, values, next_values, *ends, cfg.gamma, cfg.gae_lambda, lengths)
     # Line 13, K times for each unit: a contiguous window of U transitions from a random start (Figure 3).
     spans = [[sample_window(n, cfg.batch_size, rng) for _ in range(cfg.n_optimisations)]
              for n, rng in zip(lengths, window_rngs, strict=True)]  # fmt: skip
     totals = np.zeros((units, 5))  # per unit: actor loss, critic loss, entropy, approx KL, clip fraction
+    schedule = critic_then_actor if cfg.optimisers == "one_sequential" else both_models_at_once
 
     def actor_objective(batch: Minibatch, head: torch.Tensor) -> torch.Tensor:
         """Line 18: the units' mean of −L^CLIP (Eq. 6) − β·H on each window; R_t = π_θ / π_θold (Eq. 5)."""
@@ -175,10 +181,24 @@ def ppo_update(
         windows = Windows.of(offsets, [unit_spans[k] for unit_spans in spans])
         rows = windows.rows
         head, v = net(memory.obs[rows])  # line 14: π_θ(·|s_t) and V_μ(s_t), every unit's window at once
-        v_next = next_values(model, memory.next_obs[rows])
-        adv, baseline = advantages(windows, v.detach(), v_next)  # line 15: Â_t (Eq. 2)
-        # line 16: V^target (Eq. 3: r + γV(s'); or the λ-return Â + V)
-        targets = variants.critic_target(memory, rows, v_next, adv, baseline, cfg.gamma)
+        v_next = memory.next_obs.new_empty(0)  # V_μ(s_{t+1}), where Eq. 2 or 3 reads it
+        if cfg.gae_scope == "window" or cfg.critic_target == "td":
+            with torch.no_grad():
+                v_next = net.value_of(memory.next_obs[rows])
+        # line 15: Â_t (Eq. 2) inside each window with the current critic (the paper), or the memory's
+        if cfg.gae_scope == "window":
+            ends = memory.terminated[rows], memory.episode_end[rows]
+            baseline = v.detach()
+            adv = gae(
+                memory.rewards[rows], baseline, v_next, *ends, cfg.gamma, cfg.gae_lambda, windows.lengths
+            )
+        else:
+            adv, baseline = memory_adv[rows], values[rows]
+        # line 16: V^target = r + γV(s') (Eq. 3), or the λ-return Â + V(s) from the V(s) of Â
+        if cfg.critic_target == "td":
+            targets = td_targets(memory.rewards[rows], v_next, memory.terminated[rows], cfg.gamma)
+        else:
+            targets = adv + baseline
         value_loss, scaled = torch.zeros(()), []
         for group, part, shape in windows.parts():
             l_v = critic_loss(v[part].reshape(shape), targets[part].reshape(shape), cfg.critic_loss, dim=1)
@@ -192,10 +212,43 @@ def ppo_update(
             scaled.append(unit_adv.reshape(-1))
         # Lines 19-23: the gradients and the optimisers' steps (one step, or the critic's then the actor's).
         batch = Minibatch(windows, memory.obs[rows], head, torch.cat(scaled), value_loss / units)
-        actor_gradient = yield from variants.schedule(model, batch, actor_objective)
+        actor_gradient = yield from schedule(model, batch, actor_objective)
     means = totals / cfg.n_optimisations
     unit_stats = tuple(UpdateStats(*(float(x) for x in row)) for row in means)
     return Finished(UpdateStats(*(float(x) for x in means.mean(0))), unit_stats, actor_gradient)
+
+
+def both_models_at_once(
+    model: Model, batch: Minibatch, objective: Objective
+) -> Generator[Gradient, Gradient, Gradient]:
+    """Lines 19-23 as printed: g_θ (line 22) and g_μ (line 20) at the same parameters; μ's optimiser steps
+    (line 21), then θ's (line 23). Returns the actor gradient applied."""
+    g_theta = list(torch.autograd.grad(objective(batch, batch.head), model.actor, retain_graph=True))
+    g_mu = list(torch.autograd.grad(model.config.critic_coef * batch.critic_loss, model.critic))
+    applied = yield model.with_extra_loss([*g_mu, *g_theta], model.critic + model.actor)
+    model.step(CRITIC, applied[: len(model.critic)])
+    model.step(ACTOR, applied[len(model.critic) :])
+    return applied[len(model.critic) :]
+
+
+def critic_then_actor(
+    model: Model, batch: Minibatch, objective: Objective
+) -> Generator[Gradient, Gradient, Gradient]:
+    """The authors' code, two steps of one Adam: the critic's gradient and step (lines 20-21), then π_θ again
+    at the parameters that step left and the actor's gradient and step (22-23)."""
+    g_mu = list(torch.autograd.grad(model.config.critic_coef * batch.critic_loss, model.critic))
+    applied = yield model.with_extra_loss(g_mu, model.critic)
+    model.step(CRITIC, applied)
+    head, _ = model.net(batch.obs)
+    g_theta = list(torch.autograd.grad(objective(batch, head), model.actor))
+    applied = yield model.with_extra_loss(g_theta, model.actor)
+    model.step(ACTOR, applied)
+    return applied
+
+
+def step_parts(cfg: PPOConfig) -> tuple[tuple[str, ...], ...]:
+    """What each step of an optimisation moves, in the order its optimisers step."""
+    return ((CRITIC,), (ACTOR,)) if cfg.optimisers == "one_sequential" else ((CRITIC, ACTOR),)
 
 
 @dataclass(frozen=True)
@@ -237,7 +290,7 @@ class Windows:
 @dataclass
 class Model:
     """What an update trains: the network, θ (trunk + actor head) and μ (trunk + value head) with their
-    Adam optimisers (one Adam twice with ``one_sequential``), and the variants ``config`` names."""
+    Adam optimisers (one Adam twice with ``one_sequential``)."""
 
     net: ActorCritic
     actor: list[nn.Parameter]
@@ -245,7 +298,6 @@ class Model:
     actor_optimiser: torch.optim.Optimizer
     critic_optimiser: torch.optim.Optimizer
     config: PPOConfig
-    variants: Variants
     extra_loss: ExtraLoss | None = None
 
     def step(self, part: str, gradient: Gradient) -> None:
@@ -304,36 +356,8 @@ class Minibatch:
     critic_loss: torch.Tensor
 
 
-Advantages = Callable[[Windows, torch.Tensor, torch.Tensor], tuple[torch.Tensor, torch.Tensor]]
-"""(windows, V(s_t), V(s_{t+1}) at the current critic) → (Â on the windows, the V(s_t) Â was measured from)"""
-CriticTarget = Callable[
-    [Batch, "slice | torch.Tensor", torch.Tensor, torch.Tensor, torch.Tensor, float], torch.Tensor
-]
-"""(memory, rows, V(s_{t+1}), Â, the V(s_t) of Â, γ) → V^target on the rows"""
 Objective = Callable[[Minibatch, torch.Tensor], torch.Tensor]
 """(windows, actor head output) → the actor's objective, −L^CLIP − β·H"""
-
-
-@dataclass(frozen=True)
-class Variants:
-    """The preset's choices, made once (:func:`fleetrl.agent.variants.choose_variants`)."""
-
-    old_policy: Callable[[ActorCritic, torch.Tensor, Batch], torch.Tensor]
-    advantages: Callable[[ActorCritic, Batch, torch.Tensor, PPOConfig, list[int]], Advantages]
-    critic_target: CriticTarget
-    schedule: Callable[[Model, Minibatch, Objective], Generator[Gradient, Gradient, Gradient]]
-    parts: tuple[tuple[str, ...], ...]
-    """what each step of an optimisation moves, in the order its optimisers step"""
-    needs_next_values: bool
-    """whether a window's V(s_{t+1}) enters its advantages or critic target"""
-
-
-def next_values(model: Model, next_obs: torch.Tensor) -> torch.Tensor:
-    """V_μ(s_{t+1}) of a window's next states, without gradient; empty where the variants do not read it."""
-    if not model.variants.needs_next_values:
-        return next_obs.new_empty(0)
-    with torch.no_grad():
-        return model.net.value_of(next_obs)
 
 
 def hand_back(steps: Generator[Gradient, Gradient, T]) -> T:
