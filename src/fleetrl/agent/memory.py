@@ -1,12 +1,13 @@
-"""Trajectory memory (the last N transitions across episodes, or one round's), its window sampler, and the
-pending transitions of many units, moved into their memories in bulk."""
+"""Trajectory memory (the last N transitions across episodes, or one round's), its windows, and the pending
+transitions of many units, moved into their memories in bulk."""
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Generator, Sequence
 from dataclasses import dataclass, fields
 
 import numpy as np
+import torch
 
 
 @dataclass(frozen=True)
@@ -206,6 +207,60 @@ def concatenate(runs: Sequence[Transitions]) -> Transitions:
     if len(runs) == 1:
         return runs[0]
     return Transitions(*(np.concatenate([getattr(r, f.name) for r in runs]) for f in fields(Transitions)))
+
+
+@dataclass(frozen=True)
+class Batch:
+    """The units' trajectory memories as tensors (no copy), one after the other."""
+
+    obs: torch.Tensor
+    actions: torch.Tensor
+    rewards: torch.Tensor
+    next_obs: torch.Tensor
+    terminated: torch.Tensor
+    episode_end: torch.Tensor
+    behaviour_log_probs: torch.Tensor
+
+    @classmethod
+    def of(cls, data: Transitions) -> Batch:
+        """The transitions as tensors sharing their arrays (the fields of the same names)."""
+        return cls(*(torch.from_numpy(getattr(data, f.name)) for f in fields(cls)))
+
+
+@dataclass(frozen=True)
+class Windows:
+    """One optimisation's windows, one per unit, as rows of the units' memories one after the other: one
+    unit's as a slice, several units' grouped by their window's length, ``groups``: (units, length)."""
+
+    rows: slice | torch.Tensor
+    groups: tuple[tuple[np.ndarray, int], ...]
+
+    @classmethod
+    def of(cls, offsets: np.ndarray, spans: Sequence[tuple[int, int]]) -> Windows:
+        """The windows ``spans`` (unit u's in its memory, which starts at row ``offsets[u]``)."""
+        if len(spans) == 1:
+            (start, stop), one = spans[0], np.zeros(1, dtype=np.int64)
+            return cls(slice(int(offsets[0]) + start, int(offsets[0]) + stop), ((one, stop - start),))
+        starts = np.array([start for start, _ in spans], dtype=np.int64)
+        lengths = np.array([stop - start for start, stop in spans], dtype=np.int64)
+        groups, rows = [], []
+        for length in sorted(set(lengths.tolist()), reverse=True):  # a memory shorter than U: all of it
+            members = np.flatnonzero(lengths == length)
+            groups.append((members, int(length)))
+            rows.append(((offsets[members] + starts[members])[:, None] + np.arange(length)).reshape(-1))
+        return cls(torch.from_numpy(np.concatenate(rows)), tuple(groups))
+
+    @property
+    def lengths(self) -> list[int]:
+        """Each window's length, in the order of :attr:`rows`."""
+        return [length for units, length in self.groups for _ in units]
+
+    def parts(self) -> Generator[tuple[np.ndarray, slice, tuple[int, int]], None, None]:
+        """Each group's units, its part of :attr:`rows` and that part's (units, length) shape."""
+        at = 0
+        for units, length in self.groups:
+            yield units, slice(at, at + units.size * length), (units.size, length)
+            at += units.size * length
 
 
 def score_unscored(

@@ -19,13 +19,13 @@ from fleetrl.agent.network import ActorCritic
 from fleetrl.agent.optimisers import Named, flatten, flatten_tensors, layout, split
 from fleetrl.agent.policy_numpy import NumpyPolicy
 from fleetrl.agent.row_acting import FEW_ROWS, RowActing, UniformDraws
-from fleetrl.agent.step_exchange import StepExchange
 from fleetrl.agent.update import (
     ACTOR,
     CRITIC,
     ExtraLoss,
     Gradient,
     Model,
+    StepExchange,
     UpdateStats,
     hand_back,
     ppo_update,

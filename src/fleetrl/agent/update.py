@@ -1,11 +1,11 @@
 """The paper's losses (Eqs. 2, 3, 6) and one round's PPO update (Algorithm 2, lines 11-24) for U ≥ 1 units
 of one policy, :func:`ppo_update`: a generator that yields each step's gradient and steps the optimisers with
-what is sent back (:func:`hand_back`: its own; a per-step scheme: the fleet's mean)."""
+what is sent back (:func:`hand_back`: its own; :class:`StepExchange`, a per-step scheme's: the fleet's)."""
 
 from __future__ import annotations
 
 from collections.abc import Callable, Generator, Sequence
-from dataclasses import dataclass, fields
+from dataclasses import dataclass
 from typing import TypeVar
 
 import numpy as np
@@ -14,9 +14,9 @@ from torch import nn
 from torch.nn import functional
 
 from fleetrl.agent.config import PPOConfig
-from fleetrl.agent.memory import Transitions, concatenate, sample_window
+from fleetrl.agent.memory import Batch, Transitions, Windows, concatenate, sample_window
 from fleetrl.agent.network import ActorCritic
-from fleetrl.agent.optimisers import step_optimiser
+from fleetrl.agent.optimisers import Named, flatten_tensors, split, step_optimiser
 
 CRITIC = "critic"  # the part of a step that moves μ (lines 20-21)
 ACTOR = "actor"  # the part of a step that moves θ (lines 22-23)
@@ -251,42 +251,6 @@ def step_parts(cfg: PPOConfig) -> tuple[tuple[str, ...], ...]:
     return ((CRITIC,), (ACTOR,)) if cfg.optimisers == "one_sequential" else ((CRITIC, ACTOR),)
 
 
-@dataclass(frozen=True)
-class Windows:
-    """One optimisation's windows, one per unit, as rows of the units' memories one after the other: one
-    unit's as a slice, several units' grouped by their window's length, ``groups``: (units, length)."""
-
-    rows: slice | torch.Tensor
-    groups: tuple[tuple[np.ndarray, int], ...]
-
-    @classmethod
-    def of(cls, offsets: np.ndarray, spans: Sequence[tuple[int, int]]) -> Windows:
-        """The windows ``spans`` (unit u's in its memory, which starts at row ``offsets[u]``)."""
-        if len(spans) == 1:
-            (start, stop), one = spans[0], np.zeros(1, dtype=np.int64)
-            return cls(slice(int(offsets[0]) + start, int(offsets[0]) + stop), ((one, stop - start),))
-        starts = np.array([start for start, _ in spans], dtype=np.int64)
-        lengths = np.array([stop - start for start, stop in spans], dtype=np.int64)
-        groups, rows = [], []
-        for length in sorted(set(lengths.tolist()), reverse=True):  # a memory shorter than U: all of it
-            members = np.flatnonzero(lengths == length)
-            groups.append((members, int(length)))
-            rows.append(((offsets[members] + starts[members])[:, None] + np.arange(length)).reshape(-1))
-        return cls(torch.from_numpy(np.concatenate(rows)), tuple(groups))
-
-    @property
-    def lengths(self) -> list[int]:
-        """Each window's length, in the order of :attr:`rows`."""
-        return [length for units, length in self.groups for _ in units]
-
-    def parts(self) -> Generator[tuple[np.ndarray, slice, tuple[int, int]], None, None]:
-        """Each group's units, its part of :attr:`rows` and that part's (units, length) shape."""
-        at = 0
-        for units, length in self.groups:
-            yield units, slice(at, at + units.size * length), (units.size, length)
-            at += units.size * length
-
-
 @dataclass
 class Model:
     """What an update trains: the network, θ (trunk + actor head) and μ (trunk + value head) with their
@@ -326,24 +290,6 @@ class Model:
         ]
 
 
-@dataclass(frozen=True)
-class Batch:
-    """The units' trajectory memories as tensors (no copy), one after the other."""
-
-    obs: torch.Tensor
-    actions: torch.Tensor
-    rewards: torch.Tensor
-    next_obs: torch.Tensor
-    terminated: torch.Tensor
-    episode_end: torch.Tensor
-    behaviour_log_probs: torch.Tensor
-
-    @classmethod
-    def of(cls, data: Transitions) -> Batch:
-        """The transitions as tensors sharing their arrays (the fields of the same names)."""
-        return cls(*(torch.from_numpy(getattr(data, f.name)) for f in fields(cls)))
-
-
 @dataclass
 class Minibatch:
     """One optimisation's windows and what lines 14-17 computed on them: s_t, the actor head's output, Â_t
@@ -369,3 +315,74 @@ def hand_back(steps: Generator[Gradient, Gradient, T]) -> T:
     except StopIteration as done:
         result: T = done.value
         return result
+
+
+class StepExchange:
+    """The update ``steps`` under way: :meth:`gradient_of` hands out a step's gradient, :meth:`apply` applies
+    what the fleet sends back and computes the next.
+
+    :param parts: the parts step k moves, in its gradient's order: each part's shared parameters (what the
+        flat vector holds) and how many of the unit's own offsets follow them (their gradient stays here)
+    """
+
+    def __init__(
+        self,
+        steps: Generator[Gradient, Gradient, UpdateStats],
+        parts: Callable[[int], list[tuple[Named, int]]],
+        count: int,
+    ) -> None:
+        self._steps, self._parts, self.count = steps, parts, count
+        self.step = 0  # the index of the step whose gradient is :attr:`gradient`
+        self.taken = False  # the step's gradient was handed out and awaits :meth:`apply`
+        self.stats: UpdateStats | None = None
+        self.gradient: Gradient | None = None
+        self._advance(lambda: next(steps))
+
+    def gradient_of(self, k: int) -> np.ndarray:
+        """Step ``k``'s gradient, flat float32; RuntimeError if it is not the step next."""
+        if self.taken:
+            raise RuntimeError(f"step {self.step}'s gradient is not applied yet: call apply_step()")
+        if self.gradient is None or k != self.step:
+            raise RuntimeError(f"step {k} requested, but step {self.step} of {self.count} is next")
+        self.taken = True
+        return flatten_tensors([g for shared, _ in self._pieces(self.gradient) for g in shared])
+
+    def apply(self, flat: np.ndarray) -> None:
+        """Apply ``flat`` for the step handed out and compute the next step's gradient (or finish)."""
+        if not self.taken:
+            raise RuntimeError("no step gradient to apply: call step_gradients(k) first")
+        named = [item for shared, _ in self._parts(self.step) for item in shared]
+        fleet = iter(split(flat, named, "step gradient"))
+        assert self.gradient is not None
+        applied = [
+            g for shared, own in self._pieces(self.gradient) for g in [next(fleet) for _ in shared] + own
+        ]
+        self._advance(lambda: self._steps.send(applied))
+        self.step += 1
+
+    def finished(self) -> UpdateStats:
+        """The update's statistics; RuntimeError if a step was not applied."""
+        if self.stats is None:
+            raise RuntimeError(f"end_update() after {self.step} of {self.count} steps")
+        return self.stats
+
+    def abandon(self) -> None:
+        """Stop the update before its last step: the steps applied stay, nothing after them runs."""
+        self._steps.close()
+        self.gradient, self.taken = None, False
+
+    def _pieces(self, gradient: Gradient) -> list[tuple[Gradient, Gradient]]:
+        pieces, at = [], 0
+        for shared, own in self._parts(self.step):
+            pieces.append(
+                (gradient[at : at + len(shared)], gradient[at + len(shared) : at + len(shared) + own])
+            )
+            at += len(shared) + own
+        return pieces
+
+    def _advance(self, resume: Callable[[], Gradient]) -> None:
+        self.taken = False
+        try:
+            self.gradient = resume()
+        except StopIteration as done:
+            self.gradient, self.stats = None, done.value
