@@ -49,11 +49,8 @@ class RowActing:
         threshold = draws * total
         # the kernel's rule: the first k with threshold < cumulative[k], else the last action
         out[:] = np.minimum((threshold[:, None] >= cumulative).sum(axis=1), logits.shape[1] - 1)
-        if logits.shape[1] > 1:
-            gap = np.abs(threshold[:, None] - cumulative[:, :-1]).min(axis=1)
-            doubtful = ~(gap > MARGIN * total) | (draws < 0.0)  # NaN gaps are doubtful too
-        else:
-            doubtful = draws < 0.0
+        gap = np.abs(threshold[:, None] - cumulative[:, :-1]).min(axis=1)  # n >= 2 actions: one boundary
+        doubtful = ~(gap > MARGIN * total) | (draws < 0.0)  # NaN gaps are doubtful too
         if doubtful.any():
             which = np.flatnonzero(doubtful)
             exact = np.empty(which.size, dtype=np.int64)
