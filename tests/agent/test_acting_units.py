@@ -10,8 +10,7 @@ import torch
 from fleetrl.agent.config import get_preset
 from fleetrl.agent.policy_numpy import NumpyPolicy
 from fleetrl.agent.ppo import PPOAgent
-from fleetrl.agent.row_acting import FEW_ROWS, MARGIN, RowActing
-from fleetrl.agent.unit_draws import UniformDraws
+from fleetrl.agent.row_acting import FEW_ROWS, MARGIN, RowActing, UniformDraws
 
 
 def generators(seeds: range) -> list[np.random.Generator]:

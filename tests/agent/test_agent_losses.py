@@ -5,7 +5,7 @@ import math
 import pytest
 import torch
 
-from fleetrl.agent.losses import clipped_surrogate, critic_loss, gae, td_targets
+from fleetrl.agent.update import clipped_surrogate, critic_loss, gae, td_targets
 
 
 def t(*values: float) -> torch.Tensor:

@@ -9,8 +9,8 @@ import pytest
 import torch
 
 from fleetrl.agent.config import get_preset
-from fleetrl.agent.losses import gae
 from fleetrl.agent.ppo import PPOAgent
+from fleetrl.agent.update import gae
 
 OBS_DIM, N_ACTIONS = 4, 3
 PRESETS = ["paper", "standard", "paper-code"]

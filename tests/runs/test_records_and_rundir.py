@@ -7,8 +7,8 @@ import math
 
 import pytest
 
+from fleetrl.agent.criterion import interrupted_round
 from fleetrl.agent.learner import RoundResult
-from fleetrl.agent.round_result import interrupted_round
 from fleetrl.runs.records import CSV_COLUMNS, FIGURES, MetricsRow
 from fleetrl.runs.rundir import RunRecorder
 

@@ -22,23 +22,16 @@ class UnsupportedActionSpace(ValueError):
     """An env's action space the agent cannot act in (it says which spaces are supported)."""
 
 
-SUPPORTED = "Discrete(n) with n >= 2, or a 1-D float Box with finite low < high"
-"""what the agent acts in, for error messages"""
+SUPPORTED = "Discrete(n) with n >= 2, or a 1-D float Box with finite low < high"  # for error messages
 
 
 @dataclass(frozen=True)
 class ActionSpace:
-    """``n`` discrete actions (``low``/``high`` empty), or a box ``low`` ≤ a ≤ ``high`` (``n`` = 0).
-
-    Build one with :meth:`discrete`, :meth:`box` or :meth:`of` (from a Gymnasium space).
-    """
+    """``n`` discrete actions (``low``/``high`` empty), or a box ``low`` ≤ a ≤ ``high`` (``n`` = 0)."""
 
     n: int = 0
-    """number of discrete actions (0 for a box)"""
     low: tuple[float, ...] = ()
-    """lower bound of each continuous component (empty for discrete)"""
     high: tuple[float, ...] = ()
-    """upper bound of each continuous component (empty for discrete)"""
 
     def __post_init__(self) -> None:
         if self.n != 0 and (self.low or self.high):
@@ -76,10 +69,7 @@ class ActionSpace:
 
     @classmethod
     def of(cls, space: gymnasium.spaces.Space[Any]) -> ActionSpace:
-        """The action space of a Gymnasium env's ``action_space``.
-
-        :raises UnsupportedActionSpace: neither ``Discrete(n >= 2)`` nor a 1-D float Box with finite bounds
-        """
+        """The action space of a Gymnasium env's ``action_space`` (else UnsupportedActionSpace)."""
         if isinstance(space, gymnasium.spaces.Discrete):
             if int(space.start) != 0:
                 raise UnsupportedActionSpace(
@@ -94,8 +84,7 @@ class ActionSpace:
 
     @classmethod
     def of_unit(cls, action: ActionSpec) -> ActionSpace:
-        """The agent's action space for a unit's (``UnitDescription.action``): Discrete n (a softmax head)
-        or a 1-D Box (a Gaussian head)."""
+        """The agent's action space for a unit's (``UnitDescription.action``)."""
         if action.kind == DISCRETE:
             return cls.discrete(action.n)
         return cls.box(action.low, action.high)
@@ -125,7 +114,7 @@ class ActionSpace:
 
     @cached_property
     def bounds32(self) -> tuple[np.ndarray, np.ndarray]:
-        """(low, high) as float32 arrays (box only; built once: the clip runs every step)."""
+        """(low, high) as float32 arrays (box only; built once)."""
         return np.asarray(self.low, dtype=np.float32), np.asarray(self.high, dtype=np.float32)
 
     def clip(self, action: np.ndarray) -> np.ndarray:
@@ -151,8 +140,7 @@ class ActionSpace:
 
     @classmethod
     def from_architecture(cls, arch: dict[str, Any]) -> ActionSpace:
-        """The action space a model file's architecture records: its ``action_space``, or (any file without
-        one: every discrete model) ``n_actions`` discrete actions."""
+        """The action space a model file's architecture records: its ``action_space``, else ``n_actions``."""
         if "action_space" in arch:
             return cls.from_dict(arch["action_space"])
         return cls.discrete(int(arch["n_actions"]))

@@ -18,13 +18,13 @@ Optimisers = Literal["per_model", "one_sequential"]
 Criterion = Literal["sampled", "argmax"]
 OwnPart = Literal["none", "input", "heads", "biases"]
 
+# the network parameters each ``own_part`` gives a unit its own offset of (``*``: every trunk layer)
 OWN_PART_NAMES: dict[str, tuple[str, ...]] = {
     "none": (),
     "input": ("trunk.0.bias",),
     "heads": ("policy.weight", "policy.bias", "value.weight", "value.bias"),
     "biases": ("trunk.*.bias", "policy.bias", "value.bias"),
 }
-"""the network parameters each ``own_part`` gives a unit its own offset of (``*``: every trunk layer)"""
 
 
 @dataclass
@@ -42,61 +42,48 @@ class PPOConfig:
     critic_lr: float = 1e-3
     """Adam learning rate η_μ of the critic (Eq. 4; Table 1: 0.001)"""
     memory_size: int = 200
-    """trajectory memory size (Table 1: 200): the transitions kept across rounds, or with
-    trajectory_memory 'per_round' the least a round collects"""
+    """trajectory memory size (Table 1: 200); with 'per_round' the least a round collects"""
     batch_size: int = 64
     """U: length of the contiguous window each optimisation takes from the memory (Table 1: 64)"""
     n_optimisations: int = 10
     """K: optimisations per round (Algorithm 2, line 12; Table 1: 10)"""
     hidden: tuple[int, ...] = (128, 128, 128)
-    """widths of the trunk's hidden layers, shared by actor and critic: θ = trunk + policy head, μ = trunk +
-    value head, each optimiser stepping the trunk with its own loss (section 5.1: 3 x 128)"""
+    """widths of the trunk's hidden layers, shared by actor and critic (section 5.1: 3 x 128)"""
     activation: Activation = "tanh"
     """non-linearity after each trunk layer (the paper does not give it)"""
     gae_scope: GaeScope = "window"
-    """'window': Eq. 2 run inside each U-window with the current critic (the paper); 'memory': advantages
-    computed once per round over the whole memory with the critic as it was at line 11"""
+    """'window': Eq. 2 inside each U-window with the current critic (the paper); 'memory': once per round
+    over the whole memory with the critic of line 11"""
     critic_target: CriticTarget = "td"
     """'td': V_target = r + γV(s') (Eq. 3); 'gae': V_target = Â + V(s) (the λ-return)"""
     critic_loss: CriticLoss = "abs"
-    """'abs': |V_target − V| (Eq. 3); 'huber': smooth L1 (½e² for |e| < 1, else |e| − ½; the authors'
-    code)"""
+    """'abs': |V_target − V| (Eq. 3); 'huber': smooth L1 (the authors' code)"""
     critic_coef: float = 1.0
-    """weight of L^V in the critic's step (the authors' code: 0.5); UpdateStats report L^V unweighted"""
+    """weight of L^V in the critic's step (the authors' code: 0.5)"""
     trajectory_memory: TrajectoryMemoryKind = "ring"
-    """'ring': the last memory_size transitions, kept across rounds, and a round is one episode (the
-    paper's text); 'per_round': a round plays whole episodes until the memory holds at least memory_size
-    transitions (the last episode is kept whole), makes one update and empties the memory (the authors'
-    code)"""
+    """'ring': the last memory_size transitions, kept across rounds, a round one episode (the paper's
+    text); 'per_round': a round plays whole episodes until the memory holds memory_size, makes one update and
+    empties the memory (the authors' code)"""
     optimisers: Optimisers = "per_model"
-    """'per_model': one Adam for θ and one for μ; both gradients are taken at the same parameters, then
-    the critic steps and the actor steps (Algorithm 2, lines 20-23); 'one_sequential': one Adam over the
-    whole network: the critic's gradient and step, then the actor's gradient at the stepped parameters and
-    its step (the authors' code; needs actor_lr == critic_lr)"""
+    """'per_model': one Adam for θ and one for μ, both gradients at the same parameters (Algorithm 2, lines
+    20-23); 'one_sequential': one Adam over the whole network, the critic's step then the actor's (the
+    authors' code; needs actor_lr == critic_lr)"""
     old_policy: OldPolicy = "round_start"
-    """π_θold of Eq. 5-6: 'round_start' = the policy at line 11 of this round (the paper); 'behaviour' = the
-    policy that generated each stored transition (standard PPO importance sampling)"""
+    """π_θold of Eq. 5-6: 'round_start' = the policy at line 11 (the paper); 'behaviour' = the policy that
+    generated each stored transition (standard PPO)"""
     entropy_coef: float = 0.0
     """weight of the policy-entropy bonus added to L^CLIP (the paper has none)"""
     normalise_advantages: bool = False
     """standardise Â inside each window before Eq. 6 (the paper does not)"""
     criterion: Criterion = "sampled"
-    """what a unit's completion proves. 'sampled' (the paper's): the WMA of its last 10 rounds, every
-    episode sampled from π_θ, reaches the target. 'argmax', a deployment check: once a round reached the
-    target the next is played by π_θ's arg-max (the policy ``fleetrl control`` runs), stored nowhere, and so
-    on until one falls short; the WMA counts those episodes, so completion says the deployed policy held
-    the target. The two prove different things: compare runs of one criterion only (docs/algorithm.md,
-    "Completion criteria"). 'argmax' needs ``trajectory_memory='ring'``"""
-
+    """what a unit's completion proves: 'sampled' (the paper's), the WMA of its last 10 sampled rounds
+    reaches the target; 'argmax', once a round reached it the next rounds are played by π_θ's arg-max,
+    stored nowhere, until one falls short (docs/algorithm.md; needs trajectory_memory 'ring')"""
     own_part: OwnPart = "none"
-    """a unit's own part of the policy (:mod:`fleetrl.agent.network`): an offset of its own added to these
-    shared parameters, learned from its own gradient alone and never sent: 'input' the first layer's bias
-    (an embedding of the unit's dynamics), 'heads' the actor and critic heads, 'biases' every bias; 'none':
-    one policy for every unit"""
+    """a unit's own offset of these shared parameters, learned from its own gradient and never sent:
+    'input' the first layer's bias, 'heads' the actor and critic heads, 'biases' every bias; 'none'"""
     last_step: bool = False
-    """the policy's input holds the unit's last observation and action beside the observation
-    (:mod:`fleetrl.envs.wrappers`): one shared policy that can tell units apart by how they answered its
-    last action"""
+    """the policy's input holds the unit's last observation and action (:mod:`fleetrl.envs.wrappers`)"""
 
     def to_dict(self) -> dict[str, Any]:
         """Plain JSON-ready dict (``hidden`` as a list)."""
@@ -119,8 +106,7 @@ class PPOConfig:
         return config
 
     def validate(self) -> None:
-        """Raise ValueError naming the first field whose value cannot work: its type (a ``Literal`` field
-        takes only its values), then its range and how it fits the others."""
+        """Raise ValueError naming the first field whose value cannot work: its type, range or fit."""
         for name, kind in get_type_hints(PPOConfig).items():
             coerce(name, getattr(self, name), kind)
         checks: list[tuple[bool, str]] = [
@@ -149,19 +135,12 @@ class PPOConfig:
                 raise ValueError(message)
 
 
-DEFAULT_PRESET = "standard"
-"""the preset of every command when none is named: the settings that learn on every unit type measured
-(``paper`` and ``paper-code`` reproduce the paper; docs/algorithm.md, "Presets")"""
+DEFAULT_PRESET = "standard"  # the preset of every command when none is named (docs/algorithm.md, "Presets")
 
 PRESETS: dict[str, PPOConfig] = {
     # Table 1 exactly; the choices the paper leaves open take their literal reading (docs/algorithm.md).
     "paper": PPOConfig(),
-    # What the authors' public code ran where the text is silent or disagrees (docs/algorithm.md,
-    # "The paper-code preset"; ../shared/reference/federated-rl-anchors.md): clip 0.1, γ 0.98, behaviour
-    # π_θold, a fresh memory of whole episodes (≥ 200 transitions) emptied after the one update, Huber
-    # critic loss × 0.5, entropy bonus 0.01, standardised Â, one Adam stepping the critic then the actor.
-    # λ 0.99, lr 0.001, U 64 (one contiguous window per optimisation), K 10 and the per-window GAE with
-    # TD(0) targets are Table 1's / Eq. 2-3's and the code's alike.
+    # What the authors' public code ran where the text is silent or disagrees (docs/algorithm.md).
     "paper-code": PPOConfig(
         clip_eps=0.1,
         gamma=0.98,

@@ -13,9 +13,8 @@ from typing import Any
 import gymnasium
 import numpy as np
 
-from fleetrl.agent.criterion import CompletionCriterion
+from fleetrl.agent.criterion import CompletionCriterion, Episodes, RoundResult
 from fleetrl.agent.ppo import PPOAgent, UpdateStats
-from fleetrl.agent.round_result import Episodes, RoundResult
 from fleetrl.envs.host_envs import HostEnvs
 
 __all__ = ["Learner", "PlayedEpisodes"]
@@ -23,25 +22,20 @@ __all__ = ["Learner", "PlayedEpisodes"]
 
 @dataclass(frozen=True)
 class PlayedEpisodes:
-    """The first half of a round: each unit's episodes, and whether the round goes on with an update."""
+    """The first half of a round: each unit's episodes, whether an update follows, and when it began."""
 
     units: tuple[Episodes, ...]
     updates: bool
     started: float
-    """``time.perf_counter()`` as the round began"""
 
 
 class Learner:
     """Plays rounds of the agent's units, each on its own env; used alone and inside a federated worker.
 
-    :param env: each unit's Gymnasium env (one env: one unit), flat Box observations and a Discrete or 1-D
-        Box action space
-    :param agent: the PPO agent that acts and learns, with one seed per unit
+    :param env: each unit's Gymnasium env (one env: one unit)
     :param criterion: each unit's completion criterion (one for one unit)
-    :param seed: seeds each unit's env at its first reset (one per unit; later resets continue its random
-        stream); None: unseeded
-    :param keep_learning: update every round, also once every unit's criterion holds (a scheme whose
-        completed units stay and learn with the fleet)
+    :param seed: seeds each unit's env at its first reset (one per unit); None: unseeded
+    :param keep_learning: update every round, also once every unit's criterion holds
     """
 
     def __init__(
@@ -64,14 +58,10 @@ class Learner:
         self.agent = agent
         self.keep_learning = keep_learning
         self.rounds = 0
-        self.unit_episodes = [0] * agent.units
-        """learning episodes each unit played in all rounds (not :meth:`evaluate`'s)"""
-        self.completed_once = [False] * agent.units
-        """whether each unit's criterion has held at some round (a unit completes once)"""
-        self.unit_rounds: tuple[RoundResult, ...] = ()
-        """each unit's result of the latest round"""
-        self.last_round: RoundResult | None = None
-        """the result of the latest round (its units' summary: the mean score, the summed steps)"""
+        self.unit_episodes = [0] * agent.units  # learning episodes, not :meth:`evaluate`'s
+        self.completed_once = [False] * agent.units  # each unit's criterion has held at some round
+        self.unit_rounds: tuple[RoundResult, ...] = ()  # each unit's result of the latest round
+        self.last_round: RoundResult | None = None  # the latest round's: its units' summary
 
     @property
     def env(self) -> gymnasium.Env[Any, Any]:
@@ -95,8 +85,7 @@ class Learner:
 
     def plays_greedy(self, unit: int = 0) -> bool:
         """Whether the unit's round is played by π_θ's arg-max and stored nowhere: the criterion is
-        ``argmax``, the unit has not completed yet, and its last round's score reached the target (read from
-        the criterion, so a resumed unit plays as it would have; a completed unit samples again)."""
+        ``argmax``, the unit has not completed yet, and its last round's score reached the target."""
         if self.agent.config.criterion != "argmax" or self.completed_once[unit]:
             return False
         history = self.criteria[unit].history()
@@ -104,8 +93,8 @@ class Learner:
 
     def play_units(self, greedy: np.ndarray, learn: bool = True) -> list[list[tuple[float, int]]]:
         """Each unit's episodes of a round (Algorithm 2, lines 2-6), the units stepped together: one, or
-        whole episodes until the unit's memory holds what its update needs (``per_round``). A unit marked
-        ``greedy`` plays one episode by the arg-max; it and every unit when not ``learn`` store nothing."""
+        whole episodes until a ``per_round`` memory is filled. A ``greedy`` unit plays one episode by the
+        arg-max; it, and every unit when not ``learn``, stores nothing."""
         agent, envs, n = self.agent, self._envs, self.agent.units
         to_env = None if agent.action_space.is_discrete else agent.env_action
         obs = np.stack([self._reset(u) for u in range(n)])
@@ -173,37 +162,35 @@ class Learner:
         return self.keep_learning or not all(c.done for c in self.criteria)
 
     def play_round(self) -> RoundResult:
-        """A whole round alone (Algorithm 2, lines 2-24 without messaging): :meth:`begin_round`, the agent's
-        update unless every criterion now holds, :meth:`end_round`."""
+        """A whole round alone (Algorithm 2, lines 2-24 without messaging)."""
         played = self.begin_round()
         return self.end_round(played, self.agent.update() if played.updates else None)
 
     def begin_round(self) -> PlayedEpisodes:
-        """:meth:`play_episodes` and line 7's decision; the caller then updates the agent, or not (a
-        per-step scheme's worker drives the update through the fleet), and hands its statistics to
-        :meth:`end_round`."""
+        """:meth:`play_episodes` and line 7's decision; the caller then updates the agent, or not, and hands
+        its statistics to :meth:`end_round`."""
         started = time.perf_counter()
         units = self.play_episodes()
         return PlayedEpisodes(units, self.wants_update(), started)
 
     def end_round(self, played: PlayedEpisodes, stats: UpdateStats | None) -> RoundResult:
-        """Each unit's result (:attr:`unit_rounds`: its episodes, criterion and losses on its windows) and
-        the round's (returned): their means (steps and episodes: sums)."""
+        """Each unit's result (:attr:`unit_rounds`) and the round's (returned): their means (steps and
+        episodes: sums)."""
         seconds = time.perf_counter() - played.started
         per_unit = self.agent.unit_stats if stats is not None else None
-        self.unit_rounds = tuple(
-            _result(self.rounds, episodes, criterion, None if per_unit is None else per_unit[u], seconds)
+        self.unit_rounds = units = tuple(
+            _result(
+                self.rounds,
+                (episodes.score, sum(episodes.steps), len(episodes.scores), criterion.wma, criterion.done),
+                None if per_unit is None else per_unit[u],
+                seconds,
+            )
             for u, (episodes, criterion) in enumerate(zip(played.units, self.criteria, strict=True))
         )
-        units = self.unit_rounds
-        self.last_round = dataclasses.replace(
-            _result(self.rounds, None, None, stats, seconds),
-            score=float(np.mean([r.score for r in units])),
-            steps=sum(r.steps for r in units),
-            episodes=sum(r.episodes for r in units),
-            wma=float(np.mean([r.wma for r in units])),
-            completed=all(r.completed for r in units),
-        )
+        score, wma = float(np.mean([r.score for r in units])), float(np.mean([r.wma for r in units]))
+        steps, episodes = sum(r.steps for r in units), sum(r.episodes for r in units)
+        figures = (score, steps, episodes, wma, all(r.completed for r in units))
+        self.last_round = _result(self.rounds, figures, stats, seconds)
         return self.last_round
 
     def evaluate(self, episodes: int) -> float:
@@ -216,26 +203,9 @@ class Learner:
 
 
 def _result(
-    round_: int,
-    episodes: Episodes | None,
-    criterion: CompletionCriterion | None,
-    stats: UpdateStats | None,
-    seconds: float,
+    round_: int, figures: tuple[float, int, int, float, bool], stats: UpdateStats | None, seconds: float
 ) -> RoundResult:
-    nan = math.nan
-    losses = (nan,) * 5 if stats is None else dataclasses.astuple(stats)
+    """A round's result from its (score, steps, episodes, WMA, completed) and its update's statistics."""
+    losses = (math.nan,) * 5 if stats is None else dataclasses.astuple(stats)
     actor_loss, critic_loss, entropy, approx_kl, clip_fraction = losses
-    return RoundResult(
-        round_,
-        nan if episodes is None else episodes.score,
-        0 if episodes is None else sum(episodes.steps),
-        0 if episodes is None else len(episodes.scores),
-        nan if criterion is None else criterion.wma,
-        False if criterion is None else criterion.done,
-        actor_loss,
-        critic_loss,
-        entropy,
-        seconds,
-        approx_kl,
-        clip_fraction,
-    )
+    return RoundResult(round_, *figures, actor_loss, critic_loss, entropy, seconds, approx_kl, clip_fraction)

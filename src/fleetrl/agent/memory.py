@@ -1,63 +1,40 @@
-"""Trajectory memory (the last N transitions across episodes, or one round's) and its window sampler."""
+"""Trajectory memory (the last N transitions across episodes, or one round's), its windows, and the pending
+transitions of many units, moved into their memories in bulk."""
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Generator, Sequence
 from dataclasses import dataclass, fields
 
 import numpy as np
+import torch
 
 
 @dataclass(frozen=True)
 class Transitions:
-    """A chronological run of transitions ⟨s_t, a_t, r_{t+1}, s_{t+1}⟩ (Algorithm 2, line 5), oldest first."""
+    """A chronological run of transitions ⟨s_t, a_t, r_{t+1}, s_{t+1}⟩ (Algorithm 2, line 5), oldest first:
+    float32 arrays, but int64 discrete actions (a continuous action as sampled, before clipping)."""
 
     obs: np.ndarray
-    """s_t, float32 (n, obs_dim)"""
     actions: np.ndarray
-    """a_t: discrete indices, int64 (n,), or continuous actions as sampled (before clipping), float32
-    (n, action_dim)"""
     rewards: np.ndarray
-    """r_{t+1}, float32 (n,)"""
     next_obs: np.ndarray
-    """s_{t+1}, float32 (n, obs_dim); for the last step of an episode, the final observation"""
     terminated: np.ndarray
-    """float32 (n,): 1 where s_{t+1} is terminal (no bootstrap from V(s_{t+1}))"""
+    """1 where s_{t+1} is terminal (no bootstrap from V(s_{t+1}))"""
     episode_end: np.ndarray
-    """float32 (n,): 1 where the episode ended at this step (terminated or truncated): GAE stops here"""
+    """1 where the episode ended at this step (terminated or truncated): GAE stops here"""
     behaviour_log_probs: np.ndarray
-    """float32 (n,): log π(a_t|s_t) under the policy that acted (filled in by the agent, see
-    :meth:`TrajectoryMemory.unscored`)"""
+    """log π(a_t|s_t) under the policy that acted (filled in by the agent)"""
 
     def __len__(self) -> int:
         return int(self.actions.shape[0])
 
-    def slice(self, start: int, stop: int) -> Transitions:
-        """Transitions ``start`` (inclusive) to ``stop`` (exclusive)."""
-        return Transitions(
-            self.obs[start:stop],
-            self.actions[start:stop],
-            self.rewards[start:stop],
-            self.next_obs[start:stop],
-            self.terminated[start:stop],
-            self.episode_end[start:stop],
-            self.behaviour_log_probs[start:stop],
-        )
-
 
 class TrajectoryMemory:
-    """The trajectory memory, in one of two kinds (``PPOConfig.trajectory_memory``).
+    """A ring buffer of the last ``capacity`` transitions (``ring``, Table 1: 200), or with ``grows``
+    (``per_round``) a buffer that doubles when full, emptied by the agent after each update.
 
-    ``grows=False`` (``ring``): a ring buffer of the last ``capacity`` transitions (Table 1: 200), kept
-    across rounds, the oldest overwritten. ``grows=True`` (``per_round``): nothing is ever overwritten; the
-    buffer doubles when full, so one round's whole episodes fit however long the last one is, and the agent
-    empties it with :meth:`clear` after the update. :meth:`filled` says whether it holds ``capacity``.
-
-    :param capacity: number of transitions kept (``grows``: the initial size, and what :meth:`filled` needs)
-    :param obs_dim: length of an observation
-    :param grows: keep every transition (double the buffer when full) instead of overwriting the oldest
     :param action_dim: 0 for discrete action indices (int64), else the length of a continuous action
-        (float32 vectors)
     """
 
     def __init__(self, capacity: int, obs_dim: int, grows: bool = False, action_dim: int = 0) -> None:
@@ -116,9 +93,7 @@ class TrajectoryMemory:
         terminated: np.ndarray,
         truncated: np.ndarray,
     ) -> None:
-        """Store n transitions in order (row i of each array is the i-th): what n calls of :meth:`add` store,
-        in a few array assignments (a ring keeps the last ``capacity``, a growing buffer doubles until they
-        fit)."""
+        """Store n transitions in order (row i of each array is the i-th), as n calls of :meth:`add` do."""
         n = len(rewards)
         if n == 0:
             return
@@ -143,10 +118,6 @@ class TrajectoryMemory:
         self._next = (self._next + n) % size
         self._size = min(self._size + n, size)
 
-    def filled(self) -> bool:
-        """True once at least ``capacity`` transitions are stored (a ``per_round`` round may end)."""
-        return self._size >= self.capacity
-
     def clear(self) -> None:
         """Forget every transition."""
         self._next = 0
@@ -157,7 +128,6 @@ class TrajectoryMemory:
         return int(self._actions.shape[0])
 
     def _resize(self, size: int) -> None:
-        """Reallocate every array to ``size`` slots (a growing memory: its transitions are in slot order)."""
         keep = min(size, self._buffer_size)
         for name in _STATE:
             old = getattr(self, name)
@@ -184,11 +154,8 @@ class TrajectoryMemory:
         )
 
     def unscored(self) -> np.ndarray:
-        """Slots of transitions whose behaviour log-probability is not yet recorded.
-
-        The policy only changes between episodes (update, received gradient or parameters), so the agent
-        scores these with the current policy right before it changes, which is the policy that acted.
-        """
+        """Slots of transitions whose behaviour log-probability is not yet recorded (the agent scores them
+        right before the policy changes, so with the policy that acted)."""
         return np.flatnonzero(~self._scored[: self._size])
 
     def score(self, slots: np.ndarray, log_probs: np.ndarray) -> None:
@@ -207,8 +174,7 @@ class TrajectoryMemory:
         return arrays
 
     def load_state_arrays(self, arrays: dict[str, np.ndarray]) -> None:
-        """Restore what :meth:`state_arrays` returned; shapes must match this memory's (a growing memory
-        first takes the saved length)."""
+        """Restore what :meth:`state_arrays` returned (a growing memory first takes the saved length)."""
         saved = np.asarray(arrays["actions"]).shape[0]
         if self.grows and saved >= self.capacity and saved != self._buffer_size:
             self._resize(saved)
@@ -226,11 +192,8 @@ _STATE = ("_obs", "_next_obs", "_actions", "_rewards", "_terminated", "_episode_
 
 
 def sample_window(n: int, size: int, rng: np.random.Generator) -> tuple[int, int]:
-    """Bounds ``(start, stop)`` of a contiguous window of ``size`` among ``n`` chronological transitions.
-
-    The start is uniform over every position where a full window fits (Figure 3: t_0 at random, the
-    following tuples contiguous); with fewer than ``size`` transitions the window is all of them.
-    """
+    """Bounds ``(start, stop)`` of a contiguous window of ``size`` among ``n`` transitions, its start uniform
+    where a full window fits (Figure 3); with fewer than ``size`` transitions, all of them."""
     if n < 1:
         raise ValueError("cannot sample a window from an empty trajectory memory")
     if n <= size:
@@ -240,10 +203,64 @@ def sample_window(n: int, size: int, rng: np.random.Generator) -> tuple[int, int
 
 
 def concatenate(runs: Sequence[Transitions]) -> Transitions:
-    """Runs of transitions one after the other (the first's first); one run is returned as it is."""
+    """Runs of transitions one after the other; one run is returned as it is."""
     if len(runs) == 1:
         return runs[0]
     return Transitions(*(np.concatenate([getattr(r, f.name) for r in runs]) for f in fields(Transitions)))
+
+
+@dataclass(frozen=True)
+class Batch:
+    """The units' trajectory memories as tensors (no copy), one after the other."""
+
+    obs: torch.Tensor
+    actions: torch.Tensor
+    rewards: torch.Tensor
+    next_obs: torch.Tensor
+    terminated: torch.Tensor
+    episode_end: torch.Tensor
+    behaviour_log_probs: torch.Tensor
+
+    @classmethod
+    def of(cls, data: Transitions) -> Batch:
+        """The transitions as tensors sharing their arrays (the fields of the same names)."""
+        return cls(*(torch.from_numpy(getattr(data, f.name)) for f in fields(cls)))
+
+
+@dataclass(frozen=True)
+class Windows:
+    """One optimisation's windows, one per unit, as rows of the units' memories one after the other: one
+    unit's as a slice, several units' grouped by their window's length, ``groups``: (units, length)."""
+
+    rows: slice | torch.Tensor
+    groups: tuple[tuple[np.ndarray, int], ...]
+
+    @classmethod
+    def of(cls, offsets: np.ndarray, spans: Sequence[tuple[int, int]]) -> Windows:
+        """The windows ``spans`` (unit u's in its memory, which starts at row ``offsets[u]``)."""
+        if len(spans) == 1:
+            (start, stop), one = spans[0], np.zeros(1, dtype=np.int64)
+            return cls(slice(int(offsets[0]) + start, int(offsets[0]) + stop), ((one, stop - start),))
+        starts = np.array([start for start, _ in spans], dtype=np.int64)
+        lengths = np.array([stop - start for start, stop in spans], dtype=np.int64)
+        groups, rows = [], []
+        for length in sorted(set(lengths.tolist()), reverse=True):  # a memory shorter than U: all of it
+            members = np.flatnonzero(lengths == length)
+            groups.append((members, int(length)))
+            rows.append(((offsets[members] + starts[members])[:, None] + np.arange(length)).reshape(-1))
+        return cls(torch.from_numpy(np.concatenate(rows)), tuple(groups))
+
+    @property
+    def lengths(self) -> list[int]:
+        """Each window's length, in the order of :attr:`rows`."""
+        return [length for units, length in self.groups for _ in units]
+
+    def parts(self) -> Generator[tuple[np.ndarray, slice, tuple[int, int]], None, None]:
+        """Each group's units, its part of :attr:`rows` and that part's (units, length) shape."""
+        at = 0
+        for units, length in self.groups:
+            yield units, slice(at, at + units.size * length), (units.size, length)
+            at += units.size * length
 
 
 def score_unscored(
@@ -260,3 +277,69 @@ def score_unscored(
     for memory, s in zip(memories, slots, strict=True):
         memory.score(s, scores[at : at + s.size])
         at += s.size
+
+
+ROWS = 256  # transitions a unit may have pending before every unit's are moved into its memory
+
+
+class PendingTransitions:
+    """Up to :data:`ROWS` transitions per unit, unit u's i-th pending one in row i of column u (one array
+    assignment per field and time step for every unit at once)."""
+
+    def __init__(self, units: int, obs_dim: int, action_dim: int = 0) -> None:
+        self.counts = np.zeros(units, dtype=np.int64)  # each unit's pending transitions
+        self._obs = np.zeros((ROWS, units, obs_dim), dtype=np.float32)
+        self._next_obs = np.zeros((ROWS, units, obs_dim), dtype=np.float32)
+        if action_dim == 0:
+            self._actions = np.zeros((ROWS, units), dtype=np.int64)
+        else:
+            self._actions = np.zeros((ROWS, units, action_dim), dtype=np.float32)
+        self._rewards = np.zeros((ROWS, units), dtype=np.float32)
+        self._terminated = np.zeros((ROWS, units), dtype=bool)
+        self._truncated = np.zeros((ROWS, units), dtype=bool)
+        self._any = False
+
+    def add(
+        self,
+        memories: Sequence[TrajectoryMemory],
+        units: np.ndarray,
+        obs: np.ndarray,
+        actions: np.ndarray,
+        rewards: np.ndarray,
+        next_obs: np.ndarray,
+        terminated: np.ndarray,
+        truncated: np.ndarray,
+    ) -> None:
+        """One transition for each of the distinct ``units`` (row j of each array is ``units[j]``'s); first
+        every unit's pending ones move into ``memories`` if a unit's are full."""
+        if len(units) == 0:
+            return
+        rows = self.counts[units]
+        if int(rows.max()) >= ROWS:
+            self.drain(memories)
+            rows = self.counts[units]
+        self._obs[rows, units] = obs
+        self._actions[rows, units] = actions
+        self._rewards[rows, units] = rewards
+        self._next_obs[rows, units] = next_obs
+        self._terminated[rows, units] = terminated
+        self._truncated[rows, units] = truncated
+        self.counts[units] = rows + 1
+        self._any = True
+
+    def drain(self, memories: Sequence[TrajectoryMemory]) -> None:
+        """Move every unit's pending transitions into its memory, in order."""
+        if not self._any:
+            return
+        for u in np.flatnonzero(self.counts).tolist():
+            n = int(self.counts[u])
+            memories[u].extend(
+                self._obs[:n, u],
+                self._actions[:n, u],
+                self._rewards[:n, u],
+                self._next_obs[:n, u],
+                self._terminated[:n, u],
+                self._truncated[:n, u],
+            )
+        self.counts[:] = 0
+        self._any = False

@@ -13,32 +13,21 @@ from torch.nn import functional
 from fleetrl.agent.action_space import ActionSpace, as_action_space
 from fleetrl.agent.config import OWN_PART_NAMES, PPOConfig
 
-INITIAL_LOG_STD = 0.0
-"""the Gaussian head's log-std at initialisation, in units of half the action range: σ starts at
-(high − low) / 2 in every component, so the first episodes explore the whole box"""
+INITIAL_LOG_STD = 0.0  # in units of half the action range: σ starts at (high − low) / 2, the whole box
 _HALF_LOG_2PI = 0.5 * math.log(2.0 * math.pi)
 
 
 class ActorCritic(nn.Module):
     """MLP trunk (section 5.1: three hidden layers of 128) feeding two output layers.
 
-    Parameter names are stable and form the wire layout: ``trunk.{i}.weight``, ``trunk.{i}.bias``,
-    ``policy.weight``, ``policy.bias`` (the actor head: logits of π_θ, or its Gaussian mean), for a box
-    ``policy_log_std`` (the state-independent log-std, one per action component), and ``value.weight``,
-    ``value.bias`` (the critic head, V_μ).
+    Parameter names are stable and form the wire layout: ``trunk.{i}.weight``/``.bias``, ``policy.weight``/
+    ``.bias`` (the actor head: logits of π_θ, or its Gaussian mean), for a box ``policy_log_std``, and
+    ``value.weight``/``.bias`` (the critic head, V_μ). A Gaussian head's output u is in units of the box:
+    mean = centre + half_range·u and σ = half_range·exp(policy_log_std).
 
-    A Gaussian head's output u is in units of the box: mean = centre + half_range·u and
-    σ = half_range·exp(policy_log_std), so one initialisation fits any bounds. The log-probability is the
-    density of the sampled (unclipped) action; the env is sent the action clipped to the box
-    (docs/algorithm.md, "Continuous actions").
-
-    :param obs_dim: length of the observation vector
-    :param actions: the action space (an int: that many discrete actions, the actor's softmax width)
-    :param hidden: widths of the trunk layers
-    :param activation: ``tanh`` or ``relu`` after each trunk layer
-    :param generator: torch generator used for the (orthogonal) initialisation
-    :param own: the parameters the unit holds an offset of its own of (``own.<name with _ for .>``, zeros at
-        the start, added to the shared value in every pass; ``PPOConfig.own_part``)
+    :param generator: torch generator of the (orthogonal) initialisation
+    :param own: the parameters the unit holds an offset of its own of (zeros at the start, added to the
+        shared value in every pass; ``PPOConfig.own_part``)
     """
 
     def __init__(
@@ -56,18 +45,16 @@ class ActorCritic(nn.Module):
             raise ValueError(f"need obs_dim >= 1, got {obs_dim}")
         self.obs_dim = obs_dim
         self.action_space = space
-        self.n_actions = space.n
-        """number of discrete actions (0 for a box)"""
+        self.n_actions = space.n  # 0 for a box
         self.activation = activation
         widths = [obs_dim, *hidden]
         layers = [nn.Linear(a, b) for a, b in itertools.pairwise(widths)]
         self.trunk = nn.ModuleList(layers)
-        self.trunk_layers: list[nn.Linear] = layers
-        """the trunk's layers, typed (the same modules as ``trunk``)"""
+        self.trunk_layers: list[nn.Linear] = layers  # the same modules as ``trunk``, typed
         self.policy = nn.Linear(widths[-1], space.head_size)
         self.value = nn.Linear(widths[-1], 1)
-        # CleanRL's initialisation: orthogonal, gain √2 in the trunk, 0.01 for the policy (near-uniform
-        # π, or a mean near the box's centre, at the start), 1 for the value; zero biases.
+        # CleanRL's initialisation: orthogonal, gain √2 in the trunk, 0.01 for the policy, 1 for the value;
+        # zero biases.
         for layer in self.trunk_layers:
             _init(layer, math.sqrt(2.0), generator)
         _init(self.policy, 0.01, generator)
@@ -82,7 +69,6 @@ class ActorCritic(nn.Module):
         shared = dict(self.named_parameters())
         names = [n for pattern in own for n in shared if fnmatch.fnmatchcase(n, pattern)]
         self.own = nn.ParameterDict({own_key(n): nn.Parameter(torch.zeros_like(shared[n])) for n in names})
-        """the unit's own offsets, by :func:`own_key` of the parameter they add to"""
 
     @classmethod
     def from_config(
@@ -101,7 +87,7 @@ class ActorCritic(nn.Module):
 
     def forward(self, obs: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
         """The actor head's output (batch, head_size): logits of π_θ(·|s), or the Gaussian mean in units
-        of the box (see :meth:`gaussian`); and V_μ(s) (batch,)."""
+        of the box; and V_μ(s) (batch,)."""
         h = self.features(obs)
         return self._pass("policy", self.policy, h), self._pass("value", self.value, h).squeeze(-1)
 
@@ -116,8 +102,7 @@ class ActorCritic(nn.Module):
         return functional.linear(x, weight, bias)
 
     def effective(self, layer: str) -> tuple[torch.Tensor, torch.Tensor]:
-        """The weight and bias of ``layer`` (``trunk.0``, ``policy``, ``value``) this unit acts with: the
-        shared values plus its own offsets."""
+        """The weight and bias of ``layer`` (``trunk.0``...) this unit acts with: shared plus own offsets."""
         module = self.get_submodule(layer)
         assert isinstance(module, nn.Linear)
         weight, bias = module.weight, module.bias
@@ -140,13 +125,9 @@ class ActorCritic(nn.Module):
     def log_probs_and_entropies(
         self, head: torch.Tensor, actions: torch.Tensor
     ) -> tuple[torch.Tensor, torch.Tensor]:
-        """log π_θ(a_t|s_t) (batch,) of stored actions and the entropy of π_θ(·|s_t): one per row (batch,) for
-        discrete actions, one scalar for a Gaussian (its entropy does not depend on s_t).
-
-        Discrete: log-softmax of the logits at the action index; entropy −Σ p·log p. Gaussian: the diagonal
-        normal's log-density summed over the action components,
-        Σ_d [−½((a_d − m_d)/σ_d)² − log σ_d − ½ log 2π], and its entropy Σ_d [½ + ½ log 2π + log σ_d].
-        """
+        """log π_θ(a_t|s_t) (batch,) of stored actions and the entropy of π_θ(·|s_t): one per row for
+        discrete actions (−Σ p·log p), one scalar for a Gaussian (Σ_d [½ + ½ log 2π + log σ_d]), whose
+        log-density is Σ_d [−½((a_d − m_d)/σ_d)² − log σ_d − ½ log 2π]."""
         if self.policy_log_std is None:
             log_probs_all = functional.log_softmax(head, dim=-1)
             log_probs = log_probs_all.gather(1, actions[:, None]).squeeze(1)
@@ -166,8 +147,7 @@ class ActorCritic(nn.Module):
         return [(f"trunk.{n}", p) for n, p in self.trunk.named_parameters()]
 
     def head_parameters(self, head: str) -> list[tuple[str, nn.Parameter]]:
-        """Named parameters of ``policy`` (with a Gaussian's ``policy_log_std`` last) or ``value`` head,
-        in layout order."""
+        """Named parameters of the ``policy`` (a Gaussian's ``policy_log_std`` last) or ``value`` head."""
         module = {"policy": self.policy, "value": self.value}[head]
         named = [(f"{head}.{n}", p) for n, p in module.named_parameters()]
         if head == "policy" and self.policy_log_std is not None:

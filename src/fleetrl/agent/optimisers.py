@@ -1,7 +1,6 @@
-"""The actor's and the critic's Adam: built and stepped without importing ``torch._dynamo`` (1.5-2 s of
-imports in every process that builds an agent; fleetrl never compiles, so torch's wrapped calls may go
-straight to their functions), and their state as one flat float32 vector (what the chief of a one-policy
-fleet hands a joining worker)."""
+"""Flat float32 vectors of named parameters (what the federation exchanges), and the actor's and the
+critic's Adam: built and stepped without importing ``torch._dynamo`` (seconds of imports; fleetrl never
+compiles), their state as one flat vector (what the chief of a one-policy fleet hands a joining worker)."""
 
 from __future__ import annotations
 
@@ -15,13 +14,44 @@ import torch
 from torch import nn
 
 from fleetrl.agent.config import PPOConfig
-from fleetrl.agent.flat import Named, split
 
 Layout = list[tuple[str, tuple[int, ...]]]
-SLOTS = ("exp_avg", "exp_avg_sq", "step")
-"""per optimiser and parameter, the state in the flat vector (float32 holds every ``step`` count below 2²⁴
-exactly; an optimiser that has not stepped yet has zeros and step 0)"""
+Named = list[tuple[str, nn.Parameter]]  # parameters with their stable names (``trunk.0.weight``...)
 
+
+def layout(named: Named) -> Layout:
+    """Names and shapes, in the order of a flat vector."""
+    return [(name, tuple(p.shape)) for name, p in named]
+
+
+def flatten(named: Named) -> np.ndarray:
+    """The parameters' values as one flat float32 vector."""
+    return flatten_tensors([p for _, p in named])
+
+
+def flatten_tensors(tensors: list[torch.Tensor]) -> np.ndarray:
+    """Tensors (gradients) concatenated into one flat float32 vector."""
+    return np.concatenate([t.detach().numpy().ravel() for t in tensors]).astype(np.float32)
+
+
+def split(flat: np.ndarray, named: Named, what: str) -> list[torch.Tensor]:
+    """``flat`` cut into tensors shaped like ``named``; ValueError if it does not fit or is not finite."""
+    array = np.asarray(flat)
+    size = sum(p.numel() for _, p in named)
+    if array.ndim != 1 or array.shape[0] != size:
+        raise ValueError(f"{what} vector must be flat with {size} values, got shape {array.shape}")
+    if not np.all(np.isfinite(array)):
+        raise ValueError(f"{what} vector has non-finite values")
+    tensor = torch.from_numpy(array.astype(np.float32))
+    chunks, offset = [], 0
+    for _, p in named:
+        chunks.append(tensor[offset : offset + p.numel()].view_as(p).clone())
+        offset += p.numel()
+    return chunks
+
+
+SLOTS = ("exp_avg", "exp_avg_sq", "step")
+"""per optimiser and parameter, the state in the flat vector (float32 holds a ``step`` count exactly)"""
 DEFERRED = ("add_param_group", "zero_grad", "state_dict", "load_state_dict")
 """the methods of ``torch.optim.Optimizer`` that would import ``torch._dynamo`` on their first call"""
 
@@ -39,16 +69,15 @@ def defer_dynamo_import() -> None:
 
 
 def step_optimiser(optimiser: torch.optim.Optimizer) -> None:
-    """``optimiser.step()`` as eager mode runs it: the step itself, gradients off (what torch's wrapper does
-    besides importing ``torch._dynamo`` to mark a graph break, and calling step hooks fleetrl never sets)."""
+    """``optimiser.step()`` as eager mode runs it: the step itself, gradients off (torch's wrapper also
+    imports ``torch._dynamo`` and calls step hooks fleetrl never sets)."""
     with torch.no_grad():
         inspect.unwrap(type(optimiser).step)(optimiser)
 
 
 def adam(shared: Named, own: Named, lr: float) -> torch.optim.Adam:
     """Adam over ``shared`` parameters and, in a second group marked ``own`` (its state never leaves the
-    unit), the unit's own offsets. Building it imports no ``torch._dynamo`` (a model loaded to be evaluated
-    never steps)."""
+    unit), the unit's own offsets."""
     defer_dynamo_import()
     groups: list[dict[str, Any]] = [{"params": [p for _, p in shared]}]
     if own:
@@ -99,10 +128,7 @@ def optimiser_flat(optimisers: Mapping[str, torch.optim.Optimizer]) -> np.ndarra
 
 
 def load_optimiser_flat(optimisers: Mapping[str, torch.optim.Optimizer], flat: np.ndarray) -> None:
-    """Replace the state with ``flat`` (:func:`optimiser_flat`'s form).
-
-    :raises ValueError: ``flat`` does not fit the layout or is not finite
-    """
+    """Replace the state with ``flat`` (:func:`optimiser_flat`'s form); ValueError if it does not fit."""
     named = [(name, nn.Parameter(torch.empty(shape), False)) for name, shape in optimiser_layout(optimisers)]
     chunks = iter(split(flat, named, "optimiser state"))
     for optimiser in optimisers.values():

@@ -18,22 +18,16 @@ ACTIVATIONS = ("tanh", "relu")
 
 @dataclass(frozen=True)
 class PolicyFile:
-    """The actor of one model file: its layers (the trunk's, then the policy head's), as float32 arrays."""
+    """The actor of one model file (read from ``source``): its layers, the trunk's then the policy head's, as
+    float32 arrays, a Gaussian's log-std (None: discrete), and the ``last_step`` setting it was trained on."""
 
     source: str
-    """where it was read from (for messages)"""
     obs_dim: int
-    """length of an observation"""
     action_space: ActionSpace
-    """the actions: discrete indices (argmax of the logits) or a box (the Gaussian's mean, clipped)"""
     activation: str
-    """the trunk's non-linearity: ``tanh`` or ``relu``"""
     layers: tuple[Layer, ...]
-    """(weight (out, in), bias (out,)) of each trunk layer, then of the policy head"""
     log_std: np.ndarray | None
-    """a Gaussian's state-independent log-std (None: discrete)"""
     last_step: bool = False
-    """its observation holds the unit's last step (the ``last_step`` setting it was trained with)"""
 
     def numpy_policy(self) -> NumpyPolicy:
         """The numba acting copy of this actor (what ``PPOAgent`` acts with)."""
@@ -41,11 +35,8 @@ class PolicyFile:
 
 
 def read_policy_file(path: str | Path) -> PolicyFile:
-    """The actor of the model file at ``path``, every tensor's shape checked against its architecture.
-
-    :raises FileNotFoundError: no file at ``path``
-    :raises CheckpointError: not a readable fleetrl model, incomplete metadata, or tensors that do not fit
-    """
+    """The actor of the model file at ``path``, every tensor's shape checked against its architecture
+    (FileNotFoundError, or CheckpointError if it is no readable fleetrl model)."""
     tensors, metadata = read_checkpoint(path)
     try:
         arch = metadata["architecture"]
@@ -87,8 +78,8 @@ def network_shapes(obs_dim: int, hidden: list[int], space: ActionSpace) -> dict[
 def fold_own(
     tensors: dict[str, Any], shapes: dict[str, tuple[int, ...]], source: str
 ) -> dict[str, np.ndarray]:
-    """The network's tensors with a unit's own offsets (``own.<name with _ for .>``) added to the shared
-    values: the policy that unit acts with. CheckpointError if a tensor does not fit ``shapes``."""
+    """The network's tensors with a unit's own offsets (``own.*``) added to the shared values: the policy that
+    unit acts with. CheckpointError if a tensor does not fit ``shapes``."""
     own = {k: v for k, v in tensors.items() if k.startswith("own.")}
     shared = {k: v for k, v in tensors.items() if k not in own}
     check_tensors_fit(shared, shapes, source)

@@ -1,6 +1,5 @@
 """Fast acting: a numba copy of the actor (trunk + policy head), refreshed after every change of θ, so a
-rollout step never touches torch (a few µs a call); :meth:`NumpyPolicy.from_layers` builds one from plain
-arrays (``fleetrl.agent.policy_file``). This module imports no torch."""
+rollout step never touches torch. This module imports no torch (a policy read from a file runs without it)."""
 
 from __future__ import annotations
 
@@ -13,11 +12,10 @@ import numpy as np
 from fleetrl import portable
 from fleetrl.agent.action_space import ActionSpace
 
-if TYPE_CHECKING:  # torch only where a network is given: a policy read from a file runs without it
+if TYPE_CHECKING:
     from fleetrl.agent.network import ActorCritic
 
-Layer = tuple[np.ndarray, np.ndarray]
-"""one linear layer as (weight (out, in), bias (out,))"""
+Layer = tuple[np.ndarray, np.ndarray]  # weight (out, in), bias (out,)
 
 _TANH = 0
 _RELU = 1
@@ -105,8 +103,7 @@ def _act_rows_kernel(
     u: np.ndarray,
     out: np.ndarray,
 ) -> None:
-    """:func:`_act_kernel` for every row of ``obs`` (n, obs_dim) with its draw ``u[i]``, into ``out`` (n,):
-    each row's action is the one :func:`_act_kernel` returns for it alone (the same arithmetic)."""
+    """:func:`_act_kernel` for every row of ``obs`` with its draw ``u[row]``, into ``out``."""
     for row in range(obs.shape[0]):
         out[row] = _act_kernel(weights, biases, dims, activation, obs[row], a, b, u[row])
 
@@ -141,10 +138,8 @@ def _gaussian_kernel(
 
 
 class NumpyPolicy:
-    """A frozen float64 copy of π_θ for acting; call :meth:`refresh` after θ changes.
-
-    :param net: the torch network whose trunk and policy head (and a Gaussian's log-std) are copied
-    """
+    """A frozen float64 copy of π_θ (trunk, policy head, a Gaussian's log-std) for acting; call
+    :meth:`refresh` after θ changes."""
 
     def __init__(self, net: ActorCritic) -> None:
         widths = [net.obs_dim, *(layer.out_features for layer in net.trunk_layers)]
@@ -159,8 +154,7 @@ class NumpyPolicy:
         space: ActionSpace,
         log_std: np.ndarray | None = None,
     ) -> NumpyPolicy:
-        """A policy from plain arrays: the trunk's layers then the policy head's (``layers``), the trunk's
-        ``activation`` (``tanh`` or ``relu``), the action ``space`` and a Gaussian's ``log_std``."""
+        """A policy from plain arrays: the trunk's layers then the policy head's."""
         policy = cls.__new__(cls)
         widths = [int(layers[0][0].shape[1])] + [int(weight.shape[0]) for weight, _ in layers]
         policy._setup(widths, activation, space)
@@ -170,7 +164,6 @@ class NumpyPolicy:
     def _setup(self, widths: list[int], activation: str, space: ActionSpace) -> None:
         self._activation = _TANH if activation == "tanh" else _RELU
         self.discrete = space.is_discrete
-        """True for an index-valued (softmax) policy, False for a Gaussian over a box"""
         self._centre = space.centre()
         self._half = space.half_range()
         self._low = np.asarray(space.low, dtype=np.float64)
@@ -200,6 +193,9 @@ class NumpyPolicy:
         if log_std is not None:
             self._std = self._half * np.exp(np.asarray(log_std).astype(np.float64))
 
+    def _net(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, int]:
+        return self._weights, self._biases, self._dims, self._activation
+
     def _load_obs(self, obs: np.ndarray) -> np.ndarray:
         flat = np.asarray(obs, dtype=np.float64).reshape(-1)
         if flat.shape[0] != self._dims[0]:
@@ -210,22 +206,10 @@ class NumpyPolicy:
         """Action sampled from π_θ(·|obs) using the uniform draw ``u`` in [0, 1) (discrete)."""
         if not self.discrete:
             raise TypeError("a Gaussian policy acts with act_continuous(obs, z)")
-        return int(
-            _act_kernel(
-                self._weights,
-                self._biases,
-                self._dims,
-                self._activation,
-                self._load_obs(obs),
-                self._a,
-                self._b,
-                u,
-            )
-        )
+        return int(_act_kernel(*self._net(), self._load_obs(obs), self._a, self._b, u))
 
     def act_rows(self, obs: np.ndarray, u: np.ndarray) -> np.ndarray:
-        """Actions (int64, n) for the rows of ``obs`` (n, obs_dim), row i with the uniform draw ``u[i]``, in
-        one call: row i's action is :meth:`act` ``(obs[i], u[i])`` (discrete; a unit host's forward pass)."""
+        """Actions (int64, n) for the rows of ``obs``: row i's is :meth:`act` ``(obs[i], u[i])``."""
         if not self.discrete:
             raise TypeError("a Gaussian policy acts with act_continuous(obs, z)")
         rows = np.ascontiguousarray(obs, dtype=np.float64)
@@ -236,15 +220,12 @@ class NumpyPolicy:
         return out
 
     def act_rows_exact(self, rows: np.ndarray, u: np.ndarray, out: np.ndarray) -> None:
-        """:meth:`act_rows` without its checks: ``rows`` float64 (n, obs_dim) and ``u`` float64 (n,), both
-        C-contiguous; the actions into ``out`` (int64, n)."""
-        _act_rows_kernel(
-            self._weights, self._biases, self._dims, self._activation, rows, self._a, self._b, u, out
-        )
+        """:meth:`act_rows` without its checks (``rows`` and ``u`` float64, C-contiguous) into ``out``."""
+        _act_rows_kernel(*self._net(), rows, self._a, self._b, u, out)
 
     def layers(self) -> list[Layer]:
-        """The trunk's layers then the policy head's as float64 views (weight (out, in), bias (out,)) of the
-        arrays the kernels read: they follow every :meth:`refresh`."""
+        """The trunk's layers then the policy head's as float64 views of the arrays the kernels read (they
+        follow every :meth:`refresh`)."""
         return [
             (self._weights[i, : self._dims[i + 1], : self._dims[i]], self._biases[i, : self._dims[i + 1]])
             for i in range(len(self._dims) - 1)
@@ -260,45 +241,27 @@ class NumpyPolicy:
         return self.act(obs, -1.0)  # the kernel takes a negative draw as "the arg-max, no sampling"
 
     def act_continuous(self, obs: np.ndarray, z: np.ndarray | None) -> np.ndarray:
-        """A Gaussian action (float32, new array): mean + σ·``z`` for standard normal draws ``z`` (one per
-        component; not clipped), or for ``z=None`` the mean clipped to the box (greedy)."""
+        """A Gaussian action (float32): mean + σ·``z`` for standard normal draws ``z`` (not clipped), or for
+        ``z=None`` the mean clipped to the box (greedy)."""
         if self.discrete:
             raise TypeError("a discrete policy acts with act(obs, u)")
         draws = self._no_draw if z is None else np.asarray(z, dtype=np.float64)
         if z is not None and draws.shape != self._std.shape:
             raise ValueError(f"need {self._std.shape[0]} normal draws, got shape {draws.shape}")
         out = np.empty(self._std.shape[0], dtype=np.float64)
-        _gaussian_kernel(
-            self._weights,
-            self._biases,
-            self._dims,
-            self._activation,
-            self._load_obs(obs),
-            self._a,
-            self._b,
-            self._centre,
-            self._half,
-            self._std,
-            draws,
-            self._low,
-            self._high,
-            out,
-        )
+        gaussian = (self._centre, self._half, self._std, draws, self._low, self._high)
+        _gaussian_kernel(*self._net(), self._load_obs(obs), self._a, self._b, *gaussian, out)
         return out.astype(np.float32)
 
     def gaussian(self, obs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Mean and σ of π_θ(·|obs) in the env's units, float64 (for tests and inspection)."""
-        head = _logits_kernel(
-            self._weights, self._biases, self._dims, self._activation, self._load_obs(obs), self._a, self._b
-        )
+        head = _logits_kernel(*self._net(), self._load_obs(obs), self._a, self._b)
         return self._centre + self._half * head, self._std.copy()
 
     def probabilities(self, obs: np.ndarray) -> np.ndarray:
         """π_θ(·|obs) as a float64 vector (for tests and inspection; discrete)."""
         if not self.discrete:
             raise TypeError("a Gaussian policy has no probability vector: see gaussian(obs)")
-        logits = _logits_kernel(
-            self._weights, self._biases, self._dims, self._activation, self._load_obs(obs), self._a, self._b
-        ).copy()
+        logits = _logits_kernel(*self._net(), self._load_obs(obs), self._a, self._b).copy()
         z = np.exp(logits - logits.max())
         return np.asarray(z / z.sum())

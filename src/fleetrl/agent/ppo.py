@@ -12,41 +12,34 @@ import torch
 
 from fleetrl.agent import optimisers
 from fleetrl.agent.action_space import ActionSpace, as_action_space
-from fleetrl.agent.checkpoint import check_tensors_fit
+from fleetrl.agent.checkpoint import architecture, check_tensors_fit, load_agent, save_agent
 from fleetrl.agent.config import PPOConfig
-from fleetrl.agent.flat import Named, flatten, flatten_tensors, layout, split
-from fleetrl.agent.memory import TrajectoryMemory, score_unscored
-from fleetrl.agent.model_file import architecture, load_agent, save_agent
+from fleetrl.agent.memory import PendingTransitions, TrajectoryMemory, score_unscored
 from fleetrl.agent.network import ActorCritic
-from fleetrl.agent.pending import PendingTransitions
+from fleetrl.agent.optimisers import Named, flatten, flatten_tensors, layout, split
 from fleetrl.agent.policy_numpy import NumpyPolicy
-from fleetrl.agent.row_acting import FEW_ROWS, RowActing
-from fleetrl.agent.step_exchange import StepExchange
-from fleetrl.agent.unit_draws import UniformDraws
+from fleetrl.agent.row_acting import FEW_ROWS, RowActing, UniformDraws
 from fleetrl.agent.update import (
     ACTOR,
     CRITIC,
     ExtraLoss,
     Gradient,
     Model,
+    StepExchange,
     UpdateStats,
     hand_back,
     ppo_update,
+    step_parts,
 )
-from fleetrl.agent.variants import choose_variants
 
 __all__ = ["PPOAgent", "UpdateStats"]
 
 
 class PPOAgent:
-    """Actor-Critic PPO with a shared trunk; θ = trunk + policy head, μ = trunk + value head. The actor head
-    is a softmax over ``n`` discrete actions, or for a box a Gaussian whose samples the env receives clipped
-    (:meth:`env_action`); the memory keeps the sample as drawn, whose density is log π.
+    """Actor-Critic PPO with a shared trunk; θ = trunk + policy head, μ = trunk + value head.
 
-    :param obs_dim: length of an observation
     :param actions: the action space; an int is that many discrete actions
-    :param config: hyper-parameters (a preset from :func:`fleetrl.agent.config.get_preset`, or a variant)
-    :param seed: one per unit (an int: one unit): unit u's action draws and window starts; the first also
+    :param seed: one per unit (an int: one unit), for its action draws and window starts; the first also
         draws the initial weights, so unit 0 acts and learns as an agent of that unit alone
     """
 
@@ -70,8 +63,8 @@ class PPOAgent:
         generator = torch.Generator().manual_seed(self.seed)
         self.net = ActorCritic.from_config(obs_dim, self.action_space, config, generator)
         trunk = self.net.trunk_parameters()
-        # θ: the trunk and the actor head (softmax, or Gaussian mean and log-std), what the federation shares;
-        # μ: the trunk and the value head. Each optimiser also steps the unit's own offsets (never shared).
+        # θ: the trunk and the actor head, what the federation shares; μ: the trunk and the value head. Each
+        # optimiser also steps the unit's own offsets (never shared).
         self._actor_named = trunk + self.net.head_parameters("policy")
         self._critic_named = trunk + self.net.head_parameters("value")
         self._actor_own = self.net.own_parameters([name for name, _ in self._actor_named])
@@ -93,8 +86,8 @@ class PPOAgent:
         self._draws = UniformDraws(self._act_rngs)
         self._rows = RowActing(self._policy) if self._discrete else None
         both = (self.actor_optimizer, self.critic_optimizer)
-        self._model = Model(self.net, actor_all, critic_all, *both, config, choose_variants(config))
-        self._parts = self._model.variants.parts
+        self._model = Model(self.net, actor_all, critic_all, *both, config)
+        self._parts = step_parts(config)
         self._last_actor_gradient: Gradient | None = None  # line 25's: the last one the update applied
         self._exchange: StepExchange | None = None
         self.unit_stats: tuple[UpdateStats, ...] | None = None  # each unit's, of the last update
@@ -107,14 +100,13 @@ class PPOAgent:
     # ---- acting (Algorithm 2, lines 3 and 5) ------------------------------------------------------------
 
     def act(self, obs: np.ndarray) -> Any:
-        """Sample unit 0's a_t ~ π_θ(·|s_t) (line 3) on the numba copy of the actor: an index, or a vector."""
+        """Sample unit 0's a_t ~ π_θ(·|s_t) (line 3): an index, or a vector."""
         if self._discrete:
             return self._policy.act(obs, float(self._act_rngs[0].random()))
         return self._policy.act_continuous(obs, self._act_rngs[0].standard_normal(self.action_space.dim))
 
     def act_units(self, obs: np.ndarray, units: np.ndarray) -> np.ndarray:
-        """:meth:`act` for the distinct units ``units`` at their observations ``obs`` (a row each), each
-        with its own draw: int64 indices, or float32 vectors (a row each)."""
+        """:meth:`act` for the distinct ``units`` at their observations ``obs`` (a row each), own draws."""
         if self._rows is not None:
             return self._rows.act(obs, self._draws.draw(units))
         dim = self.action_space.dim
@@ -145,8 +137,8 @@ class PPOAgent:
         self.memories[0].add(obs, action, reward, next_obs, terminated, truncated)
 
     def remember_units(self, units: np.ndarray, *transitions: np.ndarray) -> None:
-        """:meth:`remember` for the distinct ``units``: ``transitions`` are the arrays of obs, actions,
-        rewards, next obs, terminated and truncated (row j: ``units[j]``'s)."""
+        """:meth:`remember` for the distinct ``units`` (row j of each of the ``transitions`` arrays:
+        ``units[j]``'s)."""
         if self._pending is not None:
             self._pending.add(self._memories, units, *transitions)
             return
@@ -155,7 +147,7 @@ class PPOAgent:
 
     @property
     def memories(self) -> list[TrajectoryMemory]:
-        """Each unit's trajectory memory (unit u's is ``memories[u]``), its pending transitions moved in."""
+        """Each unit's trajectory memory, its pending transitions moved in."""
         self.store_pending()
         return self._memories
 
@@ -167,7 +159,7 @@ class PPOAgent:
     # ---- learning (Algorithm 2, lines 11-25) ----------------------------------------------------------
 
     def needs_more_episodes(self, unit: int = 0) -> bool:
-        """Whether the unit's round goes on with another episode: until a ``per_round`` memory is filled."""
+        """Whether the unit's round goes on with another episode (until a ``per_round`` memory is filled)."""
         stored = len(self._memories[unit]) + (0 if self._pending is None else int(self._pending.counts[unit]))
         return self.config.trajectory_memory == "per_round" and stored < self.config.memory_size
 
@@ -180,8 +172,8 @@ class PPOAgent:
         return hand_back(self.update_steps())
 
     def update_steps(self) -> Generator[Gradient, Gradient, UpdateStats]:
-        """The update as a generator (:func:`~fleetrl.agent.update.ppo_update`); returns the units' mean
-        statistics (each unit's: :attr:`unit_stats`); RuntimeError at its first step if a memory is empty."""
+        """The update as a generator (:func:`~fleetrl.agent.update.ppo_update`) that returns the units' mean
+        statistics; RuntimeError at its first step if a memory is empty."""
         empty = [u for u, memory in enumerate(self.memories) if len(memory) == 0]
         if empty:
             raise RuntimeError(f"update() needs a transition in every unit's memory; units {empty} have none")
@@ -190,10 +182,7 @@ class PPOAgent:
         finished = yield from ppo_update(self._model, data, self._window_rngs)
         self._last_actor_gradient = finished.actor_gradient
         self.unit_stats = finished.unit_stats
-        self._policy.refresh(self.net)
-        if self.config.trajectory_memory == "per_round":
-            for memory in self.memories:
-                memory.clear()
+        self._end_round()
         return finished.stats
 
     # ---- the update as flat vectors, step by step (a scheme that combines the fleet's step gradients) ----
@@ -203,8 +192,8 @@ class PPOAgent:
         return self.config.n_optimisations * len(self._parts)
 
     def step_layout(self, k: int) -> list[tuple[str, tuple[int, ...]]]:
-        """Names and shapes of step ``k``'s flat gradient: ``critic:<name>`` then ``actor:<name>`` of the
-        parts it moves (both; with ``one_sequential`` the critic at even, the actor at odd steps)."""
+        """Names and shapes of step ``k``'s flat gradient: ``critic:<name>`` then ``actor:<name>`` (with
+        ``one_sequential`` the critic at even, the actor at odd steps)."""
         return [
             (f"{part}:{name}", shape)
             for part, named, _ in self._step_named(k)
@@ -212,8 +201,7 @@ class PPOAgent:
         ]
 
     def begin_update(self) -> int:
-        """Start :meth:`update_steps` (line 11 and step 0's gradient); the number of steps it takes.
-        RuntimeError if a memory is empty or an update is under way."""
+        """Start :meth:`update_steps` (line 11 and step 0's gradient); the number of steps it takes."""
         if self._exchange is not None:
             raise RuntimeError("an update is already under way: finish it with end_update()")
         parts = lambda k: [(named, own) for _, named, own in self._step_named(k)]  # noqa: E731
@@ -221,18 +209,18 @@ class PPOAgent:
         return self._exchange.count
 
     def step_gradients(self, k: int) -> np.ndarray:
-        """Step ``k``'s gradient, flat float32 in :meth:`step_layout` order; steps go in order, each applied
-        (:meth:`apply_step`) before the next is asked for (else RuntimeError)."""
+        """Step ``k``'s gradient, flat float32 in :meth:`step_layout` order; each step is applied
+        (:meth:`apply_step`) before the next is asked for."""
         return self._exchange_under_way().gradient_of(k)
 
     def apply_step(self, flat_grad: np.ndarray) -> None:
-        """Lines 21 and 23: step the optimiser(s) with a gradient for the step last asked for (its own, or
-        the fleet's), then take the next step's gradient. ValueError if it does not fit or is not finite."""
+        """Lines 21 and 23: step the optimiser(s) with a gradient (its own, or the fleet's) for the step last
+        asked for, then take the next step's gradient."""
         self._exchange_under_way().apply(flat_grad)
 
     def apply_fleet_step(self, k: int, flat_grad: np.ndarray) -> None:
         """Step the optimiser(s) with the fleet's gradient of step ``k`` of an update this agent took no part
-        in (a straggler catching up); RuntimeError while an update is under way."""
+        in (a straggler catching up)."""
         if self._exchange is not None:
             raise RuntimeError("an update is under way: its steps are applied with apply_step()")
         parts = self._step_named(k)
@@ -245,17 +233,19 @@ class PPOAgent:
         self._policy.refresh(self.net)
 
     def end_update(self) -> UpdateStats:
-        """The update's statistics; RuntimeError if no update is under way or a step was not applied."""
+        """The update's statistics."""
         stats = self._exchange_under_way().finished()
         self._exchange = None
         return stats
 
     def abandon_update(self) -> None:
-        """Drop the round's update, under way or not begun (the fleet went on past this agent); the steps
-        applied stay, a ``per_round`` memory is emptied."""
+        """Drop the round's update (the fleet went on past this agent); the steps applied stay."""
         if self._exchange is not None:
             self._exchange.abandon()
         self._exchange = None
+        self._end_round()
+
+    def _end_round(self) -> None:
         self._policy.refresh(self.net)
         if self.config.trajectory_memory == "per_round":
             for memory in self.memories:
@@ -267,7 +257,6 @@ class PPOAgent:
         return self._exchange
 
     def _step_named(self, k: int) -> list[tuple[str, Named, int]]:
-        """Each part step ``k`` moves: its name, its shared parameters and how many own offsets follow."""
         named = {CRITIC: (self._critic_named, self._critic_own), ACTOR: (self._actor_named, self._actor_own)}
         return [(part, named[part][0], len(named[part][1])) for part in self._parts[k % len(self._parts)]]
 
@@ -286,7 +275,7 @@ class PPOAgent:
         return layout(self._actor_named)
 
     def actor_gradient(self) -> np.ndarray:
-        """The actor's last gradient of the round (line 25) as flat float32, in :meth:`actor_layout` order."""
+        """The actor's last gradient of the round (line 25), flat float32."""
         if self._last_actor_gradient is None:
             raise RuntimeError("no actor gradient yet: call update() first")
         return flatten_tensors(self._last_actor_gradient[: len(self._actor_named)])
@@ -295,34 +284,29 @@ class PPOAgent:
         """Line 31: update π_θ with a received (average) gradient ḡ through the actor's Adam."""
         chunks = split(flat, self._actor_named, "actor gradient")
         self._score_new_transitions()
-        params = [p for _, p in self._actor_named]
-        for p, g in zip(params, chunks, strict=True):
-            p.grad = g
-        optimisers.step_optimiser(self.actor_optimizer)
-        for p in params:
-            p.grad = None
+        self._model.step(ACTOR, chunks)
         self._policy.refresh(self.net)
 
     def actor_parameters(self) -> np.ndarray:
-        """θ as flat float32 in :meth:`actor_layout` order (line 8: what a finished worker sends)."""
+        """θ as flat float32 (line 8: what a finished worker sends)."""
         return flatten(self._actor_named)
 
     def set_actor_parameters(self, flat: np.ndarray) -> None:
-        """Line 29: replace θ with received parameters θ̄ (the critic head and Adam state are kept)."""
+        """Line 29: replace θ with received parameters θ̄."""
         self._replace(self._actor_named, flat, "actor parameter")
 
-    # The whole actor-critic (θ and μ), for the schemes that average models (docs/algorithm.md).
+    # The whole actor-critic (θ and μ), for the schemes that average models.
 
     def model_layout(self) -> list[tuple[str, tuple[int, ...]]]:
-        """Names and shapes of every network parameter, in the order of every flat model vector."""
+        """Names and shapes of every network parameter, in flat order."""
         return layout(self._model_named())
 
     def model_parameters(self) -> np.ndarray:
-        """Every network parameter as flat float32 in :meth:`model_layout` order."""
+        """Every network parameter as flat float32."""
         return flatten(self._model_named())
 
     def set_model_parameters(self, flat: np.ndarray) -> None:
-        """Replace every network parameter (both Adam states are kept: each worker's own optimiser)."""
+        """Replace every network parameter (the Adam states are kept)."""
         self._replace(self._model_named(), flat, "model parameter")
 
     def _model_named(self) -> Named:
@@ -336,7 +320,7 @@ class PPOAgent:
                 p.copy_(value)
         self._policy.refresh(self.net)
 
-    # ---- resumable state (fleetrl.agent.state) and model files (fleetrl.agent.model_file) ---------------
+    # ---- resumable state (fleetrl.agent.state) and model files (fleetrl.agent.checkpoint) ---------------
 
     def optimisers(self) -> dict[str, torch.optim.Optimizer]:
         """The Adam optimisers by name: ``actor`` and ``critic``, or the one ``shared`` optimiser."""
@@ -345,11 +329,11 @@ class PPOAgent:
         return {"actor": self.actor_optimizer, "critic": self.critic_optimizer}
 
     def optimiser_layout(self) -> list[tuple[str, tuple[int, ...]]]:
-        """Names and shapes of the optimisers' state as one flat vector (:mod:`.optimisers`)."""
+        """Names and shapes of the optimisers' state as one flat vector."""
         return optimisers.optimiser_layout(self.optimisers())
 
     def optimiser_parameters(self) -> np.ndarray:
-        """The optimisers' state, flat float32 in :meth:`optimiser_layout` order."""
+        """The optimisers' state, flat float32."""
         return optimisers.optimiser_flat(self.optimisers())
 
     def set_optimiser_parameters(self, flat: np.ndarray) -> None:
@@ -373,11 +357,11 @@ class PPOAgent:
         self._policy.refresh(self.net)
 
     def architecture(self) -> dict[str, Any]:
-        """What a model file must match to be loaded into this agent (:func:`.model_file.architecture`)."""
+        """What a model file must match to be loaded into this agent."""
         return architecture(self)
 
     def save(self, path: str | Path) -> None:
-        """Write the network weights (safetensors) with config, architecture and seed as JSON metadata."""
+        """Write the model file: the network weights with config, architecture and seed."""
         save_agent(self, path)
 
     @classmethod
@@ -388,11 +372,11 @@ class PPOAgent:
         n_actions: int | None = None,
         action_space: ActionSpace | None = None,
     ) -> PPOAgent:
-        """An agent rebuilt from a model file (:func:`.model_file.load_agent`)."""
+        """An agent rebuilt from a model file (:func:`.checkpoint.load_agent`)."""
         return load_agent(cls, path, obs_dim, n_actions, action_space)
 
     def load_weights(self, tensors: dict[str, np.ndarray], source: str) -> None:
-        """Replace the network's weights with a model file's ``tensors`` (``source``: for errors)."""
+        """Replace the network's weights with a model file's ``tensors``."""
         check_tensors_fit(tensors, {k: tuple(t.shape) for k, t in self.net.state_dict().items()}, source)
         self._score_new_transitions()
         state = {k: torch.from_numpy(np.asarray(v, dtype=np.float32)) for k, v in tensors.items()}

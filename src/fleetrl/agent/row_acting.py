@@ -1,30 +1,29 @@
-"""Discrete actions for many rows at once: one float64 pass of matrix products gives each row's logits, the
-action by the per-row kernel's inverse-CDF rule; a row whose draw lies within :data:`MARGIN` of a boundary
-of the cumulative distribution (or whose logits are not finite) goes to the per-row kernel, so every action
-is the kernel's (``tests/agent/test_acting_units.py``)."""
+"""Acting for many units at once: each unit's uniform draw in one compiled call (:class:`UniformDraws`), and
+discrete actions for many rows by one float64 pass of matrix products (:class:`RowActing`), every action
+the per-row kernel's."""
 
 from __future__ import annotations
 
+import ctypes
+import functools
+from collections.abc import Callable, Sequence
+
+import numba
 import numpy as np
 import torch
 
 from fleetrl.agent.policy_numpy import NumpyPolicy
 
-__all__ = ["MARGIN", "RowActing"]
+__all__ = ["MARGIN", "RowActing", "UniformDraws"]
 
-MARGIN = 1e-7
-"""how close (as a probability) a draw may come to a boundary of the cumulative distribution before the row
-goes to the per-row kernel; a boundary moves by at most half the largest logit difference"""
-FEW_ROWS = 16
-"""below this many rows the per-row kernel alone is as fast"""
+MARGIN = 1e-7  # how close a draw may come to a boundary of the cumulative distribution (a probability)
+FEW_ROWS = 16  # below this many rows the per-row kernel alone is as fast
 
 
 class RowActing:
-    """Discrete actions for rows of observations, each the per-row kernel's (see the module's docstring).
-
-    :param policy: the acting copy of π_θ (discrete); its weights are read at every call, so this follows
-        the policy's refreshes
-    """
+    """Discrete actions for rows of observations by the per-row kernel's inverse-CDF rule; a row whose draw
+    lies within :data:`MARGIN` of a boundary of the cumulative distribution (or whose logits are not
+    finite) goes to the kernel itself. ``policy``'s weights are read at every call (its refreshes count)."""
 
     def __init__(self, policy: NumpyPolicy) -> None:
         if not policy.discrete:
@@ -32,12 +31,10 @@ class RowActing:
         self._policy = policy
         self._layers = [(torch.from_numpy(w), torch.from_numpy(b)) for w, b in policy.layers()]
         self._tanh = policy.activation == "tanh"
-        self.kernel_rows = 0
-        """rows decided by the per-row kernel so far (few rows, or a draw near a boundary)"""
+        self.kernel_rows = 0  # rows decided by the per-row kernel so far
 
     def act(self, obs: np.ndarray, u: np.ndarray) -> np.ndarray:
-        """Actions (int64, n) for the rows of ``obs`` (n, obs_dim), row i with the uniform draw ``u[i]``:
-        row i's action is :meth:`NumpyPolicy.act` ``(obs[i], u[i])``."""
+        """Actions (int64) for the rows of ``obs``: row i's is :meth:`NumpyPolicy.act` ``(obs[i], u[i])``."""
         rows = np.ascontiguousarray(obs, dtype=np.float64)
         draws = np.ascontiguousarray(u, dtype=np.float64)
         out = np.empty(rows.shape[0], dtype=np.int64)
@@ -52,11 +49,8 @@ class RowActing:
         threshold = draws * total
         # the kernel's rule: the first k with threshold < cumulative[k], else the last action
         out[:] = np.minimum((threshold[:, None] >= cumulative).sum(axis=1), logits.shape[1] - 1)
-        if logits.shape[1] > 1:
-            gap = np.abs(threshold[:, None] - cumulative[:, :-1]).min(axis=1)
-            doubtful = ~(gap > MARGIN * total) | (draws < 0.0)  # NaN gaps are doubtful too
-        else:
-            doubtful = draws < 0.0
+        gap = np.abs(threshold[:, None] - cumulative[:, :-1]).min(axis=1)  # n >= 2 actions: one boundary
+        doubtful = ~(gap > MARGIN * total) | (draws < 0.0)  # NaN gaps are doubtful too
         if doubtful.any():
             which = np.flatnonzero(doubtful)
             exact = np.empty(which.size, dtype=np.int64)
@@ -68,7 +62,6 @@ class RowActing:
         return out
 
     def _logits(self, rows: np.ndarray) -> np.ndarray:
-        """The actor's head for every row, float64 (n, head size), by matrix products."""
         activations = torch.from_numpy(rows)
         last = len(self._layers) - 1
         with torch.no_grad():
@@ -77,3 +70,49 @@ class RowActing:
                 if i < last:
                     activations = torch.tanh_(activations) if self._tanh else torch.relu_(activations)
         return activations.numpy()
+
+
+DrawKernel = Callable[[np.ndarray, np.ndarray, np.ndarray], None]
+
+
+@functools.cache
+def _kernel(next_double: int) -> DrawKernel:
+    function = ctypes.CFUNCTYPE(ctypes.c_double, ctypes.c_size_t)(next_double)
+
+    @numba.njit  # no cache: the address differs from process to process
+    def draw(states: np.ndarray, units: np.ndarray, out: np.ndarray) -> None:  # pragma: no cover - compiled
+        for j in range(units.shape[0]):
+            out[j] = function(states[units[j]])
+
+    return draw
+
+
+class UniformDraws:
+    """Uniform draws in [0, 1) from each unit's own Generator (unit u's is ``generators[u]``; they must
+    outlive this object): one compiled loop calls numpy's ``next_double``, the C function behind
+    ``Generator.random()``, on each unit's PCG64 state; other bit generators are drawn from in Python."""
+
+    def __init__(self, generators: Sequence[np.random.Generator]) -> None:
+        self.generators = list(generators)
+        self._draw: DrawKernel | None = None
+        if len(self.generators) > 1 and all(
+            type(g.bit_generator) is np.random.PCG64 for g in self.generators
+        ):
+            interfaces = [g.bit_generator.ctypes for g in self.generators]
+            functions = {ctypes.cast(i.next_double, ctypes.c_void_p).value for i in interfaces}
+            if len(functions) == 1:  # one C function for every PCG64 (numpy's)
+                (address,) = functions
+                self._states = np.array([i.state_address for i in interfaces], dtype=np.uint64)
+                self._draw = _kernel(int(address or 0))
+
+    @property
+    def compiled(self) -> bool:
+        return self._draw is not None
+
+    def draw(self, units: np.ndarray) -> np.ndarray:
+        """``generators[u].random()`` for each u of ``units`` in order (float64, one per unit)."""
+        if self._draw is None:
+            return np.array([self.generators[u].random() for u in units.tolist()], dtype=np.float64)
+        out = np.empty(len(units), dtype=np.float64)
+        self._draw(self._states, np.asarray(units, dtype=np.int64), out)
+        return out

@@ -1,5 +1,5 @@
-"""A worker's learning state as data (JSON fields and tensors: weights, Adam states, memory, RNG states), to
-checkpoint between rounds and resume exactly where it stopped (:class:`~.statestore.StateStore` writes it)."""
+"""A learner's state as JSON fields and tensors (weights, Adam states, memory, RNG states), to checkpoint
+between rounds and resume exactly where it stopped."""
 
 from __future__ import annotations
 
@@ -11,8 +11,7 @@ import torch
 from fleetrl.agent.learner import Learner
 from fleetrl.agent.ppo import PPOAgent
 
-STATE_VERSION = 1
-"""Version of the fields; :func:`load_learner_state` refuses any other."""
+STATE_VERSION = 1  # :func:`load_learner_state` refuses any other
 
 
 def agent_state(agent: PPOAgent) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
@@ -33,10 +32,8 @@ def agent_state(agent: PPOAgent) -> tuple[dict[str, Any], dict[str, np.ndarray]]
 
 
 def load_agent_state(agent: PPOAgent, fields: dict[str, Any], tensors: dict[str, np.ndarray]) -> None:
-    """Restore :func:`agent_state` into an agent of the same architecture and configuration.
-
-    :raises ValueError: a tensor is missing or has another shape (another architecture)
-    """
+    """Restore :func:`agent_state` into an agent of the same architecture and configuration (else
+    ValueError)."""
     net = agent.net.state_dict()
     weights = {k: _tensor(tensors, f"net.{k}", tuple(v.shape)) for k, v in net.items()}
     agent.net.load_state_dict(weights)
@@ -72,10 +69,7 @@ def learner_state(learner: Learner) -> tuple[dict[str, Any], dict[str, np.ndarra
 
 
 def load_learner_state(learner: Learner, fields: dict[str, Any], tensors: dict[str, np.ndarray]) -> None:
-    """Restore :func:`learner_state` into a learner built the same way (env, preset, seed).
-
-    :raises ValueError: another state version, or tensors that do not fit this learner's agent
-    """
+    """Restore :func:`learner_state` into a learner built the same way (env, preset, seed)."""
     if fields.get("version") != STATE_VERSION:
         raise ValueError(f"learner state version {fields.get('version')!r}, expected {STATE_VERSION}")
     load_agent_state(learner.agent, fields, tensors)
@@ -88,8 +82,7 @@ def load_learner_state(learner: Learner, fields: dict[str, Any], tensors: dict[s
 
 
 def _env_generator(learner: Learner) -> np.random.Generator:
-    """The env's ``np_random`` (created now, from entropy, if the env was never reset: that state is then
-    saved too, so the resumed learner draws the same numbers)."""
+    """The env's ``np_random`` (created now, from entropy, if the env was never reset)."""
     generator: np.random.Generator = learner.env.unwrapped.np_random
     return generator
 

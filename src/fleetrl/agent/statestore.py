@@ -1,7 +1,5 @@
-"""A crash-safe state directory: one JSON commit record that names an immutable safetensors blob (JSON fields
-plus named tensors; nothing pickled). The blob, then the record, are written to temp files and renamed: a
-process killed at any instant leaves the previous state or the new one. A failed write raises
-:class:`StateWriteError` and leaves the last committed state loadable; one writer per directory."""
+"""A crash-safe state directory: one JSON commit record naming an immutable safetensors blob, each written to
+a temp file and renamed, so a process killed at any instant leaves the previous state or the new one."""
 
 from __future__ import annotations
 
@@ -19,10 +17,7 @@ from safetensors.numpy import load_file, save_file
 
 log = logging.getLogger(__name__)
 
-FORMAT = "fleetrl.state/1"
-"""``format`` of every state record this module writes."""
-
-
+FORMAT = "fleetrl.state/1"  # ``format`` of every state record
 _TEMP_NAMES = itertools.count()
 
 
@@ -31,19 +26,14 @@ class StateError(ValueError):
 
 
 class StateWriteError(OSError):
-    """A state could not be committed (disk full, directory removed, no permission): its message is one line
-    naming the file; the last committed state is untouched."""
+    """A state could not be committed (a one-line message naming the file); the last committed one stays."""
 
 
 class StateStore:
-    """Save and load one named state in ``directory`` (created on the first save).
-
-    :param directory: where the record and blobs live.
-    :param name: the state's name (``chief``, ``worker``...); the record is ``<name>.json``.
-    """
+    """Save and load one named state (``chief``, ``worker``...; its record ``<name>.json``) in ``directory``,
+    created on the first save; one writer per directory."""
 
     def __init__(self, directory: str | Path, name: str) -> None:
-        """Bind the store to ``directory``/``name``; nothing is read or written yet."""
         self.directory = Path(directory)
         self.name = name
         self._blob: str | None = None  # the blob the last save or load used
@@ -61,11 +51,8 @@ class StateStore:
         return self.record.is_file()
 
     def save(self, fields: dict[str, Any], tensors: dict[str, np.ndarray]) -> None:
-        """Commit ``fields`` and ``tensors`` atomically; unchanged tensors reuse the current blob.
-
-        :raises StateWriteError: the write failed (one line naming the file); the previous state stays the
-            committed one.
-        """
+        """Commit ``fields`` and ``tensors`` atomically (unchanged tensors reuse the current blob);
+        StateWriteError if the write failed."""
         try:
             self._save(fields, tensors)
         except (OSError, _WriteFailed) as exc:
@@ -108,11 +95,7 @@ class StateStore:
             (self.directory / previous).unlink(missing_ok=True)
 
     def load(self) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
-        """The committed (fields, tensors).
-
-        :raises FileNotFoundError: nothing was committed in the directory
-        :raises StateError: the record or its blob is unreadable, corrupt or not this state
-        """
+        """The committed (fields, tensors); FileNotFoundError if none, StateError if unreadable or corrupt."""
         if not self.exists():
             raise FileNotFoundError(f"no {self.name} state in {self.directory} ({self.record.name} missing)")
         try:
@@ -159,8 +142,6 @@ def _file_digest(path: Path) -> str:
 
 
 class _WriteFailed(Exception):
-    """A blob's write failed (the file, and why)."""
-
     def __init__(self, path: Path, cause: BaseException) -> None:
         super().__init__(str(path))
         self.path, self.cause = path, cause

@@ -9,7 +9,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:  # reading metrics back (plots, experiments) needs no learner
-    from fleetrl.agent.round_result import RoundResult
+    from fleetrl.agent.criterion import RoundResult
 
 nan = math.nan
 

@@ -18,7 +18,7 @@ from fleetrl.federation.schemes import FederatedAgent
 from fleetrl.federation.wire.messages import Message, RoundConfig
 
 if TYPE_CHECKING:  # the learner (and torch) is not imported by the federation's pure parts
-    from fleetrl.agent.round_result import RoundResult
+    from fleetrl.agent.criterion import RoundResult
 
 log = logging.getLogger(__name__)
 

@@ -13,7 +13,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from fleetrl.agent.round_result import interrupted_round
+from fleetrl.agent.criterion import interrupted_round
 from fleetrl.federation.events import RoundEvent, Sent, WorkerEvent
 from fleetrl.federation.plan import WorkerPlan
 from fleetrl.federation.shared_settings import settings_difference
@@ -36,7 +36,7 @@ from fleetrl.federation.worker.actions import (
 )
 
 if TYPE_CHECKING:  # the learner (and torch) is not imported by the pure machine
-    from fleetrl.agent.round_result import RoundResult
+    from fleetrl.agent.criterion import RoundResult
 
 log = logging.getLogger(__name__)
 

@@ -18,7 +18,7 @@ from fleetrl.federation.worker.actions import NOTHING, Phase, WorkerStep, Worker
 from fleetrl.federation.worker.machine import WorkerMachine
 
 if TYPE_CHECKING:  # the learner (and torch) is not imported by the pure machine
-    from fleetrl.agent.round_result import RoundResult
+    from fleetrl.agent.criterion import RoundResult
 
 log = logging.getLogger(__name__)
 
