@@ -1,15 +1,8 @@
-"""Tuning probe for per-step gradient averaging (the ``pergrad`` scheme's rule) without the chief: N agents in
-one process, each on its own unit; every optimisation step averages the N step gradients and every agent
-applies the average (so all stay one policy; they start from agent 0's network). ``--arm alone`` trains each
-unit by itself. Prints one JSON line: rounds until the last unit completes and per unit, per seed.
+"""Tuning probe for per-step gradient averaging (the ``pergrad`` rule) without the chief: N agents in one
+process average their step gradients at every optimisation step; ``--arm alone`` trains each unit by itself.
+Prints one JSON line: rounds until the last unit completes and per unit, per seed (tuning seeds 0-9 only).
 
     python lab/benchmarks/pergrad_probe.py --env cartpole --units 3 --seeds 0-4 --arm pergrad [--k-scale 3]
-
-Use tuning seeds (0-9) only; lab/tuning.md keeps what was tried. ``--lr-scale``, ``--k-scale`` and
-``--b-scale`` multiply the preset's learning rates, K and the minibatch U (the memory grows to fit);
-``--set KEY=VALUE`` (repeatable) replaces a field of the preset first, as ``fleetrl train --set`` does. Each
-run also reports the fleet's time on real-time rigs (``fleetrl.runs.rig_time`` under a round barrier, resets
-included; null for a unit type whose control period is not known).
 """
 
 from __future__ import annotations
@@ -39,43 +32,28 @@ def seeds_arg(text: str) -> list[int]:
     return list(range(int(a), int(b or a) + 1))
 
 
-def run(
-    env_name: str,
-    units: int,
-    seed: int,
-    arm: str,
-    lr_scale: float,
-    k_scale: float,
-    b_scale: float,
-    m: int,
-    preset: str,
-    fleet_seed: int,
-    overrides: dict[str, object],
-) -> dict:
+def run(args: argparse.Namespace, seed: int) -> dict:
+    """One seed's run of the parsed command line ``args``."""
     torch.set_num_threads(1)
-    spec = get_env_spec(env_name)
-    base = dataclasses.replace(get_preset(preset), **overrides)
+    units, arm, m, fleet_seed = args.units, args.arm, args.max_rounds, args.fleet_seed
+    spec = get_env_spec(args.env)
+    base = dataclasses.replace(get_preset(args.preset), **dict(args.set))
     base.validate()
     config = dataclasses.replace(
         base,
-        actor_lr=base.actor_lr * lr_scale,
-        critic_lr=base.critic_lr * lr_scale,
-        n_optimisations=max(1, round(base.n_optimisations * k_scale)),
-        batch_size=max(1, round(base.batch_size * b_scale)),
-        memory_size=max(base.memory_size, round(base.batch_size * b_scale)),
+        actor_lr=base.actor_lr * args.lr_scale,
+        critic_lr=base.critic_lr * args.lr_scale,
+        n_optimisations=max(1, round(base.n_optimisations * args.k_scale)),
+        batch_size=max(1, round(base.batch_size * args.b_scale)),
+        memory_size=max(base.memory_size, round(base.batch_size * args.b_scale)),
     )
     learners = []
     for k in range(units):
         env, unit = spec.make(k, fleet_seed)
         agent = agent_for(unit, config, seed=derive_seed(seed, k))
+        criterion = CompletionCriterion(spec.default_target(unit))
         learners.append(
-            Learner(
-                env,
-                agent,
-                CompletionCriterion(spec.default_target(unit)),
-                seed=derive_seed(seed, k),
-                keep_learning=arm != "alone",
-            )
+            Learner(env, agent, criterion, seed=derive_seed(seed, k), keep_learning=arm != "alone")
         )
     if arm != "alone":
         start = learners[0].agent.model_parameters()
@@ -112,7 +90,7 @@ def run(
     if spec.control_period is not None:
         waits = NO_BARRIER if arm == "alone" else Waits(barrier=True)
         played = {str(i): steps[i] for i in range(units)}
-        settings = {"env": env_name, "fleet_seed": fleet_seed}
+        settings = {"env": args.env, "fleet_seed": fleet_seed}
         plays = run_units(played, {str(i): d for i, d in enumerate(done_at)}, settings)
         rig = rig_time(plays, spec.control_period, waits)
         rig_minutes = round(rig.fleet / 60, 2)
@@ -148,36 +126,12 @@ def main() -> None:
     p.add_argument("--fleet-seed", type=int, default=0)
     p.add_argument("--set", type=override_arg, action="append", default=[], metavar="KEY=VALUE")
     a = p.parse_args()
-    overrides = dict(a.set)
-    results = [
-        run(
-            a.env,
-            a.units,
-            s,
-            a.arm,
-            a.lr_scale,
-            a.k_scale,
-            a.b_scale,
-            a.max_rounds,
-            a.preset,
-            a.fleet_seed,
-            overrides,
-        )
-        for s in a.seeds
-    ]
+    results = [run(a, s) for s in a.seeds]
     fleet = [r["fleet"] for r in results]
     per_unit = [u for r in results for u in r["units"]]
     print(describe_host(), file=sys.stderr)
-    print(
-        json.dumps(
-            {
-                "args": vars(a) | {"seeds": a.seeds},
-                "fleet_median": float(np.median(fleet)),
-                "unit_median": float(np.median(per_unit)),
-                "runs": results,
-            }
-        )
-    )
+    medians = {"fleet_median": float(np.median(fleet)), "unit_median": float(np.median(per_unit))}
+    print(json.dumps({"args": vars(a) | {"seeds": a.seeds}, **medians, "runs": results}))
 
 
 if __name__ == "__main__":

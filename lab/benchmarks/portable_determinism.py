@@ -2,23 +2,9 @@
 
     python lab/benchmarks/portable_determinism.py [--cartpole-rounds 40] [--qube-rounds 12]
 
-One machine has one CPU, so the script runs the same short seeded training (fleetrl/CartPoleUnit-v0 and
-fleetrl/QubeBalance-v0, preset standard, seed 0, one torch thread) in child processes under settings that
-make the libraries take the code paths another CPU would take:
-
-- PyTorch's kernels: ``ATEN_CPU_CAPABILITY`` = default (no SIMD) / avx2;
-- MKL's BLAS (torch's matrix products): ``MKL_ENABLE_INSTRUCTIONS`` = SSE4_2 / AVX (no effect on AMD
-  CPUs, where MKL takes its AVX2 path whatever is asked), ``MKL_CBWR`` = COMPATIBLE (its SSE2 path);
-- numba's target CPU: ``NUMBA_CPU_NAME`` = generic (x86-64 baseline) vs the host;
-- numpy's SIMD dispatch: ``NPY_DISABLE_CPU_FEATURES`` (the x86-64-v3 kernels off);
-- glibc's libm variants (sin, cos, exp, tanh): ``GLIBC_TUNABLES`` with AVX2 and FMA masked.
-
-and all of them at once (an old CPU). Each is run twice, in the default mode and in the portable mode
-(``FLEETRL_PORTABLE=1``, which pins torch's, MKL's and numba's code paths itself, so there the first
-emulations check that nothing else picks a path), and the script prints, per mode, whether every emulated
-CPU gave the scores of the host, and each child's CPU time (the cost of the portable mode).
-It compares runs on one machine only: measured, an Intel Xeon (AVX-512) and an AMD EPYC (AVX2) played
-different portable runs from the same seed (docs/algorithm.md, "Seeding").
+Runs the same short seeded training in child processes under settings that make torch, MKL, numba, numpy and
+glibc's libm take another CPU's code paths (and all at once), in the default and the portable mode
+(``FLEETRL_PORTABLE=1``); prints per mode whether every emulated CPU gave the host's scores, and CPU times.
 """
 
 from __future__ import annotations

@@ -2,10 +2,8 @@
 
     python lab/benchmarks/preset_rounds.py [--preset standard] [--seeds 0-9] [--max-rounds 400]
 
-One learner per seed, one torch thread, criterion WMA ≥ 475 (docs/algorithm.md, "Presets"). Prints one
-line per seed (rounds to completion, or "-" if none within --max-rounds) and the median, with the CPU and
-whether the portable mode (FLEETRL_PORTABLE=1) was on. The bounds of the learning test
-(tests/agent/test_agent_learner.py) and the preset table of docs/algorithm.md come from this command.
+One learner per seed, one torch thread, criterion WMA ≥ 475; prints each seed's rounds ("-": none) and the
+median.
 """
 
 from __future__ import annotations

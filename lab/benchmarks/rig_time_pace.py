@@ -1,18 +1,10 @@
 """Cross-check of the time on the rigs (``fleetrl.runs.rig_time``) against runs stepped in real time.
 
-Each case is trained twice with the same command and seed: paced (``--pace S``: every env step lasts the
-control period × S of wall time) and as fast as possible. The accounting is computed from the paced run's
-own metrics.csv and summary.json (its rounds, steps, who contributed to which round, completions; absences
-replayed from its seed; the control period × S; each unit's mean reset × S, as a paced unit's resets last
-their time on the rig × S) and compared with the paced run's wall time less its computing, taken as the
-unpaced twin's wall time (both from summary.json, so both hold the same start-up). Prints a table and exits
-1 if any case is off by more than ``--tolerance`` (10 %).
-
     python lab/benchmarks/rig_time_pace.py --env cartpole --rounds 25 --pace 1 --out /tmp/rig-pace
 
-Cases: pergrad (its quorum 0.6) and fedasync, each even and uneven (``--slow w2=4 --absent 0.2``). The unpaced
-twin is a different run where timing decides (who misses a pergrad round, fedasync's order): its wall time
-stands for the computing, not for the same timeline; keep the device time large against it (``--pace 1``).
+Each case (pergrad, fedasync; even and uneven) is trained paced (``--pace S``) and unpaced; the accounting
+from the paced run's records is compared with its wall time less the unpaced twin's. Prints a table and
+exits 1 if a case is off by more than ``--tolerance``.
 """
 
 from __future__ import annotations

@@ -1,29 +1,11 @@
 """Federation round overhead: from the last gradient of a round published to the average received by every
 worker, for N workers with the QUBE agent's real actor size, over mosquitto, amqtt and the in-process bus.
 
-Run: ``.venv/bin/python lab/benchmarks/round_overhead.py`` (``--quick`` for a smoke run; ``--workers 3,8,64``,
-``--rounds N``, ``--transports local,mosquitto,amqtt``).
+    python lab/benchmarks/round_overhead.py [--quick] [--workers 3,8,64] [--rounds N] [--transports ...]
 
-What is real: the chief (the :class:`~fleetrl.federation.chief.machine.Chief` state machine served by
-:func:`~fleetrl.federation.runner.run_chief`), the worker loop (:class:`~fleetrl.federation.worker.runner.
-FederatedWorker`), the message encoding and validation, :class:`~fleetrl.transport.mqtt.MqttTransport` (paho,
-QoS 1, TCP_NODELAY) and the embedded brokers. What is not: the learner. Each worker's "round" returns at once
-with a fixed random gradient of the actor layout of ``PPOAgent(4, 3, get_preset("paper"))`` (no episode, no
-PPO update), so a round is all communication. Chief, workers (threads, one MQTT client each) and — for amqtt —
-the broker share one Python process and its GIL; mosquitto is a child process. On separate machines the
-workers' share of the CPU goes away, the network's latency and bandwidth come in.
-
-Two ways a round's gradients arrive, both measured:
-
-* ``all at once``: every worker publishes as soon as a barrier releases them (all episodes end together; the
-  chief must take in, validate and average N gradients after the last one is published — the worst case);
-* ``last alone``: the other N−1 gradients have been accepted by the chief before the last worker publishes
-  (episodes end at different times; what is left after the last one is one gradient in, the mean, and the
-  broadcast to N workers).
-
-Overhead of round r = (latest time a worker's ``average`` for r reached ``apply_actor_gradient``, i.e.
-received and validated) − (latest time a worker called ``publish`` with its gradient for r). One clock
-(``time.perf_counter``), one process. The first rounds are a discarded warm-up.
+The chief, workers, encoding and transports are real; each worker's round returns at once with a fixed
+gradient, so a round is all communication. Modes: ``all at once`` (every worker publishes together) and
+``last alone`` (the chief accepted the other N−1 before the last one publishes).
 """
 
 from __future__ import annotations
@@ -51,21 +33,14 @@ from fleetrl.federation.runner import run_chief
 from fleetrl.federation.wire.messages import Layout, layout_size
 from fleetrl.federation.wire.topics import worker_of_topic
 from fleetrl.federation.worker.runner import FederatedWorker
-from fleetrl.transport.base import Received, Transport, Will
+from fleetrl.transport.base import Transport
 from fleetrl.transport.broker import EmbeddedBroker, find_mosquitto
 from fleetrl.transport.local import LocalBus
 from fleetrl.transport.mqtt import MqttTransport
 
 MODES = ("all at once", "last alone")
-WARMUP = 3
-"""rounds played before the measured ones (connections warm, allocations done)"""
-TIMEOUT = 120.0
-"""seconds a configuration may take before it is reported as failed"""
-
-
-def qube_actor_layout() -> Layout:
-    """The actor layout of the QUBE agent (4 observations, 3 actions, the paper's preset)."""
-    return PPOAgent(4, 3, get_preset("paper"), seed=0).actor_layout()
+WARMUP = 3  # rounds played before the measured ones
+TIMEOUT = 120.0  # seconds a configuration may take before it is reported as failed
 
 
 @dataclass
@@ -74,8 +49,7 @@ class RoundClock:
 
     sent: dict[int, list[float]] = field(default_factory=dict)
     got: dict[int, list[float]] = field(default_factory=dict)
-    closed: dict[int, list[float]] = field(default_factory=dict)
-    """when run_chief had published the round's average (its ``averaged`` event)"""
+    closed: dict[int, list[float]] = field(default_factory=dict)  # run_chief's ``averaged`` events
     lock: threading.Lock = field(default_factory=threading.Lock)
 
     def mark(self, table: dict[int, list[float]], rnd: int) -> None:
@@ -84,8 +58,7 @@ class RoundClock:
             table.setdefault(rnd, []).append(now)
 
     def overheads_ms(self, n_workers: int, first: int) -> tuple[list[float], list[float]]:
-        """For every complete round from ``first`` on, in ms: the overhead, and its part until the chief had
-        published the average."""
+        """Per complete round from ``first`` on (ms): the overhead, and its part until the average went."""
         total, chief = [], []
         for rnd in sorted(self.sent):
             if rnd >= first and len(self.sent[rnd]) == n_workers and len(self.got.get(rnd, [])) == n_workers:
@@ -136,12 +109,8 @@ class StaticAgent:
 
 
 class InstantLearner:
-    """A learner whose round is only the synchronisation of the benchmark (no episode, no PPO update).
-
-    :param agent: the worker's agent.
-    :param barrier: all workers leave it together at the start of every round.
-    :param hold: for the last worker in ``last alone`` mode: waits until the chief accepted the others.
-    """
+    """A round with no episode: all workers leave ``barrier`` together; ``hold`` (the last worker in ``last
+    alone`` mode) waits until the chief accepted the others."""
 
     def __init__(
         self, agent: StaticAgent, barrier: threading.Barrier, hold: Callable[[int], None] | None
@@ -167,27 +136,17 @@ class TimedTransport:
         self.agent = agent
         self.clock = clock
 
-    def connect(self, client_id: str, *, will: Will | None = None, timeout: float = 10.0) -> None:
-        self.inner.connect(client_id, will=will, timeout=timeout)
+    def __getattr__(self, name: str) -> object:
+        return getattr(self.inner, name)
 
     def publish(self, topic: str, payload: bytes, *, qos: int = 1, retain: bool = False) -> None:
         if worker_of_topic(self.run_id, topic) is not None:
             self.clock.mark(self.clock.sent, self.agent.round)
         self.inner.publish(topic, payload, qos=qos, retain=retain)
 
-    def subscribe(self, topic_filter: str, *, qos: int = 1) -> None:
-        self.inner.subscribe(topic_filter, qos=qos)
-
-    def receive(self, timeout: float | None = None) -> Received | None:
-        return self.inner.receive(timeout)
-
-    def close(self) -> None:
-        self.inner.close()
-
 
 class AcceptedCounter:
-    """Counts the chief's ``accepted`` events per round (the last worker may wait for the others) and
-    timestamps its ``averaged`` events."""
+    """Counts the chief's ``accepted`` events per round and timestamps its ``averaged`` events."""
 
     def __init__(self, needed: int, clock: RoundClock) -> None:
         self.needed = needed
@@ -219,15 +178,8 @@ def run_configuration(
     total = WARMUP + rounds
     clock = RoundClock()
     counter = AcceptedCounter(n_workers - 1, clock)
-    chief = Chief(
-        ChiefPlan(
-            run_id=run_id,
-            workers=[str(i) for i in range(1, n_workers + 1)],
-            layout=layout,
-            max_rounds=total,
-            scheme="paper",
-        )
-    )
+    workers = [str(i) for i in range(1, n_workers + 1)]
+    chief = Chief(ChiefPlan(run_id=run_id, workers=workers, layout=layout, max_rounds=total, scheme="paper"))
     barrier = threading.Barrier(n_workers, timeout=TIMEOUT)
     errors: list[BaseException] = []
 
@@ -301,7 +253,6 @@ class LogTally(logging.Handler):
 
 
 def ms(value: float) -> str:
-    """Milliseconds with a precision that fits the size."""
     return f"{value:.{2 if value < 10 else 1 if value < 100 else 0}f}"
 
 
@@ -314,7 +265,6 @@ def cells(total: list[float], chief: list[float]) -> list[str]:
 
 
 def environment_line() -> str:
-    """Versions of what was measured."""
     mosquitto = "not installed"
     binary = find_mosquitto()
     if binary:
@@ -327,7 +277,6 @@ def environment_line() -> str:
 
 
 def load_line() -> str:
-    """The 1, 5 and 15 minute load averages."""
     return "/".join(f"{x:.2f}" for x in os.getloadavg())
 
 
@@ -337,9 +286,7 @@ def main() -> None:
     parser.add_argument("--quick", action="store_true", help="3 and 8 workers, 5 rounds: a smoke run")
     parser.add_argument("--workers", default=None, help="comma-separated worker counts (default 3,8,64)")
     parser.add_argument("--rounds", type=int, default=None, help="measured rounds per configuration (100)")
-    parser.add_argument(
-        "--transports", default="local,mosquitto,amqtt", help="which of local,mosquitto,amqtt"
-    )
+    parser.add_argument("--transports", default="local,mosquitto,amqtt", help="of local,mosquitto,amqtt")
     args = parser.parse_args()
     workers = [int(w) for w in (args.workers or ("3,8" if args.quick else "3,8,64")).split(",")]
     rounds = args.rounds or (5 if args.quick else 100)
@@ -350,7 +297,7 @@ def main() -> None:
     tally = LogTally()
     logging.basicConfig(level=logging.WARNING, handlers=[tally])
 
-    layout = qube_actor_layout()
+    layout = PPOAgent(4, 3, get_preset("paper"), seed=0).actor_layout()  # the QUBE agent's actor
     size = layout_size(layout)
     print(f"actor of the QUBE agent (paper preset): {size} float32 = {4 * size / 1024:.0f} KiB per message")
     print(environment_line())

@@ -2,20 +2,9 @@
 
     python lab/benchmarks/run_fingerprint.py [--rounds 30] [--fleet-rounds 10] [--part alone|fleet|hosts|all]
 
-Alone: for each preset (``paper``, ``paper-code``, ``standard``) and each env (CartPoleUnit, QubeBalance;
-unit 0, fleet seed 0, seed 3), plays ``--rounds`` rounds with one learner and prints the SHA-256 of the round
-scores and of the final network parameters.
-
-Fleet: for each preset × every federation scheme × env (cartpole, qube), runs ``fleetrl train --units 3 --mode
-federated --transport local --seed 3`` for ``--fleet-rounds`` rounds through the command line (so a
-refactoring of settings, schemes, chief or worker is covered as a user runs them) and prints the SHA-256 of
-metrics.csv's (round, worker, score) rows and of every worker's final model.
-
-Hosts: ``pergrad`` again with 6 units in unit hosts of 3 (``--units-per-host 3``, preset ``standard``; a
-host carries a per-step scheme only).
-
-Run it before and after a change on the same machine (``git stash`` or a worktree of the old commit): equal
-digests mean bit-identical runs.
+Prints SHA-256 digests of the scores and final parameters of runs alone (each preset and env), federated
+through ``fleetrl train`` (each preset, scheme and env) and in unit hosts. Equal digests before and after a
+change on one machine mean bit-identical runs.
 """
 
 from __future__ import annotations

@@ -3,26 +3,8 @@
 
     python lab/benchmarks/run_memory.py [--rounds 4] [--parts process,spawned,thread,host]
 
-Each measurement runs the real command in a new process::
-
-    fleetrl train --env cartpole --mode federated --preset standard --scheme pergrad --max-rounds R --no-live
-                  --units N [--transport mqtt | --transport local [--units-per-host U]]
-
-and samples its process tree (the command, its forked workers, the embedded broker) every 0.2 s: the peak of
-the sum of the processes' proportional set sizes (PSS, /proc/PID/smaps_rollup: a page shared by k processes
-counts 1/k in each, so the sum is the memory the tree holds; a forked worker shares torch's pages with the
-command). The per-part figures are differences of two configurations:
-
-- process: worker processes on the embedded broker, N = 2 and 6: (peak(6) - peak(2)) / 4 per worker process
-  (forked from the command, the default where the OS has fork); spawned: the same with
-  ``FLEETRL_WORKER_START=spawn`` (each worker imports torch and fleetrl itself);
-- thread: workers as threads (``--transport local``), N = 20 and 60: (peak(60) - peak(20)) / 40 per unit;
-  the command's own share (chief, recorder, imports) is peak(20) - 20 x that (both above 16 units, so both
-  draw the same summarised plot at the end);
-- host: unit hosts (``--units-per-host``): 32 units in 2 and in 4 hosts give a host's fixed cost
-  ((peak(4 hosts) - peak(2 hosts)) / 2), 64 units in 4 hosts a hosted unit's ((peak(64) - peak(32)) / 32).
-
-Wall-clock and memory figures of a shared machine: the load average is printed.
+Each figure is the difference of the peak summed PSS of two ``fleetrl train`` process trees of different
+sizes, divided by the difference in workers, units or hosts.
 """
 
 from __future__ import annotations

@@ -3,8 +3,7 @@ seed's "rounds until the last unit completes" and the medians of that and of "ro
 
     python lab/benchmarks/run_table.py /tmp/tune/q/alone /tmp/tune/q/pergrad   # each holds seed-<n>/ run dirs
 
-A unit that never completed counts as the run's M and the arm's figure gets ">" (a lower bound). This is how
-lab/tuning.md's tables are made from tuning runs; reported figures come from ``fleetrl experiment``.
+A unit that never completed counts as the run's M and the figure gets ">" (a lower bound).
 """
 
 from __future__ import annotations

@@ -5,20 +5,8 @@ completes.
         [--env cartpole|qube] [--transport local|mqtt] [--set batch_size=16 ...] [--max-rounds 60]
         [--out DIR] [--records lab/benchmarks/results/scale]
 
-Each (arm, seed) runs once as the real command, in its own process::
-
-    fleetrl train --env E --units N --mode federated --transport T --units-per-host U
-                  --seed S --max-rounds M --no-live [--set KEY=VALUE ...] --out OUT/ARM-seed-S
-
-(``--transport local``, the default: the hosts are threads of the command; ``mqtt``: processes on the
-embedded broker, the arm's name ending ``-mqtt``) and leaves a small JSON record in ``--records`` (a run
-whose record exists is not run again: a sweep resumes across sessions). Per run: whether every unit
-completed within M, the round at which the last one did (the fleet), the median over units of the round at
-which each first completed (per unit), the command's wall time, the median wall time of the rounds in which
-every unit played a full-length episode (500 steps; QUBE 2,500), the peak of the process tree's summed
-proportional set size (sampled every 2 s), the load average before and after, the machine and the commit. The
-table prints the medians over the seeds of each arm given. Compare with each unit alone: docs/results.md,
-"CartPole scaling" (1 worker, pergrad), and the QUBE arms there.
+Each (arm, seed) runs ``fleetrl train`` once and leaves a JSON record in ``--records`` (a recorded run is
+not run again); prints each run's figures and the medians over the seeds.
 """
 
 from __future__ import annotations

@@ -2,11 +2,6 @@
 percentiles of their fleet's, from the records of ``fleetrl experiment qube-scale`` (or any fleet's).
 
     python lab/benchmarks/scale_trailers.py lab/records/qube-1000-federated-standard-m400-pergrad [--late 60]
-
-A unit's round is its median completion round over the records' seeds (one fleet: every record of the
-directory trains the same units). Prints the units whose median is after ``--late`` (or, if none, the last
-ten), each dynamics column's percentile among all the fleet's units, then Spearman's rank correlation of
-each column with the median round over all units.
 """
 
 from __future__ import annotations

@@ -4,17 +4,8 @@ every second (``--stall w2=0.75``: its computing and its link), over some learni
 
     python lab/benchmarks/stall.py --seeds 300 301 302 303 304 --out /tmp/stall
 
-Per arm and seed it prints the rounds until the healthy units (workers 0 and 1) completed, the wall seconds
-until they completed, the seconds per round (the one over the other), and whether the uneven unit (worker 2)
-completed and in which round; then per arm the medians over the seeds and the healthy units' time against the
-even fleet's (the target: ≤ 1.25× with the stalling unit completing too). With ``--chief-log`` it also says,
-per run, where the chief's time went: the exchanges that closed on a grace running out rather than on
-everyone waited for, and the seconds spent in those graces (read from the chief's log, ``logs/run.log``).
-
-Times come from each run's metrics.csv (``wall_time``: seconds from the worker's start to the end of the round
-in which its criterion held, summary.json's ``completed_at_round``). A unit that never completed counts its
-last round, printed with ``>`` (a lower bound). A run dir that already holds a summary.json is read, not run
-again (``--fresh`` reruns). Runs go one after the other; run it on a quiet machine and note the load.
+Prints per run and per arm the healthy units' rounds and seconds to completion and worker 2's completion; a
+figure with ``>`` is a lower bound. A run dir holding a summary.json is read, not run again.
 """
 
 from __future__ import annotations

@@ -3,23 +3,8 @@ processes on the embedded broker; and what the time goes to.
 
     python lab/benchmarks/startup.py [--repeats 3] [--modes local,mqtt] [--env cartpole] [--no-breakdown]
 
-Each repeat runs the real command as a new process (the ``fleetrl`` script next to this Python)::
-
-    fleetrl -v train --env cartpole --units 3 --max-rounds 1 --out DIR --no-live --transport local|mqtt
-
-and reads the run's logs (the command's stderr, ``logs/run.log``, ``logs/worker-K.log``): every line carries a
-wall-clock time, compared with the moment the command was launched. A worker plays its first round's episode
-right after the chief's welcome (``worker K: welcomed at round 1``: the worker's state machine asks for the
-round in the same step), so that line is the marker; ``worker K round 1: score`` is the end of that round.
-Figures: the median over the repeats of the time to the first worker's episode, to every worker's, to the end
-of the first round, and of the whole command (which includes writing the plot and the summary); and the CPU
-seconds the command and its processes used (less sensitive to the machine's other jobs than wall time).
-
-The breakdown (one more run per mode, ``PYTHONPROFILEIMPORTTIME=1``, inherited by the worker processes) is
-the timeline of that run's log lines — what waits on what — and, for the command's process and one worker
-process, the import time spent between two consecutive log lines and the heaviest top-level packages.
-Wall-clock figures: the machine's other jobs show in them; say how loaded it was (the load average is
-printed).
+Times come from the run's log lines against the launch; the breakdown (``PYTHONPROFILEIMPORTTIME=1``) shows
+the timeline and the import time between log lines.
 """
 
 from __future__ import annotations

@@ -3,8 +3,6 @@ units had completed, how many held the target then and the fleet's median entrop
 metrics.csv and config.json.
 
     python lab/benchmarks/trailer_course.py RUN_DIR [--last 3] [--every 10]
-
-Prints a row every ``--every`` rounds and at the run's last round.
 """
 
 from __future__ import annotations

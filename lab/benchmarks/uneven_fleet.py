@@ -5,18 +5,8 @@ with every unit absent for a random 20 % of rounds (``--absent 0.2``), for one s
     python lab/benchmarks/uneven_fleet.py --scheme pergrad --seeds 100 101 102 --out /tmp/uneven
     python lab/benchmarks/uneven_fleet.py --scheme fedavg --seeds 100 --extra "--quorum 0.6 --round-timeout 1"
 
-Per arm and seed it prints the wall time until every unit completed and until the healthy units completed (all
-units but the slow one; in the even and absent arms every unit is healthy), and the rounds until every unit
-completed; then per arm the medians over the seeds and their ratio to the even fleet's. Under an asynchronous
-scheme (``fedasync``) a unit's rounds are its own count (no fleet round): "rounds" is then the most rounds a
-unit played until it completed. The targets: the
-healthy units of the slow arm within 1.25× the even fleet's time, the slow unit completing too; the absent
-arm within 1.3× the even fleet's rounds.
-
-Times come from each run's metrics.csv (``wall_time``: seconds from the worker's start to the end of the
-round in which its criterion held, summary.json's ``completed_at_round``); a unit that never completed
-counts its last round and the figure is printed with ``>`` (a lower bound). A run dir that already holds a
-summary.json is read, not run again (``--fresh`` reruns). Not a timed test: run it on a quiet machine.
+Prints per run and per arm the wall time until every unit and the healthy units completed and the rounds; a
+figure with ``>`` is a lower bound. A run dir holding a summary.json is read, not run again.
 """
 
 from __future__ import annotations

@@ -3,10 +3,7 @@
     python lab/benchmarks/unit_alone.py --env qube --unit 48 --seed 100 [--fleet-seed 0] [--fleet-profile P] \
         [--max-rounds 1000]
 
-A Learner of the ``standard`` preset on unit ``--unit`` of fleet ``--fleet-seed`` (its env as ``fleetrl
-train`` builds it), one episode a round, until its criterion holds or ``--max-rounds``. Prints one JSON line:
-the rounds played, whether it completed, and its last 20 scores. For a unit a large fleet leaves behind
-(lab/tuning.md): whether the unit itself can be learned.
+Prints one JSON line: the rounds played, whether it completed, and its last 20 scores.
 """
 
 from __future__ import annotations

@@ -4,12 +4,9 @@
         [--arm alone --arm shared --arm NAME=FLAGS] [--records lab/records/wide-fleet] [--table-only] \
         [--env module:factory]
 
-Pair i is learning seed i with fleet seed i. An arm is a ``fleetrl train`` run (``--transport local``, no
-live view); ``alone`` is ``--mode individual``, ``shared`` the default federated run, and ``NAME=FLAGS`` any
-other flags (e.g. ``own=--set own_head=true``). Each finished run leaves a small JSON record
-(``RECORDS/PROFILE-uU/ARM/pair-I.json``); a record present is not run again, so a sweep resumes. Prints, per
-arm: units completed, rounds per unit and the last unit's rounds (medians over pairs), the ratio alone /
-arm of each, and the time on the rigs per unit and until 50, 90 and 100 % of the units completed (medians).
+An arm is a ``fleetrl train`` run (``alone``: ``--mode individual``; ``shared``: federated; ``NAME=FLAGS``:
+other flags); each run leaves a JSON record (a recorded run is not run again). Prints per arm the completion
+rounds, their ratios to alone and the time on the rigs (medians over pairs).
 """
 
 from __future__ import annotations

@@ -1,12 +1,6 @@
 """Which units trail in a fleet: each unit's rounds beside its dynamics, from wide_fleet.py's records.
 
     python lab/benchmarks/wide_trailers.py --profile wide --units 3 --pairs 100-109 [--arm shared]
-
-For every unit of every pair: its rounds alone and in ``--arm``, its motor's authority (km/Rm relative to
-nominal), its dead zone, cable stiffness, pendulum m·L relative to nominal and its mean swing-up time. Then
-Spearman's rank correlation of each column with the rounds in the arm and alone, over all units, and each
-column's median over the units that came last in their pair against its median over all units (is the last
-unit the one with the weakest motor, the widest dead zone...?).
 """
 
 from __future__ import annotations

@@ -2,15 +2,8 @@
 
     python lab/benchmarks/wire_cost.py [--rounds 20] [--workers 3 8]
 
-The real chief (``fleetrl.federation.chief.machine`` driven by ``run_chief``) and the real workers
-(``FederatedWorker``) talk through a real mosquitto, each over its own MQTT connection; the chief and the
-workers are threads of this process. Only the learning is left out: each worker's learner plays no episode
-and its agent hands over a fixed gradient of the standard preset's QUBE step layout (the whole actor-critic)
-at once, so a round's wall time is its messaging alone — the preset's K = 20 exchanges for ``pergrad``
-(every worker sends its step gradient, the chief averages N of them and broadcasts the average), one for
-``fedavg`` (the model).
-The figure is set next to a QUBE episode's real-time length: 2500 steps × 6 ms = 15 s at the cap, and the
-short episodes of early learning (50 steps: 0.3 s). Target: ≤ 5 % of a full episode.
+Real chief and workers over a real mosquitto, with no learning (a fixed gradient of the standard preset's
+QUBE layout), set against a QUBE episode's real-time length (15 s at the cap, 0.3 s early).
 """
 
 from __future__ import annotations
