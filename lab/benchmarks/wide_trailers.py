@@ -1,6 +1,8 @@
 """Which units trail in a fleet: each unit's rounds beside its dynamics, from wide_fleet.py's records.
 
     python lab/benchmarks/wide_trailers.py --profile wide --units 3 --pairs 100-109 [--arm shared]
+
+Prints each unit's rounds and dynamics, then each column's Spearman correlation with the rounds.
 """
 
 from __future__ import annotations
