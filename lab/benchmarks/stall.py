@@ -11,13 +11,12 @@ figure with ``>`` is a lower bound. A run dir holding a summary.json is read, no
 from __future__ import annotations
 
 import argparse
-import csv
-import json
 import os
 import statistics
 from dataclasses import dataclass
 from pathlib import Path
 
+from uneven_fleet import completions
 from uneven_fleet import run as train_run
 
 UNEVEN_UNIT = 2
@@ -29,14 +28,10 @@ ARMS = {"even": [], "slow": ["--slow", f"w{UNEVEN_UNIT}=4"], "stall": ["--stall"
 class Row:
     """One run's figures."""
 
-    rounds: int
-    """rounds until the last healthy unit completed"""
-    seconds: float
-    """wall seconds until the last healthy unit completed"""
-    complete: bool
-    """the healthy units completed (else the figures are lower bounds)"""
-    uneven_round: int | None
-    """the round in which worker 2 completed (None: never)"""
+    rounds: int  # rounds until the last healthy unit completed
+    seconds: float  # wall seconds until the last healthy unit completed
+    complete: bool  # the healthy units completed (else the figures are lower bounds)
+    uneven_round: int | None  # the round in which worker 2 completed (None: never)
 
     @property
     def per_round(self) -> float:
@@ -45,22 +40,15 @@ class Row:
 
 def read_row(out: Path) -> Row:
     """The figures of the finished run in ``out``."""
-    summary = json.loads((out / "summary.json").read_text())
-    with (out / "metrics.csv").open(newline="") as handle:
-        rows = list(csv.DictReader(handle))
-    seconds: list[float] = []
-    rounds: list[int] = []
-    complete = True
-    for worker in HEALTHY:
-        mine = [r for r in rows if int(r["worker"]) == worker]
-        at = summary["workers"][str(worker)]["completed_at_round"]
-        if at is None:
-            complete, at = False, max(int(r["round"]) for r in mine)
-        row = next(r for r in mine if int(r["round"]) == at)
-        seconds.append(float(row["wall_time"]))
-        rounds.append(int(at))
-    uneven = summary["workers"][str(UNEVEN_UNIT)]["completed_at_round"]
-    return Row(max(rounds), max(seconds), complete, uneven)
+    units = completions(out)
+    healthy = [units[worker] for worker in HEALTHY]
+    _, uneven, uneven_completed = units[UNEVEN_UNIT]
+    return Row(
+        max(rnd for _, rnd, _ in healthy),
+        max(seconds for seconds, _, _ in healthy),
+        all(completed for _, _, completed in healthy),
+        uneven if uneven_completed else None,
+    )
 
 
 def main() -> None:

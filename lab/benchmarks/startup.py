@@ -26,11 +26,12 @@ STAMP = re.compile(r"^(\d{4}-\d{2}-\d{2} \d{2}:\d{2}:\d{2},\d{3}) (.*)$")
 IMPORT = re.compile(r"^import time:\s+(\d+) \|\s+(\d+) \|( *)(\S+)")
 WELCOMED = re.compile(r"worker (\d+): welcomed at round 1\b")
 ROUND_ONE = re.compile(r"worker (\d+) round 1: score")
+# log lines left out of the timeline (one per optimisation step of a per-step scheme, or said twice)
 TIMELINE_SKIP = re.compile(
     r"round 1: (answered|averaged|accepted|welcome of|worker \d+ joined)|sending|ignoring"
 )
-"""fleetrl's log lines left out of the timeline (one per optimisation step of a per-step scheme, or said
-twice)"""
+Import = tuple[str, str, float, float, int]
+"""(the last log line before, module, seconds (self), seconds (cumulative), nesting) of an import"""
 
 
 @dataclass
@@ -48,12 +49,9 @@ class Run:
 
     mode: str
     wall: float
-    cpu: float
-    """CPU seconds (user + system) of the command and every process it waited for"""
+    cpu: float  # user + system seconds of the command and every process it waited for
     lines: list[Line]
-    imports: dict[str, list[tuple[str, str, float, float, int]]] = field(default_factory=dict)
-    """source → (the last log line before, module, seconds (self), seconds (cumulative), nesting) of every
-    import"""
+    imports: dict[str, list[Import]] = field(default_factory=dict)  # by source
 
     def marker(self, pattern: re.Pattern[str]) -> list[float]:
         """Times of the lines matching ``pattern``, earliest first."""
@@ -66,12 +64,10 @@ def fleetrl_command() -> list[str]:
     return [str(script)] if script.exists() else [sys.executable, "-m", "fleetrl.cli.main"]
 
 
-def parse_log(
-    path: Path, source: str, launched: float
-) -> tuple[list[Line], list[tuple[str, str, float, float, int]]]:
+def parse_log(path: Path, source: str, launched: float) -> tuple[list[Line], list[Import]]:
     """The timestamped lines of ``path`` and the ``-X importtime`` lines between them."""
     lines: list[Line] = []
-    imports: list[tuple[str, str, float, float, int]] = []
+    imports: list[Import] = []
     last = "(before the first log line)"
     if not path.exists():
         return lines, imports

@@ -24,29 +24,17 @@ from pathlib import Path
 
 UNITS = 3
 SLOW_UNIT = UNITS - 1
+FIGURES = ("every_unit", "healthy", "rounds")
 
 
 @dataclass(frozen=True)
 class Figures:
     """One run's completion, in wall seconds and rounds."""
 
-    every_unit: float
-    """seconds until the last unit completed"""
-    healthy: float
-    """seconds until the last healthy unit completed"""
-    rounds: int
-    """rounds until the last unit completed"""
-    complete: bool
-    """every unit completed (else the figures are lower bounds)"""
-
-
-def arms(factor: float, absent: float) -> dict[str, list[str]]:
-    """Each arm's extra flags."""
-    return {
-        "even": [],
-        "slow": ["--slow", f"w{SLOW_UNIT}={factor:g}"],
-        "absent": ["--absent", f"{absent:g}"],
-    }
+    every_unit: float  # seconds until the last unit completed
+    healthy: float  # seconds until the last healthy unit completed
+    rounds: int  # rounds until the last unit completed
+    complete: bool  # every unit completed (else the figures are lower bounds)
 
 
 def run(out: Path, scheme: str, seed: int, flags: list[str], args: argparse.Namespace) -> float:
@@ -69,24 +57,31 @@ def run(out: Path, scheme: str, seed: int, flags: list[str], args: argparse.Name
     return time.monotonic() - started
 
 
-def figures(out: Path, slow_unit: int | None) -> Figures:
-    """The completion figures of the finished run in ``out``."""
+def completions(out: Path) -> dict[int, tuple[float, int, bool]]:
+    """Per worker of the finished run in ``out``: the wall seconds and round at which it completed (else its
+    last round's), and whether it completed."""
     summary = json.loads((out / "summary.json").read_text())
     with (out / "metrics.csv").open(newline="") as handle:
         rows = list(csv.DictReader(handle))
-    seconds: dict[int, float] = {}
-    rounds: dict[int, int] = {}
-    complete = True
+    result = {}
     for worker, info in summary["workers"].items():
         mine = [r for r in rows if int(r["worker"]) == int(worker)]
         at = info["completed_at_round"]
-        if at is None:
-            complete = False
+        completed = at is not None
+        if not completed:
             at = max(int(r["round"]) for r in mine)
         row = next(r for r in mine if int(r["round"]) == at)
-        seconds[int(worker)], rounds[int(worker)] = float(row["wall_time"]), int(at)
-    healthy = [s for w, s in seconds.items() if w != slow_unit]
-    return Figures(max(seconds.values()), max(healthy), max(rounds.values()), complete)
+        result[int(worker)] = (float(row["wall_time"]), int(at), completed)
+    return result
+
+
+def figures(out: Path, slow_unit: int | None) -> Figures:
+    """The completion figures of the finished run in ``out``."""
+    units = completions(out)
+    healthy = [seconds for w, (seconds, _, _) in units.items() if w != slow_unit]
+    every_unit = max(seconds for seconds, _, _ in units.values())
+    complete = all(completed for _, _, completed in units.values())
+    return Figures(every_unit, max(healthy), max(rnd for _, rnd, _ in units.values()), complete)
 
 
 def asynchronous(scheme: str) -> bool:
@@ -97,11 +92,7 @@ def asynchronous(scheme: str) -> bool:
 
 
 def show(value: float, complete: bool, unit: str = "s") -> str:
-    return (
-        f"{'' if complete else '>'}{value:.1f}{unit}"
-        if unit == "s"
-        else f"{'' if complete else '>'}{value:g}"
-    )
+    return ("" if complete else ">") + (f"{value:.1f}{unit}" if unit == "s" else f"{value:g}")
 
 
 def main() -> None:
@@ -118,7 +109,11 @@ def main() -> None:
     parser.add_argument("--extra", default="", help="more fleetrl train flags for every arm, quoted")
     parser.add_argument("--fresh", action="store_true", help="rerun runs already in --out")
     args = parser.parse_args()
-    flags = arms(args.factor, args.absent)
+    flags = {
+        "even": [],
+        "slow": ["--slow", f"w{SLOW_UNIT}={args.factor:g}"],
+        "absent": ["--absent", f"{args.absent:g}"],
+    }
     results: dict[str, list[Figures]] = {}
     for arm in args.arms:
         for seed in args.seeds:
@@ -136,15 +131,10 @@ def main() -> None:
     rounds = "rounds per unit" if asynchronous(args.scheme) else "rounds"
     print(f"\nscheme {args.scheme}, {len(args.seeds)} seed(s), medians (ratio to the even fleet):")
     for arm, runs in results.items():
-        medians = [
-            statistics.median(getattr(r, name) for r in runs) for name in ("every_unit", "healthy", "rounds")
-        ]
+        medians = [statistics.median(getattr(r, name) for r in runs) for name in FIGURES]
         ratios = ""
         if even and arm != "even":
-            base = [
-                statistics.median(getattr(r, name) for r in even)
-                for name in ("every_unit", "healthy", "rounds")
-            ]
+            base = [statistics.median(getattr(r, name) for r in even) for name in FIGURES]
             ratios = " (" + ", ".join(f"{m / b:.2f}×" for m, b in zip(medians, base, strict=True)) + ")"
         lower = "" if all(r.complete for r in runs) else "  [some unit never completed: lower bounds]"
         every, healthy, count = medians
