@@ -46,16 +46,9 @@ def parse_arm(text: str) -> tuple[str, list[str]]:
 
 
 def run_pair(
-    arm_flags: list[str],
-    pair: int,
-    profile: str,
-    units: int,
-    max_rounds: int,
-    keep: Path | None = None,
-    env: str = "qube",
+    arm_flags: list[str], pair: int, profile: str, units: int, max_rounds: int, keep: Path | None, env: str
 ) -> dict:
-    """One run; its record (per-unit rounds to complete, rig seconds, wall seconds); ``keep``: where worker
-    0's model file is copied (the fleet's shared policy, for ``adapt_unseen.py``)."""
+    """One run's record; ``keep``: where worker 0's model file is copied (for ``adapt_unseen.py``)."""
     with tempfile.TemporaryDirectory() as tmp:
         out = Path(tmp) / "run"
         # a unit factory (``module:factory``) draws its units itself: the profile is its own
@@ -91,12 +84,10 @@ def main() -> None:
     p.add_argument("--arm", action="append", default=None)
     p.add_argument("--records", type=Path, default=Path("lab/records/wide-fleet"))
     p.add_argument("--table-only", action="store_true", help="print the table of the records present")
-    p.add_argument(
-        "--per-pair",
-        action="store_true",
-        help="also print, per pair and arm, the median unit's time on the rigs and waiting, and the largest "
-        "mean reset",
+    per_pair_help = (
+        "also print, per pair and arm, the median unit's time on the rigs and waiting, and the largest"
     )
+    p.add_argument("--per-pair", action="store_true", help=per_pair_help + " mean reset")
     p.add_argument("--keep-models", type=Path, default=None, help="copy worker 0's model of each run here")
     a = p.parse_args()
     arms = [parse_arm(x) for x in (a.arm or ["alone", "shared"])]
@@ -132,9 +123,9 @@ def print_table(base: Path, arms: list[str], pairs: list[int], profile: str, uni
     print("| arm | units completed | rounds per unit | last unit | × per unit | × last | rigs per unit (s) "
           "| rigs to 50 / 90 / 100 % of units (s) |")  # fmt: skip
     print("|---|---|---|---|---|---|---|---|")
-    alone = _figures([records["alone"][pair] for pair in common], units) if "alone" in records else None
+    alone = _figures([records["alone"][pair] for pair in common]) if "alone" in records else None
     for arm in arms:
-        fig = _figures([records[arm][pair] for pair in common], units)
+        fig = _figures([records[arm][pair] for pair in common])
         per, last = fig["per_unit"], fig["last"]
         ratios = ("–", "–")
         if alone is not None:
@@ -147,10 +138,8 @@ def print_table(base: Path, arms: list[str], pairs: list[int], profile: str, uni
 
 
 def print_pairs(base: Path, arms: list[str], pairs: list[int]) -> None:
-    """Per pair and arm: the median unit's time on the rigs and its time waiting for the fleet, and the
-    largest of its units' reset time per fleet round until it completed (a unit that needs a hand reset
-    costs its fleet that much at every round under a barrier; where a unit plays every round, its mean time
-    per reset; a paced unit the quorum left out of rounds plays fewer resets than that)."""
+    """Per pair and arm: the median unit's time on the rigs and waiting for the fleet, and the largest of its
+    units' reset time per fleet round until it completed."""
     print("| pair | arm | median unit on rigs (s) | median unit waiting (s) | largest reset s per round |")
     print("|---|---|---|---|---|")
     for pair in pairs:
@@ -167,10 +156,9 @@ def print_pairs(base: Path, arms: list[str], pairs: list[int]) -> None:
             print(f"| {pair} | {arm} | {median:.0f} | {waited:.0f} | {reset:.0f} |")
 
 
-def _figures(records: list[dict], units: int) -> dict:
-    """Medians: rounds per unit (every unit of every pair; an unfinished unit counts as its run's M), the
-    last unit's rounds, time on the rigs per unit and until 50, 90 and 100 % of the units completed (runs of
-    a unit factory, which has no control period, have none)."""
+def _figures(records: list[dict]) -> dict:
+    """Medians: rounds per unit, the last unit's rounds, time on the rigs per unit and until 50, 90 and 100 %
+    of the units completed."""
     rounds = [[r if r is not None else 10**9 for r in rec["rounds"]] for rec in records]
     timed = [rec for rec in records if rec["rig_seconds"] is not None]  # a unit factory's have no clock
     flat = [r for run in rounds for r in run]
@@ -187,9 +175,8 @@ def _figures(records: list[dict], units: int) -> dict:
 
 
 def _share_median(records: list[dict], share: str) -> str:
-    """The median over runs of the time on the rigs until ``share`` % of the units completed; a run that
-    never got there counts its whole time, and the median is then marked ≥. A record made before runs kept
-    these shares reads them from its units' times (the k-th smallest, k = ⌈share·N⌉, all its units done)."""
+    """The median over runs of the time on the rigs until ``share`` % of the units completed (≥: a run never
+    got there and counts its whole time); an older record without these shares reads its units' times."""
     times, short = [], False
     for rec in records:
         rigs = rec["rig_seconds"]

@@ -45,8 +45,7 @@ class WireAgent:
     def update_step_count(self) -> int:
         return self.steps
 
-    def begin_update(self) -> int:
-        return self.steps
+    begin_update = update_step_count
 
     def step_gradients(self, k: int) -> np.ndarray:
         return self.flat
@@ -60,8 +59,7 @@ class WireAgent:
     def model_parameters(self) -> np.ndarray:
         return self.flat
 
-    def set_model_parameters(self, flat: np.ndarray) -> None:
-        pass
+    set_model_parameters = apply_step
 
 
 class Outcome:
@@ -95,16 +93,11 @@ def round_seconds(url: str, scheme: str, workers: int, rounds: int) -> tuple[flo
     layout = agent0.step_layout(0) if scheme == "pergrad" else agent0.model_layout()
     steps = agent0.update_step_count() if scheme == "pergrad" else 1
     run_id = f"wire-{scheme}-{workers}"
-    chief = Chief(
-        ChiefPlan(
-            run_id=run_id,
-            workers=[str(k) for k in range(workers)],
-            layout=layout,
-            max_rounds=rounds,
-            scheme=scheme,
-            steps_per_round=steps,
-        )
+    ids = [str(k) for k in range(workers)]
+    plan = ChiefPlan(
+        run_id=run_id, workers=ids, layout=layout, max_rounds=rounds, scheme=scheme, steps_per_round=steps
     )
+    chief = Chief(plan)
     threading.Thread(target=run_chief, args=(chief, MqttTransport(url)), daemon=True).start()
     stamps: list[float] = []
 
