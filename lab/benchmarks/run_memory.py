@@ -49,16 +49,22 @@ def pss_bytes(pid: int) -> int:
     return 0
 
 
+def peak_pss(command: subprocess.Popen, every: float) -> int:
+    """The peak of the summed PSS of ``command``'s process tree, sampled every ``every`` s until it ends."""
+    peak = 0
+    while command.poll() is None:
+        peak = max(peak, sum(pss_bytes(p) for p in children(command.pid)))
+        time.sleep(every)
+    return peak
+
+
 def peak_tree_pss(argv: list[str], environment: dict[str, str]) -> float:
     """Run ``argv`` (with ``environment`` added) and return the peak of its process tree's summed PSS, in
     MB."""
     env = {**os.environ, "PYTHONPATH": os.pathsep.join(sys.path), **environment}
     with tempfile.TemporaryFile("w+") as errors:  # a file, not a pipe: a full pipe would stop the run
         command = subprocess.Popen(argv, stdout=subprocess.DEVNULL, stderr=errors, text=True, env=env)
-        peak = 0
-        while command.poll() is None:
-            peak = max(peak, sum(pss_bytes(p) for p in children(command.pid)))
-            time.sleep(SAMPLE_EVERY)
+        peak = peak_pss(command, SAMPLE_EVERY)
         if command.returncode != 0:
             errors.seek(0)
             raise SystemExit(f"{' '.join(argv)} exited {command.returncode}: {errors.read()[-2000:]}")

@@ -25,7 +25,7 @@ import time
 from collections import defaultdict
 from pathlib import Path
 
-from run_memory import children, pss_bytes
+from run_memory import peak_pss
 
 FLEETRL = Path(sys.executable).with_name("fleetrl")
 FULL_LENGTH = {"cartpole": 500, "qube": 2500}
@@ -35,15 +35,14 @@ FULL_LENGTH = {"cartpole": 500, "qube": 2500}
 def arm_name(
     env: str, units: int, per_host: int, overrides: list[str], max_rounds: int, transport: str
 ) -> str:
-    """The arm's record name: its unit type, fleet size, host size, overrides, M and a transport other than
-    local."""
+    """The arm's record name (a transport other than local ends it)."""
     extra = "".join(f"-{o.replace('=', '')}" for o in sorted(overrides))
     where = "" if transport == "local" else f"-{transport}"
     return f"{env}-n{units}-u{per_host}-m{max_rounds}{extra}{where}"
 
 
 def figures(run: Path, full_length: int) -> dict[str, object]:
-    """What a finished run's metrics.csv says (see the module docstring)."""
+    """What a finished run's metrics.csv says: completions, rounds and full-length rounds' wall time."""
     with (run / "metrics.csv").open() as f:
         rows = list(csv.DictReader(f))
     units = {r["worker"] for r in rows}
@@ -85,12 +84,9 @@ def run_one(argv: list[str], out: Path, record: Path, full_length: int) -> dict[
         shutil.rmtree(out)
     load_before = os.getloadavg()[0]
     started = time.perf_counter()
-    peak = 0
     with tempfile.TemporaryFile("w+") as errors:  # a file, not a pipe: a full pipe would stop the run
         command = subprocess.Popen(argv, stdout=subprocess.DEVNULL, stderr=errors, text=True)
-        while command.poll() is None:
-            peak = max(peak, sum(pss_bytes(p) for p in children(command.pid)))
-            time.sleep(2.0)
+        peak = peak_pss(command, 2.0)
         wall = time.perf_counter() - started
         if command.returncode != 0:
             errors.seek(0)
