@@ -94,8 +94,7 @@ def main() -> int:
         mode = "portable (FLEETRL_PORTABLE=1)" if portable else "default"
         print(f"\n## mode: {mode}")
         print(f"{'emulated CPU':34s} {'torch':8s} {'scores digest':14s} {'same as host':13s} CPU s")
-        reference = None
-        same_everywhere = True
+        reference, same_everywhere = None, True
         for name, extra in VARIANTS.items():
             result, seconds = run_child(extra, portable, args.cartpole_rounds, args.qube_rounds)
             d = digest(result)
@@ -107,9 +106,8 @@ def main() -> int:
         verdicts[mode] = same_everywhere
     print()
     for mode, same in verdicts.items():
-        print(
-            f"{mode}: {'identical scores under every emulated CPU' if same else 'scores depend on the CPU'}"
-        )
+        verdict = "identical scores under every emulated CPU" if same else "scores depend on the CPU"
+        print(f"{mode}: {verdict}")
     return 0
 
 

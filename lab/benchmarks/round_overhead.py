@@ -68,17 +68,12 @@ class RoundClock:
         return total, chief
 
 
-@dataclass(frozen=True)
 class _Result:
     """The few fields FederatedWorker reads from a round (a learner's RoundResult)."""
 
-    score: float = 0.0
-    steps: int = 0
-    wma: float = 0.0
-    completed: bool = False
-    actor_loss: float = 0.0
-    critic_loss: float = 0.0
-    entropy: float = 0.0
+    score = wma = actor_loss = critic_loss = entropy = 0.0
+    steps = 0
+    completed = False
 
 
 class StaticAgent:
@@ -86,9 +81,8 @@ class StaticAgent:
 
     def __init__(self, layout: Layout, seed: int, clock: RoundClock) -> None:
         self.layout = list(layout)
-        self.gradient: np.ndarray = (
-            np.random.default_rng(seed).normal(0.0, 1e-3, layout_size(layout)).astype(np.float32)
-        )
+        gradient = np.random.default_rng(seed).normal(0.0, 1e-3, layout_size(layout))
+        self.gradient: np.ndarray = gradient.astype(np.float32)
         self.clock = clock
         self.round = 0
 
