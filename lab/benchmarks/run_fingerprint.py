@@ -41,24 +41,23 @@ def fingerprint(preset: str, env_id: str, rounds: int) -> tuple[str, str]:
     learner = Learner(env, agent, CompletionCriterion(1e9), seed=SEED)
     scores = np.array([learner.play_round().score for _ in range(rounds)], dtype=np.float64)
     params = agent.model_parameters()
-    return hashlib.sha256(scores.tobytes()).hexdigest()[:16], hashlib.sha256(params.tobytes()).hexdigest()[
-        :16
-    ]
+    return digest(scores.tobytes()), digest(params.tobytes())
+
+
+def digest(data: bytes) -> str:
+    return hashlib.sha256(data).hexdigest()[:16]
 
 
 PRESETS = ("paper", "paper-code", "standard")
 SCHEMES = ("paper", "fedavg", "pergrad", "fedavgm", "fedavgm:momentum=0.5", "fedadam", "fedprox")
 """each scheme with its defaults (fedavgm's momentum 0 is fedavg), and fedavgm with momentum"""
-HOST_SCHEMES = ("pergrad",)
-"""the schemes run again with the units in unit hosts (6 units, 3 a host; preset ``standard``, the one hosts
-take; a host carries a per-step scheme only)"""
+HOST_SCHEMES = ("pergrad",)  # run again in unit hosts (6 units, 3 a host, preset standard): per-step only
 
 
 def fleet_fingerprint(
     preset: str, scheme: str, env: str, rounds: int, units: int = 3, per_host: int = 1
 ) -> tuple[str, str]:
-    """Digests of a federated run of ``units`` units (``per_host`` to a unit host) on the in-process bus, run
-    as a user runs it."""
+    """Digests of a federated ``fleetrl train`` of ``units`` units (``per_host`` a host), in-process."""
     with tempfile.TemporaryDirectory() as tmp:
         out = Path(tmp) / "run"
         command = [sys.executable, "-m", "fleetrl.cli.main", "train", "--env", env, "--units", str(units)]
@@ -72,7 +71,7 @@ def fleet_fingerprint(
             return f"failed({done.returncode})", done.stderr.strip().splitlines()[-1][:60]
         with (out / "metrics.csv").open() as f:
             rows = sorted((int(r["round"]), r["worker"], r["score"]) for r in csv.DictReader(f))
-        scores = hashlib.sha256(repr(rows).encode()).hexdigest()[:16]
+        scores = digest(repr(rows).encode())
         params = hashlib.sha256()
         for model in sorted((out / "models").glob("*.safetensors")):
             from safetensors.numpy import load_file
@@ -105,9 +104,8 @@ def main() -> int:
             for preset in PRESETS:
                 for scheme in SCHEMES:
                     scores, params = fleet_fingerprint(preset, scheme, env, args.fleet_rounds)
-                    print(
-                        f"{env:8s} {preset:10s} {scheme:8s} scores {scores} parameters {params}", flush=True
-                    )
+                    line = f"{env:8s} {preset:10s} {scheme:8s} scores {scores} parameters {params}"
+                    print(line, flush=True)
     if args.part in ("hosts", "all"):
         print(f"# 6 units federated in unit hosts of 3 on the in-process bus, {args.fleet_rounds} rounds")
         for env in ("cartpole", "qube"):

@@ -41,16 +41,12 @@ def main() -> None:
     print("| " + " | ".join(heads) + " |")
     print("|---" * len(heads) + "|")
     for r in [r for r in rounds if r % a.every == 0 or r == rounds[-1]]:
-        cells = [
-            str(r),
-            str(course.completed_by(r)),
-            str(course.holding(r, target)),
-            f"{course.median_entropy(r):.2f}",
-        ]
-        cells += [
-            f"{course.wma[r][u]:.0f} ({course.entropy[r][u]:.2f})" if u in course.wma[r] else "—"
-            for u in units
-        ]
+        cells = [str(r), str(course.completed_by(r)), str(course.holding(r, target))]
+        cells.append(f"{course.median_entropy(r):.2f}")
+        for u in units:
+            cells.append(
+                f"{course.wma[r][u]:.0f} ({course.entropy[r][u]:.2f})" if u in course.wma[r] else "—"
+            )
         print("| " + " | ".join(cells) + " |")
 
 
