@@ -84,10 +84,12 @@ def main() -> None:
     p.add_argument("--arm", action="append", default=None)
     p.add_argument("--records", type=Path, default=Path("lab/records/wide-fleet"))
     p.add_argument("--table-only", action="store_true", help="print the table of the records present")
-    per_pair_help = (
-        "also print, per pair and arm, the median unit's time on the rigs and waiting, and the largest"
+    p.add_argument(
+        "--per-pair",
+        action="store_true",
+        help="also print, per pair and arm, the median unit's time on the rigs and waiting, and the largest "
+        "mean reset",
     )
-    p.add_argument("--per-pair", action="store_true", help=per_pair_help + " mean reset")
     p.add_argument("--keep-models", type=Path, default=None, help="copy worker 0's model of each run here")
     a = p.parse_args()
     arms = [parse_arm(x) for x in (a.arm or ["alone", "shared"])]
