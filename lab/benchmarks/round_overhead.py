@@ -280,7 +280,8 @@ def main() -> None:
     parser.add_argument("--quick", action="store_true", help="3 and 8 workers, 5 rounds: a smoke run")
     parser.add_argument("--workers", default=None, help="comma-separated worker counts (default 3,8,64)")
     parser.add_argument("--rounds", type=int, default=None, help="measured rounds per configuration (100)")
-    parser.add_argument("--transports", default="local,mosquitto,amqtt", help="of local,mosquitto,amqtt")
+    kinds_help = "which of local,mosquitto,amqtt"
+    parser.add_argument("--transports", default="local,mosquitto,amqtt", help=kinds_help)
     args = parser.parse_args()
     workers = [int(w) for w in (args.workers or ("3,8" if args.quick else "3,8,64")).split(",")]
     rounds = args.rounds or (5 if args.quick else 100)
