@@ -28,7 +28,7 @@ import numpy as np
 from fleetrl.agent.config import get_preset
 from fleetrl.agent.ppo import PPOAgent
 from fleetrl.federation.chief.machine import Chief, ChiefEvent
-from fleetrl.federation.plan import ChiefPlan
+from fleetrl.federation.plan import ChiefPlan, WorkerPlan
 from fleetrl.federation.runner import run_chief
 from fleetrl.federation.wire.messages import Layout, layout_size
 from fleetrl.federation.wire.topics import worker_of_topic
@@ -198,10 +198,15 @@ def run_configuration(
         agent = StaticAgent(layout, seed=i, clock=clock)
         last = mode == "last alone" and i == n_workers and n_workers > 1
         learner = InstantLearner(agent, barrier, counter.wait if last else None)
-        worker = FederatedWorker(
-            learner, TimedTransport(make_transport(), run_id, agent, clock), run_id=run_id,
-            worker_id=str(i), max_rounds=total, reply_timeout=TIMEOUT, scheme="paper",
-        )  # fmt: skip
+        plan = WorkerPlan(
+            run_id=run_id,
+            worker_id=str(i),
+            scheme="paper",
+            layout=layout,
+            max_rounds=total,
+            reply_timeout=TIMEOUT,
+        )
+        worker = FederatedWorker(learner, TimedTransport(make_transport(), run_id, agent, clock), plan)
         threads.append(threading.Thread(target=guarded(worker.run), name=f"worker-{i}", daemon=True))
     deadline = time.monotonic() + TIMEOUT
     for thread in threads:

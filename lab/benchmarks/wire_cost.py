@@ -17,7 +17,7 @@ import numpy as np
 
 from fleetrl.agent.config import get_preset
 from fleetrl.federation.chief.machine import Chief
-from fleetrl.federation.plan import ChiefPlan
+from fleetrl.federation.plan import ChiefPlan, WorkerPlan
 from fleetrl.federation.runner import run_chief
 from fleetrl.federation.worker.runner import FederatedWorker
 from fleetrl.portable import describe_host
@@ -104,10 +104,15 @@ def round_seconds(url: str, scheme: str, workers: int, rounds: int) -> tuple[flo
     def worker(k: int) -> None:
         learner = WireLearner(WireAgent(layout, steps))
         on_record = (lambda record: stamps.append(time.perf_counter())) if k == 0 else None
-        FederatedWorker(
-            learner, MqttTransport(url), run_id=run_id, worker_id=str(k), max_rounds=rounds, scheme=scheme,
-            on_record=on_record,
-        ).run()  # fmt: skip
+        plan = WorkerPlan(
+            run_id=run_id,
+            worker_id=str(k),
+            scheme=scheme,
+            layout=layout,
+            max_rounds=rounds,
+            steps_per_round=steps,
+        )
+        FederatedWorker(learner, MqttTransport(url), plan, on_record=on_record).run()
 
     threads = [threading.Thread(target=worker, args=(k,)) for k in range(workers)]
     for t in threads:
