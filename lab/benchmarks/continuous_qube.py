@@ -3,11 +3,8 @@
     python lab/benchmarks/continuous_qube.py [--seeds 0 1 2] [--rounds 400] [--preset standard]
         [--tasks continuous discrete] [--action-volts 3.0]
 
-Each (task, seed) trains unit 0 of fleet 0 in-process, seeded like an individual run's worker 0 (agent and
-env seed ``derive_seed(seed, 0)``), until the completion criterion (weighted moving average of the last 10
-scores ≥ 2450) holds or ``--rounds`` rounds were played, and prints the rounds (episodes with a ring memory)
-it took. Tuning seeds are 0-2; held-out figures belong on other seeds. A figure, not a timed test: on a
-shared 2-core machine one seed can take many minutes.
+Each (task, seed) trains unit 0 of fleet 0 in-process, seeded like an individual run's worker 0, until the
+criterion (WMA of the last 10 scores ≥ 2450) holds or ``--rounds`` rounds were played.
 """
 
 import argparse

@@ -1,15 +1,9 @@
 """Device link: control-step round trip over MQTT, real-time period jitter, env episodes/s over MQTT links.
 
 Run: ``.venv/bin/python lab/benchmarks/device_link.py`` (``--quick`` for a smoke run). The bridge runs in its
-own process (the Raspberry Pi's role), the worker's side in this one, both on an embedded broker on loopback.
-
-* round trip: one lockstep ``MqttLink.step`` (command → broker → bridge, one simulated 6 ms period, state →
-  broker → worker), p50/p99, mosquitto and amqtt; with an action index, and with a command vector ``[volts]``
-  (the continuous task's);
-* jitter: a real-time bridge at 6 ms driven by a worker stepping as fast as the bridge answers; the
-  intervals between the bridge's ticks (encoder reads), p99 of |interval − 6 ms|;
-* episodes/s: ``QubeBalanceEnv`` and ``CartPoleUnitEnv`` with random actions over an MQTT link (lockstep)
-  vs in-process (device-side resets included).
+own process (the Raspberry Pi's role), the worker's side in this one, on an embedded broker on loopback
+(mosquitto and amqtt): lockstep round trip p50/p99 (action index and command vector), the 6 ms real-time
+bridge's tick jitter, and episodes/s of both envs over an MQTT link vs in-process.
 """
 
 from __future__ import annotations

@@ -5,12 +5,7 @@ how many rounds, and what the trained policies score (``fleetrl evaluate``) on t
     python lab/benchmarks/example_units.py [--seeds 100-104] [--units 3] [--target -10] [--episodes 10]
         [--max-rounds 300] [--out runs/example-units] [--broker mqtt://127.0.0.1:PORT]
 
-Each seed runs ``fleetrl train --env fleet_dc_motor.units:factory --units 3 --mode federated --preset
-standard --target-score -10 --seed S --broker URL`` (the default scheme, pergrad) on a mosquitto broker this
-script starts (or ``--broker``'s); a seed whose run directory already has a summary.json is reused. A seed
-reached the target when every unit's weighted moving average of the last 10 scores did; its rounds are the
-last unit's. Seeds 0-9 are for tuning; report figures from seeds >= 100. The example is imported from its
-directory (PYTHONPATH), so nothing needs installing. Not a timed test: one seed takes minutes on 2 cores.
+A seed whose run directory already has a summary.json is reused; one seed takes minutes on 2 cores.
 """
 
 import argparse

@@ -1,11 +1,9 @@
 """Drawing a large fleet's scores plot: the summarised plot (one fleet panel) of a synthetic fleet, and for
-comparison the per-unit plot (one panel per unit, ``--per-unit-detail``) of a smaller one.
+comparison the per-unit plot (one panel per unit) of a smaller one.
 
     python lab/benchmarks/fleet_plot.py [--units 1000] [--rounds 200] [--per-unit-units 32]
 
-The synthetic fleet: unit u's WMA climbs to 500 by round 20 + u % 300 and completes there (the figures are
-about drawing, not learning). Prints the seconds to build the rows, to compute the fleet's quantiles per
-round, and to draw and save each PNG. Wall-clock figures: the load average is printed (the machine is shared).
+Prints the wall seconds to build the rows, compute the fleet's quantiles per round, and draw each PNG.
 """
 
 from __future__ import annotations

@@ -1,21 +1,10 @@
 """A federated CartPole fleet across Linux network namespaces: broker, chief and workers on separate stacks.
 
 Run as root: ``.venv/bin/python lab/benchmarks/netns_fleet.py`` (``--rounds 12 --workers 3 --delay-ms 20
---jitter-ms 5 --loss 1``; ``--keep`` keeps the run directories). It needs iproute2 (``apt-get install
-iproute2``) and mosquitto.
-
-Topology: one namespace for the mosquitto broker, one for the chief (``fleetrl chief``), one per worker
-(``fleetrl worker``). Each non-broker namespace is joined to the broker's by its own veth pair with a /30 of
-10.77.0.0/24 (broker side ``.4i+1``, node side ``.4i+2``); no namespace has a default route, so no packet can
-leave the machine's own namespaces. If the kernel has ``sch_netem``, ``tc qdisc … netem delay D jitter J loss
-L%`` goes on both ends of every veth (netem acts on egress, so each hop is delayed once and a worker →
-broker → chief → broker → worker round trip sees 4 × D); without it the script says so and runs without
-impairment.
-
-Round overhead, from the roles' own DEBUG logs (one machine, one clock): for round r, (latest time a worker
-had the chief's answer applied and its round recorded) − (latest time a worker sent its message for r); the
-same definition as lab/benchmarks/round_overhead.py, with real PPO learners on CartPole. Every namespace and
-process is removed at the end, on failure too; the whole run is bounded by ``--timeout`` seconds.
+--jitter-ms 5 --loss 1``; ``--keep`` keeps the run directories). Needs iproute2 and mosquitto. Each role's
+namespace is joined to the broker's by a veth pair with netem on both ends where the kernel has it; prints
+the round overhead from the roles' DEBUG logs (the last message of round r sent → the last answer applied).
+Every namespace and process is removed at the end, on failure too.
 """
 
 from __future__ import annotations
@@ -187,7 +176,8 @@ def wait_for_broker(fleet: Fleet, ns: str, host: str, deadline: float) -> None:
 
 
 def overheads(logs: list[Path]) -> dict[int, float]:
-    """Round → overhead in ms from the workers' logs (see the module docstring)."""
+    """Round → overhead in ms from the workers' logs: the last worker's record of round r minus the last
+    worker's send of r."""
     sent: dict[int, float] = {}
     applied: dict[int, float] = {}
     for path in logs:
@@ -225,22 +215,11 @@ def run(args: argparse.Namespace, fleet: Fleet, work: Path) -> int:
     roles = {
         "chief": fleet.start(
             fleet.namespace("chief"),
-            [
-                *FLEETRL,
-                "chief",
-                "--broker",
-                f"mqtt://{hosts['chief']}:{PORT}",
-                *common,
-                "--workers",
-                str(args.workers),
-                "--out",
-                str(work / "chief"),
-                "--idle-timeout",
-                str(args.timeout),
-            ],
+            [*FLEETRL, "chief", "--broker", f"mqtt://{hosts['chief']}:{PORT}", *common, "--workers",
+             str(args.workers), "--out", str(work / "chief"), "--idle-timeout", str(args.timeout)],
             work / "chief.log",
         )
-    }
+    }  # fmt: skip
     for k in range(args.workers):
         node = f"w{k}"
         roles[node] = fleet.start(
