@@ -12,6 +12,7 @@ import argparse
 import os
 import tempfile
 import time
+from collections.abc import Callable
 from pathlib import Path
 
 from fleetrl.runs.fleet_summary import fleet_rounds
@@ -30,9 +31,8 @@ def synthetic_fleet(units: int, rounds: int) -> list[MetricsRow]:
     return rows
 
 
-def timed(what: str, action: object) -> None:
-    """Run ``action`` (a callable) and print its wall seconds."""
-    assert callable(action)
+def timed(what: str, action: Callable[[], object]) -> None:
+    """Run ``action`` and print its wall seconds."""
     started = time.perf_counter()
     action()
     print(f"{what}: {time.perf_counter() - started:.2f} s", flush=True)

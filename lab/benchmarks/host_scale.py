@@ -62,19 +62,11 @@ def acting(
     envs = [gymnasium.make(CARTPOLE_UNIT_ID, unit=u, fleet_seed=0) for u in ids]
     seeds = [SEED * 100_000 + u for u in ids]
     weights = None if policy is None else read_checkpoint(policy)[0]  # read once, whatever the units
-    steps = 0
     if hosted:
         agent = PPOAgent(4, 2, config, seeds)
         if weights is not None:
             agent.load_weights(weights, str(policy))
-        host = Learner(envs, agent, [CompletionCriterion(1e9) for _ in envs], seeds)
-        host.play_episodes()  # compile and warm up
-        if start_at is not None:
-            time.sleep(max(0.0, start_at - time.time()))
-        began = time.time()
-        started, cpu = time.perf_counter(), time.process_time()
-        for _ in range(rounds):
-            steps += sum(sum(e.steps) for e in host.play_episodes())
+        learners = [Learner(envs, agent, [CompletionCriterion(1e9) for _ in envs], seeds)]
     else:
         learners = [
             Learner(env, PPOAgent(4, 2, config, seed=s), CompletionCriterion(1e9), seed=s)
@@ -82,11 +74,14 @@ def acting(
         ]
         for learner in learners if weights is not None else ():
             learner.agent.load_weights(weights, str(policy))
-        learners[0].play_episodes()
-        began = time.time()
-        started, cpu = time.perf_counter(), time.process_time()
-        for _ in range(rounds):
-            steps += sum(sum(learner.play_episodes()[0].steps) for learner in learners)
+    learners[0].play_episodes()  # compile and warm up
+    if hosted and start_at is not None:
+        time.sleep(max(0.0, start_at - time.time()))
+    began = time.time()
+    started, cpu = time.perf_counter(), time.process_time()
+    steps = 0
+    for _ in range(rounds):
+        steps += sum(sum(e.steps) for learner in learners for e in learner.play_episodes())
     seconds, cpu_seconds = time.perf_counter() - started, time.process_time() - cpu
     return {"unit_steps": steps, "seconds": seconds, "unit_steps_per_s": steps / seconds,
             "unit_steps_per_cpu_s": steps / cpu_seconds, "began": began, "ended": time.time()}  # fmt: skip

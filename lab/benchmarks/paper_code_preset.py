@@ -28,6 +28,8 @@ import gymnasium
 import torch
 
 # isort: on
+from wide_fleet import parse_pairs
+
 from fleetrl import portable
 from fleetrl.agent.config import get_preset
 from fleetrl.agent.criterion import CompletionCriterion
@@ -83,11 +85,6 @@ class EndingTally(gymnasium.Wrapper[Any, Any, Any, Any]):
         return dict(Counter(e for endings in self.round_endings for e in endings))
 
 
-def seed_range(text: str) -> list[int]:
-    first, _, last = text.partition("-")
-    return list(range(int(first), int(last or first) + 1))
-
-
 def setting(text: str) -> tuple[str, Any]:
     """``KEY=VALUE`` with a JSON value (``gamma=0.99``, ``critic_loss="abs"``) for ``--set``."""
     key, _, value = text.partition("=")
@@ -140,7 +137,7 @@ def main() -> int:
     )
     parser.add_argument("--env", choices=("cartpole", "qube"), default="cartpole")
     parser.add_argument("--preset", default="paper-code")
-    parser.add_argument("--seeds", type=seed_range, default=seed_range("0-4"), help="e.g. 0-4 or 100-104")
+    parser.add_argument("--seeds", type=parse_pairs, default=parse_pairs("0-4"), help="e.g. 0-4 or 100-104")
     parser.add_argument("--max-rounds", type=int, default=400)
     parser.add_argument("--progress", type=int, default=0, help="print a line every N rounds (0: never)")
     parser.add_argument("--set", type=setting, action="append", default=[], help="override, e.g. gamma=0.99")
