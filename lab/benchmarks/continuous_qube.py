@@ -8,7 +8,6 @@ criterion (WMA of the last 10 scores ≥ 2450) holds or ``--rounds`` rounds were
 """
 
 import argparse
-import dataclasses
 import statistics
 import sys
 import time
@@ -40,9 +39,7 @@ def train(
     env = gymnasium.make(TASKS[task], unit=0, fleet_seed=0, **kwargs)
     worker_seed = derive_seed(seed, 0)
     obs_dim = int(env.observation_space.shape[0])  # type: ignore[index]
-    agent = PPOAgent(
-        obs_dim, ActionSpace.of(env.action_space), dataclasses.replace(get_preset(preset)), worker_seed
-    )
+    agent = PPOAgent(obs_dim, ActionSpace.of(env.action_space), get_preset(preset), worker_seed)
     learner = Learner(env, agent, CompletionCriterion(THRESHOLD), seed=worker_seed)
     started = time.perf_counter()
     for _ in range(rounds):

@@ -21,7 +21,7 @@ import subprocess
 import sys
 import tempfile
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
 from datetime import datetime
 from pathlib import Path
@@ -117,13 +117,29 @@ class Fleet:
         )
 
 
-def add_netem(ns: str, ifname: str, delay_ms: float, jitter_ms: float, loss: float) -> str | None:
-    """Put netem (delay ± jitter, loss %) on ``ifname``; None if done, else why not (the kernel's answer)."""
+def add_netem(ends: Iterable[tuple[str, str]], delay_ms: float, jitter_ms: float, loss: float) -> str | None:
+    """Put netem (delay ± jitter, loss %) on every (namespace, ifname) of ``ends`` in turn; None if done, else
+    why not (the kernel's answer; the ends after a failure are left alone)."""
     impair = ["delay", f"{delay_ms}ms", f"{jitter_ms}ms", "loss", f"{loss}%"]
-    done = sh(
-        "ip", "netns", "exec", ns, "tc", "qdisc", "add", "dev", ifname, "root", "netem", *impair, check=False
-    )
-    return None if done.returncode == 0 else done.stderr.strip() or f"tc exited {done.returncode}"
+    for ns, ifname in ends:
+        done = sh(
+            "ip",
+            "netns",
+            "exec",
+            ns,
+            "tc",
+            "qdisc",
+            "add",
+            "dev",
+            ifname,
+            "root",
+            "netem",
+            *impair,
+            check=False,
+        )
+        if done.returncode != 0:
+            return done.stderr.strip() or f"tc exited {done.returncode}"
+    return None
 
 
 def start_broker(fleet: Fleet, ns: str, work: Path, name: str = "broker") -> None:
@@ -194,16 +210,13 @@ def run(args: argparse.Namespace, fleet: Fleet, work: Path) -> int:
     deadline = time.monotonic() + args.timeout
     broker_ns = fleet.namespace("broker")
     nodes = ["chief", *(f"w{k}" for k in range(args.workers))]
-    hosts, netem = {}, None
+    hosts, ends = {}, []
     for i, node in enumerate(nodes):
         ns = fleet.namespace(node)
-        near, broker_ip, far, _ = fleet.link(i, broker_ns, ns)
-        hosts[node] = broker_ip
-        if netem is None or netem is True:
-            impair = (args.delay_ms, args.jitter_ms, args.loss)
-            why = add_netem(broker_ns, near, *impair) or add_netem(ns, far, *impair)
-            netem = True if why is None else why
-    if netem is True:
+        near, hosts[node], far, _ = fleet.link(i, broker_ns, ns)
+        ends += [(broker_ns, near), (ns, far)]
+    netem = add_netem(ends, args.delay_ms, args.jitter_ms, args.loss)
+    if netem is None:
         impairment = f"delay {args.delay_ms} ms ± {args.jitter_ms} ms, loss {args.loss} %"
         print(f"netem: {impairment} on both ends of every veth")
     else:

@@ -81,9 +81,8 @@ def impair(ends: Iterable[tuple[str, str]], where: str, args: argparse.Namespace
     delay, jitter, loss = (getattr(args, f"{where}_{name}") for name in ("delay_ms", "jitter_ms", "loss"))
     if not (delay or jitter or loss):
         return f"{where} links: no netem"
-    for ns, ifname in ends:
-        if why := add_netem(ns, ifname, delay, jitter, loss):
-            return f"{where} links: netem not available in this kernel ({why}); running without it"
+    if why := add_netem(ends, delay, jitter, loss):
+        return f"{where} links: netem not available in this kernel ({why}); running without it"
     return f"{where} links: delay {delay} ms ± {jitter} ms, loss {loss} % on both ends"
 
 
