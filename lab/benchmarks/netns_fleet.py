@@ -120,23 +120,9 @@ class Fleet:
 def add_netem(ends: Iterable[tuple[str, str]], delay_ms: float, jitter_ms: float, loss: float) -> str | None:
     """Put netem (delay ± jitter, loss %) on every (namespace, ifname) of ``ends`` in turn; None if done, else
     why not (the kernel's answer; the ends after a failure are left alone)."""
-    impair = ["delay", f"{delay_ms}ms", f"{jitter_ms}ms", "loss", f"{loss}%"]
+    netem = ["root", "netem", "delay", f"{delay_ms}ms", f"{jitter_ms}ms", "loss", f"{loss}%"]
     for ns, ifname in ends:
-        done = sh(
-            "ip",
-            "netns",
-            "exec",
-            ns,
-            "tc",
-            "qdisc",
-            "add",
-            "dev",
-            ifname,
-            "root",
-            "netem",
-            *impair,
-            check=False,
-        )
+        done = sh("ip", "netns", "exec", ns, "tc", "qdisc", "add", "dev", ifname, *netem, check=False)
         if done.returncode != 0:
             return done.stderr.strip() or f"tc exited {done.returncode}"
     return None
