@@ -2,10 +2,8 @@
 
     python lab/benchmarks/agent_speed.py [--steps 20000] [--repeats 5]
 
-Target (issue: fast acting): a rollout of at least 25k steps/s per worker on this machine. Prints medians
-over repeats (the machine is shared; medians are steadier than single runs). The acting cost is measured
-for the softmax head, for the Gaussian head on the numba path, and for the Gaussian head acting through
-torch instead (what the fast path saves a continuous task).
+Medians over repeats of: act + remember (softmax head, Gaussian head on the numba path and through torch),
+the rollout of each registered env (target ≥ 25k steps/s per worker), and one PPO update.
 """
 
 import argparse

@@ -3,15 +3,11 @@
     python lab/benchmarks/continuous_qube.py [--seeds 0 1 2] [--rounds 400] [--preset standard]
         [--tasks continuous discrete] [--action-volts 3.0]
 
-Each (task, seed) trains unit 0 of fleet 0 in-process, seeded like an individual run's worker 0 (agent and
-env seed ``derive_seed(seed, 0)``), until the completion criterion (weighted moving average of the last 10
-scores ≥ 2450) holds or ``--rounds`` rounds were played, and prints the rounds (episodes with a ring memory)
-it took. Tuning seeds are 0-2; held-out figures belong on other seeds. A figure, not a timed test: on a
-shared 2-core machine one seed can take many minutes.
+Each (task, seed) trains unit 0 of fleet 0 in-process, seeded like an individual run's worker 0, until the
+criterion (WMA of the last 10 scores ≥ 2450) holds or ``--rounds`` rounds were played.
 """
 
 import argparse
-import dataclasses
 import statistics
 import sys
 import time
@@ -43,9 +39,7 @@ def train(
     env = gymnasium.make(TASKS[task], unit=0, fleet_seed=0, **kwargs)
     worker_seed = derive_seed(seed, 0)
     obs_dim = int(env.observation_space.shape[0])  # type: ignore[index]
-    agent = PPOAgent(
-        obs_dim, ActionSpace.of(env.action_space), dataclasses.replace(get_preset(preset)), worker_seed
-    )
+    agent = PPOAgent(obs_dim, ActionSpace.of(env.action_space), get_preset(preset), worker_seed)
     learner = Learner(env, agent, CompletionCriterion(THRESHOLD), seed=worker_seed)
     started = time.perf_counter()
     for _ in range(rounds):

@@ -3,11 +3,8 @@ run records of the CartPole scaling experiment.
 
     python lab/benchmarks/criterion_floor.py [--records lab/records] [--scheme pergrad]
 
-The criterion (the weighted moving average of the last 10 scores ≥ 475) cannot hold before a worker has
-played 10 rounds, however many workers share what they learn, so rounds per unit = 10 + the rounds before the
-window starts to fill with good scores. A fleet of N can shorten only the second part. This prints, for 1, 2,
-4 and 8 workers, the median rounds per unit, the same less the 10-round window, and both speed-ups against 1
-worker. It reads the records only (seeds as recorded: the held-out seeds from 100 on).
+The criterion cannot hold before a worker's 10th round; this prints, for 1, 2, 4 and 8 workers, the median
+rounds per unit, the same less the 10-round window, and both speed-ups against 1 worker.
 """
 
 import argparse

@@ -1,15 +1,9 @@
 """Device link: control-step round trip over MQTT, real-time period jitter, env episodes/s over MQTT links.
 
 Run: ``.venv/bin/python lab/benchmarks/device_link.py`` (``--quick`` for a smoke run). The bridge runs in its
-own process (the Raspberry Pi's role), the worker's side in this one, both on an embedded broker on loopback.
-
-* round trip: one lockstep ``MqttLink.step`` (command → broker → bridge, one simulated 6 ms period, state →
-  broker → worker), p50/p99, mosquitto and amqtt; with an action index, and with a command vector ``[volts]``
-  (the continuous task's);
-* jitter: a real-time bridge at 6 ms driven by a worker stepping as fast as the bridge answers; the
-  intervals between the bridge's ticks (encoder reads), p99 of |interval − 6 ms|;
-* episodes/s: ``QubeBalanceEnv`` and ``CartPoleUnitEnv`` with random actions over an MQTT link (lockstep)
-  vs in-process (device-side resets included).
+own process (the Raspberry Pi's role), the worker's side in this one, on an embedded broker on loopback
+(mosquitto and amqtt): lockstep round trip p50/p99 (action index and command vector), the 6 ms real-time
+bridge's tick jitter, and episodes/s of both envs over an MQTT link vs in-process.
 """
 
 from __future__ import annotations
@@ -23,7 +17,6 @@ import numpy as np
 
 from fleetrl.envs.cartpole_unit import CartPoleUnitEnv
 from fleetrl.envs.qube_balance import QubeBalanceEnv
-from fleetrl.link.base import DeviceLink
 from fleetrl.link.bridge import DeviceBridge
 from fleetrl.link.driver import simulated_driver
 from fleetrl.link.mqtt import open_mqtt_link
@@ -75,9 +68,10 @@ class BridgeProcess:
         self._proc.join(timeout=30)
 
 
-def step_round_trips(link: DeviceLink, n: int, vector: bool = False) -> np.ndarray:
-    """Seconds per step; full power back towards the centre keeps the arm inside its limit (``vector``: sent
-    as the command vector ``[±1.44 V]`` instead of the action index 0 or 2)."""
+def step_round_trips(url: str, n: int, vector: bool = False) -> np.ndarray:
+    """Seconds per step over a link to unit 0; full power back towards the centre keeps the arm inside its
+    limit (``vector``: sent as the command vector ``[±1.44 V]`` instead of the action index 0 or 2)."""
+    link = open_mqtt_link(url, RUN_ID, 0)
     obs = link.reset(0)
     times = np.empty(n + 200)
     volts = [np.array([-1.44], dtype=np.float32), np.array([1.44], dtype=np.float32)]
@@ -87,24 +81,21 @@ def step_round_trips(link: DeviceLink, n: int, vector: bool = False) -> np.ndarr
         start = time.perf_counter()
         obs, _ = link.step(action)
         times[i] = time.perf_counter() - start
+    link.close()
     return times[200:]
 
 
 def round_trip(url: str, n: int, vector: bool = False) -> dict[str, float]:
     """p50/p99 of a lockstep control step over MQTT (µs)."""
     with BridgeProcess(url):
-        link = open_mqtt_link(url, RUN_ID, 0)
-        times = step_round_trips(link, n, vector)
-        link.close()
+        times = step_round_trips(url, n, vector)
     return {"p50_us": 1e6 * np.percentile(times, 50), "p99_us": 1e6 * np.percentile(times, 99)}
 
 
 def realtime_jitter(url: str, seconds: float) -> dict[str, float]:
     """Tick-interval error of a real-time bridge at 6 ms while a worker steps it (ms)."""
     with BridgeProcess(url, realtime=True) as bridge:
-        link = open_mqtt_link(url, RUN_ID, 0)
-        steps = step_round_trips(link, int(seconds / 0.006))
-        link.close()
+        steps = step_round_trips(url, int(seconds / 0.006))
     intervals = np.diff(np.asarray(bridge.ticks))
     error = np.abs(intervals - 0.006)
     return {

@@ -19,27 +19,10 @@ from fleetrl.runs.records import read_metrics
 
 def run(out: Path, args: argparse.Namespace, link: str) -> dict:
     argv = [
-        "train",
-        "--env",
-        args.env,
-        "--units",
-        str(args.units),
-        "--mode",
-        "federated",
-        "--transport",
-        "local",
-        "--preset",
-        "standard",
-        "--seed",
-        str(args.seed),
-        "--max-rounds",
-        str(args.max_rounds),
-        "--device-link",
-        link,
-        "--out",
-        str(out),
-        "--no-live",
-    ]
+        "train", "--env", args.env, "--units", str(args.units), "--mode", "federated", "--transport", "local",
+        "--preset", "standard", "--seed", str(args.seed), "--max-rounds", str(args.max_rounds),
+        "--device-link", link, "--out", str(out), "--no-live",
+    ]  # fmt: skip
     if fleetrl(argv) != 0:
         raise SystemExit(f"run failed: {' '.join(argv)}")
     summary = json.loads((out / "summary.json").read_text())

@@ -1,17 +1,11 @@
 """An edge aggregator's work and bytes per exchange as its members grow, and the root chief's with M
-aggregators (issue 24, "the path to 100k"): the real state machines of the default scheme (``pergrad``) fed
-encoded messages of emulated members, no transport and no learner (as lab/benchmarks/chief_scale.py does for a
-flat chief).
+aggregators: the real state machines of the default scheme (``pergrad``) fed encoded messages of emulated
+members, no transport and no learner (as lab/benchmarks/chief_scale.py does for a flat chief).
 
     python lab/benchmarks/edge_scale.py [--members 10 100 1000] [--sites 10 100] [--units 1000] [--env qube]
 
-Per N members, the aggregator's CPU time for one exchange: N payloads decoded and validated, admitted, their
-weighted sum taken (float64), the sum encoded once for the root (8 bytes a value), the root's answer decoded,
-the fleet model stepped (the aggregator keeps it, for its members' welcomes) and the members' answer encoded
-once. Per M aggregators, the root's: M float64 sums decoded, the mean of the parts, the fleet model stepped,
-the answer encoded; each sum stands for ``--units`` units, and the root's figures are the same for any number
-of units behind its members (measured at two counts). CPU time of this process, one thread; the load average
-is printed.
+CPU time of this process for one exchange (one thread) and the bytes in, up, from the root and down; the
+root's rows at 10 and ``--units`` units behind each aggregator. The load average is printed.
 """
 
 from __future__ import annotations
@@ -20,47 +14,26 @@ import argparse
 import os
 import statistics
 import time
-from typing import Any
 
 import numpy as np
-from chief_scale import exchange_payloads, kept_model
+from chief_scale import chief_exchanges, exchange_payloads, kept_model, layout_size, learning_of, plan
 
 from fleetrl.federation.chief.machine import Chief
 from fleetrl.federation.edge.aggregator import EdgeAggregator
-from fleetrl.federation.plan import ChiefPlan
 from fleetrl.federation.wire.messages import Message, encode
 from fleetrl.portable import host_cpu
-from fleetrl.runs.settings import LearningSettings, fleet_shape, resolve_learning
+from fleetrl.runs.settings import fleet_shape
 
 RUN, ROOT = "scale", "root"
-
-
-def learning_of(env: str) -> Any:
-    return resolve_learning(LearningSettings(env=env, preset="standard", scheme="pergrad", max_rounds=1000))
 
 
 def aggregator_exchange(env: str, members: int, exchanges: int) -> dict[str, float]:
     """The aggregator's CPU seconds per exchange (median) and its bytes in and out of one exchange."""
     learning = learning_of(env)
-    shape, model = (
-        fleet_shape(learning),
-        kept_model(learning, ROOT),
-    )
+    shape, model = fleet_shape(learning), kept_model(learning, ROOT)
     assert model is not None
     edge = EdgeAggregator(
-        ChiefPlan(
-            run_id=RUN,
-            workers=[str(m) for m in range(members)],
-            layout=shape.layout,
-            welcome_layout=model.layout,
-            scheme="pergrad",
-            steps_per_round=shape.exchanges_per_round,
-            max_rounds=1000,
-            quorum=1.0,
-        ),
-        site_id="0",
-        root_run=ROOT,
-        fleet_model=model,
+        plan(shape, members, welcome_layout=model.layout), site_id="0", root_run=ROOT, fleet_model=model
     )
     edge.start(now=0.0)
     edge.from_root(Message("welcome", ROOT, "chief", 1, flat=model.snapshot(), origin="chief"), now=0.0)
@@ -69,10 +42,8 @@ def aggregator_exchange(env: str, members: int, exchanges: int) -> dict[str, flo
     for _ in range(exchanges + 1):  # the first exchange is a warm-up
         rnd, step = edge.site.round, edge.site.state.step
         payloads = exchange_payloads(shape.layout, members, rnd, step)
-        answer = Message(
-            "average", ROOT, "chief", rnd, step=step, flat=np.zeros(_size(shape.layout), np.float32)
-        )
-        from_root = encode(answer, layout=shape.layout)
+        flat = np.zeros(layout_size(shape.layout), np.float32)
+        from_root = encode(Message("average", ROOT, "chief", rnd, step=step, flat=flat), layout=shape.layout)
         start = time.process_time()
         up: list[Message] = []
         for m, payload in enumerate(payloads):
@@ -88,54 +59,25 @@ def aggregator_exchange(env: str, members: int, exchanges: int) -> dict[str, flo
     return {"members": members, "ms": statistics.median(times[1:]) * 1e3, **sizes}
 
 
-def root_exchange(env: str, sites: int, units: int, exchanges: int) -> dict[str, float]:
-    """The root's CPU seconds per exchange (median) with ``sites`` aggregators of ``units`` units each."""
+def root_exchange(env: str, sites: int, units: int, exchanges: int) -> tuple[float, int, int]:
+    """The root's CPU seconds per exchange (median) with ``sites`` aggregators of ``units`` units each, and
+    its bytes in and out of one exchange."""
     learning = learning_of(env)
     shape = fleet_shape(learning)
-    root = Chief(
-        ChiefPlan(
-            run_id=RUN,
-            workers=[str(m) for m in range(sites)],
-            layout=shape.layout,
-            max_rounds=1000,
-            scheme="pergrad",
-            steps_per_round=shape.exchanges_per_round,
-            quorum=1.0,
-        ),
-        fleet_model=kept_model(learning, ROOT),
-    )
-    times, now, bytes_in, bytes_out = [], 0.0, 0, 0
+    root = Chief(plan(shape, sites), fleet_model=kept_model(learning, ROOT))
     rng = np.random.default_rng(0)
-    for _ in range(exchanges + 1):
-        rnd, step = root.round, root.state.step
-        total = rng.standard_normal(_size(shape.layout)) * 1e-3 * units  # a site's Σ of its units' gradients
-        payloads = [
+
+    def payloads(rnd: int, step: int) -> list[bytes]:
+        total = rng.standard_normal(layout_size(shape.layout)) * 1e-3 * units  # a site's Σ of its units'
+        return [
             encode(
                 Message("step_gradient", RUN, str(m), rnd, flat=total, step=step, units=units, summed=True),
                 layout=shape.layout,
             )
             for m in range(sites)
         ]
-        start = time.process_time()
-        out: list[Message] = []
-        for m, payload in enumerate(payloads):
-            now += 1e-4
-            out += root.receive_bytes(payload, topic_worker=str(m), now=now).outgoing
-        (answer,) = [message for message in out if message.type == "average"]
-        sent = encode(answer, layout=shape.layout)
-        times.append(time.process_time() - start)
-        bytes_in, bytes_out = sum(map(len, payloads)), len(sent)
-    return {
-        "sites": sites,
-        "units": units,
-        "ms": statistics.median(times[1:]) * 1e3,
-        "in": bytes_in,
-        "out": bytes_out,
-    }
 
-
-def _size(layout: list[tuple[str, tuple[int, ...]]]) -> int:
-    return sum(int(np.prod(shape)) for _, shape in layout)
+    return chief_exchanges(root, shape.layout, exchanges, payloads)
 
 
 def main() -> int:
@@ -171,10 +113,11 @@ def main() -> int:
     print("|---|---|---|---|---|---|")
     for sites in args.sites:
         for units in (10, args.units):
-            row = root_exchange(args.env, sites, units, args.exchanges)
+            seconds, bytes_in, bytes_out = root_exchange(args.env, sites, units, args.exchanges)
+            ms = seconds * 1e3
             print(
-                f"| {sites} | {units} | {row['ms']:.1f} ms | {row['ms'] / sites * 1e3:.0f} µs "
-                f"| {row['in'] / 1e6:.2f} MB | {row['out'] / 1e3:.0f} kB |",
+                f"| {sites} | {units} | {ms:.1f} ms | {ms / sites * 1e3:.0f} µs "
+                f"| {bytes_in / 1e6:.2f} MB | {bytes_out / 1e3:.0f} kB |",
                 flush=True,
             )
     print(f"\nload average at the end: {os.getloadavg()[0]:.1f}")

@@ -5,12 +5,7 @@ how many rounds, and what the trained policies score (``fleetrl evaluate``) on t
     python lab/benchmarks/example_units.py [--seeds 100-104] [--units 3] [--target -10] [--episodes 10]
         [--max-rounds 300] [--out runs/example-units] [--broker mqtt://127.0.0.1:PORT]
 
-Each seed runs ``fleetrl train --env fleet_dc_motor.units:factory --units 3 --mode federated --preset
-standard --target-score -10 --seed S --broker URL`` (the default scheme, pergrad) on a mosquitto broker this
-script starts (or ``--broker``'s); a seed whose run directory already has a summary.json is reused. A seed
-reached the target when every unit's weighted moving average of the last 10 scores did; its rounds are the
-last unit's. Seeds 0-9 are for tuning; report figures from seeds >= 100. The example is imported from its
-directory (PYTHONPATH), so nothing needs installing. Not a timed test: one seed takes minutes on 2 cores.
+A seed whose run directory already has a summary.json is reused; one seed takes minutes on 2 cores.
 """
 
 import argparse
@@ -34,6 +29,8 @@ import torch  # noqa: E402
 from fleet_dc_motor.units import factory  # noqa: E402
 
 # isort: on
+from wide_fleet import parse_pairs  # noqa: E402
+
 from fleetrl import portable  # noqa: E402
 from fleetrl.agent.action_space import ActionSpace  # noqa: E402
 from fleetrl.agent.config import get_preset  # noqa: E402
@@ -110,14 +107,6 @@ def evaluate(model: Path, unit: int, episodes: int) -> float:
     return float(np.mean(json.loads(done.stdout)["scores"]))
 
 
-def seed_range(text: str) -> list[int]:
-    """``100-104`` or ``100,102``: the seeds."""
-    if "-" in text:
-        first, last = (int(s) for s in text.split("-"))
-        return list(range(first, last + 1))
-    return [int(s) for s in text.split(",")]
-
-
 def run_seeds(args: argparse.Namespace, url: str, units: range, unseen: range) -> None:
     """Train (or reuse) each seed's run on the broker at ``url``, evaluate it, print its line and the sum."""
     rounds: dict[int, int | None] = {}
@@ -156,7 +145,7 @@ def main() -> int:
     parser = argparse.ArgumentParser(
         description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
     )
-    parser.add_argument("--seeds", type=seed_range, default=seed_range("100-104"), help="e.g. 100-104")
+    parser.add_argument("--seeds", type=parse_pairs, default=parse_pairs("100-104"), help="e.g. 100-104")
     parser.add_argument("--units", type=int, default=3)
     parser.add_argument("--target", type=float, default=-10.0, help="the target score")
     parser.add_argument("--episodes", type=int, default=10, help="episodes per unit for every mean score")

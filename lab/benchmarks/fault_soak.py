@@ -1,9 +1,7 @@
 """Fault soak: many small federated CartPole runs (``fleetrl`` chief and worker processes over one mosquitto),
-each with one random fault at a random moment — a worker or the chief killed (-9) and resumed, a worker killed
-for good, the broker killed and restarted, a worker added mid-run — and the books checked after: exit codes,
-rounds lost or duplicated, the chief's drops, and with ``--one-policy`` one policy at every exchange
-(``--mutate`` breaks every catch-up on purpose, to see that check fail). Recovery: seconds until the chief has
-closed two more rounds. The rules in full, and the results: docs/benchmarks.md, "Fault soak".
+each with one random fault at a random moment, and the books checked after (exit codes, rounds lost or
+duplicated, the chief's drops, with ``--one-policy`` one policy at every exchange). docs/benchmarks.md,
+"Fault soak", has the rules and results.
 
     python lab/benchmarks/fault_soak.py --runs 50 --out /tmp/fault-soak
     python lab/benchmarks/fault_soak.py --runs 50 --workers 3 --uneven "--slow w1=4 --absent 0.2"
@@ -103,25 +101,15 @@ class Outcome:
 class Run:
     """The chief and the workers of one run, as ``fleetrl`` processes."""
 
-    def __init__(
-        self,
-        index: int,
-        broker: Broker,
-        out: Path,
-        rounds: int,
-        grace: float,
-        workers: int,
-        uneven: list[str],
-        recorder: list[str] | None = None,
-    ) -> None:
-        self.index, self.broker, self.out, self.rounds, self.grace = index, broker, out, rounds, grace
-        self.workers, self.uneven = workers, uneven
+    def __init__(self, index: int, broker: Broker, out: Path, args: Any, recorder: list[str] | None) -> None:
+        self.index, self.broker, self.out, self.rounds = index, broker, out, args.rounds
+        self.grace, self.workers, self.uneven = args.grace, args.workers, shlex.split(args.uneven)
         self.recorder = recorder
         """one_policy.py's flags before a worker's: record its holdings (None: run fleetrl plainly)"""
         self.run_id = f"soak-{index}"
         self.procs: dict[str, subprocess.Popen[bytes]] = {}
         self.common = ["--broker", broker.url, "--run-id", self.run_id, "--env", "cartpole"]
-        self.common += ["--preset", "standard", "--max-rounds", str(rounds), "--connect-timeout", "60"]
+        self.common += ["--preset", "standard", "--max-rounds", str(self.rounds), "--connect-timeout", "60"]
 
     def start(self, role: str, *extra: str) -> None:
         if role == "chief":
@@ -189,7 +177,7 @@ def soak_one(index: int, fault: str, rng: random.Random, broker: Broker, root: P
     out.mkdir(parents=True)
     rounds, workers = args.rounds, args.workers
     recorder = (["--mutate", args.mutate] if args.mutate else []) if args.one_policy else None
-    run = Run(index, broker, out, rounds, args.grace, workers, shlex.split(args.uneven), recorder)
+    run = Run(index, broker, out, args, recorder)
     victim = {"chief-resumed": "chief", "broker-restarted": "broker"}.get(fault) or str(
         workers if fault == "worker-added" else rng.randrange(workers)
     )
@@ -234,7 +222,9 @@ def soak_one(index: int, fault: str, rng: random.Random, broker: Broker, root: P
             outcome.notes.append(f"exit codes {codes}")
         check_books(run, outcome, finished_by_victim, synchronous=not args.uneven and workers <= 2)
         if args.one_policy:
-            outcome.same_model = same_models(run, [r for r in alive if r.isdigit()])
+            outcome.same_model = holds_fleet_model(
+                out / "chief", {w: out / f"w{w}" for w in alive if w.isdigit()}
+            )
             held = compare(load(out.glob("w*.digests.jsonl")))
             outcome.one_policy = False if held.mismatches else (True if held.after_catch_up else None)
             outcome.one_policy_summary = held.summary()
@@ -242,12 +232,6 @@ def soak_one(index: int, fault: str, rng: random.Random, broker: Broker, root: P
         run.stop_all()
         outcome.wall_s = round(time.monotonic() - started, 1)
     return outcome
-
-
-def same_models(run: Run, workers: list[str]) -> bool:
-    """Every worker's final network equals the chief's fleet model (its checkpoint's, after the last
-    answer)."""
-    return holds_fleet_model(run.out / "chief", {w: run.out / f"w{w}" for w in workers})
 
 
 def holds_fleet_model(chief_out: Path, worker_outs: dict[str, Path]) -> bool:

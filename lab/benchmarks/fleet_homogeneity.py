@@ -1,58 +1,11 @@
 """The paper's Table 2 homogeneity test pooled over fleet and impulse seeds, for one fleet profile.
 
-Run: ``.venv/bin/python lab/benchmarks/fleet_homogeneity.py --profile table2 --fleet-seeds 0-2
---impulse-seeds 0-4`` (these seeds are the defaults).
-Prints the median (and the range) of the off-diagonal motor- and pendulum-angle correlations of 3-unit
-fleets, next to the paper's rig (motor 0.75–0.86, pendulum 0.96–0.98); docs/devices.md records the figures.
+    python lab/benchmarks/fleet_homogeneity.py --profile table2 --fleet-seeds 0-2 --impulse-seeds 0-4
+    python lab/benchmarks/fleet_homogeneity.py --env cartpole --profile wide
 
-``--env cartpole`` runs the CartPole test instead (``fleetrl.devices.homogeneity``; ``--profile``
-then names a CartPole profile, standard or wide, and each impulse seed draws one test's 100 trials): the
-median (and range) of the cart- and pole-change correlations and relative differences of every unit pair.
-
-How ``table2`` was fitted (fleet seeds 0-2 × impulse seeds 0-4, 45 pairs; medians motor / pendulum; every
-candidate is v1 with the changes named; Dr, Dp, Kc log-uniform):
-
-| candidate | motor | pendulum |
-|---|---|---|
-| v1 (Dr 5e-6…1e-3, Dp 1e-6…5e-5, no cable, no dead zone) | 0.973 | 0.938 |
-| pendulum mass/length ±1 % | 0.974 | 0.937 |
-| Dr 1e-4…1e-3 | 0.982 | 0.984 |
-| Dp 1e-5…5e-5 | 0.973 | 0.964 |
-| Dp 5e-5…5e-4 | 0.974 | 0.994 |
-| cable Kc 1e-3…1e-2 N·m/rad | 0.697 | 0.858 |
-| Dr 3e-5…1e-3, Kc 3e-4…3e-3 | 0.884 | 0.951 |
-| Dr 3e-5…1e-3, Kc 5e-4…5e-3 | 0.844 | 0.948 |
-| Dr 3e-5…1e-3, Kc 1e-3…5e-3 | 0.869 | 0.943 |
-| Dr 1e-4…1e-3, Kc 3e-4…3e-3 | 0.929 | 0.976 |
-| Dr 1e-4…1e-3, Kc 5e-4…5e-3 | 0.895 | 0.975 |
-| Dr 1e-4…1e-3, Kc 1e-3…5e-3 | 0.914 | 0.976 |
-| Dr 1e-4…1e-3, Kc 3e-4…1e-2 (in range, but the law lets the arm drift, a reset fails) | 0.810 | 0.976 |
-| Dr 1e-4…1e-3, Kc 5e-4…1e-2 | 0.813 | 0.976 |
-| Dr 1e-4…1e-3, Kc 1e-4…1e-2 | 0.807 | 0.973 |
-| Dr 1e-4…1e-3, Kc 2e-4…6e-3 | 0.869 | 0.974 |
-| Dr 1e-4…1e-3, Kc 5e-4…5e-3, dead zone U(0.5, 0.8) V | 0.892 | 0.957 |
-| Dr 1e-4…1.5e-3, Kc 3e-4…4e-3 | 0.911 | 0.961 |
-| … and Rm, km ±12 % | 0.912 | 0.963 |
-| Dr 1e-4…1e-3, Kc 1e-3…4e-3 | 0.935 | 0.976 |
-| … and dead zone U(0.3, 0.8) V | 0.938 | 0.969 |
-| Dr 1e-4…1e-3, Kc 3e-4…4e-3, arm mass/length ±10 % | 0.900 | 0.961 |
-| Dr 2e-4…1.5e-3, Kc 2e-4…4e-3 | 0.944 | 0.967 |
-| Dr 5e-5…1.5e-3, Dp 1e-5…5e-5, Kc 3e-4…4e-3 | 0.884 | 0.959 |
-| Dr 1e-4…1e-3, Kc 3e-4…4e-3, arm Coulomb friction 1e-4…1e-3 N·m (tried, then removed) | 0.949 | 0.956 |
-| … friction 3e-4…2e-3 N·m | 0.967 | 0.993 |
-| … friction 1e-3…3e-3 N·m | 0.987 | 0.973 |
-| Dr 5e-5…1.5e-3, Dp 1e-5…5e-5, Kc 5e-4…6e-3 | 0.840 | 0.960 |
-| Dr 1e-4…1e-3, Kc 5e-4…6e-3 | 0.878 | 0.975 |
-| Dr 1e-4…1e-3, Kc 1e-3…6e-3 | 0.890 | 0.974 |
-| Dr 5e-5…1e-3, Dp 1e-5…5e-5, Kc 1e-3…6e-3 | 0.856 | 0.970 |
-| **table2: Dr 5e-5…1e-3, Dp 1e-5…5e-5, Kc 5e-4…6e-3** | **0.832** | **0.973** |
-| table2 + dead zone 0.65 V on every unit | 0.829 | 0.946 |
-| v1 + dead zone 0.65 V on every unit | 0.973 | 0.954 |
-
-Kc must stay well below the balance law's own arm stiffness, 2 V/rad · km/Rm ≈ 0.01 N·m/rad: with Kc up to
-1e-2 the arm settles far off centre under the law (a pendulum-encoder offset of δ needs an arm angle of
-about 35·δ·(km/Rm)/(2·km/Rm − Kc)), so the continuous law failed 2 of 20 runs of fleet 0 and one unit never
-finished its reset.
+Prints the median (and range) of the off-diagonal motor- and pendulum-angle correlations of the fleets next
+to the paper's rig (motor 0.75–0.86, pendulum 0.96–0.98); with ``--env cartpole``, of the cart- and
+pole-change correlations and relative differences of every unit pair (docs/devices.md has the figures).
 """
 
 import argparse

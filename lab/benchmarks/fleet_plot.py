@@ -1,11 +1,9 @@
 """Drawing a large fleet's scores plot: the summarised plot (one fleet panel) of a synthetic fleet, and for
-comparison the per-unit plot (one panel per unit, ``--per-unit-detail``) of a smaller one.
+comparison the per-unit plot (one panel per unit) of a smaller one.
 
     python lab/benchmarks/fleet_plot.py [--units 1000] [--rounds 200] [--per-unit-units 32]
 
-The synthetic fleet: unit u's WMA climbs to 500 by round 20 + u % 300 and completes there (the figures are
-about drawing, not learning). Prints the seconds to build the rows, to compute the fleet's quantiles per
-round, and to draw and save each PNG. Wall-clock figures: the load average is printed (the machine is shared).
+Prints the wall seconds to build the rows, compute the fleet's quantiles per round, and draw each PNG.
 """
 
 from __future__ import annotations
@@ -14,6 +12,7 @@ import argparse
 import os
 import tempfile
 import time
+from collections.abc import Callable
 from pathlib import Path
 
 from fleetrl.runs.fleet_summary import fleet_rounds
@@ -32,9 +31,8 @@ def synthetic_fleet(units: int, rounds: int) -> list[MetricsRow]:
     return rows
 
 
-def timed(what: str, action: object) -> None:
-    """Run ``action`` (a callable) and print its wall seconds."""
-    assert callable(action)
+def timed(what: str, action: Callable[[], object]) -> None:
+    """Run ``action`` and print its wall seconds."""
     started = time.perf_counter()
     action()
     print(f"{what}: {time.perf_counter() - started:.2f} s", flush=True)

@@ -5,27 +5,12 @@
                                         [--set KEY=VALUE ...] [--transport local|mqtt]
                                         [--policy MODEL]
 
-acting: the units' first ``--rounds`` episodes (no update) — N learners of one unit each, stepped one after
-the other as the worker threads of ``--transport local`` take turns, against one host of N units (one forward
-pass per time step for all of them); unit-steps per second of acting alone, per wall second and per second of
-this process's CPU time (the machine is shared: the CPU figure moves less with the load). With ``--policy``
-every unit plays that model file (e.g. a trained fleet's ``models/worker-0.safetensors``: full-length
-episodes, as in a round of a fleet that learned) instead of the preset's initial network. With
-``--per-host U`` below N the hosts are processes of U units each (units 0 … U-1, U … 2U-1, …), playing at
-the same time after each has warmed up; the figure is every host's unit-steps over the wall time from the
-first host's start to the last one's end — what the hosts of ``fleetrl train --transport mqtt`` do in a
-round's playing part.
-
-train: ``fleetrl train --env cartpole --mode federated --transport local --preset standard --seed 3`` for
-``--rounds`` rounds, each configuration in a fresh process: N workers of one unit (``flat``), or hosts of
-``--per-host`` units (0: one host of all N), with the preset's ``--set`` overrides (e.g. ``batch_size=16``),
-over ``--transport`` (``mqtt``: each host its own process on the embedded broker). Per configuration: wall
-seconds per round (rounds 2 … R, from metrics.csv's wall times: no start-up), unit-steps per second of those
-rounds including the updates and the exchanges, and the process's peak memory (its maximum resident set;
-with ``mqtt`` the command's alone). The run's scores plot is not drawn (one panel per unit: drawing 1000
-took longer than the run).
-
-The machine is shared: the script prints the load average before and after each measurement.
+acting: unit-steps per second (per wall and per CPU second) of the units' first ``--rounds`` episodes, N
+learners of one unit each against hosts of ``--per-host`` units (0: one host of all N; fewer: that many host
+processes playing at once), every unit on ``--policy``'s weights if given. train: ``fleetrl train --env
+cartpole --mode federated --preset standard --seed 3`` per configuration in a fresh process: seconds per
+round (rounds 2 … R), unit-steps per second including updates and exchanges, peak memory. The load average is
+printed around each measurement (the machine is shared).
 """
 
 from __future__ import annotations
@@ -40,6 +25,7 @@ import sys
 import tempfile
 import time
 from pathlib import Path
+from typing import Any
 
 SEED = 3
 
@@ -76,19 +62,11 @@ def acting(
     envs = [gymnasium.make(CARTPOLE_UNIT_ID, unit=u, fleet_seed=0) for u in ids]
     seeds = [SEED * 100_000 + u for u in ids]
     weights = None if policy is None else read_checkpoint(policy)[0]  # read once, whatever the units
-    steps = 0
     if hosted:
         agent = PPOAgent(4, 2, config, seeds)
         if weights is not None:
             agent.load_weights(weights, str(policy))
-        host = Learner(envs, agent, [CompletionCriterion(1e9) for _ in envs], seeds)
-        host.play_episodes()  # compile and warm up
-        if start_at is not None:
-            time.sleep(max(0.0, start_at - time.time()))
-        began = time.time()
-        started, cpu = time.perf_counter(), time.process_time()
-        for _ in range(rounds):
-            steps += sum(sum(e.steps) for e in host.play_episodes())
+        learners = [Learner(envs, agent, [CompletionCriterion(1e9) for _ in envs], seeds)]
     else:
         learners = [
             Learner(env, PPOAgent(4, 2, config, seed=s), CompletionCriterion(1e9), seed=s)
@@ -96,11 +74,14 @@ def acting(
         ]
         for learner in learners if weights is not None else ():
             learner.agent.load_weights(weights, str(policy))
-        learners[0].play_episodes()
-        began = time.time()
-        started, cpu = time.perf_counter(), time.process_time()
-        for _ in range(rounds):
-            steps += sum(sum(learner.play_episodes()[0].steps) for learner in learners)
+    learners[0].play_episodes()  # compile and warm up
+    if hosted and start_at is not None:
+        time.sleep(max(0.0, start_at - time.time()))
+    began = time.time()
+    started, cpu = time.perf_counter(), time.process_time()
+    steps = 0
+    for _ in range(rounds):
+        steps += sum(sum(e.steps) for learner in learners for e in learner.play_episodes())
     seconds, cpu_seconds = time.perf_counter() - started, time.process_time() - cpu
     return {"unit_steps": steps, "seconds": seconds, "unit_steps_per_s": steps / seconds,
             "unit_steps_per_cpu_s": steps / cpu_seconds, "began": began, "ended": time.time()}  # fmt: skip
@@ -117,26 +98,11 @@ def acting_hosts(units: int, per_host: int, rounds: int, policy: str | None) -> 
     if units % per_host:
         raise SystemExit(f"--per-host {per_host} must divide --units {units}")
     start_at = time.time() + WARM_UP_S
-    calls = [
-        f"host_scale.acting({per_host}, {rounds}, True, {policy!r}, {first}, {start_at!r})"
+    hosts = [
+        in_child(f"acting({per_host}, {rounds}, True, {policy!r}, {first}, {start_at!r})")
         for first in range(0, units, per_host)
     ]
-    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(Path(__file__).parent), *sys.path])}
-    hosts = [
-        subprocess.Popen(
-            [sys.executable, "-c", f"import json, host_scale; print(json.dumps({call}))"],
-            stdout=subprocess.PIPE,
-            text=True,
-            env=env,
-        )
-        for call in calls
-    ]
-    results = []
-    for host in hosts:
-        out, _ = host.communicate()
-        if host.returncode != 0:
-            raise SystemExit(f"a host process exited {host.returncode}")
-        results.append(json.loads(out.strip().splitlines()[-1]))
+    results = [child_result(host, "a host process") for host in hosts]
     late = max(r["began"] for r in results) - start_at
     if late > 0.5:
         print(f"  (a host started {late:.1f} s late: its warm-up outlasted {WARM_UP_S:.0f} s)")
@@ -184,11 +150,23 @@ def train(
     units: int, rounds: int, per_host: int, overrides: tuple[str, ...] = (), transport: str = "local"
 ) -> dict[str, float]:
     """:func:`train_once` in a fresh process (its own peak memory, its own imports)."""
-    call = f"host_scale.train_once({units}, {rounds}, {per_host}, {overrides!r}, {transport!r})"
-    code = f"import json, host_scale; print(json.dumps({call}))"
+    call = f"train_once({units}, {rounds}, {per_host}, {overrides!r}, {transport!r})"
+    return child_result(in_child(call, stderr=subprocess.PIPE), "fleetrl train's process")
+
+
+def in_child(call: str, **popen: Any) -> subprocess.Popen[str]:
+    """``host_scale.CALL`` in a fresh Python process, which prints its result as JSON."""
+    code = f"import json, host_scale; print(json.dumps(host_scale.{call}))"
     env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(Path(__file__).parent), *sys.path])}
-    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, check=True)
-    result: dict[str, float] = json.loads(done.stdout.strip().splitlines()[-1])
+    return subprocess.Popen([sys.executable, "-c", code], stdout=subprocess.PIPE, text=True, env=env, **popen)
+
+
+def child_result(child: subprocess.Popen[str], what: str) -> dict[str, float]:
+    """The result :func:`in_child`'s process printed last."""
+    out, _ = child.communicate()
+    if child.returncode != 0:
+        raise SystemExit(f"{what} exited {child.returncode}")
+    result: dict[str, float] = json.loads(out.strip().splitlines()[-1])
     return result
 
 

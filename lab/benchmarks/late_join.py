@@ -1,18 +1,12 @@
-"""A unit joining a learning fleet (issue 23's target): a 3-unit QUBE fleet under the default scheme
-(``fleetrl chief --workers 3`` and ``fleetrl worker --worker-id 0/1/2``, separate processes on an embedded
-broker); once the chief has closed round ``--at`` (40), a fourth unit, id 3 — an id the chief was not
-started with — joins with ``fleetrl worker --worker-id 3``. It starts from the fleet's model the chief hands
-it in the welcome; the figure is the number of its own episodes until its completion criterion holds
-(summary.json's ``completed_at_episode``; the criterion's floor is 10 episodes). Target: a median ≤ 20.
+"""A unit joining a learning fleet: a 3-unit QUBE fleet (``fleetrl chief --workers 3`` and three
+``fleetrl worker`` processes on an embedded broker); once the chief has closed round ``--at``, a fourth unit,
+id 3, joins from the fleet's model. The figure: its own episodes until its completion criterion holds
+(target: a median ≤ 20; the criterion's floor is 10).
 
     python lab/benchmarks/late_join.py --seeds 100 101 102 103 104 105 106 107 108 109 --out runs/late-join
 
-Each seed's run goes to OUT/seed-S and its small record to RECORDS/seed-S.json (default
-lab/benchmarks/results/late-join, committed); a seed whose record exists is read, not run again, so a sweep
-resumes across sessions. The fleet's seed is 1 and its units' learning seeds are S (as docs/results.md's
-held-out QUBE arms); seeds from 100 on were never used to tune anything. Not a timed test: the figure is
-episodes, not seconds, but a loaded machine changes when round ``--at`` closes relative to the new unit's
-start (it joins the round that is open when its process is up).
+Each seed's run goes to OUT/seed-S and its record to RECORDS/seed-S.json (default
+lab/benchmarks/results/late-join, committed); a seed whose record exists is read, not run again.
 """
 
 from __future__ import annotations
@@ -85,11 +79,8 @@ def run_seed(seed: int, at: int, out: Path, extra: list[str]) -> dict[str, objec
                     proc.kill()
     summary_path = out / "w3" / "summary.json"
     unit = json.loads(summary_path.read_text())["workers"]["3"] if summary_path.exists() else {}
-    chief = (
-        json.loads((out / "chief" / "chief.json").read_text())
-        if (out / "chief" / "chief.json").exists()
-        else {}
-    )
+    chief_path = out / "chief" / "chief.json"
+    chief = json.loads(chief_path.read_text()) if chief_path.exists() else {}
     admitted = [
         int(line.split()[1].rstrip(":"))
         for line in (out / "chief" / "chief.log").read_text().splitlines()

@@ -1,21 +1,10 @@
 """A federated CartPole fleet across Linux network namespaces: broker, chief and workers on separate stacks.
 
 Run as root: ``.venv/bin/python lab/benchmarks/netns_fleet.py`` (``--rounds 12 --workers 3 --delay-ms 20
---jitter-ms 5 --loss 1``; ``--keep`` keeps the run directories). It needs iproute2 (``apt-get install
-iproute2``) and mosquitto.
-
-Topology: one namespace for the mosquitto broker, one for the chief (``fleetrl chief``), one per worker
-(``fleetrl worker``). Each non-broker namespace is joined to the broker's by its own veth pair with a /30 of
-10.77.0.0/24 (broker side ``.4i+1``, node side ``.4i+2``); no namespace has a default route, so no packet can
-leave the machine's own namespaces. If the kernel has ``sch_netem``, ``tc qdisc … netem delay D jitter J loss
-L%`` goes on both ends of every veth (netem acts on egress, so each hop is delayed once and a worker →
-broker → chief → broker → worker round trip sees 4 × D); without it the script says so and runs without
-impairment.
-
-Round overhead, from the roles' own DEBUG logs (one machine, one clock): for round r, (latest time a worker
-had the chief's answer applied and its round recorded) − (latest time a worker sent its message for r); the
-same definition as lab/benchmarks/round_overhead.py, with real PPO learners on CartPole. Every namespace and
-process is removed at the end, on failure too; the whole run is bounded by ``--timeout`` seconds.
+--jitter-ms 5 --loss 1``; ``--keep`` keeps the run directories). Needs iproute2 and mosquitto. Each role's
+namespace is joined to the broker's by a veth pair with netem on both ends where the kernel has it; prints
+the round overhead from the roles' DEBUG logs (the last message of round r sent → the last answer applied).
+Every namespace and process is removed at the end, on failure too.
 """
 
 from __future__ import annotations
@@ -32,7 +21,7 @@ import subprocess
 import sys
 import tempfile
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
 from datetime import datetime
 from pathlib import Path
@@ -128,13 +117,15 @@ class Fleet:
         )
 
 
-def add_netem(ns: str, ifname: str, delay_ms: float, jitter_ms: float, loss: float) -> str | None:
-    """Put netem (delay ± jitter, loss %) on ``ifname``; None if done, else why not (the kernel's answer)."""
-    impair = ["delay", f"{delay_ms}ms", f"{jitter_ms}ms", "loss", f"{loss}%"]
-    done = sh(
-        "ip", "netns", "exec", ns, "tc", "qdisc", "add", "dev", ifname, "root", "netem", *impair, check=False
-    )
-    return None if done.returncode == 0 else done.stderr.strip() or f"tc exited {done.returncode}"
+def add_netem(ends: Iterable[tuple[str, str]], delay_ms: float, jitter_ms: float, loss: float) -> str | None:
+    """Put netem (delay ± jitter, loss %) on every (namespace, ifname) of ``ends`` in turn; None if done, else
+    why not (the kernel's answer; the ends after a failure are left alone)."""
+    netem = ["root", "netem", "delay", f"{delay_ms}ms", f"{jitter_ms}ms", "loss", f"{loss}%"]
+    for ns, ifname in ends:
+        done = sh("ip", "netns", "exec", ns, "tc", "qdisc", "add", "dev", ifname, *netem, check=False)
+        if done.returncode != 0:
+            return done.stderr.strip() or f"tc exited {done.returncode}"
+    return None
 
 
 def start_broker(fleet: Fleet, ns: str, work: Path, name: str = "broker") -> None:
@@ -187,7 +178,8 @@ def wait_for_broker(fleet: Fleet, ns: str, host: str, deadline: float) -> None:
 
 
 def overheads(logs: list[Path]) -> dict[int, float]:
-    """Round → overhead in ms from the workers' logs (see the module docstring)."""
+    """Round → overhead in ms from the workers' logs: the last worker's record of round r minus the last
+    worker's send of r."""
     sent: dict[int, float] = {}
     applied: dict[int, float] = {}
     for path in logs:
@@ -204,16 +196,13 @@ def run(args: argparse.Namespace, fleet: Fleet, work: Path) -> int:
     deadline = time.monotonic() + args.timeout
     broker_ns = fleet.namespace("broker")
     nodes = ["chief", *(f"w{k}" for k in range(args.workers))]
-    hosts, netem = {}, None
+    hosts, ends = {}, []
     for i, node in enumerate(nodes):
         ns = fleet.namespace(node)
-        near, broker_ip, far, _ = fleet.link(i, broker_ns, ns)
-        hosts[node] = broker_ip
-        if netem is None or netem is True:
-            impair = (args.delay_ms, args.jitter_ms, args.loss)
-            why = add_netem(broker_ns, near, *impair) or add_netem(ns, far, *impair)
-            netem = True if why is None else why
-    if netem is True:
+        near, hosts[node], far, _ = fleet.link(i, broker_ns, ns)
+        ends += [(broker_ns, near), (ns, far)]
+    netem = add_netem(ends, args.delay_ms, args.jitter_ms, args.loss)
+    if netem is None:
         impairment = f"delay {args.delay_ms} ms ± {args.jitter_ms} ms, loss {args.loss} %"
         print(f"netem: {impairment} on both ends of every veth")
     else:
@@ -225,22 +214,11 @@ def run(args: argparse.Namespace, fleet: Fleet, work: Path) -> int:
     roles = {
         "chief": fleet.start(
             fleet.namespace("chief"),
-            [
-                *FLEETRL,
-                "chief",
-                "--broker",
-                f"mqtt://{hosts['chief']}:{PORT}",
-                *common,
-                "--workers",
-                str(args.workers),
-                "--out",
-                str(work / "chief"),
-                "--idle-timeout",
-                str(args.timeout),
-            ],
+            [*FLEETRL, "chief", "--broker", f"mqtt://{hosts['chief']}:{PORT}", *common, "--workers",
+             str(args.workers), "--out", str(work / "chief"), "--idle-timeout", str(args.timeout)],
             work / "chief.log",
         )
-    }
+    }  # fmt: skip
     for k in range(args.workers):
         node = f"w{k}"
         roles[node] = fleet.start(

@@ -1,37 +1,11 @@
 """A two-level federated CartPole fleet across Linux network namespaces, on two real mosquitto brokers.
 
 Run as root: ``.venv/bin/python lab/benchmarks/netns_tree.py`` (``--workers 3 --rounds 10``;
-``--centre-delay-ms 20 --site-delay-ms 2 …`` add netem where the kernel has it; ``--keep`` keeps the logs). It
-needs iproute2 and mosquitto; the namespaces, links and processes are handled as in
-lab/benchmarks/netns_fleet.py, whose helpers it uses.
-
-Topology: ``chief ─ centre broker ─ aggregator ─ site broker ─ workers``. A namespace each for the central
-mosquitto, the site's mosquitto, the chief (``fleetrl chief --workers 1``), the aggregator (``fleetrl
-aggregator --site-id 0 --members N --site-broker …``) and every worker (``fleetrl worker --run-id
-tree-site``). Veth pairs, a /30 of 10.77.0.0/24 each: chief ↔ centre, aggregator ↔ centre, aggregator ↔ site,
-worker k ↔ site; no default route anywhere, so the chief reaches only the centre broker, a worker only the
-site broker, and no packet leaves the machine. The ``--centre-*`` netem flags act on both ends of the
-aggregator ↔ centre link (the site's uplink), the ``--site-*`` ones on both ends of every worker's link.
-
-Checks (exit 1 if any fails): every role exited 0; every worker's metrics.csv holds rounds 1 … n once each (n:
-the chief's rounds); every worker's final model equals the chief's fleet model bit for bit (the default
-scheme, pergrad, keeps one policy; a worker ended by the chief's ``done`` takes that model first, so this
-cannot show a broken catch-up); during the run, at every exchange every worker that reached it held the same
-network and Adam state — a unit after a catch-up against one never behind (lab/benchmarks/one_policy.py
-records each worker's; with ``--uneven`` a catch-up must have been checked); the chief's only member is the
-site, and its last answer stood for the site's N units; the aggregator ended because the root ended the run.
-``--uneven "--slow w1=4"`` gives every worker more flags (a straggler: unit 1 four times slower; its
-metrics.csv then holds some of the rounds, and the root's last answer may stand for fewer units);
-``--mutate skip|swap|perturb`` breaks every worker's catch-up on purpose (in the harness, not in fleetrl): the
-one-policy check must fail.
-
-Measured, from the roles' DEBUG/INFO logs (one machine, one clock), rounds 2 … n (round 1 is warm-up):
-round overhead as in netns_fleet.py — for round r, the last worker's record of r minus the last worker's
-send of r, i.e. the round's last exchange seen by the units; its root share, from the aggregator's log —
-its members' sum for that exchange sent up → the root's answer in; the site's share, the difference (two
-site hops, the aggregator's sum, the workers' apply and record). The root's time for every exchange is
-printed too. Bytes per exchange at the root: the aggregator's uplink veth counters (up = its tx, down = its
-rx, TCP/IP and MQTT framing included, the one-time join/welcome too) over the exchanges it forwarded.
+``--centre-delay-ms 20 --site-delay-ms 2 …`` add netem; ``--uneven "--slow w1=4"`` gives every worker more
+flags; ``--mutate skip`` breaks every catch-up, so the one-policy check must fail; ``--keep`` keeps the logs).
+Topology ``chief ─ centre broker ─ aggregator ─ site broker ─ workers``, built with netns_fleet.py's helpers.
+Prints the checks (exit 1 if any fails), the round overhead with its root and site shares, and the bytes per
+exchange at the root; docs/benchmarks.md explains each.
 """
 
 from __future__ import annotations
@@ -107,9 +81,8 @@ def impair(ends: Iterable[tuple[str, str]], where: str, args: argparse.Namespace
     delay, jitter, loss = (getattr(args, f"{where}_{name}") for name in ("delay_ms", "jitter_ms", "loss"))
     if not (delay or jitter or loss):
         return f"{where} links: no netem"
-    for ns, ifname in ends:
-        if why := add_netem(ns, ifname, delay, jitter, loss):
-            return f"{where} links: netem not available in this kernel ({why}); running without it"
+    if why := add_netem(ends, delay, jitter, loss):
+        return f"{where} links: netem not available in this kernel ({why}); running without it"
     return f"{where} links: delay {delay} ms ± {jitter} ms, loss {loss} % on both ends"
 
 
@@ -175,7 +148,7 @@ def uplink_bytes(fleet: Fleet, ifname: str) -> tuple[int, int]:
 
 
 def checks(work: Path, args: argparse.Namespace, codes: dict[str, int | None]) -> dict[str, bool]:
-    """Each check's name → whether it held (see the module docstring)."""
+    """Each check's name → whether it held."""
     from fleetrl.runs.checkpoints import ChiefCheckpoint, chief_checkpoint_dir
 
     workers = {node[1:]: work / node for node in codes if node.startswith("w")}

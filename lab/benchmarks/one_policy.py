@@ -1,18 +1,13 @@
-"""One policy at every exchange of a per-step scheme (``pergrad``): what each worker holds once it has applied
-every answer before an exchange, compared between workers — a unit that caught up (``apply_fleet_step``)
-against one that was never behind (``apply_step``), not against the chief's copy, which runs the same
-catch-up code (issue 41). What is compared is the scheme's shared part, what its welcome hands a joining
-worker (``scheme.start_parameters``: for ``pergrad`` the network and the Adam states).
-
-Shared by tests/federation/test_pergrad_stragglers.py, tests/agent/test_fleet_step_catch_up.py,
-lab/benchmarks/fault_soak.py and lab/benchmarks/netns_tree.py. As a script it runs a ``fleetrl`` command with
-the recorder installed (one JSON line per applied answer, so a worker killed with -9 keeps what it wrote):
+"""One policy at every exchange of a per-step scheme (``pergrad``): what each worker holds (the scheme's
+``start_parameters``) once it has applied every answer before an exchange, compared between workers — a unit
+that caught up against one that was never behind. Used by tests and by fault_soak.py and netns_tree.py; as a
+script it runs a ``fleetrl`` command with the recorder installed (one JSON line per applied answer):
 
     python lab/benchmarks/one_policy.py --digests w0.jsonl [--mutate skip] -- worker --worker-id 0 ...
 
-A mutation breaks this process's catch-up on purpose, here and never in fleetrl, to show the check fails:
-``skip`` drops the first missed answer; ``swap`` applies the first two missed answers in reverse order;
-``perturb`` applies every missed answer with one gradient element (its largest) scaled by 1 + 2⁻¹⁰.
+A mutation breaks this process's catch-up on purpose, to show the check fails: ``skip`` drops the first
+missed answer, ``swap`` applies the first two in reverse order, ``perturb`` scales every missed answer's
+largest element by 1 + 2⁻¹⁰.
 """
 
 from __future__ import annotations

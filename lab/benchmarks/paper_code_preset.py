@@ -3,13 +3,9 @@
     python lab/benchmarks/paper_code_preset.py --env cartpole [--seeds 0-4] [--max-rounds 400]
     python lab/benchmarks/paper_code_preset.py --env qube --seeds 0-4 --max-rounds 1000 --json results.json
 
-One learner per seed on unit 0 of fleet seed 0 (as ``fleetrl train --mode individual --units 1`` trains it),
-one torch thread, the env's criterion (WMA of the last 10 round scores ≥ 475 on CartPole, ≥ 2450 on QUBE; a
-round's score is the mean return of its episodes). Prints one line per seed: the round and the episode at
-which the criterion held (or "-" and the best WMA reached), the rounds' mean number of episodes, the policy's
-entropy at the end, CPU seconds, and how the episodes of the last 100 rounds ended (QUBE: the pendulum
-beyond 7.5°, the arm beyond its limit, or the 2500-step cap); then how many seeds completed. ``--progress N``
-prints a line every N rounds, for long QUBE runs.
+One learner per seed on unit 0 of fleet seed 0, one torch thread, the env's criterion. Prints per seed the
+round and episode at which the criterion held (or the best WMA), episodes per round, the final entropy, CPU
+seconds and how the episodes of the last 100 rounds ended; then how many seeds completed.
 """
 
 from __future__ import annotations
@@ -32,6 +28,8 @@ import gymnasium
 import torch
 
 # isort: on
+from wide_fleet import parse_pairs
+
 from fleetrl import portable
 from fleetrl.agent.config import get_preset
 from fleetrl.agent.criterion import CompletionCriterion
@@ -87,11 +85,6 @@ class EndingTally(gymnasium.Wrapper[Any, Any, Any, Any]):
         return dict(Counter(e for endings in self.round_endings for e in endings))
 
 
-def seed_range(text: str) -> list[int]:
-    first, _, last = text.partition("-")
-    return list(range(int(first), int(last or first) + 1))
-
-
 def setting(text: str) -> tuple[str, Any]:
     """``KEY=VALUE`` with a JSON value (``gamma=0.99``, ``critic_loss="abs"``) for ``--set``."""
     key, _, value = text.partition("=")
@@ -144,7 +137,7 @@ def main() -> int:
     )
     parser.add_argument("--env", choices=("cartpole", "qube"), default="cartpole")
     parser.add_argument("--preset", default="paper-code")
-    parser.add_argument("--seeds", type=seed_range, default=seed_range("0-4"), help="e.g. 0-4 or 100-104")
+    parser.add_argument("--seeds", type=parse_pairs, default=parse_pairs("0-4"), help="e.g. 0-4 or 100-104")
     parser.add_argument("--max-rounds", type=int, default=400)
     parser.add_argument("--progress", type=int, default=0, help="print a line every N rounds (0: never)")
     parser.add_argument("--set", type=setting, action="append", default=[], help="override, e.g. gamma=0.99")
@@ -156,6 +149,8 @@ def main() -> int:
     print(
         f"# preset {args.preset}{changed}, {args.env} unit 0 alone, M {args.max_rounds}; {host}", flush=True
     )
+    settings = {"env": args.env, "preset": args.preset, "set": dict(args.set)}
+    settings |= {"max_rounds": args.max_rounds, "host": host}
     outcomes = []
     for seed in args.seeds:
         outcome = train(args.env, args.preset, seed, args.max_rounds, args.progress, dict(args.set))
@@ -172,16 +167,8 @@ def main() -> int:
             flush=True,
         )
         if args.json is not None:  # after every seed, so a long run leaves what finished
-            record = {
-                "env": args.env,
-                "preset": args.preset,
-                "set": dict(args.set),
-                "max_rounds": args.max_rounds,
-            }
-            record["host"] = host
-            args.json.write_text(
-                json.dumps({**record, "seeds": [asdict(o) for o in outcomes]}, indent=1) + "\n"
-            )
+            seeds = [asdict(o) for o in outcomes]
+            args.json.write_text(json.dumps({**settings, "seeds": seeds}, indent=1) + "\n")
     done = [o for o in outcomes if o.completed_round is not None]
     rounds = [o.completed_round for o in done if o.completed_round is not None]
     episodes = [o.completed_episode for o in done if o.completed_episode is not None]
