@@ -1,8 +1,5 @@
-"""An arm of an experiment: one training configuration repeated over seeds, and what its runs measured.
-
-An arm is a dict of ``fleetrl train`` settings (RunSettings field → value); its command line and its key are
-both derived from it, so the printed command and the key cannot disagree.
-"""
+"""An arm of an experiment: a dict of ``fleetrl train`` settings repeated over seeds; its command line and its
+key are both derived from it, so the printed command and the key cannot disagree."""
 
 import hashlib
 import json
@@ -11,10 +8,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-
-from fleetrl_lab.records import RunRecord, record_path
-from fleetrl_lab.stats import Completion
+from fleetrl_lab.records import record_path
 from fleetrl_lab.sweep import Run, train_args
 
 KEY_SETTINGS = ("env", "units", "mode", "preset", "max_rounds", "scheme", "fleet_seed", "transport")
@@ -101,32 +95,3 @@ class Arm:
         out = shlex.quote(str(root / self.key))
         args = shlex.join(train_args(self.settings))
         return f"for s in SEEDS; do fleetrl train {args} --seed $s --out {out}/seed-$s; done"
-
-
-def completions(records: list[RunRecord]) -> list[Completion]:
-    """Rounds to completion of each run."""
-    return [record.completion() for record in records]
-
-
-def mean_score_curve(records: list[RunRecord], max_rounds: int) -> np.ndarray:
-    """Mean score per round over every worker of every run (a finished worker holds its last score)."""
-    totals = np.zeros(max_rounds)
-    count = 0
-    for record in records:
-        for scores in record.scores().values():
-            values = [np.nan if s is None else s for s in scores]
-            padded = np.full(max_rounds, values[-1] if values else 0.0)
-            padded[: len(values)] = values[:max_rounds]
-            totals += padded
-            count += 1
-    return totals / max(count, 1)
-
-
-def wall_seconds(records: list[RunRecord]) -> list[float]:
-    """Wall time of each run."""
-    return [record.wall_seconds for record in records]
-
-
-def same_scores(a: RunRecord, b: RunRecord) -> bool:
-    """Whether two runs hold exactly the same per-round scores of every worker."""
-    return a.scores() == b.scores()

@@ -15,9 +15,8 @@ import numpy as np
 from fleetrl_lab.arms import Arm
 from fleetrl_lab.budget import FULL
 from fleetrl_lab.catalog import PLANS
-from fleetrl_lab.plan import Ratio, bound_mark
+from fleetrl_lab.plan import Ratio, bound_mark, seed_range
 from fleetrl_lab.records import RunRecord, read_record, record_path
-from fleetrl_lab.runner import seed_range
 from fleetrl_lab.stats import markdown_table
 
 BEGIN = "<!-- results table: written by `make report` from lab/records; do not edit -->"

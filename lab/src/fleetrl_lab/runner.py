@@ -10,7 +10,7 @@ from fleetrl.runs.settings import LearningSettings, resolve_and_probe
 from fleetrl_lab.arms import Places
 from fleetrl_lab.budget import FULL, QUICK, TUNING_FLEET_SEED, TUNING_SEEDS
 from fleetrl_lab.catalog import ALL_EXPERIMENTS, EXPERIMENTS, PLANS, UNIT_TYPE_EXPERIMENTS
-from fleetrl_lab.plan import run_plan
+from fleetrl_lab.plan import run_plan, seed_range
 from fleetrl_lab.sections import peers_section, table2_section
 
 REPORT_HEADER = """# fleetrl results
@@ -22,16 +22,6 @@ with the paper-code preset the episodes that fill the memory. A run that did not
 counts as M: medians of such arms are lower bounds. Intervals are 95 % percentile-bootstrap intervals over the
 seeds (medians) or over both arms' seeds (ratios).
 """
-
-
-def seed_range(seeds: list[int] | range) -> str:
-    """``100–109``, ``3``, or ``0, 2, 5`` if not consecutive."""
-    seeds = list(seeds)
-    if len(seeds) == 1:
-        return str(seeds[0])
-    if seeds == list(range(seeds[0], seeds[0] + len(seeds))):
-        return f"{seeds[0]}–{seeds[-1]}"
-    return ", ".join(map(str, seeds))
 
 
 def seeds_line(seeds: list[int], fleet_seed: int, other_seeds: int | None = None, history: str = "") -> str:
