@@ -1,5 +1,4 @@
-"""What an experiment's arms are made of: the budget of its runs (:class:`Budget`) and one arm's ``fleetrl
-train`` settings (:func:`arm`). The experiments themselves are in :mod:`fleetrl_lab.catalog`."""
+"""The budget of an experiment's runs (:class:`Budget`) and an arm's training settings (:func:`arm`)."""
 
 from dataclasses import dataclass
 from typing import Any
@@ -19,8 +18,7 @@ class Budget:
     fleet_seed: int = 0
     """the fleet every arm trains on"""
     unit_type: str | None = None
-    """a user's unit type (``--env package.module:factory``) that the experiments not about the paper's rig
-    (:data:`UNIT_TYPE_EXPERIMENTS`) train instead of the built-ins, for ``cartpole_rounds`` rounds"""
+    """a user's unit type (``--env``) trained instead of the built-ins, for ``cartpole_rounds`` rounds"""
     target_score: float | None = None
     """every arm's ``--target-score`` (None: the env's own)"""
 
@@ -29,10 +27,8 @@ FULL = Budget(qube_rounds=1000, cartpole_rounds=400, unseen_units=10)
 QUICK = Budget(qube_rounds=4, cartpole_rounds=6, unseen_units=2)
 
 TUNING_SEEDS = range(0, 10)
-"""the learning seeds tuning may use; a report's figures are on seeds outside them (``fleetrl experiment
---first-seed``, default 100)"""
+"""the learning seeds tuning may use; a report's figures are on seeds outside them"""
 TUNING_FLEET_SEED = 0
-"""the fleet tuning happens on"""
 
 
 def arm(
@@ -49,12 +45,8 @@ def arm(
     overrides: dict[str, object] | None = None,
     run: dict[str, Any] | None = None,
 ) -> Arm:
-    """A training arm; its key names the configuration, so experiments that share one share its runs.
-
-    Federated arms use the in-process bus (each experiment checks one arm over MQTT as well) and name their
-    ``scheme``, and a per-step scheme its ``quorum`` (1: every worker waited for), so a new default changes no
-    arm. ``run``: other run settings (a quorum of its own, an uneven fleet's ``slow`` and ``absent``).
-    """
+    """A training arm. Federated arms use the in-process bus and name their ``scheme``, and a per-step scheme
+    its ``quorum`` (1), so a new default changes no arm. ``run``: other run settings."""
     settings: dict[str, object] = {
         "env": env,
         "units": units,

@@ -15,7 +15,7 @@ import numpy as np
 from fleetrl_lab.arms import Arm
 from fleetrl_lab.budget import FULL
 from fleetrl_lab.catalog import PLANS
-from fleetrl_lab.plan import Ratio, bound_mark, seed_range
+from fleetrl_lab.plan import Ratio, bound_mark, fleet_rounds, rig_minutes, seed_range, unit_rounds
 from fleetrl_lab.records import RunRecord, read_record, record_path
 from fleetrl_lab.stats import markdown_table
 
@@ -88,17 +88,13 @@ def _records(arm: Arm, seeds: range, records: Path) -> list[RunRecord]:
     return [r for r in found if r is not None]
 
 
-def _figures(runs: list[RunRecord]) -> tuple[float, float, float, float]:
+def _figures(runs: list[RunRecord]) -> tuple[float, ...]:
     """Medians: rounds until the last unit completed, rounds per unit, and the same in minutes on the rigs."""
-    completions = [r.completion() for r in runs]
-    times = [r.rig_time() for r in runs]
-    if any(t is None for t in times):
+    rig = rig_minutes(runs)
+    if rig is None:
         raise ValueError("a headline run without time on the rigs")
-    last = float(np.median([c.fleet for c in completions]))
-    per_unit = float(np.median([w for c in completions for w in c.worker_rounds()]))
-    rig_last = float(np.median([t.fleet / 60 for t in times if t is not None]))
-    rig_unit = float(np.median([s / 60 for t in times if t is not None for s in t.per_unit.values()]))
-    return last, per_unit, rig_last, rig_unit
+    figures = (fleet_rounds(runs), unit_rounds(runs), *rig)
+    return tuple(float(np.median(values)) for values in figures)
 
 
 def headline_table(records: Path) -> str:

@@ -178,11 +178,13 @@ def bound_mark(slower: list[RunRecord], faster: list[RunRecord]) -> str:
     return {(False, False): "", (True, False): "≥ ", (False, True): "≤ ", (True, True): "~"}[censored]
 
 
-def _fleet(records: list[RunRecord]) -> list[int]:
+def fleet_rounds(records: list[RunRecord]) -> list[int]:
+    """Each run's rounds until its last unit completed."""
     return [c.fleet for c in completions(records)]
 
 
-def _per_unit(records: list[RunRecord]) -> list[int]:
+def unit_rounds(records: list[RunRecord]) -> list[int]:
+    """Every unit's rounds to completion, over every run."""
     return [r for c in completions(records) for r in c.worker_rounds()]
 
 
@@ -205,7 +207,7 @@ RIG_TIME_NOTE = (
 )
 
 
-def _rig_minutes(records: list[RunRecord]) -> tuple[list[float], list[float]] | None:
+def rig_minutes(records: list[RunRecord]) -> tuple[list[float], list[float]] | None:
     """Minutes on the rigs of an arm's runs: until each run's last unit completed, and per unit (None if
     unknown)."""
     times = [r.rig_time() for r in records]
@@ -231,15 +233,19 @@ def controlled_minutes(records: list[RunRecord]) -> str:
     return " / ".join(shown)
 
 
+def _times(bound: str, ratio: tuple[float, float, float]) -> str:
+    """``≥ 1.59× (1.10–2.30)``: a speed-up and its 95 % bootstrap interval."""
+    point, low, high = ratio
+    return f"{bound}{point:.2f}× ({low:.2f}–{high:.2f})"
+
+
 def _rig_ratio(slower: list[RunRecord], faster: list[RunRecord]) -> str:
-    """Speed-up in time on the rigs, fleet and per unit, with 95 % bootstrap intervals ("-" if unknown)."""
-    a, b = _rig_minutes(slower), _rig_minutes(faster)
+    """Speed-up in time on the rigs, fleet / per unit ("-" if unknown)."""
+    a, b = rig_minutes(slower), rig_minutes(faster)
     if a is None or b is None:
         return "-"
     bound = bound_mark(slower, faster)
-    point, low, high = bootstrap_ratio(a[0], b[0])
-    unit, unit_low, unit_high = bootstrap_ratio(a[1], b[1])
-    return f"{bound}{point:.2f}× ({low:.2f}–{high:.2f}) / {bound}{unit:.2f}× ({unit_low:.2f}–{unit_high:.2f})"
+    return f"{_times(bound, bootstrap_ratio(a[0], b[0]))} / {_times(bound, bootstrap_ratio(a[1], b[1]))}"
 
 
 def on_shared_seeds(
@@ -261,15 +267,14 @@ def _ratio_line(ratio: Ratio, records: Records) -> str:
     pair = f"**{ratio.slower.label} → {ratio.faster.label}**{shared}"
     if not slower:
         return f"- {pair}: no seed run by both; {ratio.claim}"
-    point, low, high = bootstrap_ratio(_fleet(slower), _fleet(faster))
-    unit, unit_low, unit_high = bootstrap_ratio(_per_unit(slower), _per_unit(faster))
+    point, low, high = bootstrap_ratio(fleet_rounds(slower), fleet_rounds(faster))
     bound = bound_mark(slower, faster)
+    unit = _times(bound, bootstrap_ratio(unit_rounds(slower), unit_rounds(faster)))
     rig = _rig_ratio(slower, faster)
     on_rigs = "" if rig == "-" else f"; in time on the rigs, fleet / per unit: {rig}"
     return (
-        f"- {pair}: fleet speed-up in rounds "
-        f"{bound}{point:.2f}× (95 % bootstrap {low:.2f}–{high:.2f}), per unit {bound}{unit:.2f}× "
-        f"({unit_low:.2f}–{unit_high:.2f}){on_rigs}; {ratio.claim}"
+        f"- {pair}: fleet speed-up in rounds {bound}{point:.2f}× (95 % bootstrap {low:.2f}–{high:.2f}), "
+        f"per unit {unit}{on_rigs}; {ratio.claim}"
     )
 
 
@@ -293,12 +298,12 @@ def _arms_table(plan: Plan, records: Records) -> str:
         complete = sum(c.complete for c in completions(done))
         walls = sorted(r.wall_seconds for r in done)
         mean_unseen, held = unseen_summary(done)
-        rig = _rig_minutes(done)
+        rig = rig_minutes(done)
         rows.append(
             [
                 arm.label,
-                bootstrap_median(_fleet(done)).format(),
-                bootstrap_median(_per_unit(done)).format(),
+                bootstrap_median(fleet_rounds(done)).format(),
+                bootstrap_median(unit_rounds(done)).format(),
                 "-" if rig is None else bootstrap_median(rig[0]).format(1),
                 "-" if rig is None else bootstrap_median(rig[1]).format(1),
                 controlled_minutes(done),
@@ -392,15 +397,16 @@ def _speed_up_table(plan: Plan, records: Records) -> str:
         if not slower or not faster:
             continue
         bound = bound_mark(slower, faster)
-        point, low, high = bootstrap_ratio(_fleet(slower), _fleet(faster))
-        unit, unit_low, unit_high = bootstrap_ratio(_per_unit(slower), _per_unit(faster))
+        fleet = bootstrap_ratio(fleet_rounds(slower), fleet_rounds(faster))
+        unit = bootstrap_ratio(unit_rounds(slower), unit_rounds(faster))
+        efficiency = f"{bound}{fleet[0] / arm.units:.2f}"
         rows.append(
             [
                 arm.label,
                 str(arm.units),
-                f"{bound}{point:.2f}× ({low:.2f}–{high:.2f})",
-                f"{bound}{unit:.2f}× ({unit_low:.2f}–{unit_high:.2f})",
-                f"{bound}{point / arm.units:.2f}",
+                _times(bound, fleet),
+                _times(bound, unit),
+                efficiency,
                 _rig_ratio(slower, faster),
             ]
         )
