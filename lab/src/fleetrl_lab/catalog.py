@@ -3,8 +3,7 @@
 
 from collections.abc import Callable
 
-from fleetrl_lab.arms import Arm
-from fleetrl_lab.budget import Budget, arm
+from fleetrl_lab.arms import Arm, Budget, arm
 from fleetrl_lab.plan import Plan, Ratio
 from fleetrl_lab.scale_plan import fleet_scale, qube_scale
 from fleetrl_lab.uneven_plan import argmax, uneven

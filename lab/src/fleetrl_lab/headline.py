@@ -12,8 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
-from fleetrl_lab.arms import Arm
-from fleetrl_lab.budget import FULL
+from fleetrl_lab.arms import FULL, Arm
 from fleetrl_lab.catalog import PLANS
 from fleetrl_lab.plan import Ratio, bound_mark, fleet_rounds, rig_minutes, seed_range, unit_rounds
 from fleetrl_lab.records import RunRecord, read_record, record_path

@@ -7,8 +7,7 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 
 from fleetrl.runs.settings import LearningSettings, resolve_and_probe
-from fleetrl_lab.arms import Places
-from fleetrl_lab.budget import FULL, QUICK, TUNING_FLEET_SEED, TUNING_SEEDS
+from fleetrl_lab.arms import FULL, QUICK, TUNING_FLEET_SEED, TUNING_SEEDS, Places
 from fleetrl_lab.catalog import ALL_EXPERIMENTS, EXPERIMENTS, PLANS, UNIT_TYPE_EXPERIMENTS
 from fleetrl_lab.plan import run_plan, seed_range
 from fleetrl_lab.sections import peers_section, table2_section

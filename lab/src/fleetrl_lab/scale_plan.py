@@ -5,8 +5,7 @@ fleet keeps paying."""
 
 from dataclasses import replace
 
-from fleetrl_lab.arms import Arm
-from fleetrl_lab.budget import Budget, arm
+from fleetrl_lab.arms import Arm, Budget, arm
 from fleetrl_lab.plan import Plan, Ratio
 
 FLEET_SIZES = (1, 8, 64, 256, 1000)

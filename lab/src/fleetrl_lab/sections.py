@@ -5,8 +5,7 @@ from pathlib import Path
 import numpy as np
 
 from fleetrl.devices.homogeneity import format_tables, pooled_homogeneity, write_csv
-from fleetrl_lab.arms import Arm, Places
-from fleetrl_lab.budget import Budget, arm
+from fleetrl_lab.arms import Arm, Budget, Places, arm
 from fleetrl_lab.peers import PeerRun
 from fleetrl_lab.plan import NOT_RUN, completions
 from fleetrl_lab.stats import bootstrap_ratio, markdown_table, spread
