@@ -1,8 +1,7 @@
 """README's results table, generated from the committed run records like docs/results.md (one source).
 
-Each row divides a fleet by one unit alone with the same settings and criterion, on held-out seeds, and shows
-the fleet's last unit beside the median unit, in rounds and in time on the rigs, the unfavourable rows too.
-``make report`` writes the table between README's markers; a test fails if the two disagree.
+Each row divides a fleet by one unit alone on held-out seeds, in rounds and time on the rigs; ``make report``
+writes the table between README's markers.
 """
 
 import argparse
@@ -97,8 +96,7 @@ def _figures(runs: list[RunRecord]) -> tuple[float, ...]:
 
 
 def headline_table(records: Path) -> str:
-    """README's results table from ``records`` (a missing record is an error: the table is whole or not
-    written)."""
+    """README's results table from ``records`` (a missing record is an error)."""
     header = [
         "task (held-out seeds)",
         "rounds, last unit: alone → fleet",

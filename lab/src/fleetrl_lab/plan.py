@@ -8,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
-from fleetrl.runs.rig_time import CONTROLLED_SHARES
+from fleetrl.runs.rig_time import CONTROLLED_SHARES, RigTime
 from fleetrl_lab.arms import Arm, Places
 from fleetrl_lab.figures import plot_curves, plot_side_by_side
 from fleetrl_lab.records import RunRecord
@@ -207,26 +207,31 @@ RIG_TIME_NOTE = (
 )
 
 
+def _rig_times(records: list[RunRecord]) -> list[RigTime] | None:
+    """Each run's time on the rigs (None if there are no runs or one's is unknown)."""
+    times = [r.rig_time() for r in records]
+    known = [t for t in times if t is not None]
+    return known if times and len(known) == len(times) else None
+
+
 def rig_minutes(records: list[RunRecord]) -> tuple[list[float], list[float]] | None:
     """Minutes on the rigs of an arm's runs: until each run's last unit completed, and per unit (None if
     unknown)."""
-    times = [r.rig_time() for r in records]
-    if not times or any(t is None for t in times):
+    times = _rig_times(records)
+    if times is None:
         return None
-    fleet = [t.fleet / 60 for t in times if t is not None]
-    per_unit = [s / 60 for t in times if t is not None for s in t.per_unit.values()]
-    return fleet, per_unit
+    return [t.fleet / 60 for t in times], [s / 60 for t in times for s in t.per_unit.values()]
 
 
 def controlled_minutes(records: list[RunRecord]) -> str:
     """Median minutes on the rigs until 50, 90 and 100 % of a run's units completed (``2.0 / ≥ 4.0 / ≥ 4.0``:
     a run that never reached a share counts its whole time and marks the median ≥); "-" if unknown."""
-    times = [r.rig_time() for r in records]
-    if not times or any(t is None for t in times):
+    times = _rig_times(records)
+    if times is None:
         return "-"
     shown = []
     for share in CONTROLLED_SHARES:
-        reached = [(t.until_controlled(share), t.fleet) for t in times if t is not None]
+        reached = [(t.until_controlled(share), t.fleet) for t in times]
         minutes = [(whole if s is None else s) / 60 for s, whole in reached]
         bound = "≥ " if any(s is None for s, _ in reached) else ""
         shown.append(f"{bound}{float(np.median(minutes)):.1f}")
