@@ -7,8 +7,7 @@ from __future__ import annotations
 from dataclasses import replace
 from pathlib import Path
 
-from fleetrl_lab.arms import Places
-from fleetrl_lab.budget import FULL
+from fleetrl_lab.arms import FULL, Places
 from fleetrl_lab.catalog import PLANS
 from fleetrl_lab.records import read_record
 

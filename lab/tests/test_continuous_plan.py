@@ -1,6 +1,6 @@
 """The continuous experiment: its discrete arms are Fig. 5's runs, its continuous arms the Box task."""
 
-from fleetrl_lab.budget import FULL
+from fleetrl_lab.arms import FULL
 from fleetrl_lab.catalog import PLANS
 
 

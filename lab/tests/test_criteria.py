@@ -2,7 +2,7 @@
 
 import pytest
 
-from fleetrl_lab.budget import FULL, arm
+from fleetrl_lab.arms import FULL, arm
 from fleetrl_lab.catalog import PLANS
 from fleetrl_lab.plan import Ratio
 

@@ -9,8 +9,7 @@ from experiment_fakes import record, write_record_of
 from matplotlib.figure import Figure
 
 from fleetrl.runs.plots import unlabelled_axes
-from fleetrl_lab.arms import Places
-from fleetrl_lab.budget import arm
+from fleetrl_lab.arms import Places, arm
 from fleetrl_lab.plan import Plan, run_plan
 from fleetrl_lab.runner import seeds_line
 

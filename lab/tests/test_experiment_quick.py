@@ -14,7 +14,7 @@ import pytest
 from fleetrl.cli.main import main
 from fleetrl.runs.setting_values import build
 from fleetrl.runs.settings import RunSettings
-from fleetrl_lab.budget import FULL, QUICK
+from fleetrl_lab.arms import FULL, QUICK
 from fleetrl_lab.catalog import PLANS
 
 # real training sweeps, one arm over MQTT; the module fixture that runs them needs more than 300 s

@@ -5,7 +5,7 @@ from pathlib import Path
 
 import pytest
 
-from fleetrl_lab.budget import FULL
+from fleetrl_lab.arms import FULL
 from fleetrl_lab.catalog import FIG_SERVER_OPTIMISER, PLANS, SERVER_OPTIMISERS, learning
 
 

@@ -3,7 +3,7 @@ the estimate of what is left comes from runs finished here, not from reused ones
 
 import io
 
-from fleetrl_lab.progress import Progress, duration
+from fleetrl_lab.sweep import Progress, duration
 
 
 class Clock:

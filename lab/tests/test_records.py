@@ -7,8 +7,7 @@ from pathlib import Path
 import pytest
 from experiment_fakes import record, write_record_of, write_run_dir
 
-from fleetrl_lab.arms import Places
-from fleetrl_lab.budget import arm
+from fleetrl_lab.arms import Places, arm
 from fleetrl_lab.records import build_record, read_record, unseen_units, write_record
 
 ALONE = arm("cartpole", 2, "individual", "standard", 10, "alone")

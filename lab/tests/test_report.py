@@ -6,8 +6,7 @@ from pathlib import Path
 
 from experiment_fakes import record, write_record_of
 
-from fleetrl_lab.arms import Places
-from fleetrl_lab.budget import arm
+from fleetrl_lab.arms import Places, arm
 from fleetrl_lab.plan import Plan, Ratio, run_plan
 from fleetrl_lab.runner import seeds_line
 

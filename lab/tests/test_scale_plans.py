@@ -2,7 +2,7 @@
 
 import pytest
 
-from fleetrl_lab.budget import FULL, QUICK
+from fleetrl_lab.arms import FULL, QUICK
 from fleetrl_lab.catalog import ALL_EXPERIMENTS, PLANS
 from fleetrl_lab.scale_plan import FLEET_SIZES, LARGE_FLEET
 

@@ -12,8 +12,7 @@ from fleetrl.cli.main import build_parser as cli_parser
 from fleetrl.cli.settings_args import settings_from_args
 from fleetrl.runs.setting_values import build
 from fleetrl.runs.settings import RunSettings
-from fleetrl_lab.arms import Arm, Places
-from fleetrl_lab.budget import arm
+from fleetrl_lab.arms import Arm, Places, arm
 from fleetrl_lab.command import build_parser
 from fleetrl_lab.records import read_record
 from fleetrl_lab.sweep import Run, result_settings, run_all, train_args

@@ -9,7 +9,7 @@ from pathlib import Path
 import pytest
 
 from fleetrl.runs.setting_values import SettingError
-from fleetrl_lab.budget import FULL, QUICK
+from fleetrl_lab.arms import FULL, QUICK
 from fleetrl_lab.catalog import PLANS
 from fleetrl_lab.runner import ExperimentRequest, experiment_command, run_experiment, section_name
 

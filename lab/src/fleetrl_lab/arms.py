@@ -1,8 +1,6 @@
-"""An arm of an experiment: one training configuration repeated over seeds, and what its runs measured.
-
-An arm is a dict of ``fleetrl train`` settings (RunSettings field → value); its command line and its key are
-both derived from it, so the printed command and the key cannot disagree.
-"""
+"""An arm of an experiment: a dict of ``fleetrl train`` settings repeated over seeds; its command line and its
+key are both derived from it, so the printed command and the key cannot disagree; an experiment's
+:class:`Budget`."""
 
 import hashlib
 import json
@@ -11,10 +9,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-
-from fleetrl_lab.records import RunRecord, record_path
-from fleetrl_lab.stats import Completion
+from fleetrl.federation.schemes import StepScheme, resolve_scheme
+from fleetrl_lab.records import record_path
 from fleetrl_lab.sweep import Run, train_args
 
 KEY_SETTINGS = ("env", "units", "mode", "preset", "max_rounds", "scheme", "fleet_seed", "transport")
@@ -103,30 +99,66 @@ class Arm:
         return f"for s in SEEDS; do fleetrl train {args} --seed $s --out {out}/seed-$s; done"
 
 
-def completions(records: list[RunRecord]) -> list[Completion]:
-    """Rounds to completion of each run."""
-    return [record.completion() for record in records]
+@dataclass(frozen=True)
+class Budget:
+    """How big an experiment's runs are (the paper's M, the unseen units) and which fleet they train on."""
+
+    qube_rounds: int
+    cartpole_rounds: int
+    unseen_units: int
+    """units of the generalisation row (each final policy, one greedy episode on each)"""
+    fleet_seed: int = 0
+    """the fleet every arm trains on"""
+    unit_type: str | None = None
+    """a user's unit type (``--env``) trained instead of the built-ins, for ``cartpole_rounds`` rounds"""
+    target_score: float | None = None
+    """every arm's ``--target-score`` (None: the env's own)"""
 
 
-def mean_score_curve(records: list[RunRecord], max_rounds: int) -> np.ndarray:
-    """Mean score per round over every worker of every run (a finished worker holds its last score)."""
-    totals = np.zeros(max_rounds)
-    count = 0
-    for record in records:
-        for scores in record.scores().values():
-            values = [np.nan if s is None else s for s in scores]
-            padded = np.full(max_rounds, values[-1] if values else 0.0)
-            padded[: len(values)] = values[:max_rounds]
-            totals += padded
-            count += 1
-    return totals / max(count, 1)
+FULL = Budget(qube_rounds=1000, cartpole_rounds=400, unseen_units=10)
+QUICK = Budget(qube_rounds=4, cartpole_rounds=6, unseen_units=2)
+
+TUNING_SEEDS = range(0, 10)
+"""the learning seeds tuning may use; a report's figures are on seeds outside them"""
+TUNING_FLEET_SEED = 0
 
 
-def wall_seconds(records: list[RunRecord]) -> list[float]:
-    """Wall time of each run."""
-    return [record.wall_seconds for record in records]
-
-
-def same_scores(a: RunRecord, b: RunRecord) -> bool:
-    """Whether two runs hold exactly the same per-round scores of every worker."""
-    return a.scores() == b.scores()
+def arm(
+    env: str,
+    units: int,
+    mode: str,
+    preset: str,
+    rounds: int,
+    label: str,
+    scheme: str | None = None,
+    fleet_seed: int = 0,
+    target_score: float | None = None,
+    scheme_params: dict[str, float] | None = None,
+    overrides: dict[str, object] | None = None,
+    run: dict[str, Any] | None = None,
+) -> Arm:
+    """A training arm. Federated arms use the in-process bus and name their ``scheme``, and a per-step scheme
+    its ``quorum`` (1), so a new default changes no arm. ``run``: other run settings."""
+    settings: dict[str, object] = {
+        "env": env,
+        "units": units,
+        "mode": mode,
+        "preset": preset,
+        "max_rounds": rounds,
+    }
+    if mode == "federated":
+        if scheme is None:
+            raise ValueError(f"arm {label!r}: a federated arm names its scheme")
+        settings["transport"] = "local"
+        settings["scheme"] = scheme
+        if isinstance(resolve_scheme(scheme), StepScheme):  # the rule its records were made with
+            settings["quorum"] = 1.0
+    if fleet_seed:
+        settings["fleet_seed"] = fleet_seed
+    if target_score is not None:
+        settings["target_score"] = target_score
+    if scheme_params:
+        settings["scheme_params"] = scheme_params
+    if overrides:
+        settings["overrides"] = overrides
+    return Arm(label, {**settings, **(run or {})})

@@ -1,12 +1,9 @@
-"""The training experiments ``fleetrl experiment NAME`` knows: the paper's Fig. 5 and Fig. 6, the CartPole
-scaling study, the uneven fleet (:mod:`fleetrl_lab.uneven_plan`), fleets of up to 1,000 units
-(:mod:`fleetrl_lab.scale_plan`) (Table 2 and the SB3 peer are in
-:mod:`fleetrl_lab.sections`)."""
+"""The experiments ``fleetrl experiment NAME`` knows (:data:`PLANS`; the uneven fleet and fleets of up to
+1,000 units in their own modules, Table 2 and the SB3 peer in :mod:`fleetrl_lab.sections`)."""
 
 from collections.abc import Callable
 
-from fleetrl_lab.arms import Arm
-from fleetrl_lab.budget import Budget, arm
+from fleetrl_lab.arms import Arm, Budget, arm
 from fleetrl_lab.plan import Plan, Ratio
 from fleetrl_lab.scale_plan import fleet_scale, qube_scale
 from fleetrl_lab.uneven_plan import argmax, uneven
@@ -19,14 +16,9 @@ SERVER_OPTIMISERS = {
 
 
 PERGRAD_QUBE_MEMORY = 500
-"""the trajectory memory per worker that made ``pergrad`` fastest on 3 QUBE units (fleet rounds, tuning seeds
-0–9; lab/tuning.md); each unit alone was fastest with the preset's 1000"""
-
-
+"""the trajectory memory per worker that made ``pergrad`` fastest on 3 QUBE units (lab/tuning.md)"""
 FIG_SERVER_OPTIMISER = "fedavgm"
-"""the server optimiser Fig. 5, Fig. 6 and the CartPole scaling study run too: the one that beat fedavg on the
-held-out seeds of the learning experiment (fedadam lost to it there and on the tuning seeds, and is dropped
-from the other experiments)"""
+"""the server optimiser Fig. 5, Fig. 6 and the CartPole scaling study run too (it beat fedavg and fedadam)"""
 
 
 def scheme_arm(env: str, units: int, rounds: int, label: str, scheme: str, budget: Budget) -> Arm:
@@ -39,8 +31,7 @@ def scheme_arm(env: str, units: int, rounds: int, label: str, scheme: str, budge
 
 
 def pergrad_memory_arm(units: int, rounds: int, label: str, budget: Budget) -> Arm:
-    """``pergrad`` on QUBE with the memory tuned for it (:data:`PERGRAD_QUBE_MEMORY`), preset otherwise
-    ``standard``."""
+    """``pergrad`` on QUBE with :data:`PERGRAD_QUBE_MEMORY`, preset ``standard``."""
     overrides: dict[str, object] = {"memory_size": PERGRAD_QUBE_MEMORY}
     return arm("qube", units, "federated", "standard", rounds, f"{label} · memory {PERGRAD_QUBE_MEMORY}",
                "pergrad", budget.fleet_seed, overrides=overrides)  # fmt: skip
@@ -144,8 +135,7 @@ def fig6(budget: Budget) -> Plan:
 
 
 def cartpole_scaling(budget: Budget) -> Plan:
-    """1, 2, 4, 8 CartPole workers, federated, preset standard, with each scheme (the paper preset does not
-    learn CartPole within the budget: see the learning experiment)."""
+    """1, 2, 4, 8 CartPole workers, federated, preset standard, with each scheme."""
     m = budget.cartpole_rounds
     env = budget.unit_type or "cartpole"
     schemes = ("paper", "fedavg", FIG_SERVER_OPTIMISER, "pergrad")
@@ -180,9 +170,9 @@ PAPER_CARTPOLE_LOGS = (
 
 
 PAPER_CODE_BUDGET = 5
-"""the CartPole paper-code arm also runs with this many times the budget (rounds of several episodes)"""
+"""the CartPole paper-code arm also runs with this many times the budget"""
 HEADLINE_MODES = ("individual", "fedavg", "pergrad")
-"""the learning experiment's headline arms (preset standard): each unit alone, fedavg, pergrad"""
+"""the learning experiment's headline arms (preset standard)"""
 
 
 def learning(budget: Budget) -> Plan:
@@ -203,40 +193,23 @@ def learning(budget: Budget) -> Plan:
                 )
             alone = arms[env, preset, "individual"]
             ratios.append(Ratio(alone, arms[env, preset, "federated"], "federation, the paper's scheme"))
-        # fedavg with the preset that learns (the paper preset learns neither env alone nor with the paper's
-        # scheme within M: see the rows above)
-        fedavg = arm(
-            env,
-            3,
-            "federated",
-            "standard",
-            rounds,
-            f"{env} · federated · standard · fedavg",
-            "fedavg",
-            budget.fleet_seed,
-            target,
-        )
-        arms[env, "standard", "fedavg"] = fedavg
-        ratios.append(Ratio(arms[env, "standard", "individual"], fedavg, "federation, fedavg"))
-        pergrad = arm(
-            env, 3, "federated", "standard", rounds, f"{env} · federated · standard · pergrad", "pergrad",
-            budget.fleet_seed, target,
-        )  # fmt: skip
-        arms[env, "standard", "pergrad"] = pergrad
-        ratios.append(Ratio(arms[env, "standard", "individual"], pergrad, "federation, pergrad"))
+        for scheme in ("fedavg", "pergrad"):  # with the preset that learns
+            label = f"{env} · federated · standard · {scheme}"
+            fed = arm(env, 3, "federated", "standard", rounds, label, scheme, budget.fleet_seed, target)
+            arms[env, "standard", scheme] = fed
+            ratios.append(Ratio(arms[env, "standard", "individual"], fed, f"federation, {scheme}"))
+        fedavg = arms[env, "standard", "fedavg"]
         if env != "qube":  # tuned on CartPole; not run on QUBE (each QUBE arm costs ~15 min per seed here)
             for scheme in SERVER_OPTIMISERS:
-                optimised = scheme_arm(
-                    env, 3, rounds, f"{env} · federated · standard · {scheme}", scheme, budget
-                )
+                label = f"{env} · federated · standard · {scheme}"
+                optimised = scheme_arm(env, 3, rounds, label, scheme, budget)
                 arms[env, "standard", scheme] = optimised
                 ratios.append(Ratio(fedavg, optimised, f"server optimiser: {scheme} vs fedavg"))
         arms[env, "paper-code", "individual"] = arm(
             env, 3, "individual", "paper-code", rounds, f"{env} · individual · paper-code",
             fleet_seed=budget.fleet_seed, target_score=target,
         )  # fmt: skip
-        # the authors' CartPole logs needed 367-464 rounds per worker: their preset gets a longer budget too
-        if env == "cartpole":
+        if env == "cartpole":  # the authors' CartPole logs needed 367-464 rounds per worker
             long = PAPER_CODE_BUDGET * rounds
             arms[env, "paper-code", "long"] = arm(
                 env, 3, "individual", "paper-code", long, f"{env} · individual · paper-code · M {long}",
@@ -308,7 +281,6 @@ EXPERIMENTS = (*PLANS, "table2", "peers")
 ALL_EXPERIMENTS = tuple(
     name for name in EXPERIMENTS if name not in ("uneven", "argmax", "fleet-scale", "qube-scale")
 )
-"""what ``fleetrl experiment all`` runs: the uneven fleet and its argmax twin run on their own, on the
-held-out fleet seed 1, and so do the fleets of up to 1,000 units, on 5 seeds (the Makefile's ``results``)"""
+"""what ``fleetrl experiment all`` runs (the others run on their own: the Makefile's ``results``)"""
 UNIT_TYPE_EXPERIMENTS = ("learning", "cartpole-scaling")
-"""the experiments that are not about the paper's rig: they also train a user's unit type (``--env``)"""
+"""the experiments not about the paper's rig: they also train a user's unit type (``--env``)"""

@@ -3,13 +3,27 @@
 from pathlib import Path
 
 import matplotlib
+import numpy as np
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 
 from fleetrl.runs.plots import X_LABELS, by_worker, draw_worker
-from fleetrl_lab.arms import mean_score_curve
 from fleetrl_lab.records import RunRecord
+
+
+def mean_score_curve(records: list[RunRecord], max_rounds: int) -> np.ndarray:
+    """Mean score per round over every worker of every run (a finished worker holds its last score)."""
+    totals = np.zeros(max_rounds)
+    count = 0
+    for record in records:
+        for scores in record.scores().values():
+            values = [np.nan if s is None else s for s in scores]
+            padded = np.full(max_rounds, values[-1] if values else 0.0)
+            padded[: len(values)] = values[:max_rounds]
+            totals += padded
+            count += 1
+    return totals / max(count, 1)
 
 
 def plot_curves(arms: list[tuple[str, list[RunRecord]]], max_rounds: int, title: str, path: Path) -> None:

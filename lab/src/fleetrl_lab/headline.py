@@ -1,8 +1,7 @@
 """README's results table, generated from the committed run records like docs/results.md (one source).
 
-Each row divides a fleet by one unit alone with the same settings and criterion, on held-out seeds, and shows
-the fleet's last unit beside the median unit, in rounds and in time on the rigs, the unfavourable rows too.
-``make report`` writes the table between README's markers; a test fails if the two disagree.
+Each row divides a fleet by one unit alone on held-out seeds, in rounds and time on the rigs; ``make report``
+writes the table between README's markers.
 """
 
 import argparse
@@ -12,12 +11,10 @@ from pathlib import Path
 
 import numpy as np
 
-from fleetrl_lab.arms import Arm
-from fleetrl_lab.budget import FULL
+from fleetrl_lab.arms import FULL, Arm
 from fleetrl_lab.catalog import PLANS
-from fleetrl_lab.plan import Ratio, bound_mark
+from fleetrl_lab.plan import Ratio, bound_mark, fleet_rounds, rig_minutes, seed_range, unit_rounds
 from fleetrl_lab.records import RunRecord, read_record, record_path
-from fleetrl_lab.runner import seed_range
 from fleetrl_lab.stats import markdown_table
 
 BEGIN = "<!-- results table: written by `make report` from lab/records; do not edit -->"
@@ -89,22 +86,17 @@ def _records(arm: Arm, seeds: range, records: Path) -> list[RunRecord]:
     return [r for r in found if r is not None]
 
 
-def _figures(runs: list[RunRecord]) -> tuple[float, float, float, float]:
+def _figures(runs: list[RunRecord]) -> tuple[float, ...]:
     """Medians: rounds until the last unit completed, rounds per unit, and the same in minutes on the rigs."""
-    completions = [r.completion() for r in runs]
-    times = [r.rig_time() for r in runs]
-    if any(t is None for t in times):
+    rig = rig_minutes(runs)
+    if rig is None:
         raise ValueError("a headline run without time on the rigs")
-    last = float(np.median([c.fleet for c in completions]))
-    per_unit = float(np.median([w for c in completions for w in c.worker_rounds()]))
-    rig_last = float(np.median([t.fleet / 60 for t in times if t is not None]))
-    rig_unit = float(np.median([s / 60 for t in times if t is not None for s in t.per_unit.values()]))
-    return last, per_unit, rig_last, rig_unit
+    figures = (fleet_rounds(runs), unit_rounds(runs), *rig)
+    return tuple(float(np.median(values)) for values in figures)
 
 
 def headline_table(records: Path) -> str:
-    """README's results table from ``records`` (a missing record is an error: the table is whole or not
-    written)."""
+    """README's results table from ``records`` (a missing record is an error)."""
     header = [
         "task (held-out seeds)",
         "rounds, last unit: alone → fleet",

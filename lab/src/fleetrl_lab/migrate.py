@@ -1,8 +1,4 @@
-"""The one migration of committed run records from format 1 to 2 (run once; the migrated records are
-committed, so neither the product nor the lab reads format 1)::
-
-    python -m fleetrl_lab.migrate lab/records
-"""
+"""The one migration of run records from format 1 to 2: ``python -m fleetrl_lab.migrate lab/records``."""
 
 import argparse
 import json

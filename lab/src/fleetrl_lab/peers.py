@@ -120,7 +120,7 @@ class PeerRun:
         return False
 
     def finish(self) -> None:
-        """The process wrote its result itself."""
+        """Nothing: the process wrote its result itself."""
 
     def result(self) -> dict[str, Any]:
         """The result written by the run."""

@@ -1,23 +1,21 @@
-"""A training experiment: arms × seeds, run as a sweep, summarised from the runs' records as CSV, plots and a
-report section."""
+"""A training experiment (:class:`Plan`): arms × seeds, run as a sweep, summarised from the runs' records as
+CSV, plots and a report section."""
 
 import csv
-import logging
+from collections.abc import Iterable
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
 
-from fleetrl.runs.rig_time import CONTROLLED_SHARES
-from fleetrl_lab.arms import Arm, Places, completions, same_scores, wall_seconds
+from fleetrl.runs.rig_time import CONTROLLED_SHARES, RigTime
+from fleetrl_lab.arms import Arm, Places
 from fleetrl_lab.figures import plot_curves, plot_side_by_side
 from fleetrl_lab.records import RunRecord
 from fleetrl_lab.rig_phases import phases_lines
-from fleetrl_lab.stats import bootstrap_median, bootstrap_ratio, markdown_table
+from fleetrl_lab.stats import Completion, bootstrap_median, bootstrap_ratio, markdown_table
 from fleetrl_lab.sweep import Run, run_all
 from fleetrl_lab.throughput import throughput_lines
-
-log = logging.getLogger(__name__)
 
 
 @dataclass(frozen=True)
@@ -27,10 +25,10 @@ class Ratio:
     slower: Arm
     faster: Arm
     claim: str
-    """what the paper reports for it (or what we aim at)"""
+    """what the paper reports (or what we aim at)"""
 
     def __post_init__(self) -> None:
-        if self.slower.criterion != self.faster.criterion:  # two criteria prove two things: no ratio
+        if self.slower.criterion != self.faster.criterion:
             raise ValueError(
                 f"ratio {self.slower.label!r} → {self.faster.label!r} divides criterion "
                 f"{self.slower.criterion!r} by {self.faster.criterion!r}: compare arms of one criterion"
@@ -49,30 +47,26 @@ class Plan:
     side_by_side: tuple[Arm, Arm] | None = None
     """two arms whose first seed is drawn worker by worker, next to each other (Fig. 5 a/b)"""
     mqtt_check: Arm | None = None
-    """an arm run over the local bus that is run once more over MQTT, to show the numbers do not change"""
+    """an arm run once more over MQTT, to show the numbers do not change"""
     notes: str = ""
     rig_phases: bool = False
     """the report says where each unit's time on the rigs goes (:mod:`.rig_phases`)"""
     throughput: bool = False
-    """the report says what each arm cost the machine: wall time per round, unit-steps per second
-    (:mod:`.throughput`)"""
+    """the report says what each arm cost the machine (:mod:`.throughput`)"""
     seed_history: str = ""
-    """which held-out seed sets informed which choice of this plan's arms (empty: none did; the report then
-    says its seeds were never used while tuning)"""
+    """which held-out seed sets informed which choice of this plan's arms (empty: none did)"""
     headline: list[Arm] = field(default_factory=list)
-    """the arms run on every seed (each unit alone, fedavg, the best new scheme); the others may run on fewer
-    (``other_seeds`` of :func:`run_plan`)"""
+    """the arms run on every seed; the others may run on fewer (``other_seeds`` of :func:`run_plan`)"""
 
     def seeds_of(self, arm: Arm, seeds: list[int], other_seeds: int | None) -> list[int]:
-        """The seeds ``arm`` runs on: all of ``seeds`` if it is a headline arm (or ``other_seeds`` is None),
-        else the first ``other_seeds`` of them."""
+        """All of ``seeds`` for a headline arm (or if ``other_seeds`` is None), else the first
+        ``other_seeds``."""
         if other_seeds is None or any(arm is h for h in self.headline):
             return seeds
         return seeds[:other_seeds]
 
     def headline_only(self) -> "Plan":
-        """The plan cut down to its headline arms and the comparisons among them (e.g. to repeat the headline
-        on another fleet)."""
+        """The plan cut down to its headline arms and the comparisons among them."""
         kept = self.headline or self.arms
 
         def has(arm: Arm | None) -> bool:
@@ -90,8 +84,6 @@ class Plan:
 
 
 NOT_RUN = "not run yet"
-"""what a report built from the records alone says of an arm that has none"""
-
 Records = dict[str, list[RunRecord]]
 """each arm's records (by arm key), one per seed"""
 
@@ -105,18 +97,9 @@ def run_plan(
     other_seeds: int | None = None,
     run: bool = True,
 ) -> str:
-    """Run every arm for its seeds (runs not done yet) and return the report section (markdown).
-
-    With ``run`` False nothing runs: the section is built from the records there are, and an arm's missing
-    seeds are left out (an arm with none is shown as not run yet), so a sweep under way can be reported.
-
-    Headline arms run on every seed, the others on the first ``other_seeds`` (None: on every seed). Runs go
-    seed by seed across the arms, so a sweep stopped part-way has the first seeds of every arm.
-
-    Runs live in ``places.runs/<arm key>/seed-<seed>``, their records in ``places.records``, shared by every
-    experiment (an arm two experiments have in common runs once). The section is computed from the records
-    alone; its files go to ``out/<plan name>/``. ``preamble``: the section's lines after its title.
-    """
+    """Run every arm's seeds not done yet, seed by seed across the arms, and return the report section
+    (markdown), computed from the records alone; its files go to ``out/<plan name>/``. With ``run`` False
+    nothing runs and an arm's missing seeds are left out. ``preamble``: the lines after its title."""
     root = out / plan.name
     root.mkdir(parents=True, exist_ok=True)
     runs = {arm.key: arm.runs(places, plan.seeds_of(arm, seeds, other_seeds)) for arm in plan.arms}
@@ -162,7 +145,7 @@ def run_plan(
 
 
 def _seed_major(runs_by_arm: list[list[Run]]) -> list[Run]:
-    """Every arm's first run, then every arm's second, ...: the order a sweep runs them in."""
+    """Every arm's first run, then every arm's second, ..."""
     longest = max((len(runs) for runs in runs_by_arm), default=0)
     return [runs[i] for i in range(longest) for runs in runs_by_arm if i < len(runs)]
 
@@ -181,8 +164,13 @@ def _write_csv(path: Path, records: Records) -> None:
                 )
 
 
+def completions(records: list[RunRecord]) -> list[Completion]:
+    """Rounds to completion of each run."""
+    return [record.completion() for record in records]
+
+
 def bound_mark(slower: list[RunRecord], faster: list[RunRecord]) -> str:
-    """An arm whose runs hit M without completing gives a bound, not a ratio (both: no direction)."""
+    """``≥ ``, ``≤ `` or ``~`` where the slower, the faster or both arms have runs that hit M uncompleted."""
     censored = (
         not all(c.complete for c in completions(slower)),
         not all(c.complete for c in completions(faster)),
@@ -190,11 +178,13 @@ def bound_mark(slower: list[RunRecord], faster: list[RunRecord]) -> str:
     return {(False, False): "", (True, False): "≥ ", (False, True): "≤ ", (True, True): "~"}[censored]
 
 
-def _fleet(records: list[RunRecord]) -> list[int]:
+def fleet_rounds(records: list[RunRecord]) -> list[int]:
+    """Each run's rounds until its last unit completed."""
     return [c.fleet for c in completions(records)]
 
 
-def _per_unit(records: list[RunRecord]) -> list[int]:
+def unit_rounds(records: list[RunRecord]) -> list[int]:
+    """Every unit's rounds to completion, over every run."""
     return [r for c in completions(records) for r in c.worker_rounds()]
 
 
@@ -217,55 +207,62 @@ RIG_TIME_NOTE = (
 )
 
 
-def _rig_minutes(records: list[RunRecord]) -> tuple[list[float], list[float]] | None:
-    """Minutes on real-time rigs of an arm's runs: until each run's last unit completed, and per unit
-    (None if a run's unit type has no known control period)."""
+def _rig_times(records: list[RunRecord]) -> list[RigTime] | None:
+    """Each run's time on the rigs (None if there are no runs or one's is unknown)."""
     times = [r.rig_time() for r in records]
-    if not times or any(t is None for t in times):
+    known = [t for t in times if t is not None]
+    return known if times and len(known) == len(times) else None
+
+
+def rig_minutes(records: list[RunRecord]) -> tuple[list[float], list[float]] | None:
+    """Minutes on the rigs of an arm's runs: until each run's last unit completed, and per unit (None if
+    unknown)."""
+    times = _rig_times(records)
+    if times is None:
         return None
-    fleet = [t.fleet / 60 for t in times if t is not None]
-    per_unit = [s / 60 for t in times if t is not None for s in t.per_unit.values()]
-    return fleet, per_unit
+    return [t.fleet / 60 for t in times], [s / 60 for t in times for s in t.per_unit.values()]
 
 
 def controlled_minutes(records: list[RunRecord]) -> str:
-    """Median minutes on the rigs until 50, 90 and 100 % of a run's units completed, over an arm's runs
-    (``2.0 / ≥ 4.0 / ≥ 4.0``: a run that never reached a share counts its whole time on the rigs, a lower
-    bound, and marks the median ≥); "-" if a run's unit type has no known control period."""
-    times = [r.rig_time() for r in records]
-    if not times or any(t is None for t in times):
+    """Median minutes on the rigs until 50, 90 and 100 % of a run's units completed (``2.0 / ≥ 4.0 / ≥ 4.0``:
+    a run that never reached a share counts its whole time and marks the median ≥); "-" if unknown."""
+    times = _rig_times(records)
+    if times is None:
         return "-"
     shown = []
     for share in CONTROLLED_SHARES:
-        reached = [(t.until_controlled(share), t.fleet) for t in times if t is not None]
+        reached = [(t.until_controlled(share), t.fleet) for t in times]
         minutes = [(whole if s is None else s) / 60 for s, whole in reached]
         bound = "≥ " if any(s is None for s, _ in reached) else ""
         shown.append(f"{bound}{float(np.median(minutes)):.1f}")
     return " / ".join(shown)
 
 
+def _times(bound: str, ratio: tuple[float, float, float]) -> str:
+    """``≥ 1.59× (1.10–2.30)``: a speed-up and its 95 % bootstrap interval."""
+    point, low, high = ratio
+    return f"{bound}{point:.2f}× ({low:.2f}–{high:.2f})"
+
+
 def _rig_ratio(slower: list[RunRecord], faster: list[RunRecord]) -> str:
-    """Speed-up in time on the rigs, fleet and per unit, with 95 % bootstrap intervals ("-" if unknown)."""
-    a, b = _rig_minutes(slower), _rig_minutes(faster)
+    """Speed-up in time on the rigs, fleet / per unit ("-" if unknown)."""
+    a, b = rig_minutes(slower), rig_minutes(faster)
     if a is None or b is None:
         return "-"
     bound = bound_mark(slower, faster)
-    point, low, high = bootstrap_ratio(a[0], b[0])
-    unit, unit_low, unit_high = bootstrap_ratio(a[1], b[1])
-    return f"{bound}{point:.2f}× ({low:.2f}–{high:.2f}) / {bound}{unit:.2f}× ({unit_low:.2f}–{unit_high:.2f})"
+    return f"{_times(bound, bootstrap_ratio(a[0], b[0]))} / {_times(bound, bootstrap_ratio(a[1], b[1]))}"
 
 
 def on_shared_seeds(
     slower: list[RunRecord], faster: list[RunRecord]
 ) -> tuple[list[RunRecord], list[RunRecord], str]:
-    """The runs of two arms on the seeds both have (a ratio compares like with like), and a note naming those
-    seeds when one arm has runs the other has not (empty otherwise)."""
+    """The runs of two arms on the seeds both have, and a note naming those seeds when they differ."""
     seeds = [{int(r.result_settings["seed"]) for r in arm} for arm in (slower, faster)]
     shared = seeds[0] & seeds[1]
     if seeds[0] == seeds[1]:
         return slower, faster, ""
     kept = [[r for r in arm if int(r.result_settings["seed"]) in shared] for arm in (slower, faster)]
-    return kept[0], kept[1], f" (on seeds {seed_list(kept[0]) or 'none'}, the seeds both arms have)"
+    return kept[0], kept[1], f" (on seeds {_seeds(kept[0]) or 'none'}, the seeds both arms have)"
 
 
 def _ratio_line(ratio: Ratio, records: Records) -> str:
@@ -275,15 +272,14 @@ def _ratio_line(ratio: Ratio, records: Records) -> str:
     pair = f"**{ratio.slower.label} → {ratio.faster.label}**{shared}"
     if not slower:
         return f"- {pair}: no seed run by both; {ratio.claim}"
-    point, low, high = bootstrap_ratio(_fleet(slower), _fleet(faster))
-    unit, unit_low, unit_high = bootstrap_ratio(_per_unit(slower), _per_unit(faster))
+    point, low, high = bootstrap_ratio(fleet_rounds(slower), fleet_rounds(faster))
     bound = bound_mark(slower, faster)
+    unit = _times(bound, bootstrap_ratio(unit_rounds(slower), unit_rounds(faster)))
     rig = _rig_ratio(slower, faster)
     on_rigs = "" if rig == "-" else f"; in time on the rigs, fleet / per unit: {rig}"
     return (
-        f"- {pair}: fleet speed-up in rounds "
-        f"{bound}{point:.2f}× (95 % bootstrap {low:.2f}–{high:.2f}), per unit {bound}{unit:.2f}× "
-        f"({unit_low:.2f}–{unit_high:.2f}){on_rigs}; {ratio.claim}"
+        f"- {pair}: fleet speed-up in rounds {bound}{point:.2f}× (95 % bootstrap {low:.2f}–{high:.2f}), "
+        f"per unit {unit}{on_rigs}; {ratio.claim}"
     )
 
 
@@ -305,19 +301,19 @@ def _arms_table(plan: Plan, records: Records) -> str:
             rows.append([arm.label, NOT_RUN, *["-"] * 9])
             continue
         complete = sum(c.complete for c in completions(done))
-        walls = sorted(wall_seconds(done))
+        walls = sorted(r.wall_seconds for r in done)
         mean_unseen, held = unseen_summary(done)
-        rig = _rig_minutes(done)
+        rig = rig_minutes(done)
         rows.append(
             [
                 arm.label,
-                bootstrap_median(_fleet(done)).format(),
-                bootstrap_median(_per_unit(done)).format(),
+                bootstrap_median(fleet_rounds(done)).format(),
+                bootstrap_median(unit_rounds(done)).format(),
                 "-" if rig is None else bootstrap_median(rig[0]).format(1),
                 "-" if rig is None else bootstrap_median(rig[1]).format(1),
                 controlled_minutes(done),
                 f"{complete}/{len(done)}",
-                seed_list(done),
+                _seeds(done),
                 mean_unseen,
                 held,
                 f"{walls[len(walls) // 2]:.1f}",
@@ -340,20 +336,22 @@ def _arms_table(plan: Plan, records: Records) -> str:
 
 
 def transport_check_line(label: str, seed: int, local: RunRecord, mqtt: RunRecord) -> str:
-    """Whether one seed gave the same scores over MQTT as over the in-process bus; runs made on different
-    machines are not compared (numba and PyTorch pick code paths by CPU, so a seed fixes a run on one
-    machine only)."""
+    """Whether one seed gave the same scores over MQTT as over the in-process bus (runs made on different
+    machines are not compared: a seed fixes a run on one machine only)."""
     head = f"- Transport check: seed {seed} of {label} over MQTT (embedded broker): "
     if local.host != mqtt.host:
         return (
             head + f"not compared: the in-process run was made on `{local.host}`, this one on `{mqtt.host}`."
         )
-    return head + f"scores {'identical' if same_scores(local, mqtt) else 'DIFFERENT'} to the in-process bus."
+    return (
+        head
+        + f"scores {'identical' if local.scores() == mqtt.scores() else 'DIFFERENT'} to the in-process bus."
+    )
 
 
 def episode_lines(plan: Plan, records: Records) -> list[str]:
     """For each arm whose rounds hold several episodes (``paper-code``): its units complete and the
-    episodes per unit to completion (an incomplete unit counts what it played: a lower bound)."""
+    episodes per unit to completion."""
     lines = []
     for arm in plan.arms:
         units = [u for r in records[arm.key] if (per := r.episodes_to_completion()) for u in per.values()]
@@ -369,17 +367,20 @@ def episode_lines(plan: Plan, records: Records) -> list[str]:
     return [*lines, ""] if lines else []
 
 
-def seed_list(records: list[RunRecord]) -> str:
-    """The seeds of an arm's runs: ``100–109`` (or a list if they are not consecutive)."""
-    seeds = [int(r.result_settings["seed"]) for r in records]
-    if len(seeds) > 1 and seeds == list(range(seeds[0], seeds[0] + len(seeds))):
-        return f"{seeds[0]}–{seeds[-1]}"
-    return ", ".join(map(str, seeds))
+def seed_range(seeds: Iterable[int]) -> str:
+    """``100–109``, ``3``, or ``0, 2, 5`` if not consecutive."""
+    listed = list(seeds)
+    if len(listed) > 1 and listed == list(range(listed[0], listed[0] + len(listed))):
+        return f"{listed[0]}–{listed[-1]}"
+    return ", ".join(map(str, listed))
+
+
+def _seeds(records: list[RunRecord]) -> str:
+    return seed_range(int(r.result_settings["seed"]) for r in records)
 
 
 def alone_arm(plan: Plan, arm: Arm) -> Arm | None:
-    """The plan's arm "each unit alone" that ``arm`` is compared with: individual, same env, units, preset, M,
-    fleet and settings otherwise (None if the plan has none, or ``arm`` is that arm)."""
+    """The plan's arm "each unit alone" with ``arm``'s settings otherwise (None if none, or ``arm`` is it)."""
     if arm.settings["mode"] == "individual":
         return None
     for other in plan.arms:
@@ -401,15 +402,16 @@ def _speed_up_table(plan: Plan, records: Records) -> str:
         if not slower or not faster:
             continue
         bound = bound_mark(slower, faster)
-        point, low, high = bootstrap_ratio(_fleet(slower), _fleet(faster))
-        unit, unit_low, unit_high = bootstrap_ratio(_per_unit(slower), _per_unit(faster))
+        fleet = bootstrap_ratio(fleet_rounds(slower), fleet_rounds(faster))
+        unit = bootstrap_ratio(unit_rounds(slower), unit_rounds(faster))
+        efficiency = f"{bound}{fleet[0] / arm.units:.2f}"
         rows.append(
             [
                 arm.label,
                 str(arm.units),
-                f"{bound}{point:.2f}× ({low:.2f}–{high:.2f})",
-                f"{bound}{unit:.2f}× ({unit_low:.2f}–{unit_high:.2f})",
-                f"{bound}{point / arm.units:.2f}",
+                _times(bound, fleet),
+                _times(bound, unit),
+                efficiency,
                 _rig_ratio(slower, faster),
             ]
         )

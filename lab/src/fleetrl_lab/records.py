@@ -1,10 +1,5 @@
-"""A run's record: the small JSON file a sweep keeps of each finished run, beside the report.
-
-Every number, table and plot of a report is computed from records alone, so the report regenerates from what
-is committed (``lab/records``) while run directories (models, TensorBoard) stay out of git. A record
-carries the run's result settings: a sweep reuses it only while they equal what the arm asks for now.
-
-``<records>/<arm key>/seed-<n>.json``::
+"""A run's record: the small JSON file a sweep keeps of each finished run, from which every number of a report
+is computed (committed in ``lab/records``). ``<records>/<arm key>/seed-<n>.json``::
 
     {
      "format": 2,
@@ -37,7 +32,7 @@ from fleetrl_lab.stats import Completion
 FORMAT = 2
 """the records' schema (:mod:`fleetrl_lab.migrate` brought format 1 to it)"""
 FIRST_UNSEEN_UNIT = 10
-"""the generalisation row's units start here (or after the fleet's last trained unit, if that is later)"""
+"""the generalisation row's first unit (or the fleet's first untrained unit, if later)"""
 
 
 @dataclass(frozen=True)
@@ -48,18 +43,15 @@ class RunRecord:
 
     @property
     def result_settings(self) -> dict[str, Any]:
-        """The settings the run was made with (those that change its result)."""
         settings: dict[str, Any] = self.data["result_settings"]
         return settings
 
     @property
     def wall_seconds(self) -> float:
-        """The run's wall time."""
         return float(self.data["wall_seconds"])
 
     @property
     def host(self) -> str:
-        """The machine the run ran on."""
         return str(self.data.get("host", "?"))
 
     def completion(self) -> Completion:
@@ -69,8 +61,8 @@ class RunRecord:
         return Completion(per_worker, int(self.data["max_rounds"]))
 
     def episodes_to_completion(self) -> dict[int, tuple[int, bool]] | None:
-        """Per worker, the episodes it played until its criterion held (all it played if it never held) and
-        whether it held; None if every round of the run was one episode (rounds are episodes then)."""
+        """Per worker, the episodes it played until its criterion held (or in all) and whether it held;
+        None if every round was one episode."""
         workers = self.data["workers"]
         if not any("episodes" in w for w in workers.values()):
             return None
@@ -82,9 +74,8 @@ class RunRecord:
         return result
 
     def rig_time(self) -> RigTime | None:
-        """The time the run would take on real-time rigs (:mod:`fleetrl.runs.rig_time`: play, resets,
-        absences replayed from the seed, waits for the fleet as its scheme waits); None for a unit type
-        without a known control period, or a record whose rounds held several episodes and kept no steps."""
+        """The time the run would take on real-time rigs (:mod:`fleetrl.runs.rig_time`); None for a unit type
+        without a known control period, or a record that kept no steps."""
         settings = self.result_settings
         try:
             period = get_env_spec(str(settings["env"])).control_period
@@ -95,7 +86,7 @@ class RunRecord:
             return None
         steps: dict[str, Any] = {k: w["steps"] for k, w in workers.items()}
         episodes: dict[str, Any] = {k: w.get("episodes") or [1] * len(steps[k]) for k, w in workers.items()}
-        for k, w in workers.items():  # a unit that missed rounds (a straggler, an absence) keeps numbers
+        for k, w in workers.items():  # a unit that missed rounds keeps their numbers
             if "rounds" in w:
                 steps[k] = dict(zip(w["rounds"], steps[k], strict=True))
                 episodes[k] = dict(zip(w["rounds"], episodes[k], strict=True))
@@ -106,7 +97,7 @@ class RunRecord:
         )
 
     def scores(self) -> dict[int, list[float]]:
-        """Each worker's score per round (round 1 first)."""
+        """Each worker's score per round."""
         return {int(k): list(v["score"]) for k, v in sorted(self.data["workers"].items())}
 
     def round_records(self) -> list[MetricsRow]:
@@ -126,7 +117,7 @@ class RunRecord:
 
     @property
     def episode_cap(self) -> int:
-        """The episode cap the unseen units were evaluated at."""
+        """The episode cap of the unseen units' evaluation."""
         return int((self.data.get("generalisation") or {}).get("cap", 0))
 
 
@@ -135,7 +126,6 @@ def _number(value: float | None) -> float:
 
 
 def record_path(records: Path, arm_key: str, seed: int) -> Path:
-    """Where the record of an arm's seed lives."""
     return records / arm_key / f"seed-{seed}.json"
 
 
@@ -159,9 +149,8 @@ def _compact(value: float) -> float | int | None:
 
 
 def read_worker_rows(run_dir: Path) -> dict[str, dict[str, Any]]:
-    """Per worker, from metrics.csv: score, WMA, steps, events other than plain sharing, the episodes of each
-    round where a round held more than one, and the rounds it played where they are not 1 … n (a
-    straggler's, an absent unit's)."""
+    """Per worker, from metrics.csv: score, WMA, steps, events other than plain sharing, and where they are
+    not implied the episodes of each round and the rounds it played."""
     workers: dict[str, dict[str, Any]] = {}
     for row in sorted(read_metrics(run_dir / "metrics.csv"), key=lambda r: (r.worker, r.round)):
         worker = workers.setdefault(str(row.worker), {"score": [], "wma": [], "events": {}, "steps": []})
@@ -187,8 +176,7 @@ def unseen_units(trained: int, count: int) -> list[int]:
 
 
 def weights_digest(model: Path) -> str:
-    """A digest of what a model file's greedy policy depends on: its weights, architecture and config, not
-    the seed its agent drew with (nor the file's bytes: safetensors writes its header in any order)."""
+    """A digest of what a model file's greedy policy depends on (weights and metadata but its seed)."""
     tensors, metadata = read_checkpoint(model)
     policy = {k: v for k, v in metadata.items() if k != "seed"}
     digest = hashlib.sha256(json.dumps(policy, sort_keys=True).encode())
@@ -202,7 +190,6 @@ def evaluate_unseen(run_dir: Path, settings: dict[str, Any], count: int) -> dict
     """Each worker's final policy, greedily, one episode on each of ``count`` unseen units of its fleet."""
     units = unseen_units(int(settings["units"]), count)
     scores = {}
-    # a fleet of one policy: each distinct policy evaluated once
     by_content: dict[str, list[float | int | None]] = {}
     for worker in range(int(settings["units"])):
         model = model_path(run_dir, worker)

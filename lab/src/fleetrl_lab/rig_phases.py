@@ -1,12 +1,5 @@
-"""Where a unit's time on the rigs goes: learning to hold the task, then holding it until its criterion does.
-
-A unit's rounds split at its first long episode (at least :data:`LONG_SHARE` of the episode cap): before
-it the unit is learning (short episodes: little time on a rig however many rounds); from it on, until its
-criterion holds, it mostly plays long episodes, and the completion criterion (for QUBE the WMA of the last
-10 scores at 98 % of the cap) waits for ten near-perfect ones in a row. Counted on each unit's own
-episodes and their resets (its swing-up, :func:`fleetrl.runs.rig_time.reset_seconds`), back to back (its own
-rig: no absences, no waits for the fleet), so arms compare on what a unit plays.
-"""
+"""Where a unit's time on the rigs goes: its rounds split at its first long episode (learning to hold the
+task before, holding it until its criterion does after), on its own episodes and resets back to back."""
 
 from __future__ import annotations
 
@@ -19,7 +12,7 @@ from fleetrl.runs.rig_time import reset_seconds
 from fleetrl_lab.records import RunRecord
 
 LONG_SHARE = 0.4
-"""an episode at least this share of the episode cap is a long one (QUBE: 1,000 of 2,500 steps)"""
+"""an episode at least this share of the episode cap is a long one"""
 
 
 @dataclass(frozen=True)
@@ -35,9 +28,8 @@ class UnitPhases:
 def unit_phases(
     steps: Sequence[int], completed_at: int | None, cap: int, period: float, reset: float = 0.0
 ) -> UnitPhases | None:
-    """Split one unit's rounds (each round's steps, in order; each after a reset of ``reset`` seconds) at its
-    first long episode; up to the round its criterion held (all of them if it never did). None if no
-    episode was long."""
+    """Split one unit's rounds (each round's steps, each after a ``reset`` of seconds), up to the round its
+    criterion held, at its first long episode; None if no episode was long."""
     played = list(steps if completed_at is None else steps[:completed_at])
     first = next((i for i, n in enumerate(played) if n >= LONG_SHARE * cap), None)
     if first is None:
@@ -52,8 +44,7 @@ def unit_phases(
 
 
 def run_phases(record: RunRecord) -> list[UnitPhases]:
-    """Every unit's phases in one run (units without a long episode left out; none for a unit type without
-    a control period or an episode cap)."""
+    """Every unit's phases in one run (units without a long episode left out)."""
     settings = record.result_settings
     env = str(settings["env"])
     period = get_env_spec(env).control_period
@@ -74,8 +65,8 @@ def run_phases(record: RunRecord) -> list[UnitPhases]:
 
 
 def phases_table(arms: Sequence[tuple[str, Sequence[RunRecord]]]) -> str:
-    """A markdown table: per arm, the medians over its units of rounds and own minutes before the first long
-    episode and from it to completion, and the share of the time spent after it. Empty if no arm has any."""
+    """Per arm, the medians over its units of :class:`UnitPhases` and the share of time after the first long
+    episode, as a markdown table (empty if no arm has any)."""
     rows = []
     for label, records in arms:
         units = [p for record in records for p in run_phases(record)]

@@ -7,10 +7,9 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 
 from fleetrl.runs.settings import LearningSettings, resolve_and_probe
-from fleetrl_lab.arms import Places
-from fleetrl_lab.budget import FULL, QUICK, TUNING_FLEET_SEED, TUNING_SEEDS
+from fleetrl_lab.arms import FULL, QUICK, TUNING_FLEET_SEED, TUNING_SEEDS, Places
 from fleetrl_lab.catalog import ALL_EXPERIMENTS, EXPERIMENTS, PLANS, UNIT_TYPE_EXPERIMENTS
-from fleetrl_lab.plan import run_plan
+from fleetrl_lab.plan import run_plan, seed_range
 from fleetrl_lab.sections import peers_section, table2_section
 
 REPORT_HEADER = """# fleetrl results
@@ -24,19 +23,9 @@ seeds (medians) or over both arms' seeds (ratios).
 """
 
 
-def seed_range(seeds: list[int] | range) -> str:
-    """``100–109``, ``3``, or ``0, 2, 5`` if not consecutive."""
-    seeds = list(seeds)
-    if len(seeds) == 1:
-        return str(seeds[0])
-    if seeds == list(range(seeds[0], seeds[0] + len(seeds))):
-        return f"{seeds[0]}–{seeds[-1]}"
-    return ", ".join(map(str, seeds))
-
-
 def seeds_line(seeds: list[int], fleet_seed: int, other_seeds: int | None = None, history: str = "") -> str:
-    """The report's statement of the tuning and the reported seed sets (``other_seeds``: how many of them the
-    arms other than the headline arms run on; ``history``: which held-out seeds informed a choice, if any)."""
+    """The report's statement of the tuning and the reported seed sets (``history``: which held-out seeds
+    informed a choice, if any)."""
     tuning = f"tuning seeds {seed_range(TUNING_SEEDS)} on fleet seed {TUNING_FLEET_SEED}"
     used = sorted(set(seeds) & set(TUNING_SEEDS))
     honesty = (
@@ -64,15 +53,9 @@ def run_experiment(
     target_score: float | None = None,
     run: bool = True,
 ) -> Path:
-    """Run experiment ``name`` (or every one for ``all``) on fleet ``fleet_seed``; return the report's path.
-
-    Run directories go under ``out/runs``, run records under ``records`` (default ``out/records``). Headline
-    arms run on every seed, the others on the first ``other_seeds`` (None: every seed); ``headline_only``
-    runs the headline arms alone (e.g. to repeat them on another fleet). With ``unit_type`` (a user's
-    ``package.module:factory``, and its ``target_score``) the experiments that are not about the paper's rig
-    train it instead of the built-ins. With ``run`` False nothing is run: the report is built from the records
-    there are (a sweep under way, or one regenerated from committed records).
-    """
+    """Run experiment ``name`` (or every one for ``all``) as ``fleetrl experiment`` documents its options;
+    return the report's path. Run directories go under ``out/runs``, records under ``records`` (default
+    ``out/records``). With ``run`` False nothing is run: the report is built from the records there are."""
     names = list(ALL_EXPERIMENTS) if name == "all" else [name]
     for one in names:
         if one not in EXPERIMENTS:
@@ -89,10 +72,10 @@ def run_experiment(
         QUICK if quick else FULL, fleet_seed=fleet_seed, unit_type=unit_type, target_score=target_score
     )
     places = Places(out / "runs", out / "records" if records is None else records, budget.unseen_units)
+    request = ExperimentRequest(
+        out, seeds, quick, places.records, fleet_seed, other_seeds, headline_only, unit_type, target_score
+    )
     for one in names:
-        request = ExperimentRequest(
-            out, seeds, quick, places.records, fleet_seed, other_seeds, headline_only, unit_type, target_score
-        )
         command = experiment_command(one, request)
         plan = PLANS[one](budget) if one in PLANS else None
         history = "" if plan is None else plan.seed_history
@@ -116,8 +99,8 @@ def run_experiment(
 def check_unit_type(
     names: list[str], name: str, unit_type: str | None, target_score: float | None
 ) -> list[str]:
-    """The experiments to run on a user's unit type (``all``: those not about the paper's rig); a ValueError
-    for one that is, for a target without a unit type, or for a unit type that cannot be trained."""
+    """The experiments to run on a user's unit type; a ValueError for one about the paper's rig, for a target
+    without a unit type, or for a unit type that cannot be trained."""
     if unit_type is None:
         raise ValueError("--target-score needs --env: the built-ins' experiments use their own targets")
     if name == "all":
@@ -135,8 +118,7 @@ def check_unit_type(
 def section_name(
     experiment: str, fleet_seed: int, headline_only: bool = False, unit_type: str | None = None
 ) -> str:
-    """The directory of an experiment's section: its name, with ``-<unit type>`` for a user's unit type,
-    ``-fleet<n>`` off the tuning fleet and ``-headline`` for its headline arms alone."""
+    """The directory of an experiment's section: its name, ``-<unit type>``, ``-fleet<n>``, ``-headline``."""
     name = experiment if unit_type is None else f"{experiment}-{unit_type.replace(':', '-')}"
     name = name if fleet_seed == TUNING_FLEET_SEED else f"{name}-fleet{fleet_seed}"
     return f"{name}-headline" if headline_only else name

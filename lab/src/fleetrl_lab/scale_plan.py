@@ -1,30 +1,24 @@
 """A fleet of any size: CartPole (``fleet-scale``) and QUBE (``qube-scale``) fleets of 1 to 1,000 units under
-``pergrad``, preset ``standard``, in unit hosts above 16 units; the notes below say which update each fleet
-uses and why (lab/tuning.md). What matters: rounds per unit against each unit alone, and whether a larger
-fleet keeps paying."""
+``pergrad``, preset ``standard``; the notes say which update each fleet uses and why (lab/tuning.md)."""
 
 from dataclasses import replace
 
-from fleetrl_lab.arms import Arm
-from fleetrl_lab.budget import Budget, arm
+from fleetrl_lab.arms import Arm, Budget, arm
 from fleetrl_lab.plan import Plan, Ratio
 
 FLEET_SIZES = (1, 8, 64, 256, 1000)
 """the fleets measured"""
 SCALE_ROUNDS = 100
-"""M of every CartPole arm (each unit alone completes within it on every held-out seed measured: median 60);
-a full budget's 400 would let one slow unit of 1,000 hold the fleet for an hour"""
+"""M of every CartPole arm (each unit alone completes within it on every held-out seed measured)"""
 QUBE_SCALE_ROUNDS = 400
-"""M of every QUBE arm: each QUBE unit alone needs a median of 139 rounds (Fig. 5's 30 units: 97-242; 340 on
-a tuning seed), a unit of 64 or 256 about 30"""
+"""M of every QUBE arm (each QUBE unit alone needs a median of 139 rounds)"""
 LARGE_FLEET: dict[str, object] = {
     "batch_size": 16,
     "n_optimisations": 40,
     "actor_lr": 2e-3,
     "critic_lr": 2e-3,
 }
-"""the preset overrides of the 1,000-unit CartPole fleet (lab/tuning.md, "How the update scales with the
-fleet's batch")"""
+"""the preset overrides of the 1,000-unit CartPole fleet (lab/tuning.md)"""
 
 HOSTS = (
     "Above 16 units the units of a fleet run in unit hosts, about one per core (two on the machine that made "
@@ -66,9 +60,8 @@ QUBE_SEEDS = (
 
 
 def fleet_scale(budget: Budget) -> Plan:
-    """CartPole fleets of :data:`FLEET_SIZES` units under ``pergrad``, preset ``standard``, M =
-    :data:`SCALE_ROUNDS` (or the budget's CartPole rounds if fewer: ``--quick``); the 1,000-unit fleet's
-    large-fleet settings also on one unit alone, so that its ratio divides like by like."""
+    """CartPole fleets of :data:`FLEET_SIZES` units, M = :data:`SCALE_ROUNDS` (or the budget's if fewer); the
+    1,000-unit fleet's large-fleet settings also on one unit alone, like against like."""
     m = min(SCALE_ROUNDS, budget.cartpole_rounds)
     claim = "target at 1,000 units: ≥ 3× fewer rounds per unit than alone"
     plan = _scale_plan("fleet-scale", "cartpole", "CartPole", m, claim, budget.fleet_seed, CARTPOLE_NOTES)
@@ -81,9 +74,8 @@ def fleet_scale(budget: Budget) -> Plan:
 
 
 def qube_scale(budget: Budget) -> Plan:
-    """QUBE fleets of :data:`FLEET_SIZES` units under ``pergrad``, preset ``standard``, M =
-    :data:`QUBE_SCALE_ROUNDS` (or the budget's QUBE rounds if fewer: ``--quick``); one unit alone and the
-    1,000-unit fleet also with the last step observed (``--set last_step=true``), like against like."""
+    """QUBE fleets of :data:`FLEET_SIZES` units, M = :data:`QUBE_SCALE_ROUNDS` (or the budget's if fewer); one
+    unit alone and the 1,000-unit fleet also with the last step observed, like against like."""
     m = min(QUBE_SCALE_ROUNDS, budget.qube_rounds)
     claim = "target at 1,000 units: ≥ 5× fewer rounds per unit than alone"
     plan = _scale_plan("qube-scale", "qube", "QUBE", m, claim, budget.fleet_seed, QUBE_NOTES)
@@ -109,8 +101,7 @@ def _fleet_arm(env: str, n: int, m: int, fleet_seed: int, *, large: bool) -> Arm
 
 
 def _scale_plan(name: str, env: str, unit_type: str, m: int, claim: str, fleet_seed: int, notes: str) -> Plan:
-    """Fleets of ``env`` units of every size of :data:`FLEET_SIZES`, each against one unit alone (the
-    1,000-unit CartPole fleet with the large-fleet settings)."""
+    """Fleets of ``env`` units of every size of :data:`FLEET_SIZES`, each against one unit alone."""
     arms = {n: _fleet_arm(env, n, m, fleet_seed, large=n >= 1000 and env == "cartpole") for n in FLEET_SIZES}
     alone = arms[1]
     return Plan(

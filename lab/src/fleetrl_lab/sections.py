@@ -5,10 +5,9 @@ from pathlib import Path
 import numpy as np
 
 from fleetrl.devices.homogeneity import format_tables, pooled_homogeneity, write_csv
-from fleetrl_lab.arms import Arm, Places, completions
-from fleetrl_lab.budget import Budget, arm
+from fleetrl_lab.arms import Arm, Budget, Places, arm
 from fleetrl_lab.peers import PeerRun
-from fleetrl_lab.plan import NOT_RUN
+from fleetrl_lab.plan import NOT_RUN, completions
 from fleetrl_lab.stats import bootstrap_ratio, markdown_table, spread
 from fleetrl_lab.sweep import run_all
 
@@ -18,8 +17,7 @@ PAPER_TABLE2 = (
 
 
 TABLE2_FLEETS = 3
-"""fleets the Table 2 section pools (the fleet seed asked for and the next ones): single pairs of one fleet
-scatter widely, so the simulated fleet is judged by the median of all pairs of several fleets"""
+"""fleets the Table 2 section pools (the fleet seed asked for and the next ones)"""
 
 
 def table2_section(
@@ -30,9 +28,8 @@ def table2_section(
     units: int = 3,
     impulses: int = 100,
 ) -> str:
-    """The homogeneity test on :data:`TABLE2_FLEETS` fleets from ``fleet_seed`` on, once per impulse seed
-    (``seeds``), its matrices written under ``directory``; the report gives each fleet's medians and the
-    medians of all off-diagonal pairs pooled (``preamble``: the lines after the title)."""
+    """The homogeneity test on :data:`TABLE2_FLEETS` fleets from ``fleet_seed`` on, once per impulse seed,
+    its matrices written under ``directory``: each fleet's medians and those of all pairs pooled."""
     fleets = list(range(fleet_seed, fleet_seed + TABLE2_FLEETS))
     lines = ["## Table 2: homogeneity of the simulated fleet", "", *preamble, PAPER_TABLE2, ""]
     lines += [
@@ -85,18 +82,13 @@ def _spread(values: np.ndarray, bold: bool = False) -> str:
 def paper_range_verdict(median: float, paper: tuple[float, float]) -> str:
     """Whether a pooled median lies in the paper's range, in words."""
     low, high = paper
-    if low <= median <= high:
-        return f"inside the paper's {low:.2f}–{high:.2f}"
-    return f"outside the paper's {low:.2f}–{high:.2f}"
+    return f"{'inside' if low <= median <= high else 'outside'} the paper's {low:.2f}–{high:.2f}"
 
 
 PEER_STEPS = {"cartpole": 200_000, "qube": 100_000, "qube-continuous": 100_000}
-"""SB3's step budget per unit run. SB3 takes minutes per 100k QUBE steps here, so each seed s trains one unit
-(s mod 3) instead of all three."""
-
-
+"""SB3's step budget per unit run (each seed s trains one unit, s mod 3)"""
 OUR_ARMS = ("individual", "paper", "fedavg", "pergrad")
-"""fleetrl's arms next to SB3 (preset standard): each unit alone, federated with each scheme"""
+"""fleetrl's arms next to SB3 (preset standard)"""
 
 
 def ours_arm(env: str, name: str, rounds: int, fleet_seed: int = 0) -> Arm:
@@ -113,14 +105,12 @@ def peers_section(
     places: Places, seeds: list[int], preamble: list[str], budget: Budget, quick: bool, run: bool = True
 ) -> str:
     """SB3 PPO (defaults) per unit vs fleetrl on the same envs and criterion: episodes per unit (SB3's results
-    are records too, under ``places.records/peers``). With ``run`` False nothing runs: the section is built
-    from the results there are."""
+    under ``places.records/peers``). With ``run`` False nothing runs."""
     envs = ["cartpole"] if quick else list(PEER_STEPS)
     steps = {env: (5_000 if quick else PEER_STEPS[env]) for env in envs}
     fleet_seed = budget.fleet_seed
-    where = places.records / "peers" / (f"fleet-{fleet_seed}" if fleet_seed else "")
-
-    logs = places.runs / "peers" / (f"fleet-{fleet_seed}" if fleet_seed else "")
+    fleet = f"fleet-{fleet_seed}" if fleet_seed else ""
+    where, logs = places.records / "peers" / fleet, places.runs / "peers" / fleet
 
     def peer_run(env: str, s: int) -> PeerRun:
         name = f"unit-{s % 3}-seed-{s}"
@@ -157,25 +147,19 @@ def peers_section(
             continue
         sb3 = [r["episodes_to_completion"] or r["episodes"] for r in results]
         sb3_done = sum(r["episodes_to_completion"] is not None for r in results)
-        rows.append([env, "SB3 PPO (defaults)", f"{spread(sb3)}", f"{sb3_done}/{len(results)}", "1"])
+        rows.append([env, "SB3 PPO (defaults)", spread(sb3), f"{sb3_done}/{len(results)}", "1"])
         for scheme in OUR_ARMS:
             if not our_runs[env, scheme]:
                 rows.append([env, ours[env, scheme].label, NOT_RUN, "-", "-"])
                 continue
             done = completions([run.result() for run in our_runs[env, scheme]])
-            fleet = [r for c in done for r in c.worker_rounds()]
+            per_unit = [r for c in done for r in c.worker_rounds()]
             complete = sum(r is not None for c in done for r in c.per_worker.values())
-            ratio, low, high = bootstrap_ratio(fleet, sb3)
+            ratio, low, high = bootstrap_ratio(per_unit, sb3)
+            bound = "≤ " if sb3_done < len(results) else ""
+            speed = f"{bound}{ratio:.2f}× ({low:.2f}–{high:.2f})"
             label = ours[env, scheme].label
-            rows.append(
-                [
-                    env,
-                    label,
-                    f"{spread(fleet)}",
-                    f"{complete}/{len(fleet)}",
-                    f"{'≤ ' if sb3_done < len(results) else ''}{ratio:.2f}× ({low:.2f}–{high:.2f})",
-                ]
-            )
+            rows.append([env, label, spread(per_unit), f"{complete}/{len(per_unit)}", speed])
     lines.append(
         markdown_table(
             [

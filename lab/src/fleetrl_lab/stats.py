@@ -31,29 +31,12 @@ class Completion:
         return [self.max_rounds if r is None else r for r in self.per_worker.values()]
 
 
-@dataclass(frozen=True)
-class Spread:
-    """Median, inter-quartile range and range of a sample."""
-
-    median: float
-    q1: float
-    q3: float
-    n: int
-    low: float = math.nan
-    high: float = math.nan
-
-    def __str__(self) -> str:
-        if self.n == 0:
-            return "-"
-        return f"{self.median:.0f} [{self.q1:.0f}–{self.q3:.0f}] ({self.low:.0f}–{self.high:.0f})"
-
-
-def spread(values: list[float] | list[int]) -> Spread:
-    """Median, IQR (linear interpolation) and range of ``values``."""
+def spread(values: list[float] | list[int]) -> str:
+    """``median [q1–q3] (min–max)`` of ``values`` (IQR by linear interpolation); "-" if empty."""
     if not values:
-        return Spread(math.nan, math.nan, math.nan, 0)
+        return "-"
     low, q1, median, q3, high = np.percentile(np.asarray(values, dtype=float), [0, 25, 50, 75, 100])
-    return Spread(float(median), float(q1), float(q3), len(values), float(low), float(high))
+    return f"{median:.0f} [{q1:.0f}–{q3:.0f}] ({low:.0f}–{high:.0f})"
 
 
 def bootstrap_ratio(

@@ -1,10 +1,5 @@
-"""What a fleet of each size cost this machine: wall seconds per round and unit-steps per wall second.
-
-Taken from the runs' records alone: a run's wall time as ``fleetrl train`` measured it (start-up, every
-round's episodes, updates and exchanges) over its rounds, and the steps its units played over that wall time
-— the whole run's average, not a round of full-length episodes (docs/benchmarks.md, "Unit hosts", times
-those). Peak memory is not in a record: docs/benchmarks.md gives it with its command.
-"""
+"""What a fleet of each size cost this machine, from its records: wall seconds per round and unit-steps per
+wall second, whole runs averaged."""
 
 from __future__ import annotations
 

@@ -1,9 +1,4 @@
-"""How a fleet's last units fared round by round beside the rest of the fleet, from a run's metrics.csv.
-
-A unit's completion round is the first round whose event names ``completed`` (as
-:func:`fleetrl.runs.fleet_summary.fleet_rounds` reads it); the fleet's entropy in a round is the median over
-the units' rows of that round (each row: π_θ's entropy on that unit's own states).
-"""
+"""How a fleet's last units fared round by round beside the rest of the fleet, from a run's metrics.csv."""
 
 from __future__ import annotations
 

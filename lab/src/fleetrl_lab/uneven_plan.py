@@ -2,8 +2,7 @@
 20 % of rounds, under ``pergrad`` and ``fedasync``, beside the even fleet and each unit alone; and the same
 fleets under the ``argmax`` criterion (a deployment check), compared only with each other."""
 
-from fleetrl_lab.arms import Arm
-from fleetrl_lab.budget import Budget, arm
+from fleetrl_lab.arms import Arm, Budget, arm
 from fleetrl_lab.plan import Plan, Ratio
 
 UNEVEN: dict[str, object] = {"slow": {"w2": 4.0}, "absent": 0.2}
