@@ -235,7 +235,7 @@ def _serve_with_checkpoints(chief: Any, settings: Any, retained: Any) -> Any:
 
 
 def cmd_worker(args: argparse.Namespace) -> int:
-    """Serve as one worker; its run directory gets the same files as a ``fleetrl train`` run."""
+    """Serve as one worker or unit host; its run directory gets the same files as a ``fleetrl train`` run."""
     with collector_paused():
         from fleetrl.runs.dirlock import DirectoryLock
         from fleetrl.runs.factory import make_learner
@@ -243,32 +243,40 @@ def cmd_worker(args: argparse.Namespace) -> int:
 
         settings = settings_from_args(WorkerSettings, args)
     config = worker_config(settings)
+    ids = settings.unit_ids()
     if settings.units > 1:
         with DirectoryLock(settings.out, f"unit host {settings.worker_id}").acquire() as lock:
-            claim_place(settings, host_id(settings.unit_ids()), lock)
-            return _serve_host(settings, config)
+            claim_place(settings, host_id(ids), lock)
+            first = settings.worker_spec()
+            return _serve(settings, [replace(first, worker=k, unit=k) for k in ids], config)
     spec = settings.worker_spec()
     learner = make_learner(spec, settings.device_transport())  # a device bridge is reached before any file
     with DirectoryLock(settings.out, f"worker {settings.worker_id}").acquire() as lock:  # one per directory
         claim_place(settings, str(settings.worker_id), lock)  # one process per worker id on the broker
-        return _serve_worker(settings, spec, config, learner)
+        return _serve(settings, [spec], config, learner)
 
 
-def _serve_worker(settings: Any, spec: Any, config: dict[str, Any], learner: Any) -> int:
-    """Serve as one worker in the run directory this process has locked."""
+def _serve(settings: Any, specs: list[Any], config: dict[str, Any], learner: Any = None) -> int:
+    """Serve as the worker (one spec, its ``learner``) or unit host (several) of ``specs`` in the run
+    directory this process has locked; a worker checkpoints every round."""
     from fleetrl.runs.checkpoints import WorkerCheckpoint, worker_checkpoint_dir
+    from fleetrl.runs.fleet_summary import summarised
     from fleetrl.runs.roles import train_federated
     from fleetrl.runs.rundir import RunRecorder
 
-    checkpoints = worker_checkpoint_dir(settings.out, settings.worker_id)
-    resume = settings.resume
-    where = WorkerCheckpoint(checkpoints, spec, settings.run_id).where() if resume else None
-    resume_from = {settings.worker_id: 1 if where is None else where.next_round} if resume else None
-    recorder = RunRecorder(settings.out, config, [settings.worker_id], resume_from=resume_from)
+    ids = settings.unit_ids()
+    checkpoints, resume, resume_from = None, False, None
+    if len(specs) == 1:
+        checkpoints = worker_checkpoint_dir(settings.out, settings.worker_id)
+        resume = settings.resume
+        where = WorkerCheckpoint(checkpoints, specs[0], settings.run_id).where() if resume else None
+        resume_from = {settings.worker_id: 1 if where is None else where.next_round} if resume else None
+    summarise = summarised(len(ids), False)
+    recorder = RunRecorder(settings.out, config, ids, resume_from=resume_from, summarise=summarise)
     return _recorded(
         recorder,
         lambda: train_federated(
-            spec,
+            specs,
             settings.transport(),
             settings.run_id,
             recorder.add,
@@ -278,31 +286,6 @@ def _serve_worker(settings: Any, spec: Any, config: dict[str, Any], learner: Any
             key=settings.fleet_key(),
             checkpoint_dir=checkpoints,
             resume=resume,
-            status_fields=holder_fields(settings.keepalive),
-        ),
-    )
-
-
-def _serve_host(settings: Any, config: dict[str, Any]) -> int:
-    """Serve as the unit host of ``settings.unit_ids()`` in the run directory this process has locked."""
-    from fleetrl.runs.fleet_summary import summarised
-    from fleetrl.runs.roles import train_host
-    from fleetrl.runs.rundir import RunRecorder
-
-    first = settings.worker_spec()
-    ids = settings.unit_ids()
-    specs = [replace(first, worker=k, unit=k) for k in ids]
-    recorder = RunRecorder(settings.out, config, ids, summarise=summarised(len(ids), False))
-    return _recorded(
-        recorder,
-        lambda: train_host(
-            specs,
-            settings.transport(),
-            settings.run_id,
-            recorder.add,
-            reply_timeout=settings.reply_timeout,
-            resend_interval=settings.resend_interval,
-            key=settings.fleet_key(),
             status_fields=holder_fields(settings.keepalive),
         ),
     )

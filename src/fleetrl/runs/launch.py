@@ -22,7 +22,7 @@ from fleetrl.runs.fleet_summary import summarised
 from fleetrl.runs.host_settings import host_groups, member_ids
 from fleetrl.runs.live import LiveView
 from fleetrl.runs.processes import ProcessFleet, fork_available
-from fleetrl.runs.roles import Emit, train_federated, train_host
+from fleetrl.runs.roles import Emit, train_federated
 from fleetrl.runs.rundir import RunDirectoryError, RunRecorder, write_json_atomic
 from fleetrl.runs.settings import LearningSettings, RunSettings
 from fleetrl.runs.spec import WorkerSpec
@@ -256,13 +256,10 @@ def transports(
     groups = {units[0]: units for units in host_groups(settings.units, settings.per_host)}
     if url is None:
         bus = LocalBus()
-        if settings.per_host > 1:
-            hosts = {
-                k: host_thread([specs[u] for u in units], bus.client, run_id) for k, units in groups.items()
-            }
-            return bus.client, lambda: ThreadFleet(hosts, units=groups)
-        bodies = {k: federated_thread(spec, bus.client, run_id) for k, spec in specs.items()}
-        return bus.client, lambda: ThreadFleet(bodies)
+        bodies = {
+            k: member_thread([specs[u] for u in units], bus.client, run_id) for k, units in groups.items()
+        }
+        return bus.client, lambda: ThreadFleet(bodies, units=groups)
 
     def federated_fleet() -> Fleet:
         commands = {
@@ -274,27 +271,18 @@ def transports(
     return (lambda: MqttTransport(url, clean_session=False)), federated_fleet
 
 
-def federated_thread(
-    spec: WorkerSpec, make_transport: Callable[[], Transport], run_id: str
-) -> Callable[[Emit], None]:
-    """The body of a worker thread on the in-process bus."""
-
-    def body(emit: Emit) -> None:
-        learner = make_learner(spec)
-        log.info("worker %d: learner ready", spec.worker)
-        train_federated(
-            spec, make_transport(), run_id, emit, reply_timeout=CHIEF_IDLE_TIMEOUT, learner=learner
-        )
-
-    return body
-
-
-def host_thread(
+def member_thread(
     specs: list[WorkerSpec], make_transport: Callable[[], Transport], run_id: str
 ) -> Callable[[Emit], None]:
-    """The body of a unit host's thread on the in-process bus."""
+    """The body of a worker's, or a unit host's, thread on the in-process bus."""
 
     def body(emit: Emit) -> None:
-        train_host(specs, make_transport(), run_id, emit, reply_timeout=CHIEF_IDLE_TIMEOUT)
+        learner = None
+        if len(specs) == 1:
+            learner = make_learner(specs[0])
+            log.info("worker %d: learner ready", specs[0].worker)
+        train_federated(
+            specs, make_transport(), run_id, emit, reply_timeout=CHIEF_IDLE_TIMEOUT, learner=learner
+        )
 
     return body

@@ -12,7 +12,7 @@ from pathlib import Path
 
 from fleetrl.runs.factory import make_learner
 from fleetrl.runs.records import MetricsRow
-from fleetrl.runs.roles import train_alone, train_federated, train_host
+from fleetrl.runs.roles import train_alone, train_federated
 from fleetrl.runs.spec import WorkerSpec
 from fleetrl.transport.mqtt import MqttTransport
 
@@ -48,34 +48,30 @@ def main(argv: list[str] | None = None) -> int:
     log = logging.getLogger(__name__)
     log.info("worker %d: process up", spec.worker)
     try:
-        if args.host_units > 1:
-            return host_main(spec, args.host_units, args.broker, args.run_id, args.reply_timeout)
-        learner = make_learner(spec)
-        log.info("worker %d: learner ready", spec.worker)
+        specs, learner = [spec], None
+        if args.host_units > 1:  # the unit host of the spec's unit and the U - 1 after it
+            specs = [
+                replace(spec, worker=k, unit=k) for k in range(spec.worker, spec.worker + args.host_units)
+            ]
+        else:
+            learner = make_learner(spec)
+            log.info("worker %d: learner ready", spec.worker)
         if args.broker is None:
             train_alone(spec, print_record, learner)
         else:
             train_federated(
-                spec,
+                specs,
                 MqttTransport(args.broker, clean_session=False),
                 args.run_id,
                 print_record,
                 reply_timeout=args.reply_timeout,
                 checkpoint_dir=args.checkpoint_dir,
-                resume=args.resume,
+                resume=args.resume and args.host_units == 1,
                 learner=learner,
             )
     except KeyboardInterrupt:
         log.info("interrupted; the model was saved")
         return 130
-    return 0
-
-
-def host_main(first: WorkerSpec, units: int, broker: str, run_id: str, reply_timeout: float) -> int:
-    """A unit host of ``units`` units from ``first``'s on, over MQTT at ``broker``; the exit code."""
-    specs = [replace(first, worker=k, unit=k) for k in range(first.worker, first.worker + units)]
-    transport = MqttTransport(broker, clean_session=False)
-    train_host(specs, transport, run_id, print_record, reply_timeout=reply_timeout)
     return 0
 
 
