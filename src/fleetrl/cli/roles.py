@@ -49,22 +49,21 @@ def register(sub: Any) -> None:
     secure.add_argument("--no-tls", action="store_true", help="plain MQTT (logins travel in clear text)")
     secure.set_defaults(handler=cmd_secure_config)
 
-    required = {"broker": "required"}
-    chief = sub.add_parser("chief", help="serve as the chief of a federated run (Algorithm 1)")
-    add_settings_arguments(chief, ChiefSettings, notes=required)
-    chief.set_defaults(handler=cmd_chief)
-
-    worker = sub.add_parser("worker", help="serve as one worker of a federated run (Algorithm 2)")
-    add_settings_arguments(worker, WorkerSettings, notes=required)
-    worker.set_defaults(handler=cmd_worker)
-
     from fleetrl.runs.aggregator_settings import AggregatorSettings
 
-    aggregator = sub.add_parser(
-        "aggregator", help="serve a site's workers as one member of the root chief (an edge aggregator)"
-    )
-    add_settings_arguments(aggregator, AggregatorSettings, notes=required)
-    aggregator.set_defaults(handler=cmd_aggregator)
+    for name, settings, handler, text in (
+        ("chief", ChiefSettings, cmd_chief, "serve as the chief of a federated run (Algorithm 1)"),
+        ("worker", WorkerSettings, cmd_worker, "serve as one worker of a federated run (Algorithm 2)"),
+        (
+            "aggregator",
+            AggregatorSettings,
+            cmd_aggregator,
+            "serve a site's workers as one member of the root chief (an edge aggregator)",
+        ),
+    ):
+        role = sub.add_parser(name, help=text)
+        add_settings_arguments(role, settings, notes={"broker": "required"})
+        role.set_defaults(handler=handler)
 
 
 def cmd_broker(args: argparse.Namespace) -> int:
@@ -125,7 +124,6 @@ def cmd_chief(args: argparse.Namespace) -> int:
     with collector_paused():
         from fleetrl.federation.chief.machine import EVERY_WORKER_DROPPED
         from fleetrl.federation.kinds import new_chief
-        from fleetrl.federation.runner import run_chief
         from fleetrl.runs.dirlock import DirectoryLock
         from fleetrl.runs.launch import chief_plan
         from fleetrl.runs.rundir import write_json_atomic
@@ -136,20 +134,15 @@ def cmd_chief(args: argparse.Namespace) -> int:
         dropout_grace=settings.dropout_grace, open_fleet=not settings.closed_fleet,
     )  # fmt: skip
     chief = new_chief(plan, key=settings.fleet_key(), **fleet)
-    if settings.out is None:
-        retained = claim_place(settings, CHIEF_ID)  # one chief per run on the broker
-        chief.take_epoch(chief_epoch(checkpoint=None, retained=retained))
-        _forget_previous_session(settings, retained)
-        summary = run_chief(
-            chief, settings.transport(), idle_timeout=settings.idle_timeout, **_lease_options(settings)
-        )
-    else:
-        lock = DirectoryLock(settings.out, "chief").acquire()  # one chief per run directory, for its life
-        try:
-            retained = claim_place(settings, CHIEF_ID, lock)
-            summary = _serve_with_checkpoints(chief, settings, retained)
+    # one chief per run directory, for its life, and one per run on the broker
+    lock = None if settings.out is None else DirectoryLock(settings.out, "chief").acquire()
+    try:
+        retained = claim_place(settings, CHIEF_ID, lock)
+        summary = _serve_chief(chief, settings, retained)
+        if settings.out is not None:
             write_json_atomic(settings.out / "chief.json", _chief_result(settings, summary))
-        finally:
+    finally:
+        if lock is not None:
             lock.release()
     result = _chief_result(settings, summary)
     print(json.dumps(result))
@@ -180,14 +173,6 @@ def claim_place(settings: Any, node: str, lock: Any = None) -> Any:
     return retained
 
 
-def _lease_options(settings: Any) -> dict[str, Any]:
-    """What ``run_chief`` needs to hold the run's lease: who this process is, how to read the chief status."""
-    return {
-        "read_lease": lambda: settings.read_status(CHIEF_ID),
-        "status_fields": holder_fields(settings.keepalive),
-    }
-
-
 def _forget_previous_session(settings: Any, retained: Any) -> None:
     """Remove the broker session of the chief this one replaces (nobody would read what is queued there)."""
     from fleetrl.federation.runner import chief_client_id
@@ -202,14 +187,23 @@ def _forget_previous_session(settings: Any, retained: Any) -> None:
         log.info("could not remove the previous chief's broker session: %s", exc)
 
 
-def _serve_with_checkpoints(chief: Any, settings: Any, retained: Any) -> Any:
-    """Run the chief with a checkpoint every round in ``settings.out`` (resumed with ``--resume``) and its
-    events appended to chief.log; its epoch follows the newest of ``retained``'s and the checkpoint's."""
+def _serve_chief(chief: Any, settings: Any, retained: Any) -> Any:
+    """Run the chief; with ``settings.out``, with a checkpoint every round there (resumed with ``--resume``)
+    and its events appended to chief.log. Its epoch follows the newest of ``retained``'s and the
+    checkpoint's."""
     from fleetrl.federation.chief.checkpoint import replay_last_answer
     from fleetrl.federation.runner import run_chief
     from fleetrl.runs.checkpoints import ChiefCheckpoint, chief_checkpoint_dir
 
-    out: Path = settings.out
+    lease: dict[str, Any] = {
+        "read_lease": lambda: settings.read_status(CHIEF_ID),
+        "status_fields": holder_fields(settings.keepalive),
+    }
+    out: Path | None = settings.out
+    if out is None:
+        chief.take_epoch(chief_epoch(checkpoint=None, retained=retained))
+        _forget_previous_session(settings, retained)
+        return run_chief(chief, settings.transport(), idle_timeout=settings.idle_timeout, **lease)
     store = ChiefCheckpoint(chief_checkpoint_dir(out))
     first = None
     saved = None
@@ -230,7 +224,7 @@ def _serve_with_checkpoints(chief: Any, settings: Any, retained: Any) -> Any:
             idle_timeout=settings.idle_timeout,
             checkpoint=store.save,
             first_step=first,
-            **_lease_options(settings),
+            **lease,
         )
 
 

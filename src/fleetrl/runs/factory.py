@@ -40,18 +40,8 @@ def bridge_link(env: str, url: str, run_id: str, unit: int, transport: Transport
 
 
 def make_learner(spec: WorkerSpec, device_transport: Transport | None = None) -> Learner:
-    """The learner for one worker: its unit's env (:func:`unit_env`), a seeded agent with the preset, its
-    criterion; under a scheme with a shared start, the network the run's seed draws."""
-    torch.set_num_threads(1)
-    learning = spec.learning
-    env, unit = unit_env(spec, device_transport)
-    config = learning.ppo()
-    agent = agent_for(unit, config, seed=spec.worker_seed)
-    scheme = learning.federation_scheme()
-    if scheme.shared_start:  # every worker from the same initial network: the run's, not its own
-        agent.set_model_parameters(agent_for(unit, config, seed=learning.seed).model_parameters())
-    criterion = unit_criterion(spec, unit)
-    return Learner(env, agent, criterion, seed=spec.worker_seed, keep_learning=scheme.stays_after_completion)
+    """The learner for one worker: :func:`make_host_learner` of its one unit."""
+    return make_host_learner([spec], device_transport)
 
 
 def unit_env(
@@ -96,9 +86,10 @@ def probe_agent(env: str, config: PPOConfig) -> PPOAgent:
         torch.set_num_threads(threads)
 
 
-def make_host_learner(specs: Sequence[WorkerSpec]) -> Learner:
-    """The learner of a unit host of the specs' units (one run's, in order): each unit's env and criterion as
-    :func:`make_learner` builds them, one agent with each unit's seed.
+def make_host_learner(specs: Sequence[WorkerSpec], device_transport: Transport | None = None) -> Learner:
+    """The learner of a unit host of the specs' units (one run's, in order): each unit's env
+    (:func:`unit_env`) and criterion, one agent with each unit's seed; under a scheme with a shared start,
+    the network the run's seed draws.
 
     :raises ValueError: no spec, or units of different runs
     """
@@ -106,13 +97,13 @@ def make_host_learner(specs: Sequence[WorkerSpec]) -> Learner:
         raise ValueError("a unit host needs one or more units of one run")
     torch.set_num_threads(1)
     learning = specs[0].learning
-    built = [unit_env(spec) for spec in specs]
+    built = [unit_env(spec, device_transport) for spec in specs]
     unit = built[0][1]
     config = learning.ppo()
     seeds = [s.worker_seed for s in specs]
     agent = PPOAgent(unit.obs_dim, ActionSpace.of_unit(unit.action), config, seeds)
     scheme = learning.federation_scheme()
-    if scheme.shared_start:
+    if scheme.shared_start:  # every unit from the same initial network: the run's, not its own
         agent.set_model_parameters(agent_for(unit, config, seed=learning.seed).model_parameters())
     criteria = [
         unit_criterion(spec, description) for spec, (_, description) in zip(specs, built, strict=True)

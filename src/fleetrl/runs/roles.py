@@ -87,10 +87,9 @@ def train_federated(
     :param status_fields: who this process is, said in its status.
     """
     first, host = specs[0], len(specs) > 1
-    if learner is None and host:
+    if learner is None:
         learner = make_host_learner(specs)
         log.info("host of units %d-%d: learner ready", first.worker, specs[-1].worker)
-    learner = learner or make_learner(first)
     started = time.monotonic()
     store = None if checkpoint_dir is None else WorkerCheckpoint(checkpoint_dir, first, run_id)
     start_round = None
