@@ -8,7 +8,6 @@ import logging
 import signal
 import sys
 from dataclasses import replace
-from pathlib import Path
 
 from fleetrl.runs.factory import make_learner
 from fleetrl.runs.records import MetricsRow
@@ -28,19 +27,14 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("spec", help="the worker's WorkerSpec as JSON")
     parser.add_argument("--broker", default=None, help="federated mode: the broker URL")
     parser.add_argument("--run-id", default=None, help="federated mode: the run id")
-    parser.add_argument("--reply-timeout", type=float, default=600.0)
-    parser.add_argument(
-        "--checkpoint-dir", type=Path, default=None, help="federated: checkpoint every round here"
-    )
-    parser.add_argument("--resume", action="store_true", help="federated: continue from --checkpoint-dir")
     parser.add_argument(
         "--host-units", type=int, default=1, help="federated: host the spec's unit and the next ones"
     )
     args = parser.parse_args(argv)
     if args.host_units < 1:
         parser.error(f"--host-units {args.host_units}: must be at least 1")
-    if args.host_units > 1 and (args.broker is None or args.checkpoint_dir is not None):
-        parser.error("--host-units: a unit host joins a federated run (--broker) and keeps no checkpoints")
+    if args.host_units > 1 and args.broker is None:
+        parser.error("--host-units: a unit host joins a federated run (--broker)")
     # the launcher stops workers with SIGINT; re-arm it in case this process inherited it ignored
     signal.signal(signal.SIGINT, signal.default_int_handler)
     logging.basicConfig(level=logging.INFO, format="%(asctime)s %(name)s %(levelname)s %(message)s")
@@ -59,16 +53,8 @@ def main(argv: list[str] | None = None) -> int:
         if args.broker is None:
             train_alone(spec, print_record, learner)
         else:
-            train_federated(
-                specs,
-                MqttTransport(args.broker, clean_session=False),
-                args.run_id,
-                print_record,
-                reply_timeout=args.reply_timeout,
-                checkpoint_dir=args.checkpoint_dir,
-                resume=args.resume and args.host_units == 1,
-                learner=learner,
-            )
+            transport = MqttTransport(args.broker, clean_session=False)
+            train_federated(specs, transport, args.run_id, print_record, learner=learner)
     except KeyboardInterrupt:
         log.info("interrupted; the model was saved")
         return 130
