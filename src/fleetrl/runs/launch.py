@@ -99,7 +99,7 @@ def _train(settings: RunSettings) -> dict[str, Any]:
             if url is not None:
                 recorder.extra["broker"] = url
             if settings.mode == "individual":
-                commands = {k: worker_args(s) for k, s in specs.items()}
+                commands = {k: [s.to_json()] for k, s in specs.items()}
                 follow(process_fleet(settings, commands), recorder, view)
             else:
                 fed_url = url if settings.transport == "mqtt" else None
@@ -186,13 +186,9 @@ def load_kernels(settings: RunSettings) -> None:
 
 
 def host_args(units: list[int]) -> list[str]:
-    """The arguments that make a worker process the unit host of ``units`` (none for one unit)."""
+    """The arguments that make a worker process (:mod:`fleetrl.runs.worker_main`, after its spec JSON) the
+    unit host of ``units`` (none for one unit)."""
     return [] if len(units) == 1 else ["--host-units", str(len(units))]
-
-
-def worker_args(spec: WorkerSpec, *extra: str) -> list[str]:
-    """The arguments of a worker process's :mod:`fleetrl.runs.worker_main`."""
-    return [spec.to_json(), *extra]
 
 
 def train_fleet(
@@ -263,7 +259,7 @@ def transports(
 
     def federated_fleet() -> Fleet:
         commands = {
-            k: worker_args(specs[k], "--broker", url, "--run-id", run_id, *host_args(units))
+            k: [specs[k].to_json(), "--broker", url, "--run-id", run_id, *host_args(units)]
             for k, units in groups.items()
         }
         return process_fleet(settings, commands, units=groups)
