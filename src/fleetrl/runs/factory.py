@@ -132,7 +132,12 @@ def chief_plan(
     that chief keeps of the fleet (:meth:`~fleetrl.federation.kinds.Kind.chief_fleet`): the scheme object and
     one agent built once. ``role``: the chief's own settings (``dropout_grace``, ``open_fleet``)."""
     scheme = learning.federation_scheme()
-    agent = fleet_agent(learning) if scheme.shared_start else probe_agent(learning.env, learning.ppo())
+    config = learning.ppo()
+    if scheme.shared_start:  # the fleet's start as every worker draws it
+        torch.set_num_threads(1)  # as in every worker: the initialisation's QR differs with the threads
+        agent = agent_for(describe_env(learning.env, config.last_step), config, seed=learning.seed)
+    else:
+        agent = probe_agent(learning.env, config)
     plan = ChiefPlan(
         run_id=run_id, workers=workers, scheme=scheme, layout=scheme.layout(agent),
         steps_per_round=scheme.exchanges_per_round(agent), max_rounds=learning.max_rounds,
@@ -151,12 +156,3 @@ def worker_plan(
         agent, scheme=learning.federation_scheme(), run_id=run_id, worker_id=worker_id,
         max_rounds=learning.max_rounds, settings=shared_text(learning), **role,
     )  # fmt: skip
-
-
-def fleet_agent(learning: LearningSettings) -> Any:
-    """An agent at the fleet's start, built as :func:`make_learner` builds a worker's from the settings'
-    learning seed. Torch is set to one thread in this process, as in every worker (the
-    initialisation's QR differs with the threads)."""
-    torch.set_num_threads(1)
-    config = learning.ppo()
-    return agent_for(describe_env(learning.env, config.last_step), config, seed=learning.seed)
