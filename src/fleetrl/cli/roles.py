@@ -139,21 +139,17 @@ def cmd_chief(args: argparse.Namespace) -> int:
     try:
         retained = claim_place(settings, CHIEF_ID, lock)
         summary = _serve_chief(chief, settings, retained)
+        result = {"run_id": settings.run_id, **summary.to_dict()}
         if settings.out is not None:
-            write_json_atomic(settings.out / "chief.json", _chief_result(settings, summary))
+            write_json_atomic(settings.out / "chief.json", result)
     finally:
         if lock is not None:
             lock.release()
-    result = _chief_result(settings, summary)
     print(json.dumps(result))
     if summary.end_reason == EVERY_WORKER_DROPPED:  # no fleet left to train: the run did not do its job
         print(f"fleetrl chief: error: run {settings.run_id!r}: {EVERY_WORKER_DROPPED}", file=sys.stderr)
         return 1
     return 0
-
-
-def _chief_result(settings: Any, summary: Any) -> dict[str, Any]:
-    return {"run_id": settings.run_id, **summary.to_dict()}
 
 
 def claim_place(settings: Any, node: str, lock: Any = None) -> Any:
