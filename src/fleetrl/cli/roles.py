@@ -49,22 +49,21 @@ def register(sub: Any) -> None:
     secure.add_argument("--no-tls", action="store_true", help="plain MQTT (logins travel in clear text)")
     secure.set_defaults(handler=cmd_secure_config)
 
-    required = {"broker": "required"}
-    chief = sub.add_parser("chief", help="serve as the chief of a federated run (Algorithm 1)")
-    add_settings_arguments(chief, ChiefSettings, notes=required)
-    chief.set_defaults(handler=cmd_chief)
-
-    worker = sub.add_parser("worker", help="serve as one worker of a federated run (Algorithm 2)")
-    add_settings_arguments(worker, WorkerSettings, notes=required)
-    worker.set_defaults(handler=cmd_worker)
-
     from fleetrl.runs.aggregator_settings import AggregatorSettings
 
-    aggregator = sub.add_parser(
-        "aggregator", help="serve a site's workers as one member of the root chief (an edge aggregator)"
-    )
-    add_settings_arguments(aggregator, AggregatorSettings, notes=required)
-    aggregator.set_defaults(handler=cmd_aggregator)
+    for name, settings, handler, text in (
+        ("chief", ChiefSettings, cmd_chief, "serve as the chief of a federated run (Algorithm 1)"),
+        ("worker", WorkerSettings, cmd_worker, "serve as one worker of a federated run (Algorithm 2)"),
+        (
+            "aggregator",
+            AggregatorSettings,
+            cmd_aggregator,
+            "serve a site's workers as one member of the root chief (an edge aggregator)",
+        ),
+    ):
+        role = sub.add_parser(name, help=text)
+        add_settings_arguments(role, settings, notes={"broker": "required"})
+        role.set_defaults(handler=handler)
 
 
 def cmd_broker(args: argparse.Namespace) -> int:
@@ -125,7 +124,6 @@ def cmd_chief(args: argparse.Namespace) -> int:
     with collector_paused():
         from fleetrl.federation.chief.machine import EVERY_WORKER_DROPPED
         from fleetrl.federation.kinds import new_chief
-        from fleetrl.federation.runner import run_chief
         from fleetrl.runs.dirlock import DirectoryLock
         from fleetrl.runs.launch import chief_plan
         from fleetrl.runs.rundir import write_json_atomic
@@ -136,31 +134,22 @@ def cmd_chief(args: argparse.Namespace) -> int:
         dropout_grace=settings.dropout_grace, open_fleet=not settings.closed_fleet,
     )  # fmt: skip
     chief = new_chief(plan, key=settings.fleet_key(), **fleet)
-    if settings.out is None:
-        retained = claim_place(settings, CHIEF_ID)  # one chief per run on the broker
-        chief.take_epoch(chief_epoch(checkpoint=None, retained=retained))
-        _forget_previous_session(settings, retained)
-        summary = run_chief(
-            chief, settings.transport(), idle_timeout=settings.idle_timeout, **_lease_options(settings)
-        )
-    else:
-        lock = DirectoryLock(settings.out, "chief").acquire()  # one chief per run directory, for its life
-        try:
-            retained = claim_place(settings, CHIEF_ID, lock)
-            summary = _serve_with_checkpoints(chief, settings, retained)
-            write_json_atomic(settings.out / "chief.json", _chief_result(settings, summary))
-        finally:
+    # one chief per run directory, for its life, and one per run on the broker
+    lock = None if settings.out is None else DirectoryLock(settings.out, "chief").acquire()
+    try:
+        retained = claim_place(settings, CHIEF_ID, lock)
+        summary = _serve_chief(chief, settings, retained)
+        result = {"run_id": settings.run_id, **summary.to_dict()}
+        if settings.out is not None:
+            write_json_atomic(settings.out / "chief.json", result)
+    finally:
+        if lock is not None:
             lock.release()
-    result = _chief_result(settings, summary)
     print(json.dumps(result))
     if summary.end_reason == EVERY_WORKER_DROPPED:  # no fleet left to train: the run did not do its job
         print(f"fleetrl chief: error: run {settings.run_id!r}: {EVERY_WORKER_DROPPED}", file=sys.stderr)
         return 1
     return 0
-
-
-def _chief_result(settings: Any, summary: Any) -> dict[str, Any]:
-    return {"run_id": settings.run_id, **summary.to_dict()}
 
 
 def claim_place(settings: Any, node: str, lock: Any = None) -> Any:
@@ -180,14 +169,6 @@ def claim_place(settings: Any, node: str, lock: Any = None) -> Any:
     return retained
 
 
-def _lease_options(settings: Any) -> dict[str, Any]:
-    """What ``run_chief`` needs to hold the run's lease: who this process is, how to read the chief status."""
-    return {
-        "read_lease": lambda: settings.read_status(CHIEF_ID),
-        "status_fields": holder_fields(settings.keepalive),
-    }
-
-
 def _forget_previous_session(settings: Any, retained: Any) -> None:
     """Remove the broker session of the chief this one replaces (nobody would read what is queued there)."""
     from fleetrl.federation.runner import chief_client_id
@@ -202,14 +183,23 @@ def _forget_previous_session(settings: Any, retained: Any) -> None:
         log.info("could not remove the previous chief's broker session: %s", exc)
 
 
-def _serve_with_checkpoints(chief: Any, settings: Any, retained: Any) -> Any:
-    """Run the chief with a checkpoint every round in ``settings.out`` (resumed with ``--resume``) and its
-    events appended to chief.log; its epoch follows the newest of ``retained``'s and the checkpoint's."""
+def _serve_chief(chief: Any, settings: Any, retained: Any) -> Any:
+    """Run the chief; with ``settings.out``, with a checkpoint every round there (resumed with ``--resume``)
+    and its events appended to chief.log. Its epoch follows the newest of ``retained``'s and the
+    checkpoint's."""
     from fleetrl.federation.chief.checkpoint import replay_last_answer
     from fleetrl.federation.runner import run_chief
     from fleetrl.runs.checkpoints import ChiefCheckpoint, chief_checkpoint_dir
 
-    out: Path = settings.out
+    lease: dict[str, Any] = {
+        "read_lease": lambda: settings.read_status(CHIEF_ID),
+        "status_fields": holder_fields(settings.keepalive),
+    }
+    out: Path | None = settings.out
+    if out is None:
+        chief.take_epoch(chief_epoch(checkpoint=None, retained=retained))
+        _forget_previous_session(settings, retained)
+        return run_chief(chief, settings.transport(), idle_timeout=settings.idle_timeout, **lease)
     store = ChiefCheckpoint(chief_checkpoint_dir(out))
     first = None
     saved = None
@@ -230,12 +220,12 @@ def _serve_with_checkpoints(chief: Any, settings: Any, retained: Any) -> Any:
             idle_timeout=settings.idle_timeout,
             checkpoint=store.save,
             first_step=first,
-            **_lease_options(settings),
+            **lease,
         )
 
 
 def cmd_worker(args: argparse.Namespace) -> int:
-    """Serve as one worker; its run directory gets the same files as a ``fleetrl train`` run."""
+    """Serve as one worker or unit host; its run directory gets the same files as a ``fleetrl train`` run."""
     with collector_paused():
         from fleetrl.runs.dirlock import DirectoryLock
         from fleetrl.runs.factory import make_learner
@@ -243,32 +233,40 @@ def cmd_worker(args: argparse.Namespace) -> int:
 
         settings = settings_from_args(WorkerSettings, args)
     config = worker_config(settings)
+    ids = settings.unit_ids()
     if settings.units > 1:
         with DirectoryLock(settings.out, f"unit host {settings.worker_id}").acquire() as lock:
-            claim_place(settings, host_id(settings.unit_ids()), lock)
-            return _serve_host(settings, config)
+            claim_place(settings, host_id(ids), lock)
+            first = settings.worker_spec()
+            return _serve(settings, [replace(first, worker=k, unit=k) for k in ids], config)
     spec = settings.worker_spec()
     learner = make_learner(spec, settings.device_transport())  # a device bridge is reached before any file
     with DirectoryLock(settings.out, f"worker {settings.worker_id}").acquire() as lock:  # one per directory
         claim_place(settings, str(settings.worker_id), lock)  # one process per worker id on the broker
-        return _serve_worker(settings, spec, config, learner)
+        return _serve(settings, [spec], config, learner)
 
 
-def _serve_worker(settings: Any, spec: Any, config: dict[str, Any], learner: Any) -> int:
-    """Serve as one worker in the run directory this process has locked."""
+def _serve(settings: Any, specs: list[Any], config: dict[str, Any], learner: Any = None) -> int:
+    """Serve as the worker (one spec, its ``learner``) or unit host (several) of ``specs`` in the run
+    directory this process has locked; a worker checkpoints every round."""
     from fleetrl.runs.checkpoints import WorkerCheckpoint, worker_checkpoint_dir
+    from fleetrl.runs.fleet_summary import summarised
     from fleetrl.runs.roles import train_federated
     from fleetrl.runs.rundir import RunRecorder
 
-    checkpoints = worker_checkpoint_dir(settings.out, settings.worker_id)
-    resume = settings.resume
-    where = WorkerCheckpoint(checkpoints, spec, settings.run_id).where() if resume else None
-    resume_from = {settings.worker_id: 1 if where is None else where.next_round} if resume else None
-    recorder = RunRecorder(settings.out, config, [settings.worker_id], resume_from=resume_from)
+    ids = settings.unit_ids()
+    checkpoints, resume, resume_from = None, False, None
+    if len(specs) == 1:
+        checkpoints = worker_checkpoint_dir(settings.out, settings.worker_id)
+        resume = settings.resume
+        where = WorkerCheckpoint(checkpoints, specs[0], settings.run_id).where() if resume else None
+        resume_from = {settings.worker_id: 1 if where is None else where.next_round} if resume else None
+    summarise = summarised(len(ids), False)
+    recorder = RunRecorder(settings.out, config, ids, resume_from=resume_from, summarise=summarise)
     return _recorded(
         recorder,
         lambda: train_federated(
-            spec,
+            specs,
             settings.transport(),
             settings.run_id,
             recorder.add,
@@ -278,31 +276,6 @@ def _serve_worker(settings: Any, spec: Any, config: dict[str, Any], learner: Any
             key=settings.fleet_key(),
             checkpoint_dir=checkpoints,
             resume=resume,
-            status_fields=holder_fields(settings.keepalive),
-        ),
-    )
-
-
-def _serve_host(settings: Any, config: dict[str, Any]) -> int:
-    """Serve as the unit host of ``settings.unit_ids()`` in the run directory this process has locked."""
-    from fleetrl.runs.fleet_summary import summarised
-    from fleetrl.runs.roles import train_host
-    from fleetrl.runs.rundir import RunRecorder
-
-    first = settings.worker_spec()
-    ids = settings.unit_ids()
-    specs = [replace(first, worker=k, unit=k) for k in ids]
-    recorder = RunRecorder(settings.out, config, ids, summarise=summarised(len(ids), False))
-    return _recorded(
-        recorder,
-        lambda: train_host(
-            specs,
-            settings.transport(),
-            settings.run_id,
-            recorder.add,
-            reply_timeout=settings.reply_timeout,
-            resend_interval=settings.resend_interval,
-            key=settings.fleet_key(),
             status_fields=holder_fields(settings.keepalive),
         ),
     )

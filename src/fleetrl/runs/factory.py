@@ -40,18 +40,8 @@ def bridge_link(env: str, url: str, run_id: str, unit: int, transport: Transport
 
 
 def make_learner(spec: WorkerSpec, device_transport: Transport | None = None) -> Learner:
-    """The learner for one worker: its unit's env (:func:`unit_env`), a seeded agent with the preset, its
-    criterion; under a scheme with a shared start, the network the run's seed draws."""
-    torch.set_num_threads(1)
-    learning = spec.learning
-    env, unit = unit_env(spec, device_transport)
-    config = learning.ppo()
-    agent = agent_for(unit, config, seed=spec.worker_seed)
-    scheme = learning.federation_scheme()
-    if scheme.shared_start:  # every worker from the same initial network: the run's, not its own
-        agent.set_model_parameters(agent_for(unit, config, seed=learning.seed).model_parameters())
-    criterion = unit_criterion(spec, unit)
-    return Learner(env, agent, criterion, seed=spec.worker_seed, keep_learning=scheme.stays_after_completion)
+    """The learner for one worker: :func:`make_host_learner` of its one unit."""
+    return make_host_learner([spec], device_transport)
 
 
 def unit_env(
@@ -96,9 +86,10 @@ def probe_agent(env: str, config: PPOConfig) -> PPOAgent:
         torch.set_num_threads(threads)
 
 
-def make_host_learner(specs: Sequence[WorkerSpec]) -> Learner:
-    """The learner of a unit host of the specs' units (one run's, in order): each unit's env and criterion as
-    :func:`make_learner` builds them, one agent with each unit's seed.
+def make_host_learner(specs: Sequence[WorkerSpec], device_transport: Transport | None = None) -> Learner:
+    """The learner of a unit host of the specs' units (one run's, in order): each unit's env
+    (:func:`unit_env`) and criterion, one agent with each unit's seed; under a scheme with a shared start,
+    the network the run's seed draws.
 
     :raises ValueError: no spec, or units of different runs
     """
@@ -106,13 +97,13 @@ def make_host_learner(specs: Sequence[WorkerSpec]) -> Learner:
         raise ValueError("a unit host needs one or more units of one run")
     torch.set_num_threads(1)
     learning = specs[0].learning
-    built = [unit_env(spec) for spec in specs]
+    built = [unit_env(spec, device_transport) for spec in specs]
     unit = built[0][1]
     config = learning.ppo()
     seeds = [s.worker_seed for s in specs]
     agent = PPOAgent(unit.obs_dim, ActionSpace.of_unit(unit.action), config, seeds)
     scheme = learning.federation_scheme()
-    if scheme.shared_start:
+    if scheme.shared_start:  # every unit from the same initial network: the run's, not its own
         agent.set_model_parameters(agent_for(unit, config, seed=learning.seed).model_parameters())
     criteria = [
         unit_criterion(spec, description) for spec, (_, description) in zip(specs, built, strict=True)
@@ -141,7 +132,12 @@ def chief_plan(
     that chief keeps of the fleet (:meth:`~fleetrl.federation.kinds.Kind.chief_fleet`): the scheme object and
     one agent built once. ``role``: the chief's own settings (``dropout_grace``, ``open_fleet``)."""
     scheme = learning.federation_scheme()
-    agent = fleet_agent(learning) if scheme.shared_start else probe_agent(learning.env, learning.ppo())
+    config = learning.ppo()
+    if scheme.shared_start:  # the fleet's start as every worker draws it
+        torch.set_num_threads(1)  # as in every worker: the initialisation's QR differs with the threads
+        agent = agent_for(describe_env(learning.env, config.last_step), config, seed=learning.seed)
+    else:
+        agent = probe_agent(learning.env, config)
     plan = ChiefPlan(
         run_id=run_id, workers=workers, scheme=scheme, layout=scheme.layout(agent),
         steps_per_round=scheme.exchanges_per_round(agent), max_rounds=learning.max_rounds,
@@ -160,12 +156,3 @@ def worker_plan(
         agent, scheme=learning.federation_scheme(), run_id=run_id, worker_id=worker_id,
         max_rounds=learning.max_rounds, settings=shared_text(learning), **role,
     )  # fmt: skip
-
-
-def fleet_agent(learning: LearningSettings) -> Any:
-    """An agent at the fleet's start, built as :func:`make_learner` builds a worker's from the settings'
-    learning seed. Torch is set to one thread in this process, as in every worker (the
-    initialisation's QR differs with the threads)."""
-    torch.set_num_threads(1)
-    config = learning.ppo()
-    return agent_for(describe_env(learning.env, config.last_step), config, seed=learning.seed)

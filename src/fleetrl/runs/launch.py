@@ -22,7 +22,7 @@ from fleetrl.runs.fleet_summary import summarised
 from fleetrl.runs.host_settings import host_groups, member_ids
 from fleetrl.runs.live import LiveView
 from fleetrl.runs.processes import ProcessFleet, fork_available
-from fleetrl.runs.roles import Emit, train_federated, train_host
+from fleetrl.runs.roles import Emit, train_federated
 from fleetrl.runs.rundir import RunDirectoryError, RunRecorder, write_json_atomic
 from fleetrl.runs.settings import LearningSettings, RunSettings
 from fleetrl.runs.spec import WorkerSpec
@@ -99,7 +99,7 @@ def _train(settings: RunSettings) -> dict[str, Any]:
             if url is not None:
                 recorder.extra["broker"] = url
             if settings.mode == "individual":
-                commands = {k: worker_args(s) for k, s in specs.items()}
+                commands = {k: [s.to_json()] for k, s in specs.items()}
                 follow(process_fleet(settings, commands), recorder, view)
             else:
                 fed_url = url if settings.transport == "mqtt" else None
@@ -186,13 +186,9 @@ def load_kernels(settings: RunSettings) -> None:
 
 
 def host_args(units: list[int]) -> list[str]:
-    """The arguments that make a worker process the unit host of ``units`` (none for one unit)."""
+    """The arguments that make a worker process (:mod:`fleetrl.runs.worker_main`, after its spec JSON) the
+    unit host of ``units`` (none for one unit)."""
     return [] if len(units) == 1 else ["--host-units", str(len(units))]
-
-
-def worker_args(spec: WorkerSpec, *extra: str) -> list[str]:
-    """The arguments of a worker process's :mod:`fleetrl.runs.worker_main`."""
-    return [spec.to_json(), *extra]
 
 
 def train_fleet(
@@ -256,17 +252,14 @@ def transports(
     groups = {units[0]: units for units in host_groups(settings.units, settings.per_host)}
     if url is None:
         bus = LocalBus()
-        if settings.per_host > 1:
-            hosts = {
-                k: host_thread([specs[u] for u in units], bus.client, run_id) for k, units in groups.items()
-            }
-            return bus.client, lambda: ThreadFleet(hosts, units=groups)
-        bodies = {k: federated_thread(spec, bus.client, run_id) for k, spec in specs.items()}
-        return bus.client, lambda: ThreadFleet(bodies)
+        bodies = {
+            k: member_thread([specs[u] for u in units], bus.client, run_id) for k, units in groups.items()
+        }
+        return bus.client, lambda: ThreadFleet(bodies, units=groups)
 
     def federated_fleet() -> Fleet:
         commands = {
-            k: worker_args(specs[k], "--broker", url, "--run-id", run_id, *host_args(units))
+            k: [specs[k].to_json(), "--broker", url, "--run-id", run_id, *host_args(units)]
             for k, units in groups.items()
         }
         return process_fleet(settings, commands, units=groups)
@@ -274,27 +267,18 @@ def transports(
     return (lambda: MqttTransport(url, clean_session=False)), federated_fleet
 
 
-def federated_thread(
-    spec: WorkerSpec, make_transport: Callable[[], Transport], run_id: str
-) -> Callable[[Emit], None]:
-    """The body of a worker thread on the in-process bus."""
-
-    def body(emit: Emit) -> None:
-        learner = make_learner(spec)
-        log.info("worker %d: learner ready", spec.worker)
-        train_federated(
-            spec, make_transport(), run_id, emit, reply_timeout=CHIEF_IDLE_TIMEOUT, learner=learner
-        )
-
-    return body
-
-
-def host_thread(
+def member_thread(
     specs: list[WorkerSpec], make_transport: Callable[[], Transport], run_id: str
 ) -> Callable[[Emit], None]:
-    """The body of a unit host's thread on the in-process bus."""
+    """The body of a worker's, or a unit host's, thread on the in-process bus."""
 
     def body(emit: Emit) -> None:
-        train_host(specs, make_transport(), run_id, emit, reply_timeout=CHIEF_IDLE_TIMEOUT)
+        learner = None
+        if len(specs) == 1:
+            learner = make_learner(specs[0])
+            log.info("worker %d: learner ready", specs[0].worker)
+        train_federated(
+            specs, make_transport(), run_id, emit, reply_timeout=CHIEF_IDLE_TIMEOUT, learner=learner
+        )
 
     return body

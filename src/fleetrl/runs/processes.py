@@ -16,7 +16,7 @@ from collections.abc import Mapping, Sequence
 from contextlib import suppress
 from dataclasses import dataclass
 from pathlib import Path
-from typing import IO, NoReturn, Protocol
+from typing import IO, NoReturn
 
 from fleetrl.runs.records import MetricsRow
 
@@ -36,17 +36,6 @@ class WorkerExit:
 
 
 FleetEvent = MetricsRow | WorkerExit
-
-
-class Child(Protocol):
-    """What the fleet uses of a ``subprocess.Popen`` or a :class:`ForkedChild`."""
-
-    pid: int
-
-    def poll(self) -> int | None: ...
-    def wait(self, timeout: float | None = None) -> int: ...
-    def send_signal(self, sig: int) -> None: ...
-    def kill(self) -> None: ...
 
 
 class ForkedChild:
@@ -79,6 +68,9 @@ class ForkedChild:
 
     def kill(self) -> None:
         self.send_signal(signal.SIGKILL)
+
+
+Child = ForkedChild | subprocess.Popen[str]
 
 
 def fork_available() -> bool:

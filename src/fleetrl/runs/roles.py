@@ -64,7 +64,7 @@ def train_alone(spec: WorkerSpec, emit: Emit, learner: Learner | None = None) ->
 
 
 def train_federated(
-    spec: WorkerSpec,
+    specs: Sequence[WorkerSpec],
     transport: Transport,
     run_id: str,
     emit: Emit,
@@ -77,41 +77,57 @@ def train_federated(
     resume: bool = False,
     status_fields: Mapping[str, str | int] | None = None,
 ) -> WorkerSummary:
-    """Federated mode (Algorithm 2): one worker of run ``run_id`` over ``transport``; save the model.
+    """Federated mode (Algorithm 2): one member of run ``run_id`` over ``transport``, a worker of one spec's
+    unit or the unit host (id :func:`host_id`) of several; every unit's rows emitted each round, every unit's
+    model saved however it ends.
 
-    :param checkpoint_dir: commit the worker's state there after every round; None: no checkpoints.
+    :param checkpoint_dir: (a worker) commit its state there after every round; None: no checkpoints.
     :param resume: first restore the state committed in ``checkpoint_dir`` (if any) and continue from its
         round; a worker whose run was already over returns at once.
     :param status_fields: who this process is, said in its status.
     """
-    learner = learner or make_learner(spec)
+    first, host = specs[0], len(specs) > 1
+    if learner is None:
+        learner = make_host_learner(specs)
+        log.info("host of units %d-%d: learner ready", first.worker, specs[-1].worker)
     started = time.monotonic()
-    store = None if checkpoint_dir is None else WorkerCheckpoint(checkpoint_dir, spec, run_id)
+    store = None if checkpoint_dir is None else WorkerCheckpoint(checkpoint_dir, first, run_id)
     start_round = None
     if resume and store is not None and store.exists():
         where = store.load(learner)
-        log.info("worker %d: resumed from %s at round %d", spec.worker, checkpoint_dir, where.next_round)
+        log.info("worker %d: resumed from %s at round %d", first.worker, checkpoint_dir, where.next_round)
         if where.ended is not None:
-            log.info("worker %d: its run was already over (%s)", spec.worker, where.ended)
+            log.info("worker %d: its run was already over (%s)", first.worker, where.ended)
             return WorkerSummary(
-                str(spec.worker), where.next_round - 1, where.ended in FINISHED_REASONS, where.ended
+                str(first.worker), where.next_round - 1, where.ended in FINISHED_REASONS, where.ended
             )
         start_round = where.next_round
     elif resume:
-        log.warning("worker %d: nothing to resume in %s; starting afresh", spec.worker, checkpoint_dir)
-    seed = spec.learning.seed
-    transport = uneven_transport(transport, spec.uneven, seed=seed, worker=spec.worker)
-    player = uneven_unit(learner, spec.uneven, seed=seed, worker=spec.worker)
+        log.warning("worker %d: nothing to resume in %s; starting afresh", first.worker, checkpoint_dir)
+    conditions = host_conditions(specs) if host else first.uneven
+    seed = first.learning.seed
+    transport = uneven_transport(transport, conditions, seed=seed, worker=first.worker)
+    player = uneven_unit(learner, conditions, seed=seed, worker=first.worker)
+
+    def record(r: FederatedRound) -> None:
+        if not host:
+            emit(metrics_row(first.worker, r.round, r.result, started, r.label))
+            return
+        for row in unit_rows(r, learner, specs, started):
+            emit(row)
+
+    member = host_id([spec.worker for spec in specs]) if host else str(first.worker)
     plan = worker_plan(
-        spec.learning, player.agent, run_id=run_id, worker_id=str(spec.worker), reply_timeout=reply_timeout,
-        resend_interval=resend_interval, start_round=start_round, restarted=resume and start_round is None,
+        first.learning, player.agent, run_id=run_id, worker_id=member, units=len(specs),
+        reply_timeout=reply_timeout, resend_interval=resend_interval, start_round=start_round,
+        restarted=resume and start_round is None,
     )  # fmt: skip
     worker = FederatedWorker(
         player,
         transport,
         plan,
         key=key,
-        on_record=lambda r: emit(metrics_row(spec.worker, r.round, r.result, started, r.label)),
+        on_record=record,
         on_round_done=None if store is None else lambda next_round: store.save(learner, next_round),
         status_fields=status_fields,
     )
@@ -121,7 +137,8 @@ def train_federated(
             store.save(learner, summary.rounds + 1, ended=summary.reason)
         return summary
     finally:
-        learner.agent.save(model_path(Path(spec.out), spec.worker))
+        for spec in specs:
+            learner.agent.save(model_path(Path(spec.out), spec.worker))
 
 
 def host_conditions(specs: Sequence[WorkerSpec]) -> UnitConditions | None:
@@ -151,41 +168,3 @@ def unit_rows(
             event = WorkerEvent.COMPLETED.label(None)
         rows.append(metrics_row(spec.worker, record.round, result, started, event))
     return rows
-
-
-def train_host(
-    specs: Sequence[WorkerSpec],
-    transport: Transport,
-    run_id: str,
-    emit: Emit,
-    *,
-    reply_timeout: float | None = 600.0,
-    resend_interval: float | None = 5.0,
-    key: FleetKey | None = None,
-    learner: Learner | None = None,
-    status_fields: Mapping[str, str | int] | None = None,
-) -> WorkerSummary:
-    """Federated mode for a unit host of the specs' units: one worker of id :func:`host_id` carrying them;
-    every unit's rows emitted each round, every unit's model file (the host's network) saved at the end."""
-    if learner is None:
-        learner = make_host_learner(specs)
-        log.info("host of units %d-%d: learner ready", specs[0].worker, specs[-1].worker)
-    first, conditions = specs[0], host_conditions(specs)
-    seed, started = first.learning.seed, time.monotonic()
-    transport = uneven_transport(transport, conditions, seed=seed, worker=first.worker)
-
-    def record(r: FederatedRound) -> None:
-        for row in unit_rows(r, learner, specs, started):
-            emit(row)
-
-    player = uneven_unit(learner, conditions, seed=seed, worker=first.worker)
-    plan = worker_plan(
-        first.learning, player.agent, run_id=run_id, worker_id=host_id([spec.worker for spec in specs]),
-        units=len(specs), reply_timeout=reply_timeout, resend_interval=resend_interval,
-    )  # fmt: skip
-    worker = FederatedWorker(player, transport, plan, key=key, on_record=record, status_fields=status_fields)
-    try:
-        return worker.run()
-    finally:
-        for spec in specs:
-            learner.agent.save(model_path(Path(spec.out), spec.worker))

@@ -8,11 +8,10 @@ import logging
 import signal
 import sys
 from dataclasses import replace
-from pathlib import Path
 
 from fleetrl.runs.factory import make_learner
 from fleetrl.runs.records import MetricsRow
-from fleetrl.runs.roles import train_alone, train_federated, train_host
+from fleetrl.runs.roles import train_alone, train_federated
 from fleetrl.runs.spec import WorkerSpec
 from fleetrl.transport.mqtt import MqttTransport
 
@@ -28,19 +27,14 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("spec", help="the worker's WorkerSpec as JSON")
     parser.add_argument("--broker", default=None, help="federated mode: the broker URL")
     parser.add_argument("--run-id", default=None, help="federated mode: the run id")
-    parser.add_argument("--reply-timeout", type=float, default=600.0)
-    parser.add_argument(
-        "--checkpoint-dir", type=Path, default=None, help="federated: checkpoint every round here"
-    )
-    parser.add_argument("--resume", action="store_true", help="federated: continue from --checkpoint-dir")
     parser.add_argument(
         "--host-units", type=int, default=1, help="federated: host the spec's unit and the next ones"
     )
     args = parser.parse_args(argv)
     if args.host_units < 1:
         parser.error(f"--host-units {args.host_units}: must be at least 1")
-    if args.host_units > 1 and (args.broker is None or args.checkpoint_dir is not None):
-        parser.error("--host-units: a unit host joins a federated run (--broker) and keeps no checkpoints")
+    if args.host_units > 1 and args.broker is None:
+        parser.error("--host-units: a unit host joins a federated run (--broker)")
     # the launcher stops workers with SIGINT; re-arm it in case this process inherited it ignored
     signal.signal(signal.SIGINT, signal.default_int_handler)
     logging.basicConfig(level=logging.INFO, format="%(asctime)s %(name)s %(levelname)s %(message)s")
@@ -48,34 +42,22 @@ def main(argv: list[str] | None = None) -> int:
     log = logging.getLogger(__name__)
     log.info("worker %d: process up", spec.worker)
     try:
-        if args.host_units > 1:
-            return host_main(spec, args.host_units, args.broker, args.run_id, args.reply_timeout)
-        learner = make_learner(spec)
-        log.info("worker %d: learner ready", spec.worker)
+        specs, learner = [spec], None
+        if args.host_units > 1:  # the unit host of the spec's unit and the U - 1 after it
+            specs = [
+                replace(spec, worker=k, unit=k) for k in range(spec.worker, spec.worker + args.host_units)
+            ]
+        else:
+            learner = make_learner(spec)
+            log.info("worker %d: learner ready", spec.worker)
         if args.broker is None:
             train_alone(spec, print_record, learner)
         else:
-            train_federated(
-                spec,
-                MqttTransport(args.broker, clean_session=False),
-                args.run_id,
-                print_record,
-                reply_timeout=args.reply_timeout,
-                checkpoint_dir=args.checkpoint_dir,
-                resume=args.resume,
-                learner=learner,
-            )
+            transport = MqttTransport(args.broker, clean_session=False)
+            train_federated(specs, transport, args.run_id, print_record, learner=learner)
     except KeyboardInterrupt:
         log.info("interrupted; the model was saved")
         return 130
-    return 0
-
-
-def host_main(first: WorkerSpec, units: int, broker: str, run_id: str, reply_timeout: float) -> int:
-    """A unit host of ``units`` units from ``first``'s on, over MQTT at ``broker``; the exit code."""
-    specs = [replace(first, worker=k, unit=k) for k in range(first.worker, first.worker + units)]
-    transport = MqttTransport(broker, clean_session=False)
-    train_host(specs, transport, run_id, print_record, reply_timeout=reply_timeout)
     return 0
 
 
