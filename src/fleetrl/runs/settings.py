@@ -38,10 +38,9 @@ from fleetrl.runs.setting_values import (
     SettingError,
     check_readable_file,
     check_writable_dir,
-    dump_toml,
     flat_values,
     label,
-    toml_values,
+    toml_text,
 )
 from fleetrl.runs.uneven import UnevenFleet
 from fleetrl.transport.login import broker_password, password_in_url, without_password
@@ -275,14 +274,11 @@ class RunSettings(RoundRules, BrokerLogin):
 
     def to_toml(self) -> str:
         """config.toml: every setting but the password, so that ``fleetrl train --config`` reruns the run."""
-        table = toml_values(self)
-        if self.broker is not None:
-            table["broker"] = self.public_broker
         header = (
             "fleetrl train settings of this run (no password is ever written here).\n"
             f"Rerun it: fleetrl train --config {self.out / 'config.toml'} --out NEW_DIR"
         )
-        return dump_toml(table, header)
+        return toml_text(replace(self, broker=self.public_broker), header)
 
     def result_settings(self) -> dict[str, Any]:
         """Every setting that can change the run's result, as JSON-plain values."""

@@ -2,7 +2,6 @@
 
 import json
 from dataclasses import asdict, dataclass
-from typing import Any
 
 import numpy as np
 
@@ -25,12 +24,9 @@ class WorkerSpec:
     uneven: UnitConditions | None = None
 
     def to_json(self) -> str:
-        data: dict[str, Any] = {
-            "worker": self.worker, "unit": self.unit, "learning": self.learning.to_json(), "out": self.out,
-            "device_url": self.device_url, "device_run_id": self.device_run_id,
-        }  # fmt: skip
-        if self.uneven is not None:  # an even unit's spec is the one it was before the setting existed
-            data["uneven"] = asdict(self.uneven)
+        data = asdict(self)
+        if self.uneven is None:  # an even unit's spec is the one it was before the setting existed
+            del data["uneven"]
         return json.dumps(data, sort_keys=True)
 
     @classmethod
