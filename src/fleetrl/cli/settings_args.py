@@ -5,7 +5,6 @@ given), so a config file can set what no flag gives."""
 from __future__ import annotations
 
 import argparse
-import dataclasses
 import functools
 import json
 import types
@@ -52,11 +51,12 @@ def add_settings_arguments(
 
 
 def add_setting_argument(
-    p: argparse.ArgumentParser, cls: type, name: str, *, default: Any = None, note: str | None = None
+    p: argparse.ArgumentParser, cls: type, name: str, *, defaulted: bool = False, note: str | None = None
 ) -> None:
-    """The flag of setting ``name`` of the settings class ``cls``, giving ``default`` when it is not given
-    (None: the settings class's default applies)."""
+    """The flag of setting ``name`` of the settings class ``cls``; with ``defaulted`` it gives the setting's
+    default when not given (else None: the settings class's default applies)."""
     field, kind = setting_fields(cls)[name]
+    default = field_default(field) if defaulted else None
     help_text = field_docs(cls).get(name, "")
     if note:
         help_text += f"; {note}"
@@ -76,7 +76,7 @@ def add_setting_argument(
     if required(field):
         help_text += " (required)"
     else:
-        shown = field_default(field) if default is None else default
+        shown = field_default(field)
         if shown is not None:
             help_text += f" (default: {shown})"
     p.add_argument(flag(name), dest=name, type=_parse_type(kind), default=default, help=help_text)
@@ -106,8 +106,7 @@ def _first_that_reads(parsers: list[Any], text: str) -> Any:
 def add_learning_argument(p: argparse.ArgumentParser, name: str, *, defaulted: bool = True) -> None:
     """The flag of learning setting ``name`` for a command that is not a role; with ``defaulted`` it gives
     the setting's default when not given."""
-    field = setting_fields(LearningSettings)[name][0]
-    add_setting_argument(p, LearningSettings, name, default=field_default(field) if defaulted else None)
+    add_setting_argument(p, LearningSettings, name, defaulted=defaulted)
 
 
 def add_target_score_argument(p: argparse.ArgumentParser) -> None:
@@ -128,8 +127,7 @@ def add_broker_arguments(p: argparse.ArgumentParser, note: str) -> None:
 
 def add_connect_timeout(p: argparse.ArgumentParser) -> None:
     """``--connect-timeout``, its default the roles' setting's."""
-    timeout = next(f for f in dataclasses.fields(RoleSettings) if f.name == "connect_timeout")
-    add_setting_argument(p, RoleSettings, "connect_timeout", default=timeout.default)
+    add_setting_argument(p, RoleSettings, "connect_timeout", defaulted=True)
 
 
 def parse_overrides(items: list[str], flag: str = "--set") -> dict[str, Any]:

@@ -6,19 +6,22 @@ import math
 import os
 from typing import Literal
 
-from fleetrl.federation.schemes.base import Scheme
+from fleetrl.federation.shared_settings import LearningSettings
 
 
-def host_setting_problem(per_host: int, *, mode: str, scheme: Scheme, own_part: str = "none") -> str | None:
-    """Why a run cannot have ``per_host`` units per host (naming what to change), or None."""
+def host_setting_problem(per_host: int, learning: LearningSettings, mode: str = "federated") -> str | None:
+    """Why a run of resolved ``learning`` cannot have ``per_host`` units per host (naming what to change), or
+    None."""
     if per_host < 1:
         return f"must be at least 1, got {per_host}"
     if per_host == 1:
         return None
+    own_part = learning.ppo().own_part
     if own_part != "none":
         return f"own_part {own_part!r} gives each unit a part of its own: it needs a worker per unit (1)"
     if mode != "federated":
         return "a unit host is one member of a federation: it needs --mode federated"
+    scheme = learning.federation_scheme()
     if not scheme.one_policy_per_step:
         return (
             f"a unit host is one policy for its units: it needs a one-policy per-step scheme (pergrad), "
@@ -43,9 +46,9 @@ def units_per_core(units: int, cores: int) -> int:
     return max(1, math.ceil(units / max(cores, 1)))
 
 
-def hosts_possible(*, mode: str, scheme: Scheme, even: bool, own_part: str = "none") -> bool:
+def hosts_possible(learning: LearningSettings, mode: str, even: bool) -> bool:
     """Whether ``auto`` groups a run of these settings into unit hosts: an even fleet that can have them."""
-    return even and host_setting_problem(2, mode=mode, scheme=scheme, own_part=own_part) is None
+    return even and host_setting_problem(2, learning, mode) is None
 
 
 def auto_units_per_host(units: int, *, possible: bool, cores: int) -> int:

@@ -4,7 +4,7 @@
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 from fleetrl.runs.host_settings import units_per_core, usable_cores
@@ -84,11 +84,11 @@ class RunLayout:
     def most_units(self, budget_mb: float) -> int:
         """The most units this layout holds within ``budget_mb`` (0: not even one)."""
         low, high = 0, max(self.units, 1)
-        while RunLayout(high, self.processes, self.per_host, self.forked).estimate_mb() <= budget_mb:
+        while replace(self, units=high).estimate_mb() <= budget_mb:
             low, high = high, high * 2
         while high - low > 1:  # estimate_mb grows with the units: bisect
             middle = (low + high) // 2
-            fits = RunLayout(middle, self.processes, self.per_host, self.forked).estimate_mb() <= budget_mb
+            fits = replace(self, units=middle).estimate_mb() <= budget_mb
             low, high = (middle, high) if fits else (low, middle)
         return low
 
@@ -109,8 +109,8 @@ def memory_problem(
     need = layout.estimate_mb()
     if need <= budget:
         return None
-    hosted = RunLayout(layout.units, layout.processes, units_per_core(layout.units, cores), layout.forked)
-    threads = RunLayout(layout.units, False, 1, layout.forked)
+    hosted = replace(layout, per_host=units_per_core(layout.units, cores))
+    threads = replace(layout, processes=False, per_host=1)
     if hosts_possible and hosted.hosts and hosted.estimate_mb() <= budget:
         instead = f"--units-per-host {hosted.per_host} (about {_gb(hosted.estimate_mb())})"
     elif threads_possible and layout.processes and threads.estimate_mb() <= budget:

@@ -90,14 +90,19 @@ class RoleSettings(BrokerLogin):
         assert self.broker is not None, "resolution requires a broker"
         return MqttTransport(
             self.broker,
-            ca_file=path_text(self.ca_file),
-            cert_file=path_text(self.client_cert),
-            key_file=path_text(self.client_key),
             clean_session=clean_session,
             connect_timeout=self.connect_timeout,
-            password=self.broker_password,
             keepalive=self.keepalive,
+            **self._login(),
         )
+
+    def _login(self) -> dict[str, Any]:
+        return {
+            "ca_file": path_text(self.ca_file),
+            "cert_file": path_text(self.client_cert),
+            "key_file": path_text(self.client_key),
+            "password": self.broker_password,
+        }
 
     def read_status(self, node: str) -> Status | None:
         """The retained status of ``node`` (``chief`` or a worker id) of this run, over a connection of its
@@ -110,10 +115,7 @@ class RoleSettings(BrokerLogin):
             status_topic(self.run_id, node),
             client_id=f"fleetrl-{self.run_id}-probe-{os.getpid()}-{time.monotonic_ns() % 10**9}",
             timeout=self.connect_timeout,
-            ca_file=path_text(self.ca_file),
-            cert_file=path_text(self.client_cert),
-            key_file=path_text(self.client_key),
-            password=self.broker_password,
+            **self._login(),
         )
         if payload is None:
             return None
@@ -149,12 +151,7 @@ class ChiefSettings(RoleSettings, RoundRules):
         quorum = self.resolved_quorum(learning, shape)
         if self.workers < 1:
             raise SettingError(f"{label('workers')} = {self.workers}: must be at least 1")
-        hosts = host_setting_problem(
-            self.units_per_host,
-            mode="federated",
-            scheme=learning.federation_scheme(),
-            own_part=learning.ppo().own_part,
-        )
+        hosts = host_setting_problem(self.units_per_host, learning)
         if hosts is not None:
             raise SettingError(f"{label('units_per_host')} = {self.units_per_host}: {hosts}")
         positive("idle_timeout", self.idle_timeout)
@@ -218,8 +215,7 @@ class WorkerSettings(RoleSettings):
     def _check_host(self, learning: LearningSettings) -> None:
         if self.units == 1:
             return
-        scheme, own_part = learning.federation_scheme(), learning.ppo().own_part
-        problem = host_setting_problem(self.units, mode="federated", scheme=scheme, own_part=own_part)
+        problem = host_setting_problem(self.units, learning)
         if problem is None and self.resume:
             problem = "a unit host keeps no checkpoints, so it cannot --resume (restart it without)"
         if problem is None and self.unit is not None:

@@ -228,8 +228,9 @@ def load_toml(path: Path) -> dict[str, Any]:
         raise SettingError(f"--config {path}: not valid TOML ({err})") from None
 
 
-def toml_values(settings: Any) -> dict[str, Any]:
-    """The settings as a flat TOML table :func:`build` reads (unset values and empty tables left out)."""
+def toml_text(settings: Any, header: str) -> str:
+    """The settings as a flat TOML table :func:`build` reads (unset values and empty tables left out; scalars
+    first, then sub-tables), under ``header`` as comment lines."""
     table: dict[str, Any] = {}
     for name, value in flat_values(settings).items():
         if value is None or value == {}:
@@ -239,13 +240,8 @@ def toml_values(settings: Any) -> dict[str, Any]:
         elif isinstance(value, dict):
             value = {k: list(v) if isinstance(v, tuple) else v for k, v in value.items()}
         table[name] = value
-    return table
-
-
-def dump_toml(table: Mapping[str, Any], header: str = "") -> str:
-    """TOML text of ``table`` (scalars first, then sub-tables), with ``header`` as leading comment lines."""
     comment = "".join(f"# {line}\n" for line in header.splitlines())
-    return comment + tomli_w.dumps(dict(table))
+    return comment + tomli_w.dumps(table)
 
 
 def check_readable_file(name: str, path: Path | None) -> None:

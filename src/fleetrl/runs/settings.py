@@ -38,10 +38,9 @@ from fleetrl.runs.setting_values import (
     SettingError,
     check_readable_file,
     check_writable_dir,
-    dump_toml,
     flat_values,
     label,
-    toml_values,
+    toml_text,
 )
 from fleetrl.runs.uneven import UnevenFleet
 from fleetrl.transport.login import broker_password, password_in_url, without_password
@@ -178,11 +177,10 @@ class RunSettings(RoundRules, BrokerLogin):
     def resolved(self) -> RunSettings:
         """A new value with every default filled in and every setting checked (SettingError naming the first
         that cannot work); nothing is created."""
-        scheme = ALONE_SCHEME if self.mode == "individual" else DEFAULT_SCHEME
         learning = self.learning
         if self.mode == "federated":
             learning = with_large_fleet_update(learning, self.units)
-        learning, shape = resolve_and_probe(learning, default_scheme=scheme)
+        learning, shape = resolve_and_probe(learning, default_scheme=self.default_scheme)
         choose("mode", self.mode, MODES)
         choose("transport", self.transport, TRANSPORTS)
         choose("device_link", self.device_link, DEVICE_LINKS)
@@ -194,8 +192,8 @@ class RunSettings(RoundRules, BrokerLogin):
         self.validate_broker()
         if self.units < 1:
             raise SettingError(f"{label('units')} = {self.units}: must be at least 1")
-        uneven = self.uneven.resolved_uneven(get_env_spec(learning.env).control_period, self.units)
-        if uneven.link_delay and self.mode != "federated":
+        filled = self._filled(learning, quorum)
+        if filled.uneven.link_delay and self.mode != "federated":
             raise SettingError(
                 f"{label('link_delay')} delays the messages of a federated run: it needs --mode federated"
             )
@@ -206,42 +204,45 @@ class RunSettings(RoundRules, BrokerLogin):
                 f"own_part {own_part!r} is a unit's own part beside the fleet's shared policy: it needs "
                 "--mode federated"
             )
-        per_host = self.chosen_units_per_host(learning, uneven.even)
-        scheme_of = learning.federation_scheme()
-        hosts = host_setting_problem(per_host, mode=self.mode, scheme=scheme_of, own_part=own_part)
+        hosts = host_setting_problem(filled.per_host, learning, self.mode)
         if hosts is not None:
             raise SettingError(f"{label('units_per_host')} = {self.units_per_host}: {hosts}")
-        can_host = hosts_possible(mode="federated", scheme=scheme_of, even=uneven.even, own_part=own_part)
-        memory = run_memory_problem(self.units, self.mode, self.transport, per_host, hosts_possible=can_host)
+        can_host = hosts_possible(learning, "federated", filled.uneven.even)
+        memory = run_memory_problem(
+            self.units, self.mode, self.transport, filled.per_host, hosts_possible=can_host
+        )
         if memory is not None:
             raise SettingError(memory)
         if (self.out / "metrics.csv").exists():
             raise SettingError(f"{label('out')} = {str(self.out)!r} already holds a run; choose another")
         check_writable_dir("out", self.out)
-        return replace(self, learning=learning, quorum=quorum, uneven=uneven, units_per_host=per_host)
+        return filled
 
-    def chosen_units_per_host(self, learning: LearningSettings, even: bool) -> int:
-        """``units_per_host`` as a number (``auto``: :func:`auto_units_per_host`)."""
-        if self.units_per_host != AUTO:
-            return self.units_per_host
-        scheme, own_part = learning.federation_scheme(), learning.ppo().own_part
-        possible = hosts_possible(mode=self.mode, scheme=scheme, even=even, own_part=own_part)
-        return auto_units_per_host(self.units, possible=possible, cores=usable_cores())
+    def learning_resolved(self) -> RunSettings:
+        """What :meth:`result_settings` needs, without building an agent: the learning settings, quorum,
+        uneven fleet and units per host resolved, nothing else checked."""
+        learning = resolve_learning(self.learning, default_scheme=self.default_scheme)
+        quorum = learning.federation_scheme().default_quorum if self.quorum is None else self.quorum
+        return self._filled(learning, quorum)
+
+    @property
+    def default_scheme(self) -> str:
+        return ALONE_SCHEME if self.mode == "individual" else DEFAULT_SCHEME
+
+    def _filled(self, learning: LearningSettings, quorum: float) -> RunSettings:
+        """This value with resolved ``learning`` and ``quorum``, the uneven fleet resolved and the units per
+        host chosen (``auto``: :func:`auto_units_per_host`)."""
+        uneven = self.uneven.resolved_uneven(get_env_spec(learning.env).control_period, self.units)
+        per_host = self.units_per_host
+        if per_host == AUTO:
+            possible = hosts_possible(learning, self.mode, uneven.even)
+            per_host = auto_units_per_host(self.units, possible=possible, cores=usable_cores())
+        return replace(self, learning=learning, quorum=quorum, uneven=uneven, units_per_host=per_host)
 
     @property
     def per_host(self) -> int:
         assert self.units_per_host != AUTO, "resolved() chooses the units per host"
         return self.units_per_host
-
-    def learning_resolved(self) -> RunSettings:
-        """What :meth:`result_settings` needs, without building an agent: the learning settings, quorum,
-        uneven fleet and units per host resolved, nothing else checked."""
-        scheme = ALONE_SCHEME if self.mode == "individual" else DEFAULT_SCHEME
-        learning = resolve_learning(self.learning, default_scheme=scheme)
-        uneven = self.uneven.resolved_uneven(get_env_spec(learning.env).control_period, self.units)
-        quorum = learning.federation_scheme().default_quorum if self.quorum is None else self.quorum
-        per_host = self.chosen_units_per_host(learning, uneven.even)
-        return replace(self, learning=learning, quorum=quorum, uneven=uneven, units_per_host=per_host)
 
     def validate_device_link(self, learning: LearningSettings) -> None:
         """With device bridges: the unit type can be reached and its driver builds unit 0 to the env's spaces;
@@ -273,14 +274,11 @@ class RunSettings(RoundRules, BrokerLogin):
 
     def to_toml(self) -> str:
         """config.toml: every setting but the password, so that ``fleetrl train --config`` reruns the run."""
-        table = toml_values(self)
-        if self.broker is not None:
-            table["broker"] = self.public_broker
         header = (
             "fleetrl train settings of this run (no password is ever written here).\n"
             f"Rerun it: fleetrl train --config {self.out / 'config.toml'} --out NEW_DIR"
         )
-        return dump_toml(table, header)
+        return toml_text(replace(self, broker=self.public_broker), header)
 
     def result_settings(self) -> dict[str, Any]:
         """Every setting that can change the run's result, as JSON-plain values."""

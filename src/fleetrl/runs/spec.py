@@ -1,8 +1,7 @@
 """What one worker process needs to know, as JSON on its command line (nothing is pickled)."""
 
 import json
-from dataclasses import dataclass
-from typing import Any
+from dataclasses import asdict, dataclass
 
 import numpy as np
 
@@ -25,12 +24,9 @@ class WorkerSpec:
     uneven: UnitConditions | None = None
 
     def to_json(self) -> str:
-        data: dict[str, Any] = {
-            "worker": self.worker, "unit": self.unit, "learning": self.learning.to_json(), "out": self.out,
-            "device_url": self.device_url, "device_run_id": self.device_run_id,
-        }  # fmt: skip
-        if self.uneven is not None:  # an even unit's spec is the one it was before the setting existed
-            data["uneven"] = self.uneven.to_dict()
+        data = asdict(self)
+        if self.uneven is None:  # an even unit's spec is the one it was before the setting existed
+            del data["uneven"]
         return json.dumps(data, sort_keys=True)
 
     @classmethod
@@ -38,7 +34,7 @@ class WorkerSpec:
         data = json.loads(text)
         uneven = data.pop("uneven", None)
         learning = LearningSettings(**data.pop("learning"))
-        conditions = None if uneven is None else UnitConditions.from_dict(uneven)
+        conditions = None if uneven is None else UnitConditions(**uneven)
         return cls(**data, learning=learning, uneven=conditions)
 
     @property

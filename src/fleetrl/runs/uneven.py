@@ -4,7 +4,6 @@ stalling (:class:`StallSchedule`) without changing any number it computes."""
 
 from __future__ import annotations
 
-import dataclasses
 import time
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field, replace
@@ -41,13 +40,6 @@ class UnitConditions:
     """the mean length of an absence, in rounds"""
     stall: float = 0.0
     """the share of each second the unit is paused whole, in [0, 1)"""
-
-    def to_dict(self) -> dict[str, Any]:
-        return dataclasses.asdict(self)
-
-    @classmethod
-    def from_dict(cls, data: dict[str, Any]) -> UnitConditions:
-        return cls(**data)
 
 
 @dataclass(frozen=True, kw_only=True)
