@@ -22,7 +22,8 @@ from device_process import device_process
 from gymnasium.utils.env_checker import check_env
 
 from fleetrl.cli.main import main
-from fleetrl.envs.catalog import check_driver_fits, get_env_spec
+from fleetrl.envs.catalog import get_env_spec
+from fleetrl.envs.device_side import check_driver_fits
 from fleetrl.link.driver import DriverSpec
 from fleetrl.link.mqtt import open_mqtt_link
 from fleetrl.transport.broker import EmbeddedBroker

@@ -21,7 +21,7 @@ from fleetrl.cli.settings_args import (
     settings_from_args,
 )
 from fleetrl.cli.startup import collector_paused
-from fleetrl.envs.catalog import get_env_spec
+from fleetrl.envs.catalog import check_takes_link, get_env_spec
 from fleetrl.federation.schemes import DEFAULT_SCHEME
 from fleetrl.federation.wire.topics import validate_id
 from fleetrl.runs.setting_values import SettingError
@@ -219,7 +219,6 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
 def bridge_link(args: argparse.Namespace) -> Callable[[], Any]:
     """``evaluate --broker URL``: its settings checked now (exit 2), and what opens a device link to the
     bridge of ``--unit`` under ``--run-id``."""
-    from fleetrl.envs.catalog import check_takes_link
     from fleetrl.runs.factory import bridge_link as open_bridge_link
     from fleetrl.transport.mqtt import MqttTransport
 

@@ -8,7 +8,8 @@ import threading
 from collections.abc import Callable
 
 from fleetrl.control.policies import GreedyPolicy, check_fits, greedy_scores
-from fleetrl.envs.catalog import check_driver_fits, check_takes_link, describe_env, get_env_spec
+from fleetrl.envs.catalog import check_takes_link, describe_env, get_env_spec
+from fleetrl.envs.device_side import check_driver_fits
 from fleetrl.link.bridge import WATCHDOG_SECONDS, DeviceBridge
 from fleetrl.link.driver import DeviceDriver
 from fleetrl.link.mqtt import MqttLink

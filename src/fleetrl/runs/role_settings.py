@@ -9,7 +9,7 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
-from fleetrl.envs.catalog import get_env_spec
+from fleetrl.envs.catalog import check_takes_link, get_env_spec
 from fleetrl.federation.chief.lease import DEFAULT_KEEPALIVE
 from fleetrl.federation.wire.messages import MessageRejected
 from fleetrl.federation.wire.signing import FleetKey, Status, parse_status
@@ -200,8 +200,6 @@ class WorkerSettings(RoleSettings):
         learning, _ = self.resolved_learning()  # the env's spaces fit the agent, the scheme the preset
         choose("device_link", self.device_link, DEVICE_LINKS)
         if self.device_link == "mqtt":
-            from fleetrl.envs.catalog import check_takes_link
-
             as_setting_error("device_link", check_takes_link, get_env_spec(learning.env))
         if self.worker_id < 0 or (self.unit is not None and self.unit < 0):
             raise SettingError(f"{label('worker_id')} and {label('unit')}: must be non-negative")

@@ -254,7 +254,7 @@ class RunSettings(RoundRules, BrokerLogin):
                     f"{label('device_link')} mqtt"
                 )
             return
-        from fleetrl.envs.catalog import bridge_driver, check_bridge_driver
+        from fleetrl.envs.device_side import bridge_driver, check_bridge_driver
 
         env = get_env_spec(learning.env)
         name = "device_link" if self.device_driver is None or not env.takes_link else "device_driver"
@@ -263,7 +263,7 @@ class RunSettings(RoundRules, BrokerLogin):
         as_setting_error("device_driver", check_bridge_driver, driver, unit, learning.fleet_seed)
 
     def bridge_driver(self) -> Any:
-        from fleetrl.envs.catalog import bridge_driver
+        from fleetrl.envs.device_side import bridge_driver
 
         return bridge_driver(get_env_spec(self.learning.env), self.device_driver)
 
